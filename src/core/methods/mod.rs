@@ -1,0 +1,599 @@
+//! The method catalogue: ids with their metadata (order, kind, geometric properties,
+//! requirements, citation), parsing of method choices, and construction of a stepper for a
+//! concrete system. One file per family beside this one.
+
+pub mod composition;
+pub mod conformal;
+pub mod implicit;
+pub mod reference;
+pub mod runge_kutta;
+pub mod splitting;
+
+use nalgebra::allocator::Allocator;
+use nalgebra::DefaultAllocator;
+use serde::{Deserialize, Serialize};
+
+use crate::core::error::{CoreError, StepError};
+use crate::core::flows::Tangent;
+use crate::core::run::Stepper;
+use crate::core::system::{MechanicalSystem, State, Structure};
+
+use composition::{triple_jump_weights, Composed};
+use conformal::Csv2;
+use implicit::{ImplicitMidpoint, MidpointField};
+use reference::Reference;
+use runge_kutta::{InnerRk, MomentumRk, RungeKutta, Tableau};
+use splitting::Splitting;
+
+/// Every method the core offers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum MethodId {
+    /// Forward Euler.
+    #[serde(rename = "explicit_euler")]
+    ExplicitEuler,
+    /// Heun's (explicit trapezoidal) method.
+    #[serde(rename = "heun")]
+    Heun,
+    /// Kutta's third-order method.
+    #[serde(rename = "rk3")]
+    Rk3,
+    /// Classical RK4.
+    #[serde(rename = "rk4")]
+    Rk4,
+    /// Implicit midpoint rule (Newton).
+    #[serde(rename = "implicit_midpoint")]
+    ImplicitMidpoint,
+    /// Symplectic Euler (kick then drift).
+    #[serde(rename = "symplectic_euler")]
+    SymplecticEuler,
+    /// Adjoint symplectic Euler (drift then kick).
+    #[serde(rename = "symplectic_euler_adjoint")]
+    SymplecticEulerAdjoint,
+    /// Störmer–Verlet, drift–kick–drift.
+    #[serde(rename = "position_verlet")]
+    PositionVerlet,
+    /// Störmer–Verlet, kick–drift–kick.
+    #[serde(rename = "velocity_verlet")]
+    VelocityVerlet,
+    /// Paper 000 Algorithm 3.1.
+    #[serde(rename = "modin_3s")]
+    Modin3s,
+    /// Paper 000 Algorithm 3.2.
+    #[serde(rename = "modin_2s")]
+    Modin2s,
+    /// Paper 000 Algorithm 3.3.
+    #[serde(rename = "modin_rks")]
+    ModinRks,
+    /// Paper 003 eq. (2.12).
+    #[serde(rename = "csv1")]
+    Csv1,
+    /// Paper 003 eq. (2.16).
+    #[serde(rename = "csv2")]
+    Csv2,
+    /// Paper 003 eq. (2.3).
+    #[serde(rename = "cimp")]
+    Cimp,
+    /// Fourth-order triple-jump composition of a symmetric second-order method.
+    #[serde(rename = "triple_jump")]
+    TripleJump,
+    /// Adaptive DOP853 at a tight tolerance.
+    #[serde(rename = "reference")]
+    Reference,
+}
+
+/// How much work a step takes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Kind {
+    /// No equation solving.
+    Explicit,
+    /// A linear solve per step.
+    LinearlyImplicit,
+    /// A nonlinear (Newton) solve per step.
+    Implicit,
+    /// Adaptive step size control inside each step.
+    Adaptive,
+}
+
+/// A structural requirement on the system.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Requirement {
+    /// H = ½pᵀM⁻¹p + V(q) with constant M.
+    SeparableConstantMass,
+    /// D ∝ M (linear damping p' = … − 2γp).
+    ConformalDamping,
+}
+
+impl Requirement {
+    /// The requirement in words, for error messages.
+    pub fn describe(self) -> &'static str {
+        match self {
+            Requirement::SeparableConstantMass => {
+                "a separable Hamiltonian with a constant mass matrix (its drift and kick flows must be exact)"
+            }
+            Requirement::ConformalDamping => "conformal damping D ∝ M (p' = −∇V − 2γp)",
+        }
+    }
+
+    fn met_by(self, s: Structure) -> bool {
+        match self {
+            Requirement::SeparableConstantMass => s.separable_constant_mass,
+            Requirement::ConformalDamping => s.conformal_damping,
+        }
+    }
+}
+
+/// Where a method comes from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct Citation {
+    /// The paper or book.
+    pub paper: &'static str,
+    /// Equation, algorithm or section.
+    pub equation: &'static str,
+}
+
+/// A catalogue entry for a method.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct MethodInfo {
+    /// Identifier used in requests.
+    pub id: MethodId,
+    /// Human-readable name.
+    pub name: &'static str,
+    /// Classical order (on smooth problems).
+    pub order: u32,
+    /// Work per step.
+    pub kind: Kind,
+    /// Symplectic when the damping is zero.
+    pub symplectic: bool,
+    /// Conformal symplectic under linear damping (det ∂Φ/∂z = e^{−2γh}·per dof).
+    pub conformal_symplectic: bool,
+    /// Symmetric (self-adjoint), so it can be a triple-jump base.
+    pub symmetric: bool,
+    /// What the system must satisfy.
+    pub requirements: &'static [Requirement],
+    /// Where it comes from.
+    pub reference: Citation,
+    /// Group for display: geometric, conformal or baseline.
+    pub group: &'static str,
+    /// Options the method accepts in the object form of a method choice.
+    pub options: &'static [&'static str],
+}
+
+const SEP: &[Requirement] = &[Requirement::SeparableConstantMass];
+const SEP_CONF: &[Requirement] = &[Requirement::SeparableConstantMass, Requirement::ConformalDamping];
+const HNW: &str = "Hairer, Nørsett, Wanner: Solving Ordinary Differential Equations I";
+const GNI: &str = "Hairer, Lubich, Wanner: Geometric Numerical Integration";
+const MODIN: &str = "000 Modin & Söderlind 2011";
+const FLOYD: &str = "003 Floyd 2014";
+const TAKACS: &str = "001 Takács & Fülöp";
+
+impl MethodId {
+    /// All methods, in catalogue order.
+    pub const ALL: [MethodId; 17] = [
+        MethodId::Modin3s,
+        MethodId::Modin2s,
+        MethodId::ModinRks,
+        MethodId::Csv1,
+        MethodId::Csv2,
+        MethodId::Cimp,
+        MethodId::TripleJump,
+        MethodId::SymplecticEuler,
+        MethodId::SymplecticEulerAdjoint,
+        MethodId::PositionVerlet,
+        MethodId::VelocityVerlet,
+        MethodId::ImplicitMidpoint,
+        MethodId::ExplicitEuler,
+        MethodId::Heun,
+        MethodId::Rk3,
+        MethodId::Rk4,
+        MethodId::Reference,
+    ];
+
+    /// The id as used in requests.
+    pub fn as_str(self) -> &'static str {
+        self.info().name_id()
+    }
+
+    /// Parses a request id.
+    pub fn parse(s: &str) -> Option<MethodId> {
+        MethodId::ALL.into_iter().find(|m| m.as_str() == s)
+    }
+
+    /// The method's metadata.
+    pub fn info(self) -> MethodInfo {
+        use Kind::*;
+        use MethodId as M;
+        let cite = |paper, equation| Citation { paper, equation };
+        let (name, order, kind, symplectic, conformal, symmetric, requirements, reference, group, options): (
+            &'static str,
+            u32,
+            Kind,
+            bool,
+            bool,
+            bool,
+            &'static [Requirement],
+            Citation,
+            &'static str,
+            &'static [&'static str],
+        ) = match self {
+            M::ExplicitEuler => ("Explicit Euler", 1, Explicit, false, false, false, &[], cite(HNW, "Sec. I.7"), "baseline", &[]),
+            M::Heun => ("Heun (explicit trapezoid)", 2, Explicit, false, false, false, &[], cite(MODIN, "footnote 1"), "baseline", &[]),
+            M::Rk3 => ("Kutta's third order", 3, Explicit, false, false, false, &[], cite(HNW, "Table II.1.1"), "baseline", &[]),
+            M::Rk4 => ("Classical Runge–Kutta 4", 4, Explicit, false, false, false, &[], cite(HNW, "Table II.1.2"), "baseline", &[]),
+            M::ImplicitMidpoint => ("Implicit midpoint", 2, Implicit, true, false, true, &[], cite(GNI, "Sec. II.1.1"), "baseline", &[]),
+            M::SymplecticEuler => ("Symplectic Euler", 1, Explicit, true, false, false, SEP, cite(TAKACS, "eq. (42)"), "baseline", &[]),
+            M::SymplecticEulerAdjoint => ("Symplectic Euler (adjoint)", 1, Explicit, true, false, false, SEP, cite(TAKACS, "eq. (43)"), "baseline", &[]),
+            M::PositionVerlet => ("Störmer–Verlet (drift–kick–drift)", 2, Explicit, true, false, true, SEP, cite(GNI, "Sec. I.1.4"), "baseline", &[]),
+            M::VelocityVerlet => ("Störmer–Verlet (kick–drift–kick)", 2, Explicit, true, false, true, SEP, cite(GNI, "Sec. I.1.4"), "baseline", &[]),
+            M::Modin3s => ("Three-term splitting (3S)", 2, Explicit, true, true, true, SEP, cite(MODIN, "Algorithm 3.1"), "geometric", &[]),
+            M::Modin2s => ("Two-term splitting (2S)", 2, Explicit, true, true, true, SEP, cite(MODIN, "Algorithm 3.2"), "geometric", &[]),
+            M::ModinRks => ("Runge–Kutta splitting (RKS)", 2, Explicit, true, false, false, SEP, cite(MODIN, "Algorithm 3.3"), "geometric", &["inner"]),
+            M::Csv1 => ("Conformal Störmer–Verlet 1 (CSV1)", 2, Explicit, true, true, true, SEP_CONF, cite(FLOYD, "eq. (2.12)"), "conformal", &[]),
+            M::Csv2 => ("Conformal Störmer–Verlet 2 (CSV2)", 2, Explicit, true, true, false, SEP_CONF, cite(FLOYD, "eq. (2.16)"), "conformal", &[]),
+            M::Cimp => ("Conformal implicit midpoint (CIMP)", 2, Implicit, true, true, true, SEP_CONF, cite(FLOYD, "eq. (2.3)"), "conformal", &[]),
+            M::TripleJump => ("Triple-jump composition (order 4)", 4, Explicit, true, true, true, &[], cite(GNI, "Sec. II.4, eq. (4.4)"), "geometric", &["base"]),
+            M::Reference => ("Reference: adaptive DOP853", 8, Adaptive, false, false, false, &[], cite(HNW, "Sec. II.10"), "baseline", &["tolerance"]),
+        };
+        MethodInfo {
+            id: self,
+            name,
+            order,
+            kind,
+            symplectic,
+            conformal_symplectic: conformal,
+            symmetric,
+            requirements,
+            reference,
+            group,
+            options,
+        }
+    }
+}
+
+impl MethodInfo {
+    fn name_id(&self) -> &'static str {
+        match self.id {
+            MethodId::ExplicitEuler => "explicit_euler",
+            MethodId::Heun => "heun",
+            MethodId::Rk3 => "rk3",
+            MethodId::Rk4 => "rk4",
+            MethodId::ImplicitMidpoint => "implicit_midpoint",
+            MethodId::SymplecticEuler => "symplectic_euler",
+            MethodId::SymplecticEulerAdjoint => "symplectic_euler_adjoint",
+            MethodId::PositionVerlet => "position_verlet",
+            MethodId::VelocityVerlet => "velocity_verlet",
+            MethodId::Modin3s => "modin_3s",
+            MethodId::Modin2s => "modin_2s",
+            MethodId::ModinRks => "modin_rks",
+            MethodId::Csv1 => "csv1",
+            MethodId::Csv2 => "csv2",
+            MethodId::Cimp => "cimp",
+            MethodId::TripleJump => "triple_jump",
+            MethodId::Reference => "reference",
+        }
+    }
+}
+
+/// Inner methods modin_rks accepts.
+pub const RKS_INNER: &[MethodId] = &[MethodId::Heun, MethodId::Rk4, MethodId::ImplicitMidpoint, MethodId::Rk3, MethodId::ExplicitEuler];
+/// Bases the triple jump accepts: the symmetric second-order methods.
+pub const TRIPLE_JUMP_BASES: &[MethodId] = &[
+    MethodId::Modin3s,
+    MethodId::Modin2s,
+    MethodId::Csv1,
+    MethodId::Cimp,
+    MethodId::PositionVerlet,
+    MethodId::VelocityVerlet,
+    MethodId::ImplicitMidpoint,
+];
+
+/// A method as a request gives it: a bare id or an object with options.
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
+#[serde(untagged)]
+pub enum MethodInput {
+    /// `"modin_3s"`.
+    Id(String),
+    /// `{"id": "modin_rks", "inner": "rk4"}`.
+    Object {
+        /// The method id.
+        id: String,
+        /// Inner Runge–Kutta method of modin_rks.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        inner: Option<String>,
+        /// Base method of triple_jump.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        base: Option<String>,
+        /// Tolerance of reference.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        tolerance: Option<f64>,
+    },
+}
+
+/// A validated method choice.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct MethodChoice {
+    /// The method.
+    pub id: MethodId,
+    /// Inner method (modin_rks).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub inner: Option<MethodId>,
+    /// Base method (triple_jump).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub base: Option<MethodId>,
+    /// Tolerance (reference).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tolerance: Option<f64>,
+}
+
+impl MethodChoice {
+    /// A choice with default options.
+    pub fn new(id: MethodId) -> Self {
+        let mut choice = MethodChoice {
+            id,
+            inner: None,
+            base: None,
+            tolerance: None,
+        };
+        choice.fill_defaults();
+        choice
+    }
+
+    /// A triple jump of `base`.
+    pub fn triple_jump(base: MethodId) -> Self {
+        MethodChoice {
+            id: MethodId::TripleJump,
+            inner: None,
+            base: Some(base),
+            tolerance: None,
+        }
+    }
+
+    /// modin_rks with `inner`.
+    pub fn rks(inner: MethodId) -> Self {
+        MethodChoice {
+            id: MethodId::ModinRks,
+            inner: Some(inner),
+            base: None,
+            tolerance: None,
+        }
+    }
+
+    fn fill_defaults(&mut self) {
+        match self.id {
+            MethodId::ModinRks => self.inner = self.inner.or(Some(MethodId::Heun)),
+            MethodId::TripleJump => self.base = self.base.or(Some(MethodId::Modin3s)),
+            MethodId::Reference => self.tolerance = self.tolerance.or(Some(reference::DEFAULT_TOLERANCE)),
+            _ => {}
+        }
+    }
+
+    /// A label that tells runs apart: `modin_rks(rk4)`, `triple_jump(csv1)`, `reference(1e-12)`.
+    pub fn label(&self) -> String {
+        let id = self.id.as_str();
+        match (self.inner, self.base, self.tolerance) {
+            (Some(i), _, _) => format!("{id}({})", i.as_str()),
+            (_, Some(b), _) => format!("{id}({})", b.as_str()),
+            (_, _, Some(t)) if t != reference::DEFAULT_TOLERANCE => format!("{id}({t:e})"),
+            _ => id.to_string(),
+        }
+    }
+
+    /// Parses and checks a request's method; `field` names it in errors (e.g. `methods[1]`).
+    pub fn parse(input: &MethodInput, field: &str) -> Result<Self, CoreError> {
+        let lookup = |s: &str, f: &str| {
+            MethodId::parse(s).ok_or_else(|| {
+                let known: Vec<&str> = MethodId::ALL.iter().map(|m| m.as_str()).collect();
+                CoreError::invalid(f, format!("unknown method `{s}`; known: {}", known.join(", ")))
+            })
+        };
+        let mut choice = match input {
+            MethodInput::Id(id) => MethodChoice {
+                id: lookup(id, &format!("{field}"))?,
+                inner: None,
+                base: None,
+                tolerance: None,
+            },
+            MethodInput::Object {
+                id,
+                inner,
+                base,
+                tolerance,
+            } => {
+                let id = lookup(id, &format!("{field}.id"))?;
+                let allowed = id.info().options;
+                for (name, present) in [("inner", inner.is_some()), ("base", base.is_some()), ("tolerance", tolerance.is_some())] {
+                    if present && !allowed.contains(&name) {
+                        return Err(CoreError::invalid(
+                            format!("{field}.{name}"),
+                            format!("`{}` takes no option `{name}`", id.as_str()),
+                        ));
+                    }
+                }
+                let inner = inner.as_deref().map(|s| lookup(s, &format!("{field}.inner"))).transpose()?;
+                let base = base.as_deref().map(|s| lookup(s, &format!("{field}.base"))).transpose()?;
+                MethodChoice {
+                    id,
+                    inner,
+                    base,
+                    tolerance: *tolerance,
+                }
+            }
+        };
+        choice.fill_defaults();
+        if let Some(inner) = choice.inner {
+            if !RKS_INNER.contains(&inner) {
+                return Err(CoreError::invalid(
+                    format!("{field}.inner"),
+                    format!("modin_rks needs a Runge–Kutta inner method: one of {}", names(RKS_INNER)),
+                ));
+            }
+        }
+        if let Some(base) = choice.base {
+            if !TRIPLE_JUMP_BASES.contains(&base) {
+                return Err(CoreError::invalid(
+                    format!("{field}.base"),
+                    format!(
+                        "the triple jump needs a symmetric second-order base: one of {}",
+                        names(TRIPLE_JUMP_BASES)
+                    ),
+                ));
+            }
+        }
+        if let Some(t) = choice.tolerance {
+            if !(t.is_finite() && (1e-14..=1e-2).contains(&t)) {
+                return Err(CoreError::invalid(format!("{field}.tolerance"), "must lie in [1e-14, 1e-2]"));
+            }
+        }
+        Ok(choice)
+    }
+
+    /// The requirements of this choice (a triple jump inherits its base's).
+    pub fn requirements(&self) -> &'static [Requirement] {
+        match (self.id, self.base) {
+            (MethodId::TripleJump, Some(base)) => base.info().requirements,
+            (id, _) => id.info().requirements,
+        }
+    }
+
+    /// Checks the requirements against a system; the error names the first unmet one.
+    pub fn check(&self, system_id: &str, structure: Structure) -> Result<(), CoreError> {
+        match self.requirements().iter().find(|r| !r.met_by(structure)) {
+            None => Ok(()),
+            Some(r) => Err(CoreError::Unmet {
+                method: self.label(),
+                system: system_id.to_string(),
+                requirement: r.describe().to_string(),
+            }),
+        }
+    }
+}
+
+fn names(ids: &[MethodId]) -> String {
+    ids.iter().map(|m| m.as_str()).collect::<Vec<_>>().join(", ")
+}
+
+fn tableau(id: MethodId) -> Option<&'static Tableau> {
+    match id {
+        MethodId::ExplicitEuler => Some(&runge_kutta::EXPLICIT_EULER),
+        MethodId::Heun => Some(&runge_kutta::HEUN),
+        MethodId::Rk3 => Some(&runge_kutta::RK3),
+        MethodId::Rk4 => Some(&runge_kutta::RK4),
+        _ => None,
+    }
+}
+
+fn sequence(id: MethodId) -> Option<splitting::Sequence> {
+    Some(match id {
+        MethodId::Modin3s => splitting::MODIN_3S,
+        MethodId::Modin2s => splitting::MODIN_2S,
+        MethodId::ModinRks => splitting::MODIN_RKS,
+        MethodId::Csv1 => splitting::CSV1,
+        MethodId::SymplecticEuler => splitting::SYMPLECTIC_EULER,
+        MethodId::SymplecticEulerAdjoint => splitting::SYMPLECTIC_EULER_ADJOINT,
+        MethodId::PositionVerlet => splitting::POSITION_VERLET,
+        MethodId::VelocityVerlet => splitting::VELOCITY_VERLET,
+        _ => return None,
+    })
+}
+
+/// A stepper for a concrete system, chosen at run time. Matching on it once per run (see
+/// [`with_stepper!`](crate::with_stepper)) runs the driver monomorphised for the concrete stepper.
+pub enum AnyStepper<S: MechanicalSystem>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    /// A splitting or composition of splittings.
+    Splitting(Splitting<S>),
+    /// An explicit Runge–Kutta method.
+    RungeKutta(RungeKutta<S::Dim>),
+    /// implicit_midpoint or cimp.
+    Midpoint(ImplicitMidpoint<S>),
+    /// csv2.
+    Csv2(Csv2<S>),
+    /// A triple jump of implicit_midpoint or cimp.
+    ComposedMidpoint(Composed<ImplicitMidpoint<S>>),
+    /// The adaptive reference.
+    Reference(Reference),
+}
+
+/// Runs `$body` with `$st` bound to the concrete stepper inside an [`AnyStepper`].
+#[macro_export]
+macro_rules! with_stepper {
+    ($any:expr, $st:ident => $body:expr) => {
+        match $any {
+            $crate::core::methods::AnyStepper::Splitting($st) => $body,
+            $crate::core::methods::AnyStepper::RungeKutta($st) => $body,
+            $crate::core::methods::AnyStepper::Midpoint($st) => $body,
+            $crate::core::methods::AnyStepper::Csv2($st) => $body,
+            $crate::core::methods::AnyStepper::ComposedMidpoint($st) => $body,
+            $crate::core::methods::AnyStepper::Reference($st) => $body,
+        }
+    };
+}
+
+impl<S: MechanicalSystem> Stepper<S> for AnyStepper<S>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    fn step(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64) -> Result<(), StepError> {
+        with_stepper!(self, st => st.step(sys, z, h))
+    }
+    fn force_evaluations(&self) -> u64 {
+        with_stepper!(self, st => Stepper::<S>::force_evaluations(st))
+    }
+    fn step_tangent(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64, t: &mut Tangent) -> Result<(), StepError> {
+        with_stepper!(self, st => st.step_tangent(sys, z, h, t))
+    }
+}
+
+/// Builds the stepper for `choice` on `sys` with step `h`, after checking the requirements and
+/// step-size limits. `system_id` names the system in errors.
+pub fn build<S: MechanicalSystem>(choice: &MethodChoice, sys: &S, system_id: &str, h: f64) -> Result<AnyStepper<S>, CoreError>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    choice.check(system_id, sys.structure())?;
+    let gamma = 0.5 * sys.damping_rate();
+    let uses_csv2 = choice.id == MethodId::Csv2 || choice.base == Some(MethodId::Csv2);
+    if uses_csv2 && gamma * h >= 2.0 {
+        return Err(CoreError::invalid(
+            "h",
+            format!("csv2 needs γh < 2 (it divides by 1 − γh/2); here γh = {}", gamma * h),
+        ));
+    }
+    let splitting = |seq: Vec<(splitting::SubFlow, f64)>| {
+        let inner = choice
+            .inner
+            .map(|i| MomentumRk::new(tableau(i).map_or(InnerRk::ImplicitMidpoint, InnerRk::Explicit), sys.dim()));
+        AnyStepper::Splitting(Splitting::new(sys, seq, inner))
+    };
+    Ok(match choice.id {
+        MethodId::TripleJump => {
+            let base = choice.base.unwrap_or(MethodId::Modin3s);
+            let weights = triple_jump_weights();
+            match (sequence(base), base) {
+                (Some(seq), _) => splitting(splitting::compose(seq, &weights)),
+                (None, MethodId::Cimp) => AnyStepper::ComposedMidpoint(Composed::new(
+                    ImplicitMidpoint::new(sys, MidpointField::Conformal),
+                    weights.to_vec(),
+                )),
+                _ => AnyStepper::ComposedMidpoint(Composed::new(
+                    ImplicitMidpoint::new(sys, MidpointField::Full),
+                    weights.to_vec(),
+                )),
+            }
+        }
+        MethodId::ImplicitMidpoint => AnyStepper::Midpoint(ImplicitMidpoint::new(sys, MidpointField::Full)),
+        MethodId::Cimp => AnyStepper::Midpoint(ImplicitMidpoint::new(sys, MidpointField::Conformal)),
+        MethodId::Csv2 => AnyStepper::Csv2(Csv2::new(sys)),
+        MethodId::Reference => AnyStepper::Reference(Reference::new(
+            choice.tolerance.unwrap_or(reference::DEFAULT_TOLERANCE),
+        )),
+        id => match (tableau(id), sequence(id)) {
+            (Some(t), _) => AnyStepper::RungeKutta(RungeKutta::new(t, sys.dim())),
+            (None, Some(seq)) => splitting(seq.to_vec()),
+            (None, None) => unreachable!("every method id has a constructor"),
+        },
+    })
+}

@@ -1,0 +1,285 @@
+//! Explicit Runge–Kutta methods as Butcher tableaux, run by one generic stepper on the full damped
+//! vector field; and the same tableaux on the momentum equation alone, as the inner method of
+//! modin_rks (paper 000 Algorithm 3.3).
+
+use nalgebra::allocator::Allocator;
+use nalgebra::{DMatrix, DefaultAllocator, Dim};
+
+use crate::core::error::StepError;
+use crate::core::flows::{self, Tangent};
+use crate::core::run::Stepper;
+use crate::core::system::{MechanicalSystem, State, Vector};
+
+/// An explicit Butcher tableau: stage i uses `a[i][j]` for j < i.
+#[derive(Debug)]
+pub struct Tableau {
+    /// Lower-triangular coefficients, row i of length i.
+    pub a: &'static [&'static [f64]],
+    /// Weights.
+    pub b: &'static [f64],
+    /// Nodes (c_i = Σ_j a_ij).
+    pub c: &'static [f64],
+    /// Classical order.
+    pub order: u32,
+}
+
+/// Forward Euler.
+pub const EXPLICIT_EULER: Tableau = Tableau {
+    a: &[&[]],
+    b: &[1.0],
+    c: &[0.0],
+    order: 1,
+};
+
+/// Heun's method, the explicit trapezoidal rule (Hairer–Nørsett–Wanner, Solving ODEs I, Table
+/// II.1.1; paper 000 footnote 1 calls it Runge's).
+pub const HEUN: Tableau = Tableau {
+    a: &[&[], &[1.0]],
+    b: &[0.5, 0.5],
+    c: &[0.0, 1.0],
+    order: 2,
+};
+
+/// Kutta's third-order method (Hairer–Nørsett–Wanner, Solving ODEs I, Table II.1.1).
+pub const RK3: Tableau = Tableau {
+    a: &[&[], &[0.5], &[-1.0, 2.0]],
+    b: &[1.0 / 6.0, 2.0 / 3.0, 1.0 / 6.0],
+    c: &[0.0, 0.5, 1.0],
+    order: 3,
+};
+
+/// The classical fourth-order Runge–Kutta method (Hairer–Nørsett–Wanner, Table II.1.2).
+pub const RK4: Tableau = Tableau {
+    a: &[&[], &[0.5], &[0.0, 0.5], &[0.0, 0.0, 1.0]],
+    b: &[1.0 / 6.0, 1.0 / 3.0, 1.0 / 3.0, 1.0 / 6.0],
+    c: &[0.0, 0.5, 0.5, 1.0],
+    order: 4,
+};
+
+impl Tableau {
+    /// Number of stages.
+    pub fn stages(&self) -> usize {
+        self.b.len()
+    }
+
+    /// The stability function R(x) = 1 + x bᵀ(I − xA)⁻¹𝟙 and the forcing weight S(x) of one step
+    /// of y' = x y − 1 (from y0 = 0): returns (R(x), −y1). Used for tangent maps of linear flows.
+    fn linear_response(&self, x: f64) -> (f64, f64) {
+        let run = |y0: f64, forcing: f64| {
+            let mut k = [0.0f64; 8];
+            for i in 0..self.stages() {
+                let yi = y0 + self.a[i].iter().zip(&k).map(|(a, k)| a * k).sum::<f64>();
+                k[i] = x * yi - forcing;
+            }
+            y0 + self.b.iter().zip(&k).map(|(b, k)| b * k).sum::<f64>()
+        };
+        (run(1.0, 0.0), -run(0.0, 1.0))
+    }
+}
+
+/// An explicit Runge–Kutta method on the full vector field.
+pub struct RungeKutta<D: Dim>
+where
+    DefaultAllocator: Allocator<D>,
+{
+    tableau: &'static Tableau,
+    kq: Vec<Vector<D>>,
+    kp: Vec<Vector<D>>,
+    stage: State<D>,
+    scratch: Vector<D>,
+    force_evaluations: u64,
+    stage_tangents: Vec<DMatrix<f64>>,
+}
+
+impl<D: Dim> RungeKutta<D>
+where
+    DefaultAllocator: Allocator<D>,
+{
+    /// A stepper for `tableau` on a system of dimension `dim`.
+    pub fn new(tableau: &'static Tableau, dim: D) -> Self {
+        let zero = Vector::<D>::zeros_generic(dim, nalgebra::U1);
+        let s = tableau.stages();
+        Self {
+            tableau,
+            kq: vec![zero.clone(); s],
+            kp: vec![zero.clone(); s],
+            stage: State {
+                q: zero.clone(),
+                p: zero.clone(),
+            },
+            scratch: zero,
+            force_evaluations: 0,
+            stage_tangents: Vec::new(),
+        }
+    }
+}
+
+impl<S: MechanicalSystem> Stepper<S> for RungeKutta<S::Dim>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    #[inline]
+    fn step(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64) -> Result<(), StepError> {
+        let t = self.tableau;
+        for i in 0..t.stages() {
+            self.stage.q.copy_from(&z.q);
+            self.stage.p.copy_from(&z.p);
+            for (j, &a) in t.a[i].iter().enumerate() {
+                if a != 0.0 {
+                    self.stage.q.axpy(h * a, &self.kq[j], 1.0);
+                    self.stage.p.axpy(h * a, &self.kp[j], 1.0);
+                }
+            }
+            sys.vector_field(
+                &self.stage.q,
+                &self.stage.p,
+                &mut self.kq[i],
+                &mut self.kp[i],
+                &mut self.scratch,
+            );
+        }
+        for (i, &b) in t.b.iter().enumerate() {
+            z.q.axpy(h * b, &self.kq[i], 1.0);
+            z.p.axpy(h * b, &self.kp[i], 1.0);
+        }
+        self.force_evaluations += t.stages() as u64;
+        Ok(())
+    }
+
+    fn force_evaluations(&self) -> u64 {
+        self.force_evaluations
+    }
+
+    /// The variational equation integrated by the same tableau: K_i = J(Z_i)(I + h Σ a_ij K_j),
+    /// with J = [[0, M⁻¹], [−∇²V, −r I]] (constant M, conformal damping).
+    fn step_tangent(
+        &mut self,
+        sys: &S,
+        z: &mut State<S::Dim>,
+        h: f64,
+        tangent: &mut Tangent,
+    ) -> Result<(), StepError> {
+        let t = self.tableau;
+        let n = z.q.len();
+        let r = sys.damping_rate();
+        if self.stage_tangents.len() != t.stages() {
+            self.stage_tangents = vec![DMatrix::zeros(2 * n, 2 * n); t.stages()];
+        }
+        let mut jac = DMatrix::zeros(2 * n, 2 * n);
+        for i in 0..t.stages() {
+            self.stage.q.copy_from(&z.q);
+            self.stage.p.copy_from(&z.p);
+            let mut arg = tangent.jac.clone();
+            for (j, &a) in t.a[i].iter().enumerate() {
+                self.stage.q.axpy(h * a, &self.kq[j], 1.0);
+                self.stage.p.axpy(h * a, &self.kp[j], 1.0);
+                arg += h * a * &self.stage_tangents[j];
+            }
+            self.force_evaluations += tangent.load_hessian(sys, &self.stage.q);
+            jac.fill(0.0);
+            jac.view_mut((0, n), (n, n)).copy_from(&tangent.minv);
+            jac.view_mut((n, 0), (n, n)).copy_from(&(-&tangent.hess));
+            jac.view_mut((n, n), (n, n)).fill_with_identity();
+            jac.view_mut((n, n), (n, n)).scale_mut(-r);
+            self.stage_tangents[i] = &jac * arg;
+            sys.vector_field(
+                &self.stage.q,
+                &self.stage.p,
+                &mut self.kq[i],
+                &mut self.kp[i],
+                &mut self.scratch,
+            );
+        }
+        for (i, &b) in t.b.iter().enumerate() {
+            z.q.axpy(h * b, &self.kq[i], 1.0);
+            z.p.axpy(h * b, &self.kp[i], 1.0);
+            tangent.jac += h * b * &self.stage_tangents[i];
+        }
+        self.force_evaluations += t.stages() as u64;
+        Ok(())
+    }
+}
+
+/// The Runge–Kutta method used on the momentum equation p' = −∇V(q) − r P(q) p with q frozen.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum InnerRk {
+    /// An explicit tableau.
+    Explicit(&'static Tableau),
+    /// The implicit midpoint rule, solved in closed form since the equation is linear in p.
+    ImplicitMidpoint,
+}
+
+impl PartialEq for Tableau {
+    fn eq(&self, other: &Self) -> bool {
+        std::ptr::eq(self, other)
+    }
+}
+impl Eq for Tableau {}
+
+/// Work space of the momentum Runge–Kutta sub-flow.
+pub struct MomentumRk<D: Dim>
+where
+    DefaultAllocator: Allocator<D>,
+{
+    method: InnerRk,
+    k: Vec<Vector<D>>,
+    stage: Vector<D>,
+    projected: Vector<D>,
+}
+
+impl<D: Dim> MomentumRk<D>
+where
+    DefaultAllocator: Allocator<D>,
+{
+    /// Work space for `method` in dimension `dim`.
+    pub fn new(method: InnerRk, dim: D) -> Self {
+        let zero = Vector::<D>::zeros_generic(dim, nalgebra::U1);
+        let stages = match method {
+            InnerRk::Explicit(t) => t.stages(),
+            InnerRk::ImplicitMidpoint => 0,
+        };
+        Self {
+            method,
+            k: vec![zero.clone(); stages],
+            stage: zero.clone(),
+            projected: zero,
+        }
+    }
+
+    /// One step of size τ of p' = −g − r P p, with g = ∇V(q) given.
+    #[inline]
+    pub fn step<S: MechanicalSystem<Dim = D>>(&mut self, sys: &S, z: &mut State<D>, tau: f64, g: &Vector<D>) {
+        let r = sys.damping_rate();
+        match self.method {
+            InnerRk::Explicit(t) => {
+                for i in 0..t.stages() {
+                    self.stage.copy_from(&z.p);
+                    for (j, &a) in t.a[i].iter().enumerate() {
+                        self.stage.axpy(tau * a, &self.k[j], 1.0);
+                    }
+                    sys.project_damped(&z.q, &self.stage, &mut self.projected);
+                    let ki = &mut self.k[i];
+                    ki.copy_from(g);
+                    ki.axpy(r, &self.projected, 1.0);
+                    ki.neg_mut();
+                }
+                for (i, &b) in t.b.iter().enumerate() {
+                    z.p.axpy(tau * b, &self.k[i], 1.0);
+                }
+            }
+            // On a field linear in p the implicit midpoint rule is the trapezoidal rule.
+            InnerRk::ImplicitMidpoint => flows::kick_theta(sys, z, tau, 0.5, g, &mut self.projected),
+        }
+    }
+
+    /// For P = I: one step maps p to A p − B ∇V(q); returns (A, B).
+    pub fn tangent_coefficients(&self, r: f64, tau: f64) -> (f64, f64) {
+        match self.method {
+            InnerRk::Explicit(t) => {
+                let (a, b) = t.linear_response(-r * tau);
+                (a, tau * b)
+            }
+            InnerRk::ImplicitMidpoint => flows::kick_theta_tangent(r, tau, 0.5),
+        }
+    }
+}

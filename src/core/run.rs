@@ -1,0 +1,255 @@
+//! The driver loop: advances a stepper over a run's steps, hands samples to an observer, and stops
+//! on the end, a non-finite state, cancellation or a deadline. It knows nothing of any particular
+//! method, and observers know nothing of integrators.
+//!
+//! A run of step h to t_end has n = ceil(t_end/h − 1e-9) steps, all of size h; sample times are
+//! t_k = k·h computed from the step index (never accumulated), so the same inputs give
+//! bit-identical output. Samples are taken at step 0, every `every`-th step and the last step.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+use nalgebra::allocator::Allocator;
+use nalgebra::DefaultAllocator;
+use serde::Serialize;
+
+use super::error::{CoreError, StepError};
+use super::flows::Tangent;
+use super::system::{MechanicalSystem, State};
+
+/// A one-step method for systems of type `S`. Implementations keep their work buffers, so a step
+/// allocates nothing.
+pub trait Stepper<S: MechanicalSystem>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    /// Advances `z` by one step of size `h`.
+    fn step(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64) -> Result<(), StepError>;
+
+    /// Gradient (∇V or ∂H/∂q) evaluations so far.
+    fn force_evaluations(&self) -> u64;
+
+    /// Advances `z` by one step and multiplies `tangent.jac` by the step's Jacobian ∂Φ/∂z.
+    fn step_tangent(
+        &mut self,
+        _sys: &S,
+        _z: &mut State<S::Dim>,
+        _h: f64,
+        _tangent: &mut Tangent,
+    ) -> Result<(), StepError> {
+        Err(StepError::TangentUnsupported {
+            reason: "this method has no tangent map",
+        })
+    }
+}
+
+impl<S: MechanicalSystem, T: Stepper<S> + ?Sized> Stepper<S> for Box<T>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    #[inline]
+    fn step(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64) -> Result<(), StepError> {
+        (**self).step(sys, z, h)
+    }
+    fn force_evaluations(&self) -> u64 {
+        (**self).force_evaluations()
+    }
+    fn step_tangent(
+        &mut self,
+        sys: &S,
+        z: &mut State<S::Dim>,
+        h: f64,
+        tangent: &mut Tangent,
+    ) -> Result<(), StepError> {
+        (**self).step_tangent(sys, z, h, tangent)
+    }
+}
+
+/// The number of steps for a run of step `h` to `t_end`: ceil(t_end/h − 1e-9).
+pub fn step_count(h: f64, t_end: f64) -> u64 {
+    (t_end / h - 1e-9).ceil().max(0.0) as u64
+}
+
+/// Fixed-step schedule of a run.
+#[derive(Clone, Copy, Debug)]
+pub struct Schedule {
+    /// Step size.
+    pub h: f64,
+    /// Number of steps.
+    pub steps: u64,
+    /// Sample every this many steps (≥ 1); the last step is always sampled.
+    pub every: u64,
+}
+
+impl Schedule {
+    /// The schedule for step `h` to `t_end`, sampling every `every` steps.
+    pub fn new(h: f64, t_end: f64, every: u64) -> Self {
+        Self {
+            h,
+            steps: step_count(h, t_end),
+            every: every.max(1),
+        }
+    }
+
+    /// Number of samples the run produces if it finishes.
+    pub fn samples(&self) -> u64 {
+        let regular = self.steps / self.every + 1;
+        if self.steps % self.every == 0 {
+            regular
+        } else {
+            regular + 1
+        }
+    }
+}
+
+/// Limits checked inside the loop: blocking work cannot be aborted from outside.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Budget<'a> {
+    /// Set to stop the run (a client went away).
+    pub cancel: Option<&'a AtomicBool>,
+    /// Stop when this instant passes.
+    pub deadline: Option<Instant>,
+}
+
+/// Why a run stopped.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case", tag = "reason")]
+pub enum StopReason {
+    /// All steps were taken.
+    Finished,
+    /// The state became non-finite at this step (its samples end just before).
+    Diverged {
+        /// The first step whose result is non-finite.
+        step: u64,
+        /// Its time.
+        t: f64,
+    },
+    /// The cancellation flag was set.
+    Cancelled {
+        /// Steps completed.
+        step: u64,
+    },
+    /// The deadline passed.
+    TimeLimit {
+        /// Steps completed.
+        step: u64,
+    },
+}
+
+/// Run statistics, shared by every output format.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct RunStats {
+    /// Steps taken.
+    pub steps: u64,
+    /// Gradient evaluations (∇V or ∂H/∂q).
+    pub force_evaluations: u64,
+    /// Wall time of the integration loop in milliseconds.
+    pub wall_time_ms: f64,
+}
+
+/// Receives the run's samples as they are produced.
+pub trait Observer<D: nalgebra::Dim>
+where
+    DefaultAllocator: Allocator<D>,
+{
+    /// A sample at `step`, time `t`.
+    fn on_sample(&mut self, step: u64, t: f64, z: &State<D>);
+
+    /// The Jacobian determinant of the step that ended at `step` (only when asked for).
+    fn on_step_determinant(&mut self, _step: u64, _det: f64) {}
+}
+
+/// How often the loop looks at the cancellation flag and the clock.
+const CHECK_EVERY: u64 = 1024;
+
+/// Runs `stepper` from `z` over `schedule`, reporting samples to `observer`.
+///
+/// With `track_determinant`, each step also propagates its Jacobian (slower; for diagnostics)
+/// and reports det ∂Φ/∂z to the observer.
+pub fn integrate<S, M, O>(
+    sys: &S,
+    stepper: &mut M,
+    z: &mut State<S::Dim>,
+    schedule: Schedule,
+    budget: Budget<'_>,
+    track_determinant: bool,
+    observer: &mut O,
+) -> Result<(StopReason, RunStats), CoreError>
+where
+    S: MechanicalSystem,
+    M: Stepper<S> + ?Sized,
+    O: Observer<S::Dim>,
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    let started = Instant::now();
+    let h = schedule.h;
+    let mut tangent = if track_determinant {
+        Some(Tangent::new(sys, z))
+    } else {
+        None
+    };
+    observer.on_sample(0, 0.0, z);
+    let mut stop = StopReason::Finished;
+    let mut step = 0u64;
+    while step < schedule.steps {
+        if step % CHECK_EVERY == 0 && step > 0 {
+            if budget.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+                stop = StopReason::Cancelled { step };
+                break;
+            }
+            if budget.deadline.is_some_and(|d| Instant::now() >= d) {
+                stop = StopReason::TimeLimit { step };
+                break;
+            }
+        }
+        // Steps up to the next sample, the next budget check or the end.
+        let next_sample = ((step / schedule.every) + 1) * schedule.every;
+        let next_check = ((step / CHECK_EVERY) + 1) * CHECK_EVERY;
+        let until = next_sample.min(next_check).min(schedule.steps);
+        let fail = |step: u64, source: StepError| CoreError::Step {
+            step: step + 1,
+            t: step as f64 * h,
+            source,
+        };
+        match tangent.as_mut() {
+            None => {
+                while step < until {
+                    stepper.step(sys, z, h).map_err(|e| fail(step, e))?;
+                    step += 1;
+                    // One sum is finite iff every component is (overflow aside, which is
+                    // divergence too): cheaper than testing each component.
+                    if !(z.q.sum() + z.p.sum()).is_finite() {
+                        break;
+                    }
+                }
+            }
+            Some(tg) => {
+                while step < until {
+                    tg.reset();
+                    stepper.step_tangent(sys, z, h, tg).map_err(|e| fail(step, e))?;
+                    step += 1;
+                    observer.on_step_determinant(step, tg.jac.determinant());
+                    if !z.is_finite() {
+                        break;
+                    }
+                }
+            }
+        }
+        if !z.is_finite() {
+            stop = StopReason::Diverged {
+                step,
+                t: step as f64 * h,
+            };
+            break;
+        }
+        if step % schedule.every == 0 || step == schedule.steps {
+            observer.on_sample(step, step as f64 * h, z);
+        }
+    }
+    let stats = RunStats {
+        steps: step,
+        force_evaluations: stepper.force_evaluations(),
+        wall_time_ms: started.elapsed().as_secs_f64() * 1e3,
+    };
+    Ok((stop, stats))
+}

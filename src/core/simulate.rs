@@ -1,0 +1,400 @@
+//! A simulation as users ask for it: a system with parameters and initial state, one or more
+//! methods, a step and a horizon, and the sampling. [`Simulation::prepare`] validates everything
+//! (cheap, before any work is queued); [`Simulation::run_method`] integrates one method and feeds
+//! its samples, with energies, energy errors and invariants, to a [`SampleSink`].
+
+use nalgebra::allocator::Allocator;
+use nalgebra::DefaultAllocator;
+use serde::Serialize;
+
+use super::error::CoreError;
+use super::methods::{self, MethodChoice, MethodInput};
+use super::run::{integrate, Budget, Observer, RunStats, Schedule, StopReason};
+use super::system::{MechanicalSystem, State};
+use super::systems::{self, AnySystem, Params, Resolved};
+use crate::{with_stepper, with_system};
+
+/// Hard limits on the work a request may ask for.
+#[derive(Clone, Copy, Debug)]
+pub struct Limits {
+    /// Most steps per method.
+    pub max_steps: u64,
+    /// Most samples over all methods of a request.
+    pub max_samples: u64,
+}
+
+impl Default for Limits {
+    fn default() -> Self {
+        Self {
+            max_steps: 10_000_000,
+            max_samples: 1_000_000,
+        }
+    }
+}
+
+/// A simulation request in core terms (the HTTP and CLI layers deserialize into this).
+#[derive(Clone, Debug, Default)]
+pub struct Request {
+    /// System id.
+    pub system: String,
+    /// System parameters.
+    pub params: Params,
+    /// Methods to run.
+    pub methods: Vec<MethodInput>,
+    /// Step size.
+    pub h: f64,
+    /// Final time.
+    pub t_end: f64,
+    /// Initial positions (default from the catalogue).
+    pub q0: Option<Vec<f64>>,
+    /// Initial momenta (default from the catalogue).
+    pub p0: Option<Vec<f64>>,
+    /// Sample every this many steps (default: about 1000 samples per method).
+    pub every: Option<u64>,
+    /// Measure energy errors against the reference integrator.
+    pub compare_to_reference: bool,
+    /// Report the per-step Jacobian determinant defect.
+    pub jacobian_defect: bool,
+}
+
+/// A validated simulation, ready to run.
+#[derive(Clone, Debug)]
+pub struct Simulation {
+    /// System id.
+    pub system_id: String,
+    /// All parameters, defaults filled in.
+    pub params: Resolved,
+    /// The concrete system.
+    pub system: AnySystem,
+    /// Validated methods, in the order asked.
+    pub methods: Vec<MethodChoice>,
+    /// Initial positions.
+    pub q0: Vec<f64>,
+    /// Initial momenta.
+    pub p0: Vec<f64>,
+    /// Step schedule.
+    pub schedule: Schedule,
+    /// Whether energy errors come from the reference integrator.
+    pub compare_to_reference: bool,
+    /// Whether to report the Jacobian determinant defect.
+    pub jacobian_defect: bool,
+}
+
+/// One sample as sinks receive it.
+#[derive(Clone, Debug, Serialize)]
+pub struct Sample<'a> {
+    /// Step index.
+    pub step: u64,
+    /// Time.
+    pub t: f64,
+    /// Positions.
+    pub q: &'a [f64],
+    /// Momenta.
+    pub p: &'a [f64],
+    /// Total energy H.
+    pub energy: f64,
+    /// H − H_exact (exact solution or reference), when known.
+    pub energy_error: Option<f64>,
+    /// Invariants, in the order of the system's invariant names.
+    pub invariants: &'a [f64],
+    /// |det ∂Φ/∂z − e^{−r h n}| of the step that ended here, when asked for.
+    pub jacobian_defect: Option<f64>,
+}
+
+/// Receives samples of one method's run.
+pub trait SampleSink {
+    /// One sample.
+    fn on_sample(&mut self, sample: &Sample<'_>);
+}
+
+/// How one method's run ended.
+#[derive(Clone, Debug, Serialize)]
+pub struct Outcome {
+    /// Why it stopped.
+    pub stop: StopReason,
+    /// Statistics.
+    pub stats: RunStats,
+}
+
+fn field_vec(name: &str, given: &Option<Vec<f64>>, default: &[f64], n: usize) -> Result<Vec<f64>, CoreError> {
+    let v = given.clone().unwrap_or_else(|| default.to_vec());
+    if v.len() != n {
+        return Err(CoreError::invalid(name, format!("needs {n} entries for this system, got {}", v.len())));
+    }
+    if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+        return Err(CoreError::invalid(format!("{name}[{i}]"), "must be finite"));
+    }
+    Ok(v)
+}
+
+impl Simulation {
+    /// Validates a request against the catalogues and the limits.
+    pub fn prepare(req: &Request, limits: &Limits) -> Result<Simulation, CoreError> {
+        let info = systems::info(&req.system)?;
+        let params = systems::resolve(&info, &req.params)?;
+        let system = systems::build(&req.system, &params)?;
+        let n = system.dimension();
+        // For N bodies the default state belongs to the default masses.
+        let default_fits = n == info.q0.len();
+        let (dq, dp) = if default_fits { (info.q0.clone(), info.p0.clone()) } else { (vec![], vec![]) };
+        if !default_fits && (req.q0.is_none() || req.p0.is_none()) {
+            return Err(CoreError::invalid(
+                if req.q0.is_none() { "q0" } else { "p0" },
+                format!("give q0 and p0 ({n} entries each) for a non-default number of bodies"),
+            ));
+        }
+        let q0 = field_vec("q0", &req.q0, &dq, n)?;
+        let p0 = field_vec("p0", &req.p0, &dp, n)?;
+        if !(req.h.is_finite() && req.h > 0.0) {
+            return Err(CoreError::invalid("h", format!("must be finite and > 0, got {}", req.h)));
+        }
+        if !(req.t_end.is_finite() && req.t_end > 0.0) {
+            return Err(CoreError::invalid("t_end", format!("must be finite and > 0, got {}", req.t_end)));
+        }
+        if req.methods.is_empty() {
+            return Err(CoreError::invalid("methods", "give at least one method"));
+        }
+        if req.methods.len() > 16 {
+            return Err(CoreError::invalid("methods", "at most 16 methods per request"));
+        }
+        let steps = super::run::step_count(req.h, req.t_end);
+        if steps > limits.max_steps {
+            return Err(CoreError::invalid(
+                "t_end",
+                format!("t_end/h = {steps} steps exceeds the limit of {} per method", limits.max_steps),
+            ));
+        }
+        let every = match req.every {
+            Some(0) => return Err(CoreError::invalid("output.every", "must be ≥ 1")),
+            Some(k) => k,
+            None => (steps / 1000).max(1),
+        };
+        let schedule = Schedule {
+            h: req.h,
+            steps,
+            every,
+        };
+        let total_samples = schedule.samples() * req.methods.len() as u64;
+        if total_samples > limits.max_samples {
+            return Err(CoreError::invalid(
+                "output.every",
+                format!(
+                    "{total_samples} samples in all exceeds the limit of {}; sample less often",
+                    limits.max_samples
+                ),
+            ));
+        }
+        let mut methods = Vec::with_capacity(req.methods.len());
+        for (i, input) in req.methods.iter().enumerate() {
+            let choice = MethodChoice::parse(input, &format!("methods[{i}]"))?;
+            // Building checks requirements and step-size limits; the stepper itself is dropped.
+            with_system!(&system, s => methods::build(&choice, s, &req.system, req.h).map(|_| ()))
+                .map_err(|e| match e {
+                    CoreError::Unmet { .. } => e,
+                    CoreError::Invalid { field, message } if field == "h" => CoreError::Invalid { field, message },
+                    other => other,
+                })?;
+            methods.push(choice);
+        }
+        if req.jacobian_defect {
+            let st = with_system!(&system, s => s.structure());
+            if !(st.conformal_damping && st.separable_constant_mass) {
+                return Err(CoreError::invalid(
+                    "jacobian_defect",
+                    "the determinant defect is defined for conformal damping (D ∝ M) only",
+                ));
+            }
+        }
+        Ok(Simulation {
+            system_id: req.system.clone(),
+            params,
+            system,
+            methods,
+            q0,
+            p0,
+            schedule,
+            compare_to_reference: req.compare_to_reference,
+            jacobian_defect: req.jacobian_defect,
+        })
+    }
+
+    /// Whether energy errors are available (an exact solution, or the reference when asked).
+    pub fn has_energy_error(&self) -> bool {
+        self.compare_to_reference || systems::info(&self.system_id).map(|i| i.exact_solution).unwrap_or(false)
+    }
+
+    /// Names of the system's invariants.
+    pub fn invariant_names(&self) -> &'static [&'static str] {
+        with_system!(&self.system, s => s.invariant_names())
+    }
+
+    /// The reference energies at the sample times (None unless `compare_to_reference`).
+    pub fn reference_energies(&self, budget: Budget<'_>) -> Result<Option<Vec<f64>>, CoreError> {
+        if !self.compare_to_reference {
+            return Ok(None);
+        }
+        let choice = MethodChoice::new(methods::MethodId::Reference);
+        let mut sink = EnergyLog(Vec::with_capacity(self.schedule.samples() as usize));
+        let outcome = self.run_choice(&choice, None, budget, &mut sink)?;
+        if outcome.stop != StopReason::Finished {
+            return Err(CoreError::invalid(
+                "compare_to_reference",
+                format!("the reference run did not finish ({:?})", outcome.stop),
+            ));
+        }
+        Ok(Some(sink.0))
+    }
+
+    /// Runs method `index`, sending samples to `sink`. `reference` holds reference energies per
+    /// sample (from [`Simulation::reference_energies`]).
+    pub fn run_method(
+        &self,
+        index: usize,
+        reference: Option<&[f64]>,
+        budget: Budget<'_>,
+        sink: &mut dyn SampleSink,
+    ) -> Result<Outcome, CoreError> {
+        self.run_choice(&self.methods[index], reference, budget, sink)
+    }
+
+    fn run_choice(
+        &self,
+        choice: &MethodChoice,
+        reference: Option<&[f64]>,
+        budget: Budget<'_>,
+        sink: &mut dyn SampleSink,
+    ) -> Result<Outcome, CoreError> {
+        with_system!(&self.system, sys => {
+            let mut stepper = methods::build(choice, sys, &self.system_id, self.schedule.h)?;
+            let start = State::from_slices(sys.dim(), &self.q0, &self.p0);
+            let mut z = start.clone();
+            let mut observer = Diagnose {
+                sys,
+                start: &start,
+                reference,
+                sink,
+                invariants: vec![0.0; sys.invariant_names().len()],
+                expected_det: (-sys.damping_rate() * self.schedule.h * self.q0.len() as f64).exp(),
+                last_det: None,
+                sample_index: 0,
+            };
+            let (stop, stats) = with_stepper!(&mut stepper, st => integrate(
+                sys,
+                st,
+                &mut z,
+                self.schedule,
+                budget,
+                self.jacobian_defect,
+                &mut observer,
+            ))?;
+            Ok(Outcome { stop, stats })
+        })
+    }
+}
+
+/// Collects only energies (for the reference run).
+struct EnergyLog(Vec<f64>);
+
+impl SampleSink for EnergyLog {
+    fn on_sample(&mut self, sample: &Sample<'_>) {
+        self.0.push(sample.energy);
+    }
+}
+
+/// The observer that turns raw states into [`Sample`]s.
+struct Diagnose<'a, S: MechanicalSystem>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    sys: &'a S,
+    start: &'a State<S::Dim>,
+    reference: Option<&'a [f64]>,
+    sink: &'a mut dyn SampleSink,
+    invariants: Vec<f64>,
+    expected_det: f64,
+    last_det: Option<f64>,
+    sample_index: usize,
+}
+
+impl<S: MechanicalSystem> Observer<S::Dim> for Diagnose<'_, S>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    fn on_sample(&mut self, step: u64, t: f64, z: &State<S::Dim>) {
+        let energy = self.sys.energy(&z.q, &z.p);
+        let energy_error = match self.reference {
+            Some(r) => r.get(self.sample_index).map(|e| energy - e),
+            None => self.sys.exact(t, self.start).map(|x| energy - self.sys.energy(&x.q, &x.p)),
+        };
+        self.sys.invariants(t, &z.q, &z.p, &mut self.invariants);
+        self.sink.on_sample(&Sample {
+            step,
+            t,
+            q: z.q.as_slice(),
+            p: z.p.as_slice(),
+            energy,
+            energy_error,
+            invariants: &self.invariants,
+            jacobian_defect: self.last_det.map(|d| (d - self.expected_det).abs()),
+        });
+        self.sample_index += 1;
+    }
+
+    fn on_step_determinant(&mut self, _step: u64, det: f64) {
+        self.last_det = Some(det);
+    }
+}
+
+/// A whole run in memory: what the JSON response carries per method.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct Trajectory {
+    /// Sample times.
+    pub t: Vec<f64>,
+    /// Positions per sample.
+    pub q: Vec<Vec<f64>>,
+    /// Momenta per sample.
+    pub p: Vec<Vec<f64>>,
+    /// Energy per sample.
+    pub energy: Vec<f64>,
+    /// Energy error per sample, when known.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub energy_error: Option<Vec<f64>>,
+    /// Invariants per sample, one column per invariant.
+    pub invariant_columns: Vec<Vec<f64>>,
+    /// Jacobian determinant defect per sample (from the step ending there), when asked.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub jacobian_defect: Option<Vec<f64>>,
+}
+
+impl SampleSink for Trajectory {
+    fn on_sample(&mut self, s: &Sample<'_>) {
+        self.t.push(s.t);
+        self.q.push(s.q.to_vec());
+        self.p.push(s.p.to_vec());
+        self.energy.push(s.energy);
+        if let Some(e) = s.energy_error {
+            self.energy_error.get_or_insert_with(Vec::new).push(e);
+        }
+        if self.invariant_columns.len() != s.invariants.len() {
+            self.invariant_columns = vec![Vec::new(); s.invariants.len()];
+        }
+        for (column, &v) in self.invariant_columns.iter_mut().zip(s.invariants) {
+            column.push(v);
+        }
+        if let Some(d) = s.jacobian_defect {
+            self.jacobian_defect.get_or_insert_with(Vec::new).push(d);
+        }
+    }
+}
+
+/// Runs method `index` of `sim` into a [`Trajectory`].
+pub fn run_to_trajectory(
+    sim: &Simulation,
+    index: usize,
+    reference: Option<&[f64]>,
+    budget: Budget<'_>,
+) -> Result<(Trajectory, Outcome), CoreError> {
+    let mut trajectory = Trajectory::default();
+    let outcome = sim.run_method(index, reference, budget, &mut trajectory)?;
+    Ok((trajectory, outcome))
+}

@@ -1,0 +1,183 @@
+//! What a mechanical system is: a Hamiltonian H(q, p) = T(q, p) + V(q) on a configuration space
+//! of dimension n, perturbed by Rayleigh damping (paper 000, eqs. 4–5):
+//!
+//! ```text
+//! q' = ∂H/∂p,    p' = −∂H/∂q − ε D(q) M(q)⁻¹ p
+//! ```
+//!
+//! The trait is written for the general case — the required methods `dh_dq` and `dh_dp` are the
+//! partial derivatives of a possibly non-separable H in generalized coordinates — while the
+//! splitting methods only use the separable pieces (`velocity`, `grad_potential`) and say so
+//! through [`Structure`]. Every output goes into a caller-owned buffer, so a step allocates nothing.
+//!
+//! Damping is described as "the momentum component in the damped subspace P(q) decays at the rate
+//! r": ε D(q) M⁻¹ p = r P(q) p with P an orthogonal projector. That covers the conformal case
+//! (D = M, P = I, r = ε = 2γ) and damping along a spring (P = q qᵀ/|q|², r = ε/m, paper 000
+//! eq. 16), and gives the exact sub-flows in closed form (see `flows`).
+
+use nalgebra::allocator::Allocator;
+use nalgebra::{DMatrix, DefaultAllocator, Dim, OVector};
+
+/// A vector of the configuration (or momentum) space.
+pub type Vector<D> = OVector<f64, D>;
+
+/// A phase-space point (q, p).
+#[derive(Clone, Debug, PartialEq)]
+pub struct State<D: Dim>
+where
+    DefaultAllocator: Allocator<D>,
+{
+    /// Generalized coordinates.
+    pub q: Vector<D>,
+    /// Conjugate momenta.
+    pub p: Vector<D>,
+}
+
+impl<D: Dim> State<D>
+where
+    DefaultAllocator: Allocator<D>,
+{
+    /// A state from slices, which must have the system's dimension.
+    pub fn from_slices(dim: D, q: &[f64], p: &[f64]) -> Self {
+        Self {
+            q: Vector::<D>::from_column_slice_generic(dim, nalgebra::U1, q),
+            p: Vector::<D>::from_column_slice_generic(dim, nalgebra::U1, p),
+        }
+    }
+
+    /// True when every component is finite.
+    pub fn is_finite(&self) -> bool {
+        self.q.iter().chain(self.p.iter()).all(|x| x.is_finite())
+    }
+}
+
+/// Structural facts about a system that methods may require.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Structure {
+    /// H = ½ pᵀM⁻¹p + V(q) with a constant mass matrix M: the drift and kick flows are exact
+    /// and explicit.
+    pub separable_constant_mass: bool,
+    /// The damping is conformal (D ∝ M), so p' = −∇V − 2γp.
+    pub conformal_damping: bool,
+}
+
+/// A Hamiltonian system with Rayleigh damping. See the module docs for the model.
+pub trait MechanicalSystem: Sync
+where
+    DefaultAllocator: Allocator<Self::Dim>,
+{
+    /// The configuration-space dimension type: `Const<N>` when fixed, `Dyn` when known only at
+    /// run time (N bodies).
+    type Dim: Dim;
+
+    /// The configuration-space dimension.
+    fn dim(&self) -> Self::Dim;
+
+    /// What the system's Hamiltonian and damping look like.
+    fn structure(&self) -> Structure;
+
+    /// Kinetic energy T(q, p).
+    fn kinetic(&self, q: &Vector<Self::Dim>, p: &Vector<Self::Dim>) -> f64;
+
+    /// Potential energy V(q).
+    fn potential(&self, q: &Vector<Self::Dim>) -> f64;
+
+    /// ∇V(q), written into `out`. This is the "force evaluation" the statistics count.
+    fn grad_potential(&self, q: &Vector<Self::Dim>, out: &mut Vector<Self::Dim>);
+
+    /// M⁻¹p for a separable system with constant mass (the drift velocity).
+    fn velocity(&self, q: &Vector<Self::Dim>, p: &Vector<Self::Dim>, out: &mut Vector<Self::Dim>);
+
+    /// ∂H/∂p. Defaults to the separable case, M⁻¹p.
+    fn dh_dp(&self, q: &Vector<Self::Dim>, p: &Vector<Self::Dim>, out: &mut Vector<Self::Dim>) {
+        self.velocity(q, p, out)
+    }
+
+    /// ∂H/∂q. Defaults to the separable case, ∇V(q).
+    fn dh_dq(&self, q: &Vector<Self::Dim>, _p: &Vector<Self::Dim>, out: &mut Vector<Self::Dim>) {
+        self.grad_potential(q, out)
+    }
+
+    /// Total energy H = T + V (the damping makes it decay).
+    fn energy(&self, q: &Vector<Self::Dim>, p: &Vector<Self::Dim>) -> f64 {
+        self.kinetic(q, p) + self.potential(q)
+    }
+
+    /// The rate r at which momentum in the damped subspace decays (ε D M⁻¹ p = r P(q) p);
+    /// zero for an undamped system.
+    fn damping_rate(&self) -> f64;
+
+    /// `out = P(q) v`, the projection onto the damped subspace. The default is the conformal
+    /// case P = I.
+    fn project_damped(&self, _q: &Vector<Self::Dim>, v: &Vector<Self::Dim>, out: &mut Vector<Self::Dim>) {
+        out.copy_from(v);
+    }
+
+    /// The Hessian ∇²V(q) (n×n). The default differentiates `grad_potential` by central
+    /// differences; systems with a cheap analytic Hessian override it. Returns the number of
+    /// gradient evaluations it used.
+    fn hess_potential(&self, q: &Vector<Self::Dim>, out: &mut DMatrix<f64>) -> u64 {
+        let n = q.len();
+        let mut qq = q.clone();
+        let mut gp = q.clone();
+        let mut gm = q.clone();
+        for j in 0..n {
+            let delta = 1e-5 * (1.0 + q[j].abs());
+            qq[j] = q[j] + delta;
+            self.grad_potential(&qq, &mut gp);
+            qq[j] = q[j] - delta;
+            self.grad_potential(&qq, &mut gm);
+            qq[j] = q[j];
+            for i in 0..n {
+                out[(i, j)] = (gp[i] - gm[i]) / (2.0 * delta);
+            }
+        }
+        // Symmetrise: the exact Hessian is symmetric, the differences only nearly so.
+        for i in 0..n {
+            for j in 0..i {
+                let s = 0.5 * (out[(i, j)] + out[(j, i)]);
+                out[(i, j)] = s;
+                out[(j, i)] = s;
+            }
+        }
+        2 * n as u64
+    }
+
+    /// Names of the system's invariants (or conformal invariants), in the order `invariants`
+    /// writes them.
+    fn invariant_names(&self) -> &'static [&'static str] {
+        &[]
+    }
+
+    /// The invariants at time t, written into `out` (length `invariant_names().len()`).
+    fn invariants(&self, _t: f64, _q: &Vector<Self::Dim>, _p: &Vector<Self::Dim>, _out: &mut [f64]) {
+    }
+
+    /// The exact state at time t from (q0, p0), where a closed form is known.
+    fn exact(&self, _t: f64, _start: &State<Self::Dim>) -> Option<State<Self::Dim>> {
+        None
+    }
+
+    /// The damping force ε D(q) M⁻¹ p = r P(q) p, written into `out`.
+    fn damping_force(&self, q: &Vector<Self::Dim>, p: &Vector<Self::Dim>, out: &mut Vector<Self::Dim>) {
+        self.project_damped(q, p, out);
+        *out *= self.damping_rate();
+    }
+
+    /// The full vector field (q', p') = (∂H/∂p, −∂H/∂q − ε D M⁻¹ p). `scratch` is a work
+    /// vector of the system's dimension.
+    fn vector_field(
+        &self,
+        q: &Vector<Self::Dim>,
+        p: &Vector<Self::Dim>,
+        dq: &mut Vector<Self::Dim>,
+        dp: &mut Vector<Self::Dim>,
+        scratch: &mut Vector<Self::Dim>,
+    ) {
+        self.dh_dp(q, p, dq);
+        self.dh_dq(q, p, dp);
+        self.damping_force(q, p, scratch);
+        *dp += &*scratch;
+        dp.neg_mut();
+    }
+}

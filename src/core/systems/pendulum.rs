@@ -1,0 +1,47 @@
+//! The damped planar pendulum (paper 000 Sec. 4.3; paper 003 eq. 4.5): T = p²/2, V = 1 − cos q,
+//! p' = −sin q − 2γp (000 writes ε p with ε = 2γ).
+
+use nalgebra::{DMatrix, U1};
+
+use crate::core::system::{MechanicalSystem, Structure, Vector};
+
+/// The damped pendulum with unit mass, length and gravity.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Pendulum {
+    /// Damping coefficient γ (ε = 2γ).
+    pub gamma: f64,
+}
+
+impl MechanicalSystem for Pendulum {
+    type Dim = U1;
+    fn dim(&self) -> U1 {
+        U1
+    }
+    fn structure(&self) -> Structure {
+        Structure {
+            separable_constant_mass: true,
+            conformal_damping: true,
+        }
+    }
+    fn kinetic(&self, _q: &Vector<U1>, p: &Vector<U1>) -> f64 {
+        0.5 * p[0] * p[0]
+    }
+    fn potential(&self, q: &Vector<U1>) -> f64 {
+        1.0 - q[0].cos()
+    }
+    #[inline]
+    fn grad_potential(&self, q: &Vector<U1>, out: &mut Vector<U1>) {
+        out[0] = q[0].sin();
+    }
+    #[inline]
+    fn velocity(&self, _q: &Vector<U1>, p: &Vector<U1>, out: &mut Vector<U1>) {
+        out[0] = p[0];
+    }
+    fn damping_rate(&self) -> f64 {
+        2.0 * self.gamma
+    }
+    fn hess_potential(&self, q: &Vector<U1>, out: &mut DMatrix<f64>) -> u64 {
+        out[(0, 0)] = q[0].cos();
+        0
+    }
+}
