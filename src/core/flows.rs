@@ -88,7 +88,10 @@ pub fn kick_theta<S: MechanicalSystem>(
 /// The tangent coefficients (A, B) of [`kick_theta`] for P = I: δp ← A δp − B ∇²V δq.
 pub fn kick_theta_tangent(r: f64, tau: f64, theta: f64) -> (f64, f64) {
     let denominator = 1.0 + theta * r * tau;
-    ((1.0 - (1.0 - theta) * r * tau) / denominator, tau / denominator)
+    (
+        (1.0 - (1.0 - theta) * r * tau) / denominator,
+        tau / denominator,
+    )
 }
 
 /// Exact damping decay p ← p − (1 − e^{−rτ}) P p.

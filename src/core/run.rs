@@ -226,7 +226,9 @@ where
             Some(tg) => {
                 while step < until {
                     tg.reset();
-                    stepper.step_tangent(sys, z, h, tg).map_err(|e| fail(step, e))?;
+                    stepper
+                        .step_tangent(sys, z, h, tg)
+                        .map_err(|e| fail(step, e))?;
                     step += 1;
                     observer.on_step_determinant(step, tg.jac.determinant());
                     if !z.is_finite() {

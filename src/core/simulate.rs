@@ -116,10 +116,18 @@ pub struct Outcome {
     pub stats: RunStats,
 }
 
-fn field_vec(name: &str, given: &Option<Vec<f64>>, default: &[f64], n: usize) -> Result<Vec<f64>, CoreError> {
+fn field_vec(
+    name: &str,
+    given: &Option<Vec<f64>>,
+    default: &[f64],
+    n: usize,
+) -> Result<Vec<f64>, CoreError> {
     let v = given.clone().unwrap_or_else(|| default.to_vec());
     if v.len() != n {
-        return Err(CoreError::invalid(name, format!("needs {n} entries for this system, got {}", v.len())));
+        return Err(CoreError::invalid(
+            name,
+            format!("needs {n} entries for this system, got {}", v.len()),
+        ));
     }
     if let Some(i) = v.iter().position(|x| !x.is_finite()) {
         return Err(CoreError::invalid(format!("{name}[{i}]"), "must be finite"));
@@ -136,7 +144,11 @@ impl Simulation {
         let n = system.dimension();
         // For N bodies the default state belongs to the default masses.
         let default_fits = n == info.q0.len();
-        let (dq, dp) = if default_fits { (info.q0.clone(), info.p0.clone()) } else { (vec![], vec![]) };
+        let (dq, dp) = if default_fits {
+            (info.q0.clone(), info.p0.clone())
+        } else {
+            (vec![], vec![])
+        };
         if !default_fits && (req.q0.is_none() || req.p0.is_none()) {
             return Err(CoreError::invalid(
                 if req.q0.is_none() { "q0" } else { "p0" },
@@ -146,22 +158,34 @@ impl Simulation {
         let q0 = field_vec("q0", &req.q0, &dq, n)?;
         let p0 = field_vec("p0", &req.p0, &dp, n)?;
         if !(req.h.is_finite() && req.h > 0.0) {
-            return Err(CoreError::invalid("h", format!("must be finite and > 0, got {}", req.h)));
+            return Err(CoreError::invalid(
+                "h",
+                format!("must be finite and > 0, got {}", req.h),
+            ));
         }
         if !(req.t_end.is_finite() && req.t_end > 0.0) {
-            return Err(CoreError::invalid("t_end", format!("must be finite and > 0, got {}", req.t_end)));
+            return Err(CoreError::invalid(
+                "t_end",
+                format!("must be finite and > 0, got {}", req.t_end),
+            ));
         }
         if req.methods.is_empty() {
             return Err(CoreError::invalid("methods", "give at least one method"));
         }
         if req.methods.len() > 16 {
-            return Err(CoreError::invalid("methods", "at most 16 methods per request"));
+            return Err(CoreError::invalid(
+                "methods",
+                "at most 16 methods per request",
+            ));
         }
         let steps = super::run::step_count(req.h, req.t_end);
         if steps > limits.max_steps {
             return Err(CoreError::invalid(
                 "t_end",
-                format!("t_end/h = {steps} steps exceeds the limit of {} per method", limits.max_steps),
+                format!(
+                    "t_end/h = {steps} steps exceeds the limit of {} per method",
+                    limits.max_steps
+                ),
             ));
         }
         let every = match req.every {
@@ -191,7 +215,9 @@ impl Simulation {
             with_system!(&system, s => methods::build(&choice, s, &req.system, req.h).map(|_| ()))
                 .map_err(|e| match e {
                     CoreError::Unmet { .. } => e,
-                    CoreError::Invalid { field, message } if field == "h" => CoreError::Invalid { field, message },
+                    CoreError::Invalid { field, message } if field == "h" => {
+                        CoreError::Invalid { field, message }
+                    }
                     other => other,
                 })?;
             methods.push(choice);
@@ -220,7 +246,10 @@ impl Simulation {
 
     /// Whether energy errors are available (an exact solution, or the reference when asked).
     pub fn has_energy_error(&self) -> bool {
-        self.compare_to_reference || systems::info(&self.system_id).map(|i| i.exact_solution).unwrap_or(false)
+        self.compare_to_reference
+            || systems::info(&self.system_id)
+                .map(|i| i.exact_solution)
+                .unwrap_or(false)
     }
 
     /// Names of the system's invariants.
@@ -324,7 +353,10 @@ where
         let energy = self.sys.energy(&z.q, &z.p);
         let energy_error = match self.reference {
             Some(r) => r.get(self.sample_index).map(|e| energy - e),
-            None => self.sys.exact(t, self.start).map(|x| energy - self.sys.energy(&x.q, &x.p)),
+            None => self
+                .sys
+                .exact(t, self.start)
+                .map(|x| energy - self.sys.energy(&x.q, &x.p)),
         };
         self.sys.invariants(t, &z.q, &z.p, &mut self.invariants);
         self.sink.on_sample(&Sample {

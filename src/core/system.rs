@@ -109,7 +109,12 @@ where
 
     /// `out = P(q) v`, the projection onto the damped subspace. The default is the conformal
     /// case P = I.
-    fn project_damped(&self, _q: &Vector<Self::Dim>, v: &Vector<Self::Dim>, out: &mut Vector<Self::Dim>) {
+    fn project_damped(
+        &self,
+        _q: &Vector<Self::Dim>,
+        v: &Vector<Self::Dim>,
+        out: &mut Vector<Self::Dim>,
+    ) {
         out.copy_from(v);
     }
 
@@ -150,7 +155,13 @@ where
     }
 
     /// The invariants at time t, written into `out` (length `invariant_names().len()`).
-    fn invariants(&self, _t: f64, _q: &Vector<Self::Dim>, _p: &Vector<Self::Dim>, _out: &mut [f64]) {
+    fn invariants(
+        &self,
+        _t: f64,
+        _q: &Vector<Self::Dim>,
+        _p: &Vector<Self::Dim>,
+        _out: &mut [f64],
+    ) {
     }
 
     /// The exact state at time t from (q0, p0), where a closed form is known.
@@ -159,7 +170,12 @@ where
     }
 
     /// The damping force ε D(q) M⁻¹ p = r P(q) p, written into `out`.
-    fn damping_force(&self, q: &Vector<Self::Dim>, p: &Vector<Self::Dim>, out: &mut Vector<Self::Dim>) {
+    fn damping_force(
+        &self,
+        q: &Vector<Self::Dim>,
+        p: &Vector<Self::Dim>,
+        out: &mut Vector<Self::Dim>,
+    ) {
         self.project_damped(q, p, out);
         *out *= self.damping_rate();
     }

@@ -104,7 +104,13 @@ where
         let n = self.n;
         match self.field {
             MidpointField::Full => {
-                sys.vector_field(&self.work.q, &self.work.p, &mut self.dq, &mut self.dp, &mut self.scratch);
+                sys.vector_field(
+                    &self.work.q,
+                    &self.work.p,
+                    &mut self.dq,
+                    &mut self.dp,
+                    &mut self.scratch,
+                );
             }
             MidpointField::Conformal => {
                 let g = Self::gamma(sys);

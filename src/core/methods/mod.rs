@@ -161,7 +161,10 @@ pub struct MethodInfo {
 }
 
 const SEP: &[Requirement] = &[Requirement::SeparableConstantMass];
-const SEP_CONF: &[Requirement] = &[Requirement::SeparableConstantMass, Requirement::ConformalDamping];
+const SEP_CONF: &[Requirement] = &[
+    Requirement::SeparableConstantMass,
+    Requirement::ConformalDamping,
+];
 const HNW: &str = "Hairer, Nørsett, Wanner: Solving Ordinary Differential Equations I";
 const GNI: &str = "Hairer, Lubich, Wanner: Geometric Numerical Integration";
 const MODIN: &str = "000 Modin & Söderlind 2011";
@@ -205,7 +208,18 @@ impl MethodId {
         use Kind::*;
         use MethodId as M;
         let cite = |paper, equation| Citation { paper, equation };
-        let (name, order, kind, symplectic, conformal, symmetric, requirements, reference, group, options): (
+        let (
+            name,
+            order,
+            kind,
+            symplectic,
+            conformal,
+            symmetric,
+            requirements,
+            reference,
+            group,
+            options,
+        ): (
             &'static str,
             u32,
             Kind,
@@ -217,23 +231,210 @@ impl MethodId {
             &'static str,
             &'static [&'static str],
         ) = match self {
-            M::ExplicitEuler => ("Explicit Euler", 1, Explicit, false, false, false, &[], cite(HNW, "Sec. I.7"), "baseline", &[]),
-            M::Heun => ("Heun (explicit trapezoid)", 2, Explicit, false, false, false, &[], cite(MODIN, "footnote 1"), "baseline", &[]),
-            M::Rk3 => ("Kutta's third order", 3, Explicit, false, false, false, &[], cite(HNW, "Table II.1.1"), "baseline", &[]),
-            M::Rk4 => ("Classical Runge–Kutta 4", 4, Explicit, false, false, false, &[], cite(HNW, "Table II.1.2"), "baseline", &[]),
-            M::ImplicitMidpoint => ("Implicit midpoint", 2, Implicit, true, false, true, &[], cite(GNI, "Sec. II.1.1"), "baseline", &[]),
-            M::SymplecticEuler => ("Symplectic Euler", 1, Explicit, true, false, false, SEP, cite(TAKACS, "eq. (42)"), "baseline", &[]),
-            M::SymplecticEulerAdjoint => ("Symplectic Euler (adjoint)", 1, Explicit, true, false, false, SEP, cite(TAKACS, "eq. (43)"), "baseline", &[]),
-            M::PositionVerlet => ("Störmer–Verlet (drift–kick–drift)", 2, Explicit, true, false, true, SEP, cite(GNI, "Sec. I.1.4"), "baseline", &[]),
-            M::VelocityVerlet => ("Störmer–Verlet (kick–drift–kick)", 2, Explicit, true, false, true, SEP, cite(GNI, "Sec. I.1.4"), "baseline", &[]),
-            M::Modin3s => ("Three-term splitting (3S)", 2, Explicit, true, true, true, SEP, cite(MODIN, "Algorithm 3.1"), "geometric", &[]),
-            M::Modin2s => ("Two-term splitting (2S)", 2, Explicit, true, true, true, SEP, cite(MODIN, "Algorithm 3.2"), "geometric", &[]),
-            M::ModinRks => ("Runge–Kutta splitting (RKS)", 2, Explicit, true, false, false, SEP, cite(MODIN, "Algorithm 3.3"), "geometric", &["inner"]),
-            M::Csv1 => ("Conformal Störmer–Verlet 1 (CSV1)", 2, Explicit, true, true, true, SEP_CONF, cite(FLOYD, "eq. (2.12)"), "conformal", &[]),
-            M::Csv2 => ("Conformal Störmer–Verlet 2 (CSV2)", 2, Explicit, true, true, false, SEP_CONF, cite(FLOYD, "eq. (2.16)"), "conformal", &[]),
-            M::Cimp => ("Conformal implicit midpoint (CIMP)", 2, Implicit, true, true, true, SEP_CONF, cite(FLOYD, "eq. (2.3)"), "conformal", &[]),
-            M::TripleJump => ("Triple-jump composition (order 4)", 4, Explicit, true, true, true, &[], cite(GNI, "Sec. II.4, eq. (4.4)"), "geometric", &["base"]),
-            M::Reference => ("Reference: adaptive DOP853", 8, Adaptive, false, false, false, &[], cite(HNW, "Sec. II.10"), "baseline", &["tolerance"]),
+            M::ExplicitEuler => (
+                "Explicit Euler",
+                1,
+                Explicit,
+                false,
+                false,
+                false,
+                &[],
+                cite(HNW, "Sec. I.7"),
+                "baseline",
+                &[],
+            ),
+            M::Heun => (
+                "Heun (explicit trapezoid)",
+                2,
+                Explicit,
+                false,
+                false,
+                false,
+                &[],
+                cite(MODIN, "footnote 1"),
+                "baseline",
+                &[],
+            ),
+            M::Rk3 => (
+                "Kutta's third order",
+                3,
+                Explicit,
+                false,
+                false,
+                false,
+                &[],
+                cite(HNW, "Table II.1.1"),
+                "baseline",
+                &[],
+            ),
+            M::Rk4 => (
+                "Classical Runge–Kutta 4",
+                4,
+                Explicit,
+                false,
+                false,
+                false,
+                &[],
+                cite(HNW, "Table II.1.2"),
+                "baseline",
+                &[],
+            ),
+            M::ImplicitMidpoint => (
+                "Implicit midpoint",
+                2,
+                Implicit,
+                true,
+                false,
+                true,
+                &[],
+                cite(GNI, "Sec. II.1.1"),
+                "baseline",
+                &[],
+            ),
+            M::SymplecticEuler => (
+                "Symplectic Euler",
+                1,
+                Explicit,
+                true,
+                false,
+                false,
+                SEP,
+                cite(TAKACS, "eq. (42)"),
+                "baseline",
+                &[],
+            ),
+            M::SymplecticEulerAdjoint => (
+                "Symplectic Euler (adjoint)",
+                1,
+                Explicit,
+                true,
+                false,
+                false,
+                SEP,
+                cite(TAKACS, "eq. (43)"),
+                "baseline",
+                &[],
+            ),
+            M::PositionVerlet => (
+                "Störmer–Verlet (drift–kick–drift)",
+                2,
+                Explicit,
+                true,
+                false,
+                true,
+                SEP,
+                cite(GNI, "Sec. I.1.4"),
+                "baseline",
+                &[],
+            ),
+            M::VelocityVerlet => (
+                "Störmer–Verlet (kick–drift–kick)",
+                2,
+                Explicit,
+                true,
+                false,
+                true,
+                SEP,
+                cite(GNI, "Sec. I.1.4"),
+                "baseline",
+                &[],
+            ),
+            M::Modin3s => (
+                "Three-term splitting (3S)",
+                2,
+                Explicit,
+                true,
+                true,
+                true,
+                SEP,
+                cite(MODIN, "Algorithm 3.1"),
+                "geometric",
+                &[],
+            ),
+            M::Modin2s => (
+                "Two-term splitting (2S)",
+                2,
+                Explicit,
+                true,
+                true,
+                true,
+                SEP,
+                cite(MODIN, "Algorithm 3.2"),
+                "geometric",
+                &[],
+            ),
+            M::ModinRks => (
+                "Runge–Kutta splitting (RKS)",
+                2,
+                Explicit,
+                true,
+                false,
+                false,
+                SEP,
+                cite(MODIN, "Algorithm 3.3"),
+                "geometric",
+                &["inner"],
+            ),
+            M::Csv1 => (
+                "Conformal Störmer–Verlet 1 (CSV1)",
+                2,
+                Explicit,
+                true,
+                true,
+                true,
+                SEP_CONF,
+                cite(FLOYD, "eq. (2.12)"),
+                "conformal",
+                &[],
+            ),
+            M::Csv2 => (
+                "Conformal Störmer–Verlet 2 (CSV2)",
+                2,
+                Explicit,
+                true,
+                true,
+                true,
+                SEP_CONF,
+                cite(FLOYD, "eq. (2.16)"),
+                "conformal",
+                &[],
+            ),
+            M::Cimp => (
+                "Conformal implicit midpoint (CIMP)",
+                2,
+                Implicit,
+                true,
+                true,
+                true,
+                SEP_CONF,
+                cite(FLOYD, "eq. (2.3)"),
+                "conformal",
+                &[],
+            ),
+            M::TripleJump => (
+                "Triple-jump composition (order 4)",
+                4,
+                Explicit,
+                true,
+                true,
+                true,
+                &[],
+                cite(GNI, "Sec. II.4, eq. (4.4)"),
+                "geometric",
+                &["base"],
+            ),
+            M::Reference => (
+                "Reference: adaptive DOP853",
+                8,
+                Adaptive,
+                false,
+                false,
+                false,
+                &[],
+                cite(HNW, "Sec. II.10"),
+                "baseline",
+                &["tolerance"],
+            ),
         };
         MethodInfo {
             id: self,
@@ -276,12 +477,19 @@ impl MethodInfo {
 }
 
 /// Inner methods modin_rks accepts.
-pub const RKS_INNER: &[MethodId] = &[MethodId::Heun, MethodId::Rk4, MethodId::ImplicitMidpoint, MethodId::Rk3, MethodId::ExplicitEuler];
+/// (At least second order, so that the splitting stays second order; paper 000 Sec. 3.)
+pub const RKS_INNER: &[MethodId] = &[
+    MethodId::Heun,
+    MethodId::Rk3,
+    MethodId::Rk4,
+    MethodId::ImplicitMidpoint,
+];
 /// Bases the triple jump accepts: the symmetric second-order methods.
 pub const TRIPLE_JUMP_BASES: &[MethodId] = &[
     MethodId::Modin3s,
     MethodId::Modin2s,
     MethodId::Csv1,
+    MethodId::Csv2,
     MethodId::Cimp,
     MethodId::PositionVerlet,
     MethodId::VelocityVerlet,
@@ -363,7 +571,9 @@ impl MethodChoice {
         match self.id {
             MethodId::ModinRks => self.inner = self.inner.or(Some(MethodId::Heun)),
             MethodId::TripleJump => self.base = self.base.or(Some(MethodId::Modin3s)),
-            MethodId::Reference => self.tolerance = self.tolerance.or(Some(reference::DEFAULT_TOLERANCE)),
+            MethodId::Reference => {
+                self.tolerance = self.tolerance.or(Some(reference::DEFAULT_TOLERANCE))
+            }
             _ => {}
         }
     }
@@ -384,7 +594,10 @@ impl MethodChoice {
         let lookup = |s: &str, f: &str| {
             MethodId::parse(s).ok_or_else(|| {
                 let known: Vec<&str> = MethodId::ALL.iter().map(|m| m.as_str()).collect();
-                CoreError::invalid(f, format!("unknown method `{s}`; known: {}", known.join(", ")))
+                CoreError::invalid(
+                    f,
+                    format!("unknown method `{s}`; known: {}", known.join(", ")),
+                )
             })
         };
         let mut choice = match input {
@@ -402,7 +615,11 @@ impl MethodChoice {
             } => {
                 let id = lookup(id, &format!("{field}.id"))?;
                 let allowed = id.info().options;
-                for (name, present) in [("inner", inner.is_some()), ("base", base.is_some()), ("tolerance", tolerance.is_some())] {
+                for (name, present) in [
+                    ("inner", inner.is_some()),
+                    ("base", base.is_some()),
+                    ("tolerance", tolerance.is_some()),
+                ] {
                     if present && !allowed.contains(&name) {
                         return Err(CoreError::invalid(
                             format!("{field}.{name}"),
@@ -410,8 +627,14 @@ impl MethodChoice {
                         ));
                     }
                 }
-                let inner = inner.as_deref().map(|s| lookup(s, &format!("{field}.inner"))).transpose()?;
-                let base = base.as_deref().map(|s| lookup(s, &format!("{field}.base"))).transpose()?;
+                let inner = inner
+                    .as_deref()
+                    .map(|s| lookup(s, &format!("{field}.inner")))
+                    .transpose()?;
+                let base = base
+                    .as_deref()
+                    .map(|s| lookup(s, &format!("{field}.base")))
+                    .transpose()?;
                 MethodChoice {
                     id,
                     inner,
@@ -425,7 +648,10 @@ impl MethodChoice {
             if !RKS_INNER.contains(&inner) {
                 return Err(CoreError::invalid(
                     format!("{field}.inner"),
-                    format!("modin_rks needs a Runge–Kutta inner method: one of {}", names(RKS_INNER)),
+                    format!(
+                        "modin_rks needs a Runge–Kutta inner method: one of {}",
+                        names(RKS_INNER)
+                    ),
                 ));
             }
         }
@@ -442,7 +668,10 @@ impl MethodChoice {
         }
         if let Some(t) = choice.tolerance {
             if !(t.is_finite() && (1e-14..=1e-2).contains(&t)) {
-                return Err(CoreError::invalid(format!("{field}.tolerance"), "must lie in [1e-14, 1e-2]"));
+                return Err(CoreError::invalid(
+                    format!("{field}.tolerance"),
+                    "must lie in [1e-14, 1e-2]",
+                ));
             }
         }
         Ok(choice)
@@ -470,7 +699,10 @@ impl MethodChoice {
 }
 
 fn names(ids: &[MethodId]) -> String {
-    ids.iter().map(|m| m.as_str()).collect::<Vec<_>>().join(", ")
+    ids.iter()
+        .map(|m| m.as_str())
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 fn tableau(id: MethodId) -> Option<&'static Tableau> {
@@ -513,6 +745,8 @@ where
     Csv2(Csv2<S>),
     /// A triple jump of implicit_midpoint or cimp.
     ComposedMidpoint(Composed<ImplicitMidpoint<S>>),
+    /// A triple jump of csv2.
+    ComposedCsv2(Composed<Csv2<S>>),
     /// The adaptive reference.
     Reference(Reference),
 }
@@ -527,6 +761,7 @@ macro_rules! with_stepper {
             $crate::core::methods::AnyStepper::Midpoint($st) => $body,
             $crate::core::methods::AnyStepper::Csv2($st) => $body,
             $crate::core::methods::AnyStepper::ComposedMidpoint($st) => $body,
+            $crate::core::methods::AnyStepper::ComposedCsv2($st) => $body,
             $crate::core::methods::AnyStepper::Reference($st) => $body,
         }
     };
@@ -542,14 +777,25 @@ where
     fn force_evaluations(&self) -> u64 {
         with_stepper!(self, st => Stepper::<S>::force_evaluations(st))
     }
-    fn step_tangent(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64, t: &mut Tangent) -> Result<(), StepError> {
+    fn step_tangent(
+        &mut self,
+        sys: &S,
+        z: &mut State<S::Dim>,
+        h: f64,
+        t: &mut Tangent,
+    ) -> Result<(), StepError> {
         with_stepper!(self, st => st.step_tangent(sys, z, h, t))
     }
 }
 
 /// Builds the stepper for `choice` on `sys` with step `h`, after checking the requirements and
 /// step-size limits. `system_id` names the system in errors.
-pub fn build<S: MechanicalSystem>(choice: &MethodChoice, sys: &S, system_id: &str, h: f64) -> Result<AnyStepper<S>, CoreError>
+pub fn build<S: MechanicalSystem>(
+    choice: &MethodChoice,
+    sys: &S,
+    system_id: &str,
+    h: f64,
+) -> Result<AnyStepper<S>, CoreError>
 where
     DefaultAllocator: Allocator<S::Dim>,
 {
@@ -559,13 +805,19 @@ where
     if uses_csv2 && gamma * h >= 2.0 {
         return Err(CoreError::invalid(
             "h",
-            format!("csv2 needs γh < 2 (it divides by 1 − γh/2); here γh = {}", gamma * h),
+            format!(
+                "csv2 needs γh < 2 (it divides by 1 − γh/2); here γh = {}",
+                gamma * h
+            ),
         ));
     }
     let splitting = |seq: Vec<(splitting::SubFlow, f64)>| {
-        let inner = choice
-            .inner
-            .map(|i| MomentumRk::new(tableau(i).map_or(InnerRk::ImplicitMidpoint, InnerRk::Explicit), sys.dim()));
+        let inner = choice.inner.map(|i| {
+            MomentumRk::new(
+                tableau(i).map_or(InnerRk::ImplicitMidpoint, InnerRk::Explicit),
+                sys.dim(),
+            )
+        });
         AnyStepper::Splitting(Splitting::new(sys, seq, inner))
     };
     Ok(match choice.id {
@@ -574,6 +826,9 @@ where
             let weights = triple_jump_weights();
             match (sequence(base), base) {
                 (Some(seq), _) => splitting(splitting::compose(seq, &weights)),
+                (None, MethodId::Csv2) => {
+                    AnyStepper::ComposedCsv2(Composed::new(Csv2::new(sys), weights.to_vec()))
+                }
                 (None, MethodId::Cimp) => AnyStepper::ComposedMidpoint(Composed::new(
                     ImplicitMidpoint::new(sys, MidpointField::Conformal),
                     weights.to_vec(),
@@ -584,8 +839,12 @@ where
                 )),
             }
         }
-        MethodId::ImplicitMidpoint => AnyStepper::Midpoint(ImplicitMidpoint::new(sys, MidpointField::Full)),
-        MethodId::Cimp => AnyStepper::Midpoint(ImplicitMidpoint::new(sys, MidpointField::Conformal)),
+        MethodId::ImplicitMidpoint => {
+            AnyStepper::Midpoint(ImplicitMidpoint::new(sys, MidpointField::Full))
+        }
+        MethodId::Cimp => {
+            AnyStepper::Midpoint(ImplicitMidpoint::new(sys, MidpointField::Conformal))
+        }
         MethodId::Csv2 => AnyStepper::Csv2(Csv2::new(sys)),
         MethodId::Reference => AnyStepper::Reference(Reference::new(
             choice.tolerance.unwrap_or(reference::DEFAULT_TOLERANCE),

@@ -23,7 +23,12 @@ where
     DefaultAllocator: Allocator<S::Dim>,
 {
     sys: &'a S,
-    work: std::cell::RefCell<(State<S::Dim>, Vector<S::Dim>, Vector<S::Dim>, Vector<S::Dim>)>,
+    work: std::cell::RefCell<(
+        State<S::Dim>,
+        Vector<S::Dim>,
+        Vector<S::Dim>,
+        Vector<S::Dim>,
+    )>,
 }
 
 impl<S: MechanicalSystem> ode_solvers::System<f64, DVector<f64>> for FirstOrder<'_, S>
@@ -122,8 +127,12 @@ fn dop853<F: ode_solvers::System<f64, DVector<f64>>>(
     let stats = solver.integrate().map_err(|e| StepError::AdaptiveFailed {
         message: e.to_string(),
     })?;
-    let end = solver.y_out().last().cloned().ok_or(StepError::AdaptiveFailed {
-        message: "the integrator produced no output".into(),
-    })?;
+    let end = solver
+        .y_out()
+        .last()
+        .cloned()
+        .ok_or(StepError::AdaptiveFailed {
+            message: "the integrator produced no output".into(),
+        })?;
     Ok((end, u64::from(stats.num_eval)))
 }

@@ -248,7 +248,13 @@ where
 
     /// One step of size τ of p' = −g − r P p, with g = ∇V(q) given.
     #[inline]
-    pub fn step<S: MechanicalSystem<Dim = D>>(&mut self, sys: &S, z: &mut State<D>, tau: f64, g: &Vector<D>) {
+    pub fn step<S: MechanicalSystem<Dim = D>>(
+        &mut self,
+        sys: &S,
+        z: &mut State<D>,
+        tau: f64,
+        g: &Vector<D>,
+    ) {
         let r = sys.damping_rate();
         match self.method {
             InnerRk::Explicit(t) => {
@@ -268,7 +274,9 @@ where
                 }
             }
             // On a field linear in p the implicit midpoint rule is the trapezoidal rule.
-            InnerRk::ImplicitMidpoint => flows::kick_theta(sys, z, tau, 0.5, g, &mut self.projected),
+            InnerRk::ImplicitMidpoint => {
+                flows::kick_theta(sys, z, tau, 0.5, g, &mut self.projected)
+            }
         }
     }
 

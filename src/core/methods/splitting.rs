@@ -71,7 +71,10 @@ pub enum SubFlow {
 impl SubFlow {
     /// Whether two adjacent flows of this kind merge into one with the summed fraction.
     fn fuses(self) -> bool {
-        matches!(self, SubFlow::Drift | SubFlow::Kick | SubFlow::Damp | SubFlow::KickDamp)
+        matches!(
+            self,
+            SubFlow::Drift | SubFlow::Kick | SubFlow::Damp | SubFlow::KickDamp
+        )
     }
 }
 
@@ -81,19 +84,35 @@ pub type Sequence = &'static [(SubFlow, f64)];
 use SubFlow::*;
 
 /// Paper 000, Algorithm 3.1.
-pub const MODIN_3S: Sequence = &[(Damp, 0.5), (Drift, 0.5), (Kick, 1.0), (Drift, 0.5), (Damp, 0.5)];
+pub const MODIN_3S: Sequence = &[
+    (Damp, 0.5),
+    (Drift, 0.5),
+    (Kick, 1.0),
+    (Drift, 0.5),
+    (Damp, 0.5),
+];
 /// Paper 000, Algorithm 3.2.
 pub const MODIN_2S: Sequence = &[(Drift, 0.5), (KickDamp, 1.0), (Drift, 0.5)];
 /// Paper 000, Algorithm 3.3.
 pub const MODIN_RKS: Sequence = &[(Drift, 0.5), (MomentumRk, 1.0), (Drift, 0.5)];
 /// Paper 003, eq. (2.12).
-pub const CSV1: Sequence = &[(Damp, 0.5), (Kick, 0.5), (Drift, 1.0), (Kick, 0.5), (Damp, 0.5)];
+pub const CSV1: Sequence = &[
+    (Damp, 0.5),
+    (Kick, 0.5),
+    (Drift, 1.0),
+    (Kick, 0.5),
+    (Damp, 0.5),
+];
 /// Paper 001, eq. (42): p⁺ = p − h∇V(q), q⁺ = q + h M⁻¹p⁺.
 pub const SYMPLECTIC_EULER: Sequence = &[(DampedKick(Theta::Implicit), 1.0), (Drift, 1.0)];
 /// The adjoint of symplectic Euler, 001 eq. (43): q⁺ = q + h M⁻¹p, p⁺ = p − h∇V(q⁺).
 pub const SYMPLECTIC_EULER_ADJOINT: Sequence = &[(Drift, 1.0), (DampedKick(Theta::Explicit), 1.0)];
 /// Störmer–Verlet, drift–kick–drift.
-pub const POSITION_VERLET: Sequence = &[(Drift, 0.5), (DampedKick(Theta::Trapezoid), 1.0), (Drift, 0.5)];
+pub const POSITION_VERLET: Sequence = &[
+    (Drift, 0.5),
+    (DampedKick(Theta::Trapezoid), 1.0),
+    (Drift, 0.5),
+];
 /// Störmer–Verlet, kick–drift–kick.
 pub const VELOCITY_VERLET: Sequence = &[
     (DampedKick(Theta::Implicit), 0.5),

@@ -100,7 +100,14 @@ pub struct SystemInfo {
 
 const MAX_BODIES: usize = 64;
 
-fn number(name: &'static str, description: &'static str, default: f64, min: f64, min_exclusive: bool, max: f64) -> ParamSpec {
+fn number(
+    name: &'static str,
+    description: &'static str,
+    default: f64,
+    min: f64,
+    min_exclusive: bool,
+    max: f64,
+) -> ParamSpec {
     ParamSpec {
         name,
         description,
@@ -130,7 +137,17 @@ fn figure_eight() -> (Vec<f64>, Vec<f64>) {
     let (x1, y1) = (-0.970_004_36, 0.243_087_53);
     let (vx3, vy3) = (-0.932_407_37, -0.864_731_46);
     let q = vec![x1, y1, 0.0, -x1, -y1, 0.0, 0.0, 0.0, 0.0];
-    let p = vec![-vx3 / 2.0, -vy3 / 2.0, 0.0, -vx3 / 2.0, -vy3 / 2.0, 0.0, vx3, vy3, 0.0];
+    let p = vec![
+        -vx3 / 2.0,
+        -vy3 / 2.0,
+        0.0,
+        -vx3 / 2.0,
+        -vy3 / 2.0,
+        0.0,
+        vx3,
+        vy3,
+        0.0,
+    ];
     (q, p)
 }
 
@@ -285,12 +302,17 @@ pub fn resolve(info: &SystemInfo, params: &Params) -> Result<Resolved, CoreError
         ));
     }
     for name in params.keys() {
-        let known = info.params.iter().any(|p| p.name == name) || (conformal_alias && name == "epsilon");
+        let known =
+            info.params.iter().any(|p| p.name == name) || (conformal_alias && name == "epsilon");
         if !known {
             let names: Vec<&str> = info.params.iter().map(|p| p.name).collect();
             return Err(CoreError::invalid(
                 format!("params.{name}"),
-                format!("unknown parameter for `{}`; known: {}", info.id, names.join(", ")),
+                format!(
+                    "unknown parameter for `{}`; known: {}",
+                    info.id,
+                    names.join(", ")
+                ),
             ));
         }
     }
@@ -311,9 +333,17 @@ pub fn resolve(info: &SystemInfo, params: &Params) -> Result<Resolved, CoreError
             } => {
                 let value = match given {
                     None => *default,
-                    Some(v) => v.as_f64().ok_or_else(|| CoreError::invalid(&field, "must be a number"))? * scale,
+                    Some(v) => {
+                        v.as_f64()
+                            .ok_or_else(|| CoreError::invalid(&field, "must be a number"))?
+                            * scale
+                    }
                 };
-                let below = if *min_exclusive { value <= *min } else { value < *min };
+                let below = if *min_exclusive {
+                    value <= *min
+                } else {
+                    value < *min
+                };
                 if !value.is_finite() || below || value > *max {
                     let open = if *min_exclusive { "(" } else { "[" };
                     return Err(CoreError::invalid(
@@ -326,7 +356,10 @@ pub fn resolve(info: &SystemInfo, params: &Params) -> Result<Resolved, CoreError
             ParamKind::Choice { default, options } => {
                 let value = match given {
                     None => default.to_string(),
-                    Some(v) => v.as_str().ok_or_else(|| CoreError::invalid(&field, "must be a string"))?.to_string(),
+                    Some(v) => v
+                        .as_str()
+                        .ok_or_else(|| CoreError::invalid(&field, "must be a string"))?
+                        .to_string(),
                 };
                 if !options.contains(&value.as_str()) {
                     return Err(CoreError::invalid(
@@ -348,14 +381,27 @@ pub fn resolve(info: &SystemInfo, params: &Params) -> Result<Resolved, CoreError
                         .as_array()
                         .ok_or_else(|| CoreError::invalid(&field, "must be a list of numbers"))?
                         .iter()
-                        .map(|x| x.as_f64().ok_or_else(|| CoreError::invalid(&field, "must be a list of numbers")))
+                        .map(|x| {
+                            x.as_f64().ok_or_else(|| {
+                                CoreError::invalid(&field, "must be a list of numbers")
+                            })
+                        })
                         .collect::<Result<Vec<f64>, _>>()?,
                 };
                 if list.is_empty() || list.len() > *max_len {
-                    return Err(CoreError::invalid(&field, format!("needs 1 to {max_len} entries, got {}", list.len())));
+                    return Err(CoreError::invalid(
+                        &field,
+                        format!("needs 1 to {max_len} entries, got {}", list.len()),
+                    ));
                 }
-                if let Some(bad) = list.iter().find(|&&x| !x.is_finite() || x <= *min || x > *max) {
-                    return Err(CoreError::invalid(&field, format!("{bad} is outside the valid range ({min}, {max}]")));
+                if let Some(bad) = list
+                    .iter()
+                    .find(|&&x| !x.is_finite() || x <= *min || x > *max)
+                {
+                    return Err(CoreError::invalid(
+                        &field,
+                        format!("{bad} is outside the valid range ({min}, {max}]"),
+                    ));
                 }
                 resolved.masses = Some(list);
             }
@@ -394,7 +440,11 @@ pub fn build(id: &str, r: &Resolved) -> Result<AnySystem, CoreError> {
             },
             gamma: n("gamma"),
         }),
-        other => return Err(CoreError::UnknownSystem { id: other.to_string() }),
+        other => {
+            return Err(CoreError::UnknownSystem {
+                id: other.to_string(),
+            })
+        }
     })
 }
 

@@ -1,0 +1,130 @@
+//! Observed orders of every method against the damped oscillator's exact solution, and the
+//! symmetry of the methods that claim it.
+
+mod common;
+
+use common::final_state;
+use geomint::core::diagnostics::log_log_slope;
+use geomint::core::methods::{MethodChoice, MethodId, RKS_INNER, TRIPLE_JUMP_BASES};
+use geomint::core::system::{MechanicalSystem, State};
+use geomint::core::systems::HarmonicOscillator;
+use nalgebra::U1;
+
+fn every_choice() -> Vec<MethodChoice> {
+    let mut choices: Vec<MethodChoice> = MethodId::ALL
+        .iter()
+        .filter(|&&m| m != MethodId::Reference)
+        .map(|&m| MethodChoice::new(m))
+        .collect();
+    choices.extend(
+        TRIPLE_JUMP_BASES
+            .iter()
+            .map(|&b| MethodChoice::triple_jump(b)),
+    );
+    choices.extend(RKS_INNER.iter().map(|&i| MethodChoice::rks(i)));
+    choices
+}
+
+fn nominal_order(c: &MethodChoice) -> f64 {
+    f64::from(c.id.info().order)
+}
+
+#[test]
+fn every_method_converges_with_its_nominal_order_on_the_damped_oscillator() {
+    let sys = HarmonicOscillator {
+        omega: 2.0,
+        gamma: 0.3,
+    };
+    let start = State::from_slices(U1, &[1.0], &[0.5]);
+    let t_end = 4.0;
+    let exact = sys.exact(t_end, &start).unwrap();
+    let hs = [0.04, 0.02, 0.01, 0.005];
+    let mut report = Vec::new();
+    for choice in every_choice() {
+        let errors: Vec<f64> = hs
+            .iter()
+            .map(|&h| {
+                let z = final_state(&sys, &choice, &start, h, t_end);
+                ((z.q[0] - exact.q[0]).powi(2) + (z.p[0] - exact.p[0]).powi(2)).sqrt()
+            })
+            .collect();
+        let order = log_log_slope(&hs, &errors);
+        report.push(format!("{:32} observed {order:.3}", choice.label()));
+        assert!(
+            (order - nominal_order(&choice)).abs() <= 0.2,
+            "{} observed order {order:.3}, nominal {}: errors {errors:?}",
+            choice.label(),
+            nominal_order(&choice)
+        );
+    }
+    println!("{}", report.join("\n"));
+}
+
+#[test]
+fn reference_matches_the_exact_solution_to_its_tolerance() {
+    for gamma in [0.3, 2.0, 3.0] {
+        // under-, critically and over-damped
+        let sys = HarmonicOscillator { omega: 2.0, gamma };
+        let start = State::from_slices(U1, &[1.0], &[0.5]);
+        let exact = sys.exact(10.0, &start).unwrap();
+        let z = final_state(
+            &sys,
+            &MethodChoice::new(MethodId::Reference),
+            &start,
+            0.5,
+            10.0,
+        );
+        let err = (z.q[0] - exact.q[0]).abs() + (z.p[0] - exact.p[0]).abs();
+        assert!(err < 1e-11, "gamma {gamma}: reference error {err:e}");
+    }
+}
+
+#[test]
+fn exact_solution_satisfies_the_equation_in_all_three_regimes() {
+    // Checks q' = p and p' = −ω²q − 2γp by central differences of the closed form.
+    for gamma in [0.5, 2.0, 3.5] {
+        let sys = HarmonicOscillator { omega: 2.0, gamma };
+        let d = 1e-5;
+        for t in [0.3, 1.7, 4.0] {
+            let (q, p) = sys.solution(t, 0.7, -0.2);
+            let (qa, pa) = sys.solution(t + d, 0.7, -0.2);
+            let (qb, pb) = sys.solution(t - d, 0.7, -0.2);
+            let dq = (qa - qb) / (2.0 * d);
+            let dp = (pa - pb) / (2.0 * d);
+            assert!(
+                (dq - p).abs() < 1e-8,
+                "q' = p fails at gamma {gamma}, t {t}"
+            );
+            assert!(
+                (dp + 4.0 * q + 2.0 * gamma * p).abs() < 1e-8,
+                "p' fails at gamma {gamma}, t {t}"
+            );
+        }
+    }
+}
+
+#[test]
+fn symmetric_methods_are_their_own_adjoint() {
+    // Φ₋ₕ ∘ Φₕ = id to round-off for every method marked symmetric, on the nonlinear pendulum.
+    let sys = geomint::core::systems::Pendulum { gamma: 0.2 };
+    let start = State::from_slices(U1, &[2.0], &[0.3]);
+    for choice in every_choice().into_iter().filter(|c| c.id.info().symmetric) {
+        let forward = final_state(&sys, &choice, &start, 0.1, 0.1);
+        let mut stepper = geomint::core::methods::build(&choice, &sys, "pendulum", 0.1).unwrap();
+        let mut z = forward.clone();
+        geomint::core::run::Stepper::step(&mut stepper, &sys, &mut z, -0.1).unwrap();
+        let err = (z.q[0] - start.q[0]).abs() + (z.p[0] - start.p[0]).abs();
+        assert!(
+            err < 1e-13,
+            "{}: Φ₋ₕ∘Φₕ differs from the identity by {err:e}",
+            choice.label()
+        );
+    }
+    // And Heun, which is not symmetric, is not.
+    let heun = MethodChoice::new(MethodId::Heun);
+    let forward = final_state(&sys, &heun, &start, 0.1, 0.1);
+    let mut stepper = geomint::core::methods::build(&heun, &sys, "pendulum", 0.1).unwrap();
+    let mut z = forward;
+    geomint::core::run::Stepper::step(&mut stepper, &sys, &mut z, -0.1).unwrap();
+    assert!((z.q[0] - start.q[0]).abs() + (z.p[0] - start.p[0]).abs() > 1e-6);
+}
