@@ -1,1 +1,120 @@
-fn main(){}
+//! ns per step of the core's hot loop, measured like the hand-written floor loops beside the
+//! project (`../shared/peers/floor`, subcommand `bench`): h = 0.1, one timed run = 5000
+//! repetitions of a [0, 200] integration (2000 steps each, state reset each time so that the
+//! amplitude never reaches subnormal numbers), one warm-up, then the median of 7 runs.
+//!
+//! P1: damped pendulum, ε = 0.01, q0 = 0.9π, p0 = 0. P2: elastic 3-D pendulum, ε = 0.1,
+//! q0 = (0, 1.55884573, −0.6), p0 = (1.34164079, 0, 0) (paper 000 Secs. 4.3 and 6.2).
+
+use std::hint::black_box;
+use std::time::Instant;
+
+use geomint::core::methods::{self, MethodChoice, MethodId};
+use geomint::core::run::{integrate, Budget, Observer, Schedule};
+use geomint::core::system::{MechanicalSystem, State};
+use geomint::core::systems::{ElasticPendulum3d, Pendulum};
+use nalgebra::allocator::Allocator;
+use nalgebra::DefaultAllocator;
+
+struct Checksum(f64);
+
+impl<D: nalgebra::Dim> Observer<D> for Checksum
+where
+    DefaultAllocator: Allocator<D>,
+{
+    fn on_sample(&mut self, step: u64, _t: f64, z: &State<D>) {
+        if step > 0 {
+            self.0 += z.q[0];
+        }
+    }
+}
+
+const REPETITIONS: u64 = 5000;
+const STEPS: u64 = 2000;
+const H: f64 = 0.1;
+
+/// Median ns per step and the checksum of the final states.
+fn measure<S: MechanicalSystem>(sys: &S, choice: &MethodChoice, start: &State<S::Dim>) -> (f64, f64)
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    let schedule = Schedule {
+        h: H,
+        steps: STEPS,
+        every: u64::MAX,
+    };
+    let mut one_run = || {
+        let mut sum = Checksum(0.0);
+        let began = Instant::now();
+        for _ in 0..REPETITIONS {
+            let mut stepper =
+                methods::build(choice, sys, "bench", black_box(H)).expect("method builds");
+            let mut z = black_box(start.clone());
+            integrate(
+                sys,
+                &mut stepper,
+                &mut z,
+                schedule,
+                Budget::default(),
+                false,
+                &mut sum,
+            )
+            .expect("run");
+        }
+        (
+            began.elapsed().as_secs_f64() * 1e9 / (REPETITIONS * STEPS) as f64,
+            sum.0,
+        )
+    };
+    one_run();
+    let mut runs: Vec<(f64, f64)> = (0..7).map(|_| one_run()).collect();
+    runs.sort_by(|a, b| a.0.total_cmp(&b.0));
+    runs[3]
+}
+
+fn main() {
+    let filter: Vec<String> = std::env::args()
+        .skip(1)
+        .filter(|a| !a.starts_with('-'))
+        .collect();
+    let wanted = |name: &str| filter.is_empty() || filter.iter().any(|f| name.contains(f.as_str()));
+    let choices = [
+        MethodChoice::new(MethodId::Modin3s),
+        MethodChoice::new(MethodId::Csv1),
+        MethodChoice::new(MethodId::Rk4),
+        MethodChoice::new(MethodId::Heun),
+    ];
+    println!("| problem | method | ns/step (median of 7 × 10⁷ steps) | checksum |");
+    println!("|---|---|---|---|");
+    let p1 = Pendulum { gamma: 0.005 };
+    let p1_start = State::from_slices(nalgebra::U1, &[0.9 * std::f64::consts::PI], &[0.0]);
+    for c in &choices {
+        let name = format!("P1 {}", c.label());
+        if wanted(&name) {
+            let (ns, sum) = measure(&p1, c, &p1_start);
+            println!("| P1 pendulum | {} | {ns:.1} | {sum:.6e} |", c.label());
+        }
+    }
+    let p2 = ElasticPendulum3d {
+        m: 1.0,
+        k: 1.0,
+        l: 1.0,
+        g: 1.0,
+        epsilon: 0.1,
+    };
+    let p2_start = State::from_slices(
+        nalgebra::U3,
+        &[0.0, 1.558_845_73, -0.6],
+        &[1.341_640_79, 0.0, 0.0],
+    );
+    for c in choices.iter().filter(|c| c.id != MethodId::Csv1) {
+        let name = format!("P2 {}", c.label());
+        if wanted(&name) {
+            let (ns, sum) = measure(&p2, c, &p2_start);
+            println!(
+                "| P2 elastic pendulum | {} | {ns:.1} | {sum:.6e} |",
+                c.label()
+            );
+        }
+    }
+}

@@ -100,12 +100,31 @@ pub fn damp<S: MechanicalSystem>(sys: &S, z: &mut State<S::Dim>, tau: f64, w: &m
 where
     DefaultAllocator: Allocator<S::Dim>,
 {
-    let r = sys.damping_rate();
-    if r == 0.0 {
+    damp_with(sys, z, damp_coefficient(sys.damping_rate(), tau), w);
+}
+
+/// The coefficient c = 1 − e^{−rτ} of [`damp_with`].
+#[inline]
+pub fn damp_coefficient(r: f64, tau: f64) -> f64 {
+    one_minus_exp_neg(r * tau)
+}
+
+/// Damping decay with a precomputed c = 1 − e^{−rτ}: p ← p − c P p. A run with a fixed step
+/// computes c once instead of an exponential per step.
+#[inline]
+pub fn damp_with<S: MechanicalSystem>(
+    sys: &S,
+    z: &mut State<S::Dim>,
+    c: f64,
+    w: &mut Vector<S::Dim>,
+) where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    if c == 0.0 {
         return;
     }
     sys.project_damped(&z.q, &z.p, w);
-    z.p.axpy(-one_minus_exp_neg(r * tau), w, 1.0);
+    z.p.axpy(-c, w, 1.0);
 }
 
 /// Exact flow of p' = −g − r P p for time τ with q (and so g = ∇V(q)) frozen.
@@ -120,16 +139,39 @@ pub fn kick_damp<S: MechanicalSystem>(
 ) where
     DefaultAllocator: Allocator<S::Dim>,
 {
-    let r = sys.damping_rate();
-    if r == 0.0 {
+    let (c, d) = kick_damp_coefficients(sys.damping_rate(), tau);
+    kick_damp_with(sys, z, tau, c, d, grad, w, pw);
+}
+
+/// The coefficients (c, d) = (1 − e^{−rτ}, τ − c/r) of [`kick_damp_with`]; d = τ(1 − φ₁(−rτ)).
+#[inline]
+pub fn kick_damp_coefficients(r: f64, tau: f64) -> (f64, f64) {
+    let x = r * tau;
+    (one_minus_exp_neg(x), tau * one_minus_phi1_neg(x))
+}
+
+/// The exact kick-and-damp with precomputed coefficients: p ← p − τ g + P(−c p + d g).
+#[inline]
+#[allow(clippy::too_many_arguments)]
+pub fn kick_damp_with<S: MechanicalSystem>(
+    sys: &S,
+    z: &mut State<S::Dim>,
+    tau: f64,
+    c: f64,
+    d: f64,
+    grad: &Vector<S::Dim>,
+    w: &mut Vector<S::Dim>,
+    pw: &mut Vector<S::Dim>,
+) where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    if c == 0.0 {
         kick(z, tau, grad);
         return;
     }
-    let x = r * tau;
-    // w = −c p + (τ − c/r) g, with τ − c/r = τ (1 − φ₁(−x)).
     w.copy_from(&z.p);
-    *w *= -one_minus_exp_neg(x);
-    w.axpy(tau * one_minus_phi1_neg(x), grad, 1.0);
+    *w *= -c;
+    w.axpy(d, grad, 1.0);
     sys.project_damped(&z.q, w, pw);
     z.p.axpy(-tau, grad, 1.0);
     z.p += &*pw;

@@ -141,6 +141,9 @@ where
     DefaultAllocator: Allocator<S::Dim>,
 {
     sequence: Vec<(SubFlow, f64)>,
+    /// Per-flow coefficients that depend on h only (the damping exponentials), for `coeff_h`.
+    coefficients: Vec<(f64, f64)>,
+    coeff_h: f64,
     inner: Option<MomentumRk<S::Dim>>,
     grad: Vector<S::Dim>,
     grad_valid: bool,
@@ -157,6 +160,8 @@ where
     pub fn new(sys: &S, sequence: Vec<(SubFlow, f64)>, inner: Option<MomentumRk<S::Dim>>) -> Self {
         let zero = Vector::<S::Dim>::zeros_generic(sys.dim(), nalgebra::U1);
         Self {
+            coefficients: vec![(0.0, 0.0); sequence.len()],
+            coeff_h: f64::NAN,
             sequence,
             inner,
             grad: zero.clone(),
@@ -167,9 +172,30 @@ where
         }
     }
 
-    /// Applies one sub-flow for time τ.
+    /// Recomputes the h-dependent coefficients when the step size changes (once per run for a
+    /// fixed-step run, three times per step inside a composition of a composition).
+    #[inline]
+    fn prepare(&mut self, sys: &S, h: f64) {
+        if h == self.coeff_h {
+            return;
+        }
+        let r = sys.damping_rate();
+        for (k, &(flow, frac)) in self.sequence.iter().enumerate() {
+            let tau = frac * h;
+            self.coefficients[k] = match flow {
+                Damp => (flows::damp_coefficient(r, tau), 0.0),
+                KickDamp => flows::kick_damp_coefficients(r, tau),
+                _ => (0.0, 0.0),
+            };
+        }
+        self.coeff_h = h;
+    }
+
+    /// Applies sub-flow `k` of the sequence for time τ.
     #[inline(always)]
-    fn apply(&mut self, sys: &S, z: &mut State<S::Dim>, flow: SubFlow, tau: f64) {
+    fn apply(&mut self, sys: &S, z: &mut State<S::Dim>, k: usize, tau: f64) {
+        let flow = self.sequence[k].0;
+        let (c, d) = self.coefficients[k];
         match flow {
             Drift => {
                 flows::drift(sys, z, tau, &mut self.w1);
@@ -183,10 +209,10 @@ where
                 self.ensure_grad(sys, &z.q);
                 flows::kick_theta(sys, z, tau, theta.value(), &self.grad, &mut self.w1);
             }
-            Damp => flows::damp(sys, z, tau, &mut self.w1),
+            Damp => flows::damp_with(sys, z, c, &mut self.w1),
             KickDamp => {
                 self.ensure_grad(sys, &z.q);
-                flows::kick_damp(sys, z, tau, &self.grad, &mut self.w1, &mut self.w2);
+                flows::kick_damp_with(sys, z, tau, c, d, &self.grad, &mut self.w1, &mut self.w2);
             }
             MomentumRk => {
                 self.ensure_grad(sys, &z.q);
@@ -213,9 +239,10 @@ where
 {
     #[inline]
     fn step(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64) -> Result<(), StepError> {
-        for i in 0..self.sequence.len() {
-            let (flow, frac) = self.sequence[i];
-            self.apply(sys, z, flow, frac * h);
+        self.prepare(sys, h);
+        for k in 0..self.sequence.len() {
+            let frac = self.sequence[k].1;
+            self.apply(sys, z, k, frac * h);
         }
         Ok(())
     }
@@ -232,8 +259,9 @@ where
         tangent: &mut Tangent,
     ) -> Result<(), StepError> {
         let r = sys.damping_rate();
-        for i in 0..self.sequence.len() {
-            let (flow, frac) = self.sequence[i];
+        self.prepare(sys, h);
+        for k in 0..self.sequence.len() {
+            let (flow, frac) = self.sequence[k];
             let tau = frac * h;
             // Each flow's Jacobian is taken at the state it acts on, before it moves it.
             match flow {
@@ -253,7 +281,7 @@ where
                     tangent.kick_scaled(a, b);
                 }
             }
-            self.apply(sys, z, flow, tau);
+            self.apply(sys, z, k, tau);
         }
         Ok(())
     }
