@@ -332,3 +332,35 @@ fn a_diverging_run_reports_the_step_instead_of_panicking() {
         other => panic!("expected divergence, got {other:?}"),
     }
 }
+
+#[test]
+fn dissipation_drift_of_paper_003_is_flat_for_conformal_methods_and_not_for_rk3() {
+    // 003 Figs. 4.6–4.7: Δt = 0.5, γ = 0.005; d(t) = ln max|q| + γt per half-oscillation.
+    let methods = ["csv1", "csv2", "cimp", "rk3"];
+    let req = request(
+        "harmonic_oscillator",
+        json!({"omega": 1.0, "gamma": 0.005}),
+        &methods,
+        0.5,
+        2000.0,
+    );
+    let (sim, runs) = run_all(&req);
+    for (name, run) in methods.iter().zip(&runs) {
+        let drift = sim.dissipation_drift(run).expect("1-DOF conformal system");
+        assert!(
+            drift.len() > 500,
+            "{name}: {} half-oscillations",
+            drift.len()
+        );
+        let slope = geomint::core::diagnostics::least_squares_slope(
+            &drift.iter().map(|p| p.t).collect::<Vec<_>>(),
+            &drift.iter().map(|p| p.d).collect::<Vec<_>>(),
+        );
+        if *name == "rk3" {
+            assert!(slope.abs() > 1e-5, "rk3 drift slope {slope:e}");
+        } else {
+            assert!(slope.abs() < 1e-6, "{name} drift slope {slope:e}");
+        }
+        println!("{name}: d(t) slope {slope:e}");
+    }
+}

@@ -44,12 +44,17 @@ pub fn dissipation_drift(t: &[f64], q: &[f64], gamma: f64) -> Vec<DriftPoint> {
 
 /// Least-squares slope of log(y) against log(x): an observed order of convergence.
 pub fn log_log_slope(x: &[f64], y: &[f64]) -> f64 {
-    let n = x.len().min(y.len()) as f64;
     let lx: Vec<f64> = x.iter().map(|v| v.ln()).collect();
     let ly: Vec<f64> = y.iter().map(|v| v.ln()).collect();
-    let mx = lx.iter().sum::<f64>() / n;
-    let my = ly.iter().sum::<f64>() / n;
-    let sxy: f64 = lx.iter().zip(&ly).map(|(a, b)| (a - mx) * (b - my)).sum();
-    let sxx: f64 = lx.iter().map(|a| (a - mx) * (a - mx)).sum();
+    least_squares_slope(&lx, &ly)
+}
+
+/// Least-squares slope of y against x (for the trend of the dissipation drift).
+pub fn least_squares_slope(x: &[f64], y: &[f64]) -> f64 {
+    let n = x.len().min(y.len()) as f64;
+    let mx = x.iter().sum::<f64>() / n;
+    let my = y.iter().sum::<f64>() / n;
+    let sxy: f64 = x.iter().zip(y).map(|(a, b)| (a - mx) * (b - my)).sum();
+    let sxx: f64 = x.iter().map(|a| (a - mx) * (a - mx)).sum();
     sxy / sxx
 }

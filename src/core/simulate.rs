@@ -419,6 +419,23 @@ impl SampleSink for Trajectory {
     }
 }
 
+impl Simulation {
+    /// The dissipation drift of paper 003 eq. (4.4) for a 1-DOF system with conformal damping,
+    /// from a run's samples; `None` for other systems.
+    pub fn dissipation_drift(
+        &self,
+        run: &Trajectory,
+    ) -> Option<Vec<super::diagnostics::DriftPoint>> {
+        let conformal = with_system!(&self.system, s => s.structure().conformal_damping);
+        if self.q0.len() != 1 || !conformal {
+            return None;
+        }
+        let gamma = 0.5 * with_system!(&self.system, s => s.damping_rate());
+        let q: Vec<f64> = run.q.iter().map(|q| q[0]).collect();
+        Some(super::diagnostics::dissipation_drift(&run.t, &q, gamma))
+    }
+}
+
 /// Runs method `index` of `sim` into a [`Trajectory`].
 pub fn run_to_trajectory(
     sim: &Simulation,
