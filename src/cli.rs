@@ -1,1 +1,338 @@
-//! Command line.
+//! The command line: `geomint serve` (the default), `geomint run spec.json`, `geomint systems`
+//! and `geomint methods`. Every server setting can also come from a `GEOMINT_*` environment
+//! variable.
+//!
+//! Exit codes: 0 on success, 2 for a bad command line, an unreadable spec or an invalid one
+//! (the message names the field), 1 when output cannot be written or the server cannot start.
+
+use std::fs::File;
+use std::io::{self, BufWriter, IsTerminal, Read, Write};
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Mutex;
+use std::time::Duration;
+
+use clap::{Args, Parser, Subcommand, ValueEnum};
+
+use crate::core::run::Budget;
+use crate::core::simulate::Limits;
+use crate::http::{self, Config};
+use crate::output::{self, catalog, SimulateRequest, StreamLine};
+
+/// Geometric numerical integration of damped Hamiltonian systems, as a web service.
+#[derive(Debug, Parser)]
+#[command(
+    name = "geomint",
+    version,
+    about,
+    args_conflicts_with_subcommands = true
+)]
+pub struct Cli {
+    /// What to do (default: serve).
+    #[command(subcommand)]
+    pub command: Option<Command>,
+    /// Server settings when no subcommand is given.
+    #[command(flatten)]
+    pub serve: ServeArgs,
+}
+
+/// The subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Serve the HTTP API (the default).
+    Serve(ServeArgs),
+    /// Run a simulation spec (the body of POST /api/v1/simulate) without a server.
+    Run(RunArgs),
+    /// Print the system catalogue as JSON.
+    Systems,
+    /// Print the method catalogue as JSON.
+    Methods,
+}
+
+/// Settings of `geomint serve`.
+#[derive(Clone, Debug, Args)]
+pub struct ServeArgs {
+    /// Address to listen on.
+    #[arg(long, env = "GEOMINT_ADDR", default_value = "127.0.0.1:8080")]
+    pub addr: SocketAddr,
+    /// Most steps per method (1e7 style accepted).
+    #[arg(long, env = "GEOMINT_MAX_STEPS", default_value = "10000000", value_parser = parse_count)]
+    pub max_steps: u64,
+    /// Most samples per request over all methods.
+    #[arg(long, env = "GEOMINT_MAX_SAMPLES", default_value = "1000000", value_parser = parse_count)]
+    pub max_samples: u64,
+    /// Most simulation threads at once (default: the number of cores).
+    #[arg(long, env = "GEOMINT_MAX_CONCURRENT", value_parser = clap::value_parser!(u64).range(1..=4096))]
+    pub max_concurrent: Option<u64>,
+    /// Time limit of a simulation in seconds; runs then stop with `time_limit`.
+    #[arg(long, env = "GEOMINT_REQUEST_TIMEOUT_SECS", default_value_t = 60, value_parser = clap::value_parser!(u64).range(1..))]
+    pub request_timeout_secs: u64,
+    /// How long a request waits for a free simulation slot before it gets 503, in milliseconds.
+    #[arg(long, env = "GEOMINT_QUEUE_TIMEOUT_MS", default_value_t = 250)]
+    pub queue_timeout_ms: u64,
+    /// Origins allowed by CORS, comma-separated, or `*` (default: CORS off).
+    #[arg(long, env = "GEOMINT_CORS_ORIGINS", value_delimiter = ',')]
+    pub cors_origins: Vec<String>,
+    /// Directory served at `/`, if it exists.
+    #[arg(long, env = "GEOMINT_STATIC_DIR", default_value = "static")]
+    pub static_dir: PathBuf,
+    /// Largest request body in bytes.
+    #[arg(long, env = "GEOMINT_BODY_LIMIT", default_value = "1048576", value_parser = parse_count)]
+    pub body_limit: u64,
+    /// Seconds running simulations may go on after a shutdown signal before they are cancelled.
+    #[arg(long, env = "GEOMINT_SHUTDOWN_GRACE_SECS", default_value_t = 10)]
+    pub shutdown_grace_secs: u64,
+    /// Log filter (tracing's EnvFilter syntax).
+    #[arg(long, env = "GEOMINT_LOG", default_value = "info")]
+    pub log: String,
+}
+
+/// Output formats of `geomint run`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Format {
+    /// One JSON document.
+    Json,
+    /// NDJSON lines, as the API streams them.
+    Ndjson,
+}
+
+/// Settings of `geomint run`.
+#[derive(Clone, Debug, Args)]
+pub struct RunArgs {
+    /// The spec file (JSON, as the body of POST /api/v1/simulate); `-` reads standard input.
+    pub spec: PathBuf,
+    /// Output file; `.ndjson` or `.jsonl` writes NDJSON, anything else JSON (default: standard
+    /// output).
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+    /// Output format, instead of the one the file extension implies.
+    #[arg(long, value_enum)]
+    pub format: Option<Format>,
+    /// Indent the JSON document.
+    #[arg(long)]
+    pub pretty: bool,
+    /// Most steps per method.
+    #[arg(long, env = "GEOMINT_MAX_STEPS", default_value = "10000000", value_parser = parse_count)]
+    pub max_steps: u64,
+    /// Most samples over all methods.
+    #[arg(long, env = "GEOMINT_MAX_SAMPLES", default_value = "1000000", value_parser = parse_count)]
+    pub max_samples: u64,
+}
+
+/// Parses a positive whole number, also written as `1e7`.
+fn parse_count(s: &str) -> Result<u64, String> {
+    let s = s.trim().replace('_', "");
+    if let Ok(n) = s.parse::<u64>() {
+        return Ok(n);
+    }
+    match s.parse::<f64>() {
+        Ok(x) if x.is_finite() && x >= 0.0 && x.fract() == 0.0 && x <= u64::MAX as f64 => {
+            Ok(x as u64)
+        }
+        _ => Err(format!("`{s}` is not a whole number ≥ 0")),
+    }
+}
+
+impl ServeArgs {
+    /// The service configuration these settings describe.
+    pub fn config(&self) -> Config {
+        Config {
+            limits: Limits {
+                max_steps: self.max_steps,
+                max_samples: self.max_samples,
+            },
+            max_concurrent: self
+                .max_concurrent
+                .map_or_else(http::state::default_concurrency, |n| n as usize),
+            request_timeout: Duration::from_secs(self.request_timeout_secs),
+            queue_timeout: Duration::from_millis(self.queue_timeout_ms),
+            cors_origins: self.cors_origins.clone(),
+            static_dir: Some(self.static_dir.clone()),
+            body_limit: usize::try_from(self.body_limit).unwrap_or(usize::MAX),
+            shutdown_grace: Duration::from_secs(self.shutdown_grace_secs),
+        }
+    }
+}
+
+/// Carries out a parsed command line.
+pub fn run(cli: Cli) -> ExitCode {
+    match cli.command.unwrap_or(Command::Serve(cli.serve)) {
+        Command::Serve(args) => serve(&args),
+        Command::Run(args) => run_spec(&args),
+        Command::Systems => print_json(&catalog::systems()),
+        Command::Methods => print_json(&catalog::methods()),
+    }
+}
+
+fn serve(args: &ServeArgs) -> ExitCode {
+    let filter = tracing_subscriber::EnvFilter::try_new(&args.log).unwrap_or_else(|e| {
+        eprintln!(
+            "warning: invalid log filter `{}` ({e}); using `info`",
+            args.log
+        );
+        tracing_subscriber::EnvFilter::new("info")
+    });
+    tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(io::stderr)
+        .with_ansi(io::stderr().is_terminal())
+        .init();
+    let runtime = match tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()
+    {
+        Ok(rt) => rt,
+        Err(e) => {
+            eprintln!("error: cannot start the async runtime: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    match runtime.block_on(http::serve(args.addr, args.config())) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: cannot serve on {}: {e}", args.addr);
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn print_json<T: serde::Serialize>(value: &T) -> ExitCode {
+    let stdout = io::stdout();
+    let mut out = stdout.lock();
+    let written = serde_json::to_writer_pretty(&mut out, value)
+        .map_err(io::Error::from)
+        .and_then(|()| writeln!(out))
+        .and_then(|()| out.flush());
+    match written {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: cannot write to standard output: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// Exit code for bad input.
+const BAD_INPUT: u8 = 2;
+
+fn run_spec(args: &RunArgs) -> ExitCode {
+    let source = args.spec.display().to_string();
+    let text = if source == "-" {
+        let mut buf = Vec::new();
+        io::stdin().read_to_end(&mut buf).map(|_| buf)
+    } else {
+        std::fs::read(&args.spec)
+    };
+    let text = match text {
+        Ok(t) => t,
+        Err(e) => {
+            eprintln!("error: cannot read the spec `{source}`: {e}");
+            return ExitCode::from(BAD_INPUT);
+        }
+    };
+    let limits = Limits {
+        max_steps: args.max_steps,
+        max_samples: args.max_samples,
+    };
+    let sim = match SimulateRequest::from_slice(&text).and_then(|req| req.prepare(&limits)) {
+        Ok(sim) => sim,
+        Err(e) => {
+            eprintln!("error: {source}: {e}");
+            return ExitCode::from(BAD_INPUT);
+        }
+    };
+    let format = args.format.unwrap_or_else(|| {
+        let ext = args
+            .output
+            .as_ref()
+            .and_then(|p| p.extension())
+            .map(|e| e.to_string_lossy().to_ascii_lowercase());
+        match ext.as_deref() {
+            Some("ndjson" | "jsonl") => Format::Ndjson,
+            _ => Format::Json,
+        }
+    });
+    let target = match &args.output {
+        Some(path) => File::create(path).map(|f| Box::new(f) as Box<dyn Write + Send>),
+        None => Ok(Box::new(io::stdout()) as Box<dyn Write + Send>),
+    };
+    let mut out = match target {
+        Ok(w) => BufWriter::new(w),
+        Err(e) => {
+            eprintln!(
+                "error: cannot create `{}`: {e}",
+                args.output
+                    .as_ref()
+                    .map(|p| p.display().to_string())
+                    .unwrap_or_default()
+            );
+            return ExitCode::FAILURE;
+        }
+    };
+    let workers = http::state::default_concurrency();
+    let written = match format {
+        Format::Json => match output::simulate(&sim, workers, Budget::default()) {
+            Ok(doc) => {
+                let result = if args.pretty {
+                    serde_json::to_writer_pretty(&mut out, &doc)
+                } else {
+                    serde_json::to_writer(&mut out, &doc)
+                };
+                result.map_err(io::Error::from).and_then(|()| writeln!(out))
+            }
+            Err(e) => {
+                eprintln!("error: {source}: {e}");
+                return ExitCode::from(BAD_INPUT);
+            }
+        },
+        Format::Ndjson => {
+            let cancel = AtomicBool::new(false);
+            let stream_error: Mutex<Option<String>> = Mutex::new(None);
+            let failure: Mutex<Option<io::Error>> = Mutex::new(None);
+            let sink = Mutex::new(&mut out);
+            let emit = |line: StreamLine| {
+                if let StreamLine::Error(e) = &line {
+                    stream_error
+                        .lock()
+                        .unwrap_or_else(|p| p.into_inner())
+                        .get_or_insert(e.error.to_string());
+                }
+                let mut w = sink.lock().unwrap_or_else(|p| p.into_inner());
+                match w.write_all(&output::ndjson_line(&line)) {
+                    Ok(()) => true,
+                    Err(e) => {
+                        cancel.store(true, Ordering::Relaxed);
+                        failure
+                            .lock()
+                            .unwrap_or_else(|p| p.into_inner())
+                            .get_or_insert(e);
+                        false
+                    }
+                }
+            };
+            let budget = Budget {
+                cancel: Some(&cancel),
+                deadline: None,
+            };
+            output::stream::stream(&sim, workers, budget, &emit);
+            if let Some(e) = stream_error.into_inner().unwrap_or_else(|p| p.into_inner()) {
+                let _ = out.flush();
+                eprintln!("error: {source}: {e}");
+                return ExitCode::from(BAD_INPUT);
+            }
+            match failure.into_inner().unwrap_or_else(|p| p.into_inner()) {
+                Some(e) => Err(e),
+                None => Ok(()),
+            }
+        }
+    };
+    match written.and_then(|()| out.flush()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: cannot write the output: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}

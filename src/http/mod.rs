@@ -1,1 +1,260 @@
-//! HTTP service.
+//! The HTTP service: routes, errors, limits, and the server loop.
+//!
+//! | route | |
+//! |---|---|
+//! | `GET /healthz` | liveness and load |
+//! | `GET /api/v1/systems`, `GET /api/v1/systems/{id}` | the system catalogue |
+//! | `GET /api/v1/methods`, `GET /api/v1/methods/{id}` | the method catalogue |
+//! | `POST /api/v1/simulate` | run a simulation (JSON, or NDJSON with `Accept: application/x-ndjson`) |
+//! | `GET /api/v1/openapi.json` | the OpenAPI 3 document |
+//! | `/` | the static directory, when there is one |
+//!
+//! Every error answers `{"error": {"code", "message", "field"}}` ([`ApiError`]), including those
+//! of the middleware (body limit 413, time limit 504) and unknown routes (404, 405).
+
+pub mod error;
+pub mod extract;
+pub mod handlers;
+pub mod openapi;
+pub mod simulate;
+pub mod state;
+
+use std::future::Future;
+use std::net::SocketAddr;
+
+use axum::body::Body;
+use axum::http::{header, HeaderValue, Method, StatusCode};
+use axum::middleware::map_response;
+use axum::response::{IntoResponse, Response};
+use axum::routing::{get, post};
+use axum::Router;
+use tower::util::option_layer;
+use tower_http::compression::predicate::{DefaultPredicate, NotForContentType, Predicate};
+use tower_http::compression::CompressionLayer;
+use tower_http::cors::{AllowOrigin, CorsLayer};
+use tower_http::limit::RequestBodyLimitLayer;
+use tower_http::request_id::{MakeRequestUuid, PropagateRequestIdLayer, SetRequestIdLayer};
+use tower_http::services::ServeDir;
+use tower_http::timeout::TimeoutLayer;
+use tower_http::trace::{DefaultOnResponse, TraceLayer};
+
+pub use error::ApiError;
+pub use extract::ApiJson;
+pub use state::{run_blocking, AppState, Config};
+
+use crate::output::error::{codes, ErrorDetail};
+
+/// Paths of the routes.
+pub mod paths {
+    /// Liveness.
+    pub const HEALTHZ: &str = "/healthz";
+    /// The system catalogue.
+    pub const SYSTEMS: &str = "/api/v1/systems";
+    /// One system.
+    pub const SYSTEM: &str = "/api/v1/systems/{id}";
+    /// The method catalogue.
+    pub const METHODS: &str = "/api/v1/methods";
+    /// One method.
+    pub const METHOD: &str = "/api/v1/methods/{id}";
+    /// Simulations.
+    pub const SIMULATE: &str = "/api/v1/simulate";
+    /// The OpenAPI document.
+    pub const OPENAPI: &str = "/api/v1/openapi.json";
+}
+
+/// Every route as (method, path), as the router registers them.
+pub const ROUTES: &[(&str, &str)] = &[
+    ("get", paths::HEALTHZ),
+    ("get", paths::SYSTEMS),
+    ("get", paths::SYSTEM),
+    ("get", paths::METHODS),
+    ("get", paths::METHOD),
+    ("post", paths::SIMULATE),
+    ("get", paths::OPENAPI),
+];
+
+/// The service: routes and middleware, shared by the server and the tests.
+pub fn app(state: AppState) -> Router {
+    let config = state.config.clone();
+    let api = Router::new()
+        .route(paths::HEALTHZ, get(handlers::healthz))
+        .route(paths::SYSTEMS, get(handlers::list_systems))
+        .route(paths::SYSTEM, get(handlers::get_system))
+        .route(paths::METHODS, get(handlers::list_methods))
+        .route(paths::METHOD, get(handlers::get_method))
+        .route(paths::SIMULATE, post(simulate::simulate))
+        .route(paths::OPENAPI, get(handlers::openapi_json))
+        .method_not_allowed_fallback(handlers::method_not_allowed)
+        .with_state(state);
+    let static_dir = config.static_dir.as_ref().filter(|dir| dir.is_dir());
+    let router = match static_dir {
+        Some(dir) => api.fallback_service(ServeDir::new(dir)),
+        None => api.fallback(handlers::not_found),
+    };
+
+    // NDJSON streams are not compressed: the encoder would hold lines back.
+    let compression = CompressionLayer::new()
+        .compress_when(DefaultPredicate::new().and(NotForContentType::const_new(simulate::NDJSON)));
+    // The middleware's own time limit is a backstop: simulations stop themselves at the
+    // request time limit and answer with what they have.
+    let backstop = config.request_timeout + std::time::Duration::from_secs(30);
+    router
+        .layer(RequestBodyLimitLayer::new(config.body_limit))
+        .layer(TimeoutLayer::with_status_code(StatusCode::GATEWAY_TIMEOUT, backstop))
+        .layer(map_response(json_errors))
+        .layer(compression)
+        .layer(option_layer(cors(&config.cors_origins)))
+        .layer(PropagateRequestIdLayer::x_request_id())
+        .layer(TraceLayer::new_for_http().make_span_with(|request: &axum::http::Request<Body>| {
+            let id = request
+                .headers()
+                .get("x-request-id")
+                .and_then(|v| v.to_str().ok())
+                .unwrap_or("-");
+            tracing::info_span!("request", method = %request.method(), uri = %request.uri(), id = %id)
+        }).on_response(DefaultOnResponse::new().level(tracing::Level::INFO)))
+        .layer(SetRequestIdLayer::x_request_id(MakeRequestUuid))
+}
+
+/// The CORS layer for `origins` (none when empty; any origin for `*`).
+fn cors(origins: &[String]) -> Option<CorsLayer> {
+    let origins: Vec<&str> = origins
+        .iter()
+        .map(|o| o.trim())
+        .filter(|o| !o.is_empty())
+        .collect();
+    if origins.is_empty() {
+        return None;
+    }
+    let allow = if origins.contains(&"*") {
+        AllowOrigin::any()
+    } else {
+        let values: Vec<HeaderValue> = origins
+            .iter()
+            .filter_map(|o| match HeaderValue::from_str(o) {
+                Ok(v) => Some(v),
+                Err(_) => {
+                    tracing::warn!(origin = %o, "ignoring an invalid CORS origin");
+                    None
+                }
+            })
+            .collect();
+        AllowOrigin::list(values)
+    };
+    Some(
+        CorsLayer::new()
+            .allow_origin(allow)
+            .allow_methods([Method::GET, Method::POST])
+            .allow_headers([header::CONTENT_TYPE, header::ACCEPT])
+            .expose_headers([
+                header::RETRY_AFTER,
+                header::HeaderName::from_static("x-request-id"),
+            ]),
+    )
+}
+
+/// Gives error answers produced outside the handlers (the body limit, the time limit, static
+/// files) the service's JSON error shape.
+async fn json_errors(response: Response) -> Response {
+    let status = response.status();
+    let is_json = response
+        .headers()
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .is_some_and(|v| v.starts_with("application/json"));
+    if !(status.is_client_error() || status.is_server_error()) || is_json {
+        return response;
+    }
+    let (code, message) = match status {
+        StatusCode::PAYLOAD_TOO_LARGE => (
+            codes::PAYLOAD_TOO_LARGE,
+            "the request body exceeds the size limit",
+        ),
+        StatusCode::NOT_FOUND => (codes::NOT_FOUND, "not found"),
+        StatusCode::METHOD_NOT_ALLOWED => (codes::METHOD_NOT_ALLOWED, "method not allowed"),
+        StatusCode::GATEWAY_TIMEOUT | StatusCode::REQUEST_TIMEOUT => (
+            codes::TIMEOUT,
+            "the request took longer than the time limit",
+        ),
+        s if s.is_server_error() => (codes::INTERNAL, "internal server error"),
+        _ => (codes::BAD_REQUEST, "bad request"),
+    };
+    let (mut parts, _) = response.into_parts();
+    let error = ApiError::new(status, ErrorDetail::new(code, message)).into_response();
+    parts.headers.remove(header::CONTENT_LENGTH);
+    parts.headers.remove(header::CONTENT_ENCODING);
+    parts.headers.insert(
+        header::CONTENT_TYPE,
+        HeaderValue::from_static("application/json"),
+    );
+    Response::from_parts(parts, error.into_body())
+}
+
+/// Serves `state` on `listener` until `shutdown` resolves; then stops accepting, lets running
+/// simulations go on for the configured grace time, cancels what still runs, and returns once
+/// every connection has closed.
+pub async fn serve_on(
+    listener: tokio::net::TcpListener,
+    state: AppState,
+    shutdown: impl Future<Output = ()> + Send + 'static,
+) -> std::io::Result<()> {
+    let router = app(state.clone());
+    let grace = state.config.shutdown_grace;
+    axum::serve(
+        listener,
+        router.into_make_service_with_connect_info::<SocketAddr>(),
+    )
+    .with_graceful_shutdown(async move {
+        shutdown.await;
+        tracing::info!(grace_secs = grace.as_secs_f64(), "shutting down");
+        tokio::spawn(async move {
+            tokio::time::sleep(grace).await;
+            state.cancel_runs();
+        });
+    })
+    .await
+}
+
+/// Resolves on Ctrl-C or SIGTERM.
+pub async fn shutdown_signal() {
+    let ctrl_c = async {
+        if tokio::signal::ctrl_c().await.is_err() {
+            std::future::pending::<()>().await;
+        }
+    };
+    #[cfg(unix)]
+    let terminate = async {
+        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            Ok(mut s) => {
+                s.recv().await;
+            }
+            Err(_) => std::future::pending::<()>().await,
+        }
+    };
+    #[cfg(not(unix))]
+    let terminate = std::future::pending::<()>();
+    tokio::select! {
+        _ = ctrl_c => {}
+        _ = terminate => {}
+    }
+}
+
+/// Binds `addr` and serves until Ctrl-C or SIGTERM.
+pub async fn serve(addr: SocketAddr, config: Config) -> std::io::Result<()> {
+    let listener = tokio::net::TcpListener::bind(addr).await?;
+    let local = listener.local_addr()?;
+    match config.static_dir.as_ref().filter(|d| d.is_dir()) {
+        Some(dir) => tracing::info!(dir = %dir.display(), "serving static files at /"),
+        None => tracing::info!("no static directory; / answers 404"),
+    }
+    tracing::info!(
+        addr = %local,
+        max_concurrent = config.max_concurrent,
+        max_steps = config.limits.max_steps,
+        max_samples = config.limits.max_samples,
+        timeout_secs = config.request_timeout.as_secs_f64(),
+        cors = ?config.cors_origins,
+        "geomint listening on http://{local}"
+    );
+    serve_on(listener, AppState::new(config), shutdown_signal()).await
+}

@@ -1,1 +1,21 @@
-//! Output formats.
+//! Serialisation of simulations, shared by the HTTP API and the command line.
+//!
+//! - [`request`]: the simulation request as users write it, and its strict parser.
+//! - [`document`]: the JSON answer (one run per method, sample columns, stop and statistics) and
+//!   the parallel execution of a request's methods.
+//! - [`stream`]: the NDJSON form, written while the runs compute.
+//! - [`catalog`]: the system and method catalogues as published.
+//! - [`error`]: the error shape every interface reports.
+//!
+//! Everything here is synchronous; the HTTP layer calls it off the async runtime.
+
+pub mod catalog;
+pub mod document;
+pub mod error;
+pub mod request;
+pub mod stream;
+
+pub use document::{simulate, RunDocument, SimulationDocument, Stop};
+pub use error::{codes, ErrorBody, ErrorDetail};
+pub use request::SimulateRequest;
+pub use stream::{ndjson_line, StreamLine};

@@ -1,0 +1,33 @@
+# syntax=docker/dockerfile:1
+#
+# geomint: build the release binary, then run it in a slim image as an unprivileged user.
+#   docker build -t geomint .
+#   docker run --rm -p 8080:8080 geomint
+# Settings come from GEOMINT_* environment variables (see `geomint --help`).
+
+FROM rust:1-bookworm AS builder
+WORKDIR /src
+COPY . .
+# Cache mounts keep the registry and build artefacts between builds; the binary is copied out
+# of the cached target directory.
+RUN --mount=type=cache,target=/usr/local/cargo/registry \
+    --mount=type=cache,target=/src/target \
+    cargo build --release --locked --bin geomint \
+    && install -D -m 0755 target/release/geomint /out/geomint \
+    && mkdir -p static \
+    && cp -r static /out/static
+
+FROM debian:bookworm-slim
+RUN useradd --system --uid 10001 --no-create-home --home-dir /nonexistent --shell /usr/sbin/nologin geomint
+COPY --from=builder /out/geomint /usr/local/bin/geomint
+COPY --from=builder /out/static /app/static
+WORKDIR /app
+ENV GEOMINT_ADDR=0.0.0.0:8080 \
+    GEOMINT_STATIC_DIR=/app/static
+USER geomint
+EXPOSE 8080
+STOPSIGNAL SIGTERM
+HEALTHCHECK --interval=30s --timeout=3s --start-period=5s \
+    CMD ["bash", "-c", "exec 3<>/dev/tcp/127.0.0.1/8080 && printf 'GET /healthz HTTP/1.0\\r\\nHost: localhost\\r\\n\\r\\n' >&3 && head -n 1 <&3 | grep -q ' 200 '"]
+ENTRYPOINT ["geomint"]
+CMD ["serve", "--addr", "0.0.0.0:8080"]

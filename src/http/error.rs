@@ -1,0 +1,137 @@
+//! The one error type of the service. Every failure — a rejected body, a bad field, an unknown
+//! route, an overloaded server, a fault — becomes an [`ApiError`] and answers with its status and
+//! `{"error": {"code", "message", "field"}}`. Details of server faults are logged, never sent.
+
+use axum::body::Body;
+use axum::http::{header, HeaderValue, StatusCode};
+use axum::response::{IntoResponse, Response};
+
+use crate::output::error::{codes, ErrorBody, ErrorDetail};
+
+/// An error answer: status, error detail and, for 503, a `Retry-After` hint.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ApiError {
+    status: StatusCode,
+    detail: ErrorDetail,
+    retry_after_secs: Option<u64>,
+}
+
+/// The HTTP status of an error code.
+pub fn status_for(code: &str) -> StatusCode {
+    match code {
+        codes::MALFORMED_JSON | codes::BAD_REQUEST => StatusCode::BAD_REQUEST,
+        codes::PAYLOAD_TOO_LARGE => StatusCode::PAYLOAD_TOO_LARGE,
+        codes::UNSUPPORTED_MEDIA_TYPE => StatusCode::UNSUPPORTED_MEDIA_TYPE,
+        codes::NOT_FOUND => StatusCode::NOT_FOUND,
+        codes::METHOD_NOT_ALLOWED => StatusCode::METHOD_NOT_ALLOWED,
+        codes::OVERLOADED => StatusCode::SERVICE_UNAVAILABLE,
+        codes::TIMEOUT => StatusCode::GATEWAY_TIMEOUT,
+        codes::INTERNAL => StatusCode::INTERNAL_SERVER_ERROR,
+        _ => StatusCode::UNPROCESSABLE_ENTITY,
+    }
+}
+
+impl ApiError {
+    /// An error with an explicit status.
+    pub fn new(status: StatusCode, detail: ErrorDetail) -> Self {
+        Self {
+            status,
+            detail,
+            retry_after_secs: None,
+        }
+    }
+
+    /// A server fault: `context` is logged, the client sees a generic message.
+    pub fn internal(context: impl std::fmt::Display) -> Self {
+        tracing::error!(error = %context, "internal error");
+        Self::new(
+            StatusCode::INTERNAL_SERVER_ERROR,
+            ErrorDetail::new(
+                codes::INTERNAL,
+                "internal server error; the details are in the server log",
+            ),
+        )
+    }
+
+    /// Every run slot is busy: 503 with `Retry-After`.
+    pub fn overloaded(retry_after_secs: u64) -> Self {
+        Self {
+            retry_after_secs: Some(retry_after_secs),
+            ..Self::new(
+                StatusCode::SERVICE_UNAVAILABLE,
+                ErrorDetail::new(
+                    codes::OVERLOADED,
+                    "every simulation slot is busy; retry after the time in Retry-After",
+                ),
+            )
+        }
+    }
+
+    /// No such resource.
+    pub fn not_found(message: impl Into<String>) -> Self {
+        Self::new(
+            StatusCode::NOT_FOUND,
+            ErrorDetail::new(codes::NOT_FOUND, message),
+        )
+    }
+
+    /// The HTTP status.
+    pub fn status_code(&self) -> StatusCode {
+        self.status
+    }
+
+    /// The error detail sent to the client.
+    pub fn detail(&self) -> &ErrorDetail {
+        &self.detail
+    }
+
+    /// The `Retry-After` hint in seconds, if any.
+    pub fn retry_after_secs(&self) -> Option<u64> {
+        self.retry_after_secs
+    }
+
+    /// The JSON body of this error.
+    pub fn body(&self) -> ErrorBody {
+        ErrorBody {
+            error: self.detail.clone(),
+        }
+    }
+}
+
+impl From<ErrorDetail> for ApiError {
+    fn from(detail: ErrorDetail) -> Self {
+        let status = status_for(&detail.code);
+        if status.is_server_error() && detail.code == codes::INTERNAL {
+            return ApiError::internal(detail.message);
+        }
+        Self::new(status, detail)
+    }
+}
+
+impl std::fmt::Display for ApiError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}: {}", self.status, self.detail)
+    }
+}
+
+impl std::error::Error for ApiError {}
+
+impl IntoResponse for ApiError {
+    fn into_response(self) -> Response {
+        let body = serde_json::to_vec(&self.body()).unwrap_or_else(|_| {
+            br#"{"error":{"code":"internal","message":"internal server error","field":null}}"#
+                .to_vec()
+        });
+        let mut response = Response::new(Body::from(body));
+        *response.status_mut() = self.status;
+        let headers = response.headers_mut();
+        headers.insert(
+            header::CONTENT_TYPE,
+            HeaderValue::from_static("application/json"),
+        );
+        if let Some(secs) = self.retry_after_secs {
+            headers.insert(header::RETRY_AFTER, HeaderValue::from(secs));
+        }
+        response
+    }
+}

@@ -1,0 +1,121 @@
+//! Handlers of the read-only routes: health, the catalogues, the OpenAPI document, and the
+//! answers for unknown routes and methods.
+
+use axum::extract::{Path, State};
+use axum::http::{header, HeaderValue};
+use axum::response::{IntoResponse, Response};
+use axum::Json;
+use serde::Serialize;
+use utoipa::{OpenApi, ToSchema};
+
+use super::error::ApiError;
+use super::openapi::ApiDoc;
+use super::paths;
+use super::state::AppState;
+use crate::output::catalog::{self, MethodEntry, SystemEntry};
+use crate::output::error::{codes, ErrorBody, ErrorDetail};
+
+/// The health answer.
+#[derive(Clone, Debug, Serialize, ToSchema)]
+pub struct Health {
+    /// Always `ok` when the service answers.
+    #[schema(example = "ok")]
+    pub status: String,
+    /// The service version.
+    pub version: String,
+    /// Simulation threads running now.
+    pub runs_in_progress: usize,
+    /// Most simulation threads at once.
+    pub max_concurrent: usize,
+}
+
+/// Liveness and load.
+#[utoipa::path(get, path = paths::HEALTHZ, tag = "service",
+    responses((status = 200, description = "The service is up", body = Health)))]
+pub async fn healthz(State(state): State<AppState>) -> Json<Health> {
+    Json(Health {
+        status: "ok".to_string(),
+        version: env!("CARGO_PKG_VERSION").to_string(),
+        runs_in_progress: state.runs_in_progress(),
+        max_concurrent: state.config.max_concurrent,
+    })
+}
+
+/// The system catalogue: parameters with defaults and ranges, default initial state,
+/// invariants.
+#[utoipa::path(get, path = paths::SYSTEMS, tag = "catalog",
+    responses((status = 200, description = "Every system", body = Vec<SystemEntry>)))]
+pub async fn list_systems() -> Json<Vec<SystemEntry>> {
+    Json(catalog::systems())
+}
+
+/// One system of the catalogue.
+#[utoipa::path(get, path = paths::SYSTEM, tag = "catalog",
+    params(("id" = String, Path, description = "System id", example = "pendulum")),
+    responses(
+        (status = 200, description = "The system", body = SystemEntry),
+        (status = 404, description = "No such system", body = ErrorBody),
+    ))]
+pub async fn get_system(Path(id): Path<String>) -> Result<Json<SystemEntry>, ApiError> {
+    catalog::system(&id)
+        .map(Json)
+        .ok_or_else(|| ApiError::not_found(format!("unknown system `{id}`")))
+}
+
+/// The method catalogue: order, kind, geometric properties, requirements and citation.
+#[utoipa::path(get, path = paths::METHODS, tag = "catalog",
+    responses((status = 200, description = "Every method", body = Vec<MethodEntry>)))]
+pub async fn list_methods() -> Json<Vec<MethodEntry>> {
+    Json(catalog::methods())
+}
+
+/// One method of the catalogue.
+#[utoipa::path(get, path = paths::METHOD, tag = "catalog",
+    params(("id" = String, Path, description = "Method id", example = "modin_3s")),
+    responses(
+        (status = 200, description = "The method", body = MethodEntry),
+        (status = 404, description = "No such method", body = ErrorBody),
+    ))]
+pub async fn get_method(Path(id): Path<String>) -> Result<Json<MethodEntry>, ApiError> {
+    catalog::method(&id)
+        .map(Json)
+        .ok_or_else(|| ApiError::not_found(format!("unknown method `{id}`")))
+}
+
+/// This API's OpenAPI 3 document.
+#[utoipa::path(get, path = paths::OPENAPI, tag = "service",
+    responses((status = 200, description = "The OpenAPI document", content_type = "application/json")))]
+pub async fn openapi_json() -> Response {
+    static DOC: std::sync::OnceLock<String> = std::sync::OnceLock::new();
+    let doc = DOC.get_or_init(|| {
+        ApiDoc::openapi()
+            .to_json()
+            .unwrap_or_else(|e| format!(r#"{{"error":"{e}"}}"#))
+    });
+    let mut response = doc.clone().into_response();
+    response.headers_mut().insert(
+        header::CONTENT_TYPE,
+        HeaderValue::from_static("application/json"),
+    );
+    response
+}
+
+/// The answer for a path no route matches.
+pub async fn not_found(uri: axum::http::Uri) -> ApiError {
+    ApiError::not_found(format!(
+        "no route for `{}`; see {}",
+        uri.path(),
+        paths::OPENAPI
+    ))
+}
+
+/// The answer for a route asked with a method it does not take.
+pub async fn method_not_allowed(method: axum::http::Method, uri: axum::http::Uri) -> ApiError {
+    ApiError::new(
+        axum::http::StatusCode::METHOD_NOT_ALLOWED,
+        ErrorDetail::new(
+            codes::METHOD_NOT_ALLOWED,
+            format!("`{}` does not take {method}", uri.path()),
+        ),
+    )
+}

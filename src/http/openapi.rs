@@ -1,0 +1,46 @@
+//! The OpenAPI 3 document of the service, generated from the handlers' `#[utoipa::path]`
+//! annotations and the request and response types, so it follows the code.
+
+use utoipa::OpenApi;
+
+use super::{handlers, simulate};
+use crate::output::catalog::{MethodEntry, SystemEntry};
+use crate::output::document::SimulationDocument;
+use crate::output::error::ErrorBody;
+use crate::output::request::SimulateRequest;
+use crate::output::stream::StreamLine;
+
+/// The OpenAPI document: `ApiDoc::openapi()`.
+#[derive(OpenApi)]
+#[openapi(
+    info(
+        title = "geomint",
+        description = "Geometric numerical integration of damped Hamiltonian systems: structure-preserving \
+            splittings and conformal symplectic methods beside Runge–Kutta baselines. Every error answers \
+            `{\"error\": {\"code\", \"message\", \"field\"}}`."
+    ),
+    paths(
+        handlers::healthz,
+        handlers::list_systems,
+        handlers::get_system,
+        handlers::list_methods,
+        handlers::get_method,
+        simulate::simulate,
+        handlers::openapi_json,
+    ),
+    components(schemas(
+        SimulateRequest,
+        SimulationDocument,
+        StreamLine,
+        SystemEntry,
+        MethodEntry,
+        ErrorBody,
+        handlers::Health,
+    )),
+    tags(
+        (name = "catalog", description = "The systems and methods on offer"),
+        (name = "simulation", description = "Running simulations"),
+        (name = "service", description = "Health and this document"),
+    )
+)]
+pub struct ApiDoc;

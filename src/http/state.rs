@@ -1,0 +1,169 @@
+//! Service configuration and shared state: the limits, the semaphore that bounds concurrent
+//! runs, the shutdown signal that cancels runs, and the helper that moves blocking work off the
+//! async runtime.
+
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+use tokio::sync::{watch, OwnedSemaphorePermit, Semaphore};
+
+use super::error::ApiError;
+use crate::core::simulate::Limits;
+
+/// Settings of the service.
+#[derive(Clone, Debug)]
+pub struct Config {
+    /// Step and sample limits per request.
+    pub limits: Limits,
+    /// Most simulation threads at once (a request takes one per method while free, at least one).
+    pub max_concurrent: usize,
+    /// Time limit of a simulation: runs still going then stop with `time_limit`.
+    pub request_timeout: Duration,
+    /// How long a request waits for a free slot before it is answered 503.
+    pub queue_timeout: Duration,
+    /// Origins allowed by CORS; empty turns CORS off, `*` allows any origin.
+    pub cors_origins: Vec<String>,
+    /// Directory served at `/` (when it exists).
+    pub static_dir: Option<PathBuf>,
+    /// Largest request body in bytes.
+    pub body_limit: usize,
+    /// After a shutdown signal, how long running simulations may go on before they are
+    /// cancelled.
+    pub shutdown_grace: Duration,
+}
+
+/// The number of cores, the default of [`Config::max_concurrent`].
+pub fn default_concurrency() -> usize {
+    std::thread::available_parallelism()
+        .map(|n| n.get())
+        .unwrap_or(1)
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Self {
+            limits: Limits::default(),
+            max_concurrent: default_concurrency(),
+            request_timeout: Duration::from_secs(60),
+            queue_timeout: Duration::from_millis(250),
+            cors_origins: Vec::new(),
+            static_dir: None,
+            body_limit: 1 << 20,
+            shutdown_grace: Duration::from_secs(10),
+        }
+    }
+}
+
+/// State shared by all handlers.
+#[derive(Clone, Debug)]
+pub struct AppState {
+    /// The settings.
+    pub config: Arc<Config>,
+    permits: Arc<Semaphore>,
+    shutdown: Arc<watch::Sender<bool>>,
+}
+
+impl AppState {
+    /// State for `config`.
+    pub fn new(config: Config) -> Self {
+        let max = config.max_concurrent.max(1);
+        Self {
+            config: Arc::new(Config {
+                max_concurrent: max,
+                ..config
+            }),
+            permits: Arc::new(Semaphore::new(max)),
+            shutdown: Arc::new(watch::channel(false).0),
+        }
+    }
+
+    /// Simulation threads running now.
+    pub fn runs_in_progress(&self) -> usize {
+        self.config.max_concurrent - self.permits.available_permits()
+    }
+
+    /// Takes slots for a request of `methods` methods: one, waiting up to the queue timeout
+    /// (else 503), plus up to `methods − 1` more that are free right now.
+    pub async fn acquire(&self, methods: usize) -> Result<Vec<OwnedSemaphorePermit>, ApiError> {
+        let first = match self.permits.clone().try_acquire_owned() {
+            Ok(p) => p,
+            Err(_) => {
+                let wait = self.config.queue_timeout;
+                match tokio::time::timeout(wait, self.permits.clone().acquire_owned()).await {
+                    Ok(Ok(p)) => p,
+                    _ => {
+                        tracing::info!("no simulation slot free; answering 503");
+                        return Err(ApiError::overloaded(1));
+                    }
+                }
+            }
+        };
+        let mut permits = vec![first];
+        while permits.len() < methods {
+            match self.permits.clone().try_acquire_owned() {
+                Ok(p) => permits.push(p),
+                Err(_) => break,
+            }
+        }
+        Ok(permits)
+    }
+
+    /// Cancels every running simulation (they end with `cancelled`) and makes new ones cancel
+    /// at once. Used at shutdown.
+    pub fn cancel_runs(&self) {
+        self.shutdown.send_replace(true);
+    }
+
+    /// A receiver that turns true when runs are to be cancelled.
+    pub fn cancellation(&self) -> watch::Receiver<bool> {
+        self.shutdown.subscribe()
+    }
+}
+
+/// Sets a cancellation flag when dropped: a request future dropped because its client went
+/// away stops its computation.
+#[derive(Debug)]
+pub struct CancelOnDrop(pub Arc<AtomicBool>);
+
+impl Drop for CancelOnDrop {
+    fn drop(&mut self) {
+        self.0.store(true, Ordering::Relaxed);
+    }
+}
+
+/// Sets `flag` when `state` cancels runs; abort the returned task once the run is over.
+pub fn cancel_on_shutdown(state: &AppState, flag: Arc<AtomicBool>) -> tokio::task::JoinHandle<()> {
+    let mut shutdown = state.cancellation();
+    tokio::spawn(async move {
+        if shutdown.wait_for(|&cancel| cancel).await.is_ok() {
+            flag.store(true, Ordering::Relaxed);
+        }
+    })
+}
+
+/// Runs blocking work on tokio's blocking pool inside the caller's tracing span. A panic
+/// becomes a 500 (its message is logged, not sent).
+pub async fn run_blocking<F, T>(work: F) -> Result<T, ApiError>
+where
+    F: FnOnce() -> T + Send + 'static,
+    T: Send + 'static,
+{
+    let span = tracing::Span::current();
+    match tokio::task::spawn_blocking(move || span.in_scope(work)).await {
+        Ok(value) => Ok(value),
+        Err(e) if e.is_panic() => {
+            let panic = e.into_panic();
+            let message = panic
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| panic.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "a panic without a message".to_string());
+            Err(ApiError::internal(format!(
+                "computation panicked: {message}"
+            )))
+        }
+        Err(e) => Err(ApiError::internal(format!("computation task failed: {e}"))),
+    }
+}

@@ -1,0 +1,186 @@
+//! The command line: `geomint run`, `geomint systems`, `geomint methods`, run as a process.
+
+use std::io::Write;
+use std::path::PathBuf;
+use std::process::{Command, Output, Stdio};
+
+use geomint::core::run::Budget;
+use geomint::core::simulate::{run_to_trajectory, Limits, Simulation};
+use serde_json::{json, Value};
+
+fn geomint(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_geomint"))
+        .args(args)
+        .env_remove("GEOMINT_MAX_STEPS")
+        .env_remove("GEOMINT_MAX_SAMPLES")
+        .output()
+        .unwrap()
+}
+
+/// A scratch directory of this test process.
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("geomint-cli-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn spec() -> Value {
+    json!({"system": "harmonic_oscillator", "params": {"omega": 1.5}, "methods": ["modin_3s", {"id": "triple_jump", "base": "csv1"}],
+        "h": 0.01, "t_end": 30, "q0": [1.0], "p0": [0.25], "output": {"every": 5}})
+}
+
+fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+#[test]
+fn catalogs_print_as_json() {
+    let out = geomint(&["systems"]);
+    assert!(out.status.success());
+    let systems: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(
+        systems,
+        serde_json::to_value(geomint::core::systems::catalog()).unwrap()
+    );
+    let out = geomint(&["methods"]);
+    assert!(out.status.success());
+    let methods: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(
+        methods.as_array().unwrap().len(),
+        geomint::core::methods::MethodId::ALL.len()
+    );
+    assert_eq!(methods[0]["id"], "modin_3s");
+}
+
+#[test]
+fn run_writes_json_and_ndjson_equal_to_the_core() {
+    let dir = scratch("run");
+    let spec_path = dir.join("spec.json");
+    std::fs::write(&spec_path, serde_json::to_vec(&spec()).unwrap()).unwrap();
+    let json_path = dir.join("out.json");
+    let ndjson_path = dir.join("out.ndjson");
+
+    let out = geomint(&[
+        "run",
+        spec_path.to_str().unwrap(),
+        "-o",
+        json_path.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let text = std::fs::read_to_string(&json_path).unwrap();
+    let doc: Value = serde_json::from_str(&text).unwrap();
+    let labels: Vec<&str> = doc["runs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["method"].as_str().unwrap())
+        .collect();
+    assert_eq!(labels, ["modin_3s", "triple_jump(csv1)"]);
+
+    // Bit for bit the core's numbers.
+    let req = geomint::output::SimulateRequest::from_value(&spec())
+        .unwrap()
+        .to_core();
+    let sim = Simulation::prepare(&req, &Limits::default()).unwrap();
+    for i in 0..2 {
+        let (traj, _) = run_to_trajectory(&sim, i, None, Budget::default()).unwrap();
+        let q = format!("\"q\":{}", serde_json::to_string(&traj.q).unwrap());
+        let e = format!(
+            "\"energy_error\":{}",
+            serde_json::to_string(traj.energy_error.as_ref().unwrap()).unwrap()
+        );
+        assert!(text.contains(&q) && text.contains(&e), "run {i}");
+    }
+
+    let out = geomint(&[
+        "run",
+        spec_path.to_str().unwrap(),
+        "-o",
+        ndjson_path.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let lines: Vec<Value> = std::fs::read_to_string(&ndjson_path)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(lines[0]["type"], "header");
+    assert_eq!(lines.last().unwrap()["type"], "end");
+    for (m, run) in doc["runs"].as_array().unwrap().iter().enumerate() {
+        let samples: usize = lines
+            .iter()
+            .filter(|l| l["type"] == "samples" && l["method"] == m)
+            .map(|l| l["t"].as_array().unwrap().len())
+            .sum();
+        assert_eq!(samples, run["t"].as_array().unwrap().len());
+        assert_eq!(samples, 601);
+    }
+
+    // Standard input to standard output.
+    let mut child = Command::new(env!("CARGO_BIN_EXE_geomint"))
+        .args(["run", "-"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(&serde_json::to_vec(&spec()).unwrap())
+        .unwrap();
+    let out = child.wait_with_output().unwrap();
+    assert!(out.status.success());
+    let from_stdout: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(from_stdout["runs"][1]["q"], doc["runs"][1]["q"]);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn bad_specs_exit_2_naming_the_problem() {
+    let dir = scratch("bad");
+    let missing = dir.join("missing.json");
+    let out = geomint(&["run", missing.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("missing.json"), "{}", stderr(&out));
+
+    let cases = [
+        ("{\"system\": ", "malformed"),
+        (
+            r#"{"system": "pendulum", "method": "heun", "h": -1, "t_end": 1}"#,
+            "h: must be finite",
+        ),
+        (
+            r#"{"system": "pendulum", "method": "heun", "h": 0.1, "t_end": 1, "colour": 1}"#,
+            "colour",
+        ),
+        (
+            r#"{"system": "pendulum", "method": "heun", "h": 0.1, "t_end": 1, "q0": [1e999]}"#,
+            "q0[0]",
+        ),
+        (
+            r#"{"system": "pendulum", "method": "rk5", "h": 0.1, "t_end": 1}"#,
+            "unknown method",
+        ),
+        (
+            r#"{"system": "elastic_pendulum_3d", "method": "csv1", "h": 0.1, "t_end": 1}"#,
+            "conformal damping",
+        ),
+    ];
+    for (i, (text, needle)) in cases.iter().enumerate() {
+        let path = dir.join(format!("bad{i}.json"));
+        std::fs::write(&path, text).unwrap();
+        let out = geomint(&["run", path.to_str().unwrap()]);
+        assert_eq!(out.status.code(), Some(2), "{text}");
+        assert!(stderr(&out).contains(needle), "{text}: {}", stderr(&out));
+        assert!(!stderr(&out).contains("panicked"));
+        assert!(out.stdout.is_empty());
+    }
+    // A bad command line is exit 2 too (clap).
+    assert_eq!(geomint(&["run"]).status.code(), Some(2));
+    assert_eq!(
+        geomint(&["serve", "--addr", "nowhere"]).status.code(),
+        Some(2)
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
