@@ -23,6 +23,7 @@ use std::future::Future;
 use std::net::SocketAddr;
 
 use axum::body::Body;
+use axum::extract::DefaultBodyLimit;
 use axum::http::{header, HeaderValue, Method, StatusCode};
 use axum::middleware::map_response;
 use axum::response::{IntoResponse, Response};
@@ -99,6 +100,7 @@ pub fn app(state: AppState) -> Router {
     // request time limit and answer with what they have.
     let backstop = config.request_timeout + std::time::Duration::from_secs(30);
     router
+        .layer(DefaultBodyLimit::max(config.body_limit))
         .layer(RequestBodyLimitLayer::new(config.body_limit))
         .layer(TimeoutLayer::with_status_code(StatusCode::GATEWAY_TIMEOUT, backstop))
         .layer(map_response(json_errors))
