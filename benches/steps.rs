@@ -43,7 +43,7 @@ where
         steps: STEPS,
         every: u64::MAX,
     };
-    let mut one_run = || {
+    let one_run = || {
         let mut sum = Checksum(0.0);
         let began = Instant::now();
         for _ in 0..REPETITIONS {
@@ -70,6 +70,43 @@ where
     let mut runs: Vec<(f64, f64)> = (0..7).map(|_| one_run()).collect();
     runs.sort_by(|a, b| a.0.total_cmp(&b.0));
     runs[3]
+}
+
+/// Wall time of 400×400 stability maps (ω = 3.51, γ ∈ [0, 3.5], h ∈ [0, 1]) for every
+/// fixed-step method, computed in parallel over the cores.
+fn stability_maps() {
+    use geomint::core::stability::{map, Axis};
+    let gamma = Axis {
+        min: 0.0,
+        max: 3.5,
+        n: 400,
+    };
+    let h = Axis {
+        min: 0.0,
+        max: 1.0,
+        n: 400,
+    };
+    let choices: Vec<MethodChoice> = MethodId::ALL
+        .iter()
+        .filter(|&&m| m != MethodId::Reference)
+        .map(|&m| MethodChoice::new(m))
+        .collect();
+    let began = Instant::now();
+    let mut unstable = 0;
+    for c in &choices {
+        unstable += map(c, 3.51, gamma, h)
+            .expect("map")
+            .stable
+            .iter()
+            .filter(|s| !**s)
+            .count();
+    }
+    println!(
+        "\n400×400 stability maps of {} methods: {:.0} ms in all ({} unstable cells)",
+        choices.len(),
+        began.elapsed().as_secs_f64() * 1e3,
+        unstable
+    );
 }
 
 fn main() {
@@ -116,5 +153,8 @@ fn main() {
                 c.label()
             );
         }
+    }
+    if wanted("stability") {
+        stability_maps();
     }
 }

@@ -165,7 +165,7 @@ fn bad_requests_name_the_offending_field() {
             "pendulum",
             json!({"gamma": 1.5}),
             &["csv2"],
-            2.0,
+            4.0 / 3.0,
             10.0
         )),
         "h"

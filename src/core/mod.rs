@@ -7,5 +7,6 @@ pub mod flows;
 pub mod methods;
 pub mod run;
 pub mod simulate;
+pub mod stability;
 pub mod system;
 pub mod systems;

@@ -12,7 +12,7 @@
 //! We implement the printed scheme, which the thesis's stability analysis (Ch. 3) is about. It is
 //! still conformal symplectic: each line is a shear times a scaling, and the scalings multiply to
 //! e^{−2γh} (tested); it is second order and symmetric, Φ₋ₕ ∘ Φₕ = id (both tested), so it can be
-//! a triple-jump base. It needs γh < 2.
+//! a triple-jump base. It is undefined at γh = 2.
 
 use nalgebra::allocator::Allocator;
 use nalgebra::DefaultAllocator;

@@ -802,11 +802,11 @@ where
     choice.check(system_id, sys.structure())?;
     let gamma = 0.5 * sys.damping_rate();
     let uses_csv2 = choice.id == MethodId::Csv2 || choice.base == Some(MethodId::Csv2);
-    if uses_csv2 && gamma * h >= 2.0 {
+    if uses_csv2 && (1.0 - 0.5 * gamma * h).abs() < 1e-9 {
         return Err(CoreError::invalid(
             "h",
             format!(
-                "csv2 needs γh < 2 (it divides by 1 − γh/2); here γh = {}",
+                "csv2 divides by 1 − γh/2, which vanishes at γh = 2; here γh = {}",
                 gamma * h
             ),
         ));
