@@ -6,6 +6,8 @@
 //! | `GET /api/v1/systems`, `GET /api/v1/systems/{id}` | the system catalogue |
 //! | `GET /api/v1/methods`, `GET /api/v1/methods/{id}` | the method catalogue |
 //! | `POST /api/v1/simulate` | run a simulation (JSON, or NDJSON with `Accept: application/x-ndjson`) |
+//! | `POST /api/v1/stability` | linear stability maps over a (γ, h) grid |
+//! | `POST /api/v1/stability/point` | linear stability analysis at one (ω, γ, h) |
 //! | `GET /api/v1/openapi.json` | the OpenAPI 3 document |
 //! | `/` | the static directory, when there is one |
 //!
@@ -17,6 +19,7 @@ pub mod extract;
 pub mod handlers;
 pub mod openapi;
 pub mod simulate;
+pub mod stability;
 pub mod state;
 
 use std::future::Future;
@@ -59,6 +62,10 @@ pub mod paths {
     pub const METHOD: &str = "/api/v1/methods/{id}";
     /// Simulations.
     pub const SIMULATE: &str = "/api/v1/simulate";
+    /// Stability maps.
+    pub const STABILITY: &str = "/api/v1/stability";
+    /// Stability at one point.
+    pub const STABILITY_POINT: &str = "/api/v1/stability/point";
     /// The OpenAPI document.
     pub const OPENAPI: &str = "/api/v1/openapi.json";
 }
@@ -71,6 +78,8 @@ pub const ROUTES: &[(&str, &str)] = &[
     ("get", paths::METHODS),
     ("get", paths::METHOD),
     ("post", paths::SIMULATE),
+    ("post", paths::STABILITY),
+    ("post", paths::STABILITY_POINT),
     ("get", paths::OPENAPI),
 ];
 
@@ -84,6 +93,8 @@ pub fn app(state: AppState) -> Router {
         .route(paths::METHODS, get(handlers::list_methods))
         .route(paths::METHOD, get(handlers::get_method))
         .route(paths::SIMULATE, post(simulate::simulate))
+        .route(paths::STABILITY, post(stability::stability_map))
+        .route(paths::STABILITY_POINT, post(stability::stability_point))
         .route(paths::OPENAPI, get(handlers::openapi_json))
         .method_not_allowed_fallback(handlers::method_not_allowed)
         .with_state(state);

@@ -3,11 +3,12 @@
 
 use utoipa::OpenApi;
 
-use super::{handlers, simulate};
+use super::{handlers, simulate, stability};
 use crate::output::catalog::{MethodEntry, SystemEntry};
 use crate::output::document::SimulationDocument;
 use crate::output::error::ErrorBody;
 use crate::output::request::SimulateRequest;
+use crate::output::stability::{PointDocument, PointRequest, StabilityDocument, StabilityRequest};
 use crate::output::stream::StreamLine;
 
 /// The OpenAPI document: `ApiDoc::openapi()`.
@@ -26,12 +27,18 @@ use crate::output::stream::StreamLine;
         handlers::list_methods,
         handlers::get_method,
         simulate::simulate,
+        stability::stability_map,
+        stability::stability_point,
         handlers::openapi_json,
     ),
     components(schemas(
         SimulateRequest,
         SimulationDocument,
         StreamLine,
+        StabilityRequest,
+        StabilityDocument,
+        PointRequest,
+        PointDocument,
         SystemEntry,
         MethodEntry,
         ErrorBody,
@@ -40,6 +47,7 @@ use crate::output::stream::StreamLine;
     tags(
         (name = "catalog", description = "The systems and methods on offer"),
         (name = "simulation", description = "Running simulations"),
+        (name = "stability", description = "Linear stability analysis on the damped oscillator"),
         (name = "service", description = "Health and this document"),
     )
 )]

@@ -37,6 +37,8 @@ pub mod codes {
     pub const TOO_MANY_STEPS: &str = "too_many_steps";
     /// More samples in all than the limit.
     pub const TOO_MANY_SAMPLES: &str = "too_many_samples";
+    /// More stability-map cells in all than the limit.
+    pub const TOO_MANY_CELLS: &str = "too_many_cells";
     /// A step failed (an implicit solve did not converge, …).
     pub const STEP_FAILED: &str = "step_failed";
     /// No route for the path.

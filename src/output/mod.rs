@@ -5,6 +5,7 @@
 //!   the parallel execution of a request's methods.
 //! - [`stream`]: the NDJSON form, written while the runs compute.
 //! - [`catalog`]: the system and method catalogues as published.
+//! - [`stability`]: linear stability requests (maps over (γ, h), single points) and answers.
 //! - [`error`]: the error shape every interface reports.
 //!
 //! Everything here is synchronous; the HTTP layer calls it off the async runtime.
@@ -13,6 +14,7 @@ pub mod catalog;
 pub mod document;
 pub mod error;
 pub mod request;
+pub mod stability;
 pub mod stream;
 
 pub use document::{simulate, RunDocument, SimulationDocument, Stop};

@@ -432,11 +432,12 @@ fn exact_floats(bytes: &[u8], value: &mut Value) {
 }
 
 /// A field's value, treating an explicit `null` as absent.
-fn present<'a>(obj: &'a Map<String, Value>, key: &str) -> Option<&'a Value> {
+pub(crate) fn present<'a>(obj: &'a Map<String, Value>, key: &str) -> Option<&'a Value> {
     obj.get(key).filter(|v| !v.is_null())
 }
 
-fn check_fields(
+/// Refuses the first key of `obj` not in `allowed` (`unknown_field`, named with `prefix`).
+pub(crate) fn check_fields(
     obj: &Map<String, Value>,
     allowed: &[&str],
     prefix: &str,
@@ -466,7 +467,8 @@ fn describe(v: &Value) -> String {
     }
 }
 
-fn wrong_type(field: &str, expected: &str, v: &Value) -> ErrorDetail {
+/// An `invalid_type` error: `field` should have been `expected`.
+pub(crate) fn wrong_type(field: &str, expected: &str, v: &Value) -> ErrorDetail {
     ErrorDetail::at(
         codes::INVALID_TYPE,
         field,
@@ -474,7 +476,8 @@ fn wrong_type(field: &str, expected: &str, v: &Value) -> ErrorDetail {
     )
 }
 
-fn missing(field: &str, what: &str) -> ErrorDetail {
+/// A `missing_field` error for `field`, explaining `what` it is.
+pub(crate) fn missing(field: &str, what: &str) -> ErrorDetail {
     ErrorDetail::at(
         codes::MISSING_FIELD,
         field,
@@ -482,7 +485,11 @@ fn missing(field: &str, what: &str) -> ErrorDetail {
     )
 }
 
-fn object<'a>(v: &'a Value, field: Option<&str>) -> Result<&'a Map<String, Value>, ErrorDetail> {
+/// `v` as an object; `field` names it (`None` for the request itself).
+pub(crate) fn object<'a>(
+    v: &'a Value,
+    field: Option<&str>,
+) -> Result<&'a Map<String, Value>, ErrorDetail> {
     v.as_object().ok_or_else(|| match field {
         Some(f) => wrong_type(f, "an object", v),
         None => ErrorDetail::new(
@@ -498,7 +505,8 @@ fn string(v: &Value, field: &str) -> Result<String, ErrorDetail> {
         .ok_or_else(|| wrong_type(field, "a string", v))
 }
 
-fn number(v: &Value, field: &str) -> Result<f64, ErrorDetail> {
+/// `v` as a number.
+pub(crate) fn number(v: &Value, field: &str) -> Result<f64, ErrorDetail> {
     v.as_f64().ok_or_else(|| wrong_type(field, "a number", v))
 }
 
@@ -533,7 +541,8 @@ fn method_id(v: &Value, field: &str) -> Result<String, ErrorDetail> {
     Ok(id)
 }
 
-fn method(v: &Value, field: &str) -> Result<MethodSpec, ErrorDetail> {
+/// A method: an id or an object with options, with unknown ids and fields named.
+pub(crate) fn method(v: &Value, field: &str) -> Result<MethodSpec, ErrorDetail> {
     match v {
         Value::String(_) => Ok(MethodSpec::Id(method_id(v, field)?)),
         Value::Object(o) => {

@@ -1,0 +1,120 @@
+//! `POST /api/v1/stability` and `POST /api/v1/stability/point`: the linear stability analysis of
+//! the core on the damped oscillator.
+//!
+//! A map request is validated first (cheap, before any slot is taken), then takes the free
+//! simulation slots — one, waiting up to the queue timeout (else 503 with `Retry-After`), plus
+//! every other free one, since each map is computed in parallel over all cores — and computes
+//! off the async runtime. Its work is bounded by the request's size (at most
+//! [`MAX_MAP_CELLS`](crate::output::stability::MAX_MAP_CELLS) cells); between methods it stops
+//! at the time limit (504) or when the client goes away.
+//!
+//! A point costs two steps of one method: it takes no slot, but still runs on the blocking pool
+//! so that a fault answers 500.
+
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+use std::time::Instant;
+
+use axum::body::Body;
+use axum::extract::State;
+use axum::http::{header, HeaderValue};
+use axum::response::Response;
+use axum::Json;
+use serde_json::Value;
+
+use super::error::ApiError;
+use super::extract::ApiJson;
+use super::paths;
+use super::state::{cancel_on_shutdown, run_blocking, AppState, CancelOnDrop};
+use crate::core::run::Budget;
+use crate::output::error::ErrorBody;
+use crate::output::stability::{
+    self, PointDocument, PointRequest, StabilityDocument, StabilityRequest,
+};
+
+/// Stability maps of the damped oscillator q'' + 2γq' + ω²q = 0 over a (γ, h) grid.
+///
+/// One map per method, at fixed ω: the spectral radius of the one-step matrix, the numerical
+/// verdict and, for cimp, csv1 and csv2, the verdicts of the corrected and of the printed
+/// analytic relations with their disagreement counts. Each grid has one row per h value and one
+/// column per γ value; a spectral radius that is not finite (the method is undefined there, e.g.
+/// csv2 at γh = 2) is `null`.
+#[utoipa::path(post, path = paths::STABILITY, tag = "stability",
+    request_body(content = StabilityRequest, content_type = "application/json"),
+    responses(
+        (status = 200, description = "One map per method, in the order asked", body = StabilityDocument),
+        (status = 400, description = "Malformed JSON (code `malformed_json`)", body = ErrorBody),
+        (status = 413, description = "The body exceeds 1 MiB", body = ErrorBody),
+        (status = 415, description = "The body is not declared as JSON", body = ErrorBody),
+        (status = 422, description = "A field is unknown, missing, of the wrong type or out of range; \
+            an unknown method or `reference`; more than 16 methods, an axis of more than 1000 points, \
+            or more than 4·10⁶ cells in all (code `too_many_cells`)", body = ErrorBody),
+        (status = 503, description = "Every simulation slot is busy", body = ErrorBody,
+            headers(("Retry-After" = u64, description = "Seconds to wait before retrying"))),
+        (status = 504, description = "The maps did not finish within the time limit", body = ErrorBody),
+        (status = 500, description = "A server fault (details are logged)", body = ErrorBody),
+    ))]
+pub async fn stability_map(
+    State(state): State<AppState>,
+    ApiJson(body): ApiJson<Value>,
+) -> Result<Response, ApiError> {
+    let job = StabilityRequest::from_value(&body)?.prepare()?;
+    let permits = state.acquire(state.config.max_concurrent).await?;
+    let deadline = Instant::now() + state.config.request_timeout;
+    let cancel = Arc::new(AtomicBool::new(false));
+    tracing::info!(
+        methods = job.choices.len(),
+        cells = job.cells(),
+        slots = permits.len(),
+        "stability maps started"
+    );
+    // The guard stops the computation between methods if this future is dropped (the client
+    // went away).
+    let _guard = CancelOnDrop(cancel.clone());
+    let shutdown = cancel_on_shutdown(&state, cancel.clone());
+    let result = run_blocking(move || {
+        let _permits = permits;
+        let budget = Budget {
+            cancel: Some(&cancel),
+            deadline: Some(deadline),
+        };
+        stability::maps(&job, budget).map(|doc: StabilityDocument| serde_json::to_vec(&doc))
+    })
+    .await;
+    shutdown.abort();
+    let bytes = result??.map_err(ApiError::internal)?;
+    let mut response = Response::new(Body::from(bytes));
+    response.headers_mut().insert(
+        header::CONTENT_TYPE,
+        HeaderValue::from_static("application/json"),
+    );
+    Ok(response)
+}
+
+/// The stability analysis of one method at one (ω, γ, h).
+///
+/// The method's one-step matrix with trace, determinant, eigenvalues and spectral radius, the
+/// exact flow's (det = e^{−2γh},
+/// ½tr = e^{−γh} cos βh), the ½-trace error, the numerical verdict and, for cimp, csv1 and csv2,
+/// the verdicts of the corrected and of the printed analytic relations. Numbers that are not
+/// finite (overflow at extreme ω, γ, h) are `null`; where the method is undefined (csv2 at
+/// γh = 2) the answer is 422 naming `h`.
+#[utoipa::path(post, path = paths::STABILITY_POINT, tag = "stability",
+    request_body(content = PointRequest, content_type = "application/json"),
+    responses(
+        (status = 200, description = "The analysis", body = PointDocument),
+        (status = 400, description = "Malformed JSON (code `malformed_json`)", body = ErrorBody),
+        (status = 413, description = "The body exceeds 1 MiB", body = ErrorBody),
+        (status = 415, description = "The body is not declared as JSON", body = ErrorBody),
+        (status = 422, description = "A field is unknown, missing, of the wrong type or out of range; \
+            an unknown method or `reference`; a method undefined at this point (csv2 at γh = 2); \
+            a step that failed (code `step_failed`)", body = ErrorBody),
+        (status = 500, description = "A server fault (details are logged)", body = ErrorBody),
+    ))]
+pub async fn stability_point(
+    ApiJson(body): ApiJson<Value>,
+) -> Result<Json<PointDocument>, ApiError> {
+    let job = PointRequest::from_value(&body)?.prepare()?;
+    let document = run_blocking(move || stability::point(&job)).await??;
+    Ok(Json(document))
+}
