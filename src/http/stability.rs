@@ -48,7 +48,7 @@ use crate::output::stability::{
         (status = 415, description = "The body is not declared as JSON", body = ErrorBody),
         (status = 422, description = "A field is unknown, missing, of the wrong type or out of range; \
             an unknown method or `reference`; more than 16 methods, an axis of more than 1000 points, \
-            or more than 4·10⁶ cells in all (code `too_many_cells`)", body = ErrorBody),
+            or more than 10⁶ cells in all (code `too_many_cells`)", body = ErrorBody),
         (status = 503, description = "Every simulation slot is busy", body = ErrorBody,
             headers(("Retry-After" = u64, description = "Seconds to wait before retrying"))),
         (status = 504, description = "The maps did not finish within the time limit", body = ErrorBody),
