@@ -301,3 +301,23 @@ fn nbody_dimension_is_three_per_body() {
     };
     assert_eq!(sys.dim(), Dyn(15));
 }
+
+#[test]
+fn one_huge_reference_step_fails_cleanly_instead_of_running_unbounded() {
+    // ω = 1000 over a single step of 10⁴: far more adaptive steps than one segment may take.
+    let req = request(
+        "harmonic_oscillator",
+        json!({"omega": 1000.0, "gamma": 0.0}),
+        &["reference"],
+        1e4,
+        1e4,
+    );
+    let sim = Simulation::prepare(&req, &Limits::default()).unwrap();
+    let began = std::time::Instant::now();
+    let result = geomint::core::simulate::run_to_trajectory(&sim, 0, None, Default::default());
+    assert!(
+        matches!(result, Err(CoreError::Step { step: 1, .. })),
+        "{result:?}"
+    );
+    assert!(began.elapsed().as_secs_f64() < 10.0);
+}

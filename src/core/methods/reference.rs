@@ -14,6 +14,10 @@ use crate::core::error::StepError;
 use crate::core::run::Stepper;
 use crate::core::system::{MechanicalSystem, State, Vector};
 
+/// Most adaptive steps inside one fixed step h. The driver checks deadlines and cancellation only
+/// between fixed steps, so this bounds the work a single call can do (about a second).
+const MAX_STEPS_PER_SEGMENT: u32 = 200_000;
+
 /// Default relative and absolute tolerance of the reference runs.
 pub const DEFAULT_TOLERANCE: f64 = 1e-12;
 
@@ -120,7 +124,7 @@ fn dop853<F: ode_solvers::System<f64, DVector<f64>>>(
         6.0,
         h,
         0.0,
-        u32::MAX,
+        MAX_STEPS_PER_SEGMENT,
         u32::MAX,
         OutputType::Sparse,
     );
