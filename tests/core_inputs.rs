@@ -321,3 +321,60 @@ fn one_huge_reference_step_fails_cleanly_instead_of_running_unbounded() {
     );
     assert!(began.elapsed().as_secs_f64() < 10.0);
 }
+
+#[test]
+fn epsilon_errors_name_epsilon_and_show_its_own_range() {
+    let err = Simulation::prepare(
+        &request("pendulum", json!({"epsilon": 3e6}), &["csv1"], 0.1, 1.0),
+        &Limits::default(),
+    )
+    .unwrap_err();
+    assert_eq!(err.field(), Some("params.epsilon"));
+    assert!(
+        err.to_string()
+            .contains("3000000 is outside the valid range [0, 2000000]"),
+        "{err}"
+    );
+}
+
+#[test]
+fn composition_sub_steps_that_make_a_solve_singular_are_refused() {
+    let [w1, w0, _] = geomint::core::methods::composition::triple_jump_weights();
+    let tj = |base: &str, gamma: f64, h: f64| Request {
+        methods: vec![serde_json::from_value(json!({"id": "triple_jump", "base": base})).unwrap()],
+        ..request("pendulum", json!({ "gamma": gamma }), &[], h, 10.0 * h)
+    };
+    // csv2 divides by 1 − γτ/2 with τ = w₁h: singular at γh = 2/w₁ ≈ 1.480.
+    assert_eq!(field_of(tj("csv2", 1.0, 2.0 / w1)), "h");
+    // The backward-Euler half kick of velocity Verlet divides by 1 + γτ with τ = w₀h < 0.
+    assert_eq!(field_of(tj("velocity_verlet", 1.0, -1.0 / w0)), "h");
+    // Nearby step sizes are fine.
+    assert!(Simulation::prepare(&tj("csv2", 1.0, 1.9 / w1), &Limits::default()).is_ok());
+    assert!(
+        Simulation::prepare(&tj("velocity_verlet", 1.0, -0.9 / w0), &Limits::default()).is_ok()
+    );
+}
+
+#[test]
+fn jacobian_defect_works_with_the_reference_comparison_but_not_for_the_reference_itself() {
+    let mut req = request("pendulum", json!({"gamma": 0.1}), &["csv1"], 0.1, 2.0);
+    req.jacobian_defect = true;
+    req.compare_to_reference = true;
+    let (_, runs) = common::run_all(&req);
+    assert!(runs[0].energy_error.is_some());
+    assert!(runs[0]
+        .jacobian_defect
+        .as_ref()
+        .unwrap()
+        .iter()
+        .skip(1)
+        .all(|d| *d < 1e-12));
+    let with_reference = Request {
+        methods: vec![
+            MethodInput::Id("csv1".into()),
+            MethodInput::Id("reference".into()),
+        ],
+        ..req
+    };
+    assert_eq!(field_of(with_reference), "methods[1]");
+}

@@ -128,3 +128,19 @@ fn symmetric_methods_are_their_own_adjoint() {
     geomint::core::run::Stepper::step(&mut stepper, &sys, &mut z, -0.1).unwrap();
     assert!((z.q[0] - start.q[0]).abs() + (z.p[0] - start.p[0]).abs() > 1e-6);
 }
+
+#[test]
+fn strongly_over_damped_exact_solution_stays_finite_and_decays_at_the_slow_rate() {
+    // ω = 1, γ = 10: κt passes 710 (where cosh overflows) near t = 71.
+    let sys = HarmonicOscillator {
+        omega: 1.0,
+        gamma: 10.0,
+    };
+    let kappa = (99.0f64).sqrt();
+    let slow = 1.0 / (10.0 + kappa); // λ₋ = ω²/(γ + κ)
+    let (q100, _) = sys.solution(100.0, 1.0, 0.0);
+    let (q200, p200) = sys.solution(200.0, 1.0, 0.0);
+    assert!(q200.is_finite() && p200.is_finite());
+    // Past the fast transient q decays exactly as e^{−λ₋ t}.
+    assert!(((q200 / q100).ln() / 100.0 + slow).abs() < 1e-12);
+}

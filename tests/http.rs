@@ -630,7 +630,7 @@ async fn bad_inputs_get_clean_errors() {
         (format!(r#"{{{ok}, "q0": [1, 2]}}"#), 422, "invalid_value", Some("q0")),
         (format!(r#"{{{ok}, "p0": [1, "x"]}}"#), 422, "invalid_type", Some("p0[1]")),
         (format!(r#"{{{ok}, "params": {{"gamma": -1}}}}"#), 422, "invalid_value", Some("params.gamma")),
-        (format!(r#"{{{ok}, "params": {{"epsilon": 1e7}}}}"#), 422, "invalid_value", Some("params.gamma")),
+        (format!(r#"{{{ok}, "params": {{"epsilon": 1e7}}}}"#), 422, "invalid_value", Some("params.epsilon")),
         (r#"{"system": "elastic_pendulum_3d", "methods": ["heun"], "h": 0.1, "t_end": 10, "jacobian_defect": true}"#.into(), 422, "invalid_value", Some("jacobian_defect")),
         (format!(r#"{{{ok}, "compare_to_reference": "yes"}}"#), 422, "invalid_type", Some("compare_to_reference")),
     ];

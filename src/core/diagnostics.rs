@@ -51,7 +51,9 @@ pub fn log_log_slope(x: &[f64], y: &[f64]) -> f64 {
 
 /// Least-squares slope of y against x (for the trend of the dissipation drift).
 pub fn least_squares_slope(x: &[f64], y: &[f64]) -> f64 {
-    let n = x.len().min(y.len()) as f64;
+    let n = x.len().min(y.len());
+    let (x, y) = (&x[..n], &y[..n]);
+    let n = n as f64;
     let mx = x.iter().sum::<f64>() / n;
     let my = y.iter().sum::<f64>() / n;
     let sxy: f64 = x.iter().zip(y).map(|(a, b)| (a - mx) * (b - my)).sum();

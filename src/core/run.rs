@@ -17,8 +17,10 @@ use super::error::{CoreError, StepError};
 use super::flows::Tangent;
 use super::system::{MechanicalSystem, State};
 
-/// A one-step method for systems of type `S`. Implementations keep their work buffers, so a step
-/// allocates nothing.
+/// A one-step method for systems of type `S`. Explicit implementations keep their work buffers,
+/// so a step allocates nothing. A stepper may keep the last force evaluation for the next step
+/// (the end of one step is the start of the next), so `step` must be given the state its previous
+/// call produced; start a new stepper for an unrelated state.
 pub trait Stepper<S: MechanicalSystem>
 where
     DefaultAllocator: Allocator<S::Dim>,
@@ -28,6 +30,12 @@ where
 
     /// Gradient (∇V or ∂H/∂q) evaluations so far.
     fn force_evaluations(&self) -> u64;
+
+    /// How many steps may pass between two looks at the cancellation flag and the clock: many
+    /// for cheap explicit steps, one for steps that may take long (Newton, adaptive).
+    fn check_interval(&self) -> u64 {
+        1024
+    }
 
     /// Advances `z` by one step and multiplies `tangent.jac` by the step's Jacobian ∂Φ/∂z.
     fn step_tangent(
@@ -53,6 +61,9 @@ where
     }
     fn force_evaluations(&self) -> u64 {
         (**self).force_evaluations()
+    }
+    fn check_interval(&self) -> u64 {
+        (**self).check_interval()
     }
     fn step_tangent(
         &mut self,
@@ -159,9 +170,6 @@ where
     fn on_step_determinant(&mut self, _step: u64, _det: f64) {}
 }
 
-/// How often the loop looks at the cancellation flag and the clock.
-const CHECK_EVERY: u64 = 1024;
-
 /// Runs `stepper` from `z` over `schedule`, reporting samples to `observer`.
 ///
 /// With `track_determinant`, each step also propagates its Jacobian (slower; for diagnostics)
@@ -183,6 +191,13 @@ where
 {
     let started = Instant::now();
     let h = schedule.h;
+    let every = schedule.every.max(1);
+    // Tangent propagation costs O(n³) per step: look at the budget every step then.
+    let check_every = if track_determinant {
+        1
+    } else {
+        stepper.check_interval().max(1)
+    };
     let mut tangent = if track_determinant {
         Some(Tangent::new(sys, z))
     } else {
@@ -192,7 +207,7 @@ where
     let mut stop = StopReason::Finished;
     let mut step = 0u64;
     while step < schedule.steps {
-        if step % CHECK_EVERY == 0 && step > 0 {
+        if step % check_every == 0 && step > 0 {
             if budget.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
                 stop = StopReason::Cancelled { step };
                 break;
@@ -203,8 +218,8 @@ where
             }
         }
         // Steps up to the next sample, the next budget check or the end.
-        let next_sample = ((step / schedule.every) + 1) * schedule.every;
-        let next_check = ((step / CHECK_EVERY) + 1) * CHECK_EVERY;
+        let next_sample = ((step / every) + 1) * every;
+        let next_check = ((step / check_every) + 1) * check_every;
         let until = next_sample.min(next_check).min(schedule.steps);
         let fail = |step: u64, source: StepError| CoreError::Step {
             step: step + 1,
@@ -244,7 +259,7 @@ where
             };
             break;
         }
-        if step % schedule.every == 0 || step == schedule.steps {
+        if step % every == 0 || step == schedule.steps {
             observer.on_sample(step, step as f64 * h, z);
         }
     }

@@ -198,7 +198,7 @@ impl Simulation {
             steps,
             every,
         };
-        let total_samples = schedule.samples() * req.methods.len() as u64;
+        let total_samples = schedule.samples().saturating_mul(req.methods.len() as u64);
         if total_samples > limits.max_samples {
             return Err(CoreError::invalid(
                 "output.every",
@@ -212,14 +212,13 @@ impl Simulation {
         for (i, input) in req.methods.iter().enumerate() {
             let choice = MethodChoice::parse(input, &format!("methods[{i}]"))?;
             // Building checks requirements and step-size limits; the stepper itself is dropped.
-            with_system!(&system, s => methods::build(&choice, s, &req.system, req.h).map(|_| ()))
-                .map_err(|e| match e {
-                    CoreError::Unmet { .. } => e,
-                    CoreError::Invalid { field, message } if field == "h" => {
-                        CoreError::Invalid { field, message }
-                    }
-                    other => other,
-                })?;
+            with_system!(&system, s => methods::build(&choice, s, &req.system, req.h).map(|_| ()))?;
+            if req.jacobian_defect && choice.id == methods::MethodId::Reference {
+                return Err(CoreError::invalid(
+                    format!("methods[{i}]"),
+                    "the adaptive reference has no step Jacobian; drop it or jacobian_defect",
+                ));
+            }
             methods.push(choice);
         }
         if req.jacobian_defect {
@@ -313,7 +312,8 @@ impl Simulation {
                 &mut z,
                 self.schedule,
                 budget,
-                self.jacobian_defect,
+                // The reference run only supplies energies; it has no tangent map.
+                self.jacobian_defect && choice.id != methods::MethodId::Reference,
                 &mut observer,
             ))?;
             Ok(Outcome { stop, stats })

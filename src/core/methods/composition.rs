@@ -51,6 +51,10 @@ where
         self.base.force_evaluations()
     }
 
+    fn check_interval(&self) -> u64 {
+        self.base.check_interval()
+    }
+
     fn step_tangent(
         &mut self,
         sys: &S,

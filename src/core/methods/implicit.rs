@@ -188,7 +188,9 @@ where
             self.mid -= &correction;
             let size = correction.amax();
             let scale = self.mid.amax().max(1e-300);
-            if size <= 4.0 * f64::EPSILON * scale || (size == last && size <= 1e-12 * scale) {
+            // Converged at round-off, or stalled there: a correction below 1e-12 of the state that
+            // no longer halves is round-off noise, not progress.
+            if size <= 4.0 * f64::EPSILON * scale || (size <= 1e-12 * scale && size > 0.5 * last) {
                 // The Jacobian stays the one at the previous iterate: the tangent map only needs
                 // it to O(correction), and re-evaluating would cost a force evaluation per step.
                 return Ok(());
@@ -236,6 +238,10 @@ where
 
     fn force_evaluations(&self) -> u64 {
         self.force_evaluations
+    }
+
+    fn check_interval(&self) -> u64 {
+        1
     }
 
     /// (I − h/2 J(m)) δz₁ = (I + h/2 J(m)) δz₀, times e^{−γh} for cimp.

@@ -311,7 +311,7 @@ impl MethodId {
                 false,
                 false,
                 SEP,
-                cite(TAKACS, "eq. (43)"),
+                cite(TAKACS, "footnote 3 (the adjoint of eqs. 42–43)"),
                 "baseline",
                 &[],
             ),
@@ -777,6 +777,9 @@ where
     fn force_evaluations(&self) -> u64 {
         with_stepper!(self, st => Stepper::<S>::force_evaluations(st))
     }
+    fn check_interval(&self) -> u64 {
+        with_stepper!(self, st => Stepper::<S>::check_interval(st))
+    }
     fn step_tangent(
         &mut self,
         sys: &S,
@@ -800,19 +803,34 @@ where
     DefaultAllocator: Allocator<S::Dim>,
 {
     choice.check(system_id, sys.structure())?;
-    let gamma = 0.5 * sys.damping_rate();
-    let uses_csv2 = choice.id == MethodId::Csv2 || choice.base == Some(MethodId::Csv2);
-    if uses_csv2 && (1.0 - 0.5 * gamma * h).abs() < 1e-9 {
+    let base = match choice.id {
+        MethodId::TripleJump => choice.base.unwrap_or(MethodId::Modin3s),
+        id => id,
+    };
+    if choice.id == MethodId::TripleJump && !TRIPLE_JUMP_BASES.contains(&base) {
         return Err(CoreError::invalid(
-            "h",
-            format!(
-                "csv2 divides by 1 − γh/2, which vanishes at γh = 2; here γh = {}",
-                gamma * h
-            ),
+            "methods",
+            format!("`{}` is not a triple-jump base", base.as_str()),
         ));
     }
+    let inner = match choice.id {
+        MethodId::ModinRks => Some(choice.inner.unwrap_or(MethodId::Heun)),
+        _ => None,
+    };
+    if let Some(i) = inner.filter(|i| !RKS_INNER.contains(i)) {
+        return Err(CoreError::invalid(
+            "methods",
+            format!("`{}` is not an inner method of modin_rks", i.as_str()),
+        ));
+    }
+    let weights: &[f64] = if choice.id == MethodId::TripleJump {
+        &triple_jump_weights()
+    } else {
+        &[1.0]
+    };
+    check_divisors(base, sys.damping_rate(), h, weights)?;
     let splitting = |seq: Vec<(splitting::SubFlow, f64)>| {
-        let inner = choice.inner.map(|i| {
+        let inner = inner.map(|i| {
             MomentumRk::new(
                 tableau(i).map_or(InnerRk::ImplicitMidpoint, InnerRk::Explicit),
                 sys.dim(),
@@ -822,7 +840,6 @@ where
     };
     Ok(match choice.id {
         MethodId::TripleJump => {
-            let base = choice.base.unwrap_or(MethodId::Modin3s);
             let weights = triple_jump_weights();
             match (sequence(base), base) {
                 (Some(seq), _) => splitting(splitting::compose(seq, &weights)),
@@ -855,4 +872,37 @@ where
             (None, None) => unreachable!("every method id has a constructor"),
         },
     })
+}
+
+/// Refuses a step whose sub-steps w·h make one of the method's linear solves singular: csv2
+/// divides by 1 ∓ γτ/2, a damped θ-kick by 1 + θrτ. With the triple jump's negative middle weight
+/// these vanish at values of γh other than the plain method's.
+fn check_divisors(base: MethodId, r: f64, h: f64, weights: &[f64]) -> Result<(), CoreError> {
+    let singular = |d: f64| d.abs() < 1e-9;
+    for &w in weights {
+        let bad = match (base, sequence(base)) {
+            (MethodId::Csv2, _) => {
+                let a = 0.25 * r * w * h;
+                singular(1.0 - a) || singular(1.0 + a)
+            }
+            (_, Some(seq)) => seq.iter().any(|&(flow, frac)| match flow {
+                splitting::SubFlow::DampedKick(theta) => {
+                    singular(1.0 + theta.value() * r * w * frac * h)
+                }
+                _ => false,
+            }),
+            _ => false,
+        };
+        if bad {
+            return Err(CoreError::invalid(
+                "h",
+                format!(
+                    "{} needs to solve a singular linear system at this step size (γh = {}): choose another h",
+                    base.as_str(),
+                    0.5 * r * h
+                ),
+            ));
+        }
+    }
+    Ok(())
 }

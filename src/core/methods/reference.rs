@@ -99,6 +99,10 @@ where
     fn force_evaluations(&self) -> u64 {
         self.force_evaluations
     }
+
+    fn check_interval(&self) -> u64 {
+        1
+    }
 }
 
 /// Integrates y' = f(y) over [0, h] with DOP853 at tolerance `tol`; returns the end state and

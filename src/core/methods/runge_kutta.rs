@@ -150,7 +150,7 @@ where
         self.force_evaluations
     }
 
-    /// The variational equation integrated by the same tableau: K_i = J(Z_i)(I + h Σ a_ij K_j),
+    /// The variational equation integrated by the same tableau: K_i = J(Z_i)(Y + h Σ a_ij K_j), with Y the Jacobian so far,
     /// with J = [[0, M⁻¹], [−∇²V, −r I]] (constant M, conformal damping).
     fn step_tangent(
         &mut self,

@@ -9,8 +9,8 @@
 //! - `csv1`, paper 003 eq. (2.12): damp ½, kick ½, drift 1, kick ½, damp ½ (003 writes the
 //!   damping half-flow as p ← e^{−γh} p, i.e. e^{−2γ·h/2});
 //! - the undamped classics applied to the full damped vector field as partitioned methods
-//!   (baselines, not geometric): symplectic Euler (001 eq. 42: p₁ = p − h G(q, p₁), implicit in
-//!   p₁, then q₁ = q + h M⁻¹p₁), its adjoint (eq. 43), velocity Verlet as the Lobatto IIIA–IIIB
+//!   (baselines, not geometric): symplectic Euler (001 eqs. 42–43: p₁ = p + h G(q, p₁), implicit in
+//!   p₁, then q₁ = q + h M⁻¹p₁), its adjoint (001 footnote 3), velocity Verlet as the Lobatto IIIA–IIIB
 //!   pair (backward-Euler half kick, drift, forward-Euler half kick) and position Verlet (drift,
 //!   trapezoidal kick, drift), where G = −∇V − εDM⁻¹p. All reduce to the classical schemes at
 //!   ε = 0; the Verlets stay symmetric and second order under damping.
@@ -41,7 +41,8 @@ pub enum Theta {
 }
 
 impl Theta {
-    fn value(self) -> f64 {
+    /// θ as a number.
+    pub fn value(self) -> f64 {
         match self {
             Theta::Explicit => 0.0,
             Theta::Trapezoid => 0.5,
@@ -103,9 +104,9 @@ pub const CSV1: Sequence = &[
     (Kick, 0.5),
     (Damp, 0.5),
 ];
-/// Paper 001, eq. (42): p⁺ = p − h∇V(q), q⁺ = q + h M⁻¹p⁺.
+/// Paper 001, eqs. (42)–(43): p⁺ = p − h∇V(q), q⁺ = q + h M⁻¹p⁺.
 pub const SYMPLECTIC_EULER: Sequence = &[(DampedKick(Theta::Implicit), 1.0), (Drift, 1.0)];
-/// The adjoint of symplectic Euler, 001 eq. (43): q⁺ = q + h M⁻¹p, p⁺ = p − h∇V(q⁺).
+/// The adjoint of symplectic Euler (001 footnote 3): q⁺ = q + h M⁻¹p, p⁺ = p − h∇V(q⁺).
 pub const SYMPLECTIC_EULER_ADJOINT: Sequence = &[(Drift, 1.0), (DampedKick(Theta::Explicit), 1.0)];
 /// Störmer–Verlet, drift–kick–drift.
 pub const POSITION_VERLET: Sequence = &[
@@ -172,8 +173,8 @@ where
         }
     }
 
-    /// Recomputes the h-dependent coefficients when the step size changes (once per run for a
-    /// fixed-step run, three times per step inside a composition of a composition).
+    /// Recomputes the h-dependent coefficients when the step size changes (once per fixed-step
+    /// run; compositions of splittings are flattened into one sequence, so they too).
     #[inline]
     fn prepare(&mut self, sys: &S, h: f64) {
         if h == self.coeff_h {

@@ -317,12 +317,14 @@ pub fn resolve(info: &SystemInfo, params: &Params) -> Result<Resolved, CoreError
         }
     }
     for spec in &info.params {
-        let field = format!("params.{}", spec.name);
+        let mut field = format!("params.{}", spec.name);
         let mut given = params.get(spec.name);
+        // `epsilon` = 2γ on a conformal system: errors name and show what was given.
         let mut scale = 1.0;
         if spec.name == "gamma" && conformal_alias {
             given = params.get("epsilon");
-            scale = 0.5;
+            scale = 2.0;
+            field = "params.epsilon".to_string();
         }
         match &spec.kind {
             ParamKind::Number {
@@ -336,7 +338,7 @@ pub fn resolve(info: &SystemInfo, params: &Params) -> Result<Resolved, CoreError
                     Some(v) => {
                         v.as_f64()
                             .ok_or_else(|| CoreError::invalid(&field, "must be a number"))?
-                            * scale
+                            / scale
                     }
                 };
                 let below = if *min_exclusive {
@@ -348,7 +350,12 @@ pub fn resolve(info: &SystemInfo, params: &Params) -> Result<Resolved, CoreError
                     let open = if *min_exclusive { "(" } else { "[" };
                     return Err(CoreError::invalid(
                         &field,
-                        format!("{value} is outside the valid range {open}{min}, {max}]"),
+                        format!(
+                            "{} is outside the valid range {open}{}, {}]",
+                            value * scale,
+                            min * scale,
+                            max * scale
+                        ),
                     ));
                 }
                 resolved.numbers.insert(spec.name.to_string(), value);

@@ -21,21 +21,33 @@ impl HarmonicOscillator {
     pub fn solution(&self, t: f64, q0: f64, p0: f64) -> (f64, f64) {
         let g = self.gamma;
         let d = self.omega * self.omega - g * g;
+        // e^{−γt}·(C, S, C', S'); in the over-damped case from the two real exponents
+        // λ± = γ ± κ (λ₋ = ω²/(γ + κ) without cancellation), so that e^{−γt} cosh κt does not
+        // overflow for large κt.
         let (c, s, c_dot, s_dot) = if d > 0.0 {
             let beta = d.sqrt();
+            let decay = (-g * t).exp();
             let (sn, cs) = (beta * t).sin_cos();
-            (cs, sn / beta, -beta * sn, cs)
+            (
+                decay * cs,
+                decay * sn / beta,
+                -decay * beta * sn,
+                decay * cs,
+            )
         } else if d < 0.0 {
             let kappa = (-d).sqrt();
-            let (sh, ch) = ((kappa * t).sinh(), (kappa * t).cosh());
+            let slow = (-(self.omega * self.omega / (g + kappa)) * t).exp();
+            let fast = (-(g + kappa) * t).exp();
+            let ch = 0.5 * (slow + fast);
+            let sh = 0.5 * (slow - fast);
             (ch, sh / kappa, kappa * sh, ch)
         } else {
-            (1.0, t, 0.0, 1.0)
+            let decay = (-g * t).exp();
+            (decay, decay * t, 0.0, decay)
         };
         let (a, b) = (q0, p0 + g * q0);
-        let decay = (-g * t).exp();
-        let q = decay * (a * c + b * s);
-        let p = decay * (a * c_dot + b * s_dot) - g * q;
+        let q = a * c + b * s;
+        let p = a * c_dot + b * s_dot - g * q;
         (q, p)
     }
 }
