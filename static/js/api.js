@@ -1,0 +1,97 @@
+// The page's client of the geomint HTTP API: the two catalogues and the NDJSON simulation stream
+// (POST /api/v1/simulate with Accept: application/x-ndjson). Errors in the service's shape,
+// {"error": {"code", "message", "field"}}, become ApiError objects that keep the field path.
+
+/** An error answered by the API (or a stream's `error` line). */
+export class ApiError extends Error {
+  /**
+   * @param {{code?: string, message?: string, field?: string|null}} detail
+   * @param {number} [status] HTTP status, when the error came as a response
+   * @param {number|null} [method] index of the method concerned (stream errors)
+   */
+  constructor(detail, status = 0, method = null) {
+    super(detail?.message || 'the server answered with an error');
+    this.name = 'ApiError';
+    this.code = detail?.code || 'unknown';
+    this.field = detail?.field ?? null;
+    this.status = status;
+    this.method = method;
+  }
+}
+
+/** Reads an error response body, which should be the service's JSON error shape. */
+async function errorFrom(response) {
+  let detail = null;
+  try {
+    detail = (await response.json())?.error ?? null;
+  } catch {
+    // Not JSON (a proxy in between, say): fall back to the status line.
+  }
+  if (!detail) {
+    detail = { code: 'http_' + response.status, message: `HTTP ${response.status} ${response.statusText}` };
+  }
+  if (response.status === 503) {
+    const retry = response.headers.get('retry-after');
+    if (retry) detail = { ...detail, message: `${detail.message} (retry in ${retry} s)` };
+  }
+  return new ApiError(detail, response.status);
+}
+
+/** GETs a JSON document of the API. */
+async function getJson(path) {
+  const response = await fetch(path, { headers: { accept: 'application/json' } });
+  if (!response.ok) throw await errorFrom(response);
+  return response.json();
+}
+
+/** The system and method catalogues. */
+export async function catalogues() {
+  const [systems, methods] = await Promise.all([getJson('api/v1/systems'), getJson('api/v1/methods')]);
+  return { systems, methods };
+}
+
+/**
+ * Runs a simulation as an NDJSON stream, calling `onLine` with every parsed line in order.
+ * Resolves once the `end` line arrived; rejects with an ApiError for error answers, with an
+ * Error when the stream is cut short, and with the AbortError of `signal` when cancelled.
+ *
+ * @param {object} request the body of POST /api/v1/simulate
+ * @param {(line: object) => void} onLine
+ * @param {AbortSignal} signal
+ */
+export async function simulateStream(request, onLine, signal) {
+  const response = await fetch('api/v1/simulate', {
+    method: 'POST',
+    headers: { 'content-type': 'application/json', accept: 'application/x-ndjson' },
+    body: JSON.stringify(request),
+    signal,
+  });
+  if (!response.ok) throw await errorFrom(response);
+
+  const reader = response.body.getReader();
+  const decoder = new TextDecoder();
+  let pending = '';
+  let ended = false;
+  const handle = (text) => {
+    if (!text.trim()) return;
+    const line = JSON.parse(text);
+    if (line.type === 'end') ended = true;
+    onLine(line);
+  };
+  for (;;) {
+    const { value, done } = await reader.read();
+    if (done) break;
+    pending += decoder.decode(value, { stream: true });
+    // Handle every complete line, then keep only the unfinished tail (one copy per read).
+    let start = 0;
+    let newline;
+    while ((newline = pending.indexOf('\n', start)) >= 0) {
+      handle(pending.slice(start, newline));
+      start = newline + 1;
+    }
+    pending = pending.slice(start);
+  }
+  pending += decoder.decode();
+  handle(pending);
+  if (!ended) throw new Error('the stream ended before its last line: the server stopped early');
+}

@@ -1,0 +1,335 @@
+// The result plots, drawn with uPlot: energy against time, the energy error on a log axis, a
+// phase portrait per degree of freedom, the trajectory (q(t), or for 3-D systems the x–y and x–z
+// projections), the invariants and the dissipation drift. Every chosen method is one series in
+// its own colour. Time plots share the sample times (uPlot's aligned mode); phase portraits and
+// projections draw each method's points in time order (uPlot's faceted mode 2).
+
+import uPlot from '../vendor/uPlot.esm.js';
+import { el } from './form.js';
+
+/** One colour per method (Okabe–Ito, then Tol's muted set), readable on white. */
+export const COLOURS = [
+  '#0072B2', '#D55E00', '#009E73', '#CC79A7', '#E69F00', '#56B4E9', '#222222', '#882255',
+  '#44AA99', '#999933', '#AA4499', '#332288', '#117733', '#DDCC77', '#661100', '#6699CC',
+];
+
+export function colour(i) {
+  return COLOURS[i % COLOURS.length];
+}
+
+/**
+ * Draws a faceted series as one polyline in data order (x need not be monotone). Points closer
+ * than half a pixel to the last drawn one are skipped, so long runs stroke quickly.
+ */
+function polyline(u, seriesIdx) {
+  const series = u.series[seriesIdx];
+  const [xs, ys] = u.data[seriesIdx];
+  const xKey = series.facets[0].scale;
+  const yKey = series.facets[1].scale;
+  const stroke = new Path2D();
+  const near = 0.5 * (window.devicePixelRatio || 1);
+  let drawing = false;
+  let lastX = 0;
+  let lastY = 0;
+  let skipped = false;
+  for (let i = 0; i < xs.length; i++) {
+    const x = xs[i];
+    const y = ys[i];
+    if (x == null || y == null || !Number.isFinite(x) || !Number.isFinite(y)) {
+      if (skipped) stroke.lineTo(lastX, lastY);
+      drawing = false;
+      skipped = false;
+      continue;
+    }
+    const px = u.valToPos(x, xKey, true);
+    const py = u.valToPos(y, yKey, true);
+    if (!drawing) {
+      stroke.moveTo(px, py);
+      drawing = true;
+    } else if (Math.abs(px - lastX) < near && Math.abs(py - lastY) < near && i < xs.length - 1) {
+      skipped = true;
+      continue;
+    } else {
+      stroke.lineTo(px, py);
+    }
+    lastX = px;
+    lastY = py;
+    skipped = false;
+  }
+  return { stroke, fill: null, clip: null, band: null, gaps: null, flags: 0 };
+}
+
+/**
+ * A linear axis range: uPlot's padded range, except that a constant series (a coordinate that
+ * stays 0, a conserved invariant) gets a band around its value instead of [0, 100].
+ */
+function linearRange(u, min, max) {
+  if (min == null || max == null) return [0, 1];
+  if (min === max) {
+    const pad = Math.abs(min) * 0.1 || 1;
+    return [min - pad, max + pad];
+  }
+  return uPlot.rangeNum(min, max, 0.1, true);
+}
+
+/** Compact tick labels. */
+function ticks(u, values) {
+  return values.map((v) => {
+    if (v == null) return '';
+    const a = Math.abs(v);
+    if (a !== 0 && (a < 1e-3 || a >= 1e5)) return v.toExponential(0).replace('e+', 'e');
+    return String(+v.toPrecision(6));
+  });
+}
+
+/** Log-axis gridlines at powers of ten only (every few powers when the range is wide). */
+function logSplits(u, axisIdx, min, max) {
+  const lo = Math.floor(Math.log10(min));
+  const hi = Math.ceil(Math.log10(max));
+  const step = Math.max(1, Math.ceil((hi - lo) / 6));
+  const out = [];
+  for (let e = lo; e <= hi; e += step) {
+    const v = 10 ** e;
+    if (v >= min * (1 - 1e-9) && v <= max * (1 + 1e-9)) out.push(v);
+  }
+  return out.length >= 2 ? out : [min, max];
+}
+
+function logTicks(u, values) {
+  return values.map((v) => {
+    if (v == null) return '';
+    const e = Math.log10(v);
+    return Math.abs(e - Math.round(e)) < 1e-6 ? `1e${Math.round(e)}` : v.toExponential(1).replace('e+', 'e');
+  });
+}
+
+/**
+ * `y` at the length `n` of the x column: itself when it has that length (uPlot then holds the
+ * store's own array, no copy), else a copy padded with nulls (a run that is behind or stopped).
+ */
+function padded(y, n) {
+  if (y.length === n) return y;
+  const out = y.slice(0, n);
+  while (out.length < n) out.push(null);
+  return out;
+}
+
+/**
+ * A plot definition: `key` (stable, used by tests), `title`, axis labels, `mode` (1: time on x,
+ * 2: x–y pairs), `log` for a log y axis, and `series(store)` giving per method (and body) the
+ * label, colour and values.
+ */
+function timePlot(key, title, yLabel, pick, { log = false, caption = '' } = {}) {
+  return { key, title, caption, xLabel: 't', yLabel, mode: 1, log, pick };
+}
+
+/** `perMethod`: how many x–y series each method has (one per body in projections). */
+function pairPlot(key, title, xLabel, yLabel, pairs, { caption = '', perMethod = 1 } = {}) {
+  return { key, title, caption, xLabel, yLabel, mode: 2, pairs, perMethod };
+}
+
+/** The charts of one simulation, built from its stream header. */
+export class Charts {
+  /** @param {HTMLElement} root the results area that holds the plot sections */
+  constructor(root) {
+    this.root = root;
+    /** @type {Map<string, {def: object, plot: uPlot, figure: HTMLElement}>} */
+    this.plots = new Map();
+    this.resize = new ResizeObserver((entries) => {
+      for (const entry of entries) {
+        const item = entry.target.plotItem;
+        if (!item) continue;
+        const { width, height } = this.size(entry.target);
+        if (Math.abs(item.plot.width - width) > 1) item.plot.setSize({ width, height });
+      }
+    });
+  }
+
+  /** Removes every plot. */
+  clear() {
+    for (const { plot, figure } of this.plots.values()) {
+      this.resize.unobserve(figure);
+      plot.destroy();
+    }
+    this.plots.clear();
+    this.root.replaceChildren();
+    this.header = null;
+  }
+
+  size(figure) {
+    const width = Math.max(200, Math.floor(figure.querySelector('.plot-area').clientWidth));
+    const height = Math.round(Math.min(260, Math.max(180, width * 0.55)));
+    return { width, height };
+  }
+
+  /**
+   * Creates the plots for a stream `header` (system, methods, invariants, schedule).
+   * @param {object} header
+   * @param {{energyErrorSource: string|null, drift: boolean}} options
+   */
+  build(header, options) {
+    this.clear();
+    this.header = header;
+    const dof = header.system.q0.length;
+    const labels = header.methods;
+    const sections = [];
+
+    const energy = [timePlot('energy', 'Energy H(t)', 'H', (r) => r.energy)];
+    if (options.energyErrorSource) {
+      energy.push(timePlot('energy_error', `Energy error |H − H_${options.energyErrorSource}|`, '|ΔH|',
+        (r) => r.errorMagnitude, { log: true, caption: `against the ${options.energyErrorSource === 'exact' ? 'exact solution' : 'DOP853 reference'}; log axis` }));
+    }
+    sections.push({ id: 'energy', title: 'Energy', plots: energy,
+      note: options.energyErrorSource ? null : 'No energy error: this system has no exact solution. Tick “compare to the reference” to measure it against the DOP853 reference.' });
+
+    const names = dof === 1 ? [''] : dof % 3 === 0 ? ['x', 'y', 'z'] : null;
+    const coordinate = (i) => {
+      if (dof === 1) return '';
+      if (dof === 3) return names[i];
+      if (dof % 3 === 0) return `${names[i % 3]}${Math.floor(i / 3) + 1}`;
+      return String(i + 1);
+    };
+    const phase = [];
+    for (let i = 0; i < dof; i++) {
+      const c = coordinate(i);
+      const q = c ? `q_${c}` : 'q';
+      const p = c ? `p_${c}` : 'p';
+      phase.push(pairPlot(`phase:${i}`, `Phase portrait (${q}, ${p})`, q, p,
+        (r) => [[r.qColumns[i] || [], r.pColumns[i] || []]]));
+    }
+    sections.push({ id: 'phase', title: 'Phase portraits', plots: phase });
+
+    const trajectory = [];
+    if (dof % 3 === 0) {
+      const bodies = dof / 3;
+      const project = (a, b) => (r) => Array.from({ length: bodies }, (_, k) =>
+        [r.qColumns[3 * k + a] || [], r.qColumns[3 * k + b] || []]);
+      const caption = bodies > 1 ? `${bodies} bodies, each in its method’s colour` : '';
+      trajectory.push(pairPlot('trajectory:xy', 'Trajectory, x–y projection', 'x', 'y', project(0, 1), { caption, perMethod: bodies }));
+      trajectory.push(pairPlot('trajectory:xz', 'Trajectory, x–z projection', 'x', 'z', project(0, 2), { caption, perMethod: bodies }));
+    } else {
+      for (let i = 0; i < dof; i++) {
+        const c = coordinate(i);
+        const q = c ? `q_${c}` : 'q';
+        trajectory.push(timePlot(`trajectory:${i}`, `Trajectory ${q}(t)`, q, (r) => r.qColumns[i] || []));
+      }
+    }
+    sections.push({ id: 'trajectory', title: 'Trajectory', plots: trajectory });
+
+    const invariants = header.invariants.map((name) =>
+      timePlot(`invariant:${name}`, `Invariant ${name}(t)`, name, (r) => r.invariants[name] || []));
+    if (options.drift) {
+      invariants.push(pairPlot('drift', 'Dissipation drift d(t) = ln max|q| + γt', 't', 'd',
+        (r) => [[(r.dissipation_drift || []).map((x) => x.t), (r.dissipation_drift || []).map((x) => x.d)]],
+        { caption: 'paper 003 eq. 4.4; flat under the exact flow of the linear oscillator; drawn as each method ends' }));
+    }
+    sections.push({ id: 'invariants', title: 'Invariants', plots: invariants,
+      note: invariants.length ? null : 'This system reports no invariants.' });
+
+    // One grid for all plots, in the order of the sections; a section's note takes a cell.
+    const grid = el('div', { class: 'plot-grid' });
+    this.root.append(grid);
+    for (const section of sections) {
+      if (section.note) {
+        grid.append(el('p', { class: 'plot-note', 'data-note': section.id },
+          el('strong', { text: `${section.title}: ` }), section.note));
+      }
+      for (const def of section.plots) this.add(grid, def, labels);
+    }
+  }
+
+  /** Creates one plot in `grid`. */
+  add(grid, def, labels) {
+    const titleId = `plot-${def.key.replace(/[^\w-]/g, '-')}`;
+    const area = el('div', { class: 'plot-area' });
+    const figure = el('figure', { class: 'plot', 'data-plot': def.key, 'aria-labelledby': titleId },
+      el('figcaption', { id: titleId }, el('span', { class: 'plot-title', text: def.title }),
+        def.caption ? el('small', { text: def.caption }) : null),
+      area);
+    grid.append(figure);
+    const { width, height } = this.size(figure);
+    const axis = (label, log = false, x = false) => ({
+      label, labelSize: 14, size: x ? 28 : 50, labelGap: 0, values: log ? logTicks : ticks,
+      splits: log ? logSplits : undefined, filter: log ? (u, splits) => splits : undefined,
+      stroke: '#333', grid: { stroke: '#e4e4e4', width: 1 }, ticks: { stroke: '#ccc', width: 1 },
+      font: '11px system-ui, sans-serif', labelFont: '12px system-ui, sans-serif',
+    });
+    let opts;
+    if (def.mode === 1) {
+      const tEnd = this.header.schedule.t_end;
+      opts = {
+        width, height, mode: 1,
+        legend: { show: false },
+        cursor: { sync: { key: 'geomint-time' }, points: { size: 5 } },
+        scales: {
+          x: { time: false, range: () => [0, tEnd] },
+          y: def.log ? { distr: 3 } : { auto: true, range: linearRange },
+        },
+        axes: [axis(def.xLabel, false, true), axis(def.yLabel, def.log)],
+        series: [{ label: 't' }, ...labels.map((label, i) => ({
+          label, stroke: colour(i), width: 1.25, points: { show: false }, spanGaps: false,
+        }))],
+      };
+    } else {
+      const series = [{}];
+      labels.forEach((label, i) => {
+        for (let k = 0; k < def.perMethod; k++) {
+          series.push({
+            label: def.perMethod > 1 ? `${label}, body ${k + 1}` : label,
+            stroke: colour(i), width: 1.25, paths: polyline, points: { show: false },
+            facets: [{ scale: 'x', auto: true }, { scale: 'y', auto: true }],
+          });
+        }
+      });
+      opts = {
+        width, height, mode: 2,
+        legend: { show: false },
+        cursor: { points: { show: false }, drag: { x: true, y: true } },
+        scales: { x: { time: false, auto: true, range: linearRange }, y: { auto: true, range: linearRange } },
+        axes: [axis(def.xLabel, false, true), axis(def.yLabel)],
+        series,
+      };
+    }
+    const initial = def.mode === 1
+      ? [[], ...labels.map(() => [])]
+      : [null, ...labels.flatMap(() => Array.from({ length: def.perMethod }, () => [[], []]))];
+    const plot = new uPlot(opts, initial, area);
+    const item = { def, plot, figure };
+    figure.plotItem = item;
+    this.plots.set(def.key, item);
+    this.resize.observe(figure);
+  }
+
+  /** Sets every plot's data from the run store. */
+  update(store) {
+    for (const item of this.plots.values()) {
+      const { def, plot } = item;
+      if (def.mode === 1) {
+        let x = [];
+        for (const run of store.runs) if (run.t.length > x.length) x = run.t;
+        const n = x.length;
+        const ys = store.runs.map((run) => padded(def.pick(run), n));
+        if (def.log && !ys.some((y) => y.some((v) => v != null))) continue;
+        plot.setData([x, ...ys]);
+      } else {
+        const data = [null];
+        for (const run of store.runs) data.push(...def.pairs(run));
+        if (!data.slice(1).some(([xs]) => xs.length > 0)) continue;
+        plot.setData(data);
+      }
+    }
+  }
+
+  /** Per plot, per series: the label and how many points it holds (for tests and the page). */
+  pointCounts() {
+    const out = {};
+    for (const [key, { plot }] of this.plots) {
+      out[key] = plot.series.slice(1).map((s, i) => {
+        const data = plot.mode === 2 ? plot.data[i + 1]?.[0] ?? [] : plot.data[i + 1] ?? [];
+        const points = plot.mode === 2 ? data.length : data.filter((v) => v != null).length;
+        return { label: s.label, points };
+      });
+    }
+    return out;
+  }
+}

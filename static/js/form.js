@@ -1,0 +1,430 @@
+// The simulation form: builds the system, parameter, initial-state and method inputs from the
+// catalogues (GET /api/v1/systems, /api/v1/methods), reads them into a request body for
+// POST /api/v1/simulate, fills them from a preset, and shows API errors beside the input named by
+// the error's `field` path (`h`, `params.gamma`, `q0[1]`, `methods[1].inner`, `output.every`).
+
+/** Display groups of the method catalogue, in order. */
+const GROUPS = [
+  { id: 'geometric', title: 'Geometric', note: 'Rayleigh-damped splittings (paper 000) and compositions' },
+  { id: 'conformal', title: 'Conformal', note: 'conformal symplectic schemes (paper 003); linear damping only' },
+  { id: 'baseline', title: 'Baselines', note: 'classical schemes and the adaptive reference' },
+];
+
+/** Inner methods `modin_rks` accepts (README, Methods; explicit Euler is not offered). */
+const RKS_INNER = ['heun', 'rk3', 'rk4', 'implicit_midpoint'];
+
+/** Up to this many degrees of freedom the initial state gets one input per component. */
+const MAX_COMPONENT_INPUTS = 6;
+
+const REQUIREMENT_TEXT = {
+  separable_constant_mass: 'a separable H with constant mass',
+  conformal_damping: 'conformal damping (p′ = −∇V − 2γp)',
+};
+
+/** Creates an element with attributes and children. */
+export function el(tag, attrs = {}, ...children) {
+  const node = document.createElement(tag);
+  for (const [key, value] of Object.entries(attrs)) {
+    if (value === undefined || value === null || value === false) continue;
+    if (key === 'class') node.className = value;
+    else if (key === 'text') node.textContent = value;
+    else if (key.startsWith('on')) node.addEventListener(key.slice(2), value);
+    else node.setAttribute(key, value === true ? '' : String(value));
+  }
+  for (const child of children.flat()) {
+    if (child === null || child === undefined || child === false) continue;
+    node.append(child instanceof Node ? child : document.createTextNode(String(child)));
+  }
+  return node;
+}
+
+/** Text with `backtick` spans as <code> elements, for catalogue descriptions. */
+function richText(text) {
+  return String(text).split('`').map((part, i) => (i % 2 ? el('code', { text: part }) : part));
+}
+
+/** A number as an input shows it (shortest round-trip form). */
+function numberText(x) {
+  return Number.isFinite(x) ? String(x) : '';
+}
+
+/** Parses an input's text: a finite number, or null (the API then names the field). */
+function parseNumber(text) {
+  const t = String(text).trim();
+  if (t === '') return null;
+  const x = Number(t);
+  return Number.isFinite(x) ? x : null;
+}
+
+/** Parses a comma- or space-separated list of numbers; bad entries become null. */
+function parseList(text) {
+  const parts = String(text).split(/[\s,;]+/).filter((s) => s !== '');
+  return parts.map(parseNumber);
+}
+
+/** Names of the coordinates of a state with `dof` degrees of freedom. */
+function coordinateNames(dof) {
+  if (dof === 2) return ['x', 'y'];
+  if (dof === 3) return ['x', 'y', 'z'];
+  return Array.from({ length: dof }, (_, i) => String(i + 1));
+}
+
+/** The form: inputs, request reading and error display. */
+export class SimForm {
+  /**
+   * @param {HTMLFormElement} form
+   * @param {{systems: object[], methods: object[]}} catalogues
+   */
+  constructor(form, catalogues) {
+    this.form = form;
+    this.systems = catalogues.systems;
+    this.methods = catalogues.methods;
+    this.systemSelect = form.querySelector('#system');
+    this.systemDescription = form.querySelector('#system-description');
+    this.paramsBox = form.querySelector('#params');
+    this.stateBox = form.querySelector('#state');
+    this.methodsBox = form.querySelector('#methods');
+    this.generalError = form.querySelector('#form-error');
+    /** Selected method ids in the order they were chosen (the request's order). */
+    this.order = [];
+    /** Field path → {input, error} for error display. */
+    this.fields = new Map();
+    this.registerStatic('h');
+    this.registerStatic('t_end');
+    this.registerStatic('output.every', 'every');
+    this.registerStatic('compare_to_reference', 'compare');
+    this.registerStatic('system');
+    this.registerStatic('methods', null, this.methodsBox.querySelector('#err-methods'));
+
+    this.systemSelect.replaceChildren(
+      ...this.systems.map((s) => el('option', { value: s.id, text: `${s.name}` })),
+    );
+    this.buildMethods();
+    this.systemSelect.addEventListener('change', () => this.setSystem(this.systemSelect.value));
+    form.querySelector('#defaults').addEventListener('click', () => this.setSystem(this.system.id));
+    this.setSystem(this.systems[0].id);
+  }
+
+  /** Registers one of the inputs written in the HTML (error slot `err-<id>`). */
+  registerStatic(path, id = path, error = null) {
+    const input = id ? this.form.querySelector('#' + id) : null;
+    this.fields.set(path, { input, error: error || this.form.querySelector('#err-' + (id || path)) });
+  }
+
+  /** The catalogue entry of the chosen system. */
+  get system() {
+    return this.systems.find((s) => s.id === this.systemSelect.value);
+  }
+
+  /** Switches to system `id`: its parameters and initial state with defaults, methods it allows. */
+  setSystem(id, { params = {}, q0 = null, p0 = null } = {}) {
+    this.systemSelect.value = id;
+    const system = this.system;
+    this.systemDescription.replaceChildren(...richText(system.description));
+    for (const key of [...this.fields.keys()]) {
+      if (key.startsWith('params.') || key.startsWith('q0') || key.startsWith('p0')) this.fields.delete(key);
+    }
+    this.paramsBox.replaceChildren(...system.params.map((p) => this.paramRow(p, params[p.name])));
+    this.buildState(system, q0 ?? system.q0, p0 ?? system.p0);
+    this.updateMethodAvailability();
+    this.clearErrors();
+  }
+
+  /** One parameter's label, input, description with range and default, and error slot. */
+  paramRow(param, value) {
+    const id = 'param-' + param.name;
+    const errorId = 'err-' + id;
+    const helpId = 'help-' + id;
+    let input;
+    let help = '';
+    if (param.kind === 'number') {
+      const low = param.min_exclusive ? '(' : '[';
+      help = ` Range ${low}${param.min}, ${param.max}], default ${param.default}.`;
+      input = el('input', {
+        id, name: id, type: 'number', step: 'any', inputmode: 'decimal',
+        min: param.min, max: param.max,
+        value: numberText(value ?? param.default),
+      });
+    } else if (param.kind === 'choice') {
+      help = ` Default ${param.default}.`;
+      input = el('select', { id, name: id },
+        param.options.map((o) => el('option', { value: o, text: o })));
+      input.value = value ?? param.default;
+    } else {
+      help = ` Comma-separated, each in (${param.min}, ${param.max}], at most ${param.max_len}; default ${param.default.join(', ')}.`;
+      input = el('input', { id, name: id, type: 'text', inputmode: 'decimal', value: (value ?? param.default).join(', ') });
+    }
+    input.dataset.param = param.name;
+    input.dataset.kind = param.kind;
+    input.setAttribute('aria-describedby', `${helpId} ${errorId}`);
+    const error = el('p', { class: 'field-error', id: errorId, 'aria-live': 'polite' });
+    this.fields.set('params.' + param.name, { input, error });
+    return el('div', { class: 'field' },
+      el('label', { for: id }, el('span', { class: 'param-name', text: param.name })),
+      input,
+      el('p', { class: 'help', id: helpId }, ...richText(param.description), help),
+      error);
+  }
+
+  /** The q₀ and p₀ inputs: one per component for small systems, else comma-separated lists. */
+  buildState(system, q0, p0) {
+    const dof = q0.length;
+    const rows = [];
+    for (const [vec, values, title] of [['q0', q0, 'positions'], ['p0', p0, 'momenta']]) {
+      const errorId = 'err-' + vec;
+      const error = el('p', { class: 'field-error', id: errorId, 'aria-live': 'polite' });
+      const symbol = vec[0];
+      if (dof === 1) {
+        const id = `${vec}-0`;
+        const input = el('input', {
+          id, name: id, type: 'number', step: 'any', inputmode: 'decimal',
+          value: numberText(values[0]), 'aria-describedby': errorId,
+        });
+        input.dataset.vector = vec;
+        this.fields.set(`${vec}[0]`, { input, error });
+        this.fields.set(vec, { input, error });
+        rows.push(el('div', { class: 'field' },
+          el('label', { for: id, text: `${symbol}₀ (${title === 'positions' ? 'position' : 'momentum'})` }),
+          input, error));
+      } else if (dof <= MAX_COMPONENT_INPUTS) {
+        const names = coordinateNames(dof);
+        this.fields.set(vec, { input: null, error });
+        const inputs = values.map((v, i) => {
+          const id = `${vec}-${i}`;
+          const input = el('input', {
+            id, name: id, type: 'number', step: 'any', inputmode: 'decimal',
+            value: numberText(v), 'aria-describedby': errorId,
+          });
+          input.dataset.vector = vec;
+          this.fields.set(`${vec}[${i}]`, { input, error });
+          const sub = `${symbol}₀,${names[i]}`;
+          return el('div', { class: 'component' }, el('label', { for: id, text: sub }), input);
+        });
+        this.fields.get(vec).input = inputs[0].querySelector('input');
+        rows.push(el('fieldset', { class: 'vector' },
+          el('legend', { text: `${symbol}₀ (${title})` }),
+          el('div', { class: 'components' }, inputs),
+          error));
+      } else {
+        const id = vec + '-list';
+        const input = el('input', {
+          id, name: id, type: 'text', inputmode: 'decimal', class: 'wide',
+          value: values.join(', '), 'aria-describedby': `help-${id} ${errorId}`,
+        });
+        input.dataset.vector = vec;
+        this.fields.set(vec, { input, error });
+        rows.push(el('div', { class: 'field' },
+          el('label', { for: id, text: `${symbol}₀ (${title}, ${dof} values)` }),
+          input,
+          el('p', { class: 'help', id: `help-${id}`, text: 'Comma-separated; 3 per body (x, y, z).' }),
+          error));
+      }
+    }
+    this.stateBox.replaceChildren(...rows);
+  }
+
+  /** The method checkboxes, grouped, with order, kind, source and options. */
+  buildMethods() {
+    const groups = GROUPS.map((g) => {
+      const members = this.methods.filter((m) => m.group === g.id);
+      if (members.length === 0) return null;
+      return el('fieldset', { class: 'method-group' },
+        el('legend', {}, g.title, ' ', el('small', { text: g.note })),
+        members.map((m) => this.methodRow(m)));
+    });
+    const others = this.methods.filter((m) => !GROUPS.some((g) => g.id === m.group));
+    if (others.length) {
+      groups.push(el('fieldset', { class: 'method-group' }, el('legend', { text: 'Other' }),
+        others.map((m) => this.methodRow(m))));
+    }
+    this.methodsBox.querySelector('.method-groups').replaceChildren(...groups.filter(Boolean));
+  }
+
+  /** One method: checkbox, name, id, order and kind, citation, option input, error slot. */
+  methodRow(m) {
+    const id = 'm-' + m.id;
+    const errorId = 'err-' + id;
+    const box = el('input', { type: 'checkbox', id, name: 'method', value: m.id, 'aria-describedby': `note-${id} ${errorId}` });
+    box.addEventListener('change', () => {
+      this.order = this.order.filter((x) => x !== m.id);
+      if (box.checked) this.order.push(m.id);
+    });
+    const kind = m.kind.replace('_', ' ');
+    const label = el('label', { for: id },
+      el('span', { class: 'method-name', text: m.name }), ' ',
+      el('code', { text: m.id }));
+    const note = el('p', { class: 'method-note', id: `note-${id}` },
+      el('span', { class: 'tag', text: `order ${m.order}` }),
+      el('span', { class: `tag kind-${m.kind}`, text: kind }),
+      m.conformal_symplectic ? el('span', { class: 'tag', text: 'conformal symplectic' })
+        : m.symplectic ? el('span', { class: 'tag', text: 'symplectic' }) : null,
+      el('span', { class: 'cite', text: `${m.reference.paper}, ${m.reference.equation}` }));
+    let option = null;
+    if (m.options.includes('inner')) {
+      option = this.optionSelect(m, 'inner', 'inner method', RKS_INNER, 'heun');
+    } else if (m.options.includes('base')) {
+      const bases = this.methods.filter((x) => x.symmetric && x.order === 2).map((x) => x.id);
+      option = this.optionSelect(m, 'base', 'base method', bases, bases.includes('modin_3s') ? 'modin_3s' : bases[0]);
+    } else if (m.options.includes('tolerance')) {
+      const tid = `${id}-tolerance`;
+      option = el('span', { class: 'method-option' },
+        el('label', { for: tid, text: 'tolerance' }),
+        el('input', { id: tid, type: 'number', step: 'any', placeholder: '1e-12', 'data-option': 'tolerance' }));
+    }
+    const error = el('p', { class: 'field-error', id: errorId, 'aria-live': 'polite' });
+    const row = el('div', { class: 'method', 'data-method': m.id },
+      el('div', { class: 'method-head' }, box, label), note, option, error);
+    row.requirements = m.requirements;
+    return row;
+  }
+
+  optionSelect(m, option, text, values, fallback) {
+    const id = `m-${m.id}-${option}`;
+    const select = el('select', { id, 'data-option': option },
+      values.map((v) => el('option', { value: v, text: v })));
+    select.value = fallback;
+    return el('span', { class: 'method-option' }, el('label', { for: id, text }), select);
+  }
+
+  /** Disables methods whose requirements the chosen system does not meet. */
+  updateMethodAvailability() {
+    const system = this.system;
+    for (const row of this.methodsBox.querySelectorAll('.method')) {
+      const unmet = row.requirements.filter((r) => r === 'conformal_damping' && !system.conformal_damping);
+      const box = row.querySelector('input[type=checkbox]');
+      box.disabled = unmet.length > 0;
+      row.classList.toggle('unavailable', unmet.length > 0);
+      let why = row.querySelector('.unmet');
+      if (unmet.length) {
+        if (!why) {
+          why = el('span', { class: 'unmet' });
+          row.querySelector('.method-note').append(why);
+        }
+        why.textContent = ` — not for this system: needs ${unmet.map((r) => REQUIREMENT_TEXT[r] || r).join(', ')}`;
+        if (box.checked) {
+          box.checked = false;
+          this.order = this.order.filter((x) => x !== row.dataset.method);
+        }
+      } else if (why) {
+        why.remove();
+      }
+    }
+  }
+
+  /** Fills the form with a request (a preset). */
+  fill(request) {
+    this.setSystem(request.system, { params: request.params || {}, q0: request.q0, p0: request.p0 });
+    const specs = request.methods || [request.method];
+    this.order = [];
+    for (const row of this.methodsBox.querySelectorAll('.method')) {
+      row.querySelector('input[type=checkbox]').checked = false;
+    }
+    for (const spec of specs) {
+      const id = typeof spec === 'string' ? spec : spec.id;
+      const row = this.methodsBox.querySelector(`.method[data-method="${id}"]`);
+      if (!row) continue;
+      row.querySelector('input[type=checkbox]').checked = true;
+      this.order.push(id);
+      if (typeof spec === 'object') {
+        for (const input of row.querySelectorAll('[data-option]')) {
+          const v = spec[input.dataset.option];
+          if (v !== undefined) input.value = String(v);
+        }
+      }
+    }
+    this.form.querySelector('#h').value = numberText(request.h);
+    this.form.querySelector('#t_end').value = numberText(request.t_end);
+    this.form.querySelector('#every').value = request.output?.every ? String(request.output.every) : '';
+    this.form.querySelector('#compare').checked = Boolean(request.compare_to_reference);
+  }
+
+  /** The request body the form describes. Bad numbers are sent as null so the API names them. */
+  read() {
+    const system = this.system;
+    const params = {};
+    for (const input of this.paramsBox.querySelectorAll('[data-param]')) {
+      const text = input.value.trim();
+      if (text === '') continue;
+      const kind = input.dataset.kind;
+      params[input.dataset.param] = kind === 'number' ? parseNumber(text)
+        : kind === 'number_list' ? parseList(text) : text;
+    }
+    const vector = (name) => {
+      const list = this.stateBox.querySelector(`#${name}-list`);
+      if (list) return parseList(list.value);
+      return [...this.stateBox.querySelectorAll(`input[data-vector="${name}"]`)].map((i) => parseNumber(i.value));
+    };
+    const methods = this.order.map((id) => {
+      const row = this.methodsBox.querySelector(`.method[data-method="${id}"]`);
+      const spec = { id };
+      for (const input of row.querySelectorAll('[data-option]')) {
+        const v = input.value.trim();
+        if (v === '') continue;
+        spec[input.dataset.option] = input.type === 'number' ? parseNumber(v) : v;
+      }
+      return Object.keys(spec).length === 1 ? id : spec;
+    });
+    const request = {
+      system: system.id,
+      params,
+      methods,
+      h: parseNumber(this.form.querySelector('#h').value),
+      t_end: parseNumber(this.form.querySelector('#t_end').value),
+      q0: vector('q0'),
+      p0: vector('p0'),
+      compare_to_reference: this.form.querySelector('#compare').checked,
+    };
+    const every = this.form.querySelector('#every').value.trim();
+    if (every !== '') {
+      const n = Number(every);
+      request.output = { every: Number.isInteger(n) ? n : every };
+    }
+    return request;
+  }
+
+  /** Removes every error message. */
+  clearErrors() {
+    for (const node of this.form.querySelectorAll('.field-error')) node.textContent = '';
+    for (const node of this.form.querySelectorAll('[aria-invalid]')) node.removeAttribute('aria-invalid');
+    for (const node of this.form.querySelectorAll('.has-error')) node.classList.remove('has-error');
+  }
+
+  /**
+   * Shows an API error beside the input its `field` names (or above the Run button when it names
+   * none the form has); returns the input to focus, if any.
+   * @param {{message: string, field: string|null}} error
+   */
+  showError(error) {
+    const target = this.locate(error.field);
+    const slot = target?.error || this.generalError;
+    slot.textContent = error.message;
+    if (target?.input) target.input.setAttribute('aria-invalid', 'true');
+    slot.closest('.field, .method, fieldset')?.classList.add('has-error');
+    return target?.input || null;
+  }
+
+  /** The input and error slot of an API field path. */
+  locate(field) {
+    if (!field) return null;
+    const methodMatch = /^methods?(?:\[(\d+)\])?(?:\.(\w+))?/.exec(field);
+    if (methodMatch && field.startsWith('method')) {
+      const index = methodMatch[1] === undefined ? (field === 'method' ? 0 : null) : Number(methodMatch[1]);
+      if (index === null) return this.fields.get('methods');
+      const id = this.order[index];
+      const row = id && this.methodsBox.querySelector(`.method[data-method="${id}"]`);
+      if (!row) return this.fields.get('methods');
+      const option = methodMatch[2] && row.querySelector(`[data-option="${methodMatch[2]}"]`);
+      return { input: option || row.querySelector('input[type=checkbox]'), error: row.querySelector('.field-error') };
+    }
+    // Exact path, then the path without its trailing index (`params.masses[2]` → `params.masses`).
+    let path = field;
+    for (;;) {
+      if (this.fields.has(path)) return this.fields.get(path);
+      const shorter = path.replace(/(\[\d+\]|\.[^.[\]]+)$/, '');
+      if (shorter === path || shorter === '') break;
+      path = shorter;
+    }
+    if (field === 'params.epsilon' && this.fields.has('params.gamma')) return this.fields.get('params.gamma');
+    return null;
+  }
+}

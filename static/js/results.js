@@ -1,0 +1,165 @@
+// The results of one simulation as they stream in: per-method sample columns assembled from the
+// NDJSON `samples` chunks, each method's `summary`, the stats table, and the downloadable JSON
+// document (the same shape as the JSON answer of POST /api/v1/simulate, plus the request).
+
+import { el } from './form.js';
+import { colour } from './charts.js';
+
+/** One method's samples and summary. */
+function emptyRun(label, invariants, energyError) {
+  return {
+    label,
+    t: [],
+    q: [],
+    p: [],
+    energy: [],
+    energy_error: energyError ? [] : null,
+    invariants: Object.fromEntries(invariants.map((name) => [name, []])),
+    jacobian_defect: null,
+    summary: null,
+    dissipation_drift: null,
+    // Columns for the plots, kept up to date as chunks arrive (no copying at redraw time):
+    // positions and momenta per degree of freedom, and |energy error| with zeros as gaps.
+    qColumns: [],
+    pColumns: [],
+    errorMagnitude: [],
+  };
+}
+
+/** Appends the components of `rows` (one list per sample) to per-component `columns`. */
+function appendColumns(columns, rows) {
+  for (const row of rows) {
+    for (let i = 0; i < row.length; i++) (columns[i] ??= []).push(row[i]);
+  }
+}
+
+/** The samples of a simulation, filled chunk by chunk. */
+export class RunStore {
+  /**
+   * @param {object} request the request body that was sent
+   * @param {object} header the stream's `header` line
+   */
+  constructor(request, header) {
+    this.request = request;
+    this.header = header;
+    this.runs = header.methods.map((label) => emptyRun(label, header.invariants, header.energy_error));
+    /** How the stream ended: running, done, cancelled or error. */
+    this.outcome = 'running';
+  }
+
+  /** Samples expected when every method finishes. */
+  get expected() {
+    const per = this.header.schedule.samples_per_method;
+    return this.runs.reduce((sum, run) => sum + (run.summary ? run.t.length : per), 0);
+  }
+
+  /** Samples received so far. */
+  get received() {
+    return this.runs.reduce((sum, run) => sum + run.t.length, 0);
+  }
+
+  /** Appends a `samples` chunk. */
+  add(chunk) {
+    const run = this.runs[chunk.method];
+    if (!run) return;
+    if (chunk.offset !== run.t.length) {
+      throw new Error(`samples of ${run.label} arrived out of order (offset ${chunk.offset}, have ${run.t.length})`);
+    }
+    run.t.push(...chunk.t);
+    run.q.push(...chunk.q);
+    run.p.push(...chunk.p);
+    appendColumns(run.qColumns, chunk.q);
+    appendColumns(run.pColumns, chunk.p);
+    run.energy.push(...chunk.energy);
+    if (chunk.energy_error) {
+      (run.energy_error ??= []).push(...chunk.energy_error);
+      for (const e of chunk.energy_error) {
+        run.errorMagnitude.push(e == null || e === 0 || !Number.isFinite(e) ? null : Math.abs(e));
+      }
+    }
+    for (const [name, values] of Object.entries(chunk.invariants || {})) {
+      (run.invariants[name] ??= []).push(...values);
+    }
+    if (chunk.jacobian_defect) (run.jacobian_defect ??= []).push(...chunk.jacobian_defect);
+  }
+
+  /** Records a method's `summary` line. */
+  summarize(summary) {
+    const run = this.runs[summary.method];
+    if (!run) return;
+    run.summary = summary;
+    run.dissipation_drift = summary.dissipation_drift ?? null;
+  }
+
+  /** The simulation as a JSON document, like the API's JSON answer, with the request. */
+  document() {
+    return {
+      request: this.request,
+      system: this.header.system,
+      schedule: this.header.schedule,
+      invariants: this.header.invariants,
+      runs: this.runs.map((run) => {
+        const doc = {
+          method: run.label,
+          t: run.t,
+          q: run.q,
+          p: run.p,
+          energy: run.energy,
+        };
+        if (run.energy_error) doc.energy_error = run.energy_error;
+        doc.invariants = run.invariants;
+        if (run.jacobian_defect) doc.jacobian_defect = run.jacobian_defect;
+        if (run.dissipation_drift) doc.dissipation_drift = run.dissipation_drift;
+        doc.diverged_at = run.summary?.diverged_at ?? null;
+        doc.stop = run.summary?.stop ?? { reason: 'incomplete' };
+        doc.stats = run.summary?.stats ?? null;
+        return doc;
+      }),
+    };
+  }
+}
+
+const STOP_TEXT = {
+  finished: 'finished',
+  diverged: 'diverged',
+  cancelled: 'cancelled',
+  time_limit: 'time limit',
+  failed: 'failed',
+};
+
+function formatNumber(x, digits = 4) {
+  if (x == null || !Number.isFinite(x)) return '—';
+  return String(+x.toPrecision(digits));
+}
+
+/** Fills the stats table body with one row per method. */
+export function renderStats(tbody, store) {
+  tbody.replaceChildren(...store.runs.map((run, i) => {
+    const s = run.summary;
+    const stop = s ? (STOP_TEXT[s.stop.reason] || s.stop.reason)
+      : store.outcome === 'cancelled' ? 'cancelled' : store.outcome === 'error' ? 'no summary' : 'running…';
+    const stopTitle = s?.stop.message || null;
+    const diverged = s?.diverged_at ? `t = ${formatNumber(s.diverged_at.t)} (step ${s.diverged_at.step})` : '—';
+    return el('tr', {},
+      el('th', { scope: 'row' }, el('span', { class: 'swatch', style: `background:${colour(i)}`, 'aria-hidden': 'true' }), ' ', run.label),
+      el('td', { text: s ? String(s.stats.steps) : '…' }),
+      el('td', { text: s ? String(s.stats.force_evaluations) : '…' }),
+      el('td', { text: s ? formatNumber(s.stats.wall_time_ms, 3) : '…' }),
+      el('td', { text: String(run.t.length) }),
+      el('td', { text: diverged }),
+      el('td', { text: stop, title: stopTitle }));
+  }));
+}
+
+/** Offers the store's document as a file download. */
+export function downloadJson(store) {
+  const text = JSON.stringify(store.document());
+  const blob = new Blob([text], { type: 'application/json' });
+  const url = URL.createObjectURL(blob);
+  const stamp = new Date().toISOString().replace(/[:.]/g, '-').slice(0, 19);
+  const link = el('a', { href: url, download: `geomint-${store.header.system.id}-${stamp}.json` });
+  document.body.append(link);
+  link.click();
+  link.remove();
+  setTimeout(() => URL.revokeObjectURL(url), 10_000);
+}
