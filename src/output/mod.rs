@@ -6,6 +6,7 @@
 //! - [`stream`]: the NDJSON form, written while the runs compute.
 //! - [`catalog`]: the system and method catalogues as published.
 //! - [`stability`]: linear stability requests (maps over (γ, h), single points) and answers.
+//! - [`recording`]: Rerun recordings (`.rrd`) of a simulation, and its default blueprint.
 //! - [`error`]: the error shape every interface reports.
 //!
 //! Everything here is synchronous; the HTTP layer calls it off the async runtime.
@@ -13,6 +14,7 @@
 pub mod catalog;
 pub mod document;
 pub mod error;
+pub mod recording;
 pub mod request;
 pub mod stability;
 pub mod stream;

@@ -1,0 +1,341 @@
+//! Rerun recordings read back with Rerun's own decoder (`re_log_encoding`, the crate the viewer
+//! uses): entity paths, timelines, row counts, the blueprint, and the energies bit for bit
+//! against the JSON document. Also times the writing of a recording of 10⁶ samples.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::io::Cursor;
+use std::time::Instant;
+
+use geomint::core::run::Budget;
+use geomint::core::simulate::Limits;
+use geomint::output::document::SimulationDocument;
+use geomint::output::recording::{self, APPLICATION_ID};
+use geomint::output::recording::{path_blocks, MAX_PATH_ROWS};
+use geomint::output::{self, SimulateRequest};
+use re_log_encoding::DecoderApp;
+use rerun::external::re_log_types::{LogMsg, StoreKind};
+use rerun::log::Chunk;
+use rerun::Scalars;
+use serde_json::{json, Value};
+
+/// What a decoded `.rrd` holds.
+#[derive(Default)]
+struct Decoded {
+    application_ids: BTreeSet<String>,
+    recording_stores: BTreeSet<String>,
+    blueprint_stores: BTreeSet<String>,
+    activations: usize,
+    /// Recording chunks by entity path.
+    chunks: BTreeMap<String, Vec<Chunk>>,
+    /// Blueprint entity paths.
+    blueprint_entities: BTreeSet<String>,
+}
+
+impl Decoded {
+    fn of(bytes: &[u8]) -> Decoded {
+        let mut out = Decoded::default();
+        let decoder = DecoderApp::decode_eager(Cursor::new(bytes)).expect("an rrd stream");
+        for msg in decoder {
+            match msg.expect("every message decodes") {
+                LogMsg::SetStoreInfo(info) => {
+                    let id = &info.info.store_id;
+                    out.application_ids.insert(id.application_id().to_string());
+                    let name = id.recording_id().to_string();
+                    match id.kind() {
+                        StoreKind::Recording => out.recording_stores.insert(name),
+                        StoreKind::Blueprint => out.blueprint_stores.insert(name),
+                    };
+                }
+                LogMsg::ArrowMsg(store, arrow) => {
+                    let chunk = Chunk::from_arrow_msg(&arrow).expect("a chunk");
+                    let path = chunk.entity_path().to_string();
+                    match store.kind() {
+                        StoreKind::Recording => out.chunks.entry(path).or_default().push(chunk),
+                        StoreKind::Blueprint => {
+                            out.blueprint_entities.insert(path);
+                        }
+                    }
+                }
+                LogMsg::BlueprintActivationCommand(_) => out.activations += 1,
+            }
+        }
+        out
+    }
+
+    /// Temporal rows of an entity.
+    fn rows(&self, path: &str) -> usize {
+        self.chunks[path]
+            .iter()
+            .filter(|c| !c.is_static())
+            .map(|c| c.num_rows())
+            .sum()
+    }
+
+    /// Timeline names of an entity's temporal chunks.
+    fn timelines(&self, path: &str) -> BTreeSet<String> {
+        self.chunks[path]
+            .iter()
+            .filter(|c| !c.is_static())
+            .flat_map(|c| c.timelines().keys().map(|k| k.to_string()))
+            .collect()
+    }
+
+    /// (step, value) of every scalar row of an entity, in step order.
+    fn scalars(&self, path: &str) -> Vec<(i64, f64)> {
+        let component = Scalars::descriptor_scalars().component;
+        let mut rows = Vec::new();
+        for chunk in self.chunks[path].iter().filter(|c| !c.is_static()) {
+            let steps = chunk.timelines()[&"step".into()].times_raw().to_vec();
+            let values: Vec<f64> = chunk
+                .iter_slices::<f64>(component)
+                .map(|s| {
+                    assert_eq!(s.len(), 1);
+                    s[0]
+                })
+                .collect();
+            assert_eq!(steps.len(), values.len());
+            rows.extend(steps.into_iter().zip(values));
+        }
+        rows.sort_by_key(|r| r.0);
+        rows
+    }
+}
+
+/// A run as the service answers it: the JSON text, and the recording.
+struct Run {
+    doc: SimulationDocument,
+    json: String,
+    rrd: Vec<u8>,
+}
+
+impl Run {
+    /// Runs a request like the service does.
+    fn of(body: Value, limits: &Limits) -> Run {
+        let spec = SimulateRequest::from_value(&body).expect("valid request");
+        let sim = spec.prepare(limits).expect("valid simulation");
+        let doc = output::simulate(&sim, 2, Budget::default()).expect("runs");
+        let json = serde_json::to_string(&doc).unwrap();
+        let rrd = recording::rrd_bytes(&spec, &doc).expect("recording");
+        Run { doc, json, rrd }
+    }
+
+    /// Asserts that `decoded` are the values of `field` of run `index`, bit for bit: equal to
+    /// the document's numbers, and printing as the same JSON text as the answer carries.
+    fn assert_column(&self, index: usize, field: &str, decoded: &[(i64, f64)]) {
+        let run = &self.doc.runs[index];
+        let c = &run.columns;
+        let want: &[f64] = match field {
+            "energy" => &c.energy,
+            "energy_error" => c.energy_error.as_deref().unwrap(),
+            name => &c.invariants[name],
+        };
+        let got: Vec<f64> = decoded.iter().map(|r| r.1).collect();
+        assert_eq!(got.len(), want.len(), "{} {field}", run.method);
+        for (k, (a, b)) in got.iter().zip(want).enumerate() {
+            assert_eq!(a.to_bits(), b.to_bits(), "{} {field}[{k}]", run.method);
+        }
+        let text = format!("\"{field}\":{}", serde_json::to_string(&got).unwrap());
+        assert!(self.json.contains(&text), "{} {field} as JSON", run.method);
+    }
+}
+
+#[test]
+fn pendulum_recording_has_the_layout_and_the_json_energies() {
+    let run = Run::of(
+        json!({"system": "pendulum", "params": {"epsilon": 0.01},
+            "methods": ["modin_3s", {"id": "modin_rks", "inner": "rk4"}],
+            "h": 0.1, "t_end": 200, "q0": [2.827433], "p0": [0.0], "output": {"every": 10}}),
+        &Limits::default(),
+    );
+    let d = Decoded::of(&run.rrd);
+    assert_eq!(
+        d.application_ids,
+        BTreeSet::from([APPLICATION_ID.to_string()])
+    );
+    assert_eq!(d.recording_stores.len(), 1);
+    assert_eq!(d.blueprint_stores.len(), 1);
+    assert_eq!(d.activations, 1);
+
+    let mut expected: BTreeSet<String> = ["/", "/spec"].map(String::from).into();
+    for m in ["modin_3s", "modin_rks_rk4"] {
+        for e in [
+            "energy",
+            "force_evaluations",
+            "phase/0/point",
+            "phase/0/path",
+            "world/bodies",
+            "world/path",
+        ] {
+            expected.insert(format!("/{m}/{e}"));
+        }
+    }
+    let entities: BTreeSet<String> = d
+        .chunks
+        .keys()
+        .filter(|p| !p.starts_with("/__"))
+        .cloned()
+        .collect();
+    assert_eq!(entities, expected);
+
+    // 200/0.1 = 2000 steps sampled every 10: 201 samples per method, 201 path rows (the first
+    // sample alone, then one segment per sample).
+    let samples = 201;
+    assert_eq!(path_blocks(samples).len(), samples);
+    for (i, m) in ["modin_3s", "modin_rks_rk4"].iter().enumerate() {
+        assert_eq!(run.doc.runs[i].method, ["modin_3s", "modin_rks(rk4)"][i]);
+        for path in [
+            "energy",
+            "phase/0/point",
+            "phase/0/path",
+            "world/bodies",
+            "world/path",
+        ] {
+            let path = format!("/{m}/{path}");
+            assert_eq!(d.rows(&path), samples, "{path}");
+            assert_eq!(
+                d.timelines(&path),
+                BTreeSet::from(["step".to_string(), "t".to_string()]),
+                "{path}"
+            );
+        }
+        let decoded = d.scalars(&format!("/{m}/energy"));
+        let steps: Vec<i64> = decoded.iter().map(|r| r.0).collect();
+        assert_eq!(steps, (0..=2000).step_by(10).collect::<Vec<i64>>());
+        run.assert_column(i, "energy", &decoded);
+        // The force evaluations: one row, at the last step, equal to the statistics.
+        let fe = d.scalars(&format!("/{m}/force_evaluations"));
+        assert_eq!(fe, [(2000, run.doc.runs[i].stats.force_evaluations as f64)]);
+    }
+    // The t timeline is in nanoseconds: the last sample is at 200 s.
+    let chunk = d.chunks["/modin_3s/energy"]
+        .iter()
+        .find(|c| !c.is_static())
+        .unwrap();
+    let t = chunk.timelines()[&"t".into()].times_raw();
+    assert_eq!(*t.last().unwrap(), 200_000_000_000);
+    // The bob on its rod: (sin q, 0, −cos q) and a segment from the origin to it.
+    let bodies = d.chunks["/modin_3s/world/bodies"]
+        .iter()
+        .find(|c| !c.is_static())
+        .unwrap();
+    let positions: Vec<[f32; 3]> = bodies
+        .iter_slices::<[f32; 3]>(rerun::Points3D::descriptor_positions().component)
+        .flat_map(|s| s.to_vec())
+        .collect();
+    let q0 = 2.827433f64;
+    assert_eq!(positions[0], [q0.sin() as f32, 0.0, -q0.cos() as f32]);
+    let rods = bodies
+        .iter_component_offsets(rerun::LineStrips3D::descriptor_strips().component)
+        .count();
+    assert_eq!(rods, samples);
+
+    // The blueprint: views, containers, the viewport, and the growing paths' time ranges.
+    let bp = &d.blueprint_entities;
+    assert!(bp.contains("/viewport"), "{bp:?}");
+    let views = bp
+        .iter()
+        .filter(|p| p.starts_with("/view/") && p.matches('/').count() == 2)
+        .count();
+    // energy, force evaluations, world, spec, one phase view.
+    assert_eq!(views, 5, "{bp:?}");
+    let trails: BTreeSet<&str> = bp
+        .iter()
+        .filter_map(|p| p.split("/ViewContents/overrides").nth(1))
+        .collect();
+    assert_eq!(
+        trails,
+        BTreeSet::from([
+            "/modin_3s/world/path/visualizers",
+            "/modin_rks_rk4/world/path/visualizers",
+            "/modin_3s/phase/0/path/visualizers",
+            "/modin_rks_rk4/phase/0/path/visualizers",
+        ])
+    );
+}
+
+#[test]
+fn energy_errors_invariants_and_bodies_have_their_entities() {
+    // The oscillator has an exact solution, so energy errors; the elastic pendulum an
+    // invariant and a spring; three bodies nine degrees of freedom, six phase portraits.
+    let run = Run::of(
+        json!({"system": "harmonic_oscillator", "method": "csv1", "h": 0.05, "t_end": 10}),
+        &Limits::default(),
+    );
+    let d = Decoded::of(&run.rrd);
+    let decoded = d.scalars("/csv1/energy_error");
+    assert_eq!(decoded.len(), 201);
+    run.assert_column(0, "energy_error", &decoded);
+
+    let run = Run::of(
+        json!({"system": "elastic_pendulum_3d", "methods": ["modin_3s", "modin_3s"],
+            "h": 0.1, "t_end": 20, "output": {"every": 4}}),
+        &Limits::default(),
+    );
+    let d = Decoded::of(&run.rrd);
+    let decoded = d.scalars("/modin_3s_2/invariants/J3");
+    assert_eq!(decoded.len(), 51);
+    run.assert_column(1, "J3", &decoded);
+    assert_eq!(d.rows("/modin_3s/world/bodies"), 51);
+    assert!(d.chunks.contains_key("/modin_3s/phase/2/path"));
+    assert!(!d.chunks.contains_key("/modin_3s/phase/3/path"));
+
+    let run = Run::of(
+        json!({"system": "nbody", "method": "csv1", "h": 0.01, "t_end": 1}),
+        &Limits::default(),
+    );
+    let d = Decoded::of(&run.rrd);
+    let phases: BTreeSet<&str> = d
+        .chunks
+        .keys()
+        .filter_map(|p| p.strip_prefix("/csv1/phase/"))
+        .filter_map(|p| p.strip_suffix("/path"))
+        .collect();
+    assert_eq!(phases, BTreeSet::from(["0", "1", "2", "3", "4", "5"]));
+    // Three bodies per row, one path piece per body, no link to the origin.
+    let positions = rerun::Points3D::descriptor_positions().component;
+    let strips = rerun::LineStrips3D::descriptor_strips().component;
+    for (path, component) in [
+        ("/csv1/world/bodies", positions),
+        ("/csv1/world/path", strips),
+    ] {
+        let chunk = d.chunks[path].iter().find(|c| !c.is_static()).unwrap();
+        let lengths: BTreeSet<usize> = chunk
+            .iter_component_offsets(component)
+            .map(|span| span.len)
+            .collect();
+        assert_eq!(lengths, BTreeSet::from([3]), "{path}");
+    }
+    let bodies = d.chunks["/csv1/world/bodies"]
+        .iter()
+        .find(|c| !c.is_static())
+        .unwrap();
+    assert_eq!(bodies.iter_component_offsets(strips).count(), 0);
+    assert_eq!(d.rows("/csv1/world/bodies"), 101);
+}
+
+#[test]
+fn a_million_samples_are_written_quickly() {
+    let limits = Limits {
+        max_steps: 10_000_000,
+        max_samples: 2_000_000,
+    };
+    let spec = SimulateRequest::from_value(&json!({"system": "pendulum", "method": "modin_3s",
+        "h": 0.001, "t_end": 1000, "output": {"every": 1}}))
+    .unwrap();
+    let sim = spec.prepare(&limits).unwrap();
+    let doc = output::simulate(&sim, 1, Budget::default()).unwrap();
+    assert_eq!(doc.runs[0].columns.energy.len(), 1_000_001);
+    let started = Instant::now();
+    let bytes = recording::rrd_bytes(&spec, &doc).unwrap();
+    let elapsed = started.elapsed();
+    println!(
+        "recording of 1_000_001 samples: {:.0} ms, {:.1} MB",
+        elapsed.as_secs_f64() * 1e3,
+        bytes.len() as f64 / 1e6
+    );
+    let d = Decoded::of(&bytes);
+    assert_eq!(d.rows("/modin_3s/energy"), 1_000_001);
+    assert_eq!(d.rows("/modin_3s/world/bodies"), 1_000_001);
+    assert_eq!(d.rows("/modin_3s/world/path"), MAX_PATH_ROWS + 1);
+    assert!(elapsed.as_secs_f64() < 3.0, "writing took {elapsed:?}");
+}
