@@ -1,5 +1,6 @@
-//! The command line: `geomint serve` (the default), `geomint run spec.json`, `geomint systems`
-//! and `geomint methods`. Every server setting can also come from a `GEOMINT_*` environment
+//! The command line: `geomint serve` (the default), `geomint run spec.json` (JSON, NDJSON or a
+//! Rerun recording, optionally streamed live to a Rerun viewer with `--rerun-addr`),
+//! `geomint systems` and `geomint methods`. Every server setting can also come from a `GEOMINT_*` environment
 //! variable.
 //!
 //! Exit codes: 0 on success, 2 for a bad command line, an unreadable spec or an invalid one
@@ -19,7 +20,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use crate::core::run::Budget;
 use crate::core::simulate::Limits;
 use crate::http::{self, Config};
-use crate::output::{self, catalog, SimulateRequest, StreamLine};
+use crate::output::{self, catalog, recording, SimulateRequest, StreamLine};
 
 /// Geometric numerical integration of damped Hamiltonian systems, as a web service.
 #[derive(Debug, Parser)]
@@ -96,6 +97,8 @@ pub enum Format {
     Json,
     /// NDJSON lines, as the API streams them.
     Ndjson,
+    /// A Rerun recording (`.rrd`).
+    Rrd,
 }
 
 /// Settings of `geomint run`.
@@ -103,10 +106,14 @@ pub enum Format {
 pub struct RunArgs {
     /// The spec file (JSON, as the body of POST /api/v1/simulate); `-` reads standard input.
     pub spec: PathBuf,
-    /// Output file; `.ndjson` or `.jsonl` writes NDJSON, anything else JSON (default: standard
-    /// output).
+    /// Output file; `.ndjson` or `.jsonl` writes NDJSON, `.rrd` a Rerun recording, anything
+    /// else JSON (default: standard output).
     #[arg(short, long)]
     pub output: Option<PathBuf>,
+    /// Also stream the run to a Rerun viewer listening at HOST:PORT (`rerun` serves gRPC on
+    /// port 9876 by default), or at a full `rerun+http://HOST:PORT/proxy` URL.
+    #[arg(long, value_name = "HOST:PORT")]
+    pub rerun_addr: Option<String>,
     /// Output format, instead of the one the file extension implies.
     #[arg(long, value_enum)]
     pub format: Option<Format>,
@@ -236,8 +243,10 @@ fn run_spec(args: &RunArgs) -> ExitCode {
         max_steps: args.max_steps,
         max_samples: args.max_samples,
     };
-    let sim = match SimulateRequest::from_slice(&text).and_then(|req| req.prepare(&limits)) {
-        Ok(sim) => sim,
+    let (spec, sim) = match SimulateRequest::from_slice(&text)
+        .and_then(|req| req.prepare(&limits).map(|sim| (req, sim)))
+    {
+        Ok(parsed) => parsed,
         Err(e) => {
             eprintln!("error: {source}: {e}");
             return ExitCode::from(BAD_INPUT);
@@ -251,9 +260,41 @@ fn run_spec(args: &RunArgs) -> ExitCode {
             .map(|e| e.to_string_lossy().to_ascii_lowercase());
         match ext.as_deref() {
             Some("ndjson" | "jsonl") => Format::Ndjson,
+            Some("rrd") => Format::Rrd,
             _ => Format::Json,
         }
     });
+    if format == Format::Rrd && args.output.is_none() && io::stdout().is_terminal() {
+        eprintln!("error: a recording is binary; give `-o FILE.rrd` or redirect standard output");
+        return ExitCode::from(BAD_INPUT);
+    }
+    let workers = http::state::default_concurrency();
+    // A recording, or a run streamed to a viewer, needs the whole document first.
+    let document = if format == Format::Rrd || args.rerun_addr.is_some() {
+        match output::simulate(&sim, workers, Budget::default()) {
+            Ok(doc) => Some(doc),
+            Err(e) => {
+                eprintln!("error: {source}: {e}");
+                return ExitCode::from(BAD_INPUT);
+            }
+        }
+    } else {
+        None
+    };
+    if let (Some(addr), Some(doc)) = (&args.rerun_addr, &document) {
+        let url = if addr.contains("://") {
+            addr.clone()
+        } else {
+            recording::viewer_url(addr)
+        };
+        match recording::stream_to_viewer(&url, &spec, doc) {
+            Ok(()) => eprintln!("sent the run to the Rerun viewer at {url}"),
+            Err(e) => {
+                eprintln!("error: cannot stream to the Rerun viewer at {url}: {e}");
+                return ExitCode::FAILURE;
+            }
+        }
+    }
     let target = match &args.output {
         Some(path) => File::create(path).map(|f| Box::new(f) as Box<dyn Write + Send>),
         None => Ok(Box::new(io::stdout()) as Box<dyn Write + Send>),
@@ -271,9 +312,26 @@ fn run_spec(args: &RunArgs) -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
-    let workers = http::state::default_concurrency();
+    if let (Format::Rrd, Some(doc)) = (format, &document) {
+        return match recording::write_rrd(out, &spec, doc) {
+            Ok(mut w) => match w.flush() {
+                Ok(()) => ExitCode::SUCCESS,
+                Err(e) => {
+                    eprintln!("error: cannot write the output: {e}");
+                    ExitCode::FAILURE
+                }
+            },
+            Err(e) => {
+                eprintln!("error: cannot write the recording: {e}");
+                ExitCode::FAILURE
+            }
+        };
+    }
     let written = match format {
-        Format::Json => match output::simulate(&sim, workers, Budget::default()) {
+        Format::Json | Format::Rrd => match document
+            .map(Ok)
+            .unwrap_or_else(|| output::simulate(&sim, workers, Budget::default()))
+        {
             Ok(doc) => {
                 let result = if args.pretty {
                     serde_json::to_writer_pretty(&mut out, &doc)

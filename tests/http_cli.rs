@@ -184,3 +184,33 @@ fn bad_specs_exit_2_naming_the_problem() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn run_writes_a_rerun_recording_by_extension() {
+    let dir = scratch("rrd");
+    let spec_path = dir.join("spec.json");
+    std::fs::write(&spec_path, serde_json::to_vec(&spec()).unwrap()).unwrap();
+    let rrd_path = dir.join("out.rrd");
+    let out = geomint(&[
+        "run",
+        spec_path.to_str().unwrap(),
+        "-o",
+        rrd_path.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let bytes = std::fs::read(&rrd_path).unwrap();
+    // An RRD stream: its header, and the stream footer that ends a complete file.
+    assert_eq!(&bytes[..4], b"RRF2");
+    assert_eq!(&bytes[bytes.len() - 12..bytes.len() - 4], b"RRF2FOOT");
+    // No viewer listens on this port: the command fails and says so.
+    let out = geomint(&[
+        "run",
+        spec_path.to_str().unwrap(),
+        "-o",
+        dir.join("other.json").to_str().unwrap(),
+        "--rerun-addr",
+        "127.0.0.1:1",
+    ]);
+    assert!(!out.status.success());
+    assert!(stderr(&out).contains("Rerun viewer"), "{}", stderr(&out));
+}
