@@ -85,6 +85,12 @@ pub struct ServeArgs {
     /// Seconds running simulations may go on after a shutdown signal before they are cancelled.
     #[arg(long, env = "GEOMINT_SHUTDOWN_GRACE_SECS", default_value_t = 10)]
     pub shutdown_grace_secs: u64,
+    /// Directory of the stored Rerun recordings (created when the first one is stored).
+    #[arg(long, env = "GEOMINT_DATA_DIR", default_value = http::state::DEFAULT_DATA_DIR)]
+    pub data_dir: PathBuf,
+    /// Most bytes of stored recordings; past it the oldest are deleted (1e9 style accepted).
+    #[arg(long, env = "GEOMINT_RECORDINGS_MAX_BYTES", default_value = "1073741824", value_parser = parse_count)]
+    pub recordings_max_bytes: u64,
     /// Log filter (tracing's EnvFilter syntax).
     #[arg(long, env = "GEOMINT_LOG", default_value = "info")]
     pub log: String,
@@ -159,6 +165,8 @@ impl ServeArgs {
             static_dir: Some(self.static_dir.clone()),
             body_limit: usize::try_from(self.body_limit).unwrap_or(usize::MAX),
             shutdown_grace: Duration::from_secs(self.shutdown_grace_secs),
+            data_dir: self.data_dir.clone(),
+            recordings_max_bytes: self.recordings_max_bytes,
         }
     }
 }

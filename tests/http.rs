@@ -23,10 +23,12 @@ impl Server {
     }
 }
 
-/// A test configuration: a safety time limit so that no run outlives its test.
+/// A test configuration: a safety time limit so that no run outlives its test, and recordings
+/// in a scratch directory of this test process.
 fn config() -> Config {
     Config {
         request_timeout: Duration::from_secs(15),
+        data_dir: std::env::temp_dir().join(format!("geomint-http-{}", std::process::id())),
         ..Config::default()
     }
 }
@@ -909,12 +911,31 @@ async fn openapi_lists_every_route() {
         .map(|(m, p)| (m.to_string(), p.to_string()))
         .collect();
     assert_eq!(documented, routed);
+    // Two stored recordings: one to download, one to delete.
+    let mut ids = Vec::new();
+    for _ in 0..2 {
+        let created: Value = c
+            .post(server.url("/api/v1/recordings"))
+            .json(&pendulum_request())
+            .send()
+            .await
+            .unwrap()
+            .json()
+            .await
+            .unwrap();
+        ids.push(created["id"].as_str().unwrap().to_string());
+    }
     // Every documented route answers (path parameters filled in).
     for (method, path) in &routed {
+        let recording = match method.as_str() {
+            "delete" => ids[1].clone(),
+            _ => format!("{}.rrd", ids[0]),
+        };
         let url = server.url(
             &path
                 .replace("/systems/{id}", "/systems/pendulum")
-                .replace("/methods/{id}", "/methods/rk4"),
+                .replace("/methods/{id}", "/methods/rk4")
+                .replace("/recordings/{id}", &format!("/recordings/{recording}")),
         );
         let body = match path.as_str() {
             "/api/v1/stability" => json!({"methods": ["csv1"], "omega": 3.51,
@@ -924,12 +945,21 @@ async fn openapi_lists_every_route() {
             }
             _ => pendulum_request(),
         };
-        let status = match method.as_str() {
-            "get" => c.get(url).send().await.unwrap().status(),
-            _ => c.post(url).json(&body).send().await.unwrap().status(),
+        let (status, expected) = match method.as_str() {
+            "get" => (c.get(url).send().await.unwrap().status(), 200),
+            "delete" => (c.delete(url).send().await.unwrap().status(), 204),
+            _ => (
+                c.post(url).json(&body).send().await.unwrap().status(),
+                if path == "/api/v1/recordings" {
+                    201
+                } else {
+                    200
+                },
+            ),
         };
-        assert_eq!(status, 200, "{method} {path}");
+        assert_eq!(status, expected, "{method} {path}");
     }
+    let _ = std::fs::remove_dir_all(&server.state.config.data_dir);
     let schemas = doc["components"]["schemas"].as_object().unwrap();
     for name in [
         "SimulateRequest",

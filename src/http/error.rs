@@ -27,6 +27,7 @@ pub fn status_for(code: &str) -> StatusCode {
         codes::OVERLOADED => StatusCode::SERVICE_UNAVAILABLE,
         codes::TIMEOUT => StatusCode::GATEWAY_TIMEOUT,
         codes::INTERNAL => StatusCode::INTERNAL_SERVER_ERROR,
+        codes::RECORDING_TOO_LARGE => StatusCode::INSUFFICIENT_STORAGE,
         _ => StatusCode::UNPROCESSABLE_ENTITY,
     }
 }

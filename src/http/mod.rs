@@ -5,9 +5,11 @@
 //! | `GET /healthz` | liveness and load |
 //! | `GET /api/v1/systems`, `GET /api/v1/systems/{id}` | the system catalogue |
 //! | `GET /api/v1/methods`, `GET /api/v1/methods/{id}` | the method catalogue |
-//! | `POST /api/v1/simulate` | run a simulation (JSON, or NDJSON with `Accept: application/x-ndjson`) |
+//! | `POST /api/v1/simulate` | run a simulation (JSON, NDJSON with `Accept: application/x-ndjson`, a Rerun recording with `?format=rrd`) |
 //! | `POST /api/v1/stability` | linear stability maps over a (γ, h) grid |
 //! | `POST /api/v1/stability/point` | linear stability analysis at one (ω, γ, h) |
+//! | `POST /api/v1/recordings`, `GET /api/v1/recordings` | store a run's Rerun recording; list them |
+//! | `GET /api/v1/recordings/{id}.rrd`, `DELETE /api/v1/recordings/{id}` | download or delete one |
 //! | `GET /api/v1/openapi.json` | the OpenAPI 3 document |
 //! | `/` | the static directory, when there is one |
 //!
@@ -18,9 +20,11 @@ pub mod error;
 pub mod extract;
 pub mod handlers;
 pub mod openapi;
+pub mod recordings;
 pub mod simulate;
 pub mod stability;
 pub mod state;
+pub mod store;
 
 use std::future::Future;
 use std::net::SocketAddr;
@@ -68,6 +72,10 @@ pub mod paths {
     pub const STABILITY_POINT: &str = "/api/v1/stability/point";
     /// The OpenAPI document.
     pub const OPENAPI: &str = "/api/v1/openapi.json";
+    /// Stored recordings.
+    pub const RECORDINGS: &str = "/api/v1/recordings";
+    /// One stored recording: `{id}.rrd` is the file, `{id}` its entry.
+    pub const RECORDING: &str = "/api/v1/recordings/{id}";
 }
 
 /// Every route as (method, path), as the router registers them.
@@ -81,6 +89,10 @@ pub const ROUTES: &[(&str, &str)] = &[
     ("post", paths::STABILITY),
     ("post", paths::STABILITY_POINT),
     ("get", paths::OPENAPI),
+    ("post", paths::RECORDINGS),
+    ("get", paths::RECORDINGS),
+    ("get", paths::RECORDING),
+    ("delete", paths::RECORDING),
 ];
 
 /// The service: routes and middleware, shared by the server and the tests.
@@ -96,6 +108,14 @@ pub fn app(state: AppState) -> Router {
         .route(paths::STABILITY, post(stability::stability_map))
         .route(paths::STABILITY_POINT, post(stability::stability_point))
         .route(paths::OPENAPI, get(handlers::openapi_json))
+        .route(
+            paths::RECORDINGS,
+            post(recordings::create_recording).get(recordings::list_recordings),
+        )
+        .route(
+            paths::RECORDING,
+            get(recordings::get_recording).delete(recordings::delete_recording),
+        )
         .method_not_allowed_fallback(handlers::method_not_allowed)
         .with_state(state);
     let static_dir = config.static_dir.as_ref().filter(|dir| dir.is_dir());
@@ -104,9 +124,15 @@ pub fn app(state: AppState) -> Router {
         None => api.fallback(handlers::not_found),
     };
 
-    // NDJSON streams are not compressed: the encoder would hold lines back.
-    let compression = CompressionLayer::new()
-        .compress_when(DefaultPredicate::new().and(NotForContentType::const_new(simulate::NDJSON)));
+    // NDJSON streams are not compressed: the encoder would hold lines back. Recordings are
+    // compressed already.
+    let compression = CompressionLayer::new().compress_when(
+        DefaultPredicate::new()
+            .and(NotForContentType::const_new(simulate::NDJSON))
+            .and(NotForContentType::const_new(
+                crate::output::recording::RRD_MEDIA_TYPE,
+            )),
+    );
     // The middleware's own time limit is a backstop: simulations stop themselves at the
     // request time limit and answer with what they have.
     let backstop = config.request_timeout + std::time::Duration::from_secs(30);
@@ -157,10 +183,12 @@ fn cors(origins: &[String]) -> Option<CorsLayer> {
     Some(
         CorsLayer::new()
             .allow_origin(allow)
-            .allow_methods([Method::GET, Method::POST])
+            .allow_methods([Method::GET, Method::POST, Method::DELETE])
             .allow_headers([header::CONTENT_TYPE, header::ACCEPT])
             .expose_headers([
                 header::RETRY_AFTER,
+                header::LOCATION,
+                header::CONTENT_DISPOSITION,
                 header::HeaderName::from_static("x-request-id"),
             ]),
     )
@@ -262,6 +290,8 @@ pub async fn serve(addr: SocketAddr, config: Config) -> std::io::Result<()> {
     }
     tracing::info!(
         addr = %local,
+        data_dir = %config.data_dir.display(),
+        recordings_max_bytes = config.recordings_max_bytes,
         max_concurrent = config.max_concurrent,
         max_steps = config.limits.max_steps,
         max_samples = config.limits.max_samples,

@@ -3,6 +3,8 @@
 
 use utoipa::OpenApi;
 
+use super::recordings::{self, RecordingCreated};
+use super::store::RecordingEntry;
 use super::{handlers, simulate, stability};
 use crate::output::catalog::{MethodEntry, SystemEntry};
 use crate::output::document::SimulationDocument;
@@ -30,6 +32,10 @@ use crate::output::stream::StreamLine;
         stability::stability_map,
         stability::stability_point,
         handlers::openapi_json,
+        recordings::create_recording,
+        recordings::list_recordings,
+        recordings::get_recording,
+        recordings::delete_recording,
     ),
     components(schemas(
         SimulateRequest,
@@ -43,11 +49,14 @@ use crate::output::stream::StreamLine;
         MethodEntry,
         ErrorBody,
         handlers::Health,
+        RecordingCreated,
+        RecordingEntry,
     )),
     tags(
         (name = "catalog", description = "The systems and methods on offer"),
         (name = "simulation", description = "Running simulations"),
         (name = "stability", description = "Linear stability analysis on the damped oscillator"),
+        (name = "recordings", description = "Rerun recordings (.rrd) of simulations, stored and downloadable"),
         (name = "service", description = "Health and this document"),
     )
 )]

@@ -1,19 +1,21 @@
 //! `POST /api/v1/simulate`: validates the request (cheap, before any slot is taken), takes
 //! simulation slots (503 when none frees in time), and integrates off the async runtime —
-//! answering one JSON document, or with `Accept: application/x-ndjson` an NDJSON stream written
-//! as the runs compute.
+//! answering one JSON document, with `Accept: application/x-ndjson` (or `?format=ndjson`) an
+//! NDJSON stream written as the runs compute, or with `?format=rrd` the Rerun recording of the
+//! runs.
 //!
 //! Runs stop early, keeping their samples, when the request's time limit passes (`stop` =
 //! `time_limit`, status 200), when the client goes away (the computation is cancelled and its
 //! slots freed), or when the server shuts down (`cancelled`).
 
+use std::collections::BTreeMap;
 use std::convert::Infallible;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
 
 use axum::body::{Body, Bytes};
-use axum::extract::State;
+use axum::extract::{Query, State};
 use axum::http::{header, HeaderMap, HeaderValue};
 use axum::response::Response;
 use futures_util::StreamExt;
@@ -25,10 +27,12 @@ use tracing::Instrument;
 use super::error::ApiError;
 use super::extract::ApiJson;
 use super::paths;
+use super::recordings::{rrd_response, RrdFile};
 use super::state::{cancel_on_shutdown, run_blocking, AppState, CancelOnDrop};
 use crate::core::run::Budget;
 use crate::output::document::{self, SimulationDocument};
-use crate::output::error::ErrorBody;
+use crate::output::error::{codes, ErrorBody, ErrorDetail};
+use crate::output::recording;
 use crate::output::request::SimulateRequest;
 use crate::output::stream::{self, ndjson_line, StreamError, StreamLine};
 
@@ -60,10 +64,14 @@ fn wants_stream(headers: &HeaderMap) -> bool {
 #[utoipa::path(post, path = paths::SIMULATE, tag = "simulation",
     request_body(content = SimulateRequest, content_type = "application/json"),
     params(("Accept" = Option<String>, Header,
-        description = "`application/x-ndjson` streams the answer as NDJSON lines (see StreamLine)")),
+        description = "`application/x-ndjson` streams the answer as NDJSON lines (see StreamLine)"),
+        ("format" = Option<String>, Query,
+        description = "`rrd` answers with the Rerun recording of the runs (as an attachment); \
+            `json` (the default) and `ndjson` as the Accept header says")),
     responses(
         (status = 200, description = "The runs, in the order asked",
-            content((SimulationDocument = "application/json"), (StreamLine = "application/x-ndjson"))),
+            content((SimulationDocument = "application/json"), (StreamLine = "application/x-ndjson"),
+                (RrdFile = "application/octet-stream"))),
         (status = 400, description = "Malformed JSON (code `malformed_json`)", body = ErrorBody),
         (status = 413, description = "The body exceeds 1 MiB", body = ErrorBody),
         (status = 415, description = "The body is not declared as JSON", body = ErrorBody),
@@ -78,11 +86,25 @@ fn wants_stream(headers: &HeaderMap) -> bool {
 pub async fn simulate(
     State(state): State<AppState>,
     headers: HeaderMap,
+    Query(query): Query<BTreeMap<String, String>>,
     ApiJson(body): ApiJson<Value>,
 ) -> Result<Response, ApiError> {
+    let format = match query.get("format").map(String::as_str) {
+        None | Some("json") => None,
+        Some("ndjson") => Some(false),
+        Some("rrd") => Some(true),
+        Some(other) => {
+            return Err(ApiError::from(ErrorDetail::at(
+                codes::INVALID_VALUE,
+                "format",
+                format!("unknown format `{other}`; one of json, ndjson, rrd"),
+            )))
+        }
+    };
     let request = SimulateRequest::from_value(&body)?;
     let sim = request.prepare(&state.config.limits)?;
-    let streaming = wants_stream(&headers);
+    let rrd = format == Some(true);
+    let streaming = format == Some(false) || (format.is_none() && wants_stream(&headers));
     let permits = state.acquire(sim.methods.len()).await?;
     let workers = permits.len();
     let deadline = Instant::now() + state.config.request_timeout;
@@ -105,18 +127,26 @@ pub async fn simulate(
     // The guard cancels the computation if this future is dropped (the client went away).
     let _guard = CancelOnDrop(cancel.clone());
     let shutdown = cancel_on_shutdown(&state, cancel.clone());
-    let result = run_blocking(move || {
+    let result = run_blocking(move || -> Result<Vec<u8>, ApiError> {
         let _permits = permits;
         let budget = Budget {
             cancel: Some(&cancel),
             deadline: Some(deadline),
         };
-        document::simulate(&sim, workers, budget)
-            .map(|doc: SimulationDocument| serde_json::to_vec(&doc))
+        let doc: SimulationDocument = document::simulate(&sim, workers, budget)?;
+        if rrd {
+            recording::rrd_bytes(&request, &doc).map_err(ApiError::internal)
+        } else {
+            serde_json::to_vec(&doc).map_err(ApiError::internal)
+        }
     })
     .await;
     shutdown.abort();
-    let bytes = result??.map_err(ApiError::internal)?;
+    let bytes = result??;
+    if rrd {
+        let length = bytes.len() as u64;
+        return Ok(rrd_response(Body::from(bytes), "geomint.rrd", Some(length)));
+    }
     let mut response = Response::new(Body::from(bytes));
     response.headers_mut().insert(
         header::CONTENT_TYPE,

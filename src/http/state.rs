@@ -1,6 +1,6 @@
 //! Service configuration and shared state: the limits, the semaphore that bounds concurrent
-//! runs, the shutdown signal that cancels runs, and the helper that moves blocking work off the
-//! async runtime.
+//! runs, the shutdown signal that cancels runs, the recording store, and the helper that moves
+//! blocking work off the async runtime.
 
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -10,6 +10,7 @@ use std::time::Duration;
 use tokio::sync::{watch, OwnedSemaphorePermit, Semaphore};
 
 use super::error::ApiError;
+use super::store::RecordingStore;
 use crate::core::simulate::Limits;
 
 /// Settings of the service.
@@ -32,7 +33,16 @@ pub struct Config {
     /// After a shutdown signal, how long running simulations may go on before they are
     /// cancelled.
     pub shutdown_grace: Duration,
+    /// Directory of the stored recordings.
+    pub data_dir: PathBuf,
+    /// Most bytes of stored recordings; past it the oldest are deleted.
+    pub recordings_max_bytes: u64,
 }
+
+/// The default directory of stored recordings.
+pub const DEFAULT_DATA_DIR: &str = "./data/recordings";
+/// The default cap on stored recordings: 1 GiB.
+pub const DEFAULT_RECORDINGS_MAX_BYTES: u64 = 1 << 30;
 
 /// The number of cores, the default of [`Config::max_concurrent`].
 pub fn default_concurrency() -> usize {
@@ -52,6 +62,8 @@ impl Default for Config {
             static_dir: None,
             body_limit: 1 << 20,
             shutdown_grace: Duration::from_secs(10),
+            data_dir: PathBuf::from(DEFAULT_DATA_DIR),
+            recordings_max_bytes: DEFAULT_RECORDINGS_MAX_BYTES,
         }
     }
 }
@@ -61,15 +73,19 @@ impl Default for Config {
 pub struct AppState {
     /// The settings.
     pub config: Arc<Config>,
+    /// The stored recordings.
+    pub recordings: Arc<RecordingStore>,
     permits: Arc<Semaphore>,
     shutdown: Arc<watch::Sender<bool>>,
 }
 
 impl AppState {
-    /// State for `config`.
+    /// State for `config`; reads back the recordings stored in its data directory.
     pub fn new(config: Config) -> Self {
         let max = config.max_concurrent.max(1);
+        let recordings = RecordingStore::open(&config.data_dir, config.recordings_max_bytes);
         Self {
+            recordings: Arc::new(recordings),
             config: Arc::new(Config {
                 max_concurrent: max,
                 ..config

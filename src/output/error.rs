@@ -53,6 +53,8 @@ pub mod codes {
     pub const BAD_REQUEST: &str = "bad_request";
     /// A fault of the server (details are logged, not shown).
     pub const INTERNAL: &str = "internal";
+    /// A recording alone exceeds the recording store's size cap.
+    pub const RECORDING_TOO_LARGE: &str = "recording_too_large";
 }
 
 /// What went wrong, for machines (`code`, `field`) and people (`message`).

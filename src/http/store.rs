@@ -1,0 +1,493 @@
+//! The recordings the service keeps: `.rrd` files under a data directory, each beside a small
+//! JSON sidecar with its summary, listed from an in-memory index that is rebuilt from the
+//! directory at start-up.
+//!
+//! - Ids are generated here (a random UUID v4 as 32 lowercase hex digits) and checked strictly
+//!   ([`is_valid_id`]) before any lookup: no part of a request ever becomes a path.
+//! - A recording is written to a temporary file in the directory, checked (RRD header, stream
+//!   footer, size), then renamed into place; its sidecar the same way, after it. A recording
+//!   without a sidecar was interrupted and is never listed.
+//! - Past the size cap the oldest recordings are deleted; a recording larger than the whole cap
+//!   is refused.
+//! - At start-up, files that are not complete recordings of this service (a torn `.rrd`, a
+//!   sidecar that does not match its file, anything foreign) are skipped with a log line, and
+//!   left alone; leftover temporary files of this service are removed.
+//!
+//! Everything here is blocking file I/O: call it off the async runtime.
+
+use std::collections::BTreeMap;
+use std::fs::{self, File};
+use std::io::{self, BufWriter, Read, Seek, SeekFrom, Write};
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::time::{SystemTime, UNIX_EPOCH};
+
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+use crate::core::simulate::Simulation;
+use crate::output::recording::RecordingError;
+
+/// The sidecar's format tag.
+const SIDECAR_FORMAT: &str = "geomint-recording/1";
+/// Prefix of temporary files in the data directory.
+const TMP_PREFIX: &str = ".tmp-";
+
+/// Whether `id` is a recording id: exactly 32 lowercase hexadecimal digits.
+pub fn is_valid_id(id: &str) -> bool {
+    id.len() == 32 && id.bytes().all(|b| matches!(b, b'0'..=b'9' | b'a'..=b'f'))
+}
+
+/// A new random recording id.
+pub fn new_id() -> String {
+    uuid::Uuid::new_v4().simple().to_string()
+}
+
+/// What a recording holds, in brief.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct SpecSummary {
+    /// System id.
+    #[schema(example = "pendulum")]
+    pub system: String,
+    /// Method labels, in the order asked.
+    pub methods: Vec<String>,
+    /// Step size.
+    pub h: f64,
+    /// Steps per method.
+    pub steps: u64,
+    /// Sampling interval in steps.
+    pub every: u64,
+    /// Time of the last step.
+    pub t_end: f64,
+    /// Samples of a run that finishes.
+    pub samples_per_method: u64,
+}
+
+impl SpecSummary {
+    /// The summary of a prepared simulation.
+    pub fn of(sim: &Simulation) -> Self {
+        SpecSummary {
+            system: sim.system_id.clone(),
+            methods: sim.methods.iter().map(|m| m.label()).collect(),
+            h: sim.schedule.h,
+            steps: sim.schedule.steps,
+            every: sim.schedule.every,
+            t_end: sim.schedule.steps as f64 * sim.schedule.h,
+            samples_per_method: sim.schedule.samples(),
+        }
+    }
+}
+
+/// One stored recording.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct RecordingEntry {
+    /// The id (32 lowercase hex digits).
+    #[schema(example = "3f2a9c0d6b1e4f8a9d7c5b3a1e0f2d4c")]
+    pub id: String,
+    /// When it was stored (RFC 3339, UTC).
+    #[schema(example = "2026-01-31T12:00:00.000Z")]
+    pub created: String,
+    /// Size of the `.rrd` file in bytes.
+    pub bytes: u64,
+    /// What it holds.
+    pub spec: SpecSummary,
+    /// Milliseconds since the Unix epoch at creation (orders eviction).
+    #[serde(default)]
+    pub created_unix_ms: u64,
+}
+
+/// The sidecar file of a recording.
+#[derive(Serialize, Deserialize)]
+struct Sidecar {
+    format: String,
+    #[serde(flatten)]
+    entry: RecordingEntry,
+}
+
+/// Why a recording could not be stored.
+#[derive(Debug, thiserror::Error)]
+pub enum StoreError {
+    /// File system trouble.
+    #[error("recording store: {0}")]
+    Io(#[from] io::Error),
+    /// Writing the recording failed.
+    #[error(transparent)]
+    Recording(#[from] RecordingError),
+    /// The recording alone exceeds the size cap.
+    #[error("the recording has {bytes} bytes, more than the store's cap of {max} bytes")]
+    TooLarge {
+        /// Size of the recording.
+        bytes: u64,
+        /// The cap.
+        max: u64,
+    },
+    /// The written file is not a complete recording.
+    #[error("the written recording is incomplete")]
+    Incomplete,
+}
+
+#[derive(Debug, Default)]
+struct Index {
+    /// Entries with their insertion order (which breaks ties in creation time).
+    entries: BTreeMap<String, (u64, RecordingEntry)>,
+    next_seq: u64,
+    total: u64,
+}
+
+impl Index {
+    fn insert(&mut self, entry: RecordingEntry) {
+        self.total += entry.bytes;
+        self.next_seq += 1;
+        self.entries
+            .insert(entry.id.clone(), (self.next_seq, entry));
+    }
+
+    fn remove(&mut self, id: &str) -> Option<RecordingEntry> {
+        let (_, entry) = self.entries.remove(id)?;
+        self.total -= entry.bytes;
+        Some(entry)
+    }
+
+    /// The id of the oldest entry other than `keep`.
+    fn oldest_except(&self, keep: &str) -> Option<String> {
+        self.entries
+            .iter()
+            .filter(|(id, _)| id.as_str() != keep)
+            .min_by_key(|(_, (seq, e))| (e.created_unix_ms, *seq))
+            .map(|(id, _)| id.clone())
+    }
+}
+
+/// The recordings under one data directory.
+#[derive(Debug)]
+pub struct RecordingStore {
+    dir: PathBuf,
+    max_bytes: u64,
+    index: Mutex<Index>,
+}
+
+/// Whether the file at `path` is a complete RRD stream of `len` bytes: the RRD header at the
+/// start and the stream footer at the end.
+fn is_complete_rrd(path: &Path, len: u64) -> io::Result<bool> {
+    let mut file = File::open(path)?;
+    if file.metadata()?.len() != len || len < 16 {
+        return Ok(false);
+    }
+    let mut head = [0u8; 4];
+    file.read_exact(&mut head)?;
+    let mut tail = [0u8; 12];
+    file.seek(SeekFrom::End(-12))?;
+    file.read_exact(&mut tail)?;
+    Ok(&head == b"RRF2" && &tail[..8] == b"RRF2FOOT")
+}
+
+/// RFC 3339 (UTC, milliseconds) of a time since the Unix epoch.
+fn rfc3339(unix_ms: u64) -> String {
+    let secs = unix_ms / 1000;
+    let days = (secs / 86_400) as i64;
+    let rem = secs % 86_400;
+    // Civil date from days since 1970-01-01 (proleptic Gregorian calendar).
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let day = doy - (153 * mp + 2) / 5 + 1;
+    let month = if mp < 10 { mp + 3 } else { mp - 9 };
+    let year = yoe + era * 400 + i64::from(month <= 2);
+    format!(
+        "{year:04}-{month:02}-{day:02}T{:02}:{:02}:{:02}.{:03}Z",
+        rem / 3600,
+        rem % 3600 / 60,
+        rem % 60,
+        unix_ms % 1000
+    )
+}
+
+/// Writes `bytes` to `path` through a temporary file in the same directory.
+fn write_atomically(dir: &Path, path: &Path, bytes: &[u8]) -> io::Result<()> {
+    let tmp = dir.join(format!("{TMP_PREFIX}{}", new_id()));
+    let result = (|| {
+        let mut file = File::create(&tmp)?;
+        file.write_all(bytes)?;
+        file.sync_all()?;
+        fs::rename(&tmp, path)
+    })();
+    if result.is_err() {
+        let _ = fs::remove_file(&tmp);
+    }
+    result
+}
+
+impl RecordingStore {
+    /// The store in `dir` (created when the first recording is saved), capped at `max_bytes`;
+    /// reads back the recordings already there.
+    pub fn open(dir: impl Into<PathBuf>, max_bytes: u64) -> Self {
+        let store = RecordingStore {
+            dir: dir.into(),
+            max_bytes,
+            index: Mutex::new(Index::default()),
+        };
+        let found = store.scan();
+        let mut index = store.lock();
+        let mut found = found;
+        found.sort_by(|a, b| (a.created_unix_ms, &a.id).cmp(&(b.created_unix_ms, &b.id)));
+        for entry in found {
+            index.insert(entry);
+        }
+        if !index.entries.is_empty() {
+            tracing::info!(
+                dir = %store.dir.display(),
+                recordings = index.entries.len(),
+                bytes = index.total,
+                "recordings found"
+            );
+        }
+        let evicted = store.evict(&mut index, "");
+        drop(index);
+        store.delete_files(&evicted);
+        store
+    }
+
+    /// The data directory.
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// The size cap in bytes.
+    pub fn max_bytes(&self) -> u64 {
+        self.max_bytes
+    }
+
+    /// Bytes stored now.
+    pub fn total_bytes(&self) -> u64 {
+        self.lock().total
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, Index> {
+        self.index.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    fn rrd_path(&self, id: &str) -> PathBuf {
+        self.dir.join(format!("{id}.rrd"))
+    }
+
+    fn sidecar_path(&self, id: &str) -> PathBuf {
+        self.dir.join(format!("{id}.json"))
+    }
+
+    /// The complete recordings in the directory; everything else is skipped with a log line.
+    fn scan(&self) -> Vec<RecordingEntry> {
+        let listing = match fs::read_dir(&self.dir) {
+            Ok(listing) => listing,
+            Err(e) if e.kind() == io::ErrorKind::NotFound => return Vec::new(),
+            Err(e) => {
+                tracing::warn!(dir = %self.dir.display(), error = %e, "cannot read the recordings directory");
+                return Vec::new();
+            }
+        };
+        let mut found = Vec::new();
+        for item in listing.flatten() {
+            let name = item.file_name().to_string_lossy().into_owned();
+            let path = item.path();
+            if name.starts_with(TMP_PREFIX) {
+                tracing::info!(file = %path.display(), "removing an interrupted write");
+                let _ = fs::remove_file(&path);
+                continue;
+            }
+            let (stem, ext) = match name.rsplit_once('.') {
+                Some(parts) => parts,
+                None => ("", ""),
+            };
+            if !is_valid_id(stem) || !(ext == "json" || ext == "rrd") {
+                tracing::warn!(file = %path.display(), "skipping a file that is not a recording");
+                continue;
+            }
+            if ext == "rrd" {
+                if !self.sidecar_path(stem).is_file() {
+                    tracing::warn!(file = %path.display(), "skipping a recording without its summary");
+                }
+                continue;
+            }
+            match self.read_sidecar(stem) {
+                Ok(entry) => found.push(entry),
+                Err(reason) => {
+                    tracing::warn!(file = %path.display(), %reason, "skipping an incomplete recording");
+                }
+            }
+        }
+        found
+    }
+
+    /// The entry of a sidecar, if it and its `.rrd` file are complete and agree.
+    fn read_sidecar(&self, id: &str) -> Result<RecordingEntry, String> {
+        let text = fs::read(self.sidecar_path(id)).map_err(|e| e.to_string())?;
+        let sidecar: Sidecar =
+            serde_json::from_slice(&text).map_err(|e| format!("unreadable summary: {e}"))?;
+        if sidecar.format != SIDECAR_FORMAT || sidecar.entry.id != id {
+            return Err("the summary belongs to something else".into());
+        }
+        match is_complete_rrd(&self.rrd_path(id), sidecar.entry.bytes) {
+            Ok(true) => Ok(sidecar.entry),
+            Ok(false) => Err("the .rrd file is torn or does not match its summary".into()),
+            Err(e) => Err(format!("the .rrd file cannot be read: {e}")),
+        }
+    }
+
+    /// Stores a new recording: `write` writes it to the file it is given; the store checks it,
+    /// moves it into place, records its summary and evicts the oldest recordings past the cap.
+    pub fn save(
+        &self,
+        spec: SpecSummary,
+        write: impl FnOnce(BufWriter<File>) -> Result<BufWriter<File>, RecordingError>,
+    ) -> Result<RecordingEntry, StoreError> {
+        fs::create_dir_all(&self.dir)?;
+        let id = new_id();
+        let tmp = self.dir.join(format!("{TMP_PREFIX}{id}.rrd"));
+        let result = self.save_from(&tmp, &id, spec, write);
+        if result.is_err() {
+            let _ = fs::remove_file(&tmp);
+        }
+        result
+    }
+
+    fn save_from(
+        &self,
+        tmp: &Path,
+        id: &str,
+        spec: SpecSummary,
+        write: impl FnOnce(BufWriter<File>) -> Result<BufWriter<File>, RecordingError>,
+    ) -> Result<RecordingEntry, StoreError> {
+        let file = File::create(tmp)?;
+        let writer = write(BufWriter::with_capacity(1 << 20, file))?;
+        let file = writer.into_inner().map_err(|e| e.into_error())?;
+        file.sync_all()?;
+        let bytes = file.metadata()?.len();
+        drop(file);
+        if bytes > self.max_bytes {
+            return Err(StoreError::TooLarge {
+                bytes,
+                max: self.max_bytes,
+            });
+        }
+        if !is_complete_rrd(tmp, bytes)? {
+            return Err(StoreError::Incomplete);
+        }
+        let created_unix_ms = SystemTime::now()
+            .duration_since(UNIX_EPOCH)
+            .map(|d| d.as_millis() as u64)
+            .unwrap_or(0);
+        let entry = RecordingEntry {
+            id: id.to_string(),
+            created: rfc3339(created_unix_ms),
+            bytes,
+            spec,
+            created_unix_ms,
+        };
+        fs::rename(tmp, self.rrd_path(id))?;
+        let sidecar = serde_json::to_vec_pretty(&Sidecar {
+            format: SIDECAR_FORMAT.to_string(),
+            entry: entry.clone(),
+        })
+        .map_err(io::Error::other)?;
+        if let Err(e) = write_atomically(&self.dir, &self.sidecar_path(id), &sidecar) {
+            let _ = fs::remove_file(self.rrd_path(id));
+            return Err(e.into());
+        }
+        let evicted = {
+            let mut index = self.lock();
+            index.insert(entry.clone());
+            self.evict(&mut index, id)
+        };
+        self.delete_files(&evicted);
+        tracing::info!(id, bytes, evicted = evicted.len(), "recording stored");
+        Ok(entry)
+    }
+
+    /// Removes the oldest entries (never `keep`) until the total fits the cap; returns them.
+    fn evict(&self, index: &mut Index, keep: &str) -> Vec<RecordingEntry> {
+        let mut evicted = Vec::new();
+        while index.total > self.max_bytes {
+            let Some(id) = index.oldest_except(keep) else {
+                break;
+            };
+            if let Some(entry) = index.remove(&id) {
+                evicted.push(entry);
+            }
+        }
+        evicted
+    }
+
+    fn delete_files(&self, entries: &[RecordingEntry]) {
+        for entry in entries {
+            tracing::info!(id = %entry.id, bytes = entry.bytes, "evicting the oldest recording");
+            // The sidecar first: a recording without it is never listed again.
+            let _ = fs::remove_file(self.sidecar_path(&entry.id));
+            let _ = fs::remove_file(self.rrd_path(&entry.id));
+        }
+    }
+
+    /// Every recording, newest first.
+    pub fn list(&self) -> Vec<RecordingEntry> {
+        let index = self.lock();
+        let mut entries: Vec<(u64, RecordingEntry)> = index.entries.values().cloned().collect();
+        entries.sort_by(|a, b| (b.1.created_unix_ms, b.0).cmp(&(a.1.created_unix_ms, a.0)));
+        entries.into_iter().map(|(_, e)| e).collect()
+    }
+
+    /// A recording's entry and the path of its file, if `id` is valid and stored.
+    pub fn get(&self, id: &str) -> Option<(RecordingEntry, PathBuf)> {
+        if !is_valid_id(id) {
+            return None;
+        }
+        let index = self.lock();
+        let (_, entry) = index.entries.get(id)?;
+        Some((entry.clone(), self.rrd_path(id)))
+    }
+
+    /// Deletes a recording; false when `id` is not a stored recording.
+    pub fn delete(&self, id: &str) -> bool {
+        if !is_valid_id(id) {
+            return false;
+        }
+        let removed = self.lock().remove(id);
+        match removed {
+            Some(entry) => {
+                let _ = fs::remove_file(self.sidecar_path(&entry.id));
+                let _ = fs::remove_file(self.rrd_path(&entry.id));
+                true
+            }
+            None => false,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ids_are_checked_strictly() {
+        assert!(is_valid_id(&new_id()));
+        assert!(is_valid_id("0123456789abcdef0123456789abcdef"));
+        for bad in [
+            "",
+            "0123456789ABCDEF0123456789ABCDEF",
+            "0123456789abcdef0123456789abcde",
+            "0123456789abcdef0123456789abcdef0",
+            "../../etc/passwd",
+            "0123456789abcdef0123456789abcde/",
+            "0123456789abcdef0123456789abcdeg",
+        ] {
+            assert!(!is_valid_id(bad), "{bad}");
+        }
+    }
+
+    #[test]
+    fn dates_are_rfc3339() {
+        assert_eq!(rfc3339(0), "1970-01-01T00:00:00.000Z");
+        assert_eq!(rfc3339(951_782_400_123), "2000-02-29T00:00:00.123Z");
+        assert_eq!(rfc3339(1_767_225_599_999), "2025-12-31T23:59:59.999Z");
+    }
+}
