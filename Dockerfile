@@ -18,12 +18,16 @@ RUN --mount=type=cache,target=/usr/local/cargo/registry \
     && cp -r static /out/static
 
 FROM debian:bookworm-slim
-RUN useradd --system --uid 10001 --no-create-home --home-dir /nonexistent --shell /usr/sbin/nologin geomint
+RUN useradd --system --uid 10001 --no-create-home --home-dir /nonexistent --shell /usr/sbin/nologin geomint \
+    && mkdir -p /data/recordings && chown geomint /data/recordings
 COPY --from=builder /out/geomint /usr/local/bin/geomint
 COPY --from=builder /out/static /app/static
 WORKDIR /app
 ENV GEOMINT_ADDR=0.0.0.0:8080 \
-    GEOMINT_STATIC_DIR=/app/static
+    GEOMINT_STATIC_DIR=/app/static \
+    GEOMINT_DATA_DIR=/data/recordings
+# Stored Rerun recordings; mount a volume here to keep them across containers.
+VOLUME /data/recordings
 USER geomint
 EXPOSE 8080
 STOPSIGNAL SIGTERM

@@ -202,15 +202,5 @@ fn run_writes_a_rerun_recording_by_extension() {
     // An RRD stream: its header, and the stream footer that ends a complete file.
     assert_eq!(&bytes[..4], b"RRF2");
     assert_eq!(&bytes[bytes.len() - 12..bytes.len() - 4], b"RRF2FOOT");
-    // No viewer listens on this port: the command fails and says so.
-    let out = geomint(&[
-        "run",
-        spec_path.to_str().unwrap(),
-        "-o",
-        dir.join("other.json").to_str().unwrap(),
-        "--rerun-addr",
-        "127.0.0.1:1",
-    ]);
-    assert!(!out.status.success());
-    assert!(stderr(&out).contains("Rerun viewer"), "{}", stderr(&out));
+    std::fs::remove_dir_all(&dir).unwrap();
 }
