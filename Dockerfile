@@ -5,6 +5,14 @@
 #   docker run --rm -p 8080:8080 geomint
 # Settings come from GEOMINT_* environment variables (see `geomint --help`).
 
+# The page's browser libraries (uPlot, the Rerun web viewer) from npm into static/vendor/.
+FROM node:20-bookworm-slim AS page
+WORKDIR /src
+COPY package.json package-lock.json ./
+COPY scripts/vendor.mjs scripts/vendor.mjs
+COPY static static
+RUN npm ci --omit=dev --no-audit --no-fund
+
 FROM rust:1-bookworm AS builder
 WORKDIR /src
 COPY . .
@@ -13,15 +21,13 @@ COPY . .
 RUN --mount=type=cache,target=/usr/local/cargo/registry \
     --mount=type=cache,target=/src/target \
     cargo build --release --locked --bin geomint \
-    && install -D -m 0755 target/release/geomint /out/geomint \
-    && mkdir -p static \
-    && cp -r static /out/static
+    && install -D -m 0755 target/release/geomint /out/geomint
 
 FROM debian:bookworm-slim
 RUN useradd --system --uid 10001 --no-create-home --home-dir /nonexistent --shell /usr/sbin/nologin geomint \
     && mkdir -p /data/recordings && chown geomint /data/recordings
 COPY --from=builder /out/geomint /usr/local/bin/geomint
-COPY --from=builder /out/static /app/static
+COPY --from=page /src/static /app/static
 WORKDIR /app
 ENV GEOMINT_ADDR=0.0.0.0:8080 \
     GEOMINT_STATIC_DIR=/app/static \
