@@ -1,6 +1,8 @@
-// The page's client of the geomint HTTP API: the two catalogues and the NDJSON simulation stream
-// (POST /api/v1/simulate with Accept: application/x-ndjson). Errors in the service's shape,
-// {"error": {"code", "message", "field"}}, become ApiError objects that keep the field path.
+// The page's client of the geomint HTTP API: the two catalogues, the NDJSON simulation stream
+// (POST /api/v1/simulate with Accept: application/x-ndjson), the run as a Rerun recording
+// (?format=rrd, POST /api/v1/recordings) and the stability analysis (POST /api/v1/stability,
+// /api/v1/stability/point). Errors in the service's shape, {"error": {"code", "message",
+// "field"}}, become ApiError objects that keep the field path.
 
 /** An error answered by the API (or a stream's `error` line). */
 export class ApiError extends Error {
@@ -94,4 +96,40 @@ export async function simulateStream(request, onLine, signal) {
   pending += decoder.decode();
   handle(pending);
   if (!ended) throw new Error('the stream ended before its last line: the server stopped early');
+}
+
+/** POSTs `body` as JSON to `path`; resolves with the response when it is OK. */
+async function post(path, body, { accept = 'application/json', signal } = {}) {
+  const response = await fetch(path, {
+    method: 'POST',
+    headers: { 'content-type': 'application/json', accept },
+    body: JSON.stringify(body),
+    signal,
+  });
+  if (!response.ok) throw await errorFrom(response);
+  return response;
+}
+
+/** The simulation of `request` as a Rerun recording (.rrd bytes), computed afresh. */
+export async function simulateRrd(request, signal) {
+  const response = await post('api/v1/simulate?format=rrd', request, { accept: 'application/octet-stream', signal });
+  return response.blob();
+}
+
+/**
+ * Runs `request` and stores its Rerun recording on the server.
+ * @returns {Promise<{id: string, url: string, bytes: number}>} `url` is an absolute path
+ */
+export async function createRecording(request, signal) {
+  return (await post('api/v1/recordings', request, { signal })).json();
+}
+
+/** Stability maps over a (γ, h) grid: the body and answer of POST /api/v1/stability. */
+export async function stabilityMaps(body, signal) {
+  return (await post('api/v1/stability', body, { signal })).json();
+}
+
+/** The stability analysis of one method at one (ω, γ, h): POST /api/v1/stability/point. */
+export async function stabilityPoint(body, signal) {
+  return (await post('api/v1/stability/point', body, { signal })).json();
 }

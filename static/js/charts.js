@@ -83,7 +83,7 @@ function ticks(u, values) {
 }
 
 /** Log-axis gridlines at powers of ten only (every few powers when the range is wide). */
-function logSplits(u, axisIdx, min, max) {
+export function logSplits(u, axisIdx, min, max) {
   const lo = Math.floor(Math.log10(min));
   const hi = Math.ceil(Math.log10(max));
   const step = Math.max(1, Math.ceil((hi - lo) / 6));
@@ -95,7 +95,7 @@ function logSplits(u, axisIdx, min, max) {
   return out.length >= 2 ? out : [min, max];
 }
 
-function logTicks(u, values) {
+export function logTicks(u, values) {
   return values.map((v) => {
     if (v == null) return '';
     const e = Math.log10(v);

@@ -1,14 +1,17 @@
 // The page's entry point: loads the catalogues, builds the form and the preset buttons, and runs
 // simulations — streaming NDJSON into the plots with a progress bar, cancellable with the Cancel
-// button or Esc. For tests it exposes `window.geomint` (the uPlot instances and their point
-// counts) and the run's state as `data-run-state` on <body> (loading, idle, running, done,
-// cancelled, error).
+// button or Esc; offers the finished run as JSON or a Rerun recording (rerun.js) and sets up the
+// stability section (stability.js). For tests it exposes `window.geomint` (the uPlot instances and
+// their point counts) and the run's state as `data-run-state` on <body> (loading, idle, running,
+// done, cancelled, error).
 
 import { catalogues, simulateStream, ApiError } from './api.js';
 import { SimForm, el } from './form.js';
 import { Charts, colour } from './charts.js';
 import { RunStore, renderStats, downloadJson } from './results.js';
 import { PRESETS, presetRequest } from './presets.js';
+import { RerunPanel } from './rerun.js';
+import { StabilityPanel } from './stability.js';
 
 /** Shortest time between two redraws while samples stream in, in milliseconds. Redraws of long
  * runs take longer; the pause after one is at least REDRAW_SHARE times its duration, so drawing
@@ -32,6 +35,9 @@ const ui = {
   loadError: $('#load-error'),
   presets: $('#preset-list'),
 };
+
+/** The .rrd download and the Rerun viewer; set up once the form exists. */
+let rerun = null;
 
 const charts = new Charts(ui.plots);
 /** The current or last simulation. */
@@ -118,6 +124,7 @@ function onLine(run, line) {
       run.store = new RunStore(run.request, line);
       shown = run;
       ui.download.disabled = true;
+      rerun.setRun(null);
       const system = form.systems.find((s) => s.id === line.system.id);
       const source = system?.exact_solution ? 'exact' : line.energy_error ? 'ref' : null;
       charts.build(line, {
@@ -164,6 +171,8 @@ async function start() {
     await current.finished;
   }
   form.clearErrors();
+  rerun.close();
+  rerun.clearMessages();
   const request = form.read();
   const run = {
     request,
@@ -214,6 +223,7 @@ async function start() {
     if (current === run) {
       ui.cancel.disabled = true;
       ui.download.disabled = !(shown?.store && shown.store.received > 0);
+      rerun.setRun(shown?.store ?? null);
       if (run.store) ui.progress.value = outcome === 'done' ? ui.progress.max : ui.progress.value || 0;
       else ui.progress.value = 0;
       setState(outcome);
@@ -241,6 +251,21 @@ async function init() {
     return;
   }
   form = new SimForm(ui.form, cats);
+  rerun = new RerunPanel({
+    download: $('#download-rrd'),
+    view: $('#view-rerun'),
+    status: $('#rrd-status'),
+    error: $('#err-rrd'),
+    section: $('#rerun'),
+    box: $('#rerun-viewer'),
+    fallback: $('#rerun-fallback'),
+    close: $('#rerun-close'),
+  }, (error) => {
+    const input = form.showError(error);
+    if (input) input.focus({ preventScroll: false });
+    return Boolean(input);
+  });
+  const stability = new StabilityPanel($('#stability'), cats.methods);
   for (const button of ui.presets.querySelectorAll('button')) button.disabled = false;
   ui.run.disabled = false;
   ui.form.addEventListener('submit', (event) => {
@@ -258,6 +283,7 @@ async function init() {
     charts: charts.plots,
     pointCounts: () => charts.pointCounts(),
     runPreset,
+    stability,
   };
   setState('idle');
 }

@@ -1,9 +1,11 @@
 // Browser test of the page in static/: headless Chromium (Debian's package, driven by
 // playwright-core) against a running geomint server whose address is in GEOMINT_URL (see
 // scripts/test-browser, which starts one). It runs a preset with two methods, compares the points
-// of every plotted series with the samples the API returns for the same request, checks that the
-// console stays free of errors, submits h = -1 and looks for the API's message beside the h field,
-// cancels a long run, checks the phone layout, and saves screenshots to artifacts/.
+// of every plotted series with the samples the API returns for the same request, downloads the
+// run as .rrd and opens it in the embedded Rerun viewer (or its fallback), checks that the console
+// stays free of errors, submits h = -1 and looks for the API's message beside the h field, cancels
+// a long run, computes the stability maps and the ½tr error plot and compares them with the API,
+// checks the phone layout, and saves screenshots to artifacts/.
 
 import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
@@ -24,6 +26,23 @@ const CHROMIUM_FLAGS = [
 ];
 /** The preset the test runs: paper 000's pendulum, modin_3s against heun at h = 0.2. */
 const PRESET = ['p000-pendulum', '3s-heun'];
+/** The stability section's defaults, as the page sends them. */
+const STABILITY = {
+  methods: ['cimp', 'csv1', 'csv2'],
+  omega: 3.51,
+  gamma: { min: 0, max: 3.5, n: 141 },
+  h: { min: 0, max: 1, n: 41 },
+};
+
+/**
+ * Console errors that come from the machine having no usable GPU, not from the page. The Rerun
+ * viewer renders with WebGPU or WebGL 2; where Chromium offers neither (some headless set-ups), the
+ * viewer's start() logs exactly one error, `WebViewer failure: Failed to start failed to create
+ * wgpu surface: … webgl2 not available …` (reproduced with Chromium's --disable-3d-apis), and
+ * rejects; the page then shows its Rerun-app fallback, which the test requires whenever this
+ * error is filtered out. Nothing else is filtered.
+ */
+const HEADLESS_GPU_ERROR = /^WebViewer failure: Failed to start failed to create wgpu surface: .*(webgl2 not available|adapter)/;
 
 let context;
 let page;
@@ -31,14 +50,19 @@ let profile;
 const consoleErrors = [];
 const failedRequests = [];
 
-/** POSTs a simulation request to the API as JSON; returns status and body. */
-async function simulate(request) {
-  const response = await fetch(`${base}/api/v1/simulate`, {
+/** POSTs a JSON body to an API path; returns status and parsed body. */
+async function postJson(path, body) {
+  const response = await fetch(`${base}${path}`, {
     method: 'POST',
     headers: { 'content-type': 'application/json' },
-    body: JSON.stringify(request),
+    body: JSON.stringify(body),
   });
   return { status: response.status, body: await response.json() };
+}
+
+/** POSTs a simulation request to the API as JSON; returns status and body. */
+function simulate(request) {
+  return postJson('/api/v1/simulate', request);
 }
 
 async function waitForServer() {
@@ -86,7 +110,7 @@ after(async () => {
 
 test('every form control has a label', async () => {
   const unlabelled = await page.evaluate(() =>
-    [...document.querySelectorAll('#sim-form input, #sim-form select')]
+    [...document.querySelectorAll('#sim-form input, #sim-form select, #stability input, #stability select')]
       .filter((c) => c.labels.length === 0 && !c.getAttribute('aria-label'))
       .map((c) => c.id || c.name));
   assert.deepEqual(unlabelled, []);
@@ -159,6 +183,110 @@ test('a preset with two methods plots every sample the API returns', async () =>
   await page.screenshot({ path: join(artifacts, 'page.png'), fullPage: true });
 });
 
+test('the run downloads as .rrd and opens in the Rerun viewer', async () => {
+  const before = consoleErrors.length;
+  const failedBefore = failedRequests.length;
+  assert.equal(await page.getAttribute('body', 'data-run-state'), 'done');
+
+  // The .rrd download: the same request, recorded by the server.
+  const [download] = await Promise.all([page.waitForEvent('download'), page.click('#download-rrd')]);
+  assert.equal(download.suggestedFilename(), 'geomint-pendulum.rrd');
+  const rrd = await readFile(await download.path());
+  assert.ok(rrd.length > 1000, `the .rrd has ${rrd.length} bytes`);
+  assert.equal(rrd.subarray(0, 4).toString('latin1'), 'RRF2', 'Rerun 0.33 files start with RRF2');
+  await page.waitForSelector('#rrd-status:has-text("Saved geomint-pendulum.rrd")');
+
+  // View in Rerun: the recording is stored (201) and the viewer opens its absolute URL.
+  const posted = page.waitForResponse((r) =>
+    new URL(r.url()).pathname === '/api/v1/recordings' && r.request().method() === 'POST');
+  await page.click('#view-rerun');
+  const response = await posted;
+  assert.equal(response.status(), 201);
+  const created = await response.json();
+  assert.match(created.id, /^[0-9a-f]{32}$/);
+  assert.equal(created.url, `/api/v1/recordings/${created.id}.rrd`);
+  assert.deepEqual(JSON.parse(response.request().postData()), presetRequest(...PRESET));
+  const stored = await fetch(`${base}${created.url}`);
+  assert.equal(stored.status, 200);
+  const storedBytes = Buffer.from(await stored.arrayBuffer());
+  assert.equal(storedBytes.length, created.bytes);
+  assert.equal(storedBytes.subarray(0, 4).toString('latin1'), 'RRF2');
+
+  await page.waitForSelector('#rerun:not([hidden])', { timeout: 5_000 });
+  assert.equal(await page.getAttribute('#rerun', 'data-recording-url'), `${base}${created.url}`);
+  // Whether the viewer renders depends on the GPU; the test waits only for start() to settle.
+  await page.waitForFunction(() => ['ready', 'failed', 'unavailable']
+    .includes(document.querySelector('#rerun').dataset.viewerState), null, { timeout: 30_000 });
+  const state = await page.getAttribute('#rerun', 'data-viewer-state');
+  if (state === 'ready') {
+    assert.equal(await page.isVisible('#rerun-viewer'), true);
+    assert.equal(await page.locator('#rerun-viewer canvas').count(), 1);
+    // The viewer keeps Tab for its own controls; Esc hands the focus back to the page.
+    await page.focus('#rerun-viewer canvas');
+    await page.keyboard.press('Escape');
+    assert.equal(await page.evaluate(() => document.activeElement?.id), 'rerun-close');
+  } else {
+    const fallback = await page.textContent('#rerun-fallback');
+    assert.match(fallback, /rerun geomint-pendulum\.rrd/);
+    assert.match(fallback, /pip install "rerun-sdk==0\.33\.\*"/);
+    assert.equal(await page.getAttribute('#rerun-fallback a[download]', 'href'), `${base}${created.url}`);
+  }
+
+  const fresh = consoleErrors.slice(before);
+  const gpu = fresh.filter((text) => HEADLESS_GPU_ERROR.test(text));
+  if (gpu.length) assert.equal(state, 'failed', 'a GPU error must leave the page on its fallback');
+  assert.deepEqual(fresh.filter((text) => !HEADLESS_GPU_ERROR.test(text)), [], 'console errors with the Rerun viewer');
+  assert.deepEqual(failedRequests.slice(failedBefore), [], 'failed requests with the Rerun viewer');
+  await page.locator('#rerun').scrollIntoViewIfNeeded();
+  await page.screenshot({ path: join(artifacts, 'page-rerun.png') });
+
+  // Closing stops the viewer; a new run closes it too (not needed here: Close is the same call).
+  await page.click('#rerun-close');
+  assert.equal(await page.isHidden('#rerun'), true);
+  assert.equal(await page.getAttribute('#rerun', 'data-viewer-state'), 'closed');
+  assert.equal(await page.locator('#rerun-viewer canvas').count(), 0);
+  assert.equal(await page.evaluate(() => document.activeElement?.id), 'view-rerun');
+  assert.equal((await fetch(`${base}/api/v1/recordings/${created.id}`, { method: 'DELETE' })).status, 204);
+});
+
+test('without the viewer files the page explains how to open the recording in the Rerun app', async () => {
+  // A second tab where the viewer's files answer 404, as on a server without `npm ci`.
+  const other = await context.newPage();
+  const errors = [];
+  other.on('console', (message) => {
+    if (message.type() === 'error') errors.push(message.text());
+  });
+  other.on('pageerror', (error) => errors.push(`uncaught: ${error.message}`));
+  await other.route('**/vendor/rerun/**', (route) => route.fulfill({ status: 404, body: 'not found' }));
+  try {
+    await other.goto(`${base}/`);
+    await other.waitForSelector('body[data-run-state="idle"]', { timeout: 15_000 });
+    await other.click('[data-preset="p000-pendulum/3s-heun"]');
+    await other.waitForSelector('body[data-run-state="done"]', { timeout: 30_000 });
+    const posted = other.waitForResponse((r) =>
+      new URL(r.url()).pathname === '/api/v1/recordings' && r.request().method() === 'POST');
+    await other.click('#view-rerun');
+    const response = await posted;
+    assert.equal(response.status(), 201);
+    const created = await response.json();
+    await other.waitForSelector('#rerun[data-viewer-state="unavailable"]', { timeout: 10_000 });
+    assert.equal(await other.isHidden('#rerun-viewer'), true);
+    const fallback = await other.textContent('#rerun-fallback');
+    assert.match(fallback, /not installed/);
+    assert.match(fallback, /pip install "rerun-sdk==0\.33\.\*"/);
+    assert.match(fallback, /rerun geomint-pendulum\.rrd/);
+    assert.equal(await other.getAttribute('#rerun-fallback a[download]', 'href'), `${base}${created.url}`);
+    assert.equal(await other.getAttribute('#rerun-fallback a[download]', 'download'), 'geomint-pendulum.rrd');
+    // Chromium logs the missing module's 404 itself; the page adds nothing.
+    assert.deepEqual(errors.filter((text) => !/Failed to load resource: the server responded with a status of 404/.test(text)), []);
+    await other.locator('#rerun').scrollIntoViewIfNeeded();
+    await other.screenshot({ path: join(artifacts, 'page-rerun-fallback.png') });
+    assert.equal((await fetch(`${base}/api/v1/recordings/${created.id}`, { method: 'DELETE' })).status, 204);
+  } finally {
+    await other.close();
+  }
+});
+
 test('an API validation error is shown beside its field', async () => {
   const before = consoleErrors.length;
   const request = { ...presetRequest(...PRESET), h: -1 };
@@ -190,6 +318,7 @@ test('an API validation error is shown beside its field', async () => {
 
 test('Cancel stops a long run, on the page and on the server', async () => {
   const before = consoleErrors.length;
+  const failedBefore = failedRequests.length;
   // 10⁷ steps per method with the DOP853 reference first: tens of seconds if not cancelled.
   await page.fill('#h', '0.001');
   await page.fill('#t_end', '10000');
@@ -210,9 +339,105 @@ test('Cancel stops a long run, on the page and on the server', async () => {
     load = await (await fetch(`${base}/healthz`)).json();
   } while (load.runs_in_progress > 0 && Date.now() < deadline);
   assert.equal(load.runs_in_progress, 0, 'simulation threads still busy after Cancel');
-  assert.deepEqual(failedRequests, ['/api/v1/simulate net::ERR_ABORTED']);
+  assert.deepEqual(failedRequests.slice(failedBefore), ['/api/v1/simulate net::ERR_ABORTED']);
   assert.deepEqual(consoleErrors.slice(before), [], 'console errors after Cancel');
   await page.fill('#every', '');
+});
+
+test('the stability section maps the methods and reads a cell under the pointer', async () => {
+  const before = consoleErrors.length;
+  const failedBefore = failedRequests.length;
+  await page.locator('#stab-run').scrollIntoViewIfNeeded();
+  await page.focus('#stab-run');
+  await page.keyboard.press('Enter');
+  await page.waitForSelector('#stability[data-stab-state="done"]', { timeout: 20_000 });
+  const { status, body: api } = await postJson('/api/v1/stability', STABILITY);
+  assert.equal(status, 200);
+
+  // One heatmap per method with one cell per (γ, h) grid point, drawn at a real size.
+  const maps = await page.$$eval('canvas.heatmap', (canvases) => canvases.map((c) => ({
+    method: c.dataset.method, cells: Number(c.dataset.cells), columns: Number(c.dataset.columns),
+    rows: Number(c.dataset.rows), width: c.width, height: c.height,
+  })));
+  assert.deepEqual(maps.map((m) => m.method), STABILITY.methods);
+  for (const m of maps) {
+    assert.equal(m.cells, STABILITY.gamma.n * STABILITY.h.n);
+    assert.deepEqual([m.columns, m.rows], [STABILITY.gamma.n, STABILITY.h.n]);
+    assert.ok(m.width > STABILITY.gamma.n && m.height > STABILITY.h.n, `canvas ${m.width}×${m.height}`);
+  }
+
+  // The disagreement counts shown are the API's, for the corrected and the printed relations.
+  const counts = await page.$$eval('.map .disagreements', (ps) => ps.map((p) => ({
+    data: [p.dataset.disagreements, p.dataset.printedDisagreements],
+    shown: [p.querySelector('.count-corrected')?.textContent, p.querySelector('.count-printed')?.textContent],
+  })));
+  api.maps.forEach((map, i) => {
+    const expected = [String(map.disagreements), String(map.printed_disagreements)];
+    assert.deepEqual(counts[i].data, expected, `${map.method}: data attributes`);
+    assert.deepEqual(counts[i].shown, expected, `${map.method}: counts shown`);
+  });
+  assert.ok(api.maps.some((m) => m.printed_disagreements > 0), 'the printed relations disagree somewhere');
+
+  // Hovering a cell of the csv1 map updates the readout with that cell's API values.
+  const canvas = page.locator('canvas.heatmap[data-method="csv1"]');
+  const box = await canvas.boundingBox();
+  const readout = page.locator('figure[data-map="csv1"] .readout');
+  for (const [col, row] of [[100, 32], [20, 8]]) {
+    const [x, y] = await page.evaluate(([c, r]) =>
+      window.geomint.stability.heatmaps[1].cellCentre(c, r), [col, row]);
+    await page.mouse.move(box.x + x, box.y + y);
+    const shown = await readout.evaluate((p) => ({ ...p.dataset, text: p.textContent }));
+    assert.deepEqual([Number(shown.col), Number(shown.row)], [col, row]);
+    const rho = api.maps[1].spectral_radius[row][col];
+    assert.equal(Number(shown.rho), rho);
+    assert.equal(shown.stable, String(api.maps[1].stable[row][col]));
+    assert.ok(Math.abs(Number(shown.gamma) - (3.5 * col) / 140) < 1e-12);
+    assert.ok(Math.abs(Number(shown.h) - row / 40) < 1e-12);
+    assert.match(shown.text, new RegExp(`^γ = ${Number(shown.gamma).toPrecision(4).replace(/\.?0+$/, '')}, `));
+  }
+  // … and from the keyboard: the focused map's cursor moves with the arrow keys.
+  await canvas.focus();
+  await page.keyboard.press('ArrowUp');
+  await page.keyboard.press('ArrowRight');
+  assert.deepEqual(await readout.evaluate((p) => [p.dataset.col, p.dataset.row, p.getAttribute('aria-live')]), ['21', '9', 'polite']);
+
+  // The ½tr error plot: one log–log series per method (and the h⁴ guide), the API's values.
+  const plot = await page.evaluate(() => {
+    const { plot, last } = window.geomint.stability;
+    return { labels: plot.series.slice(1).map((s) => s.label), data: plot.data, hs: last.halfTrace.hs };
+  });
+  assert.deepEqual(plot.labels, [...STABILITY.methods, '∝ h⁴']);
+  assert.equal(plot.hs.length, 12);
+  assert.ok(Math.abs(plot.hs[0] - 0.005) < 1e-15 && Math.abs(plot.hs[11] - 0.5) < 1e-15);
+  const k = 6;
+  const point = await postJson('/api/v1/stability/point', { method: 'csv2', omega: 3.51, gamma: 0.5, h: plot.hs[k] });
+  assert.equal(point.status, 200);
+  assert.equal(plot.data[3][k], point.body.analysis.half_trace_error);
+  for (const series of plot.data.slice(1, 4)) assert.ok(series.every((v) => v > 0), 'every ½tr error plotted');
+
+  assert.deepEqual(consoleErrors.slice(before), [], 'console errors in the stability section');
+  assert.deepEqual(failedRequests.slice(failedBefore), [], 'failed requests in the stability section');
+  await page.locator('#stability').screenshot({ path: join(artifacts, 'page-stability.png') });
+});
+
+test('a stability error is shown beside its field', async () => {
+  const before = consoleErrors.length;
+  await page.fill('#stab-gamma-max', '-1');
+  await page.click('#stab-run');
+  await page.waitForSelector('#stability[data-stab-state="error"]', { timeout: 10_000 });
+  const { body } = await postJson('/api/v1/stability', { ...STABILITY, gamma: { ...STABILITY.gamma, max: -1 } });
+  assert.equal(body.error.field, 'gamma.max');
+  assert.equal((await page.textContent('#err-stab-gamma')).trim(), body.error.message);
+  assert.equal(await page.getAttribute('#stab-gamma-max', 'aria-invalid'), 'true');
+  assert.equal(await page.evaluate(() => document.activeElement?.id), 'stab-gamma-max');
+  // Chromium logs the 422 answer itself; the page adds nothing.
+  const fresh = consoleErrors.slice(before)
+    .filter((text) => !/Failed to load resource: the server responded with a status of 422/.test(text));
+  assert.deepEqual(fresh, [], 'console errors after the stability error');
+  await page.fill('#stab-gamma-max', '3.5');
+  await page.click('#stab-run');
+  await page.waitForSelector('#stability[data-stab-state="done"]', { timeout: 20_000 });
+  assert.equal(await page.textContent('#err-stab-gamma'), '');
 });
 
 test('the page fits a phone screen', async () => {
@@ -226,4 +451,13 @@ test('the page fits a phone screen', async () => {
     [...window.geomint.charts.values()].map(({ plot }) => plot.width));
   for (const w of widths) assert.ok(w <= 390, `plot ${w}px wide on a 390px screen`);
   await page.screenshot({ path: join(artifacts, 'page-phone.png'), fullPage: true });
+
+  // The stability section's heatmaps and ½tr plot shrink to the screen too.
+  await page.locator('#stability').scrollIntoViewIfNeeded();
+  await page.waitForFunction(() => [...document.querySelectorAll('canvas.heatmap')]
+    .every((c) => c.getBoundingClientRect().right <= window.innerWidth));
+  const stabilityOverflow = await page.evaluate(() => document.documentElement.scrollWidth - window.innerWidth);
+  assert.ok(stabilityOverflow <= 0, `the page is ${stabilityOverflow}px wider than the screen`);
+  assert.ok(await page.evaluate(() => window.geomint.stability.plot.width <= 390));
+  await page.locator('#stability').screenshot({ path: join(artifacts, 'page-stability-phone.png') });
 });

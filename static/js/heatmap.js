@@ -1,0 +1,368 @@
+// Spectral-radius heatmaps of the stability section, drawn on a canvas (uPlot has no heatmap):
+// one cell per (γ, h) grid point, γ across and h upwards, coloured on a log scale of the spectral
+// radius ρ — blues where the method is stable (ρ ≤ 1), oranges to reds where it is not, grey where
+// it is undefined — with the analytic stability boundaries drawn along the cell edges where a
+// relation's verdict changes, labelled axes, and a cursor cell (pointer or arrow keys) that the
+// stability panel shares between the maps. Also the colour scale bar.
+
+import { el } from './form.js';
+
+/** Margins of the plot area inside the canvas, in CSS pixels. */
+const MARGIN = { left: 48, right: 10, top: 8, bottom: 38 };
+const FONT = '11px system-ui, sans-serif';
+const LABEL_FONT = 'italic 13px system-ui, sans-serif';
+
+const STABLE_STOPS = ['#c6dbef', '#9ecae1', '#6baed6', '#3182bd', '#08519c', '#08306b'];
+const UNSTABLE_STOPS = ['#fdae6b', '#fd8d3c', '#e6550d', '#c2410c', '#a63603', '#67000d'];
+export const UNDEFINED_COLOUR = '#8f8f8f';
+export const BOUNDARY_COLOUR = '#111111';
+export const PRINTED_COLOUR = '#7b2cbf';
+
+function hexRgb(hex) {
+  const n = parseInt(hex.slice(1), 16);
+  return [(n >> 16) & 255, (n >> 8) & 255, n & 255];
+}
+const STABLE_RGB = STABLE_STOPS.map(hexRgb);
+const UNSTABLE_RGB = UNSTABLE_STOPS.map(hexRgb);
+
+/** The colour at `t` ∈ [0, 1] along `stops` (linear in RGB between them). */
+function ramp(stops, t) {
+  const x = Math.min(1, Math.max(0, t)) * (stops.length - 1);
+  const i = Math.min(stops.length - 2, Math.floor(x));
+  const f = x - i;
+  const a = stops[i];
+  const b = stops[i + 1];
+  return [0, 1, 2].map((k) => Math.round(a[k] + (b[k] - a[k]) * f));
+}
+
+/**
+ * The colour scale of a set of maps: log10 of the smallest and largest finite spectral radius,
+ * at least ±0.1 decade around ρ = 1.
+ */
+export function colourScale(maps) {
+  let lo = Infinity;
+  let hi = -Infinity;
+  for (const map of maps) {
+    for (const row of map.spectral_radius) {
+      for (const rho of row) {
+        if (rho == null || !(rho > 0)) continue;
+        if (rho < lo) lo = rho;
+        if (rho > hi) hi = rho;
+      }
+    }
+  }
+  return {
+    lo: Math.min(-0.1, Number.isFinite(lo) ? Math.log10(lo) : -1),
+    hi: Math.max(0.1, Number.isFinite(hi) ? Math.log10(hi) : 1),
+  };
+}
+
+/** The RGB colour of a cell: its spectral radius and the numerical verdict. */
+export function cellColour(rho, stable, scale) {
+  if (rho == null || !Number.isFinite(rho)) return hexRgb(UNDEFINED_COLOUR);
+  const e = Math.log10(Math.max(rho, 1e-300));
+  return stable ? ramp(STABLE_RGB, e / scale.lo) : ramp(UNSTABLE_RGB, e / scale.hi);
+}
+
+/** About `count` round tick values within [a, b]. */
+export function niceTicks(a, b, count = 5) {
+  if (!(b > a)) return [a];
+  const raw = (b - a) / count;
+  const mag = 10 ** Math.floor(Math.log10(raw));
+  const step = [1, 2, 2.5, 5, 10].map((m) => m * mag).find((s) => s >= raw) || 10 * mag;
+  const out = [];
+  for (let v = Math.ceil(a / step - 1e-9) * step; v <= b + step * 1e-9; v += step) {
+    out.push(Math.abs(v) < step * 1e-9 ? 0 : +v.toPrecision(12));
+  }
+  return out;
+}
+
+/** A number for labels and the readout. */
+export function fmt(x, digits = 4) {
+  if (x == null || !Number.isFinite(x)) return '—';
+  if (x !== 0 && (Math.abs(x) < 1e-3 || Math.abs(x) >= 1e5)) return x.toExponential(digits - 1);
+  return String(+x.toPrecision(digits));
+}
+
+/** The k-th of `n` evenly spaced values from `min` to `max` (the API's axis definition). */
+export function axisValue(axis, k) {
+  return axis.n > 1 ? axis.min + ((axis.max - axis.min) * k) / (axis.n - 1) : axis.min;
+}
+
+/** Sets a canvas's backing size for `width` × `height` CSS pixels; returns its 2-D context. */
+function sized(canvas, width, height) {
+  const dpr = window.devicePixelRatio || 1;
+  const w = Math.round(width * dpr);
+  const h = Math.round(height * dpr);
+  if (canvas.width !== w || canvas.height !== h) {
+    canvas.width = w;
+    canvas.height = h;
+  }
+  canvas.style.height = `${height}px`;
+  const ctx = canvas.getContext('2d');
+  ctx.setTransform(dpr, 0, 0, dpr, 0, 0);
+  return ctx;
+}
+
+/** One method's map on a canvas. */
+export class Heatmap {
+  /**
+   * @param {HTMLCanvasElement} canvas
+   * @param {object} map one entry of the API's `maps`
+   * @param {{gamma: object, h: object}} axes the answer's axes (columns γ, rows h)
+   * @param {{lo: number, hi: number}} scale
+   */
+  constructor(canvas, map, axes, scale) {
+    this.canvas = canvas;
+    this.map = map;
+    this.gamma = axes.gamma;
+    this.h = axes.h;
+    this.cols = axes.gamma.n;
+    this.rows = axes.h.n;
+    this.scale = scale;
+    this.showPrinted = true;
+    /** The cursor cell {col, row} or null. */
+    this.cursor = null;
+    this.cssWidth = 0;
+    this.cssHeight = 0;
+    canvas.dataset.columns = String(this.cols);
+    canvas.dataset.rows = String(this.rows);
+    canvas.dataset.cells = String(this.cols * this.rows);
+    this.image = this.cellImage();
+    this.boundaries = {
+      analytic: map.analytic ? this.boundary(map.analytic) : null,
+      printed: map.printed ? this.boundary(map.printed) : null,
+    };
+  }
+
+  /** The cells as an image, one pixel per cell, h increasing upwards. */
+  cellImage() {
+    const image = document.createElement('canvas');
+    image.width = this.cols;
+    image.height = this.rows;
+    const ctx = image.getContext('2d');
+    const data = ctx.createImageData(this.cols, this.rows);
+    for (let r = 0; r < this.rows; r++) {
+      const y = this.rows - 1 - r;
+      for (let c = 0; c < this.cols; c++) {
+        const [R, G, B] = cellColour(this.map.spectral_radius[r][c], this.map.stable[r][c], this.scale);
+        const o = 4 * (y * this.cols + c);
+        data.data[o] = R;
+        data.data[o + 1] = G;
+        data.data[o + 2] = B;
+        data.data[o + 3] = 255;
+      }
+    }
+    ctx.putImageData(data, 0, 0);
+    return image;
+  }
+
+  /**
+   * The cell edges across which `verdict` (rows × columns of booleans) changes, as segments in
+   * cell units: [x0, y0, x1, y1] with x the column edge and y the row edge counted upwards.
+   */
+  boundary(verdict) {
+    const segments = [];
+    for (let r = 0; r < this.rows; r++) {
+      for (let c = 0; c < this.cols; c++) {
+        if (c + 1 < this.cols && verdict[r][c] !== verdict[r][c + 1]) segments.push([c + 1, r, c + 1, r + 1]);
+        if (r + 1 < this.rows && verdict[r][c] !== verdict[r + 1][c]) segments.push([c, r + 1, c + 1, r + 1]);
+      }
+    }
+    return segments;
+  }
+
+  /** The plot area in CSS pixels. */
+  get area() {
+    return {
+      x: MARGIN.left,
+      y: MARGIN.top,
+      w: Math.max(10, this.cssWidth - MARGIN.left - MARGIN.right),
+      h: Math.max(10, this.cssHeight - MARGIN.top - MARGIN.bottom),
+    };
+  }
+
+  /** Sets the size from the canvas's CSS width and draws. */
+  resize() {
+    const width = Math.max(160, Math.floor(this.canvas.clientWidth || this.canvas.parentElement.clientWidth));
+    this.cssWidth = width;
+    this.cssHeight = Math.round(Math.min(340, Math.max(200, width * 0.66)));
+    this.draw();
+  }
+
+  /** Cell-unit coordinates to CSS pixels. */
+  px(u, v) {
+    const a = this.area;
+    return [a.x + (u / this.cols) * a.w, a.y + a.h - (v / this.rows) * a.h];
+  }
+
+  /** The cell under CSS pixel (x, y), or null outside the plot area. */
+  cellAt(x, y) {
+    const a = this.area;
+    if (x < a.x || x > a.x + a.w || y < a.y || y > a.y + a.h) return null;
+    const col = Math.min(this.cols - 1, Math.max(0, Math.floor(((x - a.x) / a.w) * this.cols)));
+    const row = Math.min(this.rows - 1, Math.max(0, Math.floor(((a.y + a.h - y) / a.h) * this.rows)));
+    return { col, row };
+  }
+
+  /** The centre of a cell in CSS pixels (for tests and keyboard focus). */
+  cellCentre(col, row) {
+    return this.px(col + 0.5, row + 0.5);
+  }
+
+  draw() {
+    if (!this.cssWidth) return;
+    const ctx = sized(this.canvas, this.cssWidth, this.cssHeight);
+    const a = this.area;
+    ctx.clearRect(0, 0, this.cssWidth, this.cssHeight);
+    ctx.imageSmoothingEnabled = false;
+    ctx.drawImage(this.image, a.x, a.y, a.w, a.h);
+
+    const stroke = (segments, colour, width, dash) => {
+      if (!segments?.length) return;
+      ctx.save();
+      ctx.beginPath();
+      ctx.rect(a.x, a.y, a.w, a.h);
+      ctx.clip();
+      ctx.beginPath();
+      for (const [u0, v0, u1, v1] of segments) {
+        ctx.moveTo(...this.px(u0, v0));
+        ctx.lineTo(...this.px(u1, v1));
+      }
+      ctx.strokeStyle = colour;
+      ctx.lineWidth = width;
+      ctx.setLineDash(dash);
+      ctx.lineCap = 'square';
+      ctx.stroke();
+      ctx.restore();
+    };
+    if (this.showPrinted) stroke(this.boundaries.printed, PRINTED_COLOUR, 1.5, [4, 3]);
+    stroke(this.boundaries.analytic, BOUNDARY_COLOUR, 2, []);
+
+    this.drawAxes(ctx, a);
+
+    if (this.cursor) {
+      const [x0, y0] = this.px(this.cursor.col, this.cursor.row + 1);
+      const [x1, y1] = this.px(this.cursor.col + 1, this.cursor.row);
+      const w = Math.max(4, x1 - x0);
+      const h = Math.max(4, y1 - y0);
+      const cx = (x0 + x1) / 2 - w / 2;
+      const cy = (y0 + y1) / 2 - h / 2;
+      ctx.lineWidth = 3;
+      ctx.strokeStyle = '#ffffff';
+      ctx.strokeRect(cx - 1, cy - 1, w + 2, h + 2);
+      ctx.lineWidth = 1.5;
+      ctx.strokeStyle = '#000000';
+      ctx.strokeRect(cx - 1, cy - 1, w + 2, h + 2);
+    }
+  }
+
+  drawAxes(ctx, a) {
+    ctx.strokeStyle = '#333';
+    ctx.lineWidth = 1;
+    ctx.setLineDash([]);
+    ctx.strokeRect(a.x - 0.5, a.y - 0.5, a.w + 1, a.h + 1);
+    ctx.fillStyle = '#333';
+    ctx.font = FONT;
+    // Cell centres sit at the axis values; the axes reach half a cell beyond them.
+    const half = (axis) => (axis.n > 1 && axis.max > axis.min ? (axis.max - axis.min) / (axis.n - 1) / 2 : 0.5);
+    const gx = (g) => {
+      const lo = this.gamma.min - half(this.gamma);
+      const hi = this.gamma.max + half(this.gamma);
+      return a.x + ((g - lo) / (hi - lo)) * a.w;
+    };
+    const hy = (h) => {
+      const lo = this.h.min - half(this.h);
+      const hi = this.h.max + half(this.h);
+      return a.y + a.h - ((h - lo) / (hi - lo)) * a.h;
+    };
+    const xTicks = niceTicks(this.gamma.min, this.gamma.max, Math.max(2, Math.floor(a.w / 60)));
+    ctx.textAlign = 'center';
+    ctx.textBaseline = 'top';
+    for (const g of xTicks) {
+      const x = gx(g);
+      ctx.fillRect(Math.round(x) - 0.5, a.y + a.h, 1, 4);
+      ctx.fillText(fmt(g), x, a.y + a.h + 6);
+    }
+    const yTicks = niceTicks(this.h.min, this.h.max, Math.max(2, Math.floor(a.h / 40)));
+    ctx.textAlign = 'right';
+    ctx.textBaseline = 'middle';
+    for (const h of yTicks) {
+      const y = hy(h);
+      ctx.fillRect(a.x - 4, Math.round(y) - 0.5, 4, 1);
+      ctx.fillText(fmt(h), a.x - 6, y);
+    }
+    ctx.font = LABEL_FONT;
+    ctx.textAlign = 'center';
+    ctx.textBaseline = 'bottom';
+    ctx.fillText('γ', a.x + a.w / 2, this.cssHeight - 2);
+    ctx.save();
+    ctx.translate(12, a.y + a.h / 2);
+    ctx.rotate(-Math.PI / 2);
+    ctx.textBaseline = 'middle';
+    ctx.fillText('h', 0, 0);
+    ctx.restore();
+  }
+
+  /** The values at a cell, for the readout. */
+  cell(col, row) {
+    const verdict = (grid) => (grid ? grid[row][col] : null);
+    return {
+      col,
+      row,
+      gamma: axisValue(this.gamma, col),
+      h: axisValue(this.h, row),
+      rho: this.map.spectral_radius[row][col],
+      stable: this.map.stable[row][col],
+      analytic: verdict(this.map.analytic),
+      printed: verdict(this.map.printed),
+    };
+  }
+}
+
+/** Draws the colour scale bar of `scale` on `canvas` (log ρ: stable left of 1, unstable right). */
+export function drawColourScale(canvas, scale) {
+  const width = Math.max(200, Math.floor(canvas.parentElement.clientWidth));
+  const height = 40;
+  const ctx = sized(canvas, width, height);
+  const left = 12;
+  const right = width - 16;
+  const barTop = 2;
+  const barHeight = 14;
+  const span = scale.hi - scale.lo;
+  const xOf = (e) => left + ((e - scale.lo) / span) * (right - left);
+  ctx.clearRect(0, 0, width, height);
+  for (let x = left; x < right; x++) {
+    const e = scale.lo + ((x + 0.5 - left) / (right - left)) * span;
+    const [R, G, B] = cellColour(10 ** e, e <= 0, scale);
+    ctx.fillStyle = `rgb(${R},${G},${B})`;
+    ctx.fillRect(x, barTop, 1, barHeight);
+  }
+  ctx.strokeStyle = '#333';
+  ctx.lineWidth = 1;
+  ctx.strokeRect(left - 0.5, barTop - 0.5, right - left + 1, barHeight + 1);
+  ctx.fillStyle = '#333';
+  ctx.font = FONT;
+  ctx.textAlign = 'center';
+  ctx.textBaseline = 'top';
+  const decades = [];
+  const step = Math.max(1, Math.ceil(span / 8));
+  for (let e = Math.ceil(scale.lo); e <= Math.floor(scale.hi); e += step) decades.push(e);
+  if (!decades.includes(0)) decades.push(0);
+  for (const e of decades) {
+    const x = xOf(e);
+    ctx.fillRect(Math.round(x) - 0.5, barTop + barHeight, 1, 4);
+    ctx.fillText(e === 0 ? '1' : `1e${e}`, x, barTop + barHeight + 6);
+  }
+  canvas.setAttribute('aria-label',
+    `Colour scale of the spectral radius ρ on a log axis from ${fmt(10 ** scale.lo, 2)} to ${fmt(10 ** scale.hi, 2)}: ` +
+    'light to dark blue for stable cells (ρ ≤ 1), orange to dark red for unstable ones, grey where the method is undefined.');
+}
+
+/** The legend entries below the colour scale. */
+export function scaleLegend() {
+  return el('ul', { class: 'legend scale-legend' },
+    el('li', {}, el('span', { class: 'swatch block', style: `background:${UNDEFINED_COLOUR}`, 'aria-hidden': 'true' }), 'undefined (csv2 at γh = 2)'),
+    el('li', {}, el('span', { class: 'swatch line', style: `border-top-color:${BOUNDARY_COLOUR}`, 'aria-hidden': 'true' }), 'analytic boundary (corrected relation)'),
+    el('li', { 'data-legend': 'printed' }, el('span', { class: 'swatch line dashed', style: `border-top-color:${PRINTED_COLOUR}`, 'aria-hidden': 'true' }), 'boundary of the printed relation'));
+}
