@@ -7,21 +7,13 @@ use std::time::{Duration, Instant};
 use geomint::core::methods::MethodInput;
 use geomint::core::run::{Budget, StopReason};
 use geomint::core::simulate::{run_to_trajectory, Limits, Request, Simulation, Trajectory};
-use geomint::http::{app, AppState, Config};
+mod server;
+
+use geomint::http::{AppState, Config};
 use serde_json::{json, Value};
+use server::{client, start, Server};
 
 const NDJSON: &str = "application/x-ndjson";
-
-struct Server {
-    base: String,
-    state: AppState,
-}
-
-impl Server {
-    fn url(&self, path: &str) -> String {
-        format!("{}{path}", self.base)
-    }
-}
 
 /// A test configuration: a safety time limit so that no run outlives its test, and recordings
 /// in a scratch directory of this test process.
@@ -31,24 +23,6 @@ fn config() -> Config {
         data_dir: std::env::temp_dir().join(format!("geomint-http-{}", std::process::id())),
         ..Config::default()
     }
-}
-
-async fn start(config: Config) -> Server {
-    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
-    let addr = listener.local_addr().unwrap();
-    let state = AppState::new(config);
-    let router = app(state.clone());
-    tokio::spawn(async move {
-        axum::serve(listener, router).await.unwrap();
-    });
-    Server {
-        base: format!("http://{addr}"),
-        state,
-    }
-}
-
-fn client() -> reqwest::Client {
-    reqwest::Client::builder().no_proxy().build().unwrap()
 }
 
 async fn post(server: &Server, body: &Value) -> reqwest::Response {
@@ -1090,6 +1064,7 @@ async fn shutdown_cancels_running_simulations_after_the_grace_time() {
     }));
     let handle = Server {
         base: format!("http://{addr}"),
+        addr,
         state,
     };
     let mut stream = Lines::new(post_stream(&handle, &long_request()).await);

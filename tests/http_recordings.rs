@@ -8,25 +8,16 @@ use std::io::Cursor;
 use std::path::PathBuf;
 use std::time::Duration;
 
-use geomint::http::{app, AppState, Config};
+mod server;
+
+use geomint::http::Config;
 use re_log_encoding::DecoderApp;
 use rerun::external::re_log_types::{LogMsg, StoreKind};
 use rerun::log::Chunk;
 use rerun::Scalars;
 use serde_json::{json, Value};
+use server::{client, start, Server};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
-
-struct Server {
-    base: String,
-    addr: std::net::SocketAddr,
-    state: AppState,
-}
-
-impl Server {
-    fn url(&self, path: &str) -> String {
-        format!("{}{path}", self.base)
-    }
-}
 
 /// A scratch data directory of this test process.
 fn data_dir(name: &str) -> PathBuf {
@@ -43,25 +34,6 @@ fn config(dir: &PathBuf, max_bytes: u64) -> Config {
         recordings_max_bytes: max_bytes,
         ..Config::default()
     }
-}
-
-async fn start(config: Config) -> Server {
-    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
-    let addr = listener.local_addr().unwrap();
-    let state = AppState::new(config);
-    let router = app(state.clone());
-    tokio::spawn(async move {
-        axum::serve(listener, router).await.unwrap();
-    });
-    Server {
-        base: format!("http://{addr}"),
-        addr,
-        state,
-    }
-}
-
-fn client() -> reqwest::Client {
-    reqwest::Client::builder().no_proxy().build().unwrap()
 }
 
 fn spec(every: u64) -> Value {

@@ -7,23 +7,15 @@ use std::time::{Duration, Instant};
 use geomint::core::methods::{MethodChoice, MethodId};
 use geomint::core::simulate::Limits;
 use geomint::core::stability::{self, Axis, Relation};
-use geomint::http::{app, AppState, Config};
+mod server;
+
+use geomint::http::Config;
 use geomint::output::request::parse_json;
 use serde_json::{json, Value};
+use server::{client, start, Server};
 
 const MAP: &str = "/api/v1/stability";
 const POINT: &str = "/api/v1/stability/point";
-
-struct Server {
-    base: String,
-    state: AppState,
-}
-
-impl Server {
-    fn url(&self, path: &str) -> String {
-        format!("{}{path}", self.base)
-    }
-}
 
 /// A test configuration: a safety time limit so that no run outlives its test.
 fn config() -> Config {
@@ -31,24 +23,6 @@ fn config() -> Config {
         request_timeout: Duration::from_secs(15),
         ..Config::default()
     }
-}
-
-async fn start(config: Config) -> Server {
-    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
-    let addr = listener.local_addr().unwrap();
-    let state = AppState::new(config);
-    let router = app(state.clone());
-    tokio::spawn(async move {
-        axum::serve(listener, router).await.unwrap();
-    });
-    Server {
-        base: format!("http://{addr}"),
-        state,
-    }
-}
-
-fn client() -> reqwest::Client {
-    reqwest::Client::builder().no_proxy().build().unwrap()
 }
 
 /// Posts `body` to `path`; returns the status and the answer, read with correctly rounded

@@ -1,0 +1,42 @@
+//! The real server on an ephemeral loopback port, shared by the HTTP test files.
+#![allow(dead_code)]
+
+use geomint::http::{app, AppState, Config};
+
+/// A running server.
+pub struct Server {
+    /// `http://127.0.0.1:PORT`.
+    pub base: String,
+    /// Its address.
+    pub addr: std::net::SocketAddr,
+    /// Its state (for inspecting slots and settings).
+    pub state: AppState,
+}
+
+impl Server {
+    /// The URL of `path` on this server.
+    pub fn url(&self, path: &str) -> String {
+        format!("{}{path}", self.base)
+    }
+}
+
+/// Starts `app(config)` on 127.0.0.1:0 in the test's runtime.
+pub async fn start(config: Config) -> Server {
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap();
+    let state = AppState::new(config);
+    let router = app(state.clone());
+    tokio::spawn(async move {
+        axum::serve(listener, router).await.unwrap();
+    });
+    Server {
+        base: format!("http://{addr}"),
+        addr,
+        state,
+    }
+}
+
+/// A client that never goes through a proxy.
+pub fn client() -> reqwest::Client {
+    reqwest::Client::builder().no_proxy().build().unwrap()
+}
