@@ -3,27 +3,12 @@
 
 mod common;
 
-use common::final_state;
+use common::{every_fixed_step_choice as every_choice, final_state};
 use geomint::core::diagnostics::log_log_slope;
-use geomint::core::methods::{MethodChoice, MethodId, RKS_INNER, TRIPLE_JUMP_BASES};
+use geomint::core::methods::{MethodChoice, MethodId};
 use geomint::core::system::{MechanicalSystem, State};
 use geomint::core::systems::HarmonicOscillator;
 use nalgebra::U1;
-
-fn every_choice() -> Vec<MethodChoice> {
-    let mut choices: Vec<MethodChoice> = MethodId::ALL
-        .iter()
-        .filter(|&&m| m != MethodId::Reference)
-        .map(|&m| MethodChoice::new(m))
-        .collect();
-    choices.extend(
-        TRIPLE_JUMP_BASES
-            .iter()
-            .map(|&b| MethodChoice::triple_jump(b)),
-    );
-    choices.extend(RKS_INNER.iter().map(|&i| MethodChoice::rks(i)));
-    choices
-}
 
 fn nominal_order(c: &MethodChoice) -> f64 {
     f64::from(c.id.info().order)

@@ -466,19 +466,9 @@ where
 #[test]
 fn propagated_step_jacobians_equal_finite_differences_of_the_step() {
     use geomint::core::flows::Tangent;
-    use geomint::core::methods::{self, MethodChoice, MethodId, RKS_INNER, TRIPLE_JUMP_BASES};
+    use geomint::core::methods;
     use geomint::core::run::Stepper;
-    let mut choices: Vec<MethodChoice> = MethodId::ALL
-        .iter()
-        .filter(|&&m| m != MethodId::Reference)
-        .map(|&m| MethodChoice::new(m))
-        .collect();
-    choices.extend(
-        TRIPLE_JUMP_BASES
-            .iter()
-            .map(|&b| MethodChoice::triple_jump(b)),
-    );
-    choices.extend(RKS_INNER.iter().map(|&i| MethodChoice::rks(i)));
+    let choices = common::every_fixed_step_choice();
     let pendulum = geomint::core::systems::Pendulum { gamma: 0.3 };
     let z1 = State::from_slices(U1, &[2.0], &[0.4]);
     let bodies = geomint::core::systems::NBody {

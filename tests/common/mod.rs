@@ -82,3 +82,21 @@ pub fn run_all(req: &Request) -> (Simulation, Vec<Trajectory>) {
         .collect();
     (sim, runs)
 }
+
+/// Every fixed-step method choice: each id but the reference with default options, every
+/// triple-jump base and every inner method of modin_rks.
+pub fn every_fixed_step_choice() -> Vec<MethodChoice> {
+    use geomint::core::methods::{MethodId, RKS_INNER, TRIPLE_JUMP_BASES};
+    let mut choices: Vec<MethodChoice> = MethodId::ALL
+        .iter()
+        .filter(|&&m| m != MethodId::Reference)
+        .map(|&m| MethodChoice::new(m))
+        .collect();
+    choices.extend(
+        TRIPLE_JUMP_BASES
+            .iter()
+            .map(|&b| MethodChoice::triple_jump(b)),
+    );
+    choices.extend(RKS_INNER.iter().map(|&i| MethodChoice::rks(i)));
+    choices
+}
