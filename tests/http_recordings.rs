@@ -4,17 +4,14 @@
 //! it.
 
 use std::collections::BTreeMap;
-use std::io::Cursor;
 use std::path::PathBuf;
 use std::time::Duration;
 
+mod decoded;
 mod server;
+use decoded::Decoded;
 
 use geomint::http::Config;
-use re_log_encoding::DecoderApp;
-use rerun::external::re_log_types::{LogMsg, StoreKind};
-use rerun::log::Chunk;
-use rerun::Scalars;
 use serde_json::{json, Value};
 use server::{client, start, Server};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
@@ -75,29 +72,15 @@ fn ids(entries: &[Value]) -> Vec<String> {
 
 /// Temporal energy rows per method entity, decoded with `re_log_encoding`, in step order.
 fn energies(rrd: &[u8]) -> BTreeMap<String, Vec<f64>> {
-    let mut out: BTreeMap<String, Vec<(i64, f64)>> = BTreeMap::new();
-    let component = Scalars::descriptor_scalars().component;
-    for msg in DecoderApp::decode_eager(Cursor::new(rrd)).unwrap() {
-        if let LogMsg::ArrowMsg(store, arrow) = msg.unwrap() {
-            let chunk = Chunk::from_arrow_msg(&arrow).unwrap();
-            let path = chunk.entity_path().to_string();
-            if store.kind() != StoreKind::Recording
-                || chunk.is_static()
-                || !path.ends_with("/energy")
-            {
-                continue;
-            }
-            let steps = chunk.timelines()[&"step".into()].times_raw().to_vec();
-            let values = chunk.iter_slices::<f64>(component).map(|s| s[0]);
-            out.entry(path)
-                .or_default()
-                .extend(steps.into_iter().zip(values));
-        }
-    }
-    out.into_iter()
-        .map(|(path, mut rows)| {
-            rows.sort_by_key(|r| r.0);
-            (path, rows.into_iter().map(|r| r.1).collect())
+    let d = Decoded::of(rrd);
+    d.chunks
+        .keys()
+        .filter(|path| path.ends_with("/energy"))
+        .map(|path| {
+            (
+                path.clone(),
+                d.scalars(path).into_iter().map(|r| r.1).collect(),
+            )
         })
         .collect()
 }

@@ -7,7 +7,12 @@ use std::time::{Duration, Instant};
 use geomint::core::methods::{MethodChoice, MethodId};
 use geomint::core::simulate::Limits;
 use geomint::core::stability::{self, Axis, Relation};
+mod decoded;
 mod server;
+use decoded::Decoded;
+use rerun::components::{ImageBuffer, TensorData};
+use rerun::external::re_sdk_types::datatypes::TensorBuffer;
+use rerun::{SegmentationImage, Tensor};
 
 use geomint::http::Config;
 use geomint::output::request::parse_json;
@@ -186,6 +191,118 @@ async fn maps_are_rows_by_columns_and_equal_the_core_bit_for_bit() {
     assert_eq!(nulls, 2, "csv2 is undefined at the two cells with γh = 2");
     assert!(maps[3]["spectral_radius"][2][8].is_null());
     assert!(maps[3]["spectral_radius"][4][4].is_null());
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_study_comes_as_a_recording_of_tensors_and_verdict_images() {
+    let server = start(config()).await;
+    let body = json!({
+        "methods": ["csv1", "csv2", "rk4"],
+        "omega": 3.51,
+        "gamma": {"min": 0, "max": 4, "n": 9},
+        "h": {"min": 0, "max": 1, "n": 5},
+    });
+    let (status, doc) = post(&server, MAP, &body).await;
+    assert_eq!(status, 200, "{doc}");
+    let response = client()
+        .post(server.url(&format!("{MAP}?format=rrd")))
+        .json(&body)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), 200);
+    assert_eq!(
+        response.headers()["content-type"],
+        "application/octet-stream"
+    );
+    assert!(response.headers()["content-disposition"]
+        .to_str()
+        .unwrap()
+        .starts_with("attachment"));
+    let d = Decoded::of(&response.bytes().await.unwrap());
+    assert_eq!(d.application_ids, BTreeSet::from(["geomint".to_string()]));
+    assert_eq!(d.activations, 1, "a default blueprint");
+    // `/__properties` holds the recording's name and start time.
+    let mut expected: BTreeSet<String> = ["/", "/__properties", "/spec"].map(String::from).into();
+    for m in ["csv1", "csv2", "rk4"] {
+        for part in ["spectral_radius", "verdict", "summary"] {
+            expected.insert(format!("/{m}/{part}"));
+        }
+    }
+    assert_eq!(d.chunks.keys().cloned().collect::<BTreeSet<_>>(), expected);
+
+    let mut disagreeing = 0;
+    for map in doc["maps"].as_array().unwrap() {
+        let m = map["method"].as_str().unwrap();
+        // The tensor: h rows × γ columns, equal to the JSON bit for bit, NaN for null.
+        let tensors: Vec<TensorData> = d.static_batch(
+            &format!("/{m}/spectral_radius"),
+            Tensor::descriptor_data().component,
+        );
+        let tensor = &tensors[0];
+        assert_eq!(tensor.shape(), [5, 9], "{m}");
+        let names: Vec<String> = (0..2)
+            .map(|k| tensor.dim_name(k).unwrap().to_string())
+            .collect();
+        assert_eq!(names, ["h", "gamma"]);
+        let TensorBuffer::F64(radii) = &tensor.buffer else {
+            panic!("{m}: f64 radii")
+        };
+        let json_radii: Vec<&Value> = map["spectral_radius"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .flat_map(|r| r.as_array().unwrap())
+            .collect();
+        assert_eq!(radii.len(), json_radii.len());
+        for (r, j) in radii.iter().zip(json_radii) {
+            match j.as_f64() {
+                Some(x) => assert_eq!(r.to_bits(), x.to_bits(), "{m}"),
+                None => assert!(r.is_nan(), "{m}: {r} for null"),
+            }
+        }
+        // The verdict image: classes 1 stable, 2 unstable, 3/4 where the relation disagrees.
+        let buffers: Vec<ImageBuffer> = d.static_batch(
+            &format!("/{m}/verdict"),
+            SegmentationImage::descriptor_buffer().component,
+        );
+        let classes: &[u8] = &buffers[0].0;
+        assert_eq!(classes.len(), 45, "{m}");
+        let cells = map["stable"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .enumerate()
+            .flat_map(|(k, row)| {
+                row.as_array()
+                    .unwrap()
+                    .iter()
+                    .enumerate()
+                    .map(move |(j, s)| (k, j, s.as_bool().unwrap()))
+            });
+        for ((k, j, stable), &class) in cells.zip(classes) {
+            let analytic = map["analytic"][k][j].as_bool();
+            let want = match (stable, analytic) {
+                (true, Some(false)) => 3,
+                (false, Some(true)) => 4,
+                (true, _) => 1,
+                (false, _) => 2,
+            };
+            assert_eq!(class, want, "{m} cell ({k}, {j})");
+            disagreeing += u32::from(class >= 3);
+        }
+    }
+    println!("cells where the corrected relation disagrees (boundary included): {disagreeing}");
+
+    let (status, error) = post_error(
+        &server,
+        &format!("{MAP}?format=png"),
+        body.to_string(),
+        "application/json",
+    )
+    .await;
+    assert_eq!(status, 422);
+    assert_eq!(error["field"], "format");
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

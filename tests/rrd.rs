@@ -1,10 +1,9 @@
 //! Rerun recordings read back with Rerun's own decoder (`re_log_encoding`, the crate the viewer
 //! uses): entity paths, timelines, row counts, the blueprint, and the energies bit for bit
-//! against the JSON document. Also times the writing of a recording of 10⁶ samples.
+//! against the JSON document, also for a run of 10⁶ samples (its writing time is measured by
+//! `cargo bench --bench recording`).
 
-use std::collections::{BTreeMap, BTreeSet};
-use std::io::Cursor;
-use std::time::Instant;
+use std::collections::BTreeSet;
 
 use geomint::core::run::Budget;
 use geomint::core::simulate::Limits;
@@ -12,94 +11,10 @@ use geomint::output::document::SimulationDocument;
 use geomint::output::recording::{self, APPLICATION_ID};
 use geomint::output::recording::{path_blocks, MAX_PATH_ROWS};
 use geomint::output::{self, SimulateRequest};
-use re_log_encoding::DecoderApp;
-use rerun::external::re_log_types::{LogMsg, StoreKind};
-use rerun::log::Chunk;
-use rerun::Scalars;
+
+mod decoded;
+use decoded::Decoded;
 use serde_json::{json, Value};
-
-/// What a decoded `.rrd` holds.
-#[derive(Default)]
-struct Decoded {
-    application_ids: BTreeSet<String>,
-    recording_stores: BTreeSet<String>,
-    blueprint_stores: BTreeSet<String>,
-    activations: usize,
-    /// Recording chunks by entity path.
-    chunks: BTreeMap<String, Vec<Chunk>>,
-    /// Blueprint entity paths.
-    blueprint_entities: BTreeSet<String>,
-}
-
-impl Decoded {
-    fn of(bytes: &[u8]) -> Decoded {
-        let mut out = Decoded::default();
-        let decoder = DecoderApp::decode_eager(Cursor::new(bytes)).expect("an rrd stream");
-        for msg in decoder {
-            match msg.expect("every message decodes") {
-                LogMsg::SetStoreInfo(info) => {
-                    let id = &info.info.store_id;
-                    out.application_ids.insert(id.application_id().to_string());
-                    let name = id.recording_id().to_string();
-                    match id.kind() {
-                        StoreKind::Recording => out.recording_stores.insert(name),
-                        StoreKind::Blueprint => out.blueprint_stores.insert(name),
-                    };
-                }
-                LogMsg::ArrowMsg(store, arrow) => {
-                    let chunk = Chunk::from_arrow_msg(&arrow).expect("a chunk");
-                    let path = chunk.entity_path().to_string();
-                    match store.kind() {
-                        StoreKind::Recording => out.chunks.entry(path).or_default().push(chunk),
-                        StoreKind::Blueprint => {
-                            out.blueprint_entities.insert(path);
-                        }
-                    }
-                }
-                LogMsg::BlueprintActivationCommand(_) => out.activations += 1,
-            }
-        }
-        out
-    }
-
-    /// Temporal rows of an entity.
-    fn rows(&self, path: &str) -> usize {
-        self.chunks[path]
-            .iter()
-            .filter(|c| !c.is_static())
-            .map(|c| c.num_rows())
-            .sum()
-    }
-
-    /// Timeline names of an entity's temporal chunks.
-    fn timelines(&self, path: &str) -> BTreeSet<String> {
-        self.chunks[path]
-            .iter()
-            .filter(|c| !c.is_static())
-            .flat_map(|c| c.timelines().keys().map(|k| k.to_string()))
-            .collect()
-    }
-
-    /// (step, value) of every scalar row of an entity, in step order.
-    fn scalars(&self, path: &str) -> Vec<(i64, f64)> {
-        let component = Scalars::descriptor_scalars().component;
-        let mut rows = Vec::new();
-        for chunk in self.chunks[path].iter().filter(|c| !c.is_static()) {
-            let steps = chunk.timelines()[&"step".into()].times_raw().to_vec();
-            let values: Vec<f64> = chunk
-                .iter_slices::<f64>(component)
-                .map(|s| {
-                    assert_eq!(s.len(), 1);
-                    s[0]
-                })
-                .collect();
-            assert_eq!(steps.len(), values.len());
-            rows.extend(steps.into_iter().zip(values));
-        }
-        rows.sort_by_key(|r| r.0);
-        rows
-    }
-}
 
 /// A run as the service answers it: the JSON text, and the recording.
 struct Run {
@@ -314,7 +229,7 @@ fn energy_errors_invariants_and_bodies_have_their_entities() {
 }
 
 #[test]
-fn a_million_samples_are_written_quickly() {
+fn a_million_samples_make_a_complete_recording() {
     let limits = Limits {
         max_steps: 10_000_000,
         max_samples: 2_000_000,
@@ -325,17 +240,9 @@ fn a_million_samples_are_written_quickly() {
     let sim = spec.prepare(&limits).unwrap();
     let doc = output::simulate(&sim, 1, Budget::default()).unwrap();
     assert_eq!(doc.runs[0].columns.energy.len(), 1_000_001);
-    let started = Instant::now();
     let bytes = recording::rrd_bytes(&spec, &doc).unwrap();
-    let elapsed = started.elapsed();
-    println!(
-        "recording of 1_000_001 samples: {:.0} ms, {:.1} MB",
-        elapsed.as_secs_f64() * 1e3,
-        bytes.len() as f64 / 1e6
-    );
     let d = Decoded::of(&bytes);
     assert_eq!(d.rows("/modin_3s/energy"), 1_000_001);
     assert_eq!(d.rows("/modin_3s/world/bodies"), 1_000_001);
     assert_eq!(d.rows("/modin_3s/world/path"), MAX_PATH_ROWS + 1);
-    assert!(elapsed.as_secs_f64() < 3.0, "writing took {elapsed:?}");
 }

@@ -8,15 +8,19 @@
 //! [`MAX_MAP_CELLS`](crate::output::stability::MAX_MAP_CELLS) cells); between methods it stops
 //! at the time limit (504) or when the client goes away.
 //!
+//! With `?format=rrd` the maps come as a Rerun recording (each map a tensor of spectral radii and
+//! an image of verdicts, see [`recording::stability`]).
+//!
 //! A point costs two steps of one method: it takes no slot, but still runs on the blocking pool
 //! so that a fault answers 500.
 
+use std::collections::BTreeMap;
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::Instant;
 
 use axum::body::Body;
-use axum::extract::State;
+use axum::extract::{Query, State};
 use axum::http::{header, HeaderValue};
 use axum::response::Response;
 use axum::Json;
@@ -25,9 +29,11 @@ use serde_json::Value;
 use super::error::ApiError;
 use super::extract::ApiJson;
 use super::paths;
+use super::recordings::{rrd_response, RrdFile};
 use super::state::{cancel_on_shutdown, run_blocking, AppState, CancelOnDrop};
 use crate::core::run::Budget;
-use crate::output::error::ErrorBody;
+use crate::output::error::{codes, ErrorBody, ErrorDetail};
+use crate::output::recording;
 use crate::output::stability::{
     self, PointDocument, PointRequest, StabilityDocument, StabilityRequest,
 };
@@ -39,10 +45,18 @@ use crate::output::stability::{
 /// analytic relations with their disagreement counts. Each grid has one row per h value and one
 /// column per γ value; a spectral radius that is not finite (the method is undefined there, e.g.
 /// csv2 at γh = 2) is `null`.
+///
+/// With `?format=rrd` the answer is the study's Rerun recording: per method the spectral radii
+/// as a tensor (dimensions `h`, `gamma`) and the verdicts as a segmentation image whose classes
+/// mark where the analytic relation disagrees.
 #[utoipa::path(post, path = paths::STABILITY, tag = "stability",
     request_body(content = StabilityRequest, content_type = "application/json"),
+    params(("format" = Option<String>, Query,
+        description = "`rrd` answers with the Rerun recording of the maps (as an attachment); \
+            `json` (the default) with the JSON document")),
     responses(
-        (status = 200, description = "One map per method, in the order asked", body = StabilityDocument),
+        (status = 200, description = "One map per method, in the order asked",
+            content((StabilityDocument = "application/json"), (RrdFile = "application/octet-stream"))),
         (status = 400, description = "Malformed JSON (code `malformed_json`)", body = ErrorBody),
         (status = 413, description = "The body exceeds 1 MiB", body = ErrorBody),
         (status = 415, description = "The body is not declared as JSON", body = ErrorBody),
@@ -56,9 +70,22 @@ use crate::output::stability::{
     ))]
 pub async fn stability_map(
     State(state): State<AppState>,
+    Query(query): Query<BTreeMap<String, String>>,
     ApiJson(body): ApiJson<Value>,
 ) -> Result<Response, ApiError> {
-    let job = StabilityRequest::from_value(&body)?.prepare()?;
+    let rrd = match query.get("format").map(String::as_str) {
+        None | Some("json") => false,
+        Some("rrd") => true,
+        Some(other) => {
+            return Err(ApiError::from(ErrorDetail::at(
+                codes::INVALID_VALUE,
+                "format",
+                format!("unknown format `{other}`; one of json, rrd"),
+            )))
+        }
+    };
+    let request = StabilityRequest::from_value(&body)?;
+    let job = request.prepare()?;
     let permits = state.acquire(state.config.max_concurrent).await?;
     let deadline = Instant::now() + state.config.request_timeout;
     let cancel = Arc::new(AtomicBool::new(false));
@@ -78,11 +105,24 @@ pub async fn stability_map(
             cancel: Some(&cancel),
             deadline: Some(deadline),
         };
-        stability::maps(&job, budget).map(|doc: StabilityDocument| serde_json::to_vec(&doc))
+        let doc: StabilityDocument = stability::maps(&job, budget)?;
+        if rrd {
+            recording::stability::rrd_bytes(&request, &doc).map_err(ApiError::internal)
+        } else {
+            serde_json::to_vec(&doc).map_err(ApiError::internal)
+        }
     })
     .await;
     shutdown.abort();
-    let bytes = result??.map_err(ApiError::internal)?;
+    let bytes = result??;
+    if rrd {
+        let length = bytes.len() as u64;
+        return Ok(rrd_response(
+            Body::from(bytes),
+            "geomint-stability.rrd",
+            Some(length),
+        ));
+    }
     let mut response = Response::new(Body::from(bytes));
     response.headers_mut().insert(
         header::CONTENT_TYPE,

@@ -124,6 +124,12 @@ export async function createRecording(request, signal) {
   return (await post('api/v1/recordings', request, { signal })).json();
 }
 
+/** The stability maps of `body` as a Rerun recording (.rrd bytes). */
+export async function stabilityRrd(body, signal) {
+  const response = await post('api/v1/stability?format=rrd', body, { accept: 'application/octet-stream', signal });
+  return response.blob();
+}
+
 /** Stability maps over a (γ, h) grid: the body and answer of POST /api/v1/stability. */
 export async function stabilityMaps(body, signal) {
   return (await post('api/v1/stability', body, { signal })).json();

@@ -17,7 +17,7 @@ const VIEWER_MODULE = '../vendor/rerun/index.js';
 const RERUN_VERSION = '0.33';
 
 /** Offers `blob` as a file download named `name`. */
-function saveBlob(blob, name) {
+export function saveBlob(blob, name) {
   const url = URL.createObjectURL(blob);
   const link = el('a', { href: url, download: name });
   document.body.append(link);
@@ -26,7 +26,7 @@ function saveBlob(blob, name) {
   setTimeout(() => URL.revokeObjectURL(url), 10_000);
 }
 
-function sizeText(bytes) {
+export function sizeText(bytes) {
   if (bytes >= 1024 * 1024) return `${(bytes / (1024 * 1024)).toFixed(1)} MiB`;
   return `${Math.max(1, Math.round(bytes / 1024))} KiB`;
 }

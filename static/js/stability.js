@@ -6,7 +6,8 @@
 // state is `data-stab-state` (idle, running, done, error), for tests.
 
 import uPlot from '../vendor/uPlot.esm.js';
-import { stabilityMaps, stabilityPoint, ApiError } from './api.js';
+import { stabilityMaps, stabilityPoint, stabilityRrd, ApiError } from './api.js';
+import { saveBlob, sizeText } from './rerun.js';
 import { el } from './form.js';
 import { colour, logSplits, logTicks } from './charts.js';
 import { Heatmap, colourScale, drawColourScale, scaleLegend, fmt } from './heatmap.js';
@@ -110,6 +111,11 @@ export class StabilityPanel {
     this.resize.observe(this.mapsBox);
     this.resize.observe(this.halfTraceBox);
     this.pending = false;
+    this.downloadButton = root.querySelector('#stab-download-rrd');
+    this.downloadError = root.querySelector('#err-stab-rrd');
+    /** The body of the maps shown, which the .rrd download records. */
+    this.shownBody = null;
+    this.downloadButton.addEventListener('click', () => this.download());
     this.form.querySelector('#stab-run').disabled = false;
   }
 
@@ -181,6 +187,8 @@ export class StabilityPanel {
     this.controller = controller;
     this.clearErrors();
     const { map, pointGamma } = this.read();
+    this.shownBody = null;
+    this.downloadButton.disabled = true;
     this.setState('running');
     this.status.textContent = 'Computing…';
 
@@ -194,6 +202,8 @@ export class StabilityPanel {
     let focus = null;
     if (maps.status === 'fulfilled') {
       this.renderMaps(maps.value);
+      this.shownBody = map;
+      this.downloadButton.disabled = false;
     } else {
       this.clearMaps();
       errors.push(maps.reason);
@@ -221,6 +231,22 @@ export class StabilityPanel {
       this.status.textContent = `Done: ${doc.maps.length} map${doc.maps.length > 1 ? 's' : ''} of ` +
         `${doc.gamma.n} γ × ${doc.h.n} h values at ω = ${fmt(doc.omega)}; ½tr error at ${points.value.hs.length} step sizes.`;
       this.setState('done');
+    }
+  }
+
+  /** Saves the shown maps as geomint-stability.rrd (the server computes and records them). */
+  async download() {
+    if (!this.shownBody) return;
+    this.downloadError.textContent = '';
+    this.downloadButton.disabled = true;
+    try {
+      const blob = await stabilityRrd(this.shownBody);
+      saveBlob(blob, 'geomint-stability.rrd');
+      this.status.textContent = `Saved geomint-stability.rrd (${sizeText(blob.size)}).`;
+    } catch (error) {
+      this.downloadError.textContent = `The recording could not be made: ${error?.message || error}`;
+    } finally {
+      this.downloadButton.disabled = !this.shownBody;
     }
   }
 

@@ -415,6 +415,13 @@ test('the stability section maps the methods and reads a cell under the pointer'
   assert.equal(plot.data[3][k], point.body.analysis.half_trace_error);
   for (const series of plot.data.slice(1, 4)) assert.ok(series.every((v) => v > 0), 'every ½tr error plotted');
 
+  // The maps download as a Rerun recording.
+  const [saved] = await Promise.all([page.waitForEvent('download'), page.click('#stab-download-rrd')]);
+  assert.equal(saved.suggestedFilename(), 'geomint-stability.rrd');
+  const rrd = await readFile(await saved.path());
+  assert.equal(rrd.subarray(0, 4).toString('latin1'), 'RRF2', 'Rerun 0.33 files start with RRF2');
+  assert.ok(rrd.length > 1000, `a recording of ${rrd.length} bytes`);
+
   assert.deepEqual(consoleErrors.slice(before), [], 'console errors in the stability section');
   assert.deepEqual(failedRequests.slice(failedBefore), [], 'failed requests in the stability section');
   await page.locator('#stability').screenshot({ path: join(artifacts, 'page-stability.png') });

@@ -1,4 +1,4 @@
-//! Rerun recordings (`.rrd`) of a simulation: the same runs as the JSON document, laid out as
+//! The recording of a simulation: the same runs as the JSON document, laid out as
 //! entities the Rerun viewer (0.33) shows without configuration, plus a default blueprint.
 //!
 //! Entity layout (`{m}` is a method's entity name, see [`entity_names`]):
@@ -30,126 +30,26 @@
 //!
 //! Series are sent as columns (`send_columns`): one chunk per entity and method.
 
-use std::collections::HashSet;
 use std::io::Write;
-use std::sync::mpsc;
 use std::time::Duration;
 
-use rerun::external::re_log_encoding::{CrateVersion, Encoder, EncodingOptions};
-use rerun::external::re_log_types::{BlueprintActivationCommand, LogMsg, StoreId, StoreKind};
-use rerun::external::re_sdk_types::blueprint::archetypes::{
-    ContainerBlueprint, ViewBlueprint, ViewContents, ViewportBlueprint, VisibleTimeRanges,
-};
-use rerun::external::re_sdk_types::blueprint::components::{
-    ContainerKind, IncludedContent, QueryExpression, RootContainer, ViewClass,
-};
-use rerun::external::re_sdk_types::datatypes::{
-    TimeInt, TimeRange, TimeRangeBoundary, VisibleTimeRange,
-};
-use rerun::external::uuid::Uuid;
-use rerun::sink::{LogSink, SinkFlushError};
+use rerun::external::re_sdk_types::blueprint::components::ContainerKind;
 use rerun::{
-    AsComponents as _, Color, EntityPath, LineStrips2D, LineStrips3D, Points2D, Points3D, Radius,
-    RecordingStream, RecordingStreamBuilder, Scalars, SeriesLines, SeriesPoints, TextDocument,
-    TimeColumn, ViewCoordinates,
+    AsComponents as _, LineStrips2D, LineStrips3D, Points2D, Points3D, Radius, RecordingStream,
+    RecordingStreamBuilder, Scalars, SeriesLines, SeriesPoints, TextDocument, TimeColumn,
+    ViewCoordinates,
 };
 
-use super::document::{RunDocument, SimulationDocument};
-use super::request::SimulateRequest;
+use super::blueprint::{self, Node};
+use super::{
+    color, encode, entity_names, entity_part, method_color, RecordingError, APPLICATION_ID,
+    STEP_TIMELINE, TIME_TIMELINE,
+};
+use crate::output::document::{RunDocument, SimulationDocument};
+use crate::output::request::SimulateRequest;
 
-/// The application id of every recording.
-pub const APPLICATION_ID: &str = "geomint";
-/// The sequence timeline: the step index of each sample.
-pub const STEP_TIMELINE: &str = "step";
-/// The duration timeline: the time of each sample, in seconds.
-pub const TIME_TIMELINE: &str = "t";
 /// Degrees of freedom with a phase portrait (the first ones; an N-body run has 3N).
 pub const MAX_PHASE_DOFS: usize = 6;
-/// The media type of `.rrd` files.
-pub const RRD_MEDIA_TYPE: &str = "application/octet-stream";
-
-/// One colour per method, in request order (16 methods at most per request).
-const PALETTE: [[u8; 3]; 16] = [
-    [31, 119, 180],
-    [255, 127, 14],
-    [44, 160, 44],
-    [214, 39, 40],
-    [148, 103, 189],
-    [140, 86, 75],
-    [227, 119, 194],
-    [127, 127, 127],
-    [188, 189, 34],
-    [23, 190, 207],
-    [57, 59, 121],
-    [173, 73, 74],
-    [99, 121, 57],
-    [206, 109, 189],
-    [231, 186, 82],
-    [82, 84, 163],
-];
-
-/// Why a recording could not be written.
-#[derive(Debug, thiserror::Error)]
-pub enum RecordingError {
-    /// The recording stream refused the data.
-    #[error("recording stream: {0}")]
-    Stream(#[from] rerun::RecordingStreamError),
-    /// A component could not be serialised.
-    #[error("serialisation: {0}")]
-    Serialization(#[from] rerun::SerializationError),
-    /// The `.rrd` encoder failed.
-    #[error("encoding: {0}")]
-    Encode(#[from] rerun::external::re_log_encoding::EncodeError),
-    /// The viewer connection failed.
-    #[error("{0}")]
-    Sink(String),
-}
-
-/// The colour of method `index` (request order) as RGB.
-pub fn method_color(index: usize) -> [u8; 3] {
-    PALETTE[index % PALETTE.len()]
-}
-
-/// Makes `label` a valid, plain entity path part: ASCII letters, digits, `_` and `-` are kept,
-/// anything else becomes `_` (so `modin_rks(rk4)` becomes `modin_rks_rk4`).
-pub fn entity_part(label: &str) -> String {
-    let mut part: String = label
-        .chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || c == '_' || c == '-' {
-                c
-            } else {
-                '_'
-            }
-        })
-        .collect();
-    while part.ends_with('_') && part.len() > 1 {
-        part.pop();
-    }
-    if part.is_empty() || part.starts_with("__") || part == "spec" {
-        part.insert_str(0, "m_");
-    }
-    part
-}
-
-/// The entity names of a request's methods, from their labels, in order: [`entity_part`] of each
-/// label, with `_2`, `_3`, … appended to repeats so that every method has its own subtree.
-pub fn entity_names<S: AsRef<str>>(labels: &[S]) -> Vec<String> {
-    let mut taken = HashSet::new();
-    labels
-        .iter()
-        .map(|label| {
-            let base = entity_part(label.as_ref());
-            let mut name = base.clone();
-            let mut n = 2;
-            while !taken.insert(name.clone()) {
-                name = format!("{base}_{n}");
-                n += 1;
-            }
-            name
-        })
-        .collect()
-}
 
 /// What the world view draws for a system.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -271,10 +171,6 @@ pub fn sample_steps(count: usize, every: u64, steps: u64) -> Vec<i64> {
     (0..count as u64)
         .map(|i| i.saturating_mul(every).min(steps) as i64)
         .collect()
-}
-
-fn color(rgb: [u8; 3]) -> Color {
-    Color::from_rgb(rgb[0], rgb[1], rgb[2])
 }
 
 /// Logs every run of `doc` (and the spec) to `rec`: static styles first, then the series as
@@ -497,114 +393,6 @@ pub fn path_blocks(n: usize) -> Vec<PathBlock> {
     blocks
 }
 
-/// A view of the blueprint under construction.
-struct ViewSpec {
-    id: Uuid,
-    class: &'static str,
-    name: String,
-    contents: Vec<String>,
-    /// Entities shown over the whole timeline up to the cursor.
-    trails: Vec<String>,
-}
-
-/// A container of the blueprint under construction.
-struct ContainerSpec {
-    id: Uuid,
-    kind: ContainerKind,
-    children: Vec<Node>,
-}
-
-enum Node {
-    View(ViewSpec),
-    Container(ContainerSpec),
-}
-
-impl Node {
-    fn view(class: &'static str, name: impl Into<String>, contents: Vec<String>) -> Node {
-        Node::View(ViewSpec {
-            id: Uuid::new_v4(),
-            class,
-            name: name.into(),
-            contents,
-            trails: Vec::new(),
-        })
-    }
-
-    fn container(kind: ContainerKind, children: Vec<Node>) -> Node {
-        Node::Container(ContainerSpec {
-            id: Uuid::new_v4(),
-            kind,
-            children,
-        })
-    }
-
-    fn id(&self) -> Uuid {
-        match self {
-            Node::View(v) => v.id,
-            Node::Container(c) => c.id,
-        }
-    }
-
-    fn path(&self) -> String {
-        match self {
-            Node::View(v) => format!("view/{}", v.id),
-            Node::Container(c) => format!("container/{}", c.id),
-        }
-    }
-
-    fn log(&self, bp: &RecordingStream) -> Result<(), RecordingError> {
-        match self {
-            Node::View(v) => {
-                let path = self.path();
-                bp.log(
-                    format!("{path}/ViewContents"),
-                    &ViewContents::new(
-                        v.contents.iter().map(|q| QueryExpression(q.clone().into())),
-                    ),
-                )?;
-                bp.log(
-                    path.as_str(),
-                    &ViewBlueprint::new(ViewClass(v.class.into()))
-                        .with_display_name(v.name.clone())
-                        .with_space_origin("/"),
-                )?;
-                // Paths grow: everything from the start of the timeline up to the cursor.
-                let upto_cursor = TimeRange {
-                    start: TimeRangeBoundary::Infinite,
-                    end: TimeRangeBoundary::CursorRelative(TimeInt::from(0)),
-                };
-                let ranges = VisibleTimeRanges::new([STEP_TIMELINE, TIME_TIMELINE].map(|tl| {
-                    VisibleTimeRange {
-                        timeline: tl.into(),
-                        range: upto_cursor,
-                    }
-                }));
-                for entity in &v.trails {
-                    let at = ViewContents::blueprint_base_visualizer_path_for_entity(
-                        v.id,
-                        &EntityPath::from(entity.as_str()),
-                    );
-                    bp.log(at, &ranges)?;
-                }
-            }
-            Node::Container(c) => {
-                for child in &c.children {
-                    child.log(bp)?;
-                }
-                bp.log(
-                    self.path(),
-                    &ContainerBlueprint::new(c.kind).with_contents(
-                        c.children
-                            .iter()
-                            .map(|child| IncludedContent(child.path().into())),
-                    ),
-                )?;
-            }
-        }
-        Ok(())
-    }
-}
-
 /// The default layout: energy of all methods on top of the other plots (energy error,
 /// invariants, force evaluations as tabs), beside the 3-D world with the spec and a grid of
 /// phase portraits.
@@ -640,22 +428,17 @@ fn blueprint_tree(layout: &Layout) -> Node {
         ],
     );
 
-    let mut world = Node::view("3D", "world", each(&|m| format!("/{m}/world/**")));
-    if let Node::View(v) = &mut world {
-        v.trails = each(&|m| format!("/{m}/world/path"));
-    }
+    let world = Node::view("3D", "world", each(&|m| format!("/{m}/world/**")))
+        .with_trails(each(&|m| format!("/{m}/world/path")));
     let spec = Node::view("TextDocument", "spec", vec!["/spec".to_string()]);
     let phases: Vec<Node> = (0..layout.phase_dofs)
         .map(|dof| {
-            let mut view = Node::view(
+            Node::view(
                 "2D",
                 format!("phase (q{dof}, p{dof})"),
                 each(&|m| format!("/{m}/phase/{dof}/**")),
-            );
-            if let Node::View(v) = &mut view {
-                v.trails = each(&|m| format!("/{m}/phase/{dof}/path"));
-            }
-            view
+            )
+            .with_trails(each(&|m| format!("/{m}/phase/{dof}/path")))
         })
         .collect();
     let right = Node::container(
@@ -674,109 +457,7 @@ pub fn send_blueprint(
     rec: &RecordingStream,
     doc: &SimulationDocument,
 ) -> Result<(), RecordingError> {
-    let layout = Layout::of(doc);
-    let blueprint_id = StoreId::random(StoreKind::Blueprint, APPLICATION_ID);
-    let (bp, storage) = RecordingStreamBuilder::from_store_id(&blueprint_id)
-        .enabled(true)
-        .send_properties(false)
-        .memory()?;
-    bp.set_time_sequence("blueprint", 0);
-    let root = blueprint_tree(&layout);
-    root.log(&bp)?;
-    bp.log(
-        "viewport",
-        &ViewportBlueprint::new()
-            .with_root_container(RootContainer(root.id().into()))
-            .with_auto_layout(false)
-            .with_auto_views(false),
-    )?;
-    let messages = storage.take();
-    rec.send_blueprint(
-        messages,
-        BlueprintActivationCommand {
-            blueprint_id,
-            make_active: true,
-            make_default: true,
-        },
-    );
-    Ok(())
-}
-
-/// A sink that encodes messages into `.rrd` form on its own thread as they come, so that
-/// encoding overlaps with building the next columns. The encoder's result (the writer, or the
-/// first error) comes back through the thread's join handle once the sink is dropped.
-struct EncodingSink {
-    tx: mpsc::SyncSender<SinkCommand>,
-}
-
-enum SinkCommand {
-    Message(Box<LogMsg>),
-    Flush(mpsc::Sender<Result<(), String>>),
-}
-
-/// The encoder thread of an [`EncodingSink`].
-type EncoderThread<W> = std::thread::JoinHandle<Result<W, RecordingError>>;
-
-impl EncodingSink {
-    fn spawn<W: Write + Send + 'static>(
-        writer: W,
-    ) -> Result<(Self, EncoderThread<W>), RecordingError> {
-        let mut encoder = Encoder::new_eager(
-            CrateVersion::LOCAL,
-            EncodingOptions::PROTOBUF_COMPRESSED,
-            writer,
-        )?;
-        let (tx, rx) = mpsc::sync_channel::<SinkCommand>(64);
-        let thread = std::thread::Builder::new()
-            .name("rrd-encoder".into())
-            .spawn(move || {
-                let mut failure: Option<RecordingError> = None;
-                while let Ok(command) = rx.recv() {
-                    match command {
-                        SinkCommand::Message(msg) => {
-                            if failure.is_none() {
-                                if let Err(e) = encoder.append(&msg) {
-                                    failure = Some(e.into());
-                                }
-                            }
-                        }
-                        SinkCommand::Flush(done) => {
-                            let _ = done.send(match &failure {
-                                Some(e) => Err(e.to_string()),
-                                None => Ok(()),
-                            });
-                        }
-                    }
-                }
-                if let Some(e) = failure {
-                    return Err(e);
-                }
-                encoder.finish()?;
-                Ok(encoder.into_inner()?)
-            })
-            .map_err(|e| RecordingError::Sink(format!("cannot start the encoder: {e}")))?;
-        Ok((EncodingSink { tx }, thread))
-    }
-}
-
-impl LogSink for EncodingSink {
-    fn send(&self, msg: LogMsg) {
-        // A closed channel means the encoder failed; the failure is reported at the end.
-        let _ = self.tx.send(SinkCommand::Message(Box::new(msg)));
-    }
-
-    fn flush_blocking(&self, timeout: Duration) -> Result<(), SinkFlushError> {
-        let (done, wait) = mpsc::channel();
-        let failed = |message: String| SinkFlushError::Failed { message };
-        self.tx
-            .send(SinkCommand::Flush(done))
-            .map_err(|_| failed("the encoder stopped".into()))?;
-        match wait.recv_timeout(timeout) {
-            Ok(result) => result.map_err(failed),
-            Err(mpsc::RecvTimeoutError::Timeout) => Err(SinkFlushError::Timeout),
-            Err(mpsc::RecvTimeoutError::Disconnected) => Err(failed("the encoder stopped".into())),
-        }
-    }
+    blueprint::send(rec, &blueprint_tree(&Layout::of(doc)))
 }
 
 /// Writes the `.rrd` file of a simulation to `writer`: the spec, every run of `doc`, and the
@@ -787,25 +468,11 @@ pub fn write_rrd<W: Write + Send + 'static>(
     doc: &SimulationDocument,
 ) -> Result<W, RecordingError> {
     let methods: Vec<&str> = doc.runs.iter().map(|r| r.method.as_str()).collect();
-    // Enabled whatever the `RERUN` environment variable says.
-    let rec = RecordingStreamBuilder::new(APPLICATION_ID)
-        .enabled(true)
-        .recording_name(format!("{}: {}", doc.system.id, methods.join(", ")))
-        .buffered()?;
-    let (sink, thread) = EncodingSink::spawn(writer)?;
-    rec.set_sink(Box::new(sink));
-    let logged = log_simulation(&rec, spec, doc).and_then(|()| send_blueprint(&rec, doc));
-    let flushed = rec
-        .flush_blocking()
-        .map_err(|e| RecordingError::Sink(e.to_string()));
-    // Dropping the last handle of the stream drops the sink, which ends the encoder.
-    drop(rec);
-    let written = thread
-        .join()
-        .unwrap_or_else(|_| Err(RecordingError::Sink("the encoder panicked".into())));
-    logged?;
-    flushed?;
-    written
+    let name = format!("{}: {}", doc.system.id, methods.join(", "));
+    encode::write(writer, name, |rec| {
+        log_simulation(rec, spec, doc)?;
+        send_blueprint(rec, doc)
+    })
 }
 
 /// The `.rrd` file of a simulation in memory (see [`write_rrd`]).

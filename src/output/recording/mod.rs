@@ -1,0 +1,120 @@
+//! Rerun recordings (`.rrd`, Rerun 0.33): what geomint computes, laid out as entities the
+//! Rerun viewer shows without configuration, each with a default blueprint.
+//!
+//! - [`simulation`]: the runs of a simulation (energies, invariants, phase portraits, the bodies
+//!   in 3-D), as JSON answers them.
+//! - [`stability`]: a stability study, each method's map as a tensor and a verdict image.
+//!
+//! Both are encoded by one writer ([`encode`]): the recording's messages are encoded on their
+//! own thread while the next columns are built. The blueprint ([`blueprint`]) is written as
+//! Rerun's blueprint records, since the 0.33 Rust blueprint API cannot set visible time ranges.
+
+mod blueprint;
+mod encode;
+pub mod simulation;
+pub mod stability;
+
+use std::collections::HashSet;
+
+use rerun::Color;
+
+pub use simulation::{
+    log_simulation, path_blocks, rrd_bytes, sample_steps, send_blueprint, stream_to_viewer,
+    viewer_url, write_rrd, Layout, PathBlock, MAX_PATH_ROWS, MAX_PHASE_DOFS,
+};
+
+/// The application id of every recording.
+pub const APPLICATION_ID: &str = "geomint";
+/// The sequence timeline: the step index of each sample.
+pub const STEP_TIMELINE: &str = "step";
+/// The duration timeline: the time of each sample, in seconds.
+pub const TIME_TIMELINE: &str = "t";
+/// The media type of `.rrd` files.
+pub const RRD_MEDIA_TYPE: &str = "application/octet-stream";
+
+/// One colour per method, in request order (16 methods at most per request).
+const PALETTE: [[u8; 3]; 16] = [
+    [31, 119, 180],
+    [255, 127, 14],
+    [44, 160, 44],
+    [214, 39, 40],
+    [148, 103, 189],
+    [140, 86, 75],
+    [227, 119, 194],
+    [127, 127, 127],
+    [188, 189, 34],
+    [23, 190, 207],
+    [57, 59, 121],
+    [173, 73, 74],
+    [99, 121, 57],
+    [206, 109, 189],
+    [231, 186, 82],
+    [82, 84, 163],
+];
+
+/// Why a recording could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum RecordingError {
+    /// The recording stream refused the data.
+    #[error("recording stream: {0}")]
+    Stream(#[from] rerun::RecordingStreamError),
+    /// A component could not be serialised.
+    #[error("serialisation: {0}")]
+    Serialization(#[from] rerun::SerializationError),
+    /// The `.rrd` encoder failed.
+    #[error("encoding: {0}")]
+    Encode(#[from] rerun::external::re_log_encoding::EncodeError),
+    /// The viewer connection failed.
+    #[error("{0}")]
+    Sink(String),
+}
+
+/// The colour of method `index` (request order) as RGB.
+pub fn method_color(index: usize) -> [u8; 3] {
+    PALETTE[index % PALETTE.len()]
+}
+
+/// Makes `label` a valid, plain entity path part: ASCII letters, digits, `_` and `-` are kept,
+/// anything else becomes `_` (so `modin_rks(rk4)` becomes `modin_rks_rk4`).
+pub fn entity_part(label: &str) -> String {
+    let mut part: String = label
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '_' || c == '-' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    while part.ends_with('_') && part.len() > 1 {
+        part.pop();
+    }
+    if part.is_empty() || part.starts_with("__") || part == "spec" {
+        part.insert_str(0, "m_");
+    }
+    part
+}
+
+/// The entity names of a request's methods, from their labels, in order: [`entity_part`] of each
+/// label, with `_2`, `_3`, … appended to repeats so that every method has its own subtree.
+pub fn entity_names<S: AsRef<str>>(labels: &[S]) -> Vec<String> {
+    let mut taken = HashSet::new();
+    labels
+        .iter()
+        .map(|label| {
+            let base = entity_part(label.as_ref());
+            let mut name = base.clone();
+            let mut n = 2;
+            while !taken.insert(name.clone()) {
+                name = format!("{base}_{n}");
+                n += 1;
+            }
+            name
+        })
+        .collect()
+}
+
+pub(crate) fn color(rgb: [u8; 3]) -> Color {
+    Color::from_rgb(rgb[0], rgb[1], rgb[2])
+}
