@@ -25,7 +25,12 @@ fn every_method_converges_with_its_nominal_order_on_the_damped_oscillator() {
     let exact = sys.exact(t_end, &start).unwrap();
     let hs = [0.04, 0.02, 0.01, 0.005];
     let mut report = Vec::new();
-    for choice in every_choice() {
+    // At these steps orders 6 and 8 reach round-off; tests/core_compositions.rs measures them
+    // at larger steps.
+    for choice in every_choice()
+        .into_iter()
+        .filter(|c| c.id.info().order <= 4)
+    {
         let errors: Vec<f64> = hs
             .iter()
             .map(|&h| {

@@ -86,14 +86,14 @@ pub fn run_all(req: &Request) -> (Simulation, Vec<Trajectory>) {
 /// Every fixed-step method choice: each id but the reference with default options, every
 /// triple-jump base and every inner method of modin_rks.
 pub fn every_fixed_step_choice() -> Vec<MethodChoice> {
-    use geomint::core::methods::{MethodId, RKS_INNER, TRIPLE_JUMP_BASES};
+    use geomint::core::methods::{MethodId, COMPOSITION_BASES, RKS_INNER};
     let mut choices: Vec<MethodChoice> = MethodId::ALL
         .iter()
         .filter(|&&m| m != MethodId::Reference)
         .map(|&m| MethodChoice::new(m))
         .collect();
     choices.extend(
-        TRIPLE_JUMP_BASES
+        COMPOSITION_BASES
             .iter()
             .map(|&b| MethodChoice::triple_jump(b)),
     );

@@ -18,7 +18,7 @@ use crate::core::flows::Tangent;
 use crate::core::run::Stepper;
 use crate::core::system::{MechanicalSystem, State, Structure};
 
-use composition::{triple_jump_weights, Composed};
+use composition::{Composed, Scheme};
 use conformal::Csv2;
 use implicit::{ImplicitMidpoint, MidpointField};
 use reference::Reference;
@@ -76,6 +76,18 @@ pub enum MethodId {
     /// Fourth-order triple-jump composition of a symmetric second-order method.
     #[serde(rename = "triple_jump")]
     TripleJump,
+    /// Suzuki's fourth-order five-stage composition.
+    #[serde(rename = "suzuki_4")]
+    Suzuki4,
+    /// Yoshida's sixth-order seven-stage composition.
+    #[serde(rename = "yoshida_6")]
+    Yoshida6,
+    /// Kahan and Li's sixth-order nine-stage composition.
+    #[serde(rename = "kahan_li_6")]
+    KahanLi6,
+    /// Kahan and Li's eighth-order 17-stage composition.
+    #[serde(rename = "kahan_li_8")]
+    KahanLi8,
     /// Adaptive DOP853 at a tight tolerance.
     #[serde(rename = "reference")]
     Reference,
@@ -173,7 +185,7 @@ const TAKACS: &str = "001 Takács & Fülöp";
 
 impl MethodId {
     /// All methods, in catalogue order.
-    pub const ALL: [MethodId; 17] = [
+    pub const ALL: [MethodId; 21] = [
         MethodId::Modin3s,
         MethodId::Modin2s,
         MethodId::ModinRks,
@@ -181,6 +193,10 @@ impl MethodId {
         MethodId::Csv2,
         MethodId::Cimp,
         MethodId::TripleJump,
+        MethodId::Suzuki4,
+        MethodId::Yoshida6,
+        MethodId::KahanLi6,
+        MethodId::KahanLi8,
         MethodId::SymplecticEuler,
         MethodId::SymplecticEulerAdjoint,
         MethodId::PositionVerlet,
@@ -196,6 +212,18 @@ impl MethodId {
     /// The id as used in requests.
     pub fn as_str(self) -> &'static str {
         self.info().name_id()
+    }
+
+    /// The composition scheme of a composition method (`triple_jump`, `suzuki_4`, …).
+    pub fn scheme(self) -> Option<Scheme> {
+        Some(match self {
+            MethodId::TripleJump => Scheme::TripleJump,
+            MethodId::Suzuki4 => Scheme::Suzuki4,
+            MethodId::Yoshida6 => Scheme::Yoshida6,
+            MethodId::KahanLi6 => Scheme::KahanLi6,
+            MethodId::KahanLi8 => Scheme::KahanLi8,
+            _ => return None,
+        })
     }
 
     /// Parses a request id.
@@ -423,6 +451,54 @@ impl MethodId {
                 "geometric",
                 &["base"],
             ),
+            M::Suzuki4 => (
+                "Suzuki fractal composition (order 4, 5 stages)",
+                4,
+                Explicit,
+                true,
+                true,
+                true,
+                &[],
+                cite("Suzuki 1990; HLW", "Sec. II.4"),
+                "geometric",
+                &["base"],
+            ),
+            M::Yoshida6 => (
+                "Yoshida composition (order 6, 7 stages)",
+                6,
+                Explicit,
+                true,
+                true,
+                true,
+                &[],
+                cite("Yoshida 1990, solution A; HLW", "Sec. V.3.2"),
+                "geometric",
+                &["base"],
+            ),
+            M::KahanLi6 => (
+                "Kahan–Li composition (order 6, 9 stages)",
+                6,
+                Explicit,
+                true,
+                true,
+                true,
+                &[],
+                cite("Kahan & Li 1997; HLW", "Sec. V.3.2"),
+                "geometric",
+                &["base"],
+            ),
+            M::KahanLi8 => (
+                "Kahan–Li composition (order 8, 17 stages)",
+                8,
+                Explicit,
+                true,
+                true,
+                true,
+                &[],
+                cite("Kahan & Li 1997; HLW", "Sec. V.3.2"),
+                "geometric",
+                &["base"],
+            ),
             M::Reference => (
                 "Reference: adaptive DOP853",
                 8,
@@ -471,6 +547,10 @@ impl MethodInfo {
             MethodId::Csv2 => "csv2",
             MethodId::Cimp => "cimp",
             MethodId::TripleJump => "triple_jump",
+            MethodId::Suzuki4 => "suzuki_4",
+            MethodId::Yoshida6 => "yoshida_6",
+            MethodId::KahanLi6 => "kahan_li_6",
+            MethodId::KahanLi8 => "kahan_li_8",
             MethodId::Reference => "reference",
         }
     }
@@ -484,8 +564,9 @@ pub const RKS_INNER: &[MethodId] = &[
     MethodId::Rk4,
     MethodId::ImplicitMidpoint,
 ];
-/// Bases the triple jump accepts: the symmetric second-order methods.
-pub const TRIPLE_JUMP_BASES: &[MethodId] = &[
+/// Bases the compositions (triple_jump, suzuki_4, yoshida_6, kahan_li_6, kahan_li_8) accept:
+/// the symmetric second-order methods.
+pub const COMPOSITION_BASES: &[MethodId] = &[
     MethodId::Modin3s,
     MethodId::Modin2s,
     MethodId::Csv1,
@@ -509,7 +590,7 @@ pub enum MethodInput {
         /// Inner Runge–Kutta method of modin_rks.
         #[serde(default, skip_serializing_if = "Option::is_none")]
         inner: Option<String>,
-        /// Base method of triple_jump.
+        /// Base method of a composition (triple_jump, suzuki_4, …).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         base: Option<String>,
         /// Tolerance of reference.
@@ -526,7 +607,7 @@ pub struct MethodChoice {
     /// Inner method (modin_rks).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub inner: Option<MethodId>,
-    /// Base method (triple_jump).
+    /// Base method (a composition: triple_jump, suzuki_4, …).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub base: Option<MethodId>,
     /// Tolerance (reference).
@@ -549,8 +630,13 @@ impl MethodChoice {
 
     /// A triple jump of `base`.
     pub fn triple_jump(base: MethodId) -> Self {
+        Self::composition(MethodId::TripleJump, base)
+    }
+
+    /// The composition `id` (triple_jump, suzuki_4, …) of `base`.
+    pub fn composition(id: MethodId, base: MethodId) -> Self {
         MethodChoice {
-            id: MethodId::TripleJump,
+            id,
             inner: None,
             base: Some(base),
             tolerance: None,
@@ -570,10 +656,10 @@ impl MethodChoice {
     fn fill_defaults(&mut self) {
         match self.id {
             MethodId::ModinRks => self.inner = self.inner.or(Some(MethodId::Heun)),
-            MethodId::TripleJump => self.base = self.base.or(Some(MethodId::Modin3s)),
             MethodId::Reference => {
                 self.tolerance = self.tolerance.or(Some(reference::DEFAULT_TOLERANCE))
             }
+            id if id.scheme().is_some() => self.base = self.base.or(Some(MethodId::Modin3s)),
             _ => {}
         }
     }
@@ -656,12 +742,12 @@ impl MethodChoice {
             }
         }
         if let Some(base) = choice.base {
-            if !TRIPLE_JUMP_BASES.contains(&base) {
+            if !COMPOSITION_BASES.contains(&base) {
                 return Err(CoreError::invalid(
                     format!("{field}.base"),
                     format!(
-                        "the triple jump needs a symmetric second-order base: one of {}",
-                        names(TRIPLE_JUMP_BASES)
+                        "a composition needs a symmetric second-order base: one of {}",
+                        names(COMPOSITION_BASES)
                     ),
                 ));
             }
@@ -677,11 +763,11 @@ impl MethodChoice {
         Ok(choice)
     }
 
-    /// The requirements of this choice (a triple jump inherits its base's).
+    /// The requirements of this choice (a composition inherits its base's).
     pub fn requirements(&self) -> &'static [Requirement] {
-        match (self.id, self.base) {
-            (MethodId::TripleJump, Some(base)) => base.info().requirements,
-            (id, _) => id.info().requirements,
+        match (self.id.scheme(), self.base) {
+            (Some(_), Some(base)) => base.info().requirements,
+            _ => self.id.info().requirements,
         }
     }
 
@@ -735,7 +821,7 @@ pub enum AnyStepper<S: MechanicalSystem>
 where
     DefaultAllocator: Allocator<S::Dim>,
 {
-    /// A splitting or composition of splittings.
+    /// A splitting, or a composition of splittings.
     Splitting(Splitting<S>),
     /// An explicit Runge–Kutta method.
     RungeKutta(RungeKutta<S::Dim>),
@@ -743,9 +829,9 @@ where
     Midpoint(ImplicitMidpoint<S>),
     /// csv2.
     Csv2(Csv2<S>),
-    /// A triple jump of implicit_midpoint or cimp.
+    /// A composition of implicit_midpoint or cimp.
     ComposedMidpoint(Composed<ImplicitMidpoint<S>>),
-    /// A triple jump of csv2.
+    /// A composition of csv2.
     ComposedCsv2(Composed<Csv2<S>>),
     /// The adaptive reference.
     Reference(Reference),
@@ -803,14 +889,15 @@ where
     DefaultAllocator: Allocator<S::Dim>,
 {
     choice.check(system_id, sys.structure())?;
-    let base = match choice.id {
-        MethodId::TripleJump => choice.base.unwrap_or(MethodId::Modin3s),
-        id => id,
+    let scheme = choice.id.scheme();
+    let base = match scheme {
+        Some(_) => choice.base.unwrap_or(MethodId::Modin3s),
+        None => choice.id,
     };
-    if choice.id == MethodId::TripleJump && !TRIPLE_JUMP_BASES.contains(&base) {
+    if scheme.is_some() && !COMPOSITION_BASES.contains(&base) {
         return Err(CoreError::invalid(
             "methods",
-            format!("`{}` is not a triple-jump base", base.as_str()),
+            format!("`{}` is not a composition base", base.as_str()),
         ));
     }
     let inner = match choice.id {
@@ -823,12 +910,8 @@ where
             format!("`{}` is not an inner method of modin_rks", i.as_str()),
         ));
     }
-    let weights: &[f64] = if choice.id == MethodId::TripleJump {
-        &triple_jump_weights()
-    } else {
-        &[1.0]
-    };
-    check_divisors(base, sys.damping_rate(), h, weights)?;
+    let weights = scheme.map_or_else(|| vec![1.0], Scheme::weights);
+    check_divisors(base, sys.damping_rate(), h, &weights)?;
     let splitting = |seq: Vec<(splitting::SubFlow, f64)>| {
         let inner = inner.map(|i| {
             MomentumRk::new(
@@ -838,24 +921,23 @@ where
         });
         AnyStepper::Splitting(Splitting::new(sys, seq, inner))
     };
-    Ok(match choice.id {
-        MethodId::TripleJump => {
-            let weights = triple_jump_weights();
-            match (sequence(base), base) {
-                (Some(seq), _) => splitting(splitting::compose(seq, &weights)),
-                (None, MethodId::Csv2) => {
-                    AnyStepper::ComposedCsv2(Composed::new(Csv2::new(sys), weights.to_vec()))
-                }
-                (None, MethodId::Cimp) => AnyStepper::ComposedMidpoint(Composed::new(
-                    ImplicitMidpoint::new(sys, MidpointField::Conformal),
-                    weights.to_vec(),
-                )),
-                _ => AnyStepper::ComposedMidpoint(Composed::new(
-                    ImplicitMidpoint::new(sys, MidpointField::Full),
-                    weights.to_vec(),
-                )),
+    if scheme.is_some() {
+        return Ok(match (sequence(base), base) {
+            (Some(seq), _) => splitting(splitting::compose(seq, &weights)),
+            (None, MethodId::Csv2) => {
+                AnyStepper::ComposedCsv2(Composed::new(Csv2::new(sys), weights))
             }
-        }
+            (None, MethodId::Cimp) => AnyStepper::ComposedMidpoint(Composed::new(
+                ImplicitMidpoint::new(sys, MidpointField::Conformal),
+                weights,
+            )),
+            _ => AnyStepper::ComposedMidpoint(Composed::new(
+                ImplicitMidpoint::new(sys, MidpointField::Full),
+                weights,
+            )),
+        });
+    }
+    Ok(match choice.id {
         MethodId::ImplicitMidpoint => {
             AnyStepper::Midpoint(ImplicitMidpoint::new(sys, MidpointField::Full))
         }
@@ -875,7 +957,7 @@ where
 }
 
 /// Refuses a step whose sub-steps w·h make one of the method's linear solves singular: csv2
-/// divides by 1 ∓ γτ/2, a damped θ-kick by 1 + θrτ. With the triple jump's negative middle weight
+/// divides by 1 ∓ γτ/2, a damped θ-kick by 1 + θrτ. With a composition's negative weights
 /// these vanish at values of γh other than the plain method's.
 fn check_divisors(base: MethodId, r: f64, h: f64, weights: &[f64]) -> Result<(), CoreError> {
     let singular = |d: f64| d.abs() < 1e-9;
