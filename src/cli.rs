@@ -1,5 +1,6 @@
 //! The command line: `geomint serve` (the default), `geomint run spec.json` (JSON, NDJSON or a
 //! Rerun recording, optionally streamed live to a Rerun viewer with `--rerun-addr`),
+//! `geomint study work-precision spec.json` (a work–precision study, JSON or `.rrd`),
 //! `geomint systems` and `geomint methods`. Every server setting can also come from a `GEOMINT_*` environment
 //! variable.
 //!
@@ -46,6 +47,9 @@ pub enum Command {
     Serve(ServeArgs),
     /// Run a simulation spec (the body of POST /api/v1/simulate) without a server.
     Run(RunArgs),
+    /// Run a study spec without a server (`work-precision`: the body of
+    /// POST /api/v1/studies/work-precision).
+    Study(StudyArgs),
     /// Print the system catalogue as JSON.
     Systems,
     /// Print the method catalogue as JSON.
@@ -134,6 +138,30 @@ pub struct RunArgs {
     pub max_samples: u64,
 }
 
+/// The kinds of study.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum StudyKind {
+    /// Wall time against energy error per method and setting.
+    WorkPrecision,
+}
+
+/// Settings of `geomint study`.
+#[derive(Clone, Debug, Args)]
+pub struct StudyArgs {
+    /// The kind of study.
+    #[arg(value_enum)]
+    pub kind: StudyKind,
+    /// The spec file (JSON); `-` reads standard input.
+    pub spec: PathBuf,
+    /// Output file; `.rrd` writes a Rerun recording, anything else JSON (default: standard
+    /// output). Progress goes to standard error.
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+    /// Most steps per setting.
+    #[arg(long, env = "GEOMINT_MAX_STEPS", default_value = "10000000", value_parser = parse_count)]
+    pub max_steps: u64,
+}
+
 /// Parses a positive whole number, also written as `1e7`.
 fn parse_count(s: &str) -> Result<u64, String> {
     let s = s.trim().replace('_', "");
@@ -176,6 +204,7 @@ pub fn run(cli: Cli) -> ExitCode {
     match cli.command.unwrap_or(Command::Serve(cli.serve)) {
         Command::Serve(args) => serve(&args),
         Command::Run(args) => run_spec(&args),
+        Command::Study(args) => run_study(&args),
         Command::Systems => print_json(&catalog::systems()),
         Command::Methods => print_json(&catalog::methods()),
     }
@@ -395,6 +424,107 @@ fn run_spec(args: &RunArgs) -> ExitCode {
         }
     };
     match written.and_then(|()| out.flush()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: cannot write the output: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// Reads a spec file, or standard input for `-`.
+fn read_spec(path: &std::path::Path) -> Result<Vec<u8>, String> {
+    let source = path.display().to_string();
+    let text = if source == "-" {
+        let mut buf = Vec::new();
+        io::stdin().read_to_end(&mut buf).map(|_| buf)
+    } else {
+        std::fs::read(path)
+    };
+    text.map_err(|e| format!("cannot read the spec `{source}`: {e}"))
+}
+
+fn run_study(args: &StudyArgs) -> ExitCode {
+    use crate::output::work_precision::{self, StudyLine, WorkPrecisionRequest};
+    let StudyKind::WorkPrecision = args.kind;
+    let source = args.spec.display().to_string();
+    let text = match read_spec(&args.spec) {
+        Ok(t) => t,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(BAD_INPUT);
+        }
+    };
+    let limits = Limits {
+        max_steps: args.max_steps,
+        ..Limits::default()
+    };
+    let (spec, job) = match WorkPrecisionRequest::from_slice(&text)
+        .and_then(|req| req.prepare(&limits).map(|job| (req, job)))
+    {
+        Ok(parsed) => parsed,
+        Err(e) => {
+            eprintln!("error: {source}: {e}");
+            return ExitCode::from(BAD_INPUT);
+        }
+    };
+    let progress = |line: StudyLine| {
+        match line {
+            StudyLine::Reference {
+                reference,
+                reference_ms,
+                total,
+            } => {
+                eprintln!("errors against the {reference} ({reference_ms:.0} ms); {total} settings")
+            }
+            StudyLine::Point { done, total, point } => eprintln!(
+                "[{done}/{total}] {} {}: {:.3} ms, max energy error {}",
+                point.method,
+                point
+                    .h
+                    .map(|h| format!("h = {h}"))
+                    .or(point.tolerance.map(|t| format!("tol = {t:e}")))
+                    .unwrap_or_default(),
+                point.wall_ms,
+                point
+                    .max_energy_error
+                    .map_or("-".into(), |e| format!("{e:.2e}"))
+            ),
+            _ => {}
+        }
+        true
+    };
+    let doc = match work_precision::run(&job, Budget::default(), &progress) {
+        Ok(doc) => doc,
+        Err(e) => {
+            eprintln!("error: {source}: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    let rrd = args
+        .output
+        .as_ref()
+        .and_then(|p| p.extension())
+        .is_some_and(|e| e.eq_ignore_ascii_case("rrd"));
+    let written = match &args.output {
+        Some(path) if rrd => File::create(path).map_err(|e| e.to_string()).and_then(|f| {
+            recording::work_precision::write_rrd(BufWriter::new(f), &spec, &doc)
+                .map_err(|e| e.to_string())
+                .and_then(|mut w| w.flush().map_err(|e| e.to_string()))
+        }),
+        Some(path) => File::create(path).map_err(|e| e.to_string()).and_then(|f| {
+            let mut w = BufWriter::new(f);
+            serde_json::to_writer_pretty(&mut w, &doc)
+                .map_err(|e| e.to_string())
+                .and_then(|()| {
+                    writeln!(w)
+                        .and_then(|()| w.flush())
+                        .map_err(|e| e.to_string())
+                })
+        }),
+        None => return print_json(&doc),
+    };
+    match written {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: cannot write the output: {e}");

@@ -918,6 +918,8 @@ async fn openapi_lists_every_route() {
             "/api/v1/stability/point" => {
                 json!({"method": "csv1", "omega": 3.51, "gamma": 0.5, "h": 0.2})
             }
+            "/api/v1/studies/work-precision" => json!({"system": "pendulum", "t_end": 10,
+                "runs": [{"method": "rk4", "h": [0.1]}]}),
             _ => pendulum_request(),
         };
         let (status, expected) = match method.as_str() {

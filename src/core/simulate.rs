@@ -256,6 +256,17 @@ impl Simulation {
         with_system!(&self.system, s => s.invariant_names())
     }
 
+    /// The exact final state (q, p) at the end of the schedule, where the system has a closed
+    /// form.
+    pub fn exact_final_state(&self) -> Option<(Vec<f64>, Vec<f64>)> {
+        let t_end = self.schedule.h * self.schedule.steps as f64;
+        with_system!(&self.system, sys => {
+            let start = State::from_slices(sys.dim(), &self.q0, &self.p0);
+            sys.exact(t_end, &start)
+                .map(|z| (z.q.as_slice().to_vec(), z.p.as_slice().to_vec()))
+        })
+    }
+
     /// The reference energies at the sample times (None unless `compare_to_reference`).
     pub fn reference_energies(&self, budget: Budget<'_>) -> Result<Option<Vec<f64>>, CoreError> {
         if !self.compare_to_reference {

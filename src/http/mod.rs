@@ -8,6 +8,7 @@
 //! | `POST /api/v1/simulate` | run a simulation (JSON, NDJSON with `Accept: application/x-ndjson`, a Rerun recording with `?format=rrd`) |
 //! | `POST /api/v1/stability` | linear stability maps over a (γ, h) grid |
 //! | `POST /api/v1/stability/point` | linear stability analysis at one (ω, γ, h) |
+//! | `POST /api/v1/studies/work-precision` | a work–precision study (JSON, NDJSON progress, or `?format=rrd`) |
 //! | `POST /api/v1/recordings`, `GET /api/v1/recordings` | store a run's Rerun recording; list them |
 //! | `GET /api/v1/recordings/{id}.rrd`, `DELETE /api/v1/recordings/{id}` | download or delete one |
 //! | `GET /api/v1/openapi.json` | the OpenAPI 3 document |
@@ -25,6 +26,7 @@ pub mod simulate;
 pub mod stability;
 pub mod state;
 pub mod store;
+pub mod studies;
 
 use std::future::Future;
 use std::net::SocketAddr;
@@ -70,6 +72,8 @@ pub mod paths {
     pub const STABILITY: &str = "/api/v1/stability";
     /// Stability at one point.
     pub const STABILITY_POINT: &str = "/api/v1/stability/point";
+    /// Work–precision studies.
+    pub const WORK_PRECISION: &str = "/api/v1/studies/work-precision";
     /// The OpenAPI document.
     pub const OPENAPI: &str = "/api/v1/openapi.json";
     /// Stored recordings.
@@ -88,6 +92,7 @@ pub const ROUTES: &[(&str, &str)] = &[
     ("post", paths::SIMULATE),
     ("post", paths::STABILITY),
     ("post", paths::STABILITY_POINT),
+    ("post", paths::WORK_PRECISION),
     ("get", paths::OPENAPI),
     ("post", paths::RECORDINGS),
     ("get", paths::RECORDINGS),
@@ -107,6 +112,7 @@ pub fn app(state: AppState) -> Router {
         .route(paths::SIMULATE, post(simulate::simulate))
         .route(paths::STABILITY, post(stability::stability_map))
         .route(paths::STABILITY_POINT, post(stability::stability_point))
+        .route(paths::WORK_PRECISION, post(studies::work_precision))
         .route(paths::OPENAPI, get(handlers::openapi_json))
         .route(
             paths::RECORDINGS,

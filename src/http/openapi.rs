@@ -5,13 +5,14 @@ use utoipa::OpenApi;
 
 use super::recordings::{self, RecordingCreated};
 use super::store::RecordingEntry;
-use super::{handlers, simulate, stability};
+use super::{handlers, simulate, stability, studies};
 use crate::output::catalog::{MethodEntry, SystemEntry};
 use crate::output::document::SimulationDocument;
 use crate::output::error::ErrorBody;
 use crate::output::request::SimulateRequest;
 use crate::output::stability::{PointDocument, PointRequest, StabilityDocument, StabilityRequest};
 use crate::output::stream::StreamLine;
+use crate::output::work_precision::{StudyLine, WorkPrecisionDocument, WorkPrecisionRequest};
 
 /// The OpenAPI document: `ApiDoc::openapi()`.
 #[derive(OpenApi)]
@@ -31,6 +32,7 @@ use crate::output::stream::StreamLine;
         simulate::simulate,
         stability::stability_map,
         stability::stability_point,
+        studies::work_precision,
         handlers::openapi_json,
         recordings::create_recording,
         recordings::list_recordings,
@@ -45,6 +47,9 @@ use crate::output::stream::StreamLine;
         StabilityDocument,
         PointRequest,
         PointDocument,
+        WorkPrecisionRequest,
+        WorkPrecisionDocument,
+        StudyLine,
         SystemEntry,
         MethodEntry,
         ErrorBody,
@@ -56,6 +61,7 @@ use crate::output::stream::StreamLine;
         (name = "catalog", description = "The systems and methods on offer"),
         (name = "simulation", description = "Running simulations"),
         (name = "stability", description = "Linear stability analysis on the damped oscillator"),
+        (name = "studies", description = "Work–precision studies: time against accuracy per method"),
         (name = "recordings", description = "Rerun recordings (.rrd) of simulations, stored and downloadable"),
         (name = "service", description = "Health and this document"),
     )

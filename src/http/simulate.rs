@@ -43,7 +43,7 @@ const STALLED_CLIENT_GRACE: std::time::Duration = std::time::Duration::from_secs
 pub const NDJSON: &str = "application/x-ndjson";
 
 /// Whether the client asks for a stream.
-fn wants_stream(headers: &HeaderMap) -> bool {
+pub(crate) fn wants_stream(headers: &HeaderMap) -> bool {
     headers.get_all(header::ACCEPT).iter().any(|v| {
         v.to_str()
             .map(|s| {

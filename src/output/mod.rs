@@ -6,7 +6,9 @@
 //! - [`stream`]: the NDJSON form, written while the runs compute.
 //! - [`catalog`]: the system and method catalogues as published.
 //! - [`stability`]: linear stability requests (maps over (γ, h), single points) and answers.
-//! - [`recording`]: Rerun recordings (`.rrd`) of a simulation, and its default blueprint.
+//! - [`work_precision`]: work–precision studies (time against energy error per method).
+//! - [`recording`]: Rerun recordings (`.rrd`) of simulations, stability and work–precision
+//!   studies, with their default blueprints.
 //! - [`error`]: the error shape every interface reports.
 //!
 //! Everything here is synchronous; the HTTP layer calls it off the async runtime.
@@ -18,6 +20,7 @@ pub mod recording;
 pub mod request;
 pub mod stability;
 pub mod stream;
+pub mod work_precision;
 
 pub use document::{simulate, RunDocument, SimulationDocument, Stop};
 pub use error::{codes, ErrorBody, ErrorDetail};

@@ -92,7 +92,8 @@ pub struct MethodOptions {
     /// Inner Runge–Kutta method of `modin_rks` (default `heun`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub inner: Option<String>,
-    /// Symmetric second-order base of `triple_jump` (default `modin_3s`).
+    /// Symmetric second-order base of a composition (`triple_jump`, `suzuki_4`, `yoshida_6`,
+    /// `kahan_li_6`, `kahan_li_8`; default `modin_3s`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub base: Option<String>,
     /// Relative tolerance of `reference` (in [1e-14, 1e-2]).
@@ -118,6 +119,14 @@ const OUTPUT_FIELDS: &[&str] = &["every"];
 const METHOD_FIELDS: &[&str] = &["id", "inner", "base", "tolerance"];
 
 impl MethodSpec {
+    /// The method id.
+    pub fn id(&self) -> &str {
+        match self {
+            MethodSpec::Id(id) => id,
+            MethodSpec::Options(o) => &o.id,
+        }
+    }
+
     /// The core's form of this method.
     pub fn to_input(&self) -> MethodInput {
         match self {

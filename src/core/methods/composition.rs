@@ -45,6 +45,7 @@ pub enum Scheme {
 }
 
 /// Yoshida's order-6 weights γ_1 … γ_4 (γ_4 the middle one), HLW Sec. V.3.2.
+#[allow(clippy::excessive_precision)] // as published (26 digits); the compiler rounds to f64
 const YOSHIDA_6: [f64; 4] = [
     0.784_513_610_477_557_263_819_497_63,
     0.235_573_213_359_358_133_684_793_18,
@@ -53,6 +54,7 @@ const YOSHIDA_6: [f64; 4] = [
 ];
 
 /// Kahan and Li's order-6 weights γ_1 … γ_5 (γ_5 the middle one), HLW Sec. V.3.2.
+#[allow(clippy::excessive_precision)] // as published (26 digits); the compiler rounds to f64
 const KAHAN_LI_6: [f64; 5] = [
     0.392_161_444_007_314_139_279_250_56,
     0.332_599_136_789_359_438_599_748_64,
@@ -62,6 +64,7 @@ const KAHAN_LI_6: [f64; 5] = [
 ];
 
 /// Kahan and Li's order-8 weights γ_1 … γ_9 (γ_9 the middle one), HLW Sec. V.3.2.
+#[allow(clippy::excessive_precision)] // as published (26 digits); the compiler rounds to f64
 const KAHAN_LI_8: [f64; 9] = [
     0.130_202_483_088_890_080_878_817_63,
     0.561_162_981_775_108_384_561_964_41,

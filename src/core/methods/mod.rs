@@ -688,7 +688,7 @@ impl MethodChoice {
         };
         let mut choice = match input {
             MethodInput::Id(id) => MethodChoice {
-                id: lookup(id, &format!("{field}"))?,
+                id: lookup(id, field)?,
                 inner: None,
                 base: None,
                 tolerance: None,

@@ -4,6 +4,7 @@
 //! - [`simulation`]: the runs of a simulation (energies, invariants, phase portraits, the bodies
 //!   in 3-D), as JSON answers them.
 //! - [`stability`]: a stability study, each method's map as a tensor and a verdict image.
+//! - [`work_precision`]: a work–precision study as a log–log diagram in a 2-D view.
 //!
 //! Both are encoded by one writer ([`encode`]): the recording's messages are encoded on their
 //! own thread while the next columns are built. The blueprint ([`blueprint`]) is written as
@@ -13,6 +14,7 @@ mod blueprint;
 mod encode;
 pub mod simulation;
 pub mod stability;
+pub mod work_precision;
 
 use std::collections::HashSet;
 

@@ -1,0 +1,177 @@
+//! `POST /api/v1/studies/work-precision`: a work–precision study (see
+//! [`work_precision`](crate::output::work_precision)).
+//!
+//! The study is validated first (cheap), then takes one simulation slot — its settings run one
+//! after another so that their wall times compare — and runs off the async runtime. With
+//! `Accept: application/x-ndjson` (or `?format=ndjson`) it streams a `reference` line, a `point`
+//! line per finished setting (progress: `done` of `total`) and the `result`; with `?format=rrd`
+//! it answers the study's Rerun recording; otherwise the result document. The request's time
+//! limit and a client that goes away stop it between steps.
+
+use std::collections::BTreeMap;
+use std::convert::Infallible;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Instant;
+
+use axum::body::{Body, Bytes};
+use axum::extract::{Query, State};
+use axum::http::{header, HeaderMap, HeaderValue};
+use axum::response::Response;
+use futures_util::StreamExt;
+use serde_json::Value;
+use tokio::sync::mpsc;
+use tokio_stream::wrappers::ReceiverStream;
+
+use super::error::ApiError;
+use super::extract::ApiJson;
+use super::paths;
+use super::recordings::{rrd_response, RrdFile};
+use super::simulate::{wants_stream, NDJSON};
+use super::state::{cancel_on_shutdown, run_blocking, AppState, CancelOnDrop};
+use crate::core::run::Budget;
+use crate::output::error::{codes, ErrorBody, ErrorDetail};
+use crate::output::recording;
+use crate::output::work_precision::{self, StudyLine, WorkPrecisionDocument, WorkPrecisionRequest};
+
+/// One NDJSON line.
+fn line(l: &StudyLine) -> Bytes {
+    let mut bytes = serde_json::to_vec(l).unwrap_or_default();
+    bytes.push(b'\n');
+    Bytes::from(bytes)
+}
+
+/// Runs a work–precision study: one system, several methods at several step sizes (or
+/// tolerances for the adaptive `reference`), each timed, with its largest energy error over the
+/// sample times, its final-state error and its invariant drift against the exact solution or a
+/// reference run, and per method the fitted line log₁₀(ms) = a + b·log₁₀(error).
+#[utoipa::path(post, path = paths::WORK_PRECISION, tag = "studies",
+    request_body(content = WorkPrecisionRequest, content_type = "application/json"),
+    params(("Accept" = Option<String>, Header,
+        description = "`application/x-ndjson` streams progress lines (see StudyLine)"),
+        ("format" = Option<String>, Query,
+        description = "`ndjson` as the Accept header; `rrd` the study's Rerun recording; `json` (default)")),
+    responses(
+        (status = 200, description = "The study",
+            content((WorkPrecisionDocument = "application/json"), (StudyLine = "application/x-ndjson"),
+                (RrdFile = "application/octet-stream"))),
+        (status = 400, description = "Malformed JSON (code `malformed_json`)", body = ErrorBody),
+        (status = 413, description = "The body exceeds 1 MiB", body = ErrorBody),
+        (status = 415, description = "The body is not declared as JSON", body = ErrorBody),
+        (status = 422, description = "A field is unknown, missing, of the wrong type or out of range \
+            (e.g. `runs[1].h[2]` does not divide t_end/samples); an unknown system or method; more than \
+            64 settings or 2·10⁸ steps in all", body = ErrorBody),
+        (status = 503, description = "Every simulation slot is busy", body = ErrorBody,
+            headers(("Retry-After" = u64, description = "Seconds to wait before retrying"))),
+        (status = 504, description = "The study did not finish within the time limit", body = ErrorBody),
+        (status = 500, description = "A server fault (details are logged)", body = ErrorBody),
+    ))]
+pub async fn work_precision(
+    State(state): State<AppState>,
+    headers: HeaderMap,
+    Query(query): Query<BTreeMap<String, String>>,
+    ApiJson(body): ApiJson<Value>,
+) -> Result<Response, ApiError> {
+    let format = query.get("format").map(String::as_str);
+    let (streaming, rrd) = match format {
+        None => (wants_stream(&headers), false),
+        Some("json") => (false, false),
+        Some("ndjson") => (true, false),
+        Some("rrd") => (false, true),
+        Some(other) => {
+            return Err(ApiError::from(ErrorDetail::at(
+                codes::INVALID_VALUE,
+                "format",
+                format!("unknown format `{other}`; one of json, ndjson, rrd"),
+            )))
+        }
+    };
+    let request = WorkPrecisionRequest::from_value(&body)?;
+    let job = request.prepare(&state.config.limits)?;
+    let permits = state.acquire(1).await?;
+    let deadline = Instant::now() + state.config.request_timeout;
+    let cancel = Arc::new(AtomicBool::new(false));
+    tracing::info!(
+        settings = job.len(),
+        streaming,
+        "work-precision study started"
+    );
+    let shutdown = cancel_on_shutdown(&state, cancel.clone());
+
+    if streaming {
+        let (tx, rx) = mpsc::channel::<Bytes>(16);
+        let flag = cancel.clone();
+        tokio::spawn(async move {
+            let sender = tx.clone();
+            let result = run_blocking(move || {
+                let _permits = permits;
+                let budget = Budget {
+                    cancel: Some(&flag),
+                    deadline: Some(deadline),
+                };
+                // A client that went away closes the channel: stop the study.
+                let emit = |l: StudyLine| {
+                    let sent = sender.blocking_send(line(&l)).is_ok();
+                    if !sent {
+                        flag.store(true, Ordering::Relaxed);
+                    }
+                    sent
+                };
+                let outcome = work_precision::run(&job, budget, &emit);
+                match outcome {
+                    Ok(doc) => emit(StudyLine::Result(doc)),
+                    Err(error) => emit(StudyLine::Error { error }),
+                };
+                emit(StudyLine::End);
+            })
+            .await;
+            shutdown.abort();
+            if let Err(error) = result {
+                let _ = tx
+                    .send(line(&StudyLine::Error {
+                        error: error.detail().clone(),
+                    }))
+                    .await;
+                let _ = tx.send(line(&StudyLine::End)).await;
+            }
+        });
+        let body = Body::from_stream(ReceiverStream::new(rx).map(Ok::<_, Infallible>));
+        let mut response = Response::new(body);
+        let headers = response.headers_mut();
+        headers.insert(header::CONTENT_TYPE, HeaderValue::from_static(NDJSON));
+        headers.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-cache"));
+        return Ok(response);
+    }
+
+    let _guard = CancelOnDrop(cancel.clone());
+    let result = run_blocking(move || -> Result<Vec<u8>, ApiError> {
+        let _permits = permits;
+        let budget = Budget {
+            cancel: Some(&cancel),
+            deadline: Some(deadline),
+        };
+        let doc = work_precision::run(&job, budget, &|_| true)?;
+        if rrd {
+            recording::work_precision::rrd_bytes(&request, &doc).map_err(ApiError::internal)
+        } else {
+            serde_json::to_vec(&doc).map_err(ApiError::internal)
+        }
+    })
+    .await;
+    shutdown.abort();
+    let bytes = result??;
+    if rrd {
+        let length = bytes.len() as u64;
+        return Ok(rrd_response(
+            Body::from(bytes),
+            "geomint-work-precision.rrd",
+            Some(length),
+        ));
+    }
+    let mut response = Response::new(Body::from(bytes));
+    response.headers_mut().insert(
+        header::CONTENT_TYPE,
+        HeaderValue::from_static("application/json"),
+    );
+    Ok(response)
+}
