@@ -62,10 +62,19 @@ export async function catalogues() {
  * @param {AbortSignal} signal
  */
 export async function simulateStream(request, onLine, signal) {
-  const response = await fetch('api/v1/simulate', {
+  return ndjsonStream('api/v1/simulate', request, onLine, signal);
+}
+
+/**
+ * POSTs `body` to `path` asking for NDJSON, and calls `onLine` with each line as it arrives.
+ * Rejects with an ApiError when the server refuses the request, and when the stream ends without
+ * its `end` line.
+ */
+async function ndjsonStream(path, body, onLine, signal) {
+  const response = await fetch(path, {
     method: 'POST',
     headers: { 'content-type': 'application/json', accept: 'application/x-ndjson' },
-    body: JSON.stringify(request),
+    body: JSON.stringify(body),
     signal,
   });
   if (!response.ok) throw await errorFrom(response);
@@ -96,6 +105,20 @@ export async function simulateStream(request, onLine, signal) {
   pending += decoder.decode();
   handle(pending);
   if (!ended) throw new Error('the stream ended before its last line: the server stopped early');
+}
+
+/**
+ * A work–precision study (POST /api/v1/studies/work-precision) streamed as NDJSON: `reference`,
+ * one `point` per finished setting, `result`, `end` (or `error`).
+ */
+export async function workPrecisionStream(body, onLine, signal) {
+  return ndjsonStream('api/v1/studies/work-precision', body, onLine, signal);
+}
+
+/** The study `body` as a Rerun recording (.rrd bytes). */
+export async function workPrecisionRrd(body, signal) {
+  const response = await post('api/v1/studies/work-precision?format=rrd', body, { accept: 'application/octet-stream', signal });
+  return response.blob();
 }
 
 /** POSTs `body` as JSON to `path`; resolves with the response when it is OK. */

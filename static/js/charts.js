@@ -21,7 +21,7 @@ export function colour(i) {
  * Draws a faceted series as one polyline in data order (x need not be monotone). Points closer
  * than half a pixel to the last drawn one are skipped, so long runs stroke quickly.
  */
-function polyline(u, seriesIdx) {
+export function polyline(u, seriesIdx) {
   const series = u.series[seriesIdx];
   const [xs, ys] = u.data[seriesIdx];
   const xKey = series.facets[0].scale;

@@ -1,7 +1,7 @@
 // The page's entry point: loads the catalogues, builds the form and the preset buttons, and runs
 // simulations — streaming NDJSON into the plots with a progress bar, cancellable with the Cancel
 // button or Esc; offers the finished run as JSON or a Rerun recording (rerun.js) and sets up the
-// stability section (stability.js). For tests it exposes `window.geomint` (the uPlot instances and
+// stability section (stability.js) and the work–precision section (studies.js). For tests it exposes `window.geomint` (the uPlot instances and
 // their point counts) and the run's state as `data-run-state` on <body> (loading, idle, running,
 // done, cancelled, error).
 
@@ -12,6 +12,7 @@ import { RunStore, renderStats, downloadJson } from './results.js';
 import { PRESETS, presetRequest } from './presets.js';
 import { RerunPanel } from './rerun.js';
 import { StabilityPanel } from './stability.js';
+import { WorkPrecisionPanel } from './studies.js';
 
 /** Shortest time between two redraws while samples stream in, in milliseconds. Redraws of long
  * runs take longer; the pause after one is at least REDRAW_SHARE times its duration, so drawing
@@ -266,6 +267,7 @@ async function init() {
     return Boolean(input);
   });
   const stability = new StabilityPanel($('#stability'), cats.methods);
+  const workPrecision = new WorkPrecisionPanel($('#work-precision'));
   for (const button of ui.presets.querySelectorAll('button')) button.disabled = false;
   ui.run.disabled = false;
   ui.form.addEventListener('submit', (event) => {
@@ -284,6 +286,7 @@ async function init() {
     pointCounts: () => charts.pointCounts(),
     runPreset,
     stability,
+    workPrecision,
   };
   setState('idle');
 }

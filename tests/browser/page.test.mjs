@@ -380,6 +380,7 @@ test('the stability section maps the methods and reads a cell under the pointer'
 
   // Hovering a cell of the csv1 map updates the readout with that cell's API values.
   const canvas = page.locator('canvas.heatmap[data-method="csv1"]');
+  await canvas.scrollIntoViewIfNeeded();
   const box = await canvas.boundingBox();
   const readout = page.locator('figure[data-map="csv1"] .readout');
   for (const [col, row] of [[100, 32], [20, 8]]) {
@@ -445,6 +446,64 @@ test('a stability error is shown beside its field', async () => {
   await page.click('#stab-run');
   await page.waitForSelector('#stability[data-stab-state="done"]', { timeout: 20_000 });
   assert.equal(await page.textContent('#err-stab-gamma'), '');
+});
+
+test('a work–precision study streams into a log–log diagram with a readout, and records as .rrd', async () => {
+  const before = consoleErrors.length;
+  const failedBefore = failedRequests.length;
+  const study = {
+    system: 'pendulum', t_end: 50, samples: 10,
+    runs: [
+      { method: { id: 'kahan_li_8', base: 'modin_3s' }, h: [0.5, 0.25] },
+      { method: 'rk4', h: [0.1, 0.05, 0.025] },
+      { method: 'reference', tolerance: [1e-8, 1e-10] },
+    ],
+  };
+  await page.locator('#wp-run').scrollIntoViewIfNeeded();
+  // The preset is there; a shorter study replaces it.
+  assert.equal(JSON.parse(await page.inputValue('#wp-spec')).system, 'elastic_pendulum_3d');
+  await page.fill('#wp-spec', JSON.stringify(study));
+  await page.click('#wp-run');
+  await page.waitForSelector('#work-precision[data-wp-state="done"]', { timeout: 30_000 });
+  const { status, body: api } = await postJson('/api/v1/studies/work-precision', study);
+  assert.equal(status, 200);
+  const shown = await page.evaluate(() => {
+    const { plot, last } = window.geomint.workPrecision;
+    return { labels: plot.series.slice(1).map((s) => s.label), data: plot.data.slice(1), points: last.result.points };
+  });
+  assert.deepEqual(shown.labels, ['kahan_li_8(modin_3s)', 'rk4', 'reference']);
+  assert.deepEqual(shown.data.map(([xs]) => xs.length), [2, 3, 2]);
+  // Errors do not depend on timing: the plotted x values are the API's, bit for bit.
+  const apiErrors = (run) => api.points.filter((p) => p.run === run).map((p) => p.max_energy_error).sort((a, b) => a - b);
+  for (const run of [0, 1, 2]) assert.deepEqual(shown.data[run][0], apiErrors(run));
+  assert.equal(await page.locator('#wp-table tr').count(), 7);
+  assert.match(await page.textContent('#wp-legend'), /kahan_li_8\(modin_3s\): time ∝ error\^-/);
+
+  // The readout names the setting under the pointer.
+  const target = await page.evaluate(() => {
+    const { plot, runs } = window.geomint.workPrecision;
+    const p = runs[1].points[0];
+    const box = plot.over.getBoundingClientRect();
+    return { x: box.left + plot.valToPos(p.max_energy_error, 'x'), y: box.top + plot.valToPos(p.wall_ms, 'y'), h: p.h };
+  });
+  await page.mouse.move(target.x, target.y);
+  assert.equal(await page.getAttribute('#wp-readout', 'data-method'), 'rk4');
+  assert.equal(await page.getAttribute('#wp-readout', 'data-setting'), `h = ${target.h}`);
+
+  const [saved] = await Promise.all([page.waitForEvent('download'), page.click('#wp-download-rrd')]);
+  assert.equal(saved.suggestedFilename(), 'geomint-work-precision.rrd');
+  const rrd = await readFile(await saved.path());
+  assert.equal(rrd.subarray(0, 4).toString('latin1'), 'RRF2');
+  assert.deepEqual(consoleErrors.slice(before), [], 'console errors in the work–precision section');
+  assert.deepEqual(failedRequests.slice(failedBefore), [], 'failed requests in the work–precision section');
+  await page.locator('#work-precision').screenshot({ path: join(artifacts, 'page-work-precision.png') });
+
+  // A step size that does not divide t_end/samples: the error names the field.
+  await page.fill('#wp-spec', JSON.stringify({ ...study, runs: [{ method: 'rk4', h: [0.3] }] }));
+  await page.click('#wp-run');
+  await page.waitForSelector('#work-precision[data-wp-state="error"]', { timeout: 10_000 });
+  assert.match(await page.textContent('#err-wp'), /^runs\[0\]\.h\[0\]: must divide/);
+  assert.equal(await page.getAttribute('#wp-spec', 'aria-invalid'), 'true');
 });
 
 test('the page fits a phone screen', async () => {
