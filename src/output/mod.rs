@@ -3,10 +3,12 @@
 //! - [`request`]: the simulation request as users write it, and its strict parser.
 //! - [`document`]: the JSON answer (one run per method, sample columns, stop and statistics) and
 //!   the parallel execution of a request's methods.
-//! - [`stream`]: the NDJSON form, written while the runs compute.
+//! - [`stream`]: the NDJSON form, written while the runs compute, and the document assembled
+//!   from it.
 //! - [`catalog`]: the system and method catalogues as published.
 //! - [`stability`]: linear stability requests (maps over (γ, h), single points) and answers.
-//! - [`recording`]: Rerun recordings (`.rrd`) of a simulation, and its default blueprint.
+//! - [`recording`]: Rerun recordings (`.rrd`) of a simulation, and its default blueprint; a run
+//!   streamed live to a Rerun viewer.
 //! - [`error`]: the error shape every interface reports.
 //!
 //! Everything here is synchronous; the HTTP layer calls it off the async runtime.

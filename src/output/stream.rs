@@ -10,7 +10,8 @@
 //!
 //! Lines of different methods interleave when they run in parallel; the lines of one method
 //! come in order, its summary after its last chunk. [`DocumentCollector`] assembles the JSON
-//! document from the lines, so that one run can feed several outputs.
+//! document from the lines, so that one run can feed several outputs (see
+//! [`crate::output::recording::live`]).
 
 use std::time::{Duration, Instant};
 
