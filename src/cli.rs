@@ -5,7 +5,8 @@
 //! variable.
 //!
 //! Exit codes: 0 on success, 2 for a bad command line, an unreadable spec or an invalid one
-//! (the message names the field), 1 when output cannot be written or the server cannot start.
+//! (the message names the field), 1 when output cannot be written, the Rerun viewer cannot be
+//! reached or the server cannot start.
 
 use std::fs::File;
 use std::io::{self, BufWriter, IsTerminal, Read, Write};
@@ -17,11 +18,14 @@ use std::sync::Mutex;
 use std::time::Duration;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
+use rerun::sink::GrpcSink;
 
 use crate::core::run::Budget;
-use crate::core::simulate::Limits;
+use crate::core::simulate::{Limits, Simulation};
 use crate::http::{self, Config};
-use crate::output::{self, catalog, recording, SimulateRequest, StreamLine};
+use crate::output::recording::{self, live};
+use crate::output::stream::DocumentCollector;
+use crate::output::{self, catalog, SimulateRequest, SimulationDocument, StreamLine};
 
 /// Geometric numerical integration of damped Hamiltonian systems, as a web service.
 #[derive(Debug, Parser)]
@@ -120,8 +124,9 @@ pub struct RunArgs {
     /// else JSON (default: standard output).
     #[arg(short, long)]
     pub output: Option<PathBuf>,
-    /// Also stream the run to a Rerun viewer listening at HOST:PORT (`rerun` serves gRPC on
-    /// port 9876 by default), or at a full `rerun+http://HOST:PORT/proxy` URL.
+    /// Also stream the run live, chunk by chunk as it computes, to a Rerun viewer listening at
+    /// HOST:PORT (`rerun` serves gRPC on port 9876 by default), or at a full
+    /// `rerun+http://HOST:PORT/proxy` URL; fails (exit code 1) if no viewer answers within 5 s.
     #[arg(long, value_name = "HOST:PORT")]
     pub rerun_addr: Option<String>,
     /// Output format, instead of the one the file extension implies.
@@ -306,37 +311,29 @@ fn run_spec(args: &RunArgs) -> ExitCode {
         return ExitCode::from(BAD_INPUT);
     }
     let workers = http::state::default_concurrency();
-    // A recording, or a run streamed to a viewer, needs the whole document first.
-    let document = if format == Format::Rrd || args.rerun_addr.is_some() {
-        match output::simulate(&sim, workers, Budget::default()) {
-            Ok(doc) => Some(doc),
-            Err(e) => {
-                eprintln!("error: {source}: {e}");
-                return ExitCode::from(BAD_INPUT);
+    // A viewer is found before anything runs or any file is created.
+    let viewer = match &args.rerun_addr {
+        Some(addr) => {
+            let url = if addr.contains("://") {
+                addr.clone()
+            } else {
+                recording::viewer_url(addr)
+            };
+            match recording::connect_viewer(&url, live::CONNECT_TIMEOUT) {
+                Ok(sink) => Some((url, sink)),
+                Err(e) => {
+                    eprintln!("error: cannot stream to the Rerun viewer at {url}: {e}");
+                    return ExitCode::FAILURE;
+                }
             }
         }
-    } else {
-        None
+        None => None,
     };
-    if let (Some(addr), Some(doc)) = (&args.rerun_addr, &document) {
-        let url = if addr.contains("://") {
-            addr.clone()
-        } else {
-            recording::viewer_url(addr)
-        };
-        match recording::stream_to_viewer(&url, &spec, doc) {
-            Ok(()) => eprintln!("sent the run to the Rerun viewer at {url}"),
-            Err(e) => {
-                eprintln!("error: cannot stream to the Rerun viewer at {url}: {e}");
-                return ExitCode::FAILURE;
-            }
-        }
-    }
     let target = match &args.output {
         Some(path) => File::create(path).map(|f| Box::new(f) as Box<dyn Write + Send>),
         None => Ok(Box::new(io::stdout()) as Box<dyn Write + Send>),
     };
-    let mut out = match target {
+    let out = match target {
         Ok(w) => BufWriter::new(w),
         Err(e) => {
             eprintln!(
@@ -349,81 +346,209 @@ fn run_spec(args: &RunArgs) -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
-    if let (Format::Rrd, Some(doc)) = (format, &document) {
-        return match recording::write_rrd(out, &spec, doc) {
-            Ok(mut w) => match w.flush() {
-                Ok(()) => ExitCode::SUCCESS,
-                Err(e) => {
-                    eprintln!("error: cannot write the output: {e}");
-                    ExitCode::FAILURE
+    let job = Job {
+        sim: &sim,
+        source: &source,
+        workers,
+        pretty: args.pretty,
+    };
+    match viewer {
+        Some((url, sink)) => job.run_live(format, out, spec, &url, sink),
+        None => job.run(format, out, &spec),
+    }
+}
+
+/// Where `geomint run` writes.
+type Output = BufWriter<Box<dyn Write + Send>>;
+
+/// A validated simulation to run and write.
+struct Job<'a> {
+    sim: &'a Simulation,
+    /// The spec's name in messages.
+    source: &'a str,
+    workers: usize,
+    pretty: bool,
+}
+
+/// What went wrong while a simulation streamed, first failure of each kind.
+#[derive(Default)]
+struct StreamFailures {
+    /// The stream's own error line (a failed reference run): bad input.
+    stream: Option<String>,
+    /// The output could not be written.
+    write: Option<io::Error>,
+    /// The recording refused a line.
+    recording: Option<recording::RecordingError>,
+}
+
+impl Job<'_> {
+    /// Writes the simulation in `format` to `out`.
+    fn run(&self, format: Format, mut out: Output, spec: &SimulateRequest) -> ExitCode {
+        let written = match format {
+            Format::Json | Format::Rrd => {
+                let doc = match output::simulate(self.sim, self.workers, Budget::default()) {
+                    Ok(doc) => doc,
+                    Err(e) => return self.bad_input(&e),
+                };
+                if format == Format::Rrd {
+                    return match recording::write_rrd(out, spec, &doc) {
+                        Ok(mut w) => finish_output(w.flush()),
+                        Err(e) => {
+                            eprintln!("error: cannot write the recording: {e}");
+                            ExitCode::FAILURE
+                        }
+                    };
                 }
-            },
-            Err(e) => {
-                eprintln!("error: cannot write the recording: {e}");
-                ExitCode::FAILURE
+                self.write_document(&mut out, &doc)
+            }
+            Format::Ndjson => {
+                let failures = self.stream(None, Some(&mut out), None);
+                if let Some(e) = failures.stream {
+                    let _ = out.flush();
+                    return self.bad_input(&e);
+                }
+                failures.write.map_or(Ok(()), Err)
             }
         };
+        finish_output(written.and_then(|()| out.flush()))
     }
-    let written = match format {
-        Format::Json | Format::Rrd => match document
-            .map(Ok)
-            .unwrap_or_else(|| output::simulate(&sim, workers, Budget::default()))
-        {
-            Ok(doc) => {
-                let result = if args.pretty {
-                    serde_json::to_writer_pretty(&mut out, &doc)
-                } else {
-                    serde_json::to_writer(&mut out, &doc)
-                };
-                result.map_err(io::Error::from).and_then(|()| writeln!(out))
-            }
+
+    /// Runs the simulation once, streaming it live to the viewer (`sink`, connected to `url`)
+    /// while writing `format` to `out`: NDJSON lines as they come, the JSON document once
+    /// complete, or the same recording as the viewer gets.
+    fn run_live(
+        &self,
+        format: Format,
+        out: Output,
+        spec: SimulateRequest,
+        url: &str,
+        sink: GrpcSink,
+    ) -> ExitCode {
+        let header = output::stream::header(self.sim);
+        let name = recording::recording_name(&header.system.id, &header.methods);
+        let (file, mut text) = match format {
+            Format::Rrd => (Some(out), None),
+            Format::Json | Format::Ndjson => (None, Some(out)),
+        };
+        let live = match recording::LiveRecording::start(sink, name, spec, file) {
+            Ok(live) => live,
             Err(e) => {
-                eprintln!("error: {source}: {e}");
-                return ExitCode::from(BAD_INPUT);
+                eprintln!("error: cannot stream to the Rerun viewer at {url}: {e}");
+                return ExitCode::FAILURE;
             }
-        },
-        Format::Ndjson => {
-            let cancel = AtomicBool::new(false);
-            let stream_error: Mutex<Option<String>> = Mutex::new(None);
-            let failure: Mutex<Option<io::Error>> = Mutex::new(None);
-            let sink = Mutex::new(&mut out);
-            let emit = |line: StreamLine| {
-                if let StreamLine::Error(e) = &line {
-                    stream_error
-                        .lock()
-                        .unwrap_or_else(|p| p.into_inner())
-                        .get_or_insert(e.error.to_string());
-                }
-                let mut w = sink.lock().unwrap_or_else(|p| p.into_inner());
-                match w.write_all(&output::ndjson_line(&line)) {
-                    Ok(()) => true,
-                    Err(e) => {
-                        cancel.store(true, Ordering::Relaxed);
-                        failure
-                            .lock()
-                            .unwrap_or_else(|p| p.into_inner())
-                            .get_or_insert(e);
-                        false
-                    }
-                }
-            };
-            let budget = Budget {
-                cancel: Some(&cancel),
-                deadline: None,
-            };
-            output::stream::stream(&sim, workers, budget, &emit);
-            if let Some(e) = stream_error.into_inner().unwrap_or_else(|p| p.into_inner()) {
-                let _ = out.flush();
-                eprintln!("error: {source}: {e}");
-                return ExitCode::from(BAD_INPUT);
-            }
-            match failure.into_inner().unwrap_or_else(|p| p.into_inner()) {
-                Some(e) => Err(e),
-                None => Ok(()),
-            }
+        };
+        let mut collector = (format == Format::Json).then(DocumentCollector::new);
+        let ndjson = if format == Format::Ndjson {
+            text.as_mut()
+        } else {
+            None
+        };
+        let failures = self.stream(Some(&live), ndjson, collector.as_mut());
+        let finished = live.finish(live::FLUSH_TIMEOUT);
+        if let Some(e) = failures.recording {
+            eprintln!("error: cannot stream to the Rerun viewer at {url}: {e}");
+            return ExitCode::FAILURE;
         }
-    };
-    match written.and_then(|()| out.flush()) {
+        let file = match finished {
+            Ok(file) => file,
+            Err(e) => {
+                eprintln!("error: cannot stream to the Rerun viewer at {url}: {e}");
+                return ExitCode::FAILURE;
+            }
+        };
+        if let Some(e) = failures.stream {
+            if let Some(out) = &mut text {
+                let _ = out.flush();
+            }
+            return self.bad_input(&e);
+        }
+        if let Some(e) = failures.write {
+            return finish_output(Err(e));
+        }
+        eprintln!("streamed the run live to the Rerun viewer at {url}");
+        let written = match (text, collector, file) {
+            (Some(mut out), Some(collector), _) => match collector.finish() {
+                Ok(doc) => self
+                    .write_document(&mut out, &doc)
+                    .and_then(|()| out.flush()),
+                Err(e) => {
+                    // Not the input's fault: the stream's own errors were reported above.
+                    eprintln!("error: {e}");
+                    return ExitCode::FAILURE;
+                }
+            },
+            (Some(mut out), None, _) => out.flush(),
+            (None, _, Some(mut file)) => file.flush(),
+            (None, _, None) => Ok(()),
+        };
+        finish_output(written)
+    }
+
+    /// Streams the simulation once: every line goes to the live recording, as NDJSON to
+    /// `ndjson` and into the collector, whichever are given. A failing output or recording
+    /// cancels the runs.
+    fn stream(
+        &self,
+        live: Option<&recording::LiveRecording<Output>>,
+        ndjson: Option<&mut Output>,
+        collector: Option<&mut DocumentCollector>,
+    ) -> StreamFailures {
+        fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+            m.lock().unwrap_or_else(|p| p.into_inner())
+        }
+        let cancel = AtomicBool::new(false);
+        let failures = Mutex::new(StreamFailures::default());
+        let ndjson = ndjson.map(Mutex::new);
+        let collector = collector.map(Mutex::new);
+        let emit = |line: StreamLine| {
+            if let StreamLine::Error(e) = &line {
+                lock(&failures).stream.get_or_insert(e.error.to_string());
+            }
+            if let Some(live) = live {
+                if let Err(e) = live.line(&line) {
+                    cancel.store(true, Ordering::Relaxed);
+                    lock(&failures).recording.get_or_insert(e);
+                    return false;
+                }
+            }
+            if let Some(w) = &ndjson {
+                if let Err(e) = lock(w).write_all(&output::ndjson_line(&line)) {
+                    cancel.store(true, Ordering::Relaxed);
+                    lock(&failures).write.get_or_insert(e);
+                    return false;
+                }
+            }
+            if let Some(c) = &collector {
+                lock(c).push(line);
+            }
+            true
+        };
+        let budget = Budget {
+            cancel: Some(&cancel),
+            deadline: None,
+        };
+        output::stream::stream(self.sim, self.workers, budget, &emit);
+        failures.into_inner().unwrap_or_else(|p| p.into_inner())
+    }
+
+    fn write_document(&self, out: &mut Output, doc: &SimulationDocument) -> io::Result<()> {
+        let result = if self.pretty {
+            serde_json::to_writer_pretty(&mut *out, doc)
+        } else {
+            serde_json::to_writer(&mut *out, doc)
+        };
+        result.map_err(io::Error::from).and_then(|()| writeln!(out))
+    }
+
+    fn bad_input(&self, e: &dyn std::fmt::Display) -> ExitCode {
+        eprintln!("error: {}: {e}", self.source);
+        ExitCode::from(BAD_INPUT)
+    }
+}
+
+/// The exit code once the output is written (or not).
+fn finish_output(written: io::Result<()>) -> ExitCode {
+    match written {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: cannot write the output: {e}");

@@ -67,6 +67,47 @@ pub struct Columns {
     pub jacobian_defect: Option<Vec<f64>>,
 }
 
+impl Columns {
+    /// Empty columns with an empty column for each invariant name.
+    pub fn with_invariants<S: AsRef<str>>(names: &[S]) -> Self {
+        Columns {
+            invariants: names
+                .iter()
+                .map(|n| (n.as_ref().to_string(), Vec::new()))
+                .collect(),
+            ..Columns::default()
+        }
+    }
+
+    /// Samples held.
+    pub fn len(&self) -> usize {
+        self.t.len()
+    }
+
+    /// Whether no sample is held.
+    pub fn is_empty(&self) -> bool {
+        self.t.is_empty()
+    }
+
+    /// Appends the samples of `more` (the next samples of the same run) after these.
+    pub fn extend(&mut self, more: Columns) {
+        fn append(to: &mut Option<Vec<f64>>, more: Option<Vec<f64>>) {
+            if let Some(more) = more {
+                to.get_or_insert_with(Vec::new).extend(more);
+            }
+        }
+        self.t.extend(more.t);
+        self.q.extend(more.q);
+        self.p.extend(more.p);
+        self.energy.extend(more.energy);
+        append(&mut self.energy_error, more.energy_error);
+        for (name, values) in more.invariants {
+            self.invariants.entry(name).or_default().extend(values);
+        }
+        append(&mut self.jacobian_defect, more.jacobian_defect);
+    }
+}
+
 /// Collects samples into [`Columns`].
 #[derive(Debug)]
 pub struct ColumnSink {

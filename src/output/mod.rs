@@ -3,12 +3,13 @@
 //! - [`request`]: the simulation request as users write it, and its strict parser.
 //! - [`document`]: the JSON answer (one run per method, sample columns, stop and statistics) and
 //!   the parallel execution of a request's methods.
-//! - [`stream`]: the NDJSON form, written while the runs compute.
+//! - [`stream`]: the NDJSON form, written while the runs compute, and the document assembled
+//!   from it.
 //! - [`catalog`]: the system and method catalogues as published.
 //! - [`stability`]: linear stability requests (maps over (γ, h), single points) and answers.
 //! - [`work_precision`]: work–precision studies (time against energy error per method).
 //! - [`recording`]: Rerun recordings (`.rrd`) of simulations, stability and work–precision
-//!   studies, with their default blueprints.
+//!   studies, with their default blueprints; a run streamed live to a Rerun viewer.
 //! - [`error`]: the error shape every interface reports.
 //!
 //! Everything here is synchronous; the HTTP layer calls it off the async runtime.

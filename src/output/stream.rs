@@ -9,7 +9,9 @@
 //! 5. a final `end` line — a stream without it was cut short.
 //!
 //! Lines of different methods interleave when they run in parallel; the lines of one method
-//! come in order, its summary after its last chunk.
+//! come in order, its summary after its last chunk. [`DocumentCollector`] assembles the JSON
+//! document from the lines, so that one run can feed several outputs (see
+//! [`crate::output::recording::live`]).
 
 use std::time::{Duration, Instant};
 
@@ -18,9 +20,10 @@ use utoipa::ToSchema;
 
 use super::document::{
     dissipation_drift, failed, for_each_method, reference_energies, ColumnSink, Columns,
-    DivergedAt, DriftPoint, ScheduleSummary, Stats, Stop, SystemSummary,
+    DivergedAt, DriftPoint, RunDocument, ScheduleSummary, SimulationDocument, Stats, Stop,
+    SystemSummary,
 };
-use super::error::ErrorDetail;
+use super::error::{codes, ErrorDetail};
 use crate::core::run::Budget;
 use crate::core::simulate::{Sample, SampleSink, Simulation};
 
@@ -253,4 +256,185 @@ pub fn stream(sim: &Simulation, workers: usize, budget: Budget<'_>, emit: Emit<'
         stream_method(sim, i, reference.as_deref(), budget, emit)
     });
     emit(StreamLine::End);
+}
+
+/// Assembles the [`SimulationDocument`] of a stream from its lines: the header's system,
+/// schedule and invariants, each method's chunks appended in order, its summary's outcome. The
+/// document equals the one [`super::simulate`] computes for the same simulation (up to wall
+/// times).
+#[derive(Debug, Default)]
+pub struct DocumentCollector {
+    header: Option<StreamHeader>,
+    columns: Vec<Columns>,
+    summaries: Vec<Option<RunSummary>>,
+    error: Option<ErrorDetail>,
+    ended: bool,
+}
+
+impl DocumentCollector {
+    /// A collector that has seen no line.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Takes in the next line of the stream.
+    pub fn push(&mut self, line: StreamLine) {
+        match line {
+            StreamLine::Header(header) => {
+                self.columns =
+                    vec![Columns::with_invariants(&header.invariants); header.methods.len()];
+                self.summaries = vec![None; header.methods.len()];
+                self.header = Some(header);
+            }
+            StreamLine::Samples(chunk) => match self.columns.get_mut(chunk.method) {
+                Some(columns) if columns.len() as u64 == chunk.offset => {
+                    columns.extend(chunk.columns)
+                }
+                _ => self.fail(format!(
+                    "samples of method {} from {} do not continue its run",
+                    chunk.method, chunk.offset
+                )),
+            },
+            StreamLine::Summary(summary) => match self.summaries.get_mut(summary.method) {
+                Some(slot) => *slot = Some(summary),
+                None => self.fail(format!("a summary of method {}", summary.method)),
+            },
+            StreamLine::Error(e) => {
+                self.error.get_or_insert(e.error);
+            }
+            StreamLine::End => self.ended = true,
+        }
+    }
+
+    fn fail(&mut self, message: String) {
+        self.error
+            .get_or_insert_with(|| ErrorDetail::new(codes::INTERNAL, message));
+    }
+
+    /// The document, once the stream has ended; the stream's error if it reported one.
+    pub fn finish(self) -> Result<SimulationDocument, ErrorDetail> {
+        if let Some(error) = self.error {
+            return Err(error);
+        }
+        let cut = |what: &str| ErrorDetail::new(codes::INTERNAL, format!("the stream {what}"));
+        let header = self.header.ok_or_else(|| cut("has no header"))?;
+        if !self.ended {
+            return Err(cut("was cut short"));
+        }
+        let runs = self
+            .columns
+            .into_iter()
+            .zip(self.summaries)
+            .map(|(columns, summary)| {
+                let s = summary.ok_or_else(|| cut("lacks a summary"))?;
+                Ok(RunDocument {
+                    method: s.label,
+                    columns,
+                    dissipation_drift: s.dissipation_drift,
+                    diverged_at: s.diverged_at,
+                    stop: s.stop,
+                    stats: s.stats,
+                })
+            })
+            .collect::<Result<_, ErrorDetail>>()?;
+        Ok(SimulationDocument {
+            system: header.system,
+            schedule: header.schedule,
+            invariants: header.invariants,
+            runs,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Mutex;
+
+    use serde_json::json;
+
+    use super::*;
+    use crate::core::simulate::Limits;
+    use crate::output::{simulate, SimulateRequest};
+
+    /// The JSON of a document with its wall times zeroed (the only numbers that differ between
+    /// two computations of the same runs).
+    fn json_without_wall_times(mut doc: SimulationDocument) -> String {
+        for run in &mut doc.runs {
+            run.stats.wall_time_ms = 0.0;
+        }
+        serde_json::to_string(&doc).unwrap()
+    }
+
+    #[test]
+    fn columns_extend_appends_every_column() {
+        let chunk = |t: f64| Columns {
+            t: vec![t],
+            q: vec![vec![t]],
+            p: vec![vec![-t]],
+            energy: vec![2.0 * t],
+            energy_error: Some(vec![t / 2.0]),
+            invariants: [("J3".to_string(), vec![3.0 * t])].into(),
+            jacobian_defect: None,
+        };
+        let mut all = Columns::with_invariants(&["J3"]);
+        all.extend(chunk(1.0));
+        all.extend(chunk(2.0));
+        assert_eq!(all.t, [1.0, 2.0]);
+        assert_eq!(all.q, [[1.0], [2.0]]);
+        assert_eq!(all.energy_error, Some(vec![0.5, 1.0]));
+        assert_eq!(all.invariants["J3"], [3.0, 6.0]);
+        assert_eq!(all.jacobian_defect, None);
+    }
+
+    #[test]
+    fn collected_stream_equals_the_document() {
+        // Two methods, 1001 samples each: several chunks per method, interleaved over two
+        // threads; an exact solution (energy errors) and the dissipation drift of a 1-DOF system.
+        let spec = SimulateRequest::from_value(&json!({"system": "harmonic_oscillator",
+            "params": {"epsilon": 0.05}, "methods": ["modin_3s", {"id": "modin_rks", "inner": "rk4"}],
+            "h": 0.01, "t_end": 50, "output": {"every": 5}}))
+        .unwrap();
+        let sim = spec.prepare(&Limits::default()).unwrap();
+        let doc = simulate(&sim, 2, Budget::default()).unwrap();
+
+        let collector = Mutex::new(DocumentCollector::new());
+        let chunks = Mutex::new(0usize);
+        let emit = |line: StreamLine| {
+            if let StreamLine::Samples(_) = line {
+                *chunks.lock().unwrap() += 1;
+            }
+            collector.lock().unwrap().push(line);
+            true
+        };
+        stream(&sim, 2, Budget::default(), &emit);
+        assert!(chunks.into_inner().unwrap() >= 8);
+        let collected = collector.into_inner().unwrap().finish().unwrap();
+        assert_eq!(collected.runs.len(), 2);
+        assert_eq!(collected.runs[0].columns.len(), 1001);
+        assert!(collected.runs[0].columns.energy_error.is_some());
+        assert_eq!(
+            json_without_wall_times(collected),
+            json_without_wall_times(doc)
+        );
+    }
+
+    #[test]
+    fn a_stream_cut_short_or_failed_makes_no_document() {
+        let spec = SimulateRequest::from_value(
+            &json!({"system": "harmonic_oscillator", "method": "csv1", "h": 0.1, "t_end": 1}),
+        )
+        .unwrap();
+        let sim = spec.prepare(&Limits::default()).unwrap();
+        let mut collector = DocumentCollector::new();
+        collector.push(StreamLine::Header(header(&sim)));
+        assert_eq!(collector.finish().unwrap_err().code, codes::INTERNAL);
+        let mut collector = DocumentCollector::new();
+        collector.push(StreamLine::Header(header(&sim)));
+        collector.push(StreamLine::Error(StreamError {
+            method: None,
+            error: ErrorDetail::new(codes::TIMEOUT, "late"),
+        }));
+        collector.push(StreamLine::End);
+        assert_eq!(collector.finish().unwrap_err().code, codes::TIMEOUT);
+    }
 }

@@ -25,10 +25,17 @@ pub struct Decoded {
 
 impl Decoded {
     pub fn of(bytes: &[u8]) -> Decoded {
+        Decoded::try_of(bytes).unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    /// The recording in `bytes`, or what does not decode (for example a file still being
+    /// written).
+    pub fn try_of(bytes: &[u8]) -> Result<Decoded, String> {
         let mut out = Decoded::default();
-        let decoder = DecoderApp::decode_eager(Cursor::new(bytes)).expect("an rrd stream");
+        let decoder = DecoderApp::decode_eager(Cursor::new(bytes))
+            .map_err(|e| format!("not an rrd stream: {e}"))?;
         for msg in decoder {
-            match msg.expect("every message decodes") {
+            match msg.map_err(|e| format!("a message does not decode: {e}"))? {
                 LogMsg::SetStoreInfo(info) => {
                     let id = &info.info.store_id;
                     out.application_ids.insert(id.application_id().to_string());
@@ -39,7 +46,8 @@ impl Decoded {
                     };
                 }
                 LogMsg::ArrowMsg(store, arrow) => {
-                    let chunk = Chunk::from_arrow_msg(&arrow).expect("a chunk");
+                    let chunk = Chunk::from_arrow_msg(&arrow)
+                        .map_err(|e| format!("a chunk does not decode: {e}"))?;
                     let path = chunk.entity_path().to_string();
                     match store.kind() {
                         StoreKind::Recording => out.chunks.entry(path).or_default().push(chunk),
@@ -51,7 +59,7 @@ impl Decoded {
                 LogMsg::BlueprintActivationCommand(_) => out.activations += 1,
             }
         }
-        out
+        Ok(out)
     }
 
     /// Temporal rows of an entity.

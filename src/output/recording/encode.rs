@@ -15,7 +15,7 @@ use super::{RecordingError, APPLICATION_ID};
 /// A sink that encodes messages into `.rrd` form on its own thread as they come, so that
 /// encoding overlaps with building the next columns. The encoder's result (the writer, or the
 /// first error) comes back through the thread's join handle once the sink is dropped.
-struct EncodingSink {
+pub(super) struct EncodingSink {
     tx: mpsc::SyncSender<SinkCommand>,
 }
 
@@ -25,10 +25,18 @@ enum SinkCommand {
 }
 
 /// The encoder thread of an [`EncodingSink`].
-type EncoderThread<W> = std::thread::JoinHandle<Result<W, RecordingError>>;
+pub(super) type EncoderThread<W> = std::thread::JoinHandle<Result<W, RecordingError>>;
+
+/// The result of an encoder thread: the writer once the `.rrd` stream is complete.
+pub(super) fn join<W>(thread: EncoderThread<W>) -> Result<W, RecordingError> {
+    thread
+        .join()
+        .unwrap_or_else(|_| Err(RecordingError::Sink("the encoder panicked".into())))
+}
 
 impl EncodingSink {
-    fn spawn<W: Write + Send + 'static>(
+    /// Starts an encoder writing to `writer`; it finishes the stream when the sink is dropped.
+    pub(super) fn spawn<W: Write + Send + 'static>(
         writer: W,
     ) -> Result<(Self, EncoderThread<W>), RecordingError> {
         let mut encoder = Encoder::new_eager(
@@ -110,9 +118,7 @@ pub(super) fn write<W: Write + Send + 'static>(
         .map_err(|e| RecordingError::Sink(e.to_string()));
     // Dropping the last handle of the stream drops the sink, which ends the encoder.
     drop(rec);
-    let written = thread
-        .join()
-        .unwrap_or_else(|_| Err(RecordingError::Sink("the encoder panicked".into())));
+    let written = join(thread);
     logged?;
     flushed?;
     written

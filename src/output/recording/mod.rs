@@ -2,7 +2,9 @@
 //! Rerun viewer shows without configuration, each with a default blueprint.
 //!
 //! - [`simulation`]: the runs of a simulation (energies, invariants, phase portraits, the bodies
-//!   in 3-D), as JSON answers them.
+//!   in 3-D), as JSON answers them, logged chunk by chunk.
+//! - [`live`]: a simulation streamed live to a running Rerun viewer, each chunk of samples logged
+//!   as the integrator produces it.
 //! - [`stability`]: a stability study, each method's map as a tensor and a verdict image.
 //! - [`work_precision`]: a work–precision study as a log–log diagram in a 2-D view.
 //!
@@ -12,6 +14,7 @@
 
 mod blueprint;
 mod encode;
+pub mod live;
 pub mod simulation;
 pub mod stability;
 pub mod work_precision;
@@ -20,9 +23,11 @@ use std::collections::HashSet;
 
 use rerun::Color;
 
+pub use live::{connect_viewer, viewer_url, LiveRecording, StreamRecorder};
 pub use simulation::{
-    log_simulation, path_blocks, rrd_bytes, sample_steps, send_blueprint, stream_to_viewer,
-    viewer_url, write_rrd, Layout, PathBlock, MAX_PATH_ROWS, MAX_PHASE_DOFS,
+    log_simulation, path_block_len, path_blocks, recording_name, rrd_bytes, sample_step,
+    sample_steps, send_blueprint, write_rrd, Layout, PathBlock, RunLogger, SimulationLogger,
+    MAX_PATH_ROWS, MAX_PHASE_DOFS,
 };
 
 /// The application id of every recording.
@@ -69,6 +74,9 @@ pub enum RecordingError {
     /// The viewer connection failed.
     #[error("{0}")]
     Sink(String),
+    /// Data that does not fit the recording (samples out of order, an unknown method).
+    #[error("{0}")]
+    Unexpected(String),
 }
 
 /// The colour of method `index` (request order) as RGB.

@@ -28,25 +28,28 @@
 //! over all methods, tabs with the energy error, invariant and force-evaluation plots, the 3-D
 //! view of every method's world, the spec and one 2-D phase view per degree of freedom.
 //!
-//! Series are sent as columns (`send_columns`): one chunk per entity and method.
+//! Series are sent as columns (`send_columns`), one chunk per entity for each chunk of samples:
+//! a [`RunLogger`] logs a run chunk by chunk as the integrator produces them (see
+//! [`super::live`]), and a whole document is logged as one chunk per run ([`log_simulation`]),
+//! with the same rows.
 
 use std::io::Write;
-use std::time::Duration;
+use std::sync::Mutex;
 
 use rerun::external::re_sdk_types::blueprint::components::ContainerKind;
 use rerun::{
     AsComponents as _, LineStrips2D, LineStrips3D, Points2D, Points3D, Radius, RecordingStream,
-    RecordingStreamBuilder, Scalars, SeriesLines, SeriesPoints, TextDocument, TimeColumn,
-    ViewCoordinates,
+    Scalars, SeriesLines, SeriesPoints, TextDocument, TimeColumn, ViewCoordinates,
 };
 
 use super::blueprint::{self, Node};
 use super::{
-    color, encode, entity_names, entity_part, method_color, RecordingError, APPLICATION_ID,
-    STEP_TIMELINE, TIME_TIMELINE,
+    color, encode, entity_names, entity_part, method_color, RecordingError, STEP_TIMELINE,
+    TIME_TIMELINE,
 };
-use crate::output::document::{RunDocument, SimulationDocument};
+use crate::output::document::{Columns, ScheduleSummary, SimulationDocument};
 use crate::output::request::SimulateRequest;
+use crate::output::stream::StreamHeader;
 
 /// Degrees of freedom with a phase portrait (the first ones; an N-body run has 3N).
 pub const MAX_PHASE_DOFS: usize = 6;
@@ -108,7 +111,8 @@ impl World {
 }
 
 /// Where everything of a simulation goes: entity names and colours per method, the invariant
-/// parts and what the world view shows.
+/// parts and what the world view shows. Made from the document ([`Layout::of`]) or, before any
+/// sample exists, from the stream's header ([`Layout::of_header`]).
 #[derive(Clone, Debug)]
 pub struct Layout {
     /// Method labels, in request order.
@@ -122,26 +126,54 @@ pub struct Layout {
     /// Whether the runs carry energy errors.
     pub energy_error: bool,
     world: World,
+    /// Degrees of freedom of the system.
+    dof: usize,
 }
 
 impl Layout {
-    /// The layout of a simulation's document.
-    pub fn of(doc: &SimulationDocument) -> Self {
-        let labels: Vec<String> = doc.runs.iter().map(|r| r.method.clone()).collect();
-        let methods = entity_names(&labels);
-        let dof = doc.system.q0.len();
+    /// The layout of a simulation of system `system` with `dof` degrees of freedom, methods
+    /// `labels` (request order) and the system's `invariants`.
+    pub fn new(
+        system: &str,
+        dof: usize,
+        labels: Vec<String>,
+        invariants: &[String],
+        energy_error: bool,
+    ) -> Self {
         Layout {
+            methods: entity_names(&labels),
             labels,
-            methods,
-            invariants: doc
-                .invariants
+            invariants: invariants
                 .iter()
                 .map(|n| (n.clone(), entity_part(n)))
                 .collect(),
             phase_dofs: dof.min(MAX_PHASE_DOFS),
-            energy_error: doc.runs.iter().any(|r| r.columns.energy_error.is_some()),
-            world: World::of(&doc.system.id),
+            energy_error,
+            world: World::of(system),
+            dof,
         }
+    }
+
+    /// The layout of a simulation's document.
+    pub fn of(doc: &SimulationDocument) -> Self {
+        Layout::new(
+            &doc.system.id,
+            doc.system.q0.len(),
+            doc.runs.iter().map(|r| r.method.clone()).collect(),
+            &doc.invariants,
+            doc.runs.iter().any(|r| r.columns.energy_error.is_some()),
+        )
+    }
+
+    /// The layout of a simulation announced by a stream's header.
+    pub fn of_header(header: &StreamHeader) -> Self {
+        Layout::new(
+            &header.system.id,
+            header.system.q0.len(),
+            header.methods.clone(),
+            &header.invariants,
+            header.energy_error,
+        )
     }
 
     /// Every entity path of method `index` that holds data, in a fixed order.
@@ -165,200 +197,391 @@ impl Layout {
     }
 }
 
-/// The step index of every sample of a run: samples are taken at step 0, every `every` steps
-/// and at the last step (`steps`), so sample i is at min(i·every, steps).
+/// The step index of sample `i` of a run: samples are taken at step 0, every `every` steps and
+/// at the last step (`steps`), so sample i is at min(i·every, steps).
+pub fn sample_step(i: u64, every: u64, steps: u64) -> i64 {
+    i.saturating_mul(every).min(steps) as i64
+}
+
+/// The step index of every sample of a run of `count` samples (see [`sample_step`]).
 pub fn sample_steps(count: usize, every: u64, steps: u64) -> Vec<i64> {
     (0..count as u64)
-        .map(|i| i.saturating_mul(every).min(steps) as i64)
+        .map(|i| sample_step(i, every, steps))
         .collect()
 }
 
-/// Logs every run of `doc` (and the spec) to `rec`: static styles first, then the series as
-/// columns.
+/// Logs every run of `doc` (and the spec) to `rec`: static styles first, then each run's
+/// samples as one chunk of columns.
 pub fn log_simulation(
     rec: &RecordingStream,
     spec: &SimulateRequest,
     doc: &SimulationDocument,
 ) -> Result<(), RecordingError> {
     let layout = Layout::of(doc);
-    let spec_json = serde_json::to_string_pretty(spec).unwrap_or_default();
-    rec.log_static(
-        "/spec",
-        &TextDocument::from_markdown(format!("```json\n{spec_json}\n```")),
-    )?;
-    rec.log_static("/", &ViewCoordinates::RIGHT_HAND_Z_UP())?;
+    // The path blocks of a run follow its actual sample count, also for runs that stopped early.
+    let logger = SimulationLogger::start(rec, spec, &layout, &doc.schedule, |i| {
+        doc.runs[i].columns.t.len()
+    })?;
     for (i, run) in doc.runs.iter().enumerate() {
-        log_run(rec, doc, &layout, i, run)?;
+        logger.samples(i, 0, &run.columns)?;
+        logger.finish(i, run.stats.force_evaluations)?;
     }
     Ok(())
 }
 
-/// Sends one scalar series with its style: `values[k]` at sample `k`.
-fn send_series(
+/// Logs a simulation into a recording as its samples come: the spec and every entity's static
+/// style when it starts, then each method's chunks of samples in order ([`RunLogger`]), from
+/// any thread.
+#[derive(Debug)]
+pub struct SimulationLogger {
+    runs: Vec<Mutex<RunLogger>>,
+}
+
+impl SimulationLogger {
+    /// Logs the spec and the static styles of every method of `layout`. `expected(i)` is the
+    /// number of samples method `i` is expected to have; it sets the length of its path blocks
+    /// (see [`path_blocks`]).
+    pub fn start(
+        rec: &RecordingStream,
+        spec: &SimulateRequest,
+        layout: &Layout,
+        schedule: &ScheduleSummary,
+        expected: impl Fn(usize) -> usize,
+    ) -> Result<Self, RecordingError> {
+        let spec_json = serde_json::to_string_pretty(spec).unwrap_or_default();
+        rec.log_static(
+            "/spec",
+            &TextDocument::from_markdown(format!("```json\n{spec_json}\n```")),
+        )?;
+        rec.log_static("/", &ViewCoordinates::RIGHT_HAND_Z_UP())?;
+        let runs = (0..layout.methods.len())
+            .map(|i| RunLogger::start(rec, layout, i, schedule, expected(i)).map(Mutex::new))
+            .collect::<Result<_, _>>()?;
+        Ok(SimulationLogger { runs })
+    }
+
+    fn run(&self, method: usize) -> Result<std::sync::MutexGuard<'_, RunLogger>, RecordingError> {
+        let run = self.runs.get(method).ok_or_else(|| {
+            RecordingError::Unexpected(format!(
+                "samples of method {method}, but there are {} methods",
+                self.runs.len()
+            ))
+        })?;
+        Ok(run.lock().unwrap_or_else(|p| p.into_inner()))
+    }
+
+    /// Logs the samples `offset..offset + n` of method `method`.
+    pub fn samples(
+        &self,
+        method: usize,
+        offset: u64,
+        columns: &Columns,
+    ) -> Result<(), RecordingError> {
+        self.run(method)?.samples(offset, columns)
+    }
+
+    /// Ends the run of method `method` (see [`RunLogger::finish`]).
+    pub fn finish(&self, method: usize, force_evaluations: u64) -> Result<(), RecordingError> {
+        self.run(method)?.finish(force_evaluations)
+    }
+}
+
+/// Logs one method's run as its samples come, chunk by chunk, each entity's new rows as columns
+/// (`send_columns`): the series, the phase points and the world's bodies at once; the paths
+/// whenever a path block (see [`path_blocks`]) is complete, keeping the samples since the last
+/// block's end until then; the rest of the path and the force evaluations when the run ends.
+#[derive(Debug)]
+pub struct RunLogger {
+    rec: RecordingStream,
+    /// The method's entity name.
+    entity: String,
+    invariants: Vec<(String, String)>,
+    phase_dofs: usize,
+    world: World,
+    /// Bodies drawn per sample.
+    per_row: usize,
+    every: u64,
+    steps: u64,
+    /// Samples per path block.
+    block: usize,
+    /// Samples logged so far.
+    logged: u64,
+    /// Step and time of the last sample logged.
+    last: Option<(i64, f64)>,
+    /// The phase path of each degree of freedom since the last path row, that row's last sample
+    /// first.
+    phase_path: Vec<Vec<[f32; 2]>>,
+    /// The bodies' positions since the last path row (`per_row` per sample), likewise.
+    world_path: Vec<[f32; 3]>,
+}
+
+impl RunLogger {
+    /// Logs the static styles of method `index` of `layout`, whose run is expected to have
+    /// `expected` samples.
+    pub fn start(
+        rec: &RecordingStream,
+        layout: &Layout,
+        index: usize,
+        schedule: &ScheduleSummary,
+        expected: usize,
+    ) -> Result<Self, RecordingError> {
+        let m = &layout.methods[index];
+        let label = layout.labels[index].as_str();
+        let rgb = method_color(index);
+        let series = SeriesLines::new()
+            .with_names([label])
+            .with_colors([color(rgb)])
+            .with_widths([1.5]);
+        rec.log_static(format!("/{m}/energy"), &series)?;
+        if layout.energy_error {
+            rec.log_static(format!("/{m}/energy_error"), &series)?;
+        }
+        for (_, part) in &layout.invariants {
+            rec.log_static(format!("/{m}/invariants/{part}"), &series)?;
+        }
+        rec.log_static(
+            format!("/{m}/force_evaluations"),
+            &SeriesPoints::new()
+                .with_names([label])
+                .with_colors([color(rgb)])
+                .with_marker_sizes([4.0]),
+        )?;
+        let line_radius = Radius::new_ui_points(0.75);
+        for dof in 0..layout.phase_dofs {
+            rec.log_static(
+                format!("/{m}/phase/{dof}/point"),
+                &Points2D::update_fields()
+                    .with_colors([color(rgb)])
+                    .with_radii([Radius::new_ui_points(3.0)]),
+            )?;
+            rec.log_static(
+                format!("/{m}/phase/{dof}/path"),
+                &LineStrips2D::update_fields()
+                    .with_colors([color(rgb)])
+                    .with_radii([line_radius]),
+            )?;
+        }
+        let mut points = Points3D::update_fields()
+            .with_colors([color(rgb)])
+            .with_radii([Radius::new_ui_points(5.0)])
+            .as_serialized_batches();
+        if layout.world.link().is_some() {
+            points.extend(
+                LineStrips3D::update_fields()
+                    .with_colors([color(rgb)])
+                    .with_radii([Radius::new_ui_points(1.5)])
+                    .as_serialized_batches(),
+            );
+        }
+        rec.log_serialized_batches(format!("/{m}/world/bodies"), true, points)?;
+        rec.log_static(
+            format!("/{m}/world/path"),
+            &LineStrips3D::update_fields()
+                .with_colors([color(rgb)])
+                .with_radii([line_radius]),
+        )?;
+        Ok(RunLogger {
+            rec: rec.clone(),
+            entity: m.clone(),
+            invariants: layout.invariants.clone(),
+            phase_dofs: layout.phase_dofs,
+            world: layout.world,
+            per_row: layout.world.bodies(layout.dof).max(1),
+            every: schedule.every,
+            steps: schedule.steps,
+            block: path_block_len(expected),
+            logged: 0,
+            last: None,
+            phase_path: vec![Vec::new(); layout.phase_dofs],
+            world_path: Vec::new(),
+        })
+    }
+
+    /// Logs the next samples of the run: `columns` holds samples `offset..offset + n`, and
+    /// `offset` must be the number of samples logged before.
+    pub fn samples(&mut self, offset: u64, c: &Columns) -> Result<(), RecordingError> {
+        let n = c.t.len();
+        if n == 0 {
+            return Ok(());
+        }
+        if offset != self.logged {
+            return Err(RecordingError::Unexpected(format!(
+                "samples of {} from {offset}, but {} were logged before",
+                self.entity, self.logged
+            )));
+        }
+        let m = &self.entity;
+        let steps: Vec<i64> = (offset..offset + n as u64)
+            .map(|i| sample_step(i, self.every, self.steps))
+            .collect();
+        let times = [
+            TimeColumn::new_sequence(STEP_TIMELINE, steps.iter().copied()),
+            TimeColumn::new_duration_secs(TIME_TIMELINE, c.t.iter().copied()),
+        ];
+        let rec = &self.rec;
+        send_scalars(rec, &format!("/{m}/energy"), &times, &c.energy)?;
+        if let Some(errors) = &c.energy_error {
+            send_scalars(rec, &format!("/{m}/energy_error"), &times, errors)?;
+        }
+        for (name, part) in &self.invariants {
+            if let Some(values) = c.invariants.get(name) {
+                send_scalars(rec, &format!("/{m}/invariants/{part}"), &times, values)?;
+            }
+        }
+
+        // Phase portraits: the current state.
+        let states: Vec<Vec<[f32; 2]>> = (0..self.phase_dofs)
+            .map(|dof| {
+                c.q.iter()
+                    .zip(&c.p)
+                    .map(|(q, p)| [q[dof] as f32, p[dof] as f32])
+                    .collect()
+            })
+            .collect();
+        for (dof, states) in states.iter().enumerate() {
+            rec.send_columns(
+                format!("/{m}/phase/{dof}/point"),
+                times.iter().cloned(),
+                Points2D::new(states.iter().copied()).columns_of_unit_batches()?,
+            )?;
+        }
+
+        // The world: the bodies, with the rod or spring to the origin.
+        let per_row = self.per_row;
+        let mut positions: Vec<[f32; 3]> = Vec::with_capacity(n * per_row);
+        for q in &c.q {
+            self.world.positions(q, &mut positions);
+        }
+        let mut columns: Vec<_> = Points3D::new(positions.iter().copied())
+            .columns(std::iter::repeat_n(per_row, n))?
+            .collect();
+        if self.world.link().is_some() {
+            let links = positions.iter().map(|&p| [[0.0, 0.0, 0.0], p]);
+            columns.extend(LineStrips3D::new(links).columns_of_unit_batches()?);
+        }
+        rec.send_columns(format!("/{m}/world/bodies"), times.iter().cloned(), columns)?;
+
+        // The paths: a row whenever a block ends (at sample 0, then every `block` samples).
+        let mut rows = PathRows::new(self.phase_dofs);
+        for k in 0..n {
+            for (path, states) in self.phase_path.iter_mut().zip(&states) {
+                path.push(states[k]);
+            }
+            let bodies = &positions[k * per_row..(k + 1) * per_row];
+            self.world_path.extend_from_slice(bodies);
+            if (offset as usize + k) % self.block == 0 {
+                self.cut(&mut rows, steps[k], c.t[k]);
+            }
+        }
+        self.send_paths(rows)?;
+        self.logged += n as u64;
+        self.last = Some((steps[n - 1], c.t[n - 1]));
+        Ok(())
+    }
+
+    /// Moves the path since the last row into a new row of `rows` at (`step`, `t`); the path
+    /// then starts over from its last sample.
+    fn cut(&mut self, rows: &mut PathRows, step: i64, t: f64) {
+        rows.steps.push(step);
+        rows.t.push(t);
+        for (path, strips) in self.phase_path.iter_mut().zip(&mut rows.phase) {
+            let last = path.last().copied();
+            strips.push(std::mem::replace(path, last.into_iter().collect()));
+        }
+        let per_row = self.per_row;
+        for body in 0..per_row {
+            rows.world.push(
+                self.world_path[body..]
+                    .iter()
+                    .step_by(per_row)
+                    .copied()
+                    .collect(),
+            );
+        }
+        let keep = self.world_path.len() - per_row;
+        self.world_path.drain(..keep);
+    }
+
+    fn send_paths(&self, rows: PathRows) -> Result<(), RecordingError> {
+        if rows.steps.is_empty() {
+            return Ok(());
+        }
+        let m = &self.entity;
+        let times = [
+            TimeColumn::new_sequence(STEP_TIMELINE, rows.steps.iter().copied()),
+            TimeColumn::new_duration_secs(TIME_TIMELINE, rows.t.iter().copied()),
+        ];
+        for (dof, strips) in rows.phase.iter().enumerate() {
+            self.rec.send_columns(
+                format!("/{m}/phase/{dof}/path"),
+                times.iter().cloned(),
+                LineStrips2D::new(strips.iter().map(|s| s.iter().copied()))
+                    .columns_of_unit_batches()?,
+            )?;
+        }
+        let count = rows.steps.len();
+        self.rec.send_columns(
+            format!("/{m}/world/path"),
+            times.iter().cloned(),
+            LineStrips3D::new(rows.world.iter().map(|s| s.iter().copied()))
+                .columns(std::iter::repeat_n(self.per_row, count))?,
+        )?;
+        Ok(())
+    }
+
+    /// Ends the run: logs the rest of the paths (the samples after the last block's end) and
+    /// the number of force evaluations, once, at the last sample (step 0 when there is none).
+    pub fn finish(&mut self, force_evaluations: u64) -> Result<(), RecordingError> {
+        let (step, t) = self.last.unwrap_or((0, 0.0));
+        // The path holds the last row's end and the samples since; only these need a row.
+        if self.world_path.len() > self.per_row {
+            let mut rows = PathRows::new(self.phase_dofs);
+            self.cut(&mut rows, step, t);
+            self.send_paths(rows)?;
+        }
+        self.rec.send_columns(
+            format!("/{}/force_evaluations", self.entity),
+            [
+                TimeColumn::new_sequence(STEP_TIMELINE, [step]),
+                TimeColumn::new_duration_secs(TIME_TIMELINE, [t]),
+            ],
+            Scalars::new([force_evaluations as f64]).columns_of_unit_batches()?,
+        )?;
+        Ok(())
+    }
+}
+
+/// Path rows being assembled: their times, each degree of freedom's phase strips and the
+/// bodies' world strips (`per_row` per row).
+struct PathRows {
+    steps: Vec<i64>,
+    t: Vec<f64>,
+    phase: Vec<Vec<Vec<[f32; 2]>>>,
+    world: Vec<Vec<[f32; 3]>>,
+}
+
+impl PathRows {
+    fn new(phase_dofs: usize) -> Self {
+        PathRows {
+            steps: Vec::new(),
+            t: Vec::new(),
+            phase: vec![Vec::new(); phase_dofs],
+            world: Vec::new(),
+        }
+    }
+}
+
+/// Sends one scalar series: `values[k]` at the k-th time of `times`.
+fn send_scalars(
     rec: &RecordingStream,
     path: &str,
     times: &[TimeColumn; 2],
     values: &[f64],
-    label: &str,
-    rgb: [u8; 3],
 ) -> Result<(), RecordingError> {
-    rec.log_static(
-        path,
-        &SeriesLines::new()
-            .with_names([label])
-            .with_colors([color(rgb)])
-            .with_widths([1.5]),
-    )?;
     rec.send_columns(
         path,
         times.iter().cloned(),
         Scalars::new(values.iter().copied()).columns_of_unit_batches()?,
-    )?;
-    Ok(())
-}
-
-fn log_run(
-    rec: &RecordingStream,
-    doc: &SimulationDocument,
-    layout: &Layout,
-    index: usize,
-    run: &RunDocument,
-) -> Result<(), RecordingError> {
-    let m = &layout.methods[index];
-    let label = &layout.labels[index];
-    let rgb = method_color(index);
-    let c = &run.columns;
-    let n = c.t.len();
-    let steps = sample_steps(n, doc.schedule.every, doc.schedule.steps);
-    let times = [
-        TimeColumn::new_sequence(STEP_TIMELINE, steps.iter().copied()),
-        TimeColumn::new_duration_secs(TIME_TIMELINE, c.t.iter().copied()),
-    ];
-
-    send_series(rec, &format!("/{m}/energy"), &times, &c.energy, label, rgb)?;
-    if let Some(errors) = &c.energy_error {
-        send_series(
-            rec,
-            &format!("/{m}/energy_error"),
-            &times,
-            errors,
-            label,
-            rgb,
-        )?;
-    }
-    for (name, part) in &layout.invariants {
-        if let Some(values) = c.invariants.get(name) {
-            let path = format!("/{m}/invariants/{part}");
-            send_series(rec, &path, &times, values, label, rgb)?;
-        }
-    }
-
-    // The number of force evaluations, once, where the run ended.
-    let path = format!("/{m}/force_evaluations");
-    rec.log_static(
-        path.as_str(),
-        &SeriesPoints::new()
-            .with_names([label.as_str()])
-            .with_colors([color(rgb)])
-            .with_marker_sizes([4.0]),
-    )?;
-    let last_step = steps.last().copied().unwrap_or(0);
-    let last_t = c.t.last().copied().unwrap_or(0.0);
-    rec.send_columns(
-        path.as_str(),
-        [
-            TimeColumn::new_sequence(STEP_TIMELINE, [last_step]),
-            TimeColumn::new_duration_secs(TIME_TIMELINE, [last_t]),
-        ],
-        Scalars::new([run.stats.force_evaluations as f64]).columns_of_unit_batches()?,
-    )?;
-
-    // Phase portraits: the current state, and the path in blocks of `block` samples.
-    let blocks = path_blocks(n);
-    let block_times = [
-        TimeColumn::new_sequence(STEP_TIMELINE, blocks.iter().map(|b| steps[b.end])),
-        TimeColumn::new_duration_secs(TIME_TIMELINE, blocks.iter().map(|b| c.t[b.end])),
-    ];
-    let line_radius = Radius::new_ui_points(0.75);
-    for dof in 0..layout.phase_dofs {
-        let states: Vec<[f32; 2]> =
-            c.q.iter()
-                .zip(&c.p)
-                .map(|(q, p)| [q[dof] as f32, p[dof] as f32])
-                .collect();
-        let point = format!("/{m}/phase/{dof}/point");
-        rec.log_static(
-            point.as_str(),
-            &Points2D::update_fields()
-                .with_colors([color(rgb)])
-                .with_radii([Radius::new_ui_points(3.0)]),
-        )?;
-        rec.send_columns(
-            point.as_str(),
-            times.iter().cloned(),
-            Points2D::new(states.iter().copied()).columns_of_unit_batches()?,
-        )?;
-        let path = format!("/{m}/phase/{dof}/path");
-        rec.log_static(
-            path.as_str(),
-            &LineStrips2D::update_fields()
-                .with_colors([color(rgb)])
-                .with_radii([line_radius]),
-        )?;
-        let strips = blocks.iter().map(|b| &states[b.start..=b.end]);
-        rec.send_columns(
-            path.as_str(),
-            block_times.iter().cloned(),
-            LineStrips2D::new(strips.map(|s| s.iter().copied())).columns_of_unit_batches()?,
-        )?;
-    }
-
-    // The world: the bodies (with the rod or spring to the origin) and their paths.
-    let dof = doc.system.q0.len();
-    let per_row = layout.world.bodies(dof).max(1);
-    let mut positions: Vec<[f32; 3]> = Vec::with_capacity(n * per_row);
-    for q in &c.q {
-        layout.world.positions(q, &mut positions);
-    }
-    let path = format!("/{m}/world/bodies");
-    let mut points = Points3D::update_fields()
-        .with_colors([color(rgb)])
-        .with_radii([Radius::new_ui_points(5.0)])
-        .as_serialized_batches();
-    let has_link = layout.world.link().is_some();
-    if has_link {
-        points.extend(
-            LineStrips3D::update_fields()
-                .with_colors([color(rgb)])
-                .with_radii([Radius::new_ui_points(1.5)])
-                .as_serialized_batches(),
-        );
-    }
-    rec.log_serialized_batches(path.as_str(), true, points)?;
-    let mut columns: Vec<_> = Points3D::new(positions.iter().copied())
-        .columns(std::iter::repeat_n(per_row, n))?
-        .collect();
-    if has_link {
-        let links = positions.iter().map(|&p| [[0.0, 0.0, 0.0], p]);
-        columns.extend(LineStrips3D::new(links).columns_of_unit_batches()?);
-    }
-    rec.send_columns(path.as_str(), times.iter().cloned(), columns)?;
-
-    let path = format!("/{m}/world/path");
-    rec.log_static(
-        path.as_str(),
-        &LineStrips3D::update_fields()
-            .with_colors([color(rgb)])
-            .with_radii([line_radius]),
-    )?;
-    let positions = &positions;
-    let strips = blocks.iter().flat_map(|b| {
-        (0..per_row).map(move |body| (b.start..=b.end).map(move |k| positions[k * per_row + body]))
-    });
-    rec.send_columns(
-        path.as_str(),
-        block_times.iter().cloned(),
-        LineStrips3D::new(strips).columns(std::iter::repeat_n(per_row, blocks.len()))?,
     )?;
     Ok(())
 }
@@ -375,6 +598,11 @@ pub struct PathBlock {
     pub end: usize,
 }
 
+/// Samples per path row of a run of `n` samples: ⌈(n − 1)/[`MAX_PATH_ROWS`]⌉, at least 1.
+pub fn path_block_len(n: usize) -> usize {
+    n.saturating_sub(1).div_ceil(MAX_PATH_ROWS).max(1)
+}
+
 /// How the path of a run of `n` samples is cut into rows: the first row holds sample 0 alone,
 /// then each row continues the path by up to ⌈(n − 1)/[`MAX_PATH_ROWS`]⌉ samples (one sample
 /// per row for runs of up to about 1000 samples), so at most about [`MAX_PATH_ROWS`] + 1 rows.
@@ -382,7 +610,7 @@ pub fn path_blocks(n: usize) -> Vec<PathBlock> {
     if n == 0 {
         return Vec::new();
     }
-    let block = (n - 1).div_ceil(MAX_PATH_ROWS).max(1);
+    let block = path_block_len(n);
     let mut blocks = vec![PathBlock { start: 0, end: 0 }];
     let mut start = 0;
     while start + 1 < n {
@@ -451,13 +679,16 @@ fn blueprint_tree(layout: &Layout) -> Node {
     Node::container(ContainerKind::Horizontal, vec![left, right])
 }
 
-/// Sends the default blueprint for `doc` through `rec` (as Rerun's own SDKs do: a blueprint
+/// Sends the default blueprint for `layout` through `rec` (as Rerun's own SDKs do: a blueprint
 /// store logged in full, then an activation command making it the active and default one).
-pub fn send_blueprint(
-    rec: &RecordingStream,
-    doc: &SimulationDocument,
-) -> Result<(), RecordingError> {
-    blueprint::send(rec, &blueprint_tree(&Layout::of(doc)))
+pub fn send_blueprint(rec: &RecordingStream, layout: &Layout) -> Result<(), RecordingError> {
+    blueprint::send(rec, &blueprint_tree(layout))
+}
+
+/// The recording name of a simulation: the system and the method labels.
+pub fn recording_name<S: AsRef<str>>(system: &str, labels: &[S]) -> String {
+    let methods: Vec<&str> = labels.iter().map(|l| l.as_ref()).collect();
+    format!("{system}: {}", methods.join(", "))
 }
 
 /// Writes the `.rrd` file of a simulation to `writer`: the spec, every run of `doc`, and the
@@ -467,11 +698,10 @@ pub fn write_rrd<W: Write + Send + 'static>(
     spec: &SimulateRequest,
     doc: &SimulationDocument,
 ) -> Result<W, RecordingError> {
-    let methods: Vec<&str> = doc.runs.iter().map(|r| r.method.as_str()).collect();
-    let name = format!("{}: {}", doc.system.id, methods.join(", "));
-    encode::write(writer, name, |rec| {
+    let labels: Vec<&str> = doc.runs.iter().map(|r| r.method.as_str()).collect();
+    encode::write(writer, recording_name(&doc.system.id, &labels), |rec| {
         log_simulation(rec, spec, doc)?;
-        send_blueprint(rec, doc)
+        send_blueprint(rec, &Layout::of(doc))
     })
 }
 
@@ -481,29 +711,6 @@ pub fn rrd_bytes(
     doc: &SimulationDocument,
 ) -> Result<Vec<u8>, RecordingError> {
     write_rrd(Vec::new(), spec, doc)
-}
-
-/// Streams a simulation to a running Rerun viewer at `url` (for example
-/// `rerun+http://127.0.0.1:9876/proxy`): the spec, the runs and the blueprint, then waits until
-/// everything is sent.
-pub fn stream_to_viewer(
-    url: &str,
-    spec: &SimulateRequest,
-    doc: &SimulationDocument,
-) -> Result<(), RecordingError> {
-    let rec = RecordingStreamBuilder::new(APPLICATION_ID)
-        .enabled(true)
-        .connect_grpc_opts(url.to_string())?;
-    send_blueprint(&rec, doc)?;
-    log_simulation(&rec, spec, doc)?;
-    rec.flush_with_timeout(Duration::from_secs(30))
-        .map_err(|e| RecordingError::Sink(e.to_string()))?;
-    Ok(())
-}
-
-/// The viewer URL for `host:port`: Rerun 0.33's gRPC proxy address form.
-pub fn viewer_url(addr: &str) -> String {
-    format!("rerun+http://{addr}/proxy")
 }
 
 #[cfg(test)]
