@@ -15,9 +15,8 @@ use rerun::external::re_sdk_types::datatypes::TensorBuffer;
 use rerun::{SegmentationImage, Tensor};
 
 use geomint::http::Config;
-use geomint::output::request::parse_json;
 use serde_json::{json, Value};
-use server::{client, start, Server};
+use server::{client, post_json as post, start, Server};
 
 const MAP: &str = "/api/v1/stability";
 const POINT: &str = "/api/v1/stability/point";
@@ -28,21 +27,6 @@ fn config() -> Config {
         request_timeout: Duration::from_secs(15),
         ..Config::default()
     }
-}
-
-/// Posts `body` to `path`; returns the status and the answer, read with correctly rounded
-/// floats so that numbers compare bit for bit.
-async fn post(server: &Server, path: &str, body: &Value) -> (u16, Value) {
-    let response = client()
-        .post(server.url(path))
-        .json(body)
-        .send()
-        .await
-        .unwrap();
-    let status = response.status().as_u16();
-    assert_eq!(response.headers()["content-type"], "application/json");
-    let bytes = response.bytes().await.unwrap();
-    (status, parse_json(&bytes).expect("the answer is JSON"))
 }
 
 /// Posts raw bytes and returns (status, error object), checking the error shape.

@@ -11,9 +11,8 @@ use decoded::Decoded;
 use geomint::core::system::{MechanicalSystem, State};
 use geomint::core::systems::HarmonicOscillator;
 use geomint::http::Config;
-use geomint::output::request::parse_json;
 use serde_json::{json, Value};
-use server::{client, start, Server};
+use server::{client, post_json as post, start};
 
 const STUDY: &str = "/api/v1/studies/work-precision";
 
@@ -22,20 +21,6 @@ fn config() -> Config {
         request_timeout: Duration::from_secs(30),
         ..Config::default()
     }
-}
-
-/// Posts `body` to `path` (with `query`); returns the status and the JSON answer, read with
-/// correctly rounded floats.
-async fn post(server: &Server, path: &str, body: &Value) -> (u16, Value) {
-    let response = client()
-        .post(server.url(path))
-        .json(body)
-        .send()
-        .await
-        .unwrap();
-    let status = response.status().as_u16();
-    let bytes = response.bytes().await.unwrap();
-    (status, parse_json(&bytes).expect("a JSON answer"))
 }
 
 fn points_of(doc: &Value) -> &Vec<Value> {

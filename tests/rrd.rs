@@ -71,26 +71,10 @@ fn pendulum_recording_has_the_layout_and_the_json_energies() {
     assert_eq!(d.blueprint_stores.len(), 1);
     assert_eq!(d.activations, 1);
 
-    let mut expected: BTreeSet<String> = ["/", "/spec"].map(String::from).into();
-    for m in ["modin_3s", "modin_rks_rk4"] {
-        for e in [
-            "energy",
-            "force_evaluations",
-            "phase/0/point",
-            "phase/0/path",
-            "world/bodies",
-            "world/path",
-        ] {
-            expected.insert(format!("/{m}/{e}"));
-        }
-    }
-    let entities: BTreeSet<String> = d
-        .chunks
-        .keys()
-        .filter(|p| !p.starts_with("/__"))
-        .cloned()
-        .collect();
-    assert_eq!(entities, expected);
+    assert_eq!(
+        d.entity_paths(),
+        decoded::simulation_entities(&["modin_3s", "modin_rks_rk4"])
+    );
 
     // 200/0.1 = 2000 steps sampled every 10: 201 samples per method, 201 path rows (the first
     // sample alone, then one segment per sample).

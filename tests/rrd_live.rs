@@ -243,26 +243,7 @@ fn run_streams_live_to_a_rerun_viewer() {
         BTreeSet::from([APPLICATION_ID.to_string()])
     );
     assert_eq!(d.recording_stores.len(), 1);
-    let mut expected: BTreeSet<String> = ["/", "/spec"].map(String::from).into();
-    for m in methods {
-        for e in [
-            "energy",
-            "force_evaluations",
-            "phase/0/point",
-            "phase/0/path",
-            "world/bodies",
-            "world/path",
-        ] {
-            expected.insert(format!("/{m}/{e}"));
-        }
-    }
-    let entities: BTreeSet<String> = d
-        .chunks
-        .keys()
-        .filter(|p| !p.starts_with("/__"))
-        .cloned()
-        .collect();
-    assert_eq!(entities, expected);
+    assert_eq!(d.entity_paths(), decoded::simulation_entities(&methods));
 
     let steps = sample_steps(samples, schedule.every, schedule.steps);
     let mut chunk_counts = Vec::new();

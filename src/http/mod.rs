@@ -17,6 +17,7 @@
 //! Every error answers `{"error": {"code", "message", "field"}}` ([`ApiError`]), including those
 //! of the middleware (body limit 413, time limit 504) and unknown routes (404, 405).
 
+pub mod answer;
 pub mod error;
 pub mod extract;
 pub mod handlers;
@@ -134,7 +135,7 @@ pub fn app(state: AppState) -> Router {
     // compressed already.
     let compression = CompressionLayer::new().compress_when(
         DefaultPredicate::new()
-            .and(NotForContentType::const_new(simulate::NDJSON))
+            .and(NotForContentType::const_new(answer::NDJSON))
             .and(NotForContentType::const_new(
                 crate::output::recording::RRD_MEDIA_TYPE,
             )),

@@ -24,35 +24,21 @@ use tokio::sync::{mpsc, oneshot};
 use tokio_stream::wrappers::ReceiverStream;
 use tracing::Instrument;
 
+use super::answer::{Format, NDJSON};
 use super::error::ApiError;
 use super::extract::ApiJson;
 use super::paths;
-use super::recordings::{rrd_response, RrdFile};
+use super::recordings::RrdFile;
 use super::state::{cancel_on_shutdown, run_blocking, AppState, CancelOnDrop};
 use crate::core::run::Budget;
 use crate::output::document::{self, SimulationDocument};
-use crate::output::error::{codes, ErrorBody, ErrorDetail};
+use crate::output::error::ErrorBody;
 use crate::output::recording;
 use crate::output::request::SimulateRequest;
 use crate::output::stream::{self, ndjson_line, StreamError, StreamLine};
 
 /// How long past the time limit a stream waits for a client that does not read.
 const STALLED_CLIENT_GRACE: std::time::Duration = std::time::Duration::from_secs(10);
-
-/// The media type of simulation streams.
-pub const NDJSON: &str = "application/x-ndjson";
-
-/// Whether the client asks for a stream.
-pub(crate) fn wants_stream(headers: &HeaderMap) -> bool {
-    headers.get_all(header::ACCEPT).iter().any(|v| {
-        v.to_str()
-            .map(|s| {
-                let s = s.to_ascii_lowercase();
-                s.contains(NDJSON) || s.contains("application/ndjson")
-            })
-            .unwrap_or(false)
-    })
-}
 
 /// Runs a simulation: the system with its parameters and initial state, one or more methods in
 /// parallel, sampled every `output.every` steps.
@@ -89,22 +75,10 @@ pub async fn simulate(
     Query(query): Query<BTreeMap<String, String>>,
     ApiJson(body): ApiJson<Value>,
 ) -> Result<Response, ApiError> {
-    let format = match query.get("format").map(String::as_str) {
-        None | Some("json") => None,
-        Some("ndjson") => Some(false),
-        Some("rrd") => Some(true),
-        Some(other) => {
-            return Err(ApiError::from(ErrorDetail::at(
-                codes::INVALID_VALUE,
-                "format",
-                format!("unknown format `{other}`; one of json, ndjson, rrd"),
-            )))
-        }
-    };
+    let format = Format::requested(&query, &headers, true)?;
     let request = SimulateRequest::from_value(&body)?;
     let sim = request.prepare(&state.config.limits)?;
-    let rrd = format == Some(true);
-    let streaming = format == Some(false) || (format.is_none() && wants_stream(&headers));
+    let streaming = format == Format::Ndjson;
     let permits = state.acquire(sim.methods.len()).await?;
     let workers = permits.len();
     let deadline = Instant::now() + state.config.request_timeout;
@@ -134,25 +108,11 @@ pub async fn simulate(
             deadline: Some(deadline),
         };
         let doc: SimulationDocument = document::simulate(&sim, workers, budget)?;
-        if rrd {
-            recording::rrd_bytes(&request, &doc).map_err(ApiError::internal)
-        } else {
-            serde_json::to_vec(&doc).map_err(ApiError::internal)
-        }
+        format.encode(&doc, |d| recording::rrd_bytes(&request, d))
     })
     .await;
     shutdown.abort();
-    let bytes = result??;
-    if rrd {
-        let length = bytes.len() as u64;
-        return Ok(rrd_response(Body::from(bytes), "geomint.rrd", Some(length)));
-    }
-    let mut response = Response::new(Body::from(bytes));
-    response.headers_mut().insert(
-        header::CONTENT_TYPE,
-        HeaderValue::from_static("application/json"),
-    );
-    Ok(response)
+    Ok(format.respond(result??, "geomint.rrd"))
 }
 
 /// Starts the computation in the background and answers with its NDJSON stream.

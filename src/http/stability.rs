@@ -19,20 +19,20 @@ use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::Instant;
 
-use axum::body::Body;
 use axum::extract::{Query, State};
-use axum::http::{header, HeaderValue};
+use axum::http::HeaderMap;
 use axum::response::Response;
 use axum::Json;
 use serde_json::Value;
 
+use super::answer::Format;
 use super::error::ApiError;
 use super::extract::ApiJson;
 use super::paths;
-use super::recordings::{rrd_response, RrdFile};
+use super::recordings::RrdFile;
 use super::state::{cancel_on_shutdown, run_blocking, AppState, CancelOnDrop};
 use crate::core::run::Budget;
-use crate::output::error::{codes, ErrorBody, ErrorDetail};
+use crate::output::error::ErrorBody;
 use crate::output::recording;
 use crate::output::stability::{
     self, PointDocument, PointRequest, StabilityDocument, StabilityRequest,
@@ -73,17 +73,7 @@ pub async fn stability_map(
     Query(query): Query<BTreeMap<String, String>>,
     ApiJson(body): ApiJson<Value>,
 ) -> Result<Response, ApiError> {
-    let rrd = match query.get("format").map(String::as_str) {
-        None | Some("json") => false,
-        Some("rrd") => true,
-        Some(other) => {
-            return Err(ApiError::from(ErrorDetail::at(
-                codes::INVALID_VALUE,
-                "format",
-                format!("unknown format `{other}`; one of json, rrd"),
-            )))
-        }
-    };
+    let format = Format::requested(&query, &HeaderMap::new(), false)?;
     let request = StabilityRequest::from_value(&body)?;
     let job = request.prepare()?;
     let permits = state.acquire(state.config.max_concurrent).await?;
@@ -106,29 +96,11 @@ pub async fn stability_map(
             deadline: Some(deadline),
         };
         let doc: StabilityDocument = stability::maps(&job, budget)?;
-        if rrd {
-            recording::stability::rrd_bytes(&request, &doc).map_err(ApiError::internal)
-        } else {
-            serde_json::to_vec(&doc).map_err(ApiError::internal)
-        }
+        format.encode(&doc, |d| recording::stability::rrd_bytes(&request, d))
     })
     .await;
     shutdown.abort();
-    let bytes = result??;
-    if rrd {
-        let length = bytes.len() as u64;
-        return Ok(rrd_response(
-            Body::from(bytes),
-            "geomint-stability.rrd",
-            Some(length),
-        ));
-    }
-    let mut response = Response::new(Body::from(bytes));
-    response.headers_mut().insert(
-        header::CONTENT_TYPE,
-        HeaderValue::from_static("application/json"),
-    );
-    Ok(response)
+    Ok(format.respond(result??, "geomint-stability.rrd"))
 }
 
 /// The stability analysis of one method at one (ω, γ, h).

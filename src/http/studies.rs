@@ -23,14 +23,14 @@ use serde_json::Value;
 use tokio::sync::mpsc;
 use tokio_stream::wrappers::ReceiverStream;
 
+use super::answer::{Format, NDJSON};
 use super::error::ApiError;
 use super::extract::ApiJson;
 use super::paths;
-use super::recordings::{rrd_response, RrdFile};
-use super::simulate::{wants_stream, NDJSON};
+use super::recordings::RrdFile;
 use super::state::{cancel_on_shutdown, run_blocking, AppState, CancelOnDrop};
 use crate::core::run::Budget;
-use crate::output::error::{codes, ErrorBody, ErrorDetail};
+use crate::output::error::ErrorBody;
 use crate::output::recording;
 use crate::output::work_precision::{self, StudyLine, WorkPrecisionDocument, WorkPrecisionRequest};
 
@@ -72,20 +72,8 @@ pub async fn work_precision(
     Query(query): Query<BTreeMap<String, String>>,
     ApiJson(body): ApiJson<Value>,
 ) -> Result<Response, ApiError> {
-    let format = query.get("format").map(String::as_str);
-    let (streaming, rrd) = match format {
-        None => (wants_stream(&headers), false),
-        Some("json") => (false, false),
-        Some("ndjson") => (true, false),
-        Some("rrd") => (false, true),
-        Some(other) => {
-            return Err(ApiError::from(ErrorDetail::at(
-                codes::INVALID_VALUE,
-                "format",
-                format!("unknown format `{other}`; one of json, ndjson, rrd"),
-            )))
-        }
-    };
+    let format = Format::requested(&query, &headers, true)?;
+    let streaming = format == Format::Ndjson;
     let request = WorkPrecisionRequest::from_value(&body)?;
     let job = request.prepare(&state.config.limits)?;
     let permits = state.acquire(1).await?;
@@ -151,27 +139,9 @@ pub async fn work_precision(
             deadline: Some(deadline),
         };
         let doc = work_precision::run(&job, budget, &|_| true)?;
-        if rrd {
-            recording::work_precision::rrd_bytes(&request, &doc).map_err(ApiError::internal)
-        } else {
-            serde_json::to_vec(&doc).map_err(ApiError::internal)
-        }
+        format.encode(&doc, |d| recording::work_precision::rrd_bytes(&request, d))
     })
     .await;
     shutdown.abort();
-    let bytes = result??;
-    if rrd {
-        let length = bytes.len() as u64;
-        return Ok(rrd_response(
-            Body::from(bytes),
-            "geomint-work-precision.rrd",
-            Some(length),
-        ));
-    }
-    let mut response = Response::new(Body::from(bytes));
-    response.headers_mut().insert(
-        header::CONTENT_TYPE,
-        HeaderValue::from_static("application/json"),
-    );
-    Ok(response)
+    Ok(format.respond(result??, "geomint-work-precision.rrd"))
 }

@@ -111,4 +111,32 @@ impl Decoded {
             .unwrap_or_else(|| panic!("{path} has a static {component}"))
             .expect("the batch decodes")
     }
+
+    /// The recording's entity paths, without Rerun's own (`/__properties`).
+    pub fn entity_paths(&self) -> BTreeSet<String> {
+        self.chunks
+            .keys()
+            .filter(|p| !p.starts_with("/__"))
+            .cloned()
+            .collect()
+    }
+}
+
+/// The entities of a one-degree-of-freedom simulation recording: `/`, `/spec` and, per method
+/// entity name, its energy, force evaluations, phase portrait and world.
+pub fn simulation_entities<S: AsRef<str>>(methods: &[S]) -> BTreeSet<String> {
+    let mut expected: BTreeSet<String> = ["/", "/spec"].map(String::from).into();
+    for m in methods {
+        for e in [
+            "energy",
+            "force_evaluations",
+            "phase/0/point",
+            "phase/0/path",
+            "world/bodies",
+            "world/path",
+        ] {
+            expected.insert(format!("/{}/{e}", m.as_ref()));
+        }
+    }
+    expected
 }

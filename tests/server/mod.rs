@@ -40,3 +40,23 @@ pub async fn start(config: Config) -> Server {
 pub fn client() -> reqwest::Client {
     reqwest::Client::builder().no_proxy().build().unwrap()
 }
+
+/// Posts `body` as JSON to `path`; returns the status and the JSON answer, read with correctly
+/// rounded floats so that numbers compare bit for bit.
+pub async fn post_json(
+    server: &Server,
+    path: &str,
+    body: &serde_json::Value,
+) -> (u16, serde_json::Value) {
+    let response = client()
+        .post(server.url(path))
+        .json(body)
+        .send()
+        .await
+        .unwrap();
+    let status = response.status().as_u16();
+    assert_eq!(response.headers()["content-type"], "application/json");
+    let bytes = response.bytes().await.unwrap();
+    let answer = geomint::output::request::parse_json(&bytes).expect("a JSON answer");
+    (status, answer)
+}
