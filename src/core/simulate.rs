@@ -39,6 +39,11 @@ pub struct Request {
     pub system: String,
     /// System parameters.
     pub params: Params,
+    /// Coordinate chart (default: the system's first, Cartesian one).
+    pub chart: Option<String>,
+    /// Whether `q0`/`p0` are given in Cartesian coordinates (transformed into the chart) rather
+    /// than in the chart's own.
+    pub initial_cartesian: bool,
     /// Methods to run.
     pub methods: Vec<MethodInput>,
     /// Step size.
@@ -64,6 +69,10 @@ pub struct Simulation {
     pub system_id: String,
     /// All parameters, defaults filled in.
     pub params: Resolved,
+    /// The coordinate chart.
+    pub chart: String,
+    /// The system (and chart, when not the default) as errors name it.
+    pub system_label: String,
     /// The concrete system.
     pub system: AnySystem,
     /// Validated methods, in the order asked.
@@ -91,6 +100,8 @@ pub struct Sample<'a> {
     pub q: &'a [f64],
     /// Momenta.
     pub p: &'a [f64],
+    /// The state in Cartesian coordinates (positions, momenta) when the chart is not.
+    pub cartesian: Option<(&'a [f64], &'a [f64])>,
     /// Total energy H.
     pub energy: f64,
     /// H − H_exact (exact solution or reference), when known.
@@ -139,8 +150,21 @@ impl Simulation {
     /// Validates a request against the catalogues and the limits.
     pub fn prepare(req: &Request, limits: &Limits) -> Result<Simulation, CoreError> {
         let info = systems::info(&req.system)?;
+        let chart = systems::chart_of(&info, req.chart.as_deref())?;
         let params = systems::resolve(&info, &req.params)?;
-        let system = systems::build(&req.system, &params)?;
+        if !(req.h.is_finite() && req.h > 0.0) {
+            return Err(CoreError::invalid(
+                "h",
+                format!("must be finite and > 0, got {}", req.h),
+            ));
+        }
+        let system = systems::build(&req.system, chart.id, &params, req.h)?;
+        let default_chart = chart.id == info.charts[0].id;
+        let system_label = if default_chart {
+            req.system.clone()
+        } else {
+            format!("{} ({} chart)", req.system, chart.id)
+        };
         let n = system.dimension();
         // For N bodies the default state belongs to the default masses.
         let default_fits = n == info.q0.len();
@@ -155,13 +179,26 @@ impl Simulation {
                 format!("give q0 and p0 ({n} entries each) for a non-default number of bodies"),
             ));
         }
-        let q0 = field_vec("q0", &req.q0, &dq, n)?;
-        let p0 = field_vec("p0", &req.p0, &dp, n)?;
-        if !(req.h.is_finite() && req.h > 0.0) {
-            return Err(CoreError::invalid(
-                "h",
-                format!("must be finite and > 0, got {}", req.h),
-            ));
+        let mut q0 = field_vec("q0", &req.q0, &dq, n)?;
+        let mut p0 = field_vec("p0", &req.p0, &dp, n)?;
+        // The catalogue's defaults are Cartesian; so are given values when asked.
+        let given = req.q0.is_some() || req.p0.is_some();
+        if !default_chart && (req.initial_cartesian || !given) {
+            let field = if given { "q0" } else { "chart" };
+            (q0, p0) = with_system!(&system, s => {
+                let mut z = State::from_slices(s.dim(), &q0, &p0);
+                s.from_cartesian(&q0, &p0, &mut z.q, &mut z.p)
+                    .map(|()| (z.q.as_slice().to_vec(), z.p.as_slice().to_vec()))
+            })
+            .map_err(|why| {
+                CoreError::invalid(
+                    field,
+                    format!(
+                        "the initial state is outside the `{}` chart: {why}",
+                        chart.id
+                    ),
+                )
+            })?;
         }
         if !(req.t_end.is_finite() && req.t_end > 0.0) {
             return Err(CoreError::invalid(
@@ -212,7 +249,7 @@ impl Simulation {
         for (i, input) in req.methods.iter().enumerate() {
             let choice = MethodChoice::parse(input, &format!("methods[{i}]"))?;
             // Building checks requirements and step-size limits; the stepper itself is dropped.
-            with_system!(&system, s => methods::build(&choice, s, &req.system, req.h).map(|_| ()))?;
+            with_system!(&system, s => methods::build(&choice, s, &system_label, req.h).map(|_| ()))?;
             if req.jacobian_defect && choice.id == methods::MethodId::Reference {
                 return Err(CoreError::invalid(
                     format!("methods[{i}]"),
@@ -233,6 +270,8 @@ impl Simulation {
         Ok(Simulation {
             system_id: req.system.clone(),
             params,
+            chart: chart.id.to_string(),
+            system_label,
             system,
             methods,
             q0,
@@ -304,7 +343,7 @@ impl Simulation {
         sink: &mut dyn SampleSink,
     ) -> Result<Outcome, CoreError> {
         with_system!(&self.system, sys => {
-            let mut stepper = methods::build(choice, sys, &self.system_id, self.schedule.h)?;
+            let mut stepper = methods::build(choice, sys, &self.system_label, self.schedule.h)?;
             let start = State::from_slices(sys.dim(), &self.q0, &self.p0);
             let mut z = start.clone();
             let mut observer = Diagnose {
@@ -313,6 +352,7 @@ impl Simulation {
                 reference,
                 sink,
                 invariants: vec![0.0; sys.invariant_names().len()],
+                cartesian: (!sys.is_cartesian()).then(|| (vec![0.0; self.q0.len()], vec![0.0; self.q0.len()])),
                 expected_det: (-sys.damping_rate() * self.schedule.h * self.q0.len() as f64).exp(),
                 last_det: None,
                 sample_index: 0,
@@ -351,6 +391,8 @@ where
     reference: Option<&'a [f64]>,
     sink: &'a mut dyn SampleSink,
     invariants: Vec<f64>,
+    /// Buffers for the Cartesian state, when the chart is not Cartesian.
+    cartesian: Option<(Vec<f64>, Vec<f64>)>,
     expected_det: f64,
     last_det: Option<f64>,
     sample_index: usize,
@@ -370,11 +412,18 @@ where
                 .map(|x| energy - self.sys.energy(&x.q, &x.p)),
         };
         self.sys.invariants(t, &z.q, &z.p, &mut self.invariants);
+        if let Some((x, px)) = self.cartesian.as_mut() {
+            self.sys.to_cartesian(&z.q, &z.p, x, px);
+        }
         self.sink.on_sample(&Sample {
             step,
             t,
             q: z.q.as_slice(),
             p: z.p.as_slice(),
+            cartesian: self
+                .cartesian
+                .as_ref()
+                .map(|(x, px)| (x.as_slice(), px.as_slice())),
             energy,
             energy_error,
             invariants: &self.invariants,
@@ -397,6 +446,12 @@ pub struct Trajectory {
     pub q: Vec<Vec<f64>>,
     /// Momenta per sample.
     pub p: Vec<Vec<f64>>,
+    /// Cartesian positions per sample, when the chart is not Cartesian.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cartesian_q: Option<Vec<Vec<f64>>>,
+    /// Cartesian momenta per sample, when the chart is not Cartesian.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cartesian_p: Option<Vec<Vec<f64>>>,
     /// Energy per sample.
     pub energy: Vec<f64>,
     /// Energy error per sample, when known.
@@ -414,6 +469,14 @@ impl SampleSink for Trajectory {
         self.t.push(s.t);
         self.q.push(s.q.to_vec());
         self.p.push(s.p.to_vec());
+        if let Some((x, px)) = s.cartesian {
+            self.cartesian_q
+                .get_or_insert_with(Vec::new)
+                .push(x.to_vec());
+            self.cartesian_p
+                .get_or_insert_with(Vec::new)
+                .push(px.to_vec());
+        }
         self.energy.push(s.energy);
         if let Some(e) = s.energy_error {
             self.energy_error.get_or_insert_with(Vec::new).push(e);

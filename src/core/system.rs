@@ -148,6 +148,80 @@ where
         2 * n as u64
     }
 
+    /// The second derivatives of H at (q, p): `hqq` = ∂²H/∂q², `hqp` with entries ∂²H/∂q_i∂p_j,
+    /// `hpp` = ∂²H/∂p² (all n×n). Newton's method in a non-separable chart uses them. Returns
+    /// false when the system does not provide them; methods then difference ∂H/∂q and ∂H/∂p.
+    fn hessian_h(
+        &self,
+        _q: &Vector<Self::Dim>,
+        _p: &Vector<Self::Dim>,
+        _hqq: &mut DMatrix<f64>,
+        _hqp: &mut DMatrix<f64>,
+        _hpp: &mut DMatrix<f64>,
+    ) -> bool {
+        false
+    }
+
+    /// Solves the momentum stage of symplectic Euler (001 eq. 42, damping taken implicitly),
+    /// p₁ = p − h (∂H/∂q(q, p₁) + r P(q) p₁), in closed form where the chart makes it explicit
+    /// (a cyclic coordinate makes it triangular). Returns false when it cannot; Newton then
+    /// solves it.
+    fn solve_momentum_stage(
+        &self,
+        _q: &Vector<Self::Dim>,
+        _p: &Vector<Self::Dim>,
+        _h: f64,
+        _p1: &mut Vector<Self::Dim>,
+    ) -> bool {
+        false
+    }
+
+    /// Solves the position stage of the adjoint symplectic Euler, q₁ = q + h ∂H/∂p(q₁, p), in
+    /// closed form where the chart allows; false otherwise (Newton solves it).
+    fn solve_position_stage(
+        &self,
+        _q: &Vector<Self::Dim>,
+        _p: &Vector<Self::Dim>,
+        _h: f64,
+        _q1: &mut Vector<Self::Dim>,
+    ) -> bool {
+        false
+    }
+
+    /// The state in Cartesian coordinates (for a first-order ODE: in its original variable):
+    /// the chart's point transformation x = X(q) and its cotangent lift p_x = (∂X/∂q)⁻ᵀ p
+    /// (001 eqs. 40–41). The identity for systems written in Cartesian coordinates. `x` and
+    /// `px` have the system's dimension.
+    fn to_cartesian(
+        &self,
+        q: &Vector<Self::Dim>,
+        p: &Vector<Self::Dim>,
+        x: &mut [f64],
+        px: &mut [f64],
+    ) {
+        x.copy_from_slice(q.as_slice());
+        px.copy_from_slice(p.as_slice());
+    }
+
+    /// The inverse of [`to_cartesian`](Self::to_cartesian): the chart state of a Cartesian
+    /// one, or why the chart does not cover it (a singular point, outside its range).
+    fn from_cartesian(
+        &self,
+        x: &[f64],
+        px: &[f64],
+        q: &mut Vector<Self::Dim>,
+        p: &mut Vector<Self::Dim>,
+    ) -> Result<(), String> {
+        q.as_mut_slice().copy_from_slice(x);
+        p.as_mut_slice().copy_from_slice(px);
+        Ok(())
+    }
+
+    /// Whether this is the identity chart (the state is already Cartesian).
+    fn is_cartesian(&self) -> bool {
+        true
+    }
+
     /// Names of the system's invariants (or conformal invariants), in the order `invariants`
     /// writes them.
     fn invariant_names(&self) -> &'static [&'static str] {

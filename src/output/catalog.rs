@@ -20,8 +20,9 @@ pub struct SystemEntry {
     pub description: String,
     /// Degrees of freedom (for N bodies: of the default case).
     pub degrees_of_freedom: usize,
-    /// Coordinate charts the system is offered in.
-    pub charts: Vec<String>,
+    /// Coordinate charts the system is offered in; the first is the default and Cartesian
+    /// (for a first-order ODE: the original variable), the coordinates of `q0` and `p0`.
+    pub charts: Vec<ChartEntry>,
     /// Parameters.
     pub params: Vec<ParamEntry>,
     /// Default initial positions.
@@ -34,6 +35,21 @@ pub struct SystemEntry {
     pub exact_solution: bool,
     /// Whether the damping is conformal (so `gamma` or `epsilon` = 2γ is accepted).
     pub conformal_damping: bool,
+}
+
+/// A coordinate chart of a system.
+#[derive(Clone, Debug, PartialEq, Serialize, ToSchema)]
+pub struct ChartEntry {
+    /// Identifier used in requests (`chart`).
+    #[schema(example = "polar")]
+    pub id: String,
+    /// Names of the generalized coordinates, in state order.
+    pub coordinates: Vec<String>,
+    /// Whether H is separable with a constant mass matrix in this chart (the splitting methods
+    /// need it).
+    pub separable: bool,
+    /// The chart's map to Cartesian coordinates and its Hamiltonian.
+    pub description: String,
 }
 
 /// A parameter of a system.
@@ -192,7 +208,16 @@ impl From<&SystemInfo> for SystemEntry {
             name: s.name.to_string(),
             description: s.description.to_string(),
             degrees_of_freedom: s.degrees_of_freedom,
-            charts: strings(s.charts),
+            charts: s
+                .charts
+                .iter()
+                .map(|c| ChartEntry {
+                    id: c.id.to_string(),
+                    coordinates: strings(c.coordinates),
+                    separable: c.separable,
+                    description: c.description.to_string(),
+                })
+                .collect(),
             params: s.params.iter().map(ParamEntry::from).collect(),
             q0: s.q0.clone(),
             p0: s.p0.clone(),

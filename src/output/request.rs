@@ -36,6 +36,16 @@ pub struct SimulateRequest {
     #[serde(default, skip_serializing_if = "Map::is_empty")]
     #[schema(value_type = Object)]
     pub params: Map<String, Value>,
+    /// Coordinate chart (see the system's `charts`; default: its first, Cartesian one). Runs in
+    /// a non-Cartesian chart also report their state transformed to Cartesian coordinates.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(example = "polar")]
+    pub chart: Option<String>,
+    /// The coordinates `q0` and `p0` are given in: `chart` (default) or `cartesian` (transformed
+    /// into the chart by its point transformation and cotangent lift). Omitted `q0`/`p0` are
+    /// always the catalogue's Cartesian defaults.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub initial_coordinates: Option<InitialCoordinates>,
     /// Methods to run, in this order, on the same system and initial state (at most 16).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub methods: Vec<MethodSpec>,
@@ -61,6 +71,16 @@ pub struct SimulateRequest {
     /// Report |det ∂Φ/∂z − e^{−2γ h n}| of each sampled step (conformally damped systems only).
     #[serde(default)]
     pub jacobian_defect: bool,
+}
+
+/// The coordinates an initial state is given in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum InitialCoordinates {
+    /// The chart's own generalized coordinates and momenta.
+    Chart,
+    /// Cartesian coordinates and momenta (for a first-order ODE: the original variable).
+    Cartesian,
 }
 
 /// Sampling options.
@@ -105,6 +125,8 @@ pub struct MethodOptions {
 pub const REQUEST_FIELDS: &[&str] = &[
     "system",
     "params",
+    "chart",
+    "initial_coordinates",
     "methods",
     "method",
     "h",
@@ -160,6 +182,12 @@ impl SimulateRequest {
         };
         if let Some(v) = present(obj, "params") {
             req.params = object(v, Some("params"))?.clone();
+        }
+        if let Some(v) = present(obj, "chart") {
+            req.chart = Some(string(v, "chart")?);
+        }
+        if let Some(v) = present(obj, "initial_coordinates") {
+            req.initial_coordinates = Some(initial_coordinates(v)?);
         }
         match (present(obj, "methods"), present(obj, "method")) {
             (Some(_), Some(_)) => {
@@ -236,6 +264,8 @@ impl SimulateRequest {
         Request {
             system: self.system.clone(),
             params: self.params.clone(),
+            chart: self.chart.clone(),
+            initial_cartesian: self.initial_coordinates == Some(InitialCoordinates::Cartesian),
             methods,
             h: self.h,
             t_end: self.t_end,
@@ -517,6 +547,18 @@ fn string(v: &Value, field: &str) -> Result<String, ErrorDetail> {
 /// `v` as a number.
 pub(crate) fn number(v: &Value, field: &str) -> Result<f64, ErrorDetail> {
     v.as_f64().ok_or_else(|| wrong_type(field, "a number", v))
+}
+
+fn initial_coordinates(v: &Value) -> Result<InitialCoordinates, ErrorDetail> {
+    match string(v, "initial_coordinates")?.as_str() {
+        "chart" => Ok(InitialCoordinates::Chart),
+        "cartesian" => Ok(InitialCoordinates::Cartesian),
+        other => Err(ErrorDetail::at(
+            codes::INVALID_VALUE,
+            "initial_coordinates",
+            format!("`{other}` is not one of chart, cartesian"),
+        )),
+    }
 }
 
 fn boolean(v: &Value, field: &str) -> Result<bool, ErrorDetail> {

@@ -313,6 +313,8 @@ impl WorkPrecisionRequest {
         Request {
             system: self.system.clone(),
             params: self.params.clone(),
+            chart: None,
+            initial_cartesian: false,
             methods: vec![input],
             h,
             t_end: self.t_end,

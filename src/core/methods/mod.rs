@@ -8,6 +8,7 @@ pub mod implicit;
 pub mod reference;
 pub mod runge_kutta;
 pub mod splitting;
+pub mod symplectic_euler;
 
 use nalgebra::allocator::Allocator;
 use nalgebra::DefaultAllocator;
@@ -24,6 +25,7 @@ use implicit::{ImplicitMidpoint, MidpointField};
 use reference::Reference;
 use runge_kutta::{InnerRk, MomentumRk, RungeKutta, Tableau};
 use splitting::Splitting;
+use symplectic_euler::{GeneralSymplecticEuler, Variant};
 
 /// Every method the core offers.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -326,7 +328,7 @@ impl MethodId {
                 true,
                 false,
                 false,
-                SEP,
+                &[],
                 cite(TAKACS, "eq. (42)"),
                 "baseline",
                 &[],
@@ -338,7 +340,7 @@ impl MethodId {
                 true,
                 false,
                 false,
-                SEP,
+                &[],
                 cite(TAKACS, "footnote 3 (the adjoint of eqs. 42–43)"),
                 "baseline",
                 &[],
@@ -833,6 +835,8 @@ where
     ComposedMidpoint(Composed<ImplicitMidpoint<S>>),
     /// A composition of csv2.
     ComposedCsv2(Composed<Csv2<S>>),
+    /// Symplectic Euler or its adjoint on a non-separable Hamiltonian.
+    GeneralSymplecticEuler(GeneralSymplecticEuler<S>),
     /// The adaptive reference.
     Reference(Reference),
 }
@@ -848,6 +852,7 @@ macro_rules! with_stepper {
             $crate::core::methods::AnyStepper::Csv2($st) => $body,
             $crate::core::methods::AnyStepper::ComposedMidpoint($st) => $body,
             $crate::core::methods::AnyStepper::ComposedCsv2($st) => $body,
+            $crate::core::methods::AnyStepper::GeneralSymplecticEuler($st) => $body,
             $crate::core::methods::AnyStepper::Reference($st) => $body,
         }
     };
@@ -937,7 +942,14 @@ where
             )),
         });
     }
+    let separable = sys.structure().separable_constant_mass;
     Ok(match choice.id {
+        MethodId::SymplecticEuler if !separable => {
+            AnyStepper::GeneralSymplecticEuler(GeneralSymplecticEuler::new(sys, Variant::Original))
+        }
+        MethodId::SymplecticEulerAdjoint if !separable => {
+            AnyStepper::GeneralSymplecticEuler(GeneralSymplecticEuler::new(sys, Variant::Adjoint))
+        }
         MethodId::ImplicitMidpoint => {
             AnyStepper::Midpoint(ImplicitMidpoint::new(sys, MidpointField::Full))
         }

@@ -5,19 +5,23 @@
 //! once, and everything below runs monomorphised for the concrete system type.
 
 mod elastic_pendulum;
+mod first_order;
 mod nbody;
 mod oscillator;
 mod pendulum;
+mod planar;
 
 use std::collections::BTreeMap;
 
 use serde::Serialize;
 use serde_json::Value;
 
-pub use elastic_pendulum::ElasticPendulum3d;
+pub use elastic_pendulum::{ElasticPendulum3d, ElasticPendulum3dCylindrical};
+pub use first_order::{ExponentialDecay, Gompertz};
 pub use nbody::{NBody, PairPotential};
-pub use oscillator::HarmonicOscillator;
+pub use oscillator::{CompensatedOscillator, HarmonicOscillator};
 pub use pendulum::Pendulum;
+pub use planar::{wrap_angle, PlanarCartesian, PlanarKind, PlanarPolar, PlanarSpring};
 
 use crate::core::error::CoreError;
 
@@ -71,6 +75,34 @@ pub struct ParamSpec {
     pub kind: ParamKind,
 }
 
+/// A coordinate chart a system is offered in.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct ChartInfo {
+    /// Identifier used in requests (`chart`).
+    pub id: &'static str,
+    /// Names of the generalized coordinates, in state order.
+    pub coordinates: &'static [&'static str],
+    /// Whether H is separable with a constant mass matrix in this chart (the splitting methods
+    /// need it).
+    pub separable: bool,
+    /// The chart's map to Cartesian coordinates and its Hamiltonian.
+    pub description: &'static str,
+}
+
+const fn chart(
+    id: &'static str,
+    coordinates: &'static [&'static str],
+    separable: bool,
+    description: &'static str,
+) -> ChartInfo {
+    ChartInfo {
+        id,
+        coordinates,
+        separable,
+        description,
+    }
+}
+
 /// A catalogue entry.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct SystemInfo {
@@ -82,8 +114,10 @@ pub struct SystemInfo {
     pub description: &'static str,
     /// Degrees of freedom (for N bodies: of the default case).
     pub degrees_of_freedom: usize,
-    /// Coordinate charts the system is offered in.
-    pub charts: &'static [&'static str],
+    /// Coordinate charts the system is offered in; the first is the default, and its
+    /// coordinates are the Cartesian ones (for a first-order ODE: the original variable) in
+    /// which `q0` and `p0` are given.
+    pub charts: Vec<ChartInfo>,
     /// Parameters.
     pub params: Vec<ParamSpec>,
     /// Default initial positions.
@@ -160,10 +194,14 @@ pub fn catalog() -> Vec<SystemInfo> {
             name: "Damped harmonic oscillator",
             description: "q'' + 2γq' + ω²q = 0 with T = p²/2, V = ω²q²/2 (paper 003 eq. 2.5); exact solution in the under-, critically and over-damped regimes.",
             degrees_of_freedom: 1,
-            charts: &["cartesian"],
+            charts: vec![
+                chart("cartesian", &["q"], true, "H = p²/2 + ω²q²/2."),
+                chart("compensating", &["Q"], false, "Q = (2/π)(q̂√(1 − q̂²) + arcsin q̂), q̂ = q/(1 + k h²), p̄ = p/Q'(q) (paper 001 eq. 82); H̄ = ½ p̄² Q'(q)² + ½ ω² q² is not separable. Symplectic Euler's first-order energy error vanishes along the unit-amplitude motion (ω = 1, q0 = 1, p0 = 0)."),
+            ],
             params: vec![
                 number("omega", "Angular frequency ω.", 1.0, 0.0, true, 1e6),
                 gamma_param(0.05),
+                number("k", "Margin k of the compensating chart, q̂ = q/(1 + k h²) (paper 001 eq. 82; chart `compensating` only).", 2.0, 0.0, true, 1e6),
             ],
             q0: vec![1.0],
             p0: vec![0.0],
@@ -176,7 +214,7 @@ pub fn catalog() -> Vec<SystemInfo> {
             name: "Damped pendulum",
             description: "T = p²/2, V = 1 − cos q, p' = −sin q − 2γp (paper 000 Sec. 4.3, paper 003 eq. 4.5).",
             degrees_of_freedom: 1,
-            charts: &["cartesian"],
+            charts: vec![chart("cartesian", &["q"], true, "H = p²/2 + 1 − cos q.")],
             params: vec![gamma_param(0.005)],
             q0: vec![0.9 * std::f64::consts::PI],
             p0: vec![0.0],
@@ -189,7 +227,10 @@ pub fn catalog() -> Vec<SystemInfo> {
             name: "Elastic 3-D pendulum, damped along the spring",
             description: "A mass on a spring in R³ under gravity (0, 0, −g), V = k/2 (l − |q|)² + m g q_z, Rayleigh damping along the spring only, D = q qᵀ/|q|² (paper 000 Sec. 6.2, eq. 16). J₃ = (q × p)_z is conserved for every ε.",
             degrees_of_freedom: 3,
-            charts: &["cartesian"],
+            charts: vec![
+                chart("cartesian", &["x", "y", "z"], true, "H = |p|²/(2m) + k/2 (|q| − l)² + m g z."),
+                chart("cylindrical", &["ρ", "φ", "z"], false, "x = ρ cos φ, y = ρ sin φ: H = (p_ρ² + p_φ²/ρ² + p_z²)/(2m) + k/2 (√(ρ² + z²) − l)² + m g z, with J₃ = p_φ cyclic; the damping is the same spring-direction Rayleigh function."),
+            ],
             params: vec![
                 number("m", "Mass.", 1.0, 0.0, true, 1e6),
                 number("k", "Spring stiffness.", 1.0, 0.0, true, 1e6),
@@ -208,7 +249,7 @@ pub fn catalog() -> Vec<SystemInfo> {
             name: "N bodies with linear damping",
             description: "N point masses in R³ with a pairwise radial potential (Newtonian gravity with optional softening, or Lennard-Jones) and p' = −∇V − 2γp. The total angular momentum decays exactly as e^{−2γt}. Default: the figure-eight three-body choreography.",
             degrees_of_freedom: 9,
-            charts: &["cartesian"],
+            charts: vec![chart("cartesian", &["x₁", "y₁", "z₁", "…"], true, "H = Σ|p_i|²/(2m_i) + Σ V(|q_i − q_j|).")],
             params: vec![
                 ParamSpec {
                     name: "masses",
@@ -240,6 +281,78 @@ pub fn catalog() -> Vec<SystemInfo> {
             exact_solution: false,
             conformal_damping: true,
         },
+        SystemInfo {
+            id: "elastic_pendulum_2d",
+            name: "Planar elastic pendulum",
+            description: "A mass on a spring in the plane under gravity along +y (y points down), paper 001 Appendix A: H = |p|²/(2m) + k/2 (|q| − l)² − m g y (eq. 73), or in polar coordinates (eq. 72). Undamped.",
+            degrees_of_freedom: 2,
+            charts: vec![
+                chart("cartesian", &["x", "y"], true, "H = (p_x² + p_y²)/(2m) + k/2 (√(x² + y²) − l)² − m g y (001 eq. 73)."),
+                chart("polar", &["r", "θ"], false, "x = r sin θ, y = r cos θ (θ from the downward vertical): H = (p_r² + p_θ²/r²)/(2m) + k/2 (r − l)² − m g r cos θ (001 eq. 72); the mass matrix depends on r."),
+            ],
+            params: vec![
+                number("m", "Mass.", 1.0, 0.0, true, 1e6),
+                number("k", "Spring stiffness.", 1.0, 0.0, true, 1e6),
+                number("l", "Spring rest length.", 1.0, 0.0, true, 1e6),
+                number("g", "Gravitational acceleration (along +y, downwards).", 0.2, 0.0, false, 1e6),
+            ],
+            q0: vec![0.6, 1.2],
+            p0: vec![0.0, 0.0],
+            invariants: &[],
+            exact_solution: false,
+            conformal_damping: true,
+        },
+        SystemInfo {
+            id: "free_particle_2d",
+            name: "Free particle in the plane",
+            description: "H = |p|²/(2m), paper 001 Sec. 5.2: linear momentum (p_x, p_y) and angular momentum L = x p_y − y p_x are conserved. Symplectic Euler keeps p_θ exactly in polar coordinates but not p_x, and keeps L exactly in Cartesian ones.",
+            degrees_of_freedom: 2,
+            charts: vec![
+                chart("cartesian", &["x", "y"], true, "H = (p_x² + p_y²)/(2m) (001 eq. 61)."),
+                chart("polar", &["r", "θ"], false, "x = r sin θ, y = r cos θ: H = (p_r² + p_θ²/r²)/(2m) (001 eq. 62), θ cyclic, p_θ = y p_x − x p_y = −L."),
+            ],
+            params: vec![number("m", "Mass.", 1.0, 0.0, true, 1e6)],
+            q0: vec![1.0, 0.5],
+            p0: vec![0.2, 1.0],
+            invariants: &["L", "p_x", "p_y"],
+            exact_solution: true,
+            conformal_damping: true,
+        },
+        SystemInfo {
+            id: "exponential_decay",
+            name: "Exponential decay (first-order ODE)",
+            description: "y' = −αy (paper 001 eq. 14), run as the cotangent lift H = p f(y) (p stays 0 from p0 = 0, H = 0). In the chart `transformed`, ȳ = ln(y)/α (eq. 15) obeys ȳ' = −1 and explicit Euler is exact.",
+            degrees_of_freedom: 1,
+            charts: vec![
+                chart("original", &["y"], false, "y' = −αy; H = −α p y."),
+                chart("transformed", &["ȳ"], false, "ȳ = ln(y)/α, p̄ = p α y (001 eq. 15): ȳ' = −1, H̄ = −p̄."),
+            ],
+            params: vec![number("alpha", "Decay rate α.", 1.0, 0.0, true, 1e6)],
+            q0: vec![1.0],
+            p0: vec![0.0],
+            invariants: &[],
+            exact_solution: true,
+            conformal_damping: false,
+        },
+        SystemInfo {
+            id: "gompertz",
+            name: "Gompertz growth (first-order ODE)",
+            description: "y' = y (a − b ln y) (paper 001 eq. 17), run as the cotangent lift H = p f(y). In the chart `transformed`, ȳ = −(1/b) ln(1 − (b/a) ln y) (eq. 18 up to its additive constant) obeys ȳ' = 1 and explicit Euler is exact; it covers 0 < y < e^(a/b).",
+            degrees_of_freedom: 1,
+            charts: vec![
+                chart("original", &["y"], false, "y' = y (a − b ln y); H = p y (a − b ln y)."),
+                chart("transformed", &["ȳ"], false, "ȳ = −(1/b) ln(1 − (b/a) ln y), p̄ = p y (a − b ln y) (001 eq. 18): ȳ' = 1, H̄ = p̄."),
+            ],
+            params: vec![
+                number("a", "Growth parameter a.", 2.0, 0.0, true, 1e6),
+                number("b", "Growth parameter b (carrying capacity e^(a/b)).", 0.5, 0.0, true, 1e6),
+            ],
+            q0: vec![3.0],
+            p0: vec![0.0],
+            invariants: &[],
+            exact_solution: true,
+            conformal_damping: false,
+        },
     ]
 }
 
@@ -262,6 +375,18 @@ pub enum AnySystem {
     ElasticPendulum3d(ElasticPendulum3d),
     /// See [`NBody`].
     NBody(NBody),
+    /// See [`ElasticPendulum3dCylindrical`].
+    ElasticPendulum3dCylindrical(ElasticPendulum3dCylindrical),
+    /// See [`CompensatedOscillator`].
+    CompensatedOscillator(CompensatedOscillator),
+    /// See [`PlanarCartesian`].
+    PlanarCartesian(PlanarCartesian),
+    /// See [`PlanarPolar`].
+    PlanarPolar(PlanarPolar),
+    /// See [`ExponentialDecay`].
+    ExponentialDecay(ExponentialDecay),
+    /// See [`Gompertz`].
+    Gompertz(Gompertz),
 }
 
 /// Runs `$body` with `$s` bound to the concrete system inside an [`AnySystem`].
@@ -273,6 +398,12 @@ macro_rules! with_system {
             $crate::core::systems::AnySystem::Pendulum($s) => $body,
             $crate::core::systems::AnySystem::ElasticPendulum3d($s) => $body,
             $crate::core::systems::AnySystem::NBody($s) => $body,
+            $crate::core::systems::AnySystem::ElasticPendulum3dCylindrical($s) => $body,
+            $crate::core::systems::AnySystem::CompensatedOscillator($s) => $body,
+            $crate::core::systems::AnySystem::PlanarCartesian($s) => $body,
+            $crate::core::systems::AnySystem::PlanarPolar($s) => $body,
+            $crate::core::systems::AnySystem::ExponentialDecay($s) => $body,
+            $crate::core::systems::AnySystem::Gompertz($s) => $body,
         }
     };
 }
@@ -417,23 +548,93 @@ pub fn resolve(info: &SystemInfo, params: &Params) -> Result<Resolved, CoreError
     Ok(resolved)
 }
 
-/// Builds the system `id` from resolved parameters.
-pub fn build(id: &str, r: &Resolved) -> Result<AnySystem, CoreError> {
+/// The chart `requested` of system `info` (default: its first), or an error naming `chart`.
+pub fn chart_of<'a>(
+    info: &'a SystemInfo,
+    requested: Option<&str>,
+) -> Result<&'a ChartInfo, CoreError> {
+    match requested {
+        None => Ok(&info.charts[0]),
+        Some(id) => info.charts.iter().find(|c| c.id == id).ok_or_else(|| {
+            let known: Vec<&str> = info.charts.iter().map(|c| c.id).collect();
+            CoreError::invalid(
+                "chart",
+                format!(
+                    "`{}` has no chart `{id}`; charts: {}",
+                    info.id,
+                    known.join(", ")
+                ),
+            )
+        }),
+    }
+}
+
+/// Builds the system `id` in chart `chart` from resolved parameters. `h` is the run's step,
+/// which the oscillator's compensating chart (001 eq. 82) depends on.
+pub fn build(id: &str, chart: &str, r: &Resolved, h: f64) -> Result<AnySystem, CoreError> {
     let n = |name: &str| r.numbers.get(name).copied().unwrap_or(0.0);
-    Ok(match id {
-        "harmonic_oscillator" => AnySystem::HarmonicOscillator(HarmonicOscillator {
-            omega: n("omega"),
-            gamma: n("gamma"),
+    let planar = |kind| PlanarSpring {
+        m: n("m"),
+        k: n("k"),
+        l: n("l"),
+        g: n("g"),
+        kind,
+    };
+    let transformed = chart == "transformed";
+    Ok(match (id, chart) {
+        ("harmonic_oscillator", _) => {
+            let oscillator = HarmonicOscillator {
+                omega: n("omega"),
+                gamma: n("gamma"),
+            };
+            if chart == "compensating" {
+                AnySystem::CompensatedOscillator(CompensatedOscillator::new(oscillator, n("k"), h))
+            } else {
+                AnySystem::HarmonicOscillator(oscillator)
+            }
+        }
+        ("pendulum", _) => AnySystem::Pendulum(Pendulum { gamma: n("gamma") }),
+        ("elastic_pendulum_3d", _) => {
+            let pendulum = ElasticPendulum3d {
+                m: n("m"),
+                k: n("k"),
+                l: n("l"),
+                g: n("g"),
+                epsilon: n("epsilon"),
+            };
+            if chart == "cylindrical" {
+                AnySystem::ElasticPendulum3dCylindrical(ElasticPendulum3dCylindrical(pendulum))
+            } else {
+                AnySystem::ElasticPendulum3d(pendulum)
+            }
+        }
+        ("elastic_pendulum_2d" | "free_particle_2d", _) => {
+            let spring = if id == "free_particle_2d" {
+                PlanarSpring {
+                    k: 0.0,
+                    l: 0.0,
+                    g: 0.0,
+                    ..planar(PlanarKind::FreeParticle)
+                }
+            } else {
+                planar(PlanarKind::Pendulum)
+            };
+            if chart == "polar" {
+                AnySystem::PlanarPolar(PlanarPolar(spring))
+            } else {
+                AnySystem::PlanarCartesian(PlanarCartesian(spring))
+            }
+        }
+        ("exponential_decay", _) => AnySystem::ExponentialDecay(ExponentialDecay {
+            alpha: n("alpha"),
+            transformed,
         }),
-        "pendulum" => AnySystem::Pendulum(Pendulum { gamma: n("gamma") }),
-        "elastic_pendulum_3d" => AnySystem::ElasticPendulum3d(ElasticPendulum3d {
-            m: n("m"),
-            k: n("k"),
-            l: n("l"),
-            g: n("g"),
-            epsilon: n("epsilon"),
+        ("gompertz", _) => AnySystem::Gompertz(Gompertz {
+            a: n("a"),
+            b: n("b"),
+            transformed,
         }),
-        "nbody" => AnySystem::NBody(NBody {
+        ("nbody", _) => AnySystem::NBody(NBody {
             masses: r.masses.clone().unwrap_or_default(),
             potential: match r.potential.as_deref() {
                 Some("lennard_jones") => PairPotential::LennardJones {
@@ -447,7 +648,7 @@ pub fn build(id: &str, r: &Resolved) -> Result<AnySystem, CoreError> {
             },
             gamma: n("gamma"),
         }),
-        other => {
+        (other, _) => {
             return Err(CoreError::UnknownSystem {
                 id: other.to_string(),
             })
