@@ -2,6 +2,7 @@
 //! no files, no async.
 
 pub mod diagnostics;
+pub mod energy_map;
 pub mod error;
 pub mod flows;
 pub mod methods;

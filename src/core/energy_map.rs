@@ -1,0 +1,333 @@
+//! Energy-error maps (paper 001 Sec. 4.1, Fig. 6): the planar elastic pendulum started at rest
+//! from every point (x₀, y₀) of a grid, integrated with one method in Cartesian and in polar
+//! coordinates, and per cell the ℓ² energy error of eq. (50) in each chart,
+//!
+//! ```text
+//! ε = √( 1/(J+1) Σ_{j=0..J} (H(q^j, p^j) − H(q^0, p^0))² )
+//! ```
+//!
+//! (the exact flow keeps H, so this is the deviation of the method's distorted Hamiltonian; eq. 50
+//! prints 1/J in front of a sum of J + 1 terms — we average over the terms summed), their
+//! difference ε(x,y) − ε(r,θ), and the cells whose polar run diverges, beside the region
+//! r(0) ≥ 2l + 2mg/k·cos θ(0) where Sec. 4.1 predicts it: there the mass, released at rest, has
+//! the energy to reach the pivot, the polar chart's singular point (on the line through the pivot,
+//! ½k(r₀ − l)² − mg r₀ cos θ₀ ≥ ½kl² ⇔ r₀ ≥ 2l + 2mg/k·cos θ₀).
+//!
+//! A run diverges when its state becomes non-finite or its energy leaves H₀ by more than
+//! 100·(1 + |H₀|): a polar run that passes next to the pivot takes a kick p_θ²/(m r³) that throws
+//! H off by many orders of magnitude (10⁶ to 10¹² on the default grid) while staying finite.
+//!
+//! Cells are independent and run in parallel (rayon, all cores); each reports to a progress
+//! callback when done. The run stops between steps when the budget says so.
+
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use nalgebra::U2;
+use rayon::prelude::*;
+use serde::Serialize;
+
+use super::error::CoreError;
+use super::methods::{self, MethodChoice};
+use super::run::{integrate, Budget, Observer, Schedule, StopReason};
+use super::system::{MechanicalSystem, State};
+use super::systems::{PlanarCartesian, PlanarKind, PlanarPolar, PlanarSpring};
+use crate::with_stepper;
+
+/// Most grid points per axis.
+pub const MAX_AXIS: usize = 401;
+/// Most steps over all cells and both charts of one map.
+pub const MAX_TOTAL_STEPS: u64 = 20_000_000_000;
+
+/// A validated map request.
+#[derive(Clone, Debug)]
+pub struct EnergyMapSpec {
+    /// The method, run in both charts.
+    pub method: MethodChoice,
+    /// Mass, stiffness, rest length and gravity.
+    pub pendulum: PlanarSpring,
+    /// Step size.
+    pub h: f64,
+    /// Steps per cell and chart (t_max/h).
+    pub steps: u64,
+    /// Grid points along x, from `x.0` to `x.1`.
+    pub nx: usize,
+    /// Grid points along y, from `y.0` to `y.1`.
+    pub ny: usize,
+    /// Range of x₀.
+    pub x: (f64, f64),
+    /// Range of y₀ (y points down, along gravity).
+    pub y: (f64, f64),
+}
+
+/// One chart's run of one cell.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct ChartRun {
+    /// The ℓ² energy error of eq. (50); `None` when the run diverged or could not start.
+    pub epsilon: Option<f64>,
+    /// The time at which the run diverged (non-finite state, or |H − H₀| > 100·(1 + |H₀|)).
+    pub diverged_at: Option<f64>,
+}
+
+/// The map: per-cell columns in row-major order (row j is y₀ = ys[j], column i is x₀ = xs[i]).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct EnergyMap {
+    /// The method's label.
+    pub method: String,
+    /// Grid x₀ values.
+    pub xs: Vec<f64>,
+    /// Grid y₀ values.
+    pub ys: Vec<f64>,
+    /// H at the start of each cell.
+    pub energy: Vec<f64>,
+    /// ε in Cartesian coordinates.
+    pub cartesian: Vec<ChartRun>,
+    /// ε in polar coordinates (`epsilon` and `diverged_at` both `None` at the pivot, r = 0,
+    /// where the chart does not exist).
+    pub polar: Vec<ChartRun>,
+    /// Whether Sec. 4.1's boundary puts the start in the region where the polar run passes
+    /// through the pivot: r₀ ≥ 2l + 2mg/k·cos θ₀.
+    pub predicted_divergent: Vec<bool>,
+    /// Steps taken over all cells and charts.
+    pub steps: u64,
+}
+
+impl EnergyMap {
+    /// ε(x,y) − ε(r,θ) per cell, where both exist.
+    pub fn difference(&self) -> Vec<Option<f64>> {
+        self.cartesian
+            .iter()
+            .zip(&self.polar)
+            .map(|(c, p)| Some(c.epsilon? - p.epsilon?))
+            .collect()
+    }
+}
+
+impl EnergyMapSpec {
+    /// Grid coordinate k of `n` points over `range`.
+    fn at(range: (f64, f64), n: usize, k: usize) -> f64 {
+        if n == 1 {
+            0.5 * (range.0 + range.1)
+        } else {
+            range.0 + (range.1 - range.0) * k as f64 / (n - 1) as f64
+        }
+    }
+
+    /// Checks the grid and the work against the limits; `field` names are the request's.
+    pub fn check(&self) -> Result<(), CoreError> {
+        for (name, n) in [("nx", self.nx), ("ny", self.ny)] {
+            if n == 0 || n > MAX_AXIS {
+                return Err(CoreError::invalid(
+                    name,
+                    format!("needs 1 to {MAX_AXIS} grid points, got {n}"),
+                ));
+            }
+        }
+        for (name, (lo, hi)) in [("x", self.x), ("y", self.y)] {
+            if !(lo.is_finite() && hi.is_finite() && lo <= hi) {
+                return Err(CoreError::invalid(
+                    name,
+                    format!("must be a finite range [min, max] with min ≤ max, got [{lo}, {hi}]"),
+                ));
+            }
+        }
+        let total = (self.nx * self.ny) as u64 * 2 * self.steps;
+        if total > MAX_TOTAL_STEPS {
+            return Err(CoreError::invalid(
+                "t_max",
+                format!(
+                    "{} cells × 2 charts × {} steps = {total} steps exceeds the limit of {MAX_TOTAL_STEPS}",
+                    self.nx * self.ny,
+                    self.steps
+                ),
+            ));
+        }
+        let probe = PlanarPolar(self.pendulum.clone());
+        methods::build(
+            &self.method,
+            &probe,
+            "elastic_pendulum_2d (polar chart)",
+            self.h,
+        )?;
+        Ok(())
+    }
+
+    /// The analytic prediction of Sec. 4.1 at (x₀, y₀).
+    pub fn predicted_divergent(&self, x0: f64, y0: f64) -> bool {
+        let s = &self.pendulum;
+        let r = x0.hypot(y0);
+        let cos = if r > 0.0 { y0 / r } else { 1.0 };
+        r >= 2.0 * s.l + 2.0 * s.m * s.g / s.k * cos
+    }
+
+    /// Points (x, y) of the boundary r = 2l + 2mg/k·cos θ, x = r sin θ, y = r cos θ, at `n`
+    /// angles around the pivot.
+    pub fn boundary(&self, n: usize) -> Vec<[f64; 2]> {
+        let s = &self.pendulum;
+        (0..=n)
+            .map(|k| {
+                let th = std::f64::consts::TAU * k as f64 / n as f64;
+                let r = 2.0 * s.l + 2.0 * s.m * s.g / s.k * th.cos();
+                [r * th.sin(), r * th.cos()]
+            })
+            .collect()
+    }
+
+    /// Runs every cell; `progress(done, total)` is called as cells finish (from worker threads).
+    /// `Ok(None)` when the budget stopped the map.
+    pub fn run(
+        &self,
+        budget: Budget<'_>,
+        progress: &(dyn Fn(usize, usize) + Sync),
+    ) -> Result<Option<EnergyMap>, CoreError> {
+        self.check()?;
+        let total = self.nx * self.ny;
+        let done = AtomicUsize::new(0);
+        let cells: Vec<Result<Option<(ChartRun, ChartRun, f64)>, CoreError>> = (0..total)
+            .into_par_iter()
+            .map(|cell| {
+                let x0 = Self::at(self.x, self.nx, cell % self.nx);
+                let y0 = Self::at(self.y, self.ny, cell / self.nx);
+                let result = self.cell(x0, y0, budget);
+                progress(done.fetch_add(1, Ordering::Relaxed) + 1, total);
+                result
+            })
+            .collect();
+        let mut map = EnergyMap {
+            method: self.method.label(),
+            xs: (0..self.nx).map(|i| Self::at(self.x, self.nx, i)).collect(),
+            ys: (0..self.ny).map(|j| Self::at(self.y, self.ny, j)).collect(),
+            energy: Vec::with_capacity(total),
+            cartesian: Vec::with_capacity(total),
+            polar: Vec::with_capacity(total),
+            predicted_divergent: Vec::with_capacity(total),
+            steps: 0,
+        };
+        for (cell, result) in cells.into_iter().enumerate() {
+            let Some((cartesian, polar, energy)) = result? else {
+                return Ok(None);
+            };
+            let (x0, y0) = (map.xs[cell % self.nx], map.ys[cell / self.nx]);
+            map.predicted_divergent
+                .push(self.predicted_divergent(x0, y0));
+            map.energy.push(energy);
+            for run in [&cartesian, &polar] {
+                map.steps += match (run.epsilon, run.diverged_at) {
+                    (_, Some(t)) => (t / self.h).round() as u64,
+                    (Some(_), None) => self.steps,
+                    (None, None) => 0,
+                };
+            }
+            map.cartesian.push(cartesian);
+            map.polar.push(polar);
+        }
+        Ok(Some(map))
+    }
+
+    /// Both charts' runs from (x₀, y₀) at rest, and the starting energy; `None` if the budget
+    /// stopped a run.
+    fn cell(
+        &self,
+        x0: f64,
+        y0: f64,
+        budget: Budget<'_>,
+    ) -> Result<Option<(ChartRun, ChartRun, f64)>, CoreError> {
+        let cartesian = PlanarCartesian(PlanarSpring {
+            kind: PlanarKind::Pendulum,
+            ..self.pendulum.clone()
+        });
+        let start = State::from_slices(U2, &[x0, y0], &[0.0, 0.0]);
+        let energy = cartesian.energy(&start.q, &start.p);
+        let Some(in_cartesian) = self.chart_run(&cartesian, start.clone(), budget)? else {
+            return Ok(None);
+        };
+        let polar = PlanarPolar(cartesian.0.clone());
+        let mut polar_start = start.clone();
+        let in_polar = if polar
+            .from_cartesian(
+                &[x0, y0],
+                &[0.0, 0.0],
+                &mut polar_start.q,
+                &mut polar_start.p,
+            )
+            .is_ok()
+        {
+            match self.chart_run(&polar, polar_start, budget)? {
+                Some(run) => run,
+                None => return Ok(None),
+            }
+        } else {
+            ChartRun {
+                epsilon: None,
+                diverged_at: None,
+            }
+        };
+        Ok(Some((in_cartesian, in_polar, energy)))
+    }
+
+    fn chart_run<S: MechanicalSystem<Dim = U2>>(
+        &self,
+        sys: &S,
+        mut z: State<U2>,
+        budget: Budget<'_>,
+    ) -> Result<Option<ChartRun>, CoreError> {
+        let mut stepper = methods::build(&self.method, sys, "elastic_pendulum_2d", self.h)?;
+        let start = sys.energy(&z.q, &z.p);
+        let mut observer = EnergyDeviation {
+            sys,
+            start,
+            limit: DIVERGENCE * (1.0 + start.abs()),
+            sum: 0.0,
+            count: 0,
+            blown_at: None,
+        };
+        let schedule = Schedule {
+            h: self.h,
+            steps: self.steps,
+            every: 1,
+        };
+        let (stop, _) = with_stepper!(&mut stepper, st => integrate(
+            sys, st, &mut z, schedule, budget, false, &mut observer
+        ))?;
+        Ok(match stop {
+            StopReason::Finished if observer.blown_at.is_some() => Some(ChartRun {
+                epsilon: None,
+                diverged_at: observer.blown_at,
+            }),
+            StopReason::Finished => Some(ChartRun {
+                epsilon: Some((observer.sum / observer.count as f64).sqrt()),
+                diverged_at: None,
+            }),
+            StopReason::Diverged { t, .. } => Some(ChartRun {
+                epsilon: None,
+                diverged_at: Some(t),
+            }),
+            StopReason::Cancelled { .. } | StopReason::TimeLimit { .. } => None,
+        })
+    }
+}
+
+/// A run whose energy error exceeds this many times 1 + |H₀| has diverged.
+const DIVERGENCE: f64 = 100.0;
+
+/// Accumulates Σ (H(z_j) − H(z_0))² over the samples, and notes when |H − H₀| first passes
+/// `limit`.
+struct EnergyDeviation<'a, S> {
+    sys: &'a S,
+    start: f64,
+    limit: f64,
+    sum: f64,
+    count: u64,
+    blown_at: Option<f64>,
+}
+
+impl<S: MechanicalSystem<Dim = U2>> Observer<U2> for EnergyDeviation<'_, S> {
+    #[inline]
+    fn on_sample(&mut self, _step: u64, t: f64, z: &State<U2>) {
+        let d = self.sys.energy(&z.q, &z.p) - self.start;
+        if self.blown_at.is_none() && !(d.abs() <= self.limit) {
+            self.blown_at = Some(t);
+        }
+        self.sum += d * d;
+        self.count += 1;
+    }
+}

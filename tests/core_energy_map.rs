@@ -1,0 +1,85 @@
+//! The energy-error map of paper 001 Fig. 6 on a coarse grid (21 × 21, t_max = 2000): cells of
+//! both signs of ε(x,y) − ε(r,θ), every predicted cell diverging in polar coordinates, and every
+//! polar divergence inside the region Sec. 4.1's boundary predicts (up to one grid cell: with
+//! h = 0.2 the discrete motion need not turn back exactly where the exact one does).
+
+use geomint::core::energy_map::EnergyMapSpec;
+use geomint::core::methods::{MethodChoice, MethodId};
+use geomint::core::run::Budget;
+use geomint::core::systems::{PlanarKind, PlanarSpring};
+
+const N: usize = 21;
+
+fn fig6(t_max: f64) -> EnergyMapSpec {
+    let h = 0.2;
+    EnergyMapSpec {
+        method: MethodChoice::new(MethodId::SymplecticEuler),
+        pendulum: PlanarSpring {
+            m: 1.0,
+            k: 1.0,
+            l: 1.0,
+            g: 0.02,
+            kind: PlanarKind::Pendulum,
+        },
+        h,
+        steps: (t_max / h).round() as u64,
+        nx: N,
+        ny: N,
+        x: (-1.5, 1.5),
+        y: (-1.5, 1.5),
+    }
+}
+
+#[test]
+fn a_coarse_fig6_map_has_both_signs_and_divergences_only_where_predicted() {
+    let spec = fig6(2000.0);
+    let progress = std::sync::atomic::AtomicUsize::new(0);
+    let map = spec
+        .run(Budget::default(), &|done, total| {
+            assert!(done <= total);
+            progress.fetch_max(done, std::sync::atomic::Ordering::Relaxed);
+        })
+        .unwrap()
+        .unwrap();
+    assert_eq!(progress.into_inner(), N * N);
+    let diff = map.difference();
+    let positive = diff.iter().flatten().filter(|&&d| d > 0.0).count();
+    let negative = diff.iter().flatten().filter(|&&d| d < 0.0).count();
+    let cell = |k: usize| (map.xs[k % N], map.ys[k / N]);
+    let diverged: Vec<usize> = (0..N * N)
+        .filter(|&k| map.polar[k].diverged_at.is_some())
+        .collect();
+    let predicted: Vec<usize> = (0..N * N).filter(|&k| map.predicted_divergent[k]).collect();
+    eprintln!(
+        "21×21, t_max 2000: ε(x,y) > ε(r,θ) in {positive} cells, < in {negative}; polar diverged in {} (predicted {})",
+        diverged.len(),
+        predicted.len()
+    );
+    assert!(positive >= 10 && negative >= 10, "{positive} / {negative}");
+    assert!(
+        predicted.iter().all(|k| diverged.contains(k)),
+        "a predicted cell did not diverge"
+    );
+    // Divergences outside the predicted region lie within one grid diagonal of the boundary.
+    let spacing = 3.0 / (N - 1) as f64 * std::f64::consts::SQRT_2;
+    for &k in &diverged {
+        let (x, y) = cell(k);
+        let r = x.hypot(y);
+        let boundary = 2.0 + 2.0 * 0.02 * (y / r);
+        assert!(
+            r >= boundary - spacing,
+            "polar divergence at ({x}, {y}), r = {r}, boundary {boundary}"
+        );
+    }
+    // In Cartesian coordinates only the pivot itself (the spring's direction is undefined).
+    for k in 0..N * N {
+        if map.cartesian[k].diverged_at.is_some() {
+            assert_eq!(cell(k), (0.0, 0.0));
+        }
+    }
+    assert_eq!(
+        map.polar[N * N / 2].epsilon,
+        None,
+        "the polar chart has no pivot cell"
+    );
+}
