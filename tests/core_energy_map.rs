@@ -83,3 +83,19 @@ fn a_coarse_fig6_map_has_both_signs_and_divergences_only_where_predicted() {
         "the polar chart has no pivot cell"
     );
 }
+
+#[test]
+fn the_same_map_twice_is_bit_identical() {
+    let spec = fig6(400.0);
+    let a = spec.run(Budget::default(), &|_, _| {}).unwrap().unwrap();
+    let b = spec.run(Budget::default(), &|_, _| {}).unwrap().unwrap();
+    for k in 0..N * N {
+        let bits = |m: &geomint::core::energy_map::EnergyMap| {
+            (
+                m.polar[k].epsilon.map(f64::to_bits),
+                m.cartesian[k].epsilon.map(f64::to_bits),
+            )
+        };
+        assert_eq!(bits(&a), bits(&b), "cell {k}");
+    }
+}

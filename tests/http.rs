@@ -196,7 +196,11 @@ async fn catalogs_match_the_core() {
             "harmonic_oscillator",
             "pendulum",
             "elastic_pendulum_3d",
-            "nbody"
+            "nbody",
+            "elastic_pendulum_2d",
+            "free_particle_2d",
+            "exponential_decay",
+            "gompertz"
         ]
     );
     let omega = &systems[0]["params"][0];
@@ -306,6 +310,7 @@ async fn simulate_equals_the_core_bit_for_bit() {
         every: Some(10),
         compare_to_reference: false,
         jacobian_defect: false,
+        ..Default::default()
     };
     let (sim, runs) = core_runs(&req);
     for (i, (traj, stop)) in runs.iter().enumerate() {

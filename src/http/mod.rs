@@ -18,6 +18,7 @@
 //! of the middleware (body limit 413, time limit 504) and unknown routes (404, 405).
 
 pub mod answer;
+pub mod energy_map;
 pub mod error;
 pub mod extract;
 pub mod handlers;
@@ -75,6 +76,8 @@ pub mod paths {
     pub const STABILITY_POINT: &str = "/api/v1/stability/point";
     /// Work–precision studies.
     pub const WORK_PRECISION: &str = "/api/v1/studies/work-precision";
+    /// Energy-error maps in Cartesian against polar coordinates.
+    pub const ENERGY_MAP: &str = "/api/v1/studies/energy-map";
     /// The OpenAPI document.
     pub const OPENAPI: &str = "/api/v1/openapi.json";
     /// Stored recordings.
@@ -94,6 +97,7 @@ pub const ROUTES: &[(&str, &str)] = &[
     ("post", paths::STABILITY),
     ("post", paths::STABILITY_POINT),
     ("post", paths::WORK_PRECISION),
+    ("post", paths::ENERGY_MAP),
     ("get", paths::OPENAPI),
     ("post", paths::RECORDINGS),
     ("get", paths::RECORDINGS),
@@ -114,6 +118,7 @@ pub fn app(state: AppState) -> Router {
         .route(paths::STABILITY, post(stability::stability_map))
         .route(paths::STABILITY_POINT, post(stability::stability_point))
         .route(paths::WORK_PRECISION, post(studies::work_precision))
+        .route(paths::ENERGY_MAP, post(energy_map::energy_map))
         .route(paths::OPENAPI, get(handlers::openapi_json))
         .route(
             paths::RECORDINGS,

@@ -5,9 +5,10 @@ use utoipa::OpenApi;
 
 use super::recordings::{self, RecordingCreated};
 use super::store::RecordingEntry;
-use super::{handlers, simulate, stability, studies};
+use super::{energy_map, handlers, simulate, stability, studies};
 use crate::output::catalog::{MethodEntry, SystemEntry};
 use crate::output::document::SimulationDocument;
+use crate::output::energy_map::{EnergyMapDocument, EnergyMapRequest, MapLine};
 use crate::output::error::ErrorBody;
 use crate::output::request::SimulateRequest;
 use crate::output::stability::{PointDocument, PointRequest, StabilityDocument, StabilityRequest};
@@ -33,6 +34,7 @@ use crate::output::work_precision::{StudyLine, WorkPrecisionDocument, WorkPrecis
         stability::stability_map,
         stability::stability_point,
         studies::work_precision,
+        energy_map::energy_map,
         handlers::openapi_json,
         recordings::create_recording,
         recordings::list_recordings,
@@ -50,6 +52,9 @@ use crate::output::work_precision::{StudyLine, WorkPrecisionDocument, WorkPrecis
         WorkPrecisionRequest,
         WorkPrecisionDocument,
         StudyLine,
+        EnergyMapRequest,
+        EnergyMapDocument,
+        MapLine,
         SystemEntry,
         MethodEntry,
         ErrorBody,
@@ -61,7 +66,7 @@ use crate::output::work_precision::{StudyLine, WorkPrecisionDocument, WorkPrecis
         (name = "catalog", description = "The systems and methods on offer"),
         (name = "simulation", description = "Running simulations"),
         (name = "stability", description = "Linear stability analysis on the damped oscillator"),
-        (name = "studies", description = "Work–precision studies: time against accuracy per method"),
+        (name = "studies", description = "Work–precision studies (time against accuracy per method) and energy-error maps across coordinate charts"),
         (name = "recordings", description = "Rerun recordings (.rrd) of simulations, stored and downloadable"),
         (name = "service", description = "Health and this document"),
     )

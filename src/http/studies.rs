@@ -19,8 +19,10 @@ use axum::extract::{Query, State};
 use axum::http::{header, HeaderMap, HeaderValue};
 use axum::response::Response;
 use futures_util::StreamExt;
+use serde::Serialize;
 use serde_json::Value;
 use tokio::sync::mpsc;
+use tokio::sync::OwnedSemaphorePermit;
 use tokio_stream::wrappers::ReceiverStream;
 
 use super::answer::{Format, NDJSON};
@@ -30,15 +32,67 @@ use super::paths;
 use super::recordings::RrdFile;
 use super::state::{cancel_on_shutdown, run_blocking, AppState, CancelOnDrop};
 use crate::core::run::Budget;
-use crate::output::error::ErrorBody;
+use crate::output::error::{ErrorBody, ErrorDetail};
 use crate::output::recording;
 use crate::output::work_precision::{self, StudyLine, WorkPrecisionDocument, WorkPrecisionRequest};
 
 /// One NDJSON line.
-fn line(l: &StudyLine) -> Bytes {
+fn line<L: Serialize>(l: &L) -> Bytes {
     let mut bytes = serde_json::to_vec(l).unwrap_or_default();
     bytes.push(b'\n');
     Bytes::from(bytes)
+}
+
+/// Runs `study` off the async runtime with the request's budget and streams the lines it emits
+/// as NDJSON. `emit` returns false once the client has gone away (the budget's cancellation flag
+/// is then set, so the study stops between steps). A failure of the blocking task itself is sent
+/// as `error_line`, and every stream ends with `end`.
+pub(super) fn stream_study<L, F>(
+    permits: Vec<OwnedSemaphorePermit>,
+    deadline: Instant,
+    cancel: Arc<AtomicBool>,
+    shutdown: tokio::task::JoinHandle<()>,
+    study: F,
+    error_line: fn(ErrorDetail) -> L,
+    end: fn() -> L,
+) -> Response
+where
+    L: Serialize + Send + Sync + 'static,
+    F: FnOnce(Budget<'_>, &(dyn Fn(L) -> bool + Sync)) + Send + 'static,
+{
+    let (tx, rx) = mpsc::channel::<Bytes>(16);
+    let flag = cancel;
+    tokio::spawn(async move {
+        let sender = tx.clone();
+        let result = run_blocking(move || {
+            let _permits = permits;
+            let budget = Budget {
+                cancel: Some(&flag),
+                deadline: Some(deadline),
+            };
+            let emit = |l: L| {
+                let sent = sender.blocking_send(line(&l)).is_ok();
+                if !sent {
+                    flag.store(true, Ordering::Relaxed);
+                }
+                sent
+            };
+            study(budget, &emit);
+            emit(end());
+        })
+        .await;
+        shutdown.abort();
+        if let Err(error) = result {
+            let _ = tx.send(line(&error_line(error.detail().clone()))).await;
+            let _ = tx.send(line(&end())).await;
+        }
+    });
+    let body = Body::from_stream(ReceiverStream::new(rx).map(Ok::<_, Infallible>));
+    let mut response = Response::new(body);
+    let headers = response.headers_mut();
+    headers.insert(header::CONTENT_TYPE, HeaderValue::from_static(NDJSON));
+    headers.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-cache"));
+    response
 }
 
 /// Runs a work–precision study: one system, several methods at several step sizes (or
@@ -87,48 +141,20 @@ pub async fn work_precision(
     let shutdown = cancel_on_shutdown(&state, cancel.clone());
 
     if streaming {
-        let (tx, rx) = mpsc::channel::<Bytes>(16);
-        let flag = cancel.clone();
-        tokio::spawn(async move {
-            let sender = tx.clone();
-            let result = run_blocking(move || {
-                let _permits = permits;
-                let budget = Budget {
-                    cancel: Some(&flag),
-                    deadline: Some(deadline),
-                };
-                // A client that went away closes the channel: stop the study.
-                let emit = |l: StudyLine| {
-                    let sent = sender.blocking_send(line(&l)).is_ok();
-                    if !sent {
-                        flag.store(true, Ordering::Relaxed);
-                    }
-                    sent
-                };
-                let outcome = work_precision::run(&job, budget, &emit);
-                match outcome {
+        return Ok(stream_study(
+            permits,
+            deadline,
+            cancel,
+            shutdown,
+            move |budget, emit| {
+                match work_precision::run(&job, budget, &|l| emit(l)) {
                     Ok(doc) => emit(StudyLine::Result(doc)),
                     Err(error) => emit(StudyLine::Error { error }),
                 };
-                emit(StudyLine::End);
-            })
-            .await;
-            shutdown.abort();
-            if let Err(error) = result {
-                let _ = tx
-                    .send(line(&StudyLine::Error {
-                        error: error.detail().clone(),
-                    }))
-                    .await;
-                let _ = tx.send(line(&StudyLine::End)).await;
-            }
-        });
-        let body = Body::from_stream(ReceiverStream::new(rx).map(Ok::<_, Infallible>));
-        let mut response = Response::new(body);
-        let headers = response.headers_mut();
-        headers.insert(header::CONTENT_TYPE, HeaderValue::from_static(NDJSON));
-        headers.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-cache"));
-        return Ok(response);
+            },
+            |error| StudyLine::Error { error },
+            || StudyLine::End,
+        ));
     }
 
     let _guard = CancelOnDrop(cancel.clone());

@@ -24,7 +24,10 @@ pub struct SystemSummary {
     /// All parameters, defaults filled in (`epsilon` given as `gamma` = ε/2).
     #[schema(value_type = Object, example = json!({"gamma": 0.005}))]
     pub params: Map<String, Value>,
-    /// Initial positions.
+    /// The coordinate chart the runs are in.
+    #[schema(example = "cartesian")]
+    pub chart: String,
+    /// Initial positions (in the chart's coordinates).
     pub q0: Vec<f64>,
     /// Initial momenta.
     pub p0: Vec<f64>,
@@ -54,6 +57,13 @@ pub struct Columns {
     pub q: Vec<Vec<f64>>,
     /// Momenta, one list per sample.
     pub p: Vec<Vec<f64>>,
+    /// Cartesian positions per sample (for a first-order ODE: the original variable), present
+    /// when the chart is not Cartesian: the chart's point transformation of `q`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cartesian_q: Option<Vec<Vec<f64>>>,
+    /// Cartesian momenta per sample (the cotangent lift of `p`), with `cartesian_q`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cartesian_p: Option<Vec<Vec<f64>>>,
     /// Total energy H per sample.
     pub energy: Vec<f64>,
     /// H − H_exact per sample (exact solution, or the reference when asked); absent when
@@ -99,6 +109,12 @@ impl Columns {
         self.t.extend(more.t);
         self.q.extend(more.q);
         self.p.extend(more.p);
+        if let Some(more) = more.cartesian_q {
+            self.cartesian_q.get_or_insert_with(Vec::new).extend(more);
+        }
+        if let Some(more) = more.cartesian_p {
+            self.cartesian_p.get_or_insert_with(Vec::new).extend(more);
+        }
         self.energy.extend(more.energy);
         append(&mut self.energy_error, more.energy_error);
         for (name, values) in more.invariants {
@@ -155,6 +171,10 @@ impl SampleSink for ColumnSink {
         c.t.push(s.t);
         c.q.push(s.q.to_vec());
         c.p.push(s.p.to_vec());
+        if let Some((x, px)) = s.cartesian {
+            c.cartesian_q.get_or_insert_with(Vec::new).push(x.to_vec());
+            c.cartesian_p.get_or_insert_with(Vec::new).push(px.to_vec());
+        }
         c.energy.push(s.energy);
         if let Some(e) = s.energy_error {
             c.energy_error.get_or_insert_with(Vec::new).push(e);
@@ -331,6 +351,7 @@ impl SystemSummary {
         SystemSummary {
             id: sim.system_id.clone(),
             params,
+            chart: sim.chart.clone(),
             q0: sim.q0.clone(),
             p0: sim.p0.clone(),
         }

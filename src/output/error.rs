@@ -132,6 +132,26 @@ impl ErrorDetail {
         }
     }
 
+    /// A core error outside a simulation request (studies, maps): `{field}: {message}` for
+    /// invalid input, with `unknown_method` recognised; an unmet requirement names `methods`.
+    pub fn core(error: &CoreError) -> Self {
+        match error {
+            CoreError::Invalid { field, message } => {
+                let code = if message.starts_with("unknown method") {
+                    codes::UNKNOWN_METHOD
+                } else {
+                    codes::INVALID_VALUE
+                };
+                Self::at(code, field.clone(), format!("{field}: {message}"))
+            }
+            CoreError::Unmet { .. } => {
+                Self::at(codes::UNMET_REQUIREMENT, "methods", error.to_string())
+            }
+            CoreError::Step { .. } => Self::new(codes::STEP_FAILED, error.to_string()),
+            other => Self::new(codes::INTERNAL, other.to_string()),
+        }
+    }
+
     /// Renames a field path that starts with `methods[0]` to `method`, for requests that gave a
     /// single `method`.
     pub fn singular_method(mut self) -> Self {

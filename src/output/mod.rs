@@ -16,6 +16,7 @@
 
 pub mod catalog;
 pub mod document;
+pub mod energy_map;
 pub mod error;
 pub mod recording;
 pub mod request;

@@ -310,20 +310,9 @@ impl From<&StabilityMap> for MapDocument {
     }
 }
 
-/// A core error as the error shape, `{field}: {message}` for invalid input.
+/// A core error as the error shape.
 fn core_detail(error: &CoreError) -> ErrorDetail {
-    match error {
-        CoreError::Invalid { field, message } => {
-            let code = if message.starts_with("unknown method") {
-                codes::UNKNOWN_METHOD
-            } else {
-                codes::INVALID_VALUE
-            };
-            ErrorDetail::at(code, field.clone(), format!("{field}: {message}"))
-        }
-        CoreError::Step { .. } => ErrorDetail::new(codes::STEP_FAILED, error.to_string()),
-        other => ErrorDetail::new(codes::INTERNAL, other.to_string()),
-    }
+    ErrorDetail::core(error)
 }
 
 fn invalid(field: &str, message: impl std::fmt::Display) -> ErrorDetail {

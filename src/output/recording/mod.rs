@@ -14,6 +14,7 @@
 
 mod blueprint;
 mod encode;
+pub mod energy_map;
 pub mod live;
 pub mod simulation;
 pub mod stability;

@@ -11,7 +11,7 @@
 //! | `/{m}/force_evaluations` | `Scalars` + static `SeriesPoints` | one, at the last sample |
 //! | `/{m}/phase/{dof}/point` | `Points2D` (q, p), the current state | one per sample |
 //! | `/{m}/phase/{dof}/path` | `LineStrips2D`, the path since the previous row | see [`path_blocks`] |
-//! | `/{m}/world/bodies` | `Points3D`, the bodies in physical space; for the pendulums also `LineStrips3D`, the rod or spring from the origin | one per sample |
+//! | `/{m}/world/bodies` | `Points3D`, the bodies in physical space (Cartesian coordinates whatever the chart; the planar pendulum at (x, 0, −y)); for the pendulums also `LineStrips3D`, the rod or spring from the origin | one per sample |
 //! | `/{m}/world/path` | `LineStrips3D`, each body's path since the previous row | see [`path_blocks`] |
 //!
 //! Timelines: `step` (sequence) and `t` (duration, seconds). Every entity of a method carries
@@ -65,6 +65,11 @@ enum World {
     Spring,
     /// N bodies at q[3i..3i+3].
     Bodies,
+    /// The planar elastic pendulum's mass at (x, y), y pointing down: drawn at (x, 0, −y) on a
+    /// spring from the origin.
+    PlanarSpring,
+    /// A particle in the plane at (x, y, 0).
+    Plane,
 }
 
 impl World {
@@ -73,6 +78,8 @@ impl World {
             "pendulum" => World::Pendulum,
             "elastic_pendulum_3d" => World::Spring,
             "nbody" => World::Bodies,
+            "elastic_pendulum_2d" => World::PlanarSpring,
+            "free_particle_2d" => World::Plane,
             _ => World::Line,
         }
     }
@@ -93,6 +100,8 @@ impl World {
                 let a = q.first().copied().unwrap_or(0.0);
                 out.push([a.sin() as f32, 0.0, -a.cos() as f32]);
             }
+            World::PlanarSpring => out.push([q[0] as f32, 0.0, -q[1] as f32]),
+            World::Plane => out.push([q[0] as f32, q[1] as f32, 0.0]),
             World::Spring | World::Bodies => out.extend(
                 q.chunks_exact(3)
                     .map(|c| [c[0] as f32, c[1] as f32, c[2] as f32]),
@@ -104,7 +113,7 @@ impl World {
     fn link(self) -> Option<&'static str> {
         match self {
             World::Pendulum => Some("rod"),
-            World::Spring => Some("spring"),
+            World::Spring | World::PlanarSpring => Some("spring"),
             _ => None,
         }
     }
@@ -446,10 +455,11 @@ impl RunLogger {
             )?;
         }
 
-        // The world: the bodies, with the rod or spring to the origin.
+        // The world: the bodies, with the rod or spring to the origin; in physical (Cartesian)
+        // coordinates whatever the chart.
         let per_row = self.per_row;
         let mut positions: Vec<[f32; 3]> = Vec::with_capacity(n * per_row);
-        for q in &c.q {
+        for q in c.cartesian_q.as_ref().unwrap_or(&c.q) {
             self.world.positions(q, &mut positions);
         }
         let mut columns: Vec<_> = Points3D::new(positions.iter().copied())
