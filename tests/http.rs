@@ -306,6 +306,7 @@ async fn simulate_equals_the_core_bit_for_bit() {
         every: Some(10),
         compare_to_reference: false,
         jacobian_defect: false,
+        ..Default::default()
     };
     let (sim, runs) = core_runs(&req);
     for (i, (traj, stop)) in runs.iter().enumerate() {
