@@ -86,9 +86,10 @@ fn stability_maps() {
         max: 1.0,
         n: 400,
     };
+    // rowlands needs an undamped system, so it has no map over γ > 0.
     let choices: Vec<MethodChoice> = MethodId::ALL
         .iter()
-        .filter(|&&m| m != MethodId::Reference)
+        .filter(|&&m| m != MethodId::Reference && m != MethodId::Rowlands)
         .map(|&m| MethodChoice::new(m))
         .collect();
     let began = Instant::now();

@@ -466,6 +466,7 @@ fn the_exact_flow_is_chart_invariant_and_symplectic_euler_is_not() {
                         inner: None,
                         base: None,
                         tolerance: Some(TOLERANCE),
+                        processor: None,
                     }
                 } else {
                     MethodInput::Id(method.into())

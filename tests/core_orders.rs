@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{every_fixed_step_choice as every_choice, final_state};
+use common::{conservative_only, every_fixed_step_choice as every_choice, final_state};
 use geomint::core::diagnostics::log_log_slope;
 use geomint::core::methods::{MethodChoice, MethodId};
 use geomint::core::system::{MechanicalSystem, State};
@@ -11,30 +11,38 @@ use geomint::core::systems::HarmonicOscillator;
 use nalgebra::U1;
 
 fn nominal_order(c: &MethodChoice) -> f64 {
-    f64::from(c.id.info().order)
+    f64::from(c.order())
 }
 
 #[test]
 fn every_method_converges_with_its_nominal_order_on_the_damped_oscillator() {
-    let sys = HarmonicOscillator {
+    let damped = HarmonicOscillator {
         omega: 2.0,
         gamma: 0.3,
     };
+    // rowlands is derived for conservative systems only: it runs undamped (tests/core_rowlands.rs
+    // measures it further).
+    let undamped = HarmonicOscillator {
+        omega: 2.0,
+        gamma: 0.0,
+    };
     let start = State::from_slices(U1, &[1.0], &[0.5]);
     let t_end = 4.0;
-    let exact = sys.exact(t_end, &start).unwrap();
     let hs = [0.04, 0.02, 0.01, 0.005];
     let mut report = Vec::new();
     // At these steps orders 6 and 8 reach round-off; tests/core_compositions.rs measures them
     // at larger steps.
-    for choice in every_choice()
-        .into_iter()
-        .filter(|c| c.id.info().order <= 4)
-    {
+    for choice in every_choice().into_iter().filter(|c| c.order() <= 4) {
+        let sys = if conservative_only(&choice) {
+            &undamped
+        } else {
+            &damped
+        };
+        let exact = sys.exact(t_end, &start).unwrap();
         let errors: Vec<f64> = hs
             .iter()
             .map(|&h| {
-                let z = final_state(&sys, &choice, &start, h, t_end);
+                let z = final_state(sys, &choice, &start, h, t_end);
                 ((z.q[0] - exact.q[0]).powi(2) + (z.p[0] - exact.p[0]).powi(2)).sqrt()
             })
             .collect();
@@ -95,14 +103,23 @@ fn exact_solution_satisfies_the_equation_in_all_three_regimes() {
 
 #[test]
 fn symmetric_methods_are_their_own_adjoint() {
-    // Φ₋ₕ ∘ Φₕ = id to round-off for every method marked symmetric, on the nonlinear pendulum.
-    let sys = geomint::core::systems::Pendulum { gamma: 0.2 };
+    // Φ₋ₕ ∘ Φₕ = id to round-off for every method marked symmetric, on the nonlinear pendulum
+    // (undamped for rowlands, whose symmetric part is its kernel: one step each way, without the
+    // processing a run adds).
+    let damped = geomint::core::systems::Pendulum { gamma: 0.2 };
+    let undamped = geomint::core::systems::Pendulum { gamma: 0.0 };
     let start = State::from_slices(U1, &[2.0], &[0.3]);
     for choice in every_choice().into_iter().filter(|c| c.id.info().symmetric) {
-        let forward = final_state(&sys, &choice, &start, 0.1, 0.1);
-        let mut stepper = geomint::core::methods::build(&choice, &sys, "pendulum", 0.1).unwrap();
-        let mut z = forward.clone();
-        geomint::core::run::Stepper::step(&mut stepper, &sys, &mut z, -0.1).unwrap();
+        let sys = if conservative_only(&choice) {
+            &undamped
+        } else {
+            &damped
+        };
+        let mut stepper = geomint::core::methods::build(&choice, sys, "pendulum", 0.1).unwrap();
+        let mut z = start.clone();
+        geomint::core::run::Stepper::step(&mut stepper, sys, &mut z, 0.1).unwrap();
+        let mut stepper = geomint::core::methods::build(&choice, sys, "pendulum", 0.1).unwrap();
+        geomint::core::run::Stepper::step(&mut stepper, sys, &mut z, -0.1).unwrap();
         let err = (z.q[0] - start.q[0]).abs() + (z.p[0] - start.p[0]).abs();
         assert!(
             err < 1e-13,
@@ -112,10 +129,10 @@ fn symmetric_methods_are_their_own_adjoint() {
     }
     // And Heun, which is not symmetric, is not.
     let heun = MethodChoice::new(MethodId::Heun);
-    let forward = final_state(&sys, &heun, &start, 0.1, 0.1);
-    let mut stepper = geomint::core::methods::build(&heun, &sys, "pendulum", 0.1).unwrap();
+    let forward = final_state(&damped, &heun, &start, 0.1, 0.1);
+    let mut stepper = geomint::core::methods::build(&heun, &damped, "pendulum", 0.1).unwrap();
     let mut z = forward;
-    geomint::core::run::Stepper::step(&mut stepper, &sys, &mut z, -0.1).unwrap();
+    geomint::core::run::Stepper::step(&mut stepper, &damped, &mut z, -0.1).unwrap();
     assert!((z.q[0] - start.q[0]).abs() + (z.p[0] - start.p[0]).abs() > 1e-6);
 }
 

@@ -37,6 +37,25 @@ where
         1024
     }
 
+    /// Processing (a method Φ = χ⁻¹ ∘ K ∘ χ whose kernel K is what `step` does): maps the
+    /// caller's state to the kernel's, z ← χ(z). The driver calls it once, before the first step.
+    /// The default does nothing.
+    fn pre_process(&mut self, _sys: &S, _z: &mut State<S::Dim>, _h: f64) {}
+
+    /// Processing: writes the output state χ⁻¹(z) for the kernel state `z` into `out` and returns
+    /// true; returns false (leaving `out` alone) when `z` itself is the output, as it is for every
+    /// method without processing (the default). The driver calls it at the samples after step 0
+    /// and at the end; it must leave the state `step` continues from (caches included) unchanged.
+    fn post_process(
+        &mut self,
+        _sys: &S,
+        _z: &State<S::Dim>,
+        _h: f64,
+        _out: &mut State<S::Dim>,
+    ) -> bool {
+        false
+    }
+
     /// Advances `z` by one step and multiplies `tangent.jac` by the step's Jacobian ∂Φ/∂z.
     fn step_tangent(
         &mut self,
@@ -64,6 +83,18 @@ where
     }
     fn check_interval(&self) -> u64 {
         (**self).check_interval()
+    }
+    fn pre_process(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64) {
+        (**self).pre_process(sys, z, h)
+    }
+    fn post_process(
+        &mut self,
+        sys: &S,
+        z: &State<S::Dim>,
+        h: f64,
+        out: &mut State<S::Dim>,
+    ) -> bool {
+        (**self).post_process(sys, z, h, out)
     }
     fn step_tangent(
         &mut self,
@@ -174,6 +205,12 @@ where
 ///
 /// With `track_determinant`, each step also propagates its Jacobian (slower; for diagnostics)
 /// and reports det ∂Φ/∂z to the observer.
+///
+/// For a processing method (see [`Stepper::pre_process`]) the sample at step 0 is the caller's
+/// state as given, `z` is pre-processed once before the first step, the later samples are
+/// post-processed kernel states, and on return `z` holds the post-processed final state (the
+/// kernel state if the run diverged). Methods without processing see none of this: their loop is
+/// the same.
 pub fn integrate<S, M, O>(
     sys: &S,
     stepper: &mut M,
@@ -204,6 +241,12 @@ where
         None
     };
     observer.on_sample(0, 0.0, z);
+    if schedule.steps > 0 {
+        stepper.pre_process(sys, z, h);
+    }
+    // The post-processed state of the last sample, and that sample's step.
+    let mut processed = z.clone();
+    let mut processed_at = None;
     let mut stop = StopReason::Finished;
     let mut step = 0u64;
     while step < schedule.steps {
@@ -260,8 +303,20 @@ where
             break;
         }
         if step % every == 0 || step == schedule.steps {
-            observer.on_sample(step, step as f64 * h, z);
+            if stepper.post_process(sys, z, h, &mut processed) {
+                processed_at = Some(step);
+                observer.on_sample(step, step as f64 * h, &processed);
+            } else {
+                observer.on_sample(step, step as f64 * h, z);
+            }
         }
+    }
+    // Leave the output state, not the kernel's, to the caller.
+    if step > 0
+        && !matches!(stop, StopReason::Diverged { .. })
+        && (processed_at == Some(step) || stepper.post_process(sys, z, h, &mut processed))
+    {
+        z.clone_from(&processed);
     }
     let stats = RunStats {
         steps: step,

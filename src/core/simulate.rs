@@ -250,10 +250,17 @@ impl Simulation {
             let choice = MethodChoice::parse(input, &format!("methods[{i}]"))?;
             // Building checks requirements and step-size limits; the stepper itself is dropped.
             with_system!(&system, s => methods::build(&choice, s, &system_label, req.h).map(|_| ()))?;
-            if req.jacobian_defect && choice.id == methods::MethodId::Reference {
+            let no_jacobian = match choice.id {
+                methods::MethodId::Reference => Some("the adaptive reference has"),
+                methods::MethodId::Rowlands => {
+                    Some("rowlands (whose modified kick would need third derivatives of V) has")
+                }
+                _ => None,
+            };
+            if let Some(which) = no_jacobian.filter(|_| req.jacobian_defect) {
                 return Err(CoreError::invalid(
                     format!("methods[{i}]"),
-                    "the adaptive reference has no step Jacobian; drop it or jacobian_defect",
+                    format!("{which} no step Jacobian; drop it or jacobian_defect"),
                 ));
             }
             methods.push(choice);

@@ -32,7 +32,7 @@ use serde::Serialize;
 use super::error::CoreError;
 use super::methods::{self, MethodChoice, MethodId};
 use super::run::Stepper;
-use super::system::State;
+use super::system::{MechanicalSystem, State};
 use super::systems::HarmonicOscillator;
 
 /// A complex eigenvalue.
@@ -305,6 +305,16 @@ pub fn map(
         return Err(CoreError::invalid("h.min", "must be ≥ 0"));
     }
     check_point(omega, 0.0, 1.0)?;
+    // A method that refuses damping (rowlands) would be refused in every damped cell: say so once.
+    let widest = HarmonicOscillator {
+        omega,
+        gamma: gamma.max,
+    };
+    choice.check(
+        "harmonic_oscillator",
+        widest.structure(),
+        widest.damping_rate(),
+    )?;
     // A zero step is the identity: treat it as stable without stepping.
     let radius: Vec<f64> = (0..h.n)
         .into_par_iter()

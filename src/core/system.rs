@@ -120,7 +120,8 @@ where
 
     /// The Hessian ∇²V(q) (n×n). The default differentiates `grad_potential` by central
     /// differences; systems with a cheap analytic Hessian override it. Returns the number of
-    /// gradient evaluations it used.
+    /// gradient evaluations it used (2n here, none for an analytic override), which is what
+    /// callers add to their force-evaluation counts.
     fn hess_potential(&self, q: &Vector<Self::Dim>, out: &mut DMatrix<f64>) -> u64 {
         let n = q.len();
         let mut qq = q.clone();

@@ -149,6 +149,8 @@ pub enum MethodRequirement {
     SeparableConstantMass,
     /// D ∝ M (linear damping p' = … − 2γp).
     ConformalDamping,
+    /// No damping (the system's damping rate is zero).
+    Conservative,
 }
 
 /// Where a method comes from.
@@ -249,6 +251,7 @@ impl From<&MethodInfo> for MethodEntry {
                 .map(|r| match r {
                     Requirement::SeparableConstantMass => MethodRequirement::SeparableConstantMass,
                     Requirement::ConformalDamping => MethodRequirement::ConformalDamping,
+                    Requirement::Conservative => MethodRequirement::Conservative,
                 })
                 .collect(),
             reference: CitationEntry {

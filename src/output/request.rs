@@ -119,6 +119,10 @@ pub struct MethodOptions {
     /// Relative tolerance of `reference` (in [1e-14, 1e-2]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tolerance: Option<f64>,
+    /// Processor of `rowlands`: `none` (the second-order kernel alone), `original` (eqs. 32–33
+    /// with h²/12) or `cheap` (eqs. 34–37; default).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub processor: Option<String>,
 }
 
 /// The fields of [`SimulateRequest`], as the parser accepts them.
@@ -138,7 +142,7 @@ pub const REQUEST_FIELDS: &[&str] = &[
     "jacobian_defect",
 ];
 const OUTPUT_FIELDS: &[&str] = &["every"];
-const METHOD_FIELDS: &[&str] = &["id", "inner", "base", "tolerance"];
+const METHOD_FIELDS: &[&str] = &["id", "inner", "base", "tolerance", "processor"];
 
 impl MethodSpec {
     /// The method id.
@@ -158,6 +162,7 @@ impl MethodSpec {
                 inner: o.inner.clone(),
                 base: o.base.clone(),
                 tolerance: o.tolerance,
+                processor: o.processor.clone(),
             },
         }
     }
@@ -614,6 +619,17 @@ pub(crate) fn method(v: &Value, field: &str) -> Result<MethodSpec, ErrorDetail> 
                 tolerance: present(o, "tolerance")
                     .map(|v| number(v, &format!("{field}.tolerance")))
                     .transpose()?,
+                processor: present(o, "processor")
+                    .map(|v| {
+                        v.as_str().map(str::to_string).ok_or_else(|| {
+                            wrong_type(
+                                &format!("{field}.processor"),
+                                "a processor name: none, original or cheap",
+                                v,
+                            )
+                        })
+                    })
+                    .transpose()?,
             }))
         }
         other => Err(wrong_type(
@@ -723,7 +739,8 @@ mod tests {
                 id: "triple_jump".into(),
                 inner: None,
                 base: Some("csv1".into()),
-                tolerance: None
+                tolerance: None,
+                processor: None
             }
         );
         // Serializing gives back what was parsed.

@@ -27,6 +27,8 @@ use crate::core::run::Budget;
 use crate::core::stability::{
     self, Axis, Eigenvalue, PointAnalysis, Relation, Spectrum, StabilityMap, MAX_AXIS_POINTS,
 };
+use crate::core::system::MechanicalSystem;
+use crate::core::systems::HarmonicOscillator;
 
 /// Most methods in one map request.
 pub const MAX_MAP_METHODS: usize = 16;
@@ -315,6 +317,17 @@ fn core_detail(error: &CoreError) -> ErrorDetail {
     ErrorDetail::core(error)
 }
 
+/// Refuses `choice` on the oscillator damped at rate γ (rowlands needs γ = 0), naming `field`.
+fn check_damping(choice: &MethodChoice, gamma: f64, field: &str) -> Result<(), ErrorDetail> {
+    let sys = HarmonicOscillator { omega: 1.0, gamma };
+    choice
+        .check("harmonic_oscillator", sys.structure(), sys.damping_rate())
+        .map_err(|e| ErrorDetail {
+            field: Some(field.to_string()),
+            ..core_detail(&e)
+        })
+}
+
 fn invalid(field: &str, message: impl std::fmt::Display) -> ErrorDetail {
     ErrorDetail::at(codes::INVALID_VALUE, field, format!("{field}: {message}"))
 }
@@ -466,6 +479,9 @@ impl StabilityRequest {
         check_positive(self.omega, "omega")?;
         check_axis(&self.gamma, "gamma")?;
         check_axis(&self.h, "h")?;
+        for (i, choice) in choices.iter().enumerate() {
+            check_damping(choice, self.gamma.max, &format!("methods[{i}]"))?;
+        }
         let job = MapJob {
             choices,
             omega: self.omega,
@@ -523,6 +539,7 @@ impl PointRequest {
             ));
         }
         check_positive(self.h, "h")?;
+        check_damping(&choice, self.gamma, "method")?;
         Ok(PointJob {
             choice,
             omega: self.omega,
@@ -651,6 +668,44 @@ mod tests {
         ] {
             assert_eq!(field_of_map(&body).as_deref(), Some(field), "{body}");
         }
+    }
+
+    #[test]
+    fn rowlands_is_refused_on_a_damped_axis_or_point() {
+        let h = r#""h": {"min": 0, "max": 1, "n": 10}"#;
+        let damped = format!(
+            r#"{{"methods": ["csv1", "rowlands"], "omega": 1, "gamma": {{"min": 0, "max": 1, "n": 10}}, {h}}}"#
+        );
+        let error = StabilityRequest::from_slice(damped.as_bytes())
+            .unwrap()
+            .prepare()
+            .unwrap_err();
+        assert_eq!(
+            (error.code.as_str(), error.field.as_deref()),
+            (codes::UNMET_REQUIREMENT, Some("methods[1]"))
+        );
+        assert!(error.message.contains("no damping"), "{}", error.message);
+        let undamped = format!(
+            r#"{{"methods": ["rowlands"], "omega": 1, "gamma": {{"min": 0, "max": 0, "n": 2}}, {h}}}"#
+        );
+        let job = StabilityRequest::from_slice(undamped.as_bytes())
+            .unwrap()
+            .prepare()
+            .unwrap();
+        assert!(maps(&job, Budget::default()).is_ok());
+        let point = |gamma: f64| {
+            PointRequest::from_value(&serde_json::json!({
+                "method": {"id": "rowlands", "processor": "none"}, "omega": 1, "gamma": gamma, "h": 0.1
+            }))
+            .unwrap()
+            .prepare()
+        };
+        let error = point(0.1).unwrap_err();
+        assert_eq!(
+            (error.code.as_str(), error.field.as_deref()),
+            (codes::UNMET_REQUIREMENT, Some("method"))
+        );
+        assert!(point(0.0).is_ok());
     }
 
     #[test]

@@ -307,6 +307,7 @@ impl WorkPrecisionRequest {
                 inner: None,
                 base: None,
                 tolerance: Some(t),
+                processor: None,
             };
         }
         let steps = (self.t_end / h).round().max(1.0) as u64;

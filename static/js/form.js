@@ -13,12 +13,16 @@ const GROUPS = [
 /** Inner methods `modin_rks` accepts (README, Methods; explicit Euler is not offered). */
 const RKS_INNER = ['heun', 'rk3', 'rk4', 'implicit_midpoint'];
 
+/** Processors `rowlands` accepts, the default first (paper 001 eqs. 32–37). */
+const ROWLANDS_PROCESSORS = ['cheap', 'original', 'none'];
+
 /** Up to this many degrees of freedom the initial state gets one input per component. */
 const MAX_COMPONENT_INPUTS = 6;
 
 const REQUIREMENT_TEXT = {
   separable_constant_mass: 'a separable H with constant mass',
   conformal_damping: 'conformal damping (p′ = −∇V − 2γp)',
+  conservative: 'no damping (γ = 0, ε = 0)',
 };
 
 /** Creates an element with attributes and children. */
@@ -258,6 +262,7 @@ export class SimForm {
       el('span', { class: `tag kind-${m.kind}`, text: kind }),
       m.conformal_symplectic ? el('span', { class: 'tag', text: 'conformal symplectic' })
         : m.symplectic ? el('span', { class: 'tag', text: 'symplectic' }) : null,
+      m.requirements.includes('conservative') ? el('span', { class: 'tag', text: 'undamped only' }) : null,
       el('span', { class: 'cite', text: `${m.reference.paper}, ${m.reference.equation}` }));
     let option = null;
     if (m.options.includes('inner')) {
@@ -265,6 +270,8 @@ export class SimForm {
     } else if (m.options.includes('base')) {
       const bases = this.methods.filter((x) => x.symmetric && x.order === 2).map((x) => x.id);
       option = this.optionSelect(m, 'base', 'base method', bases, bases.includes('modin_3s') ? 'modin_3s' : bases[0]);
+    } else if (m.options.includes('processor')) {
+      option = this.optionSelect(m, 'processor', 'processor', ROWLANDS_PROCESSORS, ROWLANDS_PROCESSORS[0]);
     } else if (m.options.includes('tolerance')) {
       const tid = `${id}-tolerance`;
       option = el('span', { class: 'method-option' },

@@ -116,6 +116,11 @@ test('every form control has a label', async () => {
   assert.deepEqual(unlabelled, []);
 });
 
+test('rowlands offers its processors, cheap by default', async () => {
+  const select = await page.$eval('#m-rowlands-processor', (s) => ({ value: s.value, options: [...s.options].map((o) => o.value) }));
+  assert.deepEqual(select, { value: 'cheap', options: ['cheap', 'original', 'none'] });
+});
+
 test('a preset with two methods plots every sample the API returns', async () => {
   const request = presetRequest(...PRESET);
   assert.equal(request.methods.length, 2);

@@ -84,14 +84,17 @@ pub fn run_all(req: &Request) -> (Simulation, Vec<Trajectory>) {
 }
 
 /// Every fixed-step method choice: each id but the reference with default options, every
-/// triple-jump base and every inner method of modin_rks.
+/// triple-jump base, every inner method of modin_rks and every processor of rowlands (which
+/// needs an undamped system: see [`conservative_only`]).
 pub fn every_fixed_step_choice() -> Vec<MethodChoice> {
+    use geomint::core::methods::rowlands::Processor;
     use geomint::core::methods::{MethodId, COMPOSITION_BASES, RKS_INNER};
     let mut choices: Vec<MethodChoice> = MethodId::ALL
         .iter()
-        .filter(|&&m| m != MethodId::Reference)
+        .filter(|&&m| m != MethodId::Reference && m != MethodId::Rowlands)
         .map(|&m| MethodChoice::new(m))
         .collect();
+    choices.extend(Processor::ALL.map(MethodChoice::rowlands));
     choices.extend(
         COMPOSITION_BASES
             .iter()
@@ -99,4 +102,11 @@ pub fn every_fixed_step_choice() -> Vec<MethodChoice> {
     );
     choices.extend(RKS_INNER.iter().map(|&i| MethodChoice::rks(i)));
     choices
+}
+
+/// Whether `choice` runs on undamped systems only (rowlands).
+pub fn conservative_only(choice: &MethodChoice) -> bool {
+    choice
+        .requirements()
+        .contains(&geomint::core::methods::Requirement::Conservative)
 }

@@ -6,6 +6,7 @@ pub mod composition;
 pub mod conformal;
 pub mod implicit;
 pub mod reference;
+pub mod rowlands;
 pub mod runge_kutta;
 pub mod splitting;
 pub mod symplectic_euler;
@@ -23,6 +24,7 @@ use composition::{Composed, Scheme};
 use conformal::Csv2;
 use implicit::{ImplicitMidpoint, MidpointField};
 use reference::Reference;
+use rowlands::{Processor, Rowlands};
 use runge_kutta::{InnerRk, MomentumRk, RungeKutta, Tableau};
 use splitting::Splitting;
 use symplectic_euler::{GeneralSymplecticEuler, Variant};
@@ -90,6 +92,10 @@ pub enum MethodId {
     /// Kahan and Li's eighth-order 17-stage composition.
     #[serde(rename = "kahan_li_8")]
     KahanLi8,
+    /// Rowlands time stepping: Störmer–Verlet on a modified potential with processing (paper 001
+    /// eqs. 30–37).
+    #[serde(rename = "rowlands")]
+    Rowlands,
     /// Adaptive DOP853 at a tight tolerance.
     #[serde(rename = "reference")]
     Reference,
@@ -117,6 +123,8 @@ pub enum Requirement {
     SeparableConstantMass,
     /// D ∝ M (linear damping p' = … − 2γp).
     ConformalDamping,
+    /// No damping: the system's damping rate is zero.
+    Conservative,
 }
 
 impl Requirement {
@@ -127,13 +135,18 @@ impl Requirement {
                 "a separable Hamiltonian with a constant mass matrix (its drift and kick flows must be exact)"
             }
             Requirement::ConformalDamping => "conformal damping D ∝ M (p' = −∇V − 2γp)",
+            Requirement::Conservative => {
+                "no damping (its modified potential and processors are derived for a conservative Hamiltonian; set the damping to 0)"
+            }
         }
     }
 
-    fn met_by(self, s: Structure) -> bool {
+    /// Whether a system with this structure and damping rate meets the requirement.
+    pub fn met_by(self, s: Structure, damping_rate: f64) -> bool {
         match self {
             Requirement::SeparableConstantMass => s.separable_constant_mass,
             Requirement::ConformalDamping => s.conformal_damping,
+            Requirement::Conservative => damping_rate == 0.0,
         }
     }
 }
@@ -175,6 +188,10 @@ pub struct MethodInfo {
 }
 
 const SEP: &[Requirement] = &[Requirement::SeparableConstantMass];
+const SEP_CONSERVATIVE: &[Requirement] = &[
+    Requirement::SeparableConstantMass,
+    Requirement::Conservative,
+];
 const SEP_CONF: &[Requirement] = &[
     Requirement::SeparableConstantMass,
     Requirement::ConformalDamping,
@@ -185,9 +202,24 @@ const MODIN: &str = "000 Modin & Söderlind 2011";
 const FLOYD: &str = "003 Floyd 2014";
 const TAKACS: &str = "001 Takács & Fülöp";
 
+/// A catalogue row: name, order, kind, symplectic, conformal symplectic, symmetric,
+/// requirements, citation, group, options (the fields of [`MethodInfo`] after the id).
+type InfoRow = (
+    &'static str,
+    u32,
+    Kind,
+    bool,
+    bool,
+    bool,
+    &'static [Requirement],
+    Citation,
+    &'static str,
+    &'static [&'static str],
+);
+
 impl MethodId {
     /// All methods, in catalogue order.
-    pub const ALL: [MethodId; 21] = [
+    pub const ALL: [MethodId; 22] = [
         MethodId::Modin3s,
         MethodId::Modin2s,
         MethodId::ModinRks,
@@ -199,6 +231,7 @@ impl MethodId {
         MethodId::Yoshida6,
         MethodId::KahanLi6,
         MethodId::KahanLi8,
+        MethodId::Rowlands,
         MethodId::SymplecticEuler,
         MethodId::SymplecticEulerAdjoint,
         MethodId::PositionVerlet,
@@ -249,18 +282,7 @@ impl MethodId {
             reference,
             group,
             options,
-        ): (
-            &'static str,
-            u32,
-            Kind,
-            bool,
-            bool,
-            bool,
-            &'static [Requirement],
-            Citation,
-            &'static str,
-            &'static [&'static str],
-        ) = match self {
+        ): InfoRow = match self {
             M::ExplicitEuler => (
                 "Explicit Euler",
                 1,
@@ -501,6 +523,18 @@ impl MethodId {
                 "geometric",
                 &["base"],
             ),
+            M::Rowlands => (
+                "Rowlands time stepping (processed Störmer–Verlet, effective order 4)",
+                4,
+                Explicit,
+                true,
+                false,
+                true,
+                SEP_CONSERVATIVE,
+                cite(TAKACS, "eqs. (30)–(37), (32)–(33) with h²/12"),
+                "geometric",
+                &["processor"],
+            ),
             M::Reference => (
                 "Reference: adaptive DOP853",
                 8,
@@ -553,6 +587,7 @@ impl MethodInfo {
             MethodId::Yoshida6 => "yoshida_6",
             MethodId::KahanLi6 => "kahan_li_6",
             MethodId::KahanLi8 => "kahan_li_8",
+            MethodId::Rowlands => "rowlands",
             MethodId::Reference => "reference",
         }
     }
@@ -598,6 +633,9 @@ pub enum MethodInput {
         /// Tolerance of reference.
         #[serde(default, skip_serializing_if = "Option::is_none")]
         tolerance: Option<f64>,
+        /// Processor of rowlands (none, original, cheap).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        processor: Option<String>,
     },
 }
 
@@ -615,6 +653,9 @@ pub struct MethodChoice {
     /// Tolerance (reference).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub tolerance: Option<f64>,
+    /// Processor (rowlands).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub processor: Option<Processor>,
 }
 
 impl MethodChoice {
@@ -625,6 +666,7 @@ impl MethodChoice {
             inner: None,
             base: None,
             tolerance: None,
+            processor: None,
         };
         choice.fill_defaults();
         choice
@@ -642,6 +684,7 @@ impl MethodChoice {
             inner: None,
             base: Some(base),
             tolerance: None,
+            processor: None,
         }
     }
 
@@ -652,6 +695,18 @@ impl MethodChoice {
             inner: Some(inner),
             base: None,
             tolerance: None,
+            processor: None,
+        }
+    }
+
+    /// rowlands with `processor`.
+    pub fn rowlands(processor: Processor) -> Self {
+        MethodChoice {
+            id: MethodId::Rowlands,
+            inner: None,
+            base: None,
+            tolerance: None,
+            processor: Some(processor),
         }
     }
 
@@ -661,14 +716,19 @@ impl MethodChoice {
             MethodId::Reference => {
                 self.tolerance = self.tolerance.or(Some(reference::DEFAULT_TOLERANCE))
             }
+            MethodId::Rowlands => self.processor = self.processor.or(Some(Processor::DEFAULT)),
             id if id.scheme().is_some() => self.base = self.base.or(Some(MethodId::Modin3s)),
             _ => {}
         }
     }
 
-    /// A label that tells runs apart: `modin_rks(rk4)`, `triple_jump(csv1)`, `reference(1e-12)`.
+    /// A label that tells runs apart: `modin_rks(rk4)`, `triple_jump(csv1)`, `reference(1e-12)`,
+    /// `rowlands(cheap)`.
     pub fn label(&self) -> String {
         let id = self.id.as_str();
+        if let Some(p) = self.processor {
+            return format!("{id}({})", p.as_str());
+        }
         match (self.inner, self.base, self.tolerance) {
             (Some(i), _, _) => format!("{id}({})", i.as_str()),
             (_, Some(b), _) => format!("{id}({})", b.as_str()),
@@ -694,12 +754,14 @@ impl MethodChoice {
                 inner: None,
                 base: None,
                 tolerance: None,
+                processor: None,
             },
             MethodInput::Object {
                 id,
                 inner,
                 base,
                 tolerance,
+                processor,
             } => {
                 let id = lookup(id, &format!("{field}.id"))?;
                 let allowed = id.info().options;
@@ -707,6 +769,7 @@ impl MethodChoice {
                     ("inner", inner.is_some()),
                     ("base", base.is_some()),
                     ("tolerance", tolerance.is_some()),
+                    ("processor", processor.is_some()),
                 ] {
                     if present && !allowed.contains(&name) {
                         return Err(CoreError::invalid(
@@ -723,11 +786,25 @@ impl MethodChoice {
                     .as_deref()
                     .map(|s| lookup(s, &format!("{field}.base")))
                     .transpose()?;
+                let processor = processor
+                    .as_deref()
+                    .map(|s| {
+                        Processor::parse(s).ok_or_else(|| {
+                            let known: Vec<&str> =
+                                Processor::ALL.iter().map(|p| p.as_str()).collect();
+                            CoreError::invalid(
+                                format!("{field}.processor"),
+                                format!("unknown processor `{s}`; known: {}", known.join(", ")),
+                            )
+                        })
+                    })
+                    .transpose()?;
                 MethodChoice {
                     id,
                     inner,
                     base,
                     tolerance: *tolerance,
+                    processor,
                 }
             }
         };
@@ -773,9 +850,28 @@ impl MethodChoice {
         }
     }
 
-    /// Checks the requirements against a system; the error names the first unmet one.
-    pub fn check(&self, system_id: &str, structure: Structure) -> Result<(), CoreError> {
-        match self.requirements().iter().find(|r| !r.met_by(structure)) {
+    /// The order of this choice: the method's, except that rowlands without processing is its
+    /// second-order kernel.
+    pub fn order(&self) -> u32 {
+        match (self.id, self.processor) {
+            (MethodId::Rowlands, Some(Processor::None)) => 2,
+            (id, _) => id.info().order,
+        }
+    }
+
+    /// Checks the requirements against a system with this structure and damping rate
+    /// ([`MechanicalSystem::damping_rate`]); the error names the first unmet one.
+    pub fn check(
+        &self,
+        system_id: &str,
+        structure: Structure,
+        damping_rate: f64,
+    ) -> Result<(), CoreError> {
+        match self
+            .requirements()
+            .iter()
+            .find(|r| !r.met_by(structure, damping_rate))
+        {
             None => Ok(()),
             Some(r) => Err(CoreError::Unmet {
                 method: self.label(),
@@ -839,6 +935,8 @@ where
     GeneralSymplecticEuler(GeneralSymplecticEuler<S>),
     /// The adaptive reference.
     Reference(Reference),
+    /// rowlands.
+    Rowlands(Rowlands<S>),
 }
 
 /// Runs `$body` with `$st` bound to the concrete stepper inside an [`AnyStepper`].
@@ -854,6 +952,7 @@ macro_rules! with_stepper {
             $crate::core::methods::AnyStepper::ComposedCsv2($st) => $body,
             $crate::core::methods::AnyStepper::GeneralSymplecticEuler($st) => $body,
             $crate::core::methods::AnyStepper::Reference($st) => $body,
+            $crate::core::methods::AnyStepper::Rowlands($st) => $body,
         }
     };
 }
@@ -870,6 +969,18 @@ where
     }
     fn check_interval(&self) -> u64 {
         with_stepper!(self, st => Stepper::<S>::check_interval(st))
+    }
+    fn pre_process(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64) {
+        with_stepper!(self, st => st.pre_process(sys, z, h))
+    }
+    fn post_process(
+        &mut self,
+        sys: &S,
+        z: &State<S::Dim>,
+        h: f64,
+        out: &mut State<S::Dim>,
+    ) -> bool {
+        with_stepper!(self, st => st.post_process(sys, z, h, out))
     }
     fn step_tangent(
         &mut self,
@@ -893,7 +1004,7 @@ pub fn build<S: MechanicalSystem>(
 where
     DefaultAllocator: Allocator<S::Dim>,
 {
-    choice.check(system_id, sys.structure())?;
+    choice.check(system_id, sys.structure(), sys.damping_rate())?;
     let scheme = choice.id.scheme();
     let base = match scheme {
         Some(_) => choice.base.unwrap_or(MethodId::Modin3s),
@@ -959,6 +1070,10 @@ where
         MethodId::Csv2 => AnyStepper::Csv2(Csv2::new(sys)),
         MethodId::Reference => AnyStepper::Reference(Reference::new(
             choice.tolerance.unwrap_or(reference::DEFAULT_TOLERANCE),
+        )),
+        MethodId::Rowlands => AnyStepper::Rowlands(Rowlands::new(
+            sys,
+            choice.processor.unwrap_or(Processor::DEFAULT),
         )),
         id => match (tableau(id), sequence(id)) {
             (Some(t), _) => AnyStepper::RungeKutta(RungeKutta::new(t, sys.dim())),
