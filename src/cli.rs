@@ -51,8 +51,8 @@ pub enum Command {
     Serve(ServeArgs),
     /// Run a simulation spec (the body of POST /api/v1/simulate) without a server.
     Run(RunArgs),
-    /// Run a study spec without a server (`work-precision`: the body of
-    /// POST /api/v1/studies/work-precision).
+    /// Run a study spec without a server (`work-precision`, `energy-map`: the body of
+    /// POST /api/v1/studies/work-precision or /studies/energy-map).
     Study(StudyArgs),
     /// Print the system catalogue as JSON.
     Systems,
@@ -148,6 +148,9 @@ pub struct RunArgs {
 pub enum StudyKind {
     /// Wall time against energy error per method and setting.
     WorkPrecision,
+    /// Energy-error map of the planar elastic pendulum, Cartesian against polar coordinates
+    /// (paper 001 Fig. 6).
+    EnergyMap,
 }
 
 /// Settings of `geomint study`.
@@ -570,8 +573,14 @@ fn read_spec(path: &std::path::Path) -> Result<Vec<u8>, String> {
 }
 
 fn run_study(args: &StudyArgs) -> ExitCode {
+    match args.kind {
+        StudyKind::WorkPrecision => run_work_precision(args),
+        StudyKind::EnergyMap => run_energy_map(args),
+    }
+}
+
+fn run_work_precision(args: &StudyArgs) -> ExitCode {
     use crate::output::work_precision::{self, StudyLine, WorkPrecisionRequest};
-    let StudyKind::WorkPrecision = args.kind;
     let source = args.spec.display().to_string();
     let text = match read_spec(&args.spec) {
         Ok(t) => t,
@@ -626,20 +635,89 @@ fn run_study(args: &StudyArgs) -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
-    let rrd = args
-        .output
+    write_study(&args.output, &doc, |w| {
+        recording::work_precision::write_rrd(w, &spec, &doc)
+    })
+}
+
+/// An energy-error map (001 Fig. 6) on all cores, with progress on standard error.
+fn run_energy_map(args: &StudyArgs) -> ExitCode {
+    use crate::output::energy_map::{self, EnergyMapRequest, MapLine};
+    let source = args.spec.display().to_string();
+    let text = match read_spec(&args.spec) {
+        Ok(t) => t,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(BAD_INPUT);
+        }
+    };
+    let parsed = crate::output::request::parse_json(&text)
+        .and_then(|v| EnergyMapRequest::from_value(&v))
+        .and_then(|req| req.prepare().map(|spec| (req, spec)));
+    let (request, spec) = match parsed {
+        Ok(parsed) => parsed,
+        Err(e) => {
+            eprintln!("error: {source}: {e}");
+            return ExitCode::from(BAD_INPUT);
+        }
+    };
+    eprintln!(
+        "{} cells × 2 charts × {} steps on {} threads",
+        spec.nx * spec.ny,
+        spec.steps,
+        rayon::current_num_threads()
+    );
+    let progress = |line: MapLine| {
+        if let MapLine::Progress { done, total } = line {
+            eprint!("\r{done}/{total} cells");
+            if done == total {
+                eprintln!();
+            }
+        }
+        true
+    };
+    let doc = match energy_map::run(&spec, request.t_max, Budget::default(), &progress) {
+        Ok(doc) => doc,
+        Err(e) => {
+            eprintln!("error: {source}: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    let s = &doc.summary;
+    eprintln!(
+        "{:.1} s for {} steps: Cartesian better in {} cells, polar in {}; polar diverged in {} ({} outside the predicted region)",
+        doc.wall_ms / 1e3,
+        doc.steps,
+        s.cartesian_better,
+        s.polar_better,
+        s.polar_diverged,
+        s.diverged_outside_prediction
+    );
+    write_study(&args.output, &doc, |w| {
+        recording::energy_map::write_rrd(w, &doc)
+    })
+}
+
+/// Writes a study's document to `output` — a Rerun recording through `rrd` when the name ends in
+/// `.rrd`, pretty JSON otherwise — or prints it without one.
+fn write_study<T: serde::Serialize>(
+    output: &Option<PathBuf>,
+    doc: &T,
+    rrd: impl FnOnce(BufWriter<File>) -> Result<BufWriter<File>, recording::RecordingError>,
+) -> ExitCode {
+    let is_rrd = output
         .as_ref()
         .and_then(|p| p.extension())
         .is_some_and(|e| e.eq_ignore_ascii_case("rrd"));
-    let written = match &args.output {
-        Some(path) if rrd => File::create(path).map_err(|e| e.to_string()).and_then(|f| {
-            recording::work_precision::write_rrd(BufWriter::new(f), &spec, &doc)
+    let written = match output {
+        Some(path) if is_rrd => File::create(path).map_err(|e| e.to_string()).and_then(|f| {
+            rrd(BufWriter::new(f))
                 .map_err(|e| e.to_string())
                 .and_then(|mut w| w.flush().map_err(|e| e.to_string()))
         }),
         Some(path) => File::create(path).map_err(|e| e.to_string()).and_then(|f| {
             let mut w = BufWriter::new(f);
-            serde_json::to_writer_pretty(&mut w, &doc)
+            serde_json::to_writer_pretty(&mut w, doc)
                 .map_err(|e| e.to_string())
                 .and_then(|()| {
                     writeln!(w)
@@ -647,7 +725,7 @@ fn run_study(args: &StudyArgs) -> ExitCode {
                         .map_err(|e| e.to_string())
                 })
         }),
-        None => return print_json(&doc),
+        None => return print_json(doc),
     };
     match written {
         Ok(()) => ExitCode::SUCCESS,
