@@ -204,3 +204,28 @@ fn run_writes_a_rerun_recording_by_extension() {
     assert_eq!(&bytes[bytes.len() - 12..bytes.len() - 4], b"RRF2FOOT");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn study_energy_map_writes_json_and_refuses_a_bad_spec() {
+    let dir = scratch("energy-map");
+    let spec = dir.join("map.json");
+    std::fs::write(&spec, r#"{"nx": 5, "ny": 5, "t_max": 20}"#).unwrap();
+    let out_path = dir.join("map-out.json");
+    let out = geomint(&[
+        "study",
+        "energy-map",
+        spec.to_str().unwrap(),
+        "-o",
+        out_path.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let doc: Value = serde_json::from_slice(&std::fs::read(&out_path).unwrap()).unwrap();
+    assert_eq!(doc["summary"]["cells"], 25);
+    assert_eq!(doc["steps_per_run"], 100);
+    assert!(stderr(&out).contains("25/25 cells"), "{}", stderr(&out));
+    std::fs::write(&spec, r#"{"method": "modin_3s"}"#).unwrap();
+    let bad = geomint(&["study", "energy-map", spec.to_str().unwrap()]);
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(stderr(&bad).contains("method"), "{}", stderr(&bad));
+    assert!(stderr(&bad).contains("polar chart"), "{}", stderr(&bad));
+}
