@@ -38,6 +38,9 @@ pub const MAX_AXIS: usize = 401;
 /// Most steps over all cells and both charts of one map.
 pub const MAX_TOTAL_STEPS: u64 = 20_000_000_000;
 
+/// One cell: its Cartesian and polar runs and its starting energy.
+type CellRuns = (ChartRun, ChartRun, f64);
+
 /// A validated map request.
 #[derive(Clone, Debug)]
 pub struct EnergyMapSpec {
@@ -182,7 +185,7 @@ impl EnergyMapSpec {
         self.check()?;
         let total = self.nx * self.ny;
         let done = AtomicUsize::new(0);
-        let cells: Vec<Result<Option<(ChartRun, ChartRun, f64)>, CoreError>> = (0..total)
+        let cells: Vec<Result<Option<CellRuns>, CoreError>> = (0..total)
             .into_par_iter()
             .map(|cell| {
                 let x0 = Self::at(self.x, self.nx, cell % self.nx);
@@ -225,12 +228,7 @@ impl EnergyMapSpec {
 
     /// Both charts' runs from (x₀, y₀) at rest, and the starting energy; `None` if the budget
     /// stopped a run.
-    fn cell(
-        &self,
-        x0: f64,
-        y0: f64,
-        budget: Budget<'_>,
-    ) -> Result<Option<(ChartRun, ChartRun, f64)>, CoreError> {
+    fn cell(&self, x0: f64, y0: f64, budget: Budget<'_>) -> Result<Option<CellRuns>, CoreError> {
         let cartesian = PlanarCartesian(PlanarSpring {
             kind: PlanarKind::Pendulum,
             ..self.pendulum.clone()
@@ -324,7 +322,9 @@ impl<S: MechanicalSystem<Dim = U2>> Observer<U2> for EnergyDeviation<'_, S> {
     #[inline]
     fn on_sample(&mut self, _step: u64, t: f64, z: &State<U2>) {
         let d = self.sys.energy(&z.q, &z.p) - self.start;
-        if self.blown_at.is_none() && !(d.abs() <= self.limit) {
+        // NaN compares false: a non-finite energy counts as blown up too.
+        let within = d.abs() <= self.limit;
+        if self.blown_at.is_none() && !within {
             self.blown_at = Some(t);
         }
         self.sum += d * d;

@@ -371,6 +371,8 @@ mod tests {
             t: vec![t],
             q: vec![vec![t]],
             p: vec![vec![-t]],
+            cartesian_q: Some(vec![vec![10.0 * t]]),
+            cartesian_p: Some(vec![vec![-10.0 * t]]),
             energy: vec![2.0 * t],
             energy_error: Some(vec![t / 2.0]),
             invariants: [("J3".to_string(), vec![3.0 * t])].into(),
@@ -381,6 +383,8 @@ mod tests {
         all.extend(chunk(2.0));
         assert_eq!(all.t, [1.0, 2.0]);
         assert_eq!(all.q, [[1.0], [2.0]]);
+        assert_eq!(all.cartesian_q, Some(vec![vec![10.0], vec![20.0]]));
+        assert_eq!(all.cartesian_p, Some(vec![vec![-10.0], vec![-20.0]]));
         assert_eq!(all.energy_error, Some(vec![0.5, 1.0]));
         assert_eq!(all.invariants["J3"], [3.0, 6.0]);
         assert_eq!(all.jacobian_defect, None);
