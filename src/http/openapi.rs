@@ -7,6 +7,7 @@ use super::recordings::{self, RecordingCreated};
 use super::store::RecordingEntry;
 use super::{handlers, simulate, stability, studies};
 use crate::output::catalog::{MethodEntry, SystemEntry};
+use crate::output::convergence::{ConvergenceDocument, ConvergenceLine, ConvergenceRequest};
 use crate::output::document::SimulationDocument;
 use crate::output::error::ErrorBody;
 use crate::output::request::SimulateRequest;
@@ -33,6 +34,7 @@ use crate::output::work_precision::{StudyLine, WorkPrecisionDocument, WorkPrecis
         stability::stability_map,
         stability::stability_point,
         studies::work_precision,
+        studies::convergence,
         handlers::openapi_json,
         recordings::create_recording,
         recordings::list_recordings,
@@ -50,6 +52,9 @@ use crate::output::work_precision::{StudyLine, WorkPrecisionDocument, WorkPrecis
         WorkPrecisionRequest,
         WorkPrecisionDocument,
         StudyLine,
+        ConvergenceRequest,
+        ConvergenceDocument,
+        ConvergenceLine,
         SystemEntry,
         MethodEntry,
         ErrorBody,
@@ -61,7 +66,7 @@ use crate::output::work_precision::{StudyLine, WorkPrecisionDocument, WorkPrecis
         (name = "catalog", description = "The systems and methods on offer"),
         (name = "simulation", description = "Running simulations"),
         (name = "stability", description = "Linear stability analysis on the damped oscillator"),
-        (name = "studies", description = "Work–precision studies: time against accuracy per method"),
+        (name = "studies", description = "Work–precision studies (time against accuracy per method) and convergence studies (error against step size, with the observed orders, per method and coordinate chart)"),
         (name = "recordings", description = "Rerun recordings (.rrd) of simulations, stored and downloadable"),
         (name = "service", description = "Health and this document"),
     )
