@@ -1,6 +1,7 @@
 //! The command line: `geomint serve` (the default), `geomint run spec.json` (JSON, NDJSON or a
 //! Rerun recording, optionally streamed live to a Rerun viewer with `--rerun-addr`),
 //! `geomint study work-precision spec.json` (a work–precision study, JSON or `.rrd`),
+//! `geomint study convergence spec.json` (a convergence study, JSON),
 //! `geomint systems` and `geomint methods`. Every server setting can also come from a `GEOMINT_*` environment
 //! variable.
 //!
@@ -25,6 +26,7 @@ use crate::core::simulate::{Limits, Simulation};
 use crate::http::{self, Config};
 use crate::output::recording::{self, live};
 use crate::output::stream::DocumentCollector;
+use crate::output::study::{ProgressLine, Runner, StudyJob};
 use crate::output::{self, catalog, SimulateRequest, SimulationDocument, StreamLine};
 
 /// Geometric numerical integration of damped Hamiltonian systems, as a web service.
@@ -51,8 +53,8 @@ pub enum Command {
     Serve(ServeArgs),
     /// Run a simulation spec (the body of POST /api/v1/simulate) without a server.
     Run(RunArgs),
-    /// Run a study spec without a server (`work-precision`, `energy-map`: the body of
-    /// POST /api/v1/studies/work-precision or /studies/energy-map).
+    /// Run a study spec without a server (`work-precision`, `convergence`, `energy-map`: the
+    /// body of POST /api/v1/studies/work-precision, /convergence or /energy-map).
     Study(StudyArgs),
     /// Print the system catalogue as JSON.
     Systems,
@@ -148,8 +150,10 @@ pub struct RunArgs {
 pub enum StudyKind {
     /// Wall time against energy error per method and setting.
     WorkPrecision,
+    /// Errors at t_end against the step size per method and chart, with the fitted orders.
+    Convergence,
     /// Energy-error map of the planar elastic pendulum, Cartesian against polar coordinates
-    /// (paper 001 Fig. 6).
+    /// (paper 001 Fig. 6), on all cores.
     EnergyMap,
 }
 
@@ -161,8 +165,8 @@ pub struct StudyArgs {
     pub kind: StudyKind,
     /// The spec file (JSON); `-` reads standard input.
     pub spec: PathBuf,
-    /// Output file; `.rrd` writes a Rerun recording, anything else JSON (default: standard
-    /// output). Progress goes to standard error.
+    /// Output file; `.rrd` writes a Rerun recording (work-precision only), anything else JSON
+    /// (default: standard output). Progress goes to standard error.
     #[arg(short, long)]
     pub output: Option<PathBuf>,
     /// Most steps per setting.
@@ -573,13 +577,7 @@ fn read_spec(path: &std::path::Path) -> Result<Vec<u8>, String> {
 }
 
 fn run_study(args: &StudyArgs) -> ExitCode {
-    match args.kind {
-        StudyKind::WorkPrecision => run_work_precision(args),
-        StudyKind::EnergyMap => run_energy_map(args),
-    }
-}
-
-fn run_work_precision(args: &StudyArgs) -> ExitCode {
+    use crate::output::convergence::{self, ConvergenceLine, ConvergenceRequest};
     use crate::output::work_precision::{self, StudyLine, WorkPrecisionRequest};
     let source = args.spec.display().to_string();
     let text = match read_spec(&args.spec) {
@@ -593,65 +591,89 @@ fn run_work_precision(args: &StudyArgs) -> ExitCode {
         max_steps: args.max_steps,
         ..Limits::default()
     };
-    let (spec, job) = match WorkPrecisionRequest::from_slice(&text)
-        .and_then(|req| req.prepare(&limits).map(|job| (req, job)))
-    {
-        Ok(parsed) => parsed,
-        Err(e) => {
-            eprintln!("error: {source}: {e}");
-            return ExitCode::from(BAD_INPUT);
-        }
+    let reference = |reference: &str, ms: f64, total: usize| {
+        eprintln!("errors against the {reference} ({ms:.0} ms); {total} settings")
     };
-    let progress = |line: StudyLine| {
-        match line {
-            StudyLine::Reference {
-                reference,
-                reference_ms,
-                total,
-            } => {
-                eprintln!("errors against the {reference} ({reference_ms:.0} ms); {total} settings")
-            }
-            StudyLine::Point { done, total, point } => eprintln!(
-                "[{done}/{total}] {} {}: {:.3} ms, max energy error {}",
-                point.method,
-                point
-                    .h
-                    .map(|h| format!("h = {h}"))
-                    .or(point.tolerance.map(|t| format!("tol = {t:e}")))
-                    .unwrap_or_default(),
-                point.wall_ms,
-                point
-                    .max_energy_error
-                    .map_or("-".into(), |e| format!("{e:.2e}"))
-            ),
-            _ => {}
+    let error = |e: Option<f64>| e.map_or("-".into(), |e| format!("{e:.2e}"));
+    match args.kind {
+        StudyKind::WorkPrecision => {
+            let parsed = WorkPrecisionRequest::from_slice(&text)
+                .and_then(|req| req.prepare(&limits).map(|job| (req, job)));
+            let progress = |line: &StudyLine| match line {
+                StudyLine::Reference {
+                    reference: r,
+                    reference_ms,
+                    total,
+                } => reference(r, *reference_ms, *total),
+                StudyLine::Point { done, total, point } => eprintln!(
+                    "[{done}/{total}] {} {}: {:.3} ms, max energy error {}",
+                    point.method,
+                    point
+                        .h
+                        .map(|h| format!("h = {h}"))
+                        .or(point.tolerance.map(|t| format!("tol = {t:e}")))
+                        .unwrap_or_default(),
+                    point.wall_ms,
+                    error(point.max_energy_error)
+                ),
+                _ => {}
+            };
+            let rrd = |f: File, spec: &WorkPrecisionRequest, doc: &_| {
+                recording::work_precision::write_rrd(BufWriter::new(f), spec, doc)
+                    .map_err(|e| e.to_string())
+                    .and_then(|mut w| w.flush().map_err(|e| e.to_string()))
+            };
+            finish_study(
+                args,
+                &source,
+                parsed,
+                work_precision::run,
+                progress,
+                Some(rrd),
+            )
         }
-        true
-    };
-    let doc = match work_precision::run(&job, Budget::default(), &progress) {
-        Ok(doc) => doc,
-        Err(e) => {
-            eprintln!("error: {source}: {e}");
-            return ExitCode::FAILURE;
+        StudyKind::Convergence => {
+            let parsed = ConvergenceRequest::from_slice(&text)
+                .and_then(|req| req.prepare(&limits).map(|job| (req, job)));
+            let progress = |line: &ConvergenceLine| match line {
+                ConvergenceLine::Reference {
+                    reference: r,
+                    reference_ms,
+                    total,
+                } => reference(r, *reference_ms, *total),
+                ConvergenceLine::Point { done, total, point } => eprintln!(
+                    "[{done}/{total}] {} ({}) h = {}: state error {}, energy error {}, max {}",
+                    point.method,
+                    point.chart,
+                    point.h,
+                    error(point.state_error),
+                    error(point.energy_error),
+                    error(point.max_energy_error)
+                ),
+                _ => {}
+            };
+            type Rrd = fn(
+                File,
+                &ConvergenceRequest,
+                &convergence::ConvergenceDocument,
+            ) -> Result<(), String>;
+            finish_study(
+                args,
+                &source,
+                parsed,
+                convergence::run,
+                progress,
+                None::<Rrd>,
+            )
         }
-    };
-    write_study(&args.output, &doc, |w| {
-        recording::work_precision::write_rrd(w, &spec, &doc)
-    })
+        StudyKind::EnergyMap => run_energy_map(args, &source, &text),
+    }
 }
 
 /// An energy-error map (001 Fig. 6) on all cores, with progress on standard error.
-fn run_energy_map(args: &StudyArgs) -> ExitCode {
+fn run_energy_map(args: &StudyArgs, source: &str, text: &[u8]) -> ExitCode {
     use crate::output::energy_map::{self, EnergyMapRequest, MapLine};
-    let source = args.spec.display().to_string();
-    let text = match read_spec(&args.spec) {
-        Ok(t) => t,
-        Err(e) => {
-            eprintln!("error: {e}");
-            return ExitCode::from(BAD_INPUT);
-        }
-    };
-    let parsed = crate::output::request::parse_json(&text)
+    let parsed = crate::output::request::parse_json(text)
         .and_then(|v| EnergyMapRequest::from_value(&v))
         .and_then(|req| req.prepare().map(|spec| (req, spec)));
     let (request, spec) = match parsed {
@@ -693,29 +715,82 @@ fn run_energy_map(args: &StudyArgs) -> ExitCode {
         s.polar_diverged,
         s.diverged_outside_prediction
     );
-    write_study(&args.output, &doc, |w| {
-        recording::energy_map::write_rrd(w, &doc)
-    })
-}
-
-/// Writes a study's document to `output` — a Rerun recording through `rrd` when the name ends in
-/// `.rrd`, pretty JSON otherwise — or prints it without one.
-fn write_study<T: serde::Serialize>(
-    output: &Option<PathBuf>,
-    doc: &T,
-    rrd: impl FnOnce(BufWriter<File>) -> Result<BufWriter<File>, recording::RecordingError>,
-) -> ExitCode {
-    let is_rrd = output
-        .as_ref()
-        .and_then(|p| p.extension())
-        .is_some_and(|e| e.eq_ignore_ascii_case("rrd"));
-    let written = match output {
-        Some(path) if is_rrd => File::create(path).map_err(|e| e.to_string()).and_then(|f| {
-            rrd(BufWriter::new(f))
+    let wants_rrd = wants_rrd(args);
+    write_document(
+        args,
+        wants_rrd,
+        &doc,
+        Some(|f: File, doc: &energy_map::EnergyMapDocument| {
+            recording::energy_map::write_rrd(BufWriter::new(f), doc)
                 .map_err(|e| e.to_string())
                 .and_then(|mut w| w.flush().map_err(|e| e.to_string()))
         }),
-        Some(path) => File::create(path).map_err(|e| e.to_string()).and_then(|f| {
+    )
+}
+
+/// Whether the output file's name ends in `.rrd`.
+fn wants_rrd(args: &StudyArgs) -> bool {
+    args.output
+        .as_ref()
+        .and_then(|p| p.extension())
+        .is_some_and(|e| e.eq_ignore_ascii_case("rrd"))
+}
+
+/// Runs a parsed study, reporting its progress lines with `progress` on standard error, and
+/// writes the document: as JSON, or with `rrd` for an output file ending in `.rrd` (refused for
+/// a kind without a recording).
+fn finish_study<S, L: ProgressLine>(
+    args: &StudyArgs,
+    source: &str,
+    parsed: Result<(S, StudyJob), output::ErrorDetail>,
+    run: Runner<L>,
+    progress: impl Fn(&L),
+    rrd: Option<impl FnOnce(File, &S, &L::Document) -> Result<(), String>>,
+) -> ExitCode {
+    let (spec, job) = match parsed {
+        Ok(parsed) => parsed,
+        Err(e) => {
+            eprintln!("error: {source}: {e}");
+            return ExitCode::from(BAD_INPUT);
+        }
+    };
+    let wants_rrd = wants_rrd(args);
+    if wants_rrd && rrd.is_none() {
+        eprintln!("error: this kind of study has no recording; write JSON (e.g. -o out.json)");
+        return ExitCode::from(BAD_INPUT);
+    }
+    let emit = |line: L| {
+        progress(&line);
+        true
+    };
+    let doc = match run(&job, Budget::default(), &emit) {
+        Ok(doc) => doc,
+        Err(e) => {
+            eprintln!("error: {source}: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    write_document(
+        args,
+        wants_rrd,
+        &doc,
+        rrd.map(|record| move |f: File, doc: &L::Document| record(f, &spec, doc)),
+    )
+}
+
+/// Writes a study's document to the output file — a Rerun recording through `rrd` when
+/// `wants_rrd`, pretty JSON otherwise — or prints it without one.
+fn write_document<D: serde::Serialize>(
+    args: &StudyArgs,
+    wants_rrd: bool,
+    doc: &D,
+    rrd: Option<impl FnOnce(File, &D) -> Result<(), String>>,
+) -> ExitCode {
+    let written = match (&args.output, rrd) {
+        (Some(path), Some(record)) if wants_rrd => File::create(path)
+            .map_err(|e| e.to_string())
+            .and_then(|f| record(f, doc)),
+        (Some(path), _) => File::create(path).map_err(|e| e.to_string()).and_then(|f| {
             let mut w = BufWriter::new(f);
             serde_json::to_writer_pretty(&mut w, doc)
                 .map_err(|e| e.to_string())
@@ -725,7 +800,7 @@ fn write_study<T: serde::Serialize>(
                         .map_err(|e| e.to_string())
                 })
         }),
-        None => return print_json(doc),
+        (None, _) => return print_json(doc),
     };
     match written {
         Ok(()) => ExitCode::SUCCESS,

@@ -926,6 +926,8 @@ async fn openapi_lists_every_route() {
             "/api/v1/studies/work-precision" => json!({"system": "pendulum", "t_end": 10,
                 "runs": [{"method": "rk4", "h": [0.1]}]}),
             "/api/v1/studies/energy-map" => json!({"nx": 3, "ny": 3, "t_max": 10}),
+            "/api/v1/studies/convergence" => json!({"system": "pendulum", "t_end": 1,
+                "methods": ["rk4"], "h": [0.1, 0.05]}),
             _ => pendulum_request(),
         };
         let (status, expected) = match method.as_str() {

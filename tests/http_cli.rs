@@ -206,6 +206,64 @@ fn run_writes_a_rerun_recording_by_extension() {
 }
 
 #[test]
+fn study_convergence_writes_the_document_of_the_library() {
+    use geomint::output::convergence::{self, ConvergenceRequest};
+    let dir = scratch("convergence");
+    let study = json!({"system": "harmonic_oscillator", "params": {"omega": 2, "gamma": 0.1},
+        "methods": ["rk4", "csv1"], "h": [0.1, 0.05, 0.025], "t_end": 5});
+    let spec_path = dir.join("study.json");
+    std::fs::write(&spec_path, serde_json::to_vec(&study).unwrap()).unwrap();
+    let out_path = dir.join("out.json");
+    let out = geomint(&[
+        "study",
+        "convergence",
+        spec_path.to_str().unwrap(),
+        "-o",
+        out_path.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("[6/6] csv1 (cartesian) h = 0.025: state error"),
+        "{}",
+        stderr(&out)
+    );
+    // Read with correctly rounded floats, so that numbers compare bit for bit.
+    let written = geomint::output::request::parse_json(&std::fs::read(&out_path).unwrap()).unwrap();
+    let job = ConvergenceRequest::from_value(&study)
+        .unwrap()
+        .prepare(&Limits::default())
+        .unwrap();
+    let doc = convergence::run(&job, Budget::default(), &|_| true).unwrap();
+    assert_eq!(written, serde_json::to_value(&doc).unwrap());
+    let rk4 = doc.series[0].state.order.unwrap();
+    assert!((3.8..4.2).contains(&rk4), "rk4 order {rk4}");
+
+    // No recording for convergence studies; a bad step size names its field.
+    let rrd = dir.join("out.rrd");
+    let out = geomint(&[
+        "study",
+        "convergence",
+        spec_path.to_str().unwrap(),
+        "-o",
+        rrd.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("no recording"), "{}", stderr(&out));
+    assert!(!rrd.exists());
+    let mut bad = study.clone();
+    bad["h"] = json!([0.1, 0.3]);
+    std::fs::write(&spec_path, serde_json::to_vec(&bad).unwrap()).unwrap();
+    let out = geomint(&["study", "convergence", spec_path.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        stderr(&out).contains("h[1]: must divide t_end"),
+        "{}",
+        stderr(&out)
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
 fn study_energy_map_writes_json_and_refuses_a_bad_spec() {
     let dir = scratch("energy-map");
     let spec = dir.join("map.json");

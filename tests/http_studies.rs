@@ -12,7 +12,7 @@ use geomint::core::system::{MechanicalSystem, State};
 use geomint::core::systems::HarmonicOscillator;
 use geomint::http::Config;
 use serde_json::{json, Value};
-use server::{client, post_json as post, start};
+use server::{client, post_json as post, post_ndjson, start};
 
 const STUDY: &str = "/api/v1/studies/work-precision";
 
@@ -150,20 +150,8 @@ async fn progress_streams_as_ndjson_and_the_study_records_as_rrd() {
         "system": "pendulum", "t_end": 50, "samples": 10,
         "runs": [{"method": "modin_3s", "h": [0.1, 0.05]},
                  {"method": {"id": "triple_jump", "base": "csv1"}, "h": [0.1]}]});
-    let text = client()
-        .post(server.url(STUDY))
-        .header("accept", "application/x-ndjson")
-        .json(&body)
-        .send()
-        .await
-        .unwrap()
-        .text()
-        .await
-        .unwrap();
-    let lines: Vec<Value> = text
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap())
-        .collect();
+    let (status, _, lines) = post_ndjson(&server, STUDY, "application/x-ndjson", &body).await;
+    assert_eq!(status, 200);
     let kinds: Vec<&str> = lines.iter().map(|l| l["type"].as_str().unwrap()).collect();
     assert_eq!(
         kinds,

@@ -313,6 +313,24 @@ impl Simulation {
         })
     }
 
+    /// A state of this simulation's chart in Cartesian coordinates (unchanged in a Cartesian
+    /// chart).
+    pub fn cartesian_state(&self, q: &[f64], p: &[f64]) -> (Vec<f64>, Vec<f64>) {
+        with_system!(&self.system, sys => {
+            let z = State::from_slices(sys.dim(), q, p);
+            let (mut x, mut px) = (q.to_vec(), p.to_vec());
+            sys.to_cartesian(&z.q, &z.p, &mut x, &mut px);
+            (x, px)
+        })
+    }
+
+    /// The exact final state in Cartesian coordinates (see
+    /// [`exact_final_state`](Self::exact_final_state)).
+    pub fn exact_final_cartesian(&self) -> Option<(Vec<f64>, Vec<f64>)> {
+        self.exact_final_state()
+            .map(|(q, p)| self.cartesian_state(&q, &p))
+    }
+
     /// The reference energies at the sample times (None unless `compare_to_reference`).
     pub fn reference_energies(&self, budget: Budget<'_>) -> Result<Option<Vec<f64>>, CoreError> {
         if !self.compare_to_reference {

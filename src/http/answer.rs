@@ -41,28 +41,46 @@ fn wants_stream(headers: &HeaderMap) -> bool {
 }
 
 impl Format {
-    /// The format a request asks for: `?format=json|ndjson|rrd`, else NDJSON when `Accept` asks
-    /// for it, else JSON. A route that does not stream (`streams` false) knows no `ndjson`.
+    /// Every format: what the simulation and the work–precision routes answer in.
+    pub const ALL: &'static [Format] = &[Format::Json, Format::Ndjson, Format::Rrd];
+
+    /// The name in `?format=`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Format::Json => "json",
+            Format::Ndjson => "ndjson",
+            Format::Rrd => "rrd",
+        }
+    }
+
+    /// The format a request asks for among those a route `offers` (JSON always):
+    /// `?format=json|ndjson|rrd`, else NDJSON when `Accept` asks for it and the route streams,
+    /// else JSON.
     pub fn requested(
         query: &BTreeMap<String, String>,
         headers: &HeaderMap,
-        streams: bool,
+        offers: &[Format],
     ) -> Result<Format, ApiError> {
-        let known = if streams {
-            "json, ndjson, rrd"
-        } else {
-            "json, rrd"
-        };
+        let streams = offers.contains(&Format::Ndjson);
         match query.get("format").map(String::as_str) {
             None if streams && wants_stream(headers) => Ok(Format::Ndjson),
-            None | Some("json") => Ok(Format::Json),
-            Some("ndjson") if streams => Ok(Format::Ndjson),
-            Some("rrd") => Ok(Format::Rrd),
-            Some(other) => Err(ApiError::from(ErrorDetail::at(
-                codes::INVALID_VALUE,
-                "format",
-                format!("unknown format `{other}`; one of {known}"),
-            ))),
+            None => Ok(Format::Json),
+            Some(name) => Format::ALL
+                .iter()
+                .copied()
+                .find(|f| f.name() == name && (*f == Format::Json || offers.contains(f)))
+                .ok_or_else(|| {
+                    let known: Vec<&str> = Format::ALL
+                        .iter()
+                        .filter(|f| **f == Format::Json || offers.contains(f))
+                        .map(|f| f.name())
+                        .collect();
+                    ApiError::from(ErrorDetail::at(
+                        codes::INVALID_VALUE,
+                        "format",
+                        format!("unknown format `{name}`; one of {}", known.join(", ")),
+                    ))
+                }),
         }
     }
 

@@ -62,7 +62,7 @@ pub async fn energy_map(
     Query(query): Query<BTreeMap<String, String>>,
     ApiJson(body): ApiJson<Value>,
 ) -> Result<Response, ApiError> {
-    let format = Format::requested(&query, &headers, true)?;
+    let format = Format::requested(&query, &headers, Format::ALL)?;
     let request = EnergyMapRequest::from_value(&body)?;
     let spec = request.prepare()?;
     let permits = state.acquire(state.config.max_concurrent).await?;

@@ -9,6 +9,7 @@
 //! | `POST /api/v1/stability` | linear stability maps over a (γ, h) grid |
 //! | `POST /api/v1/stability/point` | linear stability analysis at one (ω, γ, h) |
 //! | `POST /api/v1/studies/work-precision` | a work–precision study (JSON, NDJSON progress, or `?format=rrd`) |
+//! | `POST /api/v1/studies/convergence` | a convergence study: errors at t_end against h, fitted orders (JSON or NDJSON progress) |
 //! | `POST /api/v1/recordings`, `GET /api/v1/recordings` | store a run's Rerun recording; list them |
 //! | `GET /api/v1/recordings/{id}.rrd`, `DELETE /api/v1/recordings/{id}` | download or delete one |
 //! | `GET /api/v1/openapi.json` | the OpenAPI 3 document |
@@ -78,6 +79,8 @@ pub mod paths {
     pub const WORK_PRECISION: &str = "/api/v1/studies/work-precision";
     /// Energy-error maps in Cartesian against polar coordinates.
     pub const ENERGY_MAP: &str = "/api/v1/studies/energy-map";
+    /// Convergence studies.
+    pub const CONVERGENCE: &str = "/api/v1/studies/convergence";
     /// The OpenAPI document.
     pub const OPENAPI: &str = "/api/v1/openapi.json";
     /// Stored recordings.
@@ -98,6 +101,7 @@ pub const ROUTES: &[(&str, &str)] = &[
     ("post", paths::STABILITY_POINT),
     ("post", paths::WORK_PRECISION),
     ("post", paths::ENERGY_MAP),
+    ("post", paths::CONVERGENCE),
     ("get", paths::OPENAPI),
     ("post", paths::RECORDINGS),
     ("get", paths::RECORDINGS),
@@ -119,6 +123,7 @@ pub fn app(state: AppState) -> Router {
         .route(paths::STABILITY_POINT, post(stability::stability_point))
         .route(paths::WORK_PRECISION, post(studies::work_precision))
         .route(paths::ENERGY_MAP, post(energy_map::energy_map))
+        .route(paths::CONVERGENCE, post(studies::convergence))
         .route(paths::OPENAPI, get(handlers::openapi_json))
         .route(
             paths::RECORDINGS,

@@ -7,6 +7,7 @@ use super::recordings::{self, RecordingCreated};
 use super::store::RecordingEntry;
 use super::{energy_map, handlers, simulate, stability, studies};
 use crate::output::catalog::{MethodEntry, SystemEntry};
+use crate::output::convergence::{ConvergenceDocument, ConvergenceLine, ConvergenceRequest};
 use crate::output::document::SimulationDocument;
 use crate::output::energy_map::{EnergyMapDocument, EnergyMapRequest, MapLine};
 use crate::output::error::ErrorBody;
@@ -35,6 +36,7 @@ use crate::output::work_precision::{StudyLine, WorkPrecisionDocument, WorkPrecis
         stability::stability_point,
         studies::work_precision,
         energy_map::energy_map,
+        studies::convergence,
         handlers::openapi_json,
         recordings::create_recording,
         recordings::list_recordings,
@@ -55,6 +57,9 @@ use crate::output::work_precision::{StudyLine, WorkPrecisionDocument, WorkPrecis
         EnergyMapRequest,
         EnergyMapDocument,
         MapLine,
+        ConvergenceRequest,
+        ConvergenceDocument,
+        ConvergenceLine,
         SystemEntry,
         MethodEntry,
         ErrorBody,
@@ -66,7 +71,7 @@ use crate::output::work_precision::{StudyLine, WorkPrecisionDocument, WorkPrecis
         (name = "catalog", description = "The systems and methods on offer"),
         (name = "simulation", description = "Running simulations"),
         (name = "stability", description = "Linear stability analysis on the damped oscillator"),
-        (name = "studies", description = "Work–precision studies (time against accuracy per method) and energy-error maps across coordinate charts"),
+        (name = "studies", description = "Work–precision studies (time against accuracy per method), convergence studies (error against step size, with the observed orders, per method and coordinate chart) and energy-error maps across coordinate charts"),
         (name = "recordings", description = "Rerun recordings (.rrd) of simulations, stored and downloadable"),
         (name = "service", description = "Health and this document"),
     )

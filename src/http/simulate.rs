@@ -75,7 +75,7 @@ pub async fn simulate(
     Query(query): Query<BTreeMap<String, String>>,
     ApiJson(body): ApiJson<Value>,
 ) -> Result<Response, ApiError> {
-    let format = Format::requested(&query, &headers, true)?;
+    let format = Format::requested(&query, &headers, Format::ALL)?;
     let request = SimulateRequest::from_value(&body)?;
     let sim = request.prepare(&state.config.limits)?;
     let streaming = format == Format::Ndjson;

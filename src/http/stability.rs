@@ -73,7 +73,7 @@ pub async fn stability_map(
     Query(query): Query<BTreeMap<String, String>>,
     ApiJson(body): ApiJson<Value>,
 ) -> Result<Response, ApiError> {
-    let format = Format::requested(&query, &HeaderMap::new(), false)?;
+    let format = Format::requested(&query, &HeaderMap::new(), &[Format::Json, Format::Rrd])?;
     let request = StabilityRequest::from_value(&body)?;
     let job = request.prepare()?;
     let permits = state.acquire(state.config.max_concurrent).await?;

@@ -1,12 +1,13 @@
-//! `POST /api/v1/studies/work-precision`: a work–precision study (see
-//! [`work_precision`](crate::output::work_precision)).
+//! The study routes: `POST /api/v1/studies/work-precision` (see
+//! [`work_precision`](crate::output::work_precision)) and `POST /api/v1/studies/convergence`
+//! (see [`convergence`](crate::output::convergence)).
 //!
-//! The study is validated first (cheap), then takes one simulation slot — its settings run one
-//! after another so that their wall times compare — and runs off the async runtime. With
+//! A study is validated first (cheap), then takes one simulation slot — its settings run one
+//! after another, so that their wall times compare — and runs off the async runtime. With
 //! `Accept: application/x-ndjson` (or `?format=ndjson`) it streams a `reference` line, a `point`
-//! line per finished setting (progress: `done` of `total`) and the `result`; with `?format=rrd`
-//! it answers the study's Rerun recording; otherwise the result document. The request's time
-//! limit and a client that goes away stop it between steps.
+//! line per finished setting (progress: `done` of `total`) and the `result`; a work–precision
+//! study answers its Rerun recording with `?format=rrd`; otherwise the result document. The
+//! request's time limit and a client that goes away stop it between steps.
 
 use std::collections::BTreeMap;
 use std::convert::Infallible;
@@ -32,8 +33,10 @@ use super::paths;
 use super::recordings::RrdFile;
 use super::state::{cancel_on_shutdown, run_blocking, AppState, CancelOnDrop};
 use crate::core::run::Budget;
+use crate::output::convergence::{self, ConvergenceDocument, ConvergenceLine, ConvergenceRequest};
 use crate::output::error::{ErrorBody, ErrorDetail};
 use crate::output::recording;
+use crate::output::study::{ProgressLine, Runner, StudyJob};
 use crate::output::work_precision::{self, StudyLine, WorkPrecisionDocument, WorkPrecisionRequest};
 
 /// One NDJSON line.
@@ -57,7 +60,7 @@ pub(super) fn stream_study<L, F>(
     end: fn() -> L,
 ) -> Response
 where
-    L: Serialize + Send + Sync + 'static,
+    L: Serialize + Send + 'static,
     F: FnOnce(Budget<'_>, &(dyn Fn(L) -> bool + Sync)) + Send + 'static,
 {
     let (tx, rx) = mpsc::channel::<Bytes>(16);
@@ -95,6 +98,54 @@ where
     response
 }
 
+/// Runs the validated study `job` with `run` in one simulation slot and answers in `format`:
+/// NDJSON lines as it goes, or the finished document encoded by `encode` (`file` names a `.rrd`
+/// attachment).
+async fn answer<L: ProgressLine>(
+    state: AppState,
+    format: Format,
+    job: StudyJob,
+    run: Runner<L>,
+    encode: impl FnOnce(&L::Document) -> Result<Vec<u8>, ApiError> + Send + 'static,
+    file: &'static str,
+) -> Result<Response, ApiError> {
+    let streaming = format == Format::Ndjson;
+    let permits = state.acquire(1).await?;
+    let deadline = Instant::now() + state.config.request_timeout;
+    let cancel = Arc::new(AtomicBool::new(false));
+    let shutdown = cancel_on_shutdown(&state, cancel.clone());
+
+    if streaming {
+        return Ok(stream_study(
+            permits,
+            deadline,
+            cancel,
+            shutdown,
+            move |budget, emit| {
+                match run(&job, budget, emit) {
+                    Ok(doc) => emit(L::result(doc)),
+                    Err(error) => emit(L::error(error)),
+                };
+            },
+            L::error,
+            L::end,
+        ));
+    }
+
+    let _guard = CancelOnDrop(cancel.clone());
+    let result = run_blocking(move || -> Result<Vec<u8>, ApiError> {
+        let _permits = permits;
+        let budget = Budget {
+            cancel: Some(&cancel),
+            deadline: Some(deadline),
+        };
+        encode(&run(&job, budget, &|_| true)?)
+    })
+    .await;
+    shutdown.abort();
+    Ok(format.respond(result??, file))
+}
+
 /// Runs a work–precision study: one system, several methods at several step sizes (or
 /// tolerances for the adaptive `reference`), each timed, with its largest energy error over the
 /// sample times, its final-state error and its invariant drift against the exact solution or a
@@ -126,48 +177,67 @@ pub async fn work_precision(
     Query(query): Query<BTreeMap<String, String>>,
     ApiJson(body): ApiJson<Value>,
 ) -> Result<Response, ApiError> {
-    let format = Format::requested(&query, &headers, true)?;
-    let streaming = format == Format::Ndjson;
+    let format = Format::requested(&query, &headers, Format::ALL)?;
     let request = WorkPrecisionRequest::from_value(&body)?;
     let job = request.prepare(&state.config.limits)?;
-    let permits = state.acquire(1).await?;
-    let deadline = Instant::now() + state.config.request_timeout;
-    let cancel = Arc::new(AtomicBool::new(false));
     tracing::info!(
         settings = job.len(),
-        streaming,
+        streaming = format == Format::Ndjson,
         "work-precision study started"
     );
-    let shutdown = cancel_on_shutdown(&state, cancel.clone());
+    let encode = move |doc: &WorkPrecisionDocument| {
+        format.encode(doc, |d| recording::work_precision::rrd_bytes(&request, d))
+    };
+    answer::<StudyLine>(
+        state,
+        format,
+        job,
+        work_precision::run,
+        encode,
+        "geomint-work-precision.rrd",
+    )
+    .await
+}
 
-    if streaming {
-        return Ok(stream_study(
-            permits,
-            deadline,
-            cancel,
-            shutdown,
-            move |budget, emit| {
-                match work_precision::run(&job, budget, &|l| emit(l)) {
-                    Ok(doc) => emit(StudyLine::Result(doc)),
-                    Err(error) => emit(StudyLine::Error { error }),
-                };
-            },
-            |error| StudyLine::Error { error },
-            || StudyLine::End,
-        ));
-    }
-
-    let _guard = CancelOnDrop(cancel.clone());
-    let result = run_blocking(move || -> Result<Vec<u8>, ApiError> {
-        let _permits = permits;
-        let budget = Budget {
-            cancel: Some(&cancel),
-            deadline: Some(deadline),
-        };
-        let doc = work_precision::run(&job, budget, &|_| true)?;
-        format.encode(&doc, |d| recording::work_precision::rrd_bytes(&request, d))
-    })
-    .await;
-    shutdown.abort();
-    Ok(format.respond(result??, "geomint-work-precision.rrd"))
+/// Runs a convergence study: one system with several methods, in one or several coordinate
+/// charts, each at several step sizes, with the errors at t_end — the state error in Cartesian
+/// coordinates, the energy error at t_end and its largest value over the sample times — against
+/// the exact solution or a reference run, and per method and chart the fitted orders (slopes of
+/// log error against log h).
+#[utoipa::path(post, path = paths::CONVERGENCE, tag = "studies",
+    request_body(content = ConvergenceRequest, content_type = "application/json"),
+    params(("Accept" = Option<String>, Header,
+        description = "`application/x-ndjson` streams progress lines (see ConvergenceLine)"),
+        ("format" = Option<String>, Query,
+        description = "`ndjson` as the Accept header; `json` (default)")),
+    responses(
+        (status = 200, description = "The study",
+            content((ConvergenceDocument = "application/json"), (ConvergenceLine = "application/x-ndjson"))),
+        (status = 400, description = "Malformed JSON (code `malformed_json`)", body = ErrorBody),
+        (status = 413, description = "The body exceeds 1 MiB", body = ErrorBody),
+        (status = 415, description = "The body is not declared as JSON", body = ErrorBody),
+        (status = 422, description = "A field is unknown, missing, of the wrong type or out of range \
+            (e.g. `h[2]` does not divide t_end into whole steps, `charts[1]` is not a chart of the system); \
+            an unknown system or method, or a method the chart does not allow; more than 64 settings \
+            (methods × charts × step sizes) or 2·10⁸ steps in all", body = ErrorBody),
+        (status = 503, description = "Every simulation slot is busy", body = ErrorBody,
+            headers(("Retry-After" = u64, description = "Seconds to wait before retrying"))),
+        (status = 504, description = "The study did not finish within the time limit", body = ErrorBody),
+        (status = 500, description = "A server fault (details are logged)", body = ErrorBody),
+    ))]
+pub async fn convergence(
+    State(state): State<AppState>,
+    headers: HeaderMap,
+    Query(query): Query<BTreeMap<String, String>>,
+    ApiJson(body): ApiJson<Value>,
+) -> Result<Response, ApiError> {
+    let format = Format::requested(&query, &headers, &[Format::Json, Format::Ndjson])?;
+    let job = ConvergenceRequest::from_value(&body)?.prepare(&state.config.limits)?;
+    tracing::info!(
+        settings = job.len(),
+        streaming = format == Format::Ndjson,
+        "convergence study started"
+    );
+    let encode = |doc: &ConvergenceDocument| serde_json::to_vec(doc).map_err(ApiError::internal);
+    answer::<ConvergenceLine>(state, format, job, convergence::run, encode, "").await
 }

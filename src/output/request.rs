@@ -202,16 +202,7 @@ impl SimulateRequest {
                     "give either `methods` (a list) or `method` (one), not both",
                 ))
             }
-            (Some(v), None) => {
-                let list = v
-                    .as_array()
-                    .ok_or_else(|| wrong_type("methods", "a list of methods", v))?;
-                req.methods = list
-                    .iter()
-                    .enumerate()
-                    .map(|(i, m)| method(m, &format!("methods[{i}]")))
-                    .collect::<Result<_, _>>()?;
-            }
+            (Some(v), None) => req.methods = methods(v)?,
             (None, Some(v)) => req.method = Some(method(v, "method")?),
             (None, None) => {
                 return Err(missing(
@@ -543,7 +534,8 @@ pub(crate) fn object<'a>(
     })
 }
 
-fn string(v: &Value, field: &str) -> Result<String, ErrorDetail> {
+/// `v` as a string.
+pub(crate) fn string(v: &Value, field: &str) -> Result<String, ErrorDetail> {
     v.as_str()
         .map(str::to_string)
         .ok_or_else(|| wrong_type(field, "a string", v))
@@ -554,7 +546,8 @@ pub(crate) fn number(v: &Value, field: &str) -> Result<f64, ErrorDetail> {
     v.as_f64().ok_or_else(|| wrong_type(field, "a number", v))
 }
 
-fn initial_coordinates(v: &Value) -> Result<InitialCoordinates, ErrorDetail> {
+/// `initial_coordinates`: `chart` or `cartesian`.
+pub(crate) fn initial_coordinates(v: &Value) -> Result<InitialCoordinates, ErrorDetail> {
     match string(v, "initial_coordinates")?.as_str() {
         "chart" => Ok(InitialCoordinates::Chart),
         "cartesian" => Ok(InitialCoordinates::Cartesian),
@@ -571,7 +564,8 @@ fn boolean(v: &Value, field: &str) -> Result<bool, ErrorDetail> {
         .ok_or_else(|| wrong_type(field, "true or false", v))
 }
 
-fn numbers(v: &Value, field: &str) -> Result<Vec<f64>, ErrorDetail> {
+/// A list of numbers, each named `field[i]` in errors.
+pub(crate) fn numbers(v: &Value, field: &str) -> Result<Vec<f64>, ErrorDetail> {
     let list = v
         .as_array()
         .ok_or_else(|| wrong_type(field, "a list of numbers", v))?;
@@ -595,6 +589,16 @@ fn method_id(v: &Value, field: &str) -> Result<String, ErrorDetail> {
         ));
     }
     Ok(id)
+}
+
+/// `methods`: a list of methods, each named `methods[i]` in errors.
+pub(crate) fn methods(v: &Value) -> Result<Vec<MethodSpec>, ErrorDetail> {
+    v.as_array()
+        .ok_or_else(|| wrong_type("methods", "a list of methods", v))?
+        .iter()
+        .enumerate()
+        .map(|(i, m)| method(m, &format!("methods[{i}]")))
+        .collect()
 }
 
 /// A method: an id or an object with options, with unknown ids and fields named.

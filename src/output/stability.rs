@@ -433,13 +433,7 @@ impl StabilityRequest {
         let obj = object(value, None)?;
         check_fields(obj, MAP_FIELDS, "")?;
         let methods = match present(obj, "methods") {
-            Some(v) => v
-                .as_array()
-                .ok_or_else(|| wrong_type("methods", "a list of methods", v))?
-                .iter()
-                .enumerate()
-                .map(|(i, m)| method(m, &format!("methods[{i}]")))
-                .collect::<Result<Vec<_>, _>>()?,
+            Some(v) => super::request::methods(v)?,
             None => {
                 return Err(missing(
                     "methods",

@@ -14,20 +14,22 @@
 //! step size must divide t_end/samples, so that the samples are step endpoints.
 
 use std::collections::BTreeMap;
-use std::time::Instant;
 
 use serde::Serialize;
 use serde_json::{Map, Value};
 use utoipa::ToSchema;
 
 use super::document::SystemSummary;
-use super::error::{codes, ErrorDetail};
-use super::request::{
-    check_fields, method, missing, number, object, present, wrong_type, MethodSpec,
+use super::error::ErrorDetail;
+use super::request::{check_fields, missing, object, present, wrong_type};
+use super::study::{
+    self, invalid, measure_timed, prepare_reference, prepare_setting, progress_lines, run_spec,
+    stop_name, too_many_settings, Common, Fields, Setting,
 };
+pub use super::study::{RunSpec, StudyJob, MAX_SETTINGS, MAX_STUDY_STEPS, REFERENCE_TOLERANCE};
 use crate::core::methods::MethodId;
-use crate::core::run::{Budget, StopReason};
-use crate::core::simulate::{Limits, Request, Sample, SampleSink, Simulation};
+use crate::core::run::Budget;
+use crate::core::simulate::{Limits, Request};
 
 /// The fields of a study request.
 pub const STUDY_FIELDS: &[&str] = &[
@@ -40,20 +42,9 @@ pub const STUDY_FIELDS: &[&str] = &[
     "runs",
     "reference",
 ];
-/// The fields of one entry of `runs` (and of `reference`).
-pub const RUN_FIELDS: &[&str] = &["method", "h", "tolerance"];
-/// Most settings (step sizes and tolerances over all runs) in one study.
-pub const MAX_SETTINGS: usize = 64;
-/// Most fixed steps over all settings of one study.
-pub const MAX_STUDY_STEPS: u64 = 200_000_000;
+pub use super::study::RUN_FIELDS;
 /// Default number of sample times.
 pub const DEFAULT_SAMPLES: u64 = 50;
-/// Runs shorter than this many milliseconds are timed [`SHORT_RUN_REPEATS`] times.
-const SHORT_RUN_MS: f64 = 20.0;
-/// Timings of a short run; its wall time is their median.
-const SHORT_RUN_REPEATS: usize = 5;
-/// Tolerance of the default reference run.
-pub const REFERENCE_TOLERANCE: f64 = 1e-13;
 
 /// A work–precision study.
 #[derive(Clone, Debug, PartialEq, Serialize, ToSchema)]
@@ -87,17 +78,6 @@ pub struct WorkPrecisionRequest {
     /// The run the errors are measured against where the system has no exact solution
     /// (default: `reference` at tolerance 1e-13). Give one step size or tolerance.
     pub reference: Option<RunSpec>,
-}
-
-/// A method with its settings.
-#[derive(Clone, Debug, PartialEq, Serialize, ToSchema)]
-pub struct RunSpec {
-    /// The method.
-    pub method: MethodSpec,
-    /// Step sizes (fixed-step methods), each dividing t_end/samples.
-    pub h: Vec<f64>,
-    /// Tolerances (the adaptive `reference` only), in [1e-14, 1e-2].
-    pub tolerance: Vec<f64>,
 }
 
 /// One setting of a study: what ran and what it measured.
@@ -164,77 +144,6 @@ pub struct WorkPrecisionDocument {
     pub fits: Vec<WorkPrecisionFit>,
 }
 
-/// A validated study, ready to run.
-#[derive(Clone, Debug)]
-pub struct StudyJob {
-    /// One prepared simulation per setting, with its run index.
-    settings: Vec<(usize, Simulation)>,
-    /// The reference run, where the system has no exact solution.
-    reference: Option<Simulation>,
-    system: SystemSummary,
-    t_end: f64,
-    samples: u64,
-}
-
-impl StudyJob {
-    /// Number of settings.
-    pub fn len(&self) -> usize {
-        self.settings.len()
-    }
-
-    /// Whether the study has no settings (never, once validated).
-    pub fn is_empty(&self) -> bool {
-        self.settings.is_empty()
-    }
-}
-
-fn invalid(field: impl Into<String>, message: impl std::fmt::Display) -> ErrorDetail {
-    let field = field.into();
-    ErrorDetail::at(
-        codes::INVALID_VALUE,
-        field.clone(),
-        format!("{field}: {message}"),
-    )
-}
-
-fn numbers(v: &Value, field: &str) -> Result<Vec<f64>, ErrorDetail> {
-    let list = v
-        .as_array()
-        .ok_or_else(|| wrong_type(field, "a list of numbers", v))?;
-    list.iter()
-        .enumerate()
-        .map(|(i, x)| number(x, &format!("{field}[{i}]")))
-        .collect()
-}
-
-/// A `{"method", "h" | "tolerance"}` entry; `single` asks for one number instead of a list.
-fn run_spec(v: &Value, field: &str, single: bool) -> Result<RunSpec, ErrorDetail> {
-    let o = object(v, Some(field))?;
-    check_fields(o, RUN_FIELDS, &format!("{field}."))?;
-    let method = match present(o, "method") {
-        Some(m) => method(m, &format!("{field}.method"))?,
-        None => {
-            return Err(missing(
-                &format!("{field}.method"),
-                "the method, e.g. \"rk4\" or {\"id\": \"kahan_li_8\", \"base\": \"modin_3s\"}",
-            ))
-        }
-    };
-    let list = |name: &str| -> Result<Vec<f64>, ErrorDetail> {
-        let path = format!("{field}.{name}");
-        match present(o, name) {
-            None => Ok(Vec::new()),
-            Some(x) if single => Ok(vec![number(x, &path)?]),
-            Some(x) => numbers(x, &path),
-        }
-    };
-    Ok(RunSpec {
-        method,
-        h: list("h")?,
-        tolerance: list("tolerance")?,
-    })
-}
-
 impl WorkPrecisionRequest {
     /// Parses a study from JSON text.
     pub fn from_slice(bytes: &[u8]) -> Result<Self, ErrorDetail> {
@@ -245,25 +154,7 @@ impl WorkPrecisionRequest {
     pub fn from_value(value: &Value) -> Result<Self, ErrorDetail> {
         let obj = object(value, None)?;
         check_fields(obj, STUDY_FIELDS, "")?;
-        let system = match present(obj, "system") {
-            Some(Value::String(s)) => s.clone(),
-            Some(v) => return Err(wrong_type("system", "a string", v)),
-            None => return Err(missing("system", "the system id, e.g. \"pendulum\"")),
-        };
-        let params = match present(obj, "params") {
-            Some(v) => object(v, Some("params"))?.clone(),
-            None => Map::new(),
-        };
-        let t_end = match present(obj, "t_end") {
-            Some(v) => number(v, "t_end")?,
-            None => return Err(missing("t_end", "the final time")),
-        };
-        let samples = match present(obj, "samples") {
-            Some(v) => v
-                .as_u64()
-                .ok_or_else(|| wrong_type("samples", "a whole number from 1 to 1000", v))?,
-            None => DEFAULT_SAMPLES,
-        };
+        let common = Common::parse(obj)?;
         let runs = match present(obj, "runs") {
             Some(v) => v
                 .as_array()
@@ -279,408 +170,118 @@ impl WorkPrecisionRequest {
                 ))
             }
         };
-        let reference = present(obj, "reference")
-            .map(|v| run_spec(v, "reference", true))
-            .transpose()?;
         Ok(WorkPrecisionRequest {
-            system,
-            params,
-            q0: present(obj, "q0").map(|v| numbers(v, "q0")).transpose()?,
-            p0: present(obj, "p0").map(|v| numbers(v, "p0")).transpose()?,
-            t_end,
-            samples,
+            system: common.system,
+            params: common.params,
+            q0: common.q0,
+            p0: common.p0,
+            t_end: common.t_end,
+            samples: common.samples.unwrap_or(DEFAULT_SAMPLES),
             runs,
-            reference,
+            reference: common.reference,
         })
     }
 
-    /// One simulation request for `method` at step `h` (or segment length with `tolerance`).
-    fn core_request(&self, method: &MethodSpec, h: f64, tolerance: Option<f64>) -> Request {
-        let mut input = method.to_input();
-        if let (Some(t), crate::core::methods::MethodInput::Object { tolerance: tol, .. }) =
-            (tolerance, &mut input)
-        {
-            *tol = Some(t);
-        } else if let Some(t) = tolerance {
-            input = crate::core::methods::MethodInput::Object {
-                id: "reference".into(),
-                inner: None,
-                base: None,
-                tolerance: Some(t),
-                processor: None,
-            };
-        }
-        let steps = (self.t_end / h).round().max(1.0) as u64;
-        Request {
-            system: self.system.clone(),
-            params: self.params.clone(),
-            chart: None,
-            initial_cartesian: false,
-            methods: vec![input],
-            h,
-            t_end: self.t_end,
-            q0: self.q0.clone(),
-            p0: self.p0.clone(),
-            every: Some((steps / self.samples).max(1)),
-            compare_to_reference: false,
-            jacobian_defect: false,
-        }
-    }
-
-    /// Prepares one setting of run `field` (e.g. `runs[1]`), naming its fields in errors.
-    fn prepare_setting(
-        &self,
-        spec: &RunSpec,
-        field: &str,
-        setting: Setting,
-        limits: &Limits,
-    ) -> Result<Simulation, ErrorDetail> {
-        let segment = self.t_end / self.samples as f64;
-        let (h, tolerance, path) = match setting {
-            Setting::Step(j, h) => {
-                let path = format!("{field}.h[{j}]");
-                if !(h.is_finite() && h > 0.0) {
-                    return Err(invalid(path, format!("must be finite and > 0, got {h}")));
-                }
-                let per_segment = segment / h;
-                if (per_segment - per_segment.round()).abs() > 1e-9 * per_segment.max(1.0)
-                    || per_segment.round() < 1.0
-                {
-                    return Err(invalid(
-                        path,
-                        format!(
-                            "must divide t_end/samples = {segment} so that the samples are step \
-                             endpoints; {h} does not"
-                        ),
-                    ));
-                }
-                (h, None, path)
-            }
-            Setting::Tolerance(j, t) => {
-                let path = format!("{field}.tolerance[{j}]");
-                if !(t.is_finite() && (1e-14..=1e-2).contains(&t)) {
-                    return Err(invalid(path, format!("must lie in [1e-14, 1e-2], got {t}")));
-                }
-                (segment, Some(t), path)
-            }
+    /// The settings of run `spec` (the request's `field`), checked against its method.
+    fn settings_of(spec: &RunSpec, field: &str) -> Result<Vec<(String, Setting)>, ErrorDetail> {
+        let adaptive = spec.method.id() == MethodId::Reference.as_str();
+        let listed = |name: &str, values: &[f64], make: fn(f64) -> Setting| {
+            values
+                .iter()
+                .enumerate()
+                .map(|(j, &v)| (format!("{field}.{name}[{j}]"), make(v)))
+                .collect()
         };
-        let req = self.core_request(&spec.method, h, tolerance);
-        Simulation::prepare(&req, limits).map_err(|e| {
-            let detail = ErrorDetail::from_core(&e, &req, limits);
-            let renamed = match detail.field.as_deref() {
-                Some(f) if f.starts_with("methods[0]") => {
-                    Some(f.replacen("methods[0]", &format!("{field}.method"), 1))
-                }
-                Some("methods") => Some(format!("{field}.method")),
-                Some("h") => Some(path.clone()),
-                // Too many steps for this setting: its step size is at fault, not t_end.
-                Some("t_end") if detail.code == codes::TOO_MANY_STEPS => Some(path.clone()),
-                Some(other) => Some(other.to_string()),
-                None => None,
-            };
-            ErrorDetail {
-                field: renamed,
-                ..detail
-            }
-        })
+        match (adaptive, spec.h.is_empty(), spec.tolerance.is_empty()) {
+            (false, false, true) => Ok(listed("h", &spec.h, Setting::Step)),
+            (true, true, false) => Ok(listed("tolerance", &spec.tolerance, Setting::Tolerance)),
+            (false, _, false) => Err(invalid(
+                format!("{field}.tolerance"),
+                "only the adaptive `reference` takes tolerances; give step sizes `h`",
+            )),
+            (true, false, _) => Err(invalid(
+                format!("{field}.h"),
+                "the adaptive `reference` takes tolerances, not step sizes",
+            )),
+            (false, true, true) => Err(missing(
+                &format!("{field}.h"),
+                "the step sizes, e.g. [0.1, 0.05]",
+            )),
+            (true, true, true) => Err(missing(
+                &format!("{field}.tolerance"),
+                "the tolerances, e.g. [1e-8, 1e-10]",
+            )),
+        }
     }
 
     /// Validates the study (cheap: nothing is integrated).
     pub fn prepare(&self, limits: &Limits) -> Result<StudyJob, ErrorDetail> {
-        if !(self.t_end.is_finite() && self.t_end > 0.0) {
-            return Err(invalid(
-                "t_end",
-                format!("must be finite and > 0, got {}", self.t_end),
-            ));
-        }
-        if !(1..=1000).contains(&self.samples) {
-            return Err(invalid(
-                "samples",
-                format!("must lie in 1…1000, got {}", self.samples),
-            ));
-        }
+        study::check_t_end(self.t_end)?;
+        study::check_samples(self.samples)?;
         if self.runs.is_empty() {
             return Err(invalid(
                 "runs",
                 "give at least one method with its settings",
             ));
         }
+        let template = Request {
+            system: self.system.clone(),
+            params: self.params.clone(),
+            t_end: self.t_end,
+            q0: self.q0.clone(),
+            p0: self.p0.clone(),
+            ..Request::default()
+        };
         let mut settings = Vec::new();
-        let mut total_steps: u64 = 0;
         for (i, spec) in self.runs.iter().enumerate() {
             let field = format!("runs[{i}]");
-            let adaptive = spec.method.id() == MethodId::Reference.as_str();
-            let chosen: Vec<Setting> =
-                match (adaptive, spec.h.is_empty(), spec.tolerance.is_empty()) {
-                    (false, false, true) => spec
-                        .h
-                        .iter()
-                        .enumerate()
-                        .map(|(j, &h)| Setting::Step(j, h))
-                        .collect(),
-                    (true, true, false) => spec
-                        .tolerance
-                        .iter()
-                        .enumerate()
-                        .map(|(j, &t)| Setting::Tolerance(j, t))
-                        .collect(),
-                    (false, _, false) => {
-                        return Err(invalid(
-                            format!("{field}.tolerance"),
-                            "only the adaptive `reference` takes tolerances; give step sizes `h`",
-                        ))
-                    }
-                    (true, false, _) => {
-                        return Err(invalid(
-                            format!("{field}.h"),
-                            "the adaptive `reference` takes tolerances, not step sizes",
-                        ))
-                    }
-                    (false, true, true) => {
-                        return Err(missing(
-                            &format!("{field}.h"),
-                            "the step sizes, e.g. [0.1, 0.05]",
-                        ))
-                    }
-                    (true, true, true) => {
-                        return Err(missing(
-                            &format!("{field}.tolerance"),
-                            "the tolerances, e.g. [1e-8, 1e-10]",
-                        ))
-                    }
-                };
-            for setting in chosen {
+            let method = format!("{field}.method");
+            for (path, setting) in Self::settings_of(spec, &field)? {
                 if settings.len() == MAX_SETTINGS {
-                    return Err(invalid(
+                    return Err(too_many_settings(
                         "runs",
-                        format!(
-                            "at most {MAX_SETTINGS} settings (step sizes and tolerances) per study"
-                        ),
+                        "count the step sizes and tolerances of every run",
                     ));
                 }
-                let sim = self.prepare_setting(spec, &field, setting, limits)?;
-                total_steps = total_steps.saturating_add(sim.schedule.steps);
+                let fields = Fields {
+                    method: &method,
+                    setting: &path,
+                    chart: "system",
+                };
+                let sim = prepare_setting(
+                    &template,
+                    &spec.method,
+                    setting,
+                    self.samples,
+                    &fields,
+                    limits,
+                )?;
                 settings.push((i, sim));
             }
         }
-        if total_steps > MAX_STUDY_STEPS {
-            return Err(ErrorDetail::at(
-                codes::TOO_MANY_STEPS,
-                "runs",
-                format!(
-                    "runs: {total_steps} steps over all settings exceed the limit of \
-                     {MAX_STUDY_STEPS} per study; use fewer or larger steps"
-                ),
-            ));
-        }
         let first = &settings[0].1;
-        let reference = if first.exact_final_state().is_some() {
-            None
-        } else {
-            let sim = match &self.reference {
-                Some(spec) => {
-                    let setting = match (spec.h.first(), spec.tolerance.first()) {
-                        (Some(&h), None) => Setting::Step(0, h),
-                        (None, Some(&t)) => Setting::Tolerance(0, t),
-                        (None, None) => {
-                            return Err(missing(
-                                "reference.h",
-                                "the reference's step size (or tolerance)",
-                            ))
-                        }
-                        (Some(_), Some(_)) => {
-                            return Err(invalid(
-                                "reference",
-                                "give either `h` or `tolerance`, not both",
-                            ))
-                        }
-                    };
-                    self.prepare_setting(spec, "reference", setting, limits)
-                        .map_err(|mut e| {
-                            if let Some(f) = &e.field {
-                                e.field = Some(
-                                    f.replace(".h[0]", ".h")
-                                        .replace(".tolerance[0]", ".tolerance"),
-                                );
-                            }
-                            e
-                        })?
-                }
-                None => {
-                    let default = RunSpec {
-                        method: MethodSpec::Id("reference".into()),
-                        h: Vec::new(),
-                        tolerance: vec![REFERENCE_TOLERANCE],
-                    };
-                    self.prepare_setting(
-                        &default,
-                        "reference",
-                        Setting::Tolerance(0, REFERENCE_TOLERANCE),
-                        limits,
-                    )?
-                }
-            };
-            Some(sim)
-        };
-        Ok(StudyJob {
-            system: SystemSummary::of(first),
+        let reference = prepare_reference(
+            first,
+            &template,
+            self.reference.as_ref(),
+            self.samples,
+            limits,
+        )?;
+        let system = SystemSummary::of(first);
+        StudyJob::new(
             settings,
             reference,
-            t_end: self.t_end,
-            samples: self.samples,
-        })
-    }
-}
-
-/// A setting as requested: (index in its list, value).
-#[derive(Clone, Copy, Debug)]
-enum Setting {
-    Step(usize, f64),
-    Tolerance(usize, f64),
-}
-
-/// What a study's progress stream carries.
-#[derive(Clone, Debug, PartialEq, Serialize, ToSchema)]
-#[serde(tag = "type", rename_all = "snake_case")]
-pub enum StudyLine {
-    /// The reference run is done (or the exact solution is used).
-    Reference {
-        /// What the errors are measured against.
-        reference: String,
-        /// Its wall time in milliseconds.
-        reference_ms: f64,
-        /// Settings to run.
-        total: usize,
-    },
-    /// One setting is done.
-    Point {
-        /// Settings done so far.
-        done: usize,
-        /// Settings in all.
-        total: usize,
-        /// The setting's measurements.
-        point: WorkPrecisionPoint,
-    },
-    /// The whole study.
-    Result(WorkPrecisionDocument),
-    /// A failure (the reference run, a server fault).
-    Error {
-        /// What went wrong.
-        error: ErrorDetail,
-    },
-    /// The last line of a complete stream.
-    End,
-}
-
-/// Collects what a study measures from one run's samples.
-struct Measure<'a> {
-    names: &'static [&'static str],
-    reference_energies: Option<&'a [f64]>,
-    max_energy_error: f64,
-    invariants_at_start: Vec<f64>,
-    drift: Vec<f64>,
-    energies: Vec<f64>,
-    last: Option<(Vec<f64>, Vec<f64>)>,
-}
-
-impl<'a> Measure<'a> {
-    fn new(names: &'static [&'static str], reference_energies: Option<&'a [f64]>) -> Self {
-        Measure {
-            names,
-            reference_energies,
-            max_energy_error: 0.0,
-            invariants_at_start: Vec::new(),
-            drift: Vec::new(),
-            energies: Vec::new(),
-            last: None,
-        }
-    }
-}
-
-/// Runs the setting `sim` and measures it; short runs are timed again (their numbers are the
-/// same, bit for bit) and give the median wall time, so that one scheduling hiccup does not move
-/// a point of the diagram.
-fn measure_setting<'a>(
-    sim: &Simulation,
-    energies: Option<&'a [f64]>,
-    budget: Budget<'_>,
-) -> Result<(crate::core::simulate::Outcome, Measure<'a>, f64), ErrorDetail> {
-    let failed = |e: crate::core::error::CoreError| {
-        ErrorDetail::new(
-            codes::STEP_FAILED,
-            format!("{}: {e}", sim.methods[0].label()),
+            system,
+            self.t_end,
+            self.samples,
+            "runs",
         )
-    };
-    let mut sink = Measure::new(sim.invariant_names(), energies);
-    let began = Instant::now();
-    let outcome = sim
-        .run_method(0, energies, budget, &mut sink)
-        .map_err(failed)?;
-    let mut times = vec![began.elapsed().as_secs_f64() * 1e3];
-    while outcome.stop == StopReason::Finished
-        && times.len() < SHORT_RUN_REPEATS
-        && times[0] < SHORT_RUN_MS
-    {
-        let mut again = Measure::new(sim.invariant_names(), energies);
-        let began = Instant::now();
-        sim.run_method(0, energies, budget, &mut again)
-            .map_err(failed)?;
-        times.push(began.elapsed().as_secs_f64() * 1e3);
-    }
-    times.sort_by(f64::total_cmp);
-    let wall_ms = times[times.len() / 2];
-    Ok((outcome, sink, wall_ms))
-}
-
-impl SampleSink for Measure<'_> {
-    fn on_sample(&mut self, s: &Sample<'_>) {
-        if let Some(e) = s.energy_error {
-            self.max_energy_error = self.max_energy_error.max(e.abs());
-        }
-        if self.invariants_at_start.is_empty() {
-            self.invariants_at_start = s.invariants.to_vec();
-            self.drift = vec![0.0; s.invariants.len()];
-        }
-        for (k, (&v, &v0)) in s
-            .invariants
-            .iter()
-            .zip(&self.invariants_at_start)
-            .enumerate()
-        {
-            self.drift[k] = self.drift[k].max((v - v0).abs());
-        }
-        if self.reference_energies.is_none() {
-            self.energies.push(s.energy);
-        }
-        self.last = Some((s.q.to_vec(), s.p.to_vec()));
     }
 }
 
-fn stop_name(stop: &StopReason) -> &'static str {
-    match stop {
-        StopReason::Finished => "finished",
-        StopReason::Diverged { .. } => "diverged",
-        StopReason::Cancelled { .. } => "cancelled",
-        _ => "time_limit",
-    }
-}
-
-/// The least-squares line through (log₁₀ error, log₁₀ ms).
-fn fit(points: &[(f64, f64)]) -> (Option<f64>, Option<f64>) {
-    if points.len() < 2 {
-        return (None, None);
-    }
-    let n = points.len() as f64;
-    let xs = points.iter().map(|p| p.0.log10());
-    let ys = points.iter().map(|p| p.1.log10());
-    let (mx, my) = (xs.clone().sum::<f64>() / n, ys.clone().sum::<f64>() / n);
-    let sxy: f64 = xs.clone().zip(ys).map(|(x, y)| (x - mx) * (y - my)).sum();
-    let sxx: f64 = xs.map(|x| (x - mx).powi(2)).sum();
-    if sxx <= 0.0 {
-        return (None, None);
-    }
-    let slope = sxy / sxx;
-    (Some(slope), Some(my - slope * mx))
+progress_lines! {
+    /// What a work–precision study's progress stream carries.
+    StudyLine, WorkPrecisionPoint, WorkPrecisionDocument
 }
 
 /// Runs a study, reporting each line to `emit` (which returns false once nobody listens) and
@@ -690,69 +291,13 @@ pub fn run(
     budget: Budget<'_>,
     emit: &dyn Fn(StudyLine) -> bool,
 ) -> Result<WorkPrecisionDocument, ErrorDetail> {
-    let total = job.settings.len();
-    // The reference: energies at the sample times and the final state.
-    let started = Instant::now();
-    let (reference, energies, final_state) = match &job.reference {
-        None => {
-            let exact = job.settings[0].1.exact_final_state();
-            ("exact solution".to_string(), None, exact)
-        }
-        Some(sim) => {
-            let mut sink = Measure::new(sim.invariant_names(), None);
-            let outcome = sim.run_method(0, None, budget, &mut sink).map_err(|e| {
-                ErrorDetail::new(codes::STEP_FAILED, format!("the reference run failed: {e}"))
-            })?;
-            if outcome.stop != StopReason::Finished {
-                return Err(ErrorDetail::new(
-                    codes::TIMEOUT,
-                    format!(
-                        "the reference run did not finish ({})",
-                        stop_name(&outcome.stop)
-                    ),
-                ));
-            }
-            let choice = &sim.methods[0];
-            let description = match choice.id {
-                MethodId::Reference => format!(
-                    "adaptive DOP853 reference at tolerance {:e}",
-                    choice.tolerance.unwrap_or(REFERENCE_TOLERANCE)
-                ),
-                _ => format!("{} at h = {}", choice.label(), sim.schedule.h),
-            };
-            (description, Some(sink.energies), sink.last)
-        }
-    };
-    let reference_ms = if job.reference.is_some() {
-        started.elapsed().as_secs_f64() * 1e3
-    } else {
-        0.0
-    };
-    emit(StudyLine::Reference {
-        reference: reference.clone(),
-        reference_ms,
-        total,
-    });
-
-    let mut points = Vec::with_capacity(total);
-    for (done, (run, sim)) in job.settings.iter().enumerate() {
+    let (truth, points) = study::run_settings(job, budget, emit, |run, sim, truth| {
         let choice = &sim.methods[0];
-        let (outcome, sink, wall_ms) = measure_setting(sim, energies.as_deref(), budget)?;
-        let finished = outcome.stop == StopReason::Finished;
-        let final_state_error = match (&sink.last, &final_state) {
-            (Some((q, p)), Some((qr, pr))) if finished => Some(
-                q.iter()
-                    .chain(p)
-                    .zip(qr.iter().chain(pr))
-                    .map(|(a, b)| (a - b).powi(2))
-                    .sum::<f64>()
-                    .sqrt(),
-            ),
-            _ => None,
-        };
+        let (outcome, sink, wall_ms) = measure_timed(sim, truth.energies.as_deref(), budget)?;
+        let finished = outcome.stop == crate::core::run::StopReason::Finished;
         let adaptive = choice.id == MethodId::Reference;
         let point = WorkPrecisionPoint {
-            run: *run,
+            run,
             method: if adaptive {
                 "reference".into()
             } else {
@@ -764,7 +309,11 @@ pub fn run(
             steps: outcome.stats.steps,
             force_evaluations: outcome.stats.force_evaluations,
             max_energy_error: finished.then_some(sink.max_energy_error),
-            final_state_error,
+            final_state_error: sink
+                .last
+                .as_ref()
+                .filter(|_| finished)
+                .and_then(|last| truth.state_error(sim, last)),
             invariant_drift: sink
                 .names
                 .iter()
@@ -773,19 +322,8 @@ pub fn run(
                 .collect(),
             stop: stop_name(&outcome.stop).to_string(),
         };
-        let listening = emit(StudyLine::Point {
-            done: done + 1,
-            total,
-            point: point.clone(),
-        });
-        points.push(point);
-        if !listening || matches!(outcome.stop, StopReason::Cancelled { .. }) {
-            return Err(ErrorDetail::new(
-                codes::OVERLOADED,
-                "the study was cancelled",
-            ));
-        }
-    }
+        Ok((point, outcome.stop))
+    })?;
 
     let mut fits = Vec::new();
     for run in 0..job.settings.last().map_or(0, |s| s.0 + 1) {
@@ -800,7 +338,7 @@ pub fn run(
             })
             .filter(|&(_, ms)| ms > 0.0)
             .collect();
-        let (slope, intercept) = fit(&data);
+        let (slope, intercept) = study::fit(&data);
         fits.push(WorkPrecisionFit {
             run,
             method: first.method.clone(),
@@ -813,27 +351,9 @@ pub fn run(
         system: job.system.clone(),
         t_end: job.t_end,
         samples: job.samples,
-        reference,
-        reference_ms,
+        reference: truth.description,
+        reference_ms: truth.ms,
         points,
         fits,
     })
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_fit_recovers_a_power_law() {
-        // ms = 3·error^(−1/4)
-        let points: Vec<(f64, f64)> = [1e-2, 1e-4, 1e-6, 1e-8]
-            .iter()
-            .map(|&e: &f64| (e, 3.0 * e.powf(-0.25)))
-            .collect();
-        let (slope, intercept) = fit(&points);
-        assert!((slope.unwrap() + 0.25).abs() < 1e-12);
-        assert!((intercept.unwrap() - 3f64.log10()).abs() < 1e-12);
-        assert_eq!(fit(&points[..1]), (None, None));
-    }
 }

@@ -1,8 +1,9 @@
 // The page's client of the geomint HTTP API: the two catalogues, the NDJSON simulation stream
 // (POST /api/v1/simulate with Accept: application/x-ndjson), the run as a Rerun recording
-// (?format=rrd, POST /api/v1/recordings) and the stability analysis (POST /api/v1/stability,
-// /api/v1/stability/point). Errors in the service's shape, {"error": {"code", "message",
-// "field"}}, become ApiError objects that keep the field path.
+// (?format=rrd, POST /api/v1/recordings), the stability analysis (POST /api/v1/stability,
+// /api/v1/stability/point) and the studies (POST /api/v1/studies/work-precision and
+// /convergence). Errors in the service's shape, {"error": {"code", "message", "field"}}, become
+// ApiError objects that keep the field path.
 
 /** An error answered by the API (or a stream's `error` line). */
 export class ApiError extends Error {
@@ -113,6 +114,14 @@ async function ndjsonStream(path, body, onLine, signal) {
  */
 export async function workPrecisionStream(body, onLine, signal) {
   return ndjsonStream('api/v1/studies/work-precision', body, onLine, signal);
+}
+
+/**
+ * A convergence study (POST /api/v1/studies/convergence) streamed as NDJSON: `reference`, one
+ * `point` per finished setting, `result`, `end` (or `error`).
+ */
+export async function convergenceStream(body, onLine, signal) {
+  return ndjsonStream('api/v1/studies/convergence', body, onLine, signal);
 }
 
 /** The study `body` as a Rerun recording (.rrd bytes). */

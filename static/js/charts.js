@@ -2,7 +2,8 @@
 // phase portrait per degree of freedom, the trajectory (q(t), or for 3-D systems the x–y and x–z
 // projections), the invariants and the dissipation drift. Every chosen method is one series in
 // its own colour. Time plots share the sample times (uPlot's aligned mode); phase portraits and
-// projections draw each method's points in time order (uPlot's faceted mode 2).
+// projections draw each method's points in time order (uPlot's faceted mode 2). The studies'
+// log–log diagrams (LogLogPlot) draw one polyline with dots per series.
 
 import uPlot from '../vendor/uPlot.esm.js';
 import { el } from './form.js';
@@ -331,5 +332,106 @@ export class Charts {
       });
     }
     return out;
+  }
+}
+
+/** A log axis labelled `label`, with gridlines at powers of ten. */
+export function logAxis(label) {
+  return {
+    label, labelSize: 14, size: 56, labelGap: 0, values: logTicks, splits: logSplits,
+    filter: (u, splits) => splits, stroke: '#333', grid: { stroke: '#e4e4e4', width: 1 },
+    ticks: { stroke: '#ccc', width: 1 }, font: '11px system-ui, sans-serif', labelFont: '12px system-ui, sans-serif',
+  };
+}
+
+/** A faceted series drawn as a polyline through its points with a dot at each. */
+function dotted(u, seriesIdx) {
+  const path = polyline(u, seriesIdx);
+  const [xs, ys] = u.data[seriesIdx];
+  const r = 3 * (window.devicePixelRatio || 1);
+  for (let i = 0; i < xs.length; i++) {
+    const px = u.valToPos(xs[i], 'x', true);
+    const py = u.valToPos(ys[i], 'y', true);
+    path.stroke.moveTo(px + r, py);
+    path.stroke.arc(px, py, r, 0, 2 * Math.PI);
+  }
+  return path;
+}
+
+/**
+ * A log–log diagram of a study in `area`: one polyline with dots per series, sized to the area.
+ * `show` replaces the series (the plot is kept, and only its data set, while the labels stay the
+ * same); `onHover(x, y)` gets pointer moves over the plot in CSS pixels; `nearest` finds the
+ * dot under the pointer.
+ */
+export class LogLogPlot {
+  /**
+   * @param {HTMLElement} area
+   * @param {string} xLabel
+   * @param {string} yLabel
+   * @param {(x: number, y: number) => void} onHover
+   */
+  constructor(area, xLabel, yLabel, onHover) {
+    Object.assign(this, { area, xLabel, yLabel, onHover });
+    /** The uPlot instance, once there is something to draw. */
+    this.plot = null;
+    /** The series shown: {label, colour, xs, ys}. */
+    this.series = [];
+    this.resize = new ResizeObserver(() => this.layout());
+    this.resize.observe(area);
+  }
+
+  /** Shows `series` ({label, colour, xs, ys} with positive values). */
+  show(series) {
+    this.series = series;
+    const data = [null, ...series.map((s) => [s.xs, s.ys])];
+    if (!series.length) {
+      // Nothing to draw yet (uPlot's faceted mode needs a series).
+      this.plot?.destroy();
+      this.plot = null;
+      return;
+    }
+    const same = this.plot && this.plot.series.length === data.length
+      && series.every((s, i) => this.plot.series[i + 1].label === s.label);
+    if (same) {
+      this.plot.setData(data);
+      return;
+    }
+    this.plot?.destroy();
+    const { width, height } = this.size();
+    this.plot = new uPlot({
+      width, height, mode: 2,
+      legend: { show: false },
+      cursor: { points: { show: false }, drag: { x: false, y: false } },
+      scales: { x: { time: false, distr: 3, auto: true }, y: { distr: 3, auto: true } },
+      axes: [logAxis(this.xLabel), logAxis(this.yLabel)],
+      series: [{}, ...series.map((s) => ({
+        label: s.label, stroke: s.colour, width: 1.5, paths: dotted, points: { show: false },
+        facets: [{ scale: 'x', auto: true }, { scale: 'y', auto: true }],
+      }))],
+    }, data, this.area);
+    this.plot.over.addEventListener('pointermove', (event) => this.onHover(event.offsetX, event.offsetY));
+  }
+
+  /** The dot nearest to (x, y) in CSS pixels of the plot area, within 24 px: {series, index}. */
+  nearest(x, y) {
+    if (!this.plot) return null;
+    let best = null;
+    this.series.forEach((s, series) => s.xs.forEach((v, index) => {
+      const d = Math.hypot(this.plot.valToPos(v, 'x') - x, this.plot.valToPos(s.ys[index], 'y') - y);
+      if (d < 24 && (!best || d < best.d)) best = { d, series, index };
+    }));
+    return best;
+  }
+
+  size() {
+    const width = Math.max(240, Math.floor(this.area.clientWidth));
+    return { width, height: Math.round(Math.min(420, Math.max(240, width * 0.55))) };
+  }
+
+  layout() {
+    if (!this.plot) return;
+    const { width, height } = this.size();
+    if (Math.abs(this.plot.width - width) > 1) this.plot.setSize({ width, height });
   }
 }

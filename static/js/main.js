@@ -1,9 +1,10 @@
 // The page's entry point: loads the catalogues, builds the form and the preset buttons, and runs
 // simulations — streaming NDJSON into the plots with a progress bar, cancellable with the Cancel
 // button or Esc; offers the finished run as JSON or a Rerun recording (rerun.js) and sets up the
-// stability section (stability.js) and the work–precision section (studies.js). For tests it exposes `window.geomint` (the uPlot instances and
-// their point counts) and the run's state as `data-run-state` on <body> (loading, idle, running,
-// done, cancelled, error).
+// stability section (stability.js), the work–precision section (studies.js) and the
+// convergence section (convergence.js). For tests it exposes `window.geomint` (the uPlot
+// instances and their point counts) and the run's state as `data-run-state` on <body> (loading,
+// idle, running, done, cancelled, error).
 
 import { catalogues, simulateStream, ApiError } from './api.js';
 import { SimForm, el } from './form.js';
@@ -13,6 +14,7 @@ import { PRESETS, presetRequest } from './presets.js';
 import { RerunPanel } from './rerun.js';
 import { StabilityPanel } from './stability.js';
 import { WorkPrecisionPanel } from './studies.js';
+import { ConvergencePanel } from './convergence.js';
 
 /** Shortest time between two redraws while samples stream in, in milliseconds. Redraws of long
  * runs take longer; the pause after one is at least REDRAW_SHARE times its duration, so drawing
@@ -268,6 +270,7 @@ async function init() {
   });
   const stability = new StabilityPanel($('#stability'), cats.methods);
   const workPrecision = new WorkPrecisionPanel($('#work-precision'));
+  const convergence = new ConvergencePanel($('#convergence'));
   for (const button of ui.presets.querySelectorAll('button')) button.disabled = false;
   ui.run.disabled = false;
   ui.form.addEventListener('submit', (event) => {
@@ -287,6 +290,7 @@ async function init() {
     runPreset,
     stability,
     workPrecision,
+    convergence,
   };
   setState('idle');
 }

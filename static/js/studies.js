@@ -3,11 +3,11 @@
 // diagram of wall time against the largest energy error — one line per method with its fitted
 // slope — with a readout of the setting nearest the pointer, a table of every setting, and the
 // study as a Rerun recording. The section's state is `data-wp-state` (idle, running, done, error).
+// StudyPanel is what it shares with the convergence section (convergence.js).
 
-import uPlot from '../vendor/uPlot.esm.js';
 import { workPrecisionStream, workPrecisionRrd, ApiError } from './api.js';
 import { el } from './form.js';
-import { colour, logSplits, logTicks, polyline } from './charts.js';
+import { colour, LogLogPlot } from './charts.js';
 import { saveBlob, sizeText } from './rerun.js';
 
 /** The preset: the elastic pendulum with weak damping, geometric compositions against RK4 and
@@ -25,39 +25,46 @@ export const PRESET_STUDY = {
 };
 
 const fmtSetting = (p) => (p.h != null ? `h = ${p.h}` : `tol = ${p.tolerance.toExponential(0)}`);
-const fmtError = (e) => (e == null ? '—' : e.toExponential(2));
+/** An error as the study tables show it. */
+export const fmtError = (e) => (e == null ? '—' : e.toExponential(2));
 
-export class WorkPrecisionPanel {
-  /** @param {HTMLElement} root the section */
-  constructor(root) {
-    this.root = root;
-    this.spec = root.querySelector('#wp-spec');
-    this.runButton = root.querySelector('#wp-run');
-    this.status = root.querySelector('#wp-status');
-    this.progress = root.querySelector('#wp-progress');
-    this.error = root.querySelector('#err-wp');
-    this.legend = root.querySelector('#wp-legend');
-    this.area = root.querySelector('#wp-plot');
-    this.readout = root.querySelector('#wp-readout');
-    this.table = root.querySelector('#wp-table');
-    this.downloadButton = root.querySelector('#wp-download-rrd');
-    this.spec.value = JSON.stringify(PRESET_STUDY, null, 2);
-    this.plot = null;
+/**
+ * What the study sections share: a spec (JSON in a text box) run as an NDJSON stream with a
+ * progress bar and a status line, drawn as the settings arrive, a table of the result, a download
+ * button, and the section's state in `data-{stateKey}` (idle, running, done, error). The elements
+ * are found by `prefix`: #{prefix}-spec, -run, -status, -progress, -legend, -readout, -table,
+ * -form and #err-{prefix}. A subclass gives `stream(body, onLine, signal)`, `describe(point)`
+ * (the status line after a setting), `draw(points, result)` (result null while streaming),
+ * `renderTable(result)` and `download()`.
+ */
+export class StudyPanel {
+  /**
+   * @param {HTMLElement} root the section
+   * @param {string} prefix of the section's element ids
+   * @param {string} stateKey dataset key of the state
+   * @param {HTMLButtonElement} downloadButton enabled once a study is done
+   */
+  constructor(root, prefix, stateKey, downloadButton) {
+    const $ = (id) => root.querySelector(`#${id}`);
+    Object.assign(this, {
+      root, stateKey, downloadButton,
+      spec: $(`${prefix}-spec`), runButton: $(`${prefix}-run`), status: $(`${prefix}-status`),
+      progress: $(`${prefix}-progress`), error: $(`err-${prefix}`), legend: $(`${prefix}-legend`),
+      readout: $(`${prefix}-readout`), table: $(`${prefix}-table`),
+    });
     this.controller = null;
     /** The last study's points, result and body (for tests and the download). */
     this.last = null;
-    root.querySelector('#wp-form').addEventListener('submit', (event) => {
+    $(`${prefix}-form`).addEventListener('submit', (event) => {
       event.preventDefault();
       this.run();
     });
-    this.downloadButton.addEventListener('click', () => this.download());
-    this.resize = new ResizeObserver(() => this.layout());
-    this.resize.observe(this.area);
+    downloadButton.addEventListener('click', () => this.download());
     this.runButton.disabled = false;
   }
 
   setState(state) {
-    this.root.dataset.wpState = state;
+    this.root.dataset[this.stateKey] = state;
   }
 
   /** Runs the study in the text box; a new run supersedes a running one. */
@@ -83,7 +90,7 @@ export class WorkPrecisionPanel {
     this.status.textContent = 'Computing the reference…';
     this.draw(points, null);
     try {
-      await workPrecisionStream(body, (line) => {
+      await this.stream(body, (line) => {
         if (controller !== this.controller) return;
         if (line.type === 'reference') {
           this.progress.max = line.total;
@@ -91,8 +98,7 @@ export class WorkPrecisionPanel {
         } else if (line.type === 'point') {
           points.push(line.point);
           this.progress.value = line.done;
-          this.status.textContent = `${line.done} of ${line.total}: ${line.point.method} ${fmtSetting(line.point)} ` +
-            `took ${line.point.wall_ms.toFixed(2)} ms, max energy error ${fmtError(line.point.max_energy_error)}`;
+          this.status.textContent = `${line.done} of ${line.total}: ${this.describe(line.point)}`;
           this.draw(points, null);
         } else if (line.type === 'result') {
           this.last.result = line;
@@ -107,7 +113,7 @@ export class WorkPrecisionPanel {
     }
     if (controller !== this.controller) return;
     const result = this.last.result;
-    this.draw(result.points, result.fits);
+    this.draw(result.points, result);
     this.renderTable(result);
     this.progress.hidden = true;
     this.status.textContent = `Done: ${result.points.length} settings of ${result.system.id} to t = ${result.t_end}, ` +
@@ -123,6 +129,24 @@ export class WorkPrecisionPanel {
     this.status.textContent = 'The study could not run.';
     this.setState('error');
   }
+}
+
+export class WorkPrecisionPanel extends StudyPanel {
+  /** @param {HTMLElement} root the section */
+  constructor(root) {
+    super(root, 'wp', 'wpState', root.querySelector('#wp-download-rrd'));
+    this.spec.value = JSON.stringify(PRESET_STUDY, null, 2);
+    this.chart = new LogLogPlot(root.querySelector('#wp-plot'), 'max |energy error| over the samples',
+      'wall time (ms)', (x, y) => this.hover(x, y));
+  }
+
+  stream(body, onLine, signal) {
+    return workPrecisionStream(body, onLine, signal);
+  }
+
+  describe(p) {
+    return `${p.method} ${fmtSetting(p)} took ${p.wall_ms.toFixed(2)} ms, max energy error ${fmtError(p.max_energy_error)}`;
+  }
 
   /** Per run index: its label and its finished points with a positive error, by error. */
   series(points) {
@@ -136,76 +160,32 @@ export class WorkPrecisionPanel {
   }
 
   /** Draws the diagram: one polyline with dots per method, log–log. */
-  draw(points, fits) {
+  draw(points, result) {
     const runs = this.series(points);
     this.runs = runs;
     this.legend.replaceChildren(...runs.map((r) => {
-      const fit = fits?.find((f) => f.run === r.run);
+      const fit = result?.fits.find((f) => f.run === r.run);
       const slope = fit?.slope == null ? '' : `: time ∝ error^${fit.slope.toFixed(3)}`;
       return el('li', { 'data-method': r.label },
         el('span', { class: 'swatch', style: `background:${colour(r.run)}`, 'aria-hidden': 'true' }),
         `${r.label}${slope}`);
     }));
-    const data = [null, ...runs.map((r) => [r.points.map((p) => p.max_energy_error), r.points.map((p) => p.wall_ms)])];
-    if (!runs.length) {
-      // Nothing to draw yet (uPlot's faceted mode needs a series).
-      this.plot?.destroy();
-      this.plot = null;
-      return;
-    }
-    const same = this.plot && this.plot.series.length === data.length
-      && runs.every((r, i) => this.plot.series[i + 1].label === r.label);
-    if (same) {
-      this.plot.setData(data);
-      return;
-    }
-    this.plot?.destroy();
-    const axis = (label) => ({
-      label, labelSize: 14, size: 56, labelGap: 0, values: logTicks, splits: logSplits,
-      filter: (u, splits) => splits, stroke: '#333', grid: { stroke: '#e4e4e4', width: 1 },
-      ticks: { stroke: '#ccc', width: 1 }, font: '11px system-ui, sans-serif', labelFont: '12px system-ui, sans-serif',
-    });
-    const dotted = (u, seriesIdx) => {
-      const path = polyline(u, seriesIdx);
-      const [xs, ys] = u.data[seriesIdx];
-      const r = 3 * (window.devicePixelRatio || 1);
-      for (let i = 0; i < xs.length; i++) {
-        const px = u.valToPos(xs[i], 'x', true);
-        const py = u.valToPos(ys[i], 'y', true);
-        path.stroke.moveTo(px + r, py);
-        path.stroke.arc(px, py, r, 0, 2 * Math.PI);
-      }
-      return path;
-    };
-    const { width, height } = this.size();
-    this.plot = new uPlot({
-      width, height, mode: 2,
-      legend: { show: false },
-      cursor: { points: { show: false }, drag: { x: false, y: false } },
-      scales: { x: { time: false, distr: 3, auto: true }, y: { distr: 3, auto: true } },
-      axes: [axis('max |energy error| over the samples'), axis('wall time (ms)')],
-      series: [{}, ...runs.map((r) => ({
-        label: r.label, stroke: colour(r.run), width: 1.5, paths: dotted, points: { show: false },
-        facets: [{ scale: 'x', auto: true }, { scale: 'y', auto: true }],
-      }))],
-    }, data, this.area);
-    this.plot.over.addEventListener('pointermove', (event) => this.hover(event.offsetX, event.offsetY));
+    this.chart.show(runs.map((r) => ({
+      label: r.label, colour: colour(r.run),
+      xs: r.points.map((p) => p.max_energy_error), ys: r.points.map((p) => p.wall_ms),
+    })));
+  }
+
+  /** The uPlot instance of the diagram (for tests). */
+  get plot() {
+    return this.chart.plot;
   }
 
   /** The readout: the setting nearest to (x, y) in CSS pixels of the plot area, within 24 px. */
   hover(x, y) {
-    if (!this.plot) return;
-    let best = null;
-    for (const r of this.runs ?? []) {
-      for (const p of r.points) {
-        const dx = this.plot.valToPos(p.max_energy_error, 'x') - x;
-        const dy = this.plot.valToPos(p.wall_ms, 'y') - y;
-        const d = Math.hypot(dx, dy);
-        if (d < 24 && (!best || d < best.d)) best = { d, p };
-      }
-    }
-    if (!best) return;
-    const p = best.p;
+    const near = this.chart.nearest(x, y);
+    if (!near) return;
+    const p = this.runs[near.series].points[near.index];
     this.readout.textContent = `${p.method} ${fmtSetting(p)}: ${p.wall_ms.toFixed(3)} ms, ` +
       `${p.force_evaluations} force evaluations, max energy error ${fmtError(p.max_energy_error)}, ` +
       `final state error ${fmtError(p.final_state_error)}`;
@@ -233,16 +213,5 @@ export class WorkPrecisionPanel {
     } finally {
       this.downloadButton.disabled = false;
     }
-  }
-
-  size() {
-    const width = Math.max(240, Math.floor(this.area.clientWidth));
-    return { width, height: Math.round(Math.min(420, Math.max(240, width * 0.55))) };
-  }
-
-  layout() {
-    if (!this.plot) return;
-    const { width, height } = this.size();
-    if (Math.abs(this.plot.width - width) > 1) this.plot.setSize({ width, height });
   }
 }

@@ -5,7 +5,8 @@
 // run as .rrd and opens it in the embedded Rerun viewer (or its fallback), checks that the console
 // stays free of errors, submits h = -1 and looks for the API's message beside the h field, cancels
 // a long run, computes the stability maps and the ½tr error plot and compares them with the API,
-// checks the phone layout, and saves screenshots to artifacts/.
+// runs a work–precision and a convergence study (paper 001 Fig. 9) and compares their plots with
+// the API, checks the phone layout, and saves screenshots to artifacts/.
 
 import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
@@ -509,6 +510,83 @@ test('a work–precision study streams into a log–log diagram with a readout, 
   await page.waitForSelector('#work-precision[data-wp-state="error"]', { timeout: 10_000 });
   assert.match(await page.textContent('#err-wp'), /^runs\[0\]\.h\[0\]: must divide/);
   assert.equal(await page.getAttribute('#wp-spec', 'aria-invalid'), 'true');
+});
+
+test('a convergence study streams into a log–log plot of error against h with the fitted orders', async () => {
+  const before = consoleErrors.length;
+  const failedBefore = failedRequests.length;
+  await page.locator('#cv-run').scrollIntoViewIfNeeded();
+  // The paper 001 Fig. 9 preset fills the spec and the error choice, and runs.
+  await page.click('[data-cv-preset="fig9"]');
+  await page.waitForSelector('#convergence[data-cv-state="done"]', { timeout: 30_000 });
+  const study = JSON.parse(await page.inputValue('#cv-spec'));
+  assert.deepEqual(study.charts, ['cartesian', 'compensating']);
+  assert.equal(await page.inputValue('#cv-error'), 'max_energy_error');
+  const { status, body: api } = await postJson('/api/v1/studies/convergence', study);
+  assert.equal(status, 200);
+  const byH = (series) => api.points.filter((p) => p.series === series).sort((a, b) => a.h - b.h);
+  const plotted = () => page.evaluate(() => {
+    const { plot } = window.geomint.convergence;
+    return { labels: plot.series.slice(1).map((s) => s.label), data: plot.data.slice(1) };
+  });
+  let shown = await plotted();
+  assert.deepEqual(shown.labels, ['symplectic_euler [cartesian]', 'symplectic_euler [compensating]']);
+  // Two lines of six settings: the API's step sizes and errors, bit for bit.
+  for (const series of [0, 1]) {
+    assert.deepEqual(shown.data[series][0], byH(series).map((p) => p.h));
+    assert.deepEqual(shown.data[series][1], byH(series).map((p) => p.max_energy_error));
+  }
+  // The legend gives the fitted orders: first order in Cartesian coordinates, second in the
+  // compensating chart.
+  const legend = () => page.$$eval('#cv-legend li', (items) => items.map((li) => li.textContent));
+  assert.deepEqual(await legend(), api.series.map((s) => `${s.label}: order ${s.max_energy.order.toFixed(2)}`));
+  assert.ok(Math.abs(api.series[0].max_energy.order - 1) < 0.05, JSON.stringify(api.series[0]));
+  assert.ok(Math.abs(api.series[1].max_energy.order - 2) < 0.2, JSON.stringify(api.series[1]));
+  assert.equal(await page.locator('#cv-table tr').count(), 12);
+
+  // Another error redraws the plot and the legend.
+  await page.selectOption('#cv-error', 'state_error');
+  shown = await plotted();
+  assert.deepEqual(shown.data[1][1], byH(1).map((p) => p.state_error));
+  assert.deepEqual(await legend(), api.series.map((s) => `${s.label}: order ${s.state.order.toFixed(2)}`));
+
+  // The readout names the setting under the pointer.
+  await page.locator('#cv-plot').scrollIntoViewIfNeeded();
+  const target = await page.evaluate(() => {
+    const { plot, shown: series } = window.geomint.convergence;
+    const p = series[1].points[2];
+    const box = plot.over.getBoundingClientRect();
+    return { x: box.left + plot.valToPos(p.h, 'x'), y: box.top + plot.valToPos(p.state_error, 'y'), h: p.h };
+  });
+  await page.mouse.move(target.x, target.y);
+  assert.equal(await page.getAttribute('#cv-readout', 'data-series'), 'symplectic_euler [compensating]');
+  assert.equal(await page.getAttribute('#cv-readout', 'data-h'), String(target.h));
+
+  // The JSON download is the route's answer.
+  const [saved] = await Promise.all([page.waitForEvent('download'), page.click('#cv-download-json')]);
+  assert.equal(saved.suggestedFilename(), 'geomint-convergence-harmonic_oscillator.json');
+  assert.deepEqual(JSON.parse(await readFile(await saved.path(), 'utf8')), api);
+  assert.deepEqual(consoleErrors.slice(before), [], 'console errors in the convergence section');
+  assert.deepEqual(failedRequests.slice(failedBefore), [], 'failed requests in the convergence section');
+  await page.locator('#convergence').screenshot({ path: join(artifacts, 'page-convergence.png') });
+
+  // 001 Sec. 2.3: explicit Euler is exact in the transformed variable, so that line has no order.
+  await page.click('[data-cv-preset="sec23"]');
+  await page.waitForSelector('#convergence[data-cv-state="done"]', { timeout: 30_000 });
+  const sec23 = await legend();
+  assert.match(sec23[0], /^explicit_euler \[original\]: order 0\.9\d|^explicit_euler \[original\]: order 1\.0\d/);
+  assert.equal(sec23[1], 'explicit_euler [transformed]: no order (errors at round-off)');
+
+  // A step size that does not divide t_end: the error names the field.
+  await page.fill('#cv-spec', JSON.stringify({ ...study, h: [0.04, 0.03] }));
+  await page.click('#cv-run');
+  await page.waitForSelector('#convergence[data-cv-state="error"]', { timeout: 10_000 });
+  assert.match(await page.textContent('#err-cv'), /^h\[1\]: must divide t_end = 10 into a whole number of steps/);
+  assert.equal(await page.getAttribute('#cv-spec', 'aria-invalid'), 'true');
+  // Chromium logs the 422 answer itself; the page adds nothing.
+  const fresh = consoleErrors.slice(before)
+    .filter((text) => !/Failed to load resource: the server responded with a status of 422/.test(text));
+  assert.deepEqual(fresh, [], 'console errors after the convergence error');
 });
 
 test('the page fits a phone screen', async () => {

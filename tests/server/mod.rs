@@ -60,3 +60,31 @@ pub async fn post_json(
     let answer = geomint::output::request::parse_json(&bytes).expect("a JSON answer");
     (status, answer)
 }
+
+/// Posts `body` as JSON to `path` with `accept`, and reads the answer as NDJSON: the status,
+/// the content type and every line parsed.
+pub async fn post_ndjson(
+    server: &Server,
+    path: &str,
+    accept: &str,
+    body: &serde_json::Value,
+) -> (u16, String, Vec<serde_json::Value>) {
+    let response = client()
+        .post(server.url(path))
+        .header("accept", accept)
+        .json(body)
+        .send()
+        .await
+        .unwrap();
+    let status = response.status().as_u16();
+    let content_type = response.headers()["content-type"]
+        .to_str()
+        .unwrap()
+        .to_string();
+    let text = response.text().await.unwrap();
+    let lines = text
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    (status, content_type, lines)
+}
