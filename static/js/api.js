@@ -1,8 +1,8 @@
 // The page's client of the geomint HTTP API: the two catalogues, the NDJSON simulation stream
-// (POST /api/v1/simulate with Accept: application/x-ndjson), the run as a Rerun recording
-// (?format=rrd, POST /api/v1/recordings), the stability analysis (POST /api/v1/stability,
-// /api/v1/stability/point) and the studies (POST /api/v1/studies/work-precision and
-// /convergence). Errors in the service's shape, {"error": {"code", "message", "field"}}, become
+// (POST /api/v1/simulate with Accept: application/x-ndjson) and its one-document answer, the run
+// as a Rerun recording (?format=rrd, POST /api/v1/recordings), the stability analysis
+// (POST /api/v1/stability, /api/v1/stability/point) and the studies (POST
+// /api/v1/studies/work-precision, /convergence and /energy-map, the map also as a recording). Errors in the service's shape, {"error": {"code", "message", "field"}}, become
 // ApiError objects that keep the field path.
 
 /** An error answered by the API (or a stream's `error` line). */
@@ -140,6 +140,25 @@ async function post(path, body, { accept = 'application/json', signal } = {}) {
   });
   if (!response.ok) throw await errorFrom(response);
   return response;
+}
+
+/** The simulation of `request` as one JSON document (the whole run at once). */
+export async function simulateJson(request, signal) {
+  return (await post('api/v1/simulate', request, { signal })).json();
+}
+
+/**
+ * An energy-error map (POST /api/v1/studies/energy-map) streamed as NDJSON: `progress` lines,
+ * then `result` (the map document) and `end`, or an `error` line.
+ */
+export async function energyMapStream(body, onLine, signal) {
+  return ndjsonStream('api/v1/studies/energy-map', body, onLine, signal);
+}
+
+/** The energy-error map of `body` as a Rerun recording (.rrd bytes), computed afresh. */
+export async function energyMapRrd(body, signal) {
+  const response = await post('api/v1/studies/energy-map?format=rrd', body, { accept: 'application/octet-stream', signal });
+  return response.blob();
 }
 
 /** The simulation of `request` as a Rerun recording (.rrd bytes), computed afresh. */

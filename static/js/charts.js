@@ -1,6 +1,8 @@
 // The result plots, drawn with uPlot: energy against time, the energy error on a log axis, a
-// phase portrait per degree of freedom, the trajectory (q(t), or for 3-D systems the x–y and x–z
-// projections), the invariants and the dissipation drift. Every chosen method is one series in
+// phase portrait per degree of freedom (in the run's chart), the trajectory in Cartesian
+// coordinates whatever the chart, so that runs in different charts compare (q(t); for planar
+// systems also the x–y plane, for 3-D systems the x–y and x–z projections), the invariants and
+// the dissipation drift. Every chosen method is one series in
 // its own colour. Time plots share the sample times (uPlot's aligned mode); phase portraits and
 // projections draw each method's points in time order (uPlot's faceted mode 2). The studies'
 // log–log diagrams (LogLogPlot) draw one polyline with dots per series.
@@ -104,6 +106,12 @@ export function logTicks(u, values) {
   });
 }
 
+/** A y axis's width: room for its longest tick label (long energies like −0.18164 included). */
+function yAxisSize(u, values) {
+  const longest = Math.max(0, ...(values ?? []).map((v) => String(v ?? '').length));
+  return Math.max(50, Math.ceil(20 + 6.5 * longest));
+}
+
 /**
  * `y` at the length `n` of the x column: itself when it has that length (uPlot then holds the
  * store's own array, no copy), else a copy padded with nulls (a run that is behind or stopped).
@@ -124,9 +132,15 @@ function timePlot(key, title, yLabel, pick, { log = false, caption = '' } = {}) 
   return { key, title, caption, xLabel: 't', yLabel, mode: 1, log, pick };
 }
 
-/** `perMethod`: how many x–y series each method has (one per body in projections). */
-function pairPlot(key, title, xLabel, yLabel, pairs, { caption = '', perMethod = 1 } = {}) {
-  return { key, title, caption, xLabel, yLabel, mode: 2, pairs, perMethod };
+/** `perMethod`: how many x–y series each method has (one per body in projections); `yDown`
+ * draws the y axis growing downwards. */
+function pairPlot(key, title, xLabel, yLabel, pairs, { caption = '', perMethod = 1, yDown = false } = {}) {
+  return { key, title, caption, xLabel, yLabel, mode: 2, pairs, perMethod, yDown };
+}
+
+/** A caption's parts joined, empty ones left out. */
+function joined(...parts) {
+  return parts.filter(Boolean).join('; ');
 }
 
 /** The charts of one simulation, built from its stream header. */
@@ -166,7 +180,16 @@ export class Charts {
   /**
    * Creates the plots for a stream `header` (system, methods, invariants, schedule).
    * @param {object} header
-   * @param {{energyErrorSource: string|null, drift: boolean}} options
+   * @param {object} options
+   * @param {string|null} options.energyErrorSource `exact`, `ref` or null (no error plot)
+   * @param {boolean} options.drift whether to plot the dissipation drift
+   * @param {string[]} [options.chartNames] the run's chart's coordinate names
+   * @param {string|null} [options.chartNote] a caption for plots in chart coordinates (null in
+   *   the Cartesian chart)
+   * @param {string[]} [options.cartesianNames] the Cartesian coordinate names
+   * @param {string|null} [options.cartesianNote] a caption for plots transformed to Cartesian
+   *   coordinates (null in the Cartesian chart)
+   * @param {boolean} [options.yDown] whether y points down (the x–y plane is drawn so)
    */
   build(header, options) {
     this.clear();
@@ -190,29 +213,47 @@ export class Charts {
       if (dof % 3 === 0) return `${names[i % 3]}${Math.floor(i / 3) + 1}`;
       return String(i + 1);
     };
+    // Axis labels of coordinate i and its momentum: the chart's names where they fit.
+    const label = (chartNames, i) => {
+      if (chartNames?.length === dof) {
+        const n = chartNames[i];
+        return { q: n, p: n === 'q' ? 'p' : `p_${n}` };
+      }
+      const c = coordinate(i);
+      return { q: c ? `q_${c}` : 'q', p: c ? `p_${c}` : 'p' };
+    };
     const phase = [];
     for (let i = 0; i < dof; i++) {
-      const c = coordinate(i);
-      const q = c ? `q_${c}` : 'q';
-      const p = c ? `p_${c}` : 'p';
+      const { q, p } = label(options.chartNames, i);
       phase.push(pairPlot(`phase:${i}`, `Phase portrait (${q}, ${p})`, q, p,
-        (r) => [[r.qColumns[i] || [], r.pColumns[i] || []]]));
+        (r) => [[r.qColumns[i] || [], r.pColumns[i] || []]], { caption: options.chartNote }));
     }
     sections.push({ id: 'phase', title: 'Phase portraits', plots: phase });
 
+    // Trajectories in Cartesian coordinates: the chart's own where it is Cartesian.
+    const position = (r) => r.xColumns || r.qColumns;
+    const cartesian = (i) => label(options.cartesianNames, i).q;
     const trajectory = [];
     if (dof % 3 === 0) {
       const bodies = dof / 3;
       const project = (a, b) => (r) => Array.from({ length: bodies }, (_, k) =>
-        [r.qColumns[3 * k + a] || [], r.qColumns[3 * k + b] || []]);
-      const caption = bodies > 1 ? `${bodies} bodies, each in its method’s colour` : '';
+        [position(r)[3 * k + a] || [], position(r)[3 * k + b] || []]);
+      const caption = joined(bodies > 1 ? `${bodies} bodies, each in its method’s colour` : '', options.cartesianNote);
       trajectory.push(pairPlot('trajectory:xy', 'Trajectory, x–y projection', 'x', 'y', project(0, 1), { caption, perMethod: bodies }));
       trajectory.push(pairPlot('trajectory:xz', 'Trajectory, x–z projection', 'x', 'z', project(0, 2), { caption, perMethod: bodies }));
     } else {
+      if (dof === 2) {
+        const [x, y] = [cartesian(0), cartesian(1)];
+        trajectory.push(pairPlot('trajectory:xy', `Trajectory in the ${x}–${y} plane`, x, y,
+          (r) => [[position(r)[0] || [], position(r)[1] || []]], {
+            caption: joined(options.yDown ? `${y} points down, along gravity` : '', options.cartesianNote),
+            yDown: options.yDown,
+          }));
+      }
       for (let i = 0; i < dof; i++) {
-        const c = coordinate(i);
-        const q = c ? `q_${c}` : 'q';
-        trajectory.push(timePlot(`trajectory:${i}`, `Trajectory ${q}(t)`, q, (r) => r.qColumns[i] || []));
+        const q = cartesian(i);
+        trajectory.push(timePlot(`trajectory:${i}`, `Trajectory ${q}(t)`, q, (r) => position(r)[i] || [],
+          { caption: options.cartesianNote }));
       }
     }
     sections.push({ id: 'trajectory', title: 'Trajectory', plots: trajectory });
@@ -246,11 +287,12 @@ export class Charts {
     const figure = el('figure', { class: 'plot', 'data-plot': def.key, 'aria-labelledby': titleId },
       el('figcaption', { id: titleId }, el('span', { class: 'plot-title', text: def.title }),
         def.caption ? el('small', { text: def.caption }) : null),
+      def.log ? el('p', { class: 'plot-empty', hidden: true, text: 'Nothing to draw on a log axis: every error so far is zero.' }) : null,
       area);
     grid.append(figure);
     const { width, height } = this.size(figure);
     const axis = (label, log = false, x = false) => ({
-      label, labelSize: 14, size: x ? 28 : 50, labelGap: 0, values: log ? logTicks : ticks,
+      label, labelSize: 14, size: x ? 28 : yAxisSize, labelGap: 0, values: log ? logTicks : ticks,
       splits: log ? logSplits : undefined, filter: log ? (u, splits) => splits : undefined,
       stroke: '#333', grid: { stroke: '#e4e4e4', width: 1 }, ticks: { stroke: '#ccc', width: 1 },
       font: '11px system-ui, sans-serif', labelFont: '12px system-ui, sans-serif',
@@ -286,7 +328,10 @@ export class Charts {
         width, height, mode: 2,
         legend: { show: false },
         cursor: { points: { show: false }, drag: { x: true, y: true } },
-        scales: { x: { time: false, auto: true, range: linearRange }, y: { auto: true, range: linearRange } },
+        scales: {
+          x: { time: false, auto: true, range: linearRange },
+          y: { auto: true, range: linearRange, dir: def.yDown ? -1 : 1 },
+        },
         axes: [axis(def.xLabel, false, true), axis(def.yLabel)],
         series,
       };
@@ -295,7 +340,7 @@ export class Charts {
       ? [[], ...labels.map(() => [])]
       : [null, ...labels.flatMap(() => Array.from({ length: def.perMethod }, () => [[], []]))];
     const plot = new uPlot(opts, initial, area);
-    const item = { def, plot, figure };
+    const item = { def, plot, figure, empty: figure.querySelector('.plot-empty') };
     figure.plotItem = item;
     this.plots.set(def.key, item);
     this.resize.observe(figure);
@@ -310,7 +355,12 @@ export class Charts {
         for (const run of store.runs) if (run.t.length > x.length) x = run.t;
         const n = x.length;
         const ys = store.runs.map((run) => padded(def.pick(run), n));
-        if (def.log && !ys.some((y) => y.some((v) => v != null))) continue;
+        if (def.log) {
+          // A log plot with nothing positive to draw says so instead.
+          const none = !ys.some((y) => y.some((v) => v != null));
+          item.empty.hidden = !none || store.received === 0;
+          if (none) continue;
+        }
         plot.setData([x, ...ys]);
       } else {
         const data = [null];

@@ -1,7 +1,12 @@
-// The simulation form: builds the system, parameter, initial-state and method inputs from the
-// catalogues (GET /api/v1/systems, /api/v1/methods), reads them into a request body for
-// POST /api/v1/simulate, fills them from a preset, and shows API errors beside the input named by
-// the error's `field` path (`h`, `params.gamma`, `q0[1]`, `methods[1].inner`, `output.every`).
+// The simulation form: builds the system, coordinate-chart, parameter, initial-state and method
+// inputs from the catalogues (GET /api/v1/systems, /api/v1/methods), reads them into a request
+// body for POST /api/v1/simulate, fills them from a preset, and shows API errors beside the input
+// named by the error's `field` path (`h`, `params.gamma`, `q0[1]`, `methods[1].inner`,
+// `output.every`, `chart`). The initial state is entered in Cartesian coordinates (the server
+// transforms it into the chart, so every chart starts from the same physical state) or, on
+// request, in the chart's own coordinates; switching converts the values on the server.
+
+import { simulateJson } from './api.js';
 
 /** Display groups of the method catalogue, in order. */
 const GROUPS = [
@@ -66,8 +71,14 @@ function parseList(text) {
   return parts.map(parseNumber);
 }
 
-/** Names of the coordinates of a state with `dof` degrees of freedom. */
-function coordinateNames(dof) {
+/** A chart's name in text: `Cartesian` for the Cartesian chart, else its id. */
+export function chartName(id) {
+  return id === 'cartesian' ? 'Cartesian' : id;
+}
+
+/** Names of the coordinates of a state with `dof` degrees of freedom (`names` if they fit). */
+function coordinateNames(dof, names = null) {
+  if (names?.length === dof) return names;
   if (dof === 2) return ['x', 'y'];
   if (dof === 3) return ['x', 'y', 'z'];
   return Array.from({ length: dof }, (_, i) => String(i + 1));
@@ -85,6 +96,16 @@ export class SimForm {
     this.methods = catalogues.methods;
     this.systemSelect = form.querySelector('#system');
     this.systemDescription = form.querySelector('#system-description');
+    this.chartField = form.querySelector('#chart-field');
+    this.chartSelect = form.querySelector('#chart');
+    this.chartDescription = form.querySelector('#chart-description');
+    this.coordinateSwitch = form.querySelector('#state-coordinates');
+    /** The coordinates the initial-state inputs hold: `cartesian` or `chart`. */
+    this.stateMode = 'cartesian';
+    /** The chart the inputs belong to (the select's value once a change is through). */
+    this.chartId = null;
+    /** Bumped by every conversion and system change, so that a superseded conversion is dropped. */
+    this.conversion = 0;
     this.paramsBox = form.querySelector('#params');
     this.stateBox = form.querySelector('#state');
     this.methodsBox = form.querySelector('#methods');
@@ -98,6 +119,7 @@ export class SimForm {
     this.registerStatic('output.every', 'every');
     this.registerStatic('compare_to_reference', 'compare');
     this.registerStatic('system');
+    this.registerStatic('chart');
     this.registerStatic('methods', null, this.methodsBox.querySelector('#err-methods'));
 
     this.systemSelect.replaceChildren(
@@ -105,7 +127,12 @@ export class SimForm {
     );
     this.buildMethods();
     this.systemSelect.addEventListener('change', () => this.setSystem(this.systemSelect.value));
-    form.querySelector('#defaults').addEventListener('click', () => this.setSystem(this.system.id));
+    this.chartSelect.addEventListener('change', () => this.changeChart(this.chartSelect.value));
+    for (const radio of this.coordinateSwitch.querySelectorAll('input[type=radio]')) {
+      radio.addEventListener('change', () => this.switchStateCoordinates(radio.value));
+    }
+    form.querySelector('#defaults').addEventListener('click', () =>
+      this.setSystem(this.system.id, { chart: this.chartSelect.value }));
     this.setSystem(this.systems[0].id);
   }
 
@@ -120,8 +147,12 @@ export class SimForm {
     return this.systems.find((s) => s.id === this.systemSelect.value);
   }
 
-  /** Switches to system `id`: its parameters and initial state with defaults, methods it allows. */
-  setSystem(id, { params = {}, q0 = null, p0 = null } = {}) {
+  /**
+   * Switches to system `id` in `chart` (default: its first): its parameters and initial state with
+   * defaults (Cartesian), methods it allows. `initialCoordinates` says what `q0` and `p0` are in.
+   */
+  setSystem(id, { params = {}, q0 = null, p0 = null, chart = null, initialCoordinates = null } = {}) {
+    this.conversion += 1;
     this.systemSelect.value = id;
     const system = this.system;
     this.systemDescription.replaceChildren(...richText(system.description));
@@ -129,9 +160,141 @@ export class SimForm {
       if (key.startsWith('params.') || key.startsWith('q0') || key.startsWith('p0')) this.fields.delete(key);
     }
     this.paramsBox.replaceChildren(...system.params.map((p) => this.paramRow(p, params[p.name])));
+    this.chartSelect.replaceChildren(...system.charts.map((c) => el('option', {
+      value: c.id, text: `${chartName(c.id)} (${c.coordinates.join(', ')})`,
+    })));
+    this.chartId = system.charts.some((c) => c.id === chart) ? chart : system.charts[0].id;
+    this.chartSelect.value = this.chartId;
+    this.chartField.hidden = system.charts.length < 2;
+    this.stateMode = initialCoordinates === 'chart' && q0 && p0 ? 'chart' : 'cartesian';
+    this.showChart();
     this.buildState(system, q0 ?? system.q0, p0 ?? system.p0);
     this.updateMethodAvailability();
     this.clearErrors();
+  }
+
+  /** The catalogue entry of the chart the inputs belong to. */
+  get chart() {
+    return this.system.charts.find((c) => c.id === this.chartId) ?? this.system.charts[0];
+  }
+
+  /** Whether the chart is the system's first (Cartesian) one, where both coordinates agree. */
+  get defaultChart() {
+    return this.chartId === this.system.charts[0].id;
+  }
+
+  /** The chart's description, and the coordinate switch (only for a non-Cartesian chart). */
+  showChart() {
+    const [first] = this.system.charts;
+    const chart = this.chart;
+    this.chartDescription.replaceChildren(...richText(chart.description));
+    this.coordinateSwitch.hidden = this.defaultChart;
+    const label = (value, c) => {
+      const radio = this.coordinateSwitch.querySelector(`input[value="${value}"]`);
+      radio.checked = this.stateMode === value;
+      radio.labels[0].textContent = `${chartName(c.id)} (${c.coordinates.join(', ')})`;
+    };
+    label('cartesian', first);
+    label('chart', chart);
+  }
+
+  /** Names of the coordinates the initial-state inputs hold. */
+  stateNames() {
+    return (this.stateMode === 'chart' ? this.chart : this.system.charts[0]).coordinates;
+  }
+
+  /** Rebuilds the initial-state inputs with `q0` and `p0` (in the current state coordinates). */
+  setState(q0, p0) {
+    for (const key of [...this.fields.keys()]) {
+      if (key.startsWith('q0') || key.startsWith('p0')) this.fields.delete(key);
+    }
+    this.buildState(this.system, q0, p0);
+  }
+
+  /** Disables the chart select and the coordinate switch while a conversion runs. */
+  lockState(locked) {
+    this.chartSelect.disabled = locked;
+    for (const radio of this.coordinateSwitch.querySelectorAll('input')) radio.disabled = locked;
+    this.form.dataset.converting = locked ? 'true' : 'false';
+  }
+
+  /**
+   * The initial state of the inputs in `to` coordinates (`cartesian` or `chart`) of chart
+   * `chartId`, converted by the server: a one-step run of explicit Euler reports the start both in
+   * the chart (the header's q0, p0) and in Cartesian coordinates (the first sample's cartesian_q,
+   * cartesian_p). Returns null and shows the error (beside its field) when the server refuses.
+   */
+  async convertState(to, chartId) {
+    const request = this.read();
+    const body = {
+      system: request.system,
+      params: request.params,
+      chart: chartId,
+      initial_coordinates: to === 'chart' ? 'cartesian' : 'chart',
+      methods: ['explicit_euler'],
+      h: request.h,
+      t_end: request.h,
+      q0: request.q0,
+      p0: request.p0,
+      output: { every: 1 },
+    };
+    const generation = ++this.conversion;
+    this.clearErrors();
+    this.lockState(true);
+    try {
+      const doc = await simulateJson(body);
+      if (generation !== this.conversion) return null;
+      if (to === 'chart') return { q0: doc.system.q0, p0: doc.system.p0 };
+      const run = doc.runs[0];
+      return { q0: (run.cartesian_q ?? run.q)[0], p0: (run.cartesian_p ?? run.p)[0] };
+    } catch (error) {
+      if (generation !== this.conversion) return null;
+      this.showError(error);
+      return null;
+    } finally {
+      if (generation === this.conversion) this.lockState(false);
+    }
+  }
+
+  /** Enters the initial state in `mode` coordinates (`cartesian` or `chart`), converting it. */
+  async switchStateCoordinates(mode) {
+    if (mode === this.stateMode) return;
+    const state = await this.convertState(mode, this.chartId);
+    if (state) {
+      this.stateMode = mode;
+      this.setState(state.q0, state.p0);
+    }
+    this.showChart();
+  }
+
+  /**
+   * Moves to chart `id`. The inputs keep the physical start: values in the old chart's own
+   * coordinates are converted to Cartesian ones first (the new chart then takes them as such).
+   */
+  async changeChart(id) {
+    if (this.stateMode === 'chart' && !this.defaultChart) {
+      const state = await this.convertState('cartesian', this.chartId);
+      if (!state) {
+        this.chartSelect.value = this.chartId;
+        return;
+      }
+      this.stateMode = 'cartesian';
+      this.chartId = id;
+      this.setState(state.q0, state.p0);
+    } else {
+      this.stateMode = 'cartesian';
+      this.chartId = id;
+      this.setState(...this.stateValues());
+    }
+    this.clearErrors();
+    this.showChart();
+    this.updateMethodAvailability();
+  }
+
+  /** The initial-state inputs' values as [q0, p0] (as read for a request). */
+  stateValues() {
+    const request = this.read();
+    return [request.q0, request.p0];
   }
 
   /** One parameter's label, input, description with range and default, and error slot. */
@@ -173,6 +336,7 @@ export class SimForm {
   /** The q₀ and p₀ inputs: one per component for small systems, else comma-separated lists. */
   buildState(system, q0, p0) {
     const dof = q0.length;
+    const chartNames = this.stateNames();
     const rows = [];
     for (const [vec, values, title] of [['q0', q0, 'positions'], ['p0', p0, 'momenta']]) {
       const errorId = 'err-' + vec;
@@ -187,11 +351,13 @@ export class SimForm {
         input.dataset.vector = vec;
         this.fields.set(`${vec}[0]`, { input, error });
         this.fields.set(vec, { input, error });
+        const [name] = chartNames;
+        const coordinate = name && name !== 'q' ? (symbol === 'q' ? `, ${name}` : `, p_${name}`) : '';
         rows.push(el('div', { class: 'field' },
-          el('label', { for: id, text: `${symbol}₀ (${title === 'positions' ? 'position' : 'momentum'})` }),
+          el('label', { for: id, text: `${symbol}₀ (${title === 'positions' ? 'position' : 'momentum'}${coordinate})` }),
           input, error));
       } else if (dof <= MAX_COMPONENT_INPUTS) {
-        const names = coordinateNames(dof);
+        const names = coordinateNames(dof, chartNames);
         this.fields.set(vec, { input: null, error });
         const inputs = values.map((v, i) => {
           const id = `${vec}-${i}`;
@@ -293,10 +459,23 @@ export class SimForm {
     return el('span', { class: 'method-option' }, el('label', { for: id, text }), select);
   }
 
-  /** Disables methods whose requirements the chosen system does not meet. */
+  /**
+   * Disables methods whose requirements the chosen system does not meet, and marks those that
+   * need a separable Hamiltonian when the chart is not separable (the server refuses them there,
+   * naming the method).
+   */
   updateMethodAvailability() {
     const system = this.system;
+    const chart = this.chart;
     for (const row of this.methodsBox.querySelectorAll('.method')) {
+      const separable = row.requirements.includes('separable_constant_mass') && !chart.separable;
+      let soft = row.querySelector('.unmet-chart');
+      if (separable && !soft) {
+        soft = el('span', { class: 'unmet-chart' });
+        row.querySelector('.method-note').append(soft);
+      }
+      if (separable) soft.textContent = ` — needs a separable H: not in the ${chartName(chart.id)} chart`;
+      else soft?.remove();
       const unmet = row.requirements.filter((r) => r === 'conformal_damping' && !system.conformal_damping);
       const box = row.querySelector('input[type=checkbox]');
       box.disabled = unmet.length > 0;
@@ -320,7 +499,10 @@ export class SimForm {
 
   /** Fills the form with a request (a preset). */
   fill(request) {
-    this.setSystem(request.system, { params: request.params || {}, q0: request.q0, p0: request.p0 });
+    this.setSystem(request.system, {
+      params: request.params || {}, q0: request.q0, p0: request.p0,
+      chart: request.chart, initialCoordinates: request.initial_coordinates,
+    });
     const specs = request.methods || [request.method];
     this.order = [];
     for (const row of this.methodsBox.querySelectorAll('.method')) {
@@ -381,6 +563,10 @@ export class SimForm {
       p0: vector('p0'),
       compare_to_reference: this.form.querySelector('#compare').checked,
     };
+    if (system.charts.length > 1) {
+      request.chart = this.chartId;
+      request.initial_coordinates = this.defaultChart ? 'cartesian' : this.stateMode;
+    }
     const every = this.form.querySelector('#every').value.trim();
     if (every !== '') {
       const n = Number(every);

@@ -1,9 +1,10 @@
-// Spectral-radius heatmaps of the stability section, drawn on a canvas (uPlot has no heatmap):
-// one cell per (γ, h) grid point, γ across and h upwards, coloured on a log scale of the spectral
-// radius ρ — blues where the method is stable (ρ ≤ 1), oranges to reds where it is not, grey where
-// it is undefined — with the analytic stability boundaries drawn along the cell edges where a
-// relation's verdict changes, labelled axes, and a cursor cell (pointer or arrow keys) that the
-// stability panel shares between the maps. Also the colour scale bar.
+// Maps drawn on a canvas (uPlot has no heatmap): a generic grid of cells (`GridMap`) with labelled
+// axes, overlays in cell units, a cursor cell moved by the pointer or the arrow keys, and a colour
+// scale bar; and its use for the stability section's spectral-radius maps (`Heatmap`): one cell per
+// (γ, h) grid point, γ across and h upwards, coloured on a log scale of the spectral radius ρ —
+// blues where the method is stable (ρ ≤ 1), oranges to reds where it is not, grey where it is
+// undefined — with the analytic stability boundaries drawn along the cell edges where a
+// relation's verdict changes. The energy-error map (energymap.js) is a GridMap too.
 
 import { el } from './form.js';
 
@@ -104,23 +105,31 @@ function sized(canvas, width, height) {
   return ctx;
 }
 
-/** One method's map on a canvas. */
-export class Heatmap {
+/**
+ * A grid of cells on a canvas. Column c sits at x.min + c·Δx and row r at y.min + r·Δy (the API's
+ * axis definition); the axes reach half a cell beyond the first and last values. Rows grow upwards,
+ * or downwards with `yDown`. Overlays are drawn in cell units: u counts column edges from the left,
+ * v row edges from row 0's outer edge.
+ */
+export class GridMap {
   /**
    * @param {HTMLCanvasElement} canvas
-   * @param {object} map one entry of the API's `maps`
-   * @param {{gamma: object, h: object}} axes the answer's axes (columns γ, rows h)
-   * @param {{lo: number, hi: number}} scale
+   * @param {object} options
+   * @param {{min: number, max: number, n: number, label: string}} options.x the columns
+   * @param {{min: number, max: number, n: number, label: string}} options.y the rows
+   * @param {(col: number, row: number) => number[]} options.colour a cell's RGB colour
+   * @param {boolean} [options.yDown] row 0 at the top
+   * @param {(width: number, area: {w: number}) => number} [options.height] CSS height for a width
    */
-  constructor(canvas, map, axes, scale) {
+  constructor(canvas, { x, y, colour, yDown = false, height = null }) {
     this.canvas = canvas;
-    this.map = map;
-    this.gamma = axes.gamma;
-    this.h = axes.h;
-    this.cols = axes.gamma.n;
-    this.rows = axes.h.n;
-    this.scale = scale;
-    this.showPrinted = true;
+    this.xAxis = x;
+    this.yAxis = y;
+    this.cols = x.n;
+    this.rows = y.n;
+    this.yDown = yDown;
+    this.colourOf = colour;
+    this.heightFor = height || ((width) => Math.round(Math.min(340, Math.max(200, width * 0.66))));
     /** The cursor cell {col, row} or null. */
     this.cursor = null;
     this.cssWidth = 0;
@@ -129,13 +138,9 @@ export class Heatmap {
     canvas.dataset.rows = String(this.rows);
     canvas.dataset.cells = String(this.cols * this.rows);
     this.image = this.cellImage();
-    this.boundaries = {
-      analytic: map.analytic ? this.boundary(map.analytic) : null,
-      printed: map.printed ? this.boundary(map.printed) : null,
-    };
   }
 
-  /** The cells as an image, one pixel per cell, h increasing upwards. */
+  /** The cells as an image, one pixel per cell. */
   cellImage() {
     const image = document.createElement('canvas');
     image.width = this.cols;
@@ -143,9 +148,9 @@ export class Heatmap {
     const ctx = image.getContext('2d');
     const data = ctx.createImageData(this.cols, this.rows);
     for (let r = 0; r < this.rows; r++) {
-      const y = this.rows - 1 - r;
+      const y = this.yDown ? r : this.rows - 1 - r;
       for (let c = 0; c < this.cols; c++) {
-        const [R, G, B] = cellColour(this.map.spectral_radius[r][c], this.map.stable[r][c], this.scale);
+        const [R, G, B] = this.colourOf(c, r);
         const o = 4 * (y * this.cols + c);
         data.data[o] = R;
         data.data[o + 1] = G;
@@ -155,21 +160,6 @@ export class Heatmap {
     }
     ctx.putImageData(data, 0, 0);
     return image;
-  }
-
-  /**
-   * The cell edges across which `verdict` (rows × columns of booleans) changes, as segments in
-   * cell units: [x0, y0, x1, y1] with x the column edge and y the row edge counted upwards.
-   */
-  boundary(verdict) {
-    const segments = [];
-    for (let r = 0; r < this.rows; r++) {
-      for (let c = 0; c < this.cols; c++) {
-        if (c + 1 < this.cols && verdict[r][c] !== verdict[r][c + 1]) segments.push([c + 1, r, c + 1, r + 1]);
-        if (r + 1 < this.rows && verdict[r][c] !== verdict[r + 1][c]) segments.push([c, r + 1, c + 1, r + 1]);
-      }
-    }
-    return segments;
   }
 
   /** The plot area in CSS pixels. */
@@ -186,22 +176,32 @@ export class Heatmap {
   resize() {
     const width = Math.max(160, Math.floor(this.canvas.clientWidth || this.canvas.parentElement.clientWidth));
     this.cssWidth = width;
-    this.cssHeight = Math.round(Math.min(340, Math.max(200, width * 0.66)));
+    this.cssHeight = this.heightFor(width, { w: width - MARGIN.left - MARGIN.right });
     this.draw();
   }
 
   /** Cell-unit coordinates to CSS pixels. */
   px(u, v) {
     const a = this.area;
-    return [a.x + (u / this.cols) * a.w, a.y + a.h - (v / this.rows) * a.h];
+    const down = (v / this.rows) * a.h;
+    return [a.x + (u / this.cols) * a.w, this.yDown ? a.y + down : a.y + a.h - down];
+  }
+
+  /** Axis values (x, y) to cell units. */
+  cellUnits(x, y) {
+    const unit = (axis, value) => (axis.n > 1 && axis.max > axis.min
+      ? ((value - axis.min) / (axis.max - axis.min)) * (axis.n - 1) + 0.5
+      : 0.5);
+    return [unit(this.xAxis, x), unit(this.yAxis, y)];
   }
 
   /** The cell under CSS pixel (x, y), or null outside the plot area. */
   cellAt(x, y) {
     const a = this.area;
     if (x < a.x || x > a.x + a.w || y < a.y || y > a.y + a.h) return null;
+    const down = (y - a.y) / a.h;
     const col = Math.min(this.cols - 1, Math.max(0, Math.floor(((x - a.x) / a.w) * this.cols)));
-    const row = Math.min(this.rows - 1, Math.max(0, Math.floor(((a.y + a.h - y) / a.h) * this.rows)));
+    const row = Math.min(this.rows - 1, Math.max(0, Math.floor((this.yDown ? down : 1 - down) * this.rows)));
     return { col, row };
   }
 
@@ -217,35 +217,13 @@ export class Heatmap {
     ctx.clearRect(0, 0, this.cssWidth, this.cssHeight);
     ctx.imageSmoothingEnabled = false;
     ctx.drawImage(this.image, a.x, a.y, a.w, a.h);
-
-    const stroke = (segments, colour, width, dash) => {
-      if (!segments?.length) return;
-      ctx.save();
-      ctx.beginPath();
-      ctx.rect(a.x, a.y, a.w, a.h);
-      ctx.clip();
-      ctx.beginPath();
-      for (const [u0, v0, u1, v1] of segments) {
-        ctx.moveTo(...this.px(u0, v0));
-        ctx.lineTo(...this.px(u1, v1));
-      }
-      ctx.strokeStyle = colour;
-      ctx.lineWidth = width;
-      ctx.setLineDash(dash);
-      ctx.lineCap = 'square';
-      ctx.stroke();
-      ctx.restore();
-    };
-    if (this.showPrinted) stroke(this.boundaries.printed, PRINTED_COLOUR, 1.5, [4, 3]);
-    stroke(this.boundaries.analytic, BOUNDARY_COLOUR, 2, []);
-
+    this.drawOverlay(ctx);
     this.drawAxes(ctx, a);
-
     if (this.cursor) {
-      const [x0, y0] = this.px(this.cursor.col, this.cursor.row + 1);
-      const [x1, y1] = this.px(this.cursor.col + 1, this.cursor.row);
-      const w = Math.max(4, x1 - x0);
-      const h = Math.max(4, y1 - y0);
+      const [x0, y0] = this.px(this.cursor.col, this.cursor.row);
+      const [x1, y1] = this.px(this.cursor.col + 1, this.cursor.row + 1);
+      const w = Math.max(4, Math.abs(x1 - x0));
+      const h = Math.max(4, Math.abs(y1 - y0));
       const cx = (x0 + x1) / 2 - w / 2;
       const cy = (y0 + y1) / 2 - h / 2;
       ctx.lineWidth = 3;
@@ -257,6 +235,35 @@ export class Heatmap {
     }
   }
 
+  /** Draws what lies over the cells (boundaries); nothing here. */
+  drawOverlay() {}
+
+  /**
+   * Strokes polylines given in cell units, clipped to the plot area.
+   * @param {CanvasRenderingContext2D} ctx
+   * @param {number[][][]} lines each a list of [u, v] points
+   * @param {{colour: string, width: number, dash?: number[], cap?: CanvasLineCap}} style
+   */
+  strokeLines(ctx, lines, { colour, width, dash = [], cap = 'butt' }) {
+    if (!lines?.length) return;
+    const a = this.area;
+    ctx.save();
+    ctx.beginPath();
+    ctx.rect(a.x, a.y, a.w, a.h);
+    ctx.clip();
+    ctx.beginPath();
+    for (const line of lines) {
+      line.forEach(([u, v], i) => (i ? ctx.lineTo(...this.px(u, v)) : ctx.moveTo(...this.px(u, v))));
+    }
+    ctx.strokeStyle = colour;
+    ctx.lineWidth = width;
+    ctx.setLineDash(dash);
+    ctx.lineCap = cap;
+    ctx.lineJoin = 'round';
+    ctx.stroke();
+    ctx.restore();
+  }
+
   drawAxes(ctx, a) {
     ctx.strokeStyle = '#333';
     ctx.lineWidth = 1;
@@ -264,44 +271,116 @@ export class Heatmap {
     ctx.strokeRect(a.x - 0.5, a.y - 0.5, a.w + 1, a.h + 1);
     ctx.fillStyle = '#333';
     ctx.font = FONT;
-    // Cell centres sit at the axis values; the axes reach half a cell beyond them.
-    const half = (axis) => (axis.n > 1 && axis.max > axis.min ? (axis.max - axis.min) / (axis.n - 1) / 2 : 0.5);
-    const gx = (g) => {
-      const lo = this.gamma.min - half(this.gamma);
-      const hi = this.gamma.max + half(this.gamma);
-      return a.x + ((g - lo) / (hi - lo)) * a.w;
-    };
-    const hy = (h) => {
-      const lo = this.h.min - half(this.h);
-      const hi = this.h.max + half(this.h);
-      return a.y + a.h - ((h - lo) / (hi - lo)) * a.h;
-    };
-    const xTicks = niceTicks(this.gamma.min, this.gamma.max, Math.max(2, Math.floor(a.w / 60)));
+    const { xAxis, yAxis } = this;
+    const xTicks = niceTicks(xAxis.min, xAxis.max, Math.max(2, Math.floor(a.w / 60)));
     ctx.textAlign = 'center';
     ctx.textBaseline = 'top';
-    for (const g of xTicks) {
-      const x = gx(g);
+    for (const value of xTicks) {
+      const [x] = this.px(this.cellUnits(value, yAxis.min)[0], 0);
       ctx.fillRect(Math.round(x) - 0.5, a.y + a.h, 1, 4);
-      ctx.fillText(fmt(g), x, a.y + a.h + 6);
+      ctx.fillText(fmt(value), x, a.y + a.h + 6);
     }
-    const yTicks = niceTicks(this.h.min, this.h.max, Math.max(2, Math.floor(a.h / 40)));
+    const yTicks = niceTicks(yAxis.min, yAxis.max, Math.max(2, Math.floor(a.h / 40)));
     ctx.textAlign = 'right';
     ctx.textBaseline = 'middle';
-    for (const h of yTicks) {
-      const y = hy(h);
+    for (const value of yTicks) {
+      const [, y] = this.px(0, this.cellUnits(xAxis.min, value)[1]);
       ctx.fillRect(a.x - 4, Math.round(y) - 0.5, 4, 1);
-      ctx.fillText(fmt(h), a.x - 6, y);
+      ctx.fillText(fmt(value), a.x - 6, y);
     }
     ctx.font = LABEL_FONT;
     ctx.textAlign = 'center';
     ctx.textBaseline = 'bottom';
-    ctx.fillText('γ', a.x + a.w / 2, this.cssHeight - 2);
+    ctx.fillText(xAxis.label, a.x + a.w / 2, this.cssHeight - 2);
     ctx.save();
     ctx.translate(12, a.y + a.h / 2);
     ctx.rotate(-Math.PI / 2);
     ctx.textBaseline = 'middle';
-    ctx.fillText('h', 0, 0);
+    ctx.fillText(yAxis.label, 0, 0);
     ctx.restore();
+  }
+}
+
+/**
+ * Pointer and keyboard control of a map's cursor: the pointer picks the cell under it; a focused
+ * map moves the cursor with the arrow keys (Shift: ten columns), Page Up/Down (ten rows), Home and
+ * End. Up is up on the screen whichever way the rows grow. `set(cell)` moves the cursor; `get()`
+ * returns it (or null).
+ * @param {GridMap} map
+ * @param {{get: () => ({col: number, row: number}|null), set: (cell: {col: number, row: number}) => void}} cursor
+ */
+export function bindCursor(map, { get, set }) {
+  const canvas = map.canvas;
+  const fromPointer = (event) => {
+    const cell = map.cellAt(event.offsetX, event.offsetY);
+    if (cell) set(cell);
+  };
+  canvas.addEventListener('pointermove', fromPointer);
+  canvas.addEventListener('pointerdown', fromPointer);
+  canvas.addEventListener('focus', () => {
+    set(get() || { col: Math.floor(map.cols / 2), row: Math.floor(map.rows / 2) });
+  });
+  canvas.addEventListener('keydown', (event) => {
+    const c = get() || { col: 0, row: 0 };
+    const moves = {
+      ArrowLeft: [-1, 0], ArrowRight: [1, 0], ArrowUp: [0, 1], ArrowDown: [0, -1],
+      PageUp: [0, 10], PageDown: [0, -10], Home: [-map.cols, 0], End: [map.cols, 0],
+    };
+    const move = moves[event.key];
+    if (!move) return;
+    event.preventDefault();
+    const step = event.shiftKey && move[0] !== 0 && Math.abs(move[0]) === 1 ? 10 : 1;
+    const up = map.yDown ? -1 : 1;
+    set({
+      col: Math.min(map.cols - 1, Math.max(0, c.col + move[0] * step)),
+      row: Math.min(map.rows - 1, Math.max(0, c.row + up * move[1])),
+    });
+  });
+}
+
+/** One method's spectral-radius map. */
+export class Heatmap extends GridMap {
+  /**
+   * @param {HTMLCanvasElement} canvas
+   * @param {object} map one entry of the API's `maps`
+   * @param {{gamma: object, h: object}} axes the answer's axes (columns γ, rows h)
+   * @param {{lo: number, hi: number}} scale
+   */
+  constructor(canvas, map, axes, scale) {
+    super(canvas, {
+      x: { ...axes.gamma, label: 'γ' },
+      y: { ...axes.h, label: 'h' },
+      colour: (c, r) => cellColour(map.spectral_radius[r][c], map.stable[r][c], scale),
+    });
+    this.map = map;
+    this.gamma = axes.gamma;
+    this.h = axes.h;
+    this.scale = scale;
+    this.showPrinted = true;
+    this.boundaries = {
+      analytic: map.analytic ? this.boundary(map.analytic) : null,
+      printed: map.printed ? this.boundary(map.printed) : null,
+    };
+  }
+
+  /**
+   * The cell edges across which `verdict` (rows × columns of booleans) changes, as segments in
+   * cell units: [[u0, v0], [u1, v1]] with u the column edge and v the row edge.
+   */
+  boundary(verdict) {
+    const segments = [];
+    for (let r = 0; r < this.rows; r++) {
+      for (let c = 0; c < this.cols; c++) {
+        if (c + 1 < this.cols && verdict[r][c] !== verdict[r][c + 1]) segments.push([[c + 1, r], [c + 1, r + 1]]);
+        if (r + 1 < this.rows && verdict[r][c] !== verdict[r + 1][c]) segments.push([[c, r + 1], [c + 1, r + 1]]);
+      }
+    }
+    return segments;
+  }
+
+  drawOverlay(ctx) {
+    if (this.showPrinted) this.strokeLines(ctx, this.boundaries.printed, { colour: PRINTED_COLOUR, width: 1.5, dash: [4, 3], cap: 'square' });
+    this.strokeLines(ctx, this.boundaries.analytic, { colour: BOUNDARY_COLOUR, width: 2, cap: 'square' });
   }
 
   /** The values at a cell, for the readout. */
@@ -320,8 +399,12 @@ export class Heatmap {
   }
 }
 
-/** Draws the colour scale bar of `scale` on `canvas` (log ρ: stable left of 1, unstable right). */
-export function drawColourScale(canvas, scale) {
+/**
+ * Draws a horizontal colour bar on `canvas`, as wide as its parent: the colour `colourAt(e)` for e
+ * from `lo` to `hi`, with a tick and label at each of `ticks` ([e, text] pairs); `label` becomes
+ * the canvas's accessible name.
+ */
+export function drawScaleBar(canvas, { lo, hi, colourAt, ticks, label }) {
   const width = Math.max(200, Math.floor(canvas.parentElement.clientWidth));
   const height = 40;
   const ctx = sized(canvas, width, height);
@@ -329,12 +412,11 @@ export function drawColourScale(canvas, scale) {
   const right = width - 16;
   const barTop = 2;
   const barHeight = 14;
-  const span = scale.hi - scale.lo;
-  const xOf = (e) => left + ((e - scale.lo) / span) * (right - left);
+  const span = hi - lo;
+  const xOf = (e) => left + ((e - lo) / span) * (right - left);
   ctx.clearRect(0, 0, width, height);
   for (let x = left; x < right; x++) {
-    const e = scale.lo + ((x + 0.5 - left) / (right - left)) * span;
-    const [R, G, B] = cellColour(10 ** e, e <= 0, scale);
+    const [R, G, B] = colourAt(lo + ((x + 0.5 - left) / (right - left)) * span);
     ctx.fillStyle = `rgb(${R},${G},${B})`;
     ctx.fillRect(x, barTop, 1, barHeight);
   }
@@ -343,20 +425,32 @@ export function drawColourScale(canvas, scale) {
   ctx.strokeRect(left - 0.5, barTop - 0.5, right - left + 1, barHeight + 1);
   ctx.fillStyle = '#333';
   ctx.font = FONT;
-  ctx.textAlign = 'center';
   ctx.textBaseline = 'top';
-  const decades = [];
-  const step = Math.max(1, Math.ceil(span / 8));
-  for (let e = Math.ceil(scale.lo); e <= Math.floor(scale.hi); e += step) decades.push(e);
-  if (!decades.includes(0)) decades.push(0);
-  for (const e of decades) {
+  for (const [e, text] of ticks) {
     const x = xOf(e);
     ctx.fillRect(Math.round(x) - 0.5, barTop + barHeight, 1, 4);
-    ctx.fillText(e === 0 ? '1' : `1e${e}`, x, barTop + barHeight + 6);
+    // Labels near the ends stay inside the canvas.
+    const half = ctx.measureText(text).width / 2;
+    ctx.textAlign = 'center';
+    ctx.fillText(text, Math.min(width - half - 1, Math.max(half + 1, x)), barTop + barHeight + 6);
   }
-  canvas.setAttribute('aria-label',
-    `Colour scale of the spectral radius ρ on a log axis from ${fmt(10 ** scale.lo, 2)} to ${fmt(10 ** scale.hi, 2)}: ` +
-    'light to dark blue for stable cells (ρ ≤ 1), orange to dark red for unstable ones, grey where the method is undefined.');
+  canvas.setAttribute('aria-label', label);
+}
+
+/** Draws the colour scale bar of `scale` on `canvas` (log ρ: stable left of 1, unstable right). */
+export function drawColourScale(canvas, scale) {
+  const decades = [];
+  const step = Math.max(1, Math.ceil((scale.hi - scale.lo) / 8));
+  for (let e = Math.ceil(scale.lo); e <= Math.floor(scale.hi); e += step) decades.push(e);
+  if (!decades.includes(0)) decades.push(0);
+  drawScaleBar(canvas, {
+    lo: scale.lo,
+    hi: scale.hi,
+    colourAt: (e) => cellColour(10 ** e, e <= 0, scale),
+    ticks: decades.map((e) => [e, e === 0 ? '1' : `1e${e}`]),
+    label: `Colour scale of the spectral radius ρ on a log axis from ${fmt(10 ** scale.lo, 2)} to ${fmt(10 ** scale.hi, 2)}: ` +
+      'light to dark blue for stable cells (ρ ≤ 1), orange to dark red for unstable ones, grey where the method is undefined.',
+  });
 }
 
 /** The legend entries below the colour scale. */

@@ -1,13 +1,13 @@
 // The page's entry point: loads the catalogues, builds the form and the preset buttons, and runs
 // simulations — streaming NDJSON into the plots with a progress bar, cancellable with the Cancel
 // button or Esc; offers the finished run as JSON or a Rerun recording (rerun.js) and sets up the
-// stability section (stability.js), the work–precision section (studies.js) and the
-// convergence section (convergence.js). For tests it exposes `window.geomint` (the uPlot
+// stability section (stability.js), the work–precision section (studies.js), the convergence
+// section (convergence.js) and the energy-error map section (energymap.js). For tests it exposes `window.geomint` (the uPlot
 // instances and their point counts) and the run's state as `data-run-state` on <body> (loading,
 // idle, running, done, cancelled, error).
 
 import { catalogues, simulateStream, ApiError } from './api.js';
-import { SimForm, el } from './form.js';
+import { SimForm, el, chartName } from './form.js';
 import { Charts, colour } from './charts.js';
 import { RunStore, renderStats, downloadJson } from './results.js';
 import { PRESETS, presetRequest } from './presets.js';
@@ -15,6 +15,7 @@ import { RerunPanel } from './rerun.js';
 import { StabilityPanel } from './stability.js';
 import { WorkPrecisionPanel } from './studies.js';
 import { ConvergencePanel } from './convergence.js';
+import { EnergyMapPanel } from './energymap.js';
 
 /** Shortest time between two redraws while samples stream in, in milliseconds. Redraws of long
  * runs take longer; the pause after one is at least REDRAW_SHARE times its duration, so drawing
@@ -83,6 +84,24 @@ function runPreset(groupId, variantId) {
   start();
 }
 
+/** Systems whose y axis points down, along gravity. */
+const Y_DOWN = new Set(['elastic_pendulum_2d']);
+
+/** The plots' coordinate names and captions for a run of `system` in chart `chartId`. */
+function chartOptions(system, chartId) {
+  const charts = system?.charts ?? [];
+  const [first] = charts;
+  const chart = charts.find((c) => c.id === chartId) ?? first;
+  const other = chart && first && chart.id !== first.id;
+  return {
+    chartNames: chart?.coordinates,
+    cartesianNames: first?.coordinates,
+    chartNote: other ? `${chartName(chart.id)} chart coordinates (${chart.coordinates.join(', ')})` : null,
+    cartesianNote: other ? `${chartName(first.id)} coordinates (${first.coordinates.join(', ')}) of the run in the ${chartName(chart.id)} chart` : null,
+    yDown: Y_DOWN.has(system?.id),
+  };
+}
+
 /** The legend: one colour per method. */
 function renderLegend(labels) {
   ui.legend.replaceChildren(...labels.map((label, i) => el('li', {},
@@ -133,6 +152,7 @@ function onLine(run, line) {
       charts.build(line, {
         energyErrorSource: line.energy_error ? source || 'ref' : null,
         drift: Boolean(system?.conformal_damping) && line.system.q0.length === 1,
+        ...chartOptions(system, line.system.chart),
       });
       renderLegend(line.methods);
       renderStats(ui.stats, run.store);
@@ -271,6 +291,7 @@ async function init() {
   const stability = new StabilityPanel($('#stability'), cats.methods);
   const workPrecision = new WorkPrecisionPanel($('#work-precision'));
   const convergence = new ConvergencePanel($('#convergence'));
+  const energyMap = new EnergyMapPanel($('#energy-map'), cats.methods);
   for (const button of ui.presets.querySelectorAll('button')) button.disabled = false;
   ui.run.disabled = false;
   ui.form.addEventListener('submit', (event) => {
@@ -291,6 +312,7 @@ async function init() {
     stability,
     workPrecision,
     convergence,
+    energyMap,
   };
   setState('idle');
 }

@@ -2,6 +2,8 @@
 // and figures; each variant is a complete simulation request (the form is filled with it and run).
 // Paper 000 writes the damping as ε with D = M for the pendulum, so its ε = 0.01 is γ = 0.005 here.
 // Runs sample about 1000 times per method unless a figure needs every step (h = 0.5 phase plots).
+// Paper 001's presets choose a coordinate chart and give the initial state in Cartesian
+// coordinates, so that the variants in different charts start from the same physical state.
 
 const PENDULUM_Q0 = 0.9 * Math.PI;
 
@@ -61,6 +63,76 @@ function pendulum003(gamma, h = 0.025, tEnd = 100) {
   };
 }
 
+/** 001 Fig. 4: the planar elastic pendulum (l = m = k = 1, g = 0.2) to t = 4, Störmer–Verlet
+ * against Rowlands' processed method, energy errors against the reference. */
+function pendulum001(h) {
+  return {
+    system: 'elastic_pendulum_2d',
+    chart: 'cartesian',
+    initial_coordinates: 'cartesian',
+    params: { m: 1, k: 1, l: 1, g: 0.2 },
+    methods: ['velocity_verlet', { id: 'rowlands', processor: 'cheap' }],
+    h,
+    t_end: 4,
+    q0: [0.6, 1.2],
+    p0: [0, 0],
+    compare_to_reference: true,
+    output: { every: 1 },
+  };
+}
+
+/** 001 Sec. 5.2: the free particle, symplectic Euler in `chart`. */
+function particle001(chart) {
+  return {
+    system: 'free_particle_2d',
+    chart,
+    initial_coordinates: 'cartesian',
+    params: { m: 1 },
+    methods: ['symplectic_euler'],
+    h: 0.1,
+    t_end: 10,
+    q0: [1, 0.5],
+    p0: [0.2, 1],
+    compare_to_reference: false,
+    output: { every: 1 },
+  };
+}
+
+/** 001 Fig. 8: 1000 steps of symplectic Euler at h = 0.3 on the undamped unit oscillator. */
+function oscillator001(chart) {
+  return {
+    system: 'harmonic_oscillator',
+    chart,
+    initial_coordinates: 'cartesian',
+    params: { omega: 1, gamma: 0, k: 2 },
+    methods: ['symplectic_euler'],
+    h: 0.3,
+    t_end: 300,
+    q0: [1],
+    p0: [0],
+    compare_to_reference: false,
+    output: { every: 1 },
+  };
+}
+
+/** 001 Figs. 2–3: explicit Euler on a first-order ODE in `chart`, beside the DOP853 reference
+ * sampled at the same times (the exact solution, to the eye). */
+function ode001(system, params, y0, h, tEnd, chart) {
+  return {
+    system,
+    chart,
+    initial_coordinates: 'cartesian',
+    params,
+    methods: ['explicit_euler', 'reference'],
+    h,
+    t_end: tEnd,
+    q0: [y0],
+    p0: [0],
+    compare_to_reference: false,
+    output: { every: 1 },
+  };
+}
+
 /**
  * @typedef {{id: string, label: string, note?: string, request: object}} Variant
  * @typedef {{id: string, title: string, paper: string, text: string, variants: Variant[]}} PresetGroup
@@ -113,6 +185,48 @@ export const PRESETS = [
       { id: 'g0.02', label: 'γ = 0.02', note: 'Figs. 4.12–4.13', request: pendulum003(0.02) },
       { id: 'g0.05', label: 'γ = 0.05', note: 'Figs. 4.9–4.10', request: pendulum003(0.05) },
       { id: 'g0.0025', label: 'γ = 0.0025', note: 'Fig. 4.11', request: pendulum003(0.0025) },
+    ],
+  },
+  {
+    id: 'p001-fig4',
+    title: 'Planar elastic pendulum',
+    paper: 'Paper 001, Fig. 4',
+    text: 'l = m = k = 1, g = 0.2, t ≤ 4, Cartesian chart: Störmer–Verlet (order 2) against Rowlands’ processed method (order 4); energy errors against the reference.',
+    variants: [
+      { id: 'h0.1', label: 'h = 0.1', request: pendulum001(0.1) },
+      { id: 'h0.05', label: 'h = 0.05', request: pendulum001(0.05) },
+    ],
+  },
+  {
+    id: 'p001-sec52',
+    title: 'Free particle in polar coordinates',
+    paper: 'Paper 001, Sec. 5.2',
+    text: 'Symplectic Euler, h = 0.1, t ≤ 10: in the polar chart it keeps p_θ = −L but not p_x, p_y; in the Cartesian chart it keeps all three.',
+    variants: [
+      { id: 'polar', label: 'polar chart', request: particle001('polar') },
+      { id: 'cartesian', label: 'Cartesian chart', request: particle001('cartesian') },
+    ],
+  },
+  {
+    id: 'p001-fig8',
+    title: 'Compensating coordinate',
+    paper: 'Paper 001, Fig. 8',
+    text: 'Undamped oscillator ω = 1, q₀ = 1, p₀ = 0, 1000 steps of symplectic Euler at h = 0.3: the energy error in the eq. (82) coordinate (k = 2) against the plain one.',
+    variants: [
+      { id: 'compensating', label: 'compensating chart', request: oscillator001('compensating') },
+      { id: 'cartesian', label: 'Cartesian chart', request: oscillator001('cartesian') },
+    ],
+  },
+  {
+    id: 'p001-fig23',
+    title: 'Exact explicit Euler',
+    paper: 'Paper 001, Figs. 2–3',
+    text: 'Explicit Euler beside the reference: in the transformed variable (eqs. 15, 18) it is exact; in y it is not. y′ = −y (y₀ = 1, h = 0.3), Gompertz (y₀ = 3, a = 2, b = 0.5, h = 0.9).',
+    variants: [
+      { id: 'decay-transformed', label: 'decay, transformed', note: 'Fig. 2', request: ode001('exponential_decay', { alpha: 1 }, 1, 0.3, 6, 'transformed') },
+      { id: 'decay-original', label: 'decay, original', request: ode001('exponential_decay', { alpha: 1 }, 1, 0.3, 6, 'original') },
+      { id: 'gompertz-transformed', label: 'Gompertz, transformed', note: 'Fig. 3', request: ode001('gompertz', { a: 2, b: 0.5 }, 3, 0.9, 9, 'transformed') },
+      { id: 'gompertz-original', label: 'Gompertz, original', request: ode001('gompertz', { a: 2, b: 0.5 }, 3, 0.9, 9, 'original') },
     ],
   },
 ];

@@ -1,5 +1,5 @@
 // The results of one simulation as they stream in: per-method sample columns assembled from the
-// NDJSON `samples` chunks, each method's `summary`, the stats table, and the downloadable JSON
+// NDJSON `samples` chunks (with the Cartesian image of the state when the chart is not Cartesian), each method's `summary`, the stats table, and the downloadable JSON
 // document (the same shape as the JSON answer of POST /api/v1/simulate, plus the request).
 
 import { el } from './form.js';
@@ -12,6 +12,8 @@ function emptyRun(label, invariants, energyError) {
     t: [],
     q: [],
     p: [],
+    cartesian_q: null,
+    cartesian_p: null,
     energy: [],
     energy_error: energyError ? [] : null,
     invariants: Object.fromEntries(invariants.map((name) => [name, []])),
@@ -19,9 +21,11 @@ function emptyRun(label, invariants, energyError) {
     summary: null,
     dissipation_drift: null,
     // Columns for the plots, kept up to date as chunks arrive (no copying at redraw time):
-    // positions and momenta per degree of freedom, and |energy error| with zeros as gaps.
+    // positions and momenta per degree of freedom, Cartesian positions (null in the Cartesian
+    // chart, where they are qColumns), and |energy error| with zeros as gaps.
     qColumns: [],
     pColumns: [],
+    xColumns: null,
     errorMagnitude: [],
   };
 }
@@ -70,6 +74,11 @@ export class RunStore {
     run.p.push(...chunk.p);
     appendColumns(run.qColumns, chunk.q);
     appendColumns(run.pColumns, chunk.p);
+    if (chunk.cartesian_q) {
+      (run.cartesian_q ??= []).push(...chunk.cartesian_q);
+      (run.cartesian_p ??= []).push(...(chunk.cartesian_p ?? []));
+      appendColumns(run.xColumns ??= [], chunk.cartesian_q);
+    }
     run.energy.push(...chunk.energy);
     if (chunk.energy_error) {
       (run.energy_error ??= []).push(...chunk.energy_error);
@@ -104,8 +113,12 @@ export class RunStore {
           t: run.t,
           q: run.q,
           p: run.p,
-          energy: run.energy,
         };
+        if (run.cartesian_q) {
+          doc.cartesian_q = run.cartesian_q;
+          doc.cartesian_p = run.cartesian_p;
+        }
+        doc.energy = run.energy;
         if (run.energy_error) doc.energy_error = run.energy_error;
         doc.invariants = run.invariants;
         if (run.jacobian_defect) doc.jacobian_defect = run.jacobian_defect;

@@ -10,7 +10,7 @@ import { stabilityMaps, stabilityPoint, stabilityRrd, ApiError } from './api.js'
 import { saveBlob, sizeText } from './rerun.js';
 import { el } from './form.js';
 import { colour, logSplits, logTicks } from './charts.js';
-import { Heatmap, colourScale, drawColourScale, scaleLegend, fmt } from './heatmap.js';
+import { Heatmap, bindCursor, colourScale, drawColourScale, scaleLegend, fmt } from './heatmap.js';
 
 /** Methods mapped by default, in this order (paper 003's three schemes). */
 const DEFAULT_METHODS = ['cimp', 'csv1', 'csv2'];
@@ -325,38 +325,9 @@ export class StabilityPanel {
       hm.showPrinted = this.printedToggle.checked;
       hm.readout = readout;
       this.heatmaps.push(hm);
-      this.bindCursor(hm);
+      bindCursor(hm, { get: () => this.cursor, set: (cell) => this.setCursor(cell, hm) });
     });
     this.layout();
-  }
-
-  /** Pointer and keyboard control of the shared cursor on one heatmap. */
-  bindCursor(hm) {
-    const canvas = hm.canvas;
-    const fromPointer = (event) => {
-      const cell = hm.cellAt(event.offsetX, event.offsetY);
-      if (cell) this.setCursor(cell, hm);
-    };
-    canvas.addEventListener('pointermove', fromPointer);
-    canvas.addEventListener('pointerdown', fromPointer);
-    canvas.addEventListener('focus', () => {
-      this.setCursor(this.cursor || { col: Math.floor(hm.cols / 2), row: Math.floor(hm.rows / 2) }, hm);
-    });
-    canvas.addEventListener('keydown', (event) => {
-      const c = this.cursor || { col: 0, row: 0 };
-      const moves = {
-        ArrowLeft: [-1, 0], ArrowRight: [1, 0], ArrowUp: [0, 1], ArrowDown: [0, -1],
-        PageUp: [0, 10], PageDown: [0, -10], Home: [-hm.cols, 0], End: [hm.cols, 0],
-      };
-      const move = moves[event.key];
-      if (!move) return;
-      event.preventDefault();
-      const step = event.shiftKey && move[0] !== 0 && Math.abs(move[0]) === 1 ? 10 : 1;
-      this.setCursor({
-        col: Math.min(hm.cols - 1, Math.max(0, c.col + move[0] * step)),
-        row: Math.min(hm.rows - 1, Math.max(0, c.row + move[1])),
-      }, hm);
-    });
   }
 
   /** Moves the cursor of every map to `cell`; the readout of `source` is announced. */
