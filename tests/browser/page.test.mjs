@@ -6,7 +6,10 @@
 // stays free of errors, submits h = -1 and looks for the API's message beside the h field, cancels
 // a long run, computes the stability maps and the ½tr error plot and compares them with the API,
 // runs a work–precision and a convergence study (paper 001 Fig. 9) and compares their plots with
-// the API, checks the phone layout, and saves screenshots to artifacts/.
+// the API, runs the planar elastic pendulum in the polar chart (Cartesian trajectories, the initial
+// state converted between coordinates, a splitting refused beside its checkbox), draws an
+// energy-error map with its progress, readout, summary and downloads, checks the phone layout, and
+// saves screenshots to artifacts/.
 
 import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
@@ -111,7 +114,7 @@ after(async () => {
 
 test('every form control has a label', async () => {
   const unlabelled = await page.evaluate(() =>
-    [...document.querySelectorAll('#sim-form input, #sim-form select, #stability input, #stability select')]
+    [...document.querySelectorAll('#sim-form input, #sim-form select, #stability input, #stability select, #energy-map input, #energy-map select')]
       .filter((c) => c.labels.length === 0 && !c.getAttribute('aria-label'))
       .map((c) => c.id || c.name));
   assert.deepEqual(unlabelled, []);
@@ -589,6 +592,219 @@ test('a convergence study streams into a log–log plot of error against h with 
   assert.deepEqual(fresh, [], 'console errors after the convergence error');
 });
 
+/** The API's 422 answers, which Chromium itself logs as console errors. */
+const LOGGED_422 = /Failed to load resource: the server responded with a status of 422/;
+
+test('a run in the polar chart plots the Cartesian trajectory, and a splitting there is refused beside it', async () => {
+  const before = consoleErrors.length;
+  const failedBefore = failedRequests.length;
+  await page.locator('#sim-form').scrollIntoViewIfNeeded();
+  await page.selectOption('#system', 'elastic_pendulum_2d');
+  assert.equal(await page.isVisible('#chart'), true, 'a system with two charts offers the select');
+  assert.deepEqual(await page.$$eval('#chart option', (os) => os.map((o) => o.value)), ['cartesian', 'polar']);
+  assert.equal(await page.isHidden('#state-coordinates'), true, 'no coordinate switch in the Cartesian chart');
+  await page.selectOption('#chart', 'polar');
+  assert.match(await page.textContent('#chart-description'), /x = r sin θ/);
+  assert.equal(await page.isVisible('#state-coordinates'), true);
+  // The catalogue's Cartesian start, labelled x and y.
+  assert.deepEqual([await page.inputValue('#q0-0'), await page.inputValue('#q0-1')], ['0.6', '1.2']);
+  assert.equal(await page.textContent('label[for="q0-1"]'), 'q₀,y');
+
+  // Switching the inputs to the chart's coordinates converts them on the server, and back.
+  await page.check('#state-chart');
+  await page.waitForFunction(() => document.querySelector('label[for="q0-0"]').textContent === 'q₀,r', null, { timeout: 10_000 });
+  const polar = [Number(await page.inputValue('#q0-0')), Number(await page.inputValue('#q0-1'))];
+  assert.ok(Math.abs(polar[0] - Math.hypot(0.6, 1.2)) < 1e-12 && Math.abs(polar[1] - Math.atan2(0.6, 1.2)) < 1e-12, `r, θ = ${polar}`);
+  await page.check('#state-cartesian');
+  await page.waitForFunction(() => document.querySelector('label[for="q0-0"]').textContent === 'q₀,x', null, { timeout: 10_000 });
+  const back = [Number(await page.inputValue('#q0-0')), Number(await page.inputValue('#q0-1'))];
+  assert.ok(Math.abs(back[0] - 0.6) < 1e-12 && Math.abs(back[1] - 1.2) < 1e-12, `x, y = ${back}`);
+
+  // Symplectic Euler alone, from the Cartesian start.
+  for (const box of await page.$$('#methods input[type=checkbox]:checked')) await box.uncheck();
+  await page.check('#m-symplectic_euler');
+  await page.fill('#h', '0.1');
+  await page.fill('#t_end', '20');
+  await page.fill('#every', '');
+  await page.uncheck('#compare');
+  const posted = page.waitForRequest((r) => new URL(r.url()).pathname === '/api/v1/simulate' && r.method() === 'POST');
+  await page.click('#run');
+  const request = JSON.parse((await posted).postData());
+  assert.equal(request.chart, 'polar');
+  assert.equal(request.initial_coordinates, 'cartesian');
+  assert.deepEqual([request.q0, request.p0], [[0.6, 1.2], [0, 0]]);
+  await page.waitForSelector('body[data-run-state="done"]', { timeout: 30_000 });
+
+  const { status, body } = await simulate(request);
+  assert.equal(status, 200);
+  assert.equal(body.system.chart, 'polar');
+  const run = body.runs[0];
+  const counts = await page.evaluate(() => window.geomint.pointCounts());
+  for (const key of ['phase:0', 'phase:1', 'trajectory:xy', 'trajectory:0', 'trajectory:1']) {
+    assert.deepEqual(counts[key].map((c) => c.points), [run.t.length], `${key}: points`);
+  }
+  // The x–y plot holds the Cartesian image of the run, the phase portraits its (r, p_r).
+  const plotted = await page.evaluate(() => {
+    const get = (key) => window.geomint.charts.get(key).plot.data[1];
+    return { xy: get('trajectory:xy'), phase: get('phase:0') };
+  });
+  assert.deepEqual(plotted.xy, [run.cartesian_q.map((x) => x[0]), run.cartesian_q.map((x) => x[1])]);
+  assert.deepEqual(plotted.phase, [run.q.map((q) => q[0]), run.p.map((p) => p[0])]);
+  assert.deepEqual(await page.$$eval('[data-plot="trajectory:xy"] figcaption small', (n) => n.map((x) => x.textContent)),
+    ['y points down, along gravity; Cartesian coordinates (x, y) of the run in the polar chart']);
+  assert.deepEqual(consoleErrors.slice(before), [], 'console errors in the polar run');
+  await page.locator('#results').screenshot({ path: join(artifacts, 'page-polar.png') });
+
+  // Störmer–Verlet needs a separable H: the server refuses it, and the page says so beside it.
+  assert.match(await page.textContent('.method[data-method="velocity_verlet"] .method-note'), /needs a separable H/);
+  await page.check('#m-velocity_verlet');
+  await page.click('#run');
+  await page.waitForSelector('body[data-run-state="error"]', { timeout: 10_000 });
+  const refused = await simulate({ ...request, methods: ['symplectic_euler', 'velocity_verlet'] });
+  assert.equal(refused.status, 422);
+  assert.equal(refused.body.error.field, 'methods[1]');
+  assert.equal(refused.body.error.code, 'unmet_requirement');
+  const message = page.locator('.method[data-method="velocity_verlet"] .field-error');
+  assert.equal((await message.textContent()).trim(), refused.body.error.message);
+  assert.equal(await page.getAttribute('#m-velocity_verlet', 'aria-invalid'), 'true');
+  assert.deepEqual(consoleErrors.slice(before).filter((t) => !LOGGED_422.test(t)), [], 'console errors after the refusal');
+  assert.deepEqual(failedRequests.slice(failedBefore), [], 'failed requests in the polar runs');
+  await page.uncheck('#m-velocity_verlet');
+});
+
+test('an energy-error map streams its progress, draws the map and reads a cell', async () => {
+  const before = consoleErrors.length;
+  const failedBefore = failedRequests.length;
+  const body = { method: 'symplectic_euler', params: { g: 0.02 }, h: 0.2, t_max: 200, nx: 9, ny: 9 };
+  await page.locator('#em-run').scrollIntoViewIfNeeded();
+  assert.deepEqual(await page.$$eval('#em-method option', (os) => os.map((o) => o.value).sort()),
+    ['explicit_euler', 'heun', 'implicit_midpoint', 'rk3', 'rk4', 'symplectic_euler', 'symplectic_euler_adjoint']);
+  await page.fill('#em-nx', '9');
+  await page.fill('#em-ny', '9');
+  await page.fill('#em-t-max', '200');
+  const posted = page.waitForRequest((r) => new URL(r.url()).pathname === '/api/v1/studies/energy-map');
+  await page.click('#em-run');
+  assert.deepEqual(JSON.parse((await posted).postData()), body);
+  await page.waitForSelector('#energy-map[data-map-state="done"]', { timeout: 60_000 });
+
+  // The progress bar reached every cell; the last progress line said so.
+  assert.deepEqual(await page.$eval('#em-progress', (p) => [p.value, p.max]), [81, 81]);
+  assert.deepEqual(await page.evaluate(() => window.geomint.energyMap.lastProgress), { type: 'progress', done: 81, total: 81 });
+
+  const { status, body: api } = await postJson('/api/v1/studies/energy-map', body);
+  assert.equal(status, 200);
+  // The summary shows the API's counts.
+  const shown = await page.$$eval('#em-summary dd', (dds) => Object.fromEntries(dds.map((d) => [d.dataset.count, d.querySelector('strong').textContent])));
+  for (const [key, value] of Object.entries(shown)) assert.equal(value, String(api.summary[key]), key);
+  assert.equal(shown.cells, '81');
+
+  // The canvas is drawn: cells of several colours, black in the top-left corner (x₀ = y₀ = −1.5,
+  // beyond the boundary: the polar run diverged), not black halfway down the left edge.
+  const canvas = page.locator('#em-canvas');
+  await canvas.scrollIntoViewIfNeeded();
+  const pixels = await page.evaluate(() => {
+    const { map } = window.geomint.energyMap;
+    const c = map.canvas;
+    const ctx = c.getContext('2d');
+    const dpr = c.width / map.cssWidth;
+    const at = (col, row) => {
+      const [x, y] = map.cellCentre(col, row);
+      return [...ctx.getImageData(Math.round(x * dpr), Math.round(y * dpr), 1, 1).data];
+    };
+    const all = ctx.getImageData(0, 0, c.width, c.height).data;
+    const colours = new Set();
+    let drawn = 0;
+    for (let i = 0; i < all.length; i += 4) {
+      if (all[i + 3] === 0) continue;
+      drawn += 1;
+      colours.add(`${all[i]},${all[i + 1]},${all[i + 2]}`);
+    }
+    return { corner: at(0, 0), middle: at(0, 4), drawn, colours: colours.size, size: [c.width, c.height] };
+  });
+  assert.equal(api.epsilon_polar[0], null);
+  assert.deepEqual(pixels.corner, [0, 0, 0, 255], 'a diverged cell is black');
+  assert.notDeepEqual(pixels.middle.slice(0, 3), [0, 0, 0], 'a finite cell is not black');
+  assert.ok(pixels.drawn > 0.3 * pixels.size[0] * pixels.size[1], `${pixels.drawn} pixels drawn of ${pixels.size}`);
+  assert.ok(pixels.colours > 10, `${pixels.colours} colours`);
+
+  // The readout under the pointer: a finite cell and a diverged one, the API's values.
+  const box = await canvas.boundingBox();
+  const readout = page.locator('#em-readout');
+  for (const [col, row] of [[6, 2], [0, 0]]) {
+    const [x, y] = await page.evaluate(([c, r]) => window.geomint.energyMap.map.cellCentre(c, r), [col, row]);
+    await page.mouse.move(box.x + x, box.y + y);
+    const data = await readout.evaluate((p) => ({ ...p.dataset, text: p.textContent }));
+    const k = row * 9 + col;
+    assert.deepEqual([Number(data.col), Number(data.row)], [col, row]);
+    assert.equal(Number(data.x), api.xs[col]);
+    assert.equal(Number(data.y), api.ys[row]);
+    assert.equal(data.cartesian, api.epsilon_cartesian[k] == null ? '' : String(api.epsilon_cartesian[k]));
+    assert.equal(data.polar, api.epsilon_polar[k] == null ? '' : String(api.epsilon_polar[k]));
+    assert.equal(data.diverged, String(api.polar_diverged_at[k] != null || api.cartesian_diverged_at[k] != null));
+    if (api.difference[k] != null) {
+      assert.equal(data.winner, api.difference[k] < 0 ? 'cartesian' : 'polar');
+      assert.match(data.text, /better by a factor/);
+    } else {
+      assert.match(data.text, /diverged/);
+    }
+  }
+
+  // Downloads: the JSON document and the recording.
+  const [json] = await Promise.all([page.waitForEvent('download'), page.click('#em-download-json')]);
+  assert.equal(json.suggestedFilename(), 'geomint-energy-map.json');
+  const saved = JSON.parse(await readFile(await json.path(), 'utf8'));
+  assert.deepEqual(saved.request, body);
+  assert.deepEqual(saved.epsilon_cartesian, api.epsilon_cartesian);
+  const [rrdFile] = await Promise.all([page.waitForEvent('download'), page.click('#em-download-rrd')]);
+  assert.equal(rrdFile.suggestedFilename(), 'geomint-energy-map.rrd');
+  const rrd = await readFile(await rrdFile.path());
+  assert.equal(rrd.subarray(0, 4).toString('latin1'), 'RRF2');
+
+  assert.deepEqual(consoleErrors.slice(before), [], 'console errors in the energy map');
+  assert.deepEqual(failedRequests.slice(failedBefore), [], 'failed requests in the energy map');
+  await page.locator('#energy-map').screenshot({ path: join(artifacts, 'page-energy-map.png') });
+});
+
+test('an energy map can be cancelled, and a bad grid size is shown beside its field', async () => {
+  const before = consoleErrors.length;
+  const failedBefore = failedRequests.length;
+  await page.locator('#em-run').scrollIntoViewIfNeeded();
+  // 201 × 201 cells to t = 20 000: minutes if not cancelled.
+  await page.fill('#em-nx', '201');
+  await page.fill('#em-ny', '201');
+  await page.fill('#em-t-max', '20000');
+  await page.click('#em-run');
+  await page.waitForSelector('#energy-map[data-map-state="running"]', { timeout: 5_000 });
+  assert.equal(await page.isEnabled('#em-cancel'), true);
+  await page.click('#em-cancel');
+  await page.waitForSelector('#energy-map[data-map-state="cancelled"]', { timeout: 5_000 });
+  assert.equal(await page.isEnabled('#em-cancel'), false);
+  const deadline = Date.now() + 10_000;
+  let load;
+  do {
+    await new Promise((resolve) => setTimeout(resolve, 100));
+    load = await (await fetch(`${base}/healthz`)).json();
+  } while (load.runs_in_progress > 0 && Date.now() < deadline);
+  assert.equal(load.runs_in_progress, 0, 'map threads still busy after Cancel');
+  assert.deepEqual(failedRequests.slice(failedBefore), ['/api/v1/studies/energy-map net::ERR_ABORTED']);
+
+  await page.fill('#em-nx', '0');
+  await page.click('#em-run');
+  await page.waitForSelector('#energy-map[data-map-state="error"]', { timeout: 10_000 });
+  const { status, body } = await postJson('/api/v1/studies/energy-map', { nx: 0 });
+  assert.equal(status, 422);
+  assert.equal(body.error.field, 'nx');
+  assert.equal((await page.textContent('#err-em-nx')).trim(), body.error.message);
+  assert.equal(await page.getAttribute('#em-nx', 'aria-invalid'), 'true');
+  assert.equal(await page.evaluate(() => document.activeElement?.id), 'em-nx');
+  assert.deepEqual(consoleErrors.slice(before).filter((t) => !LOGGED_422.test(t)), [], 'console errors');
+  // The last map stays on the page.
+  assert.equal(await page.isVisible('#em-canvas'), true);
+  await page.fill('#em-nx', '9');
+  await page.fill('#em-ny', '9');
+  await page.fill('#em-t-max', '200');
+});
+
 test('the page fits a phone screen', async () => {
   await page.setViewportSize({ width: 390, height: 844 });
   await page.fill('#h', '0.2');
@@ -609,4 +825,11 @@ test('the page fits a phone screen', async () => {
   assert.ok(stabilityOverflow <= 0, `the page is ${stabilityOverflow}px wider than the screen`);
   assert.ok(await page.evaluate(() => window.geomint.stability.plot.width <= 390));
   await page.locator('#stability').screenshot({ path: join(artifacts, 'page-stability-phone.png') });
+
+  // So does the energy map.
+  await page.locator('#energy-map').scrollIntoViewIfNeeded();
+  await page.waitForFunction(() => document.querySelector('#em-canvas').getBoundingClientRect().right <= window.innerWidth);
+  const mapOverflow = await page.evaluate(() => document.documentElement.scrollWidth - window.innerWidth);
+  assert.ok(mapOverflow <= 0, `the page is ${mapOverflow}px wider than the screen`);
+  await page.locator('#energy-map').screenshot({ path: join(artifacts, 'page-energy-map-phone.png') });
 });
