@@ -258,6 +258,8 @@ export class EnergyMapPanel {
     } catch (error) {
       if (controller !== this.controller) return;
       this.cancelButton.disabled = true;
+      // A bar that never saw a progress line stays empty rather than indeterminate.
+      if (!this.lastProgress) this.progress.value = 0;
       if (error?.name === 'AbortError') {
         this.status.textContent = 'Cancelled; the map shown (if any) is the last one.';
         this.setState('cancelled');

@@ -153,6 +153,7 @@ export class SimForm {
    */
   setSystem(id, { params = {}, q0 = null, p0 = null, chart = null, initialCoordinates = null } = {}) {
     this.conversion += 1;
+    this.lockState(false);
     this.systemSelect.value = id;
     const system = this.system;
     this.systemDescription.replaceChildren(...richText(system.description));
@@ -244,9 +245,21 @@ export class SimForm {
     try {
       const doc = await simulateJson(body);
       if (generation !== this.conversion) return null;
-      if (to === 'chart') return { q0: doc.system.q0, p0: doc.system.p0 };
       const run = doc.runs[0];
-      return { q0: (run.cartesian_q ?? run.q)[0], p0: (run.cartesian_p ?? run.p)[0] };
+      const state = to === 'chart'
+        ? { q0: doc.system.q0, p0: doc.system.p0 }
+        : { q0: (run.cartesian_q ?? run.q)[0], p0: (run.cartesian_p ?? run.p)[0] };
+      if (![...state.q0, ...state.p0].every(Number.isFinite)) {
+        // A state given in the chart's coordinates is not checked against its range; outside it
+        // the Cartesian image is undefined.
+        this.showError({
+          field: 'q0',
+          message: `this state has no ${to === 'chart' ? `${chartName(chartId)} chart` : 'Cartesian'} coordinates: ` +
+            `it lies outside the ${chartName(chartId)} chart`,
+        });
+        return null;
+      }
+      return state;
     } catch (error) {
       if (generation !== this.conversion) return null;
       this.showError(error);
