@@ -11,7 +11,10 @@
 //!   is refused.
 //! - At start-up, files that are not complete recordings of this service (a torn `.rrd`, a
 //!   sidecar that does not match its file, anything foreign) are skipped with a log line, and
-//!   left alone; leftover temporary files of this service are removed.
+//!   left alone; leftover temporary files of this service are removed. A temporary file is
+//!   locked (an advisory lock on the open file) by its writer until it is renamed into place,
+//!   so a second store opened on the same directory — another server, or another test in the
+//!   same process — removes only the files whose writer is gone, never a write in progress.
 //!
 //! Everything here is blocking file I/O: call it off the async runtime.
 
@@ -205,19 +208,79 @@ fn rfc3339(unix_ms: u64) -> String {
     )
 }
 
-/// Writes `bytes` to `path` through a temporary file in the same directory.
-fn write_atomically(dir: &Path, path: &Path, bytes: &[u8]) -> io::Result<()> {
-    let tmp = dir.join(format!("{TMP_PREFIX}{}", new_id()));
-    let result = (|| {
-        let mut file = File::create(&tmp)?;
-        file.write_all(bytes)?;
-        file.sync_all()?;
-        fs::rename(&tmp, path)
-    })();
-    if result.is_err() {
-        let _ = fs::remove_file(&tmp);
+/// A temporary file in the data directory, locked by its writer for as long as it is open.
+struct TempFile {
+    path: PathBuf,
+    file: File,
+}
+
+impl TempFile {
+    /// Creates `dir/.tmp-<random><suffix>` and takes its lock. A store that scans the directory
+    /// in between could remove the new file before it is locked; then it is made again.
+    fn create(dir: &Path, suffix: &str) -> io::Result<Self> {
+        use std::os::unix::fs::MetadataExt;
+        loop {
+            let path = dir.join(format!("{TMP_PREFIX}{}{suffix}", new_id()));
+            let file = File::options().write(true).create_new(true).open(&path)?;
+            file.lock()?;
+            let ours = file.metadata()?;
+            match fs::metadata(&path) {
+                Ok(now) if now.ino() == ours.ino() && now.dev() == ours.dev() => {
+                    return Ok(TempFile { path, file })
+                }
+                Ok(_) => continue,
+                Err(e) if e.kind() == io::ErrorKind::NotFound => continue,
+                Err(e) => return Err(e),
+            }
+        }
     }
-    result
+
+    /// Moves the file to `path`; the lock goes with the open file, which is closed after.
+    fn persist(self, path: &Path) -> io::Result<()> {
+        let result = fs::rename(&self.path, path);
+        if result.is_err() {
+            let _ = fs::remove_file(&self.path);
+        }
+        result
+    }
+
+    /// Removes the file (a write that failed).
+    fn discard(self) {
+        let _ = fs::remove_file(&self.path);
+    }
+}
+
+/// Removes a leftover temporary file whose writer is gone (its lock is free); a file still
+/// locked belongs to a write in progress and stays.
+fn remove_if_abandoned(path: &Path) {
+    let Ok(file) = File::open(path) else {
+        return;
+    };
+    match file.try_lock() {
+        Ok(()) => {
+            tracing::info!(file = %path.display(), "removing an interrupted write");
+            let _ = fs::remove_file(path);
+        }
+        Err(fs::TryLockError::WouldBlock) => {
+            tracing::debug!(file = %path.display(), "a write in progress");
+        }
+        Err(fs::TryLockError::Error(e)) => {
+            tracing::warn!(file = %path.display(), error = %e, "cannot check a temporary file");
+        }
+    }
+}
+
+/// Writes `bytes` to `path` through a locked temporary file in the same directory.
+fn write_atomically(dir: &Path, path: &Path, bytes: &[u8]) -> io::Result<()> {
+    let mut tmp = TempFile::create(dir, "")?;
+    let written = tmp.file.write_all(bytes).and_then(|()| tmp.file.sync_all());
+    match written {
+        Ok(()) => tmp.persist(path),
+        Err(e) => {
+            tmp.discard();
+            Err(e)
+        }
+    }
 }
 
 impl RecordingStore {
@@ -292,8 +355,7 @@ impl RecordingStore {
             let name = item.file_name().to_string_lossy().into_owned();
             let path = item.path();
             if name.starts_with(TMP_PREFIX) {
-                tracing::info!(file = %path.display(), "removing an interrupted write");
-                let _ = fs::remove_file(&path);
+                remove_if_abandoned(&path);
                 continue;
             }
             let (stem, ext) = match name.rsplit_once('.') {
@@ -343,24 +405,31 @@ impl RecordingStore {
         write: impl FnOnce(BufWriter<File>) -> Result<BufWriter<File>, RecordingError>,
     ) -> Result<RecordingEntry, StoreError> {
         fs::create_dir_all(&self.dir)?;
-        let id = new_id();
-        let tmp = self.dir.join(format!("{TMP_PREFIX}{id}.rrd"));
-        let result = self.save_from(&tmp, &id, spec, write);
-        if result.is_err() {
-            let _ = fs::remove_file(&tmp);
+        let tmp = TempFile::create(&self.dir, ".rrd")?;
+        // The writer gets its own handle on the file; the lock stays with `tmp`'s until the
+        // file is renamed into place.
+        let written = tmp
+            .file
+            .try_clone()
+            .map_err(StoreError::from)
+            .and_then(|handle| self.write_checked(&tmp.path, handle, write));
+        match written {
+            Ok(bytes) => self.keep(tmp, spec, bytes),
+            Err(e) => {
+                tmp.discard();
+                Err(e)
+            }
         }
-        result
     }
 
-    fn save_from(
+    /// Writes the recording through `handle` and checks it: its size in bytes.
+    fn write_checked(
         &self,
-        tmp: &Path,
-        id: &str,
-        spec: SpecSummary,
+        path: &Path,
+        handle: File,
         write: impl FnOnce(BufWriter<File>) -> Result<BufWriter<File>, RecordingError>,
-    ) -> Result<RecordingEntry, StoreError> {
-        let file = File::create(tmp)?;
-        let writer = write(BufWriter::with_capacity(1 << 20, file))?;
+    ) -> Result<u64, StoreError> {
+        let writer = write(BufWriter::with_capacity(1 << 20, handle))?;
         let file = writer.into_inner().map_err(|e| e.into_error())?;
         file.sync_all()?;
         let bytes = file.metadata()?.len();
@@ -371,9 +440,21 @@ impl RecordingStore {
                 max: self.max_bytes,
             });
         }
-        if !is_complete_rrd(tmp, bytes)? {
+        if !is_complete_rrd(path, bytes)? {
             return Err(StoreError::Incomplete);
         }
+        Ok(bytes)
+    }
+
+    /// Moves a checked recording into place under a new id, with its sidecar, and indexes it.
+    fn keep(
+        &self,
+        tmp: TempFile,
+        spec: SpecSummary,
+        bytes: u64,
+    ) -> Result<RecordingEntry, StoreError> {
+        let id = new_id();
+        let id = id.as_str();
         let created_unix_ms = SystemTime::now()
             .duration_since(UNIX_EPOCH)
             .map(|d| d.as_millis() as u64)
@@ -385,7 +466,7 @@ impl RecordingStore {
             spec,
             created_unix_ms,
         };
-        fs::rename(tmp, self.rrd_path(id))?;
+        tmp.persist(&self.rrd_path(id))?;
         let sidecar = serde_json::to_vec_pretty(&Sidecar {
             format: SIDECAR_FORMAT.to_string(),
             entry: entry.clone(),
@@ -482,6 +563,53 @@ mod tests {
         ] {
             assert!(!is_valid_id(bad), "{bad}");
         }
+    }
+
+    /// A store opened on the directory while another writes a recording (another server on the
+    /// same data directory; on a loaded machine a slow write overlaps the start-up of the next
+    /// test's server) leaves the write alone, and removes only temporary files nobody holds.
+    #[test]
+    fn a_write_in_progress_survives_a_second_store() {
+        let dir = std::env::temp_dir().join(format!("geomint-store-{}", new_id()));
+        fs::create_dir_all(&dir).unwrap();
+        let abandoned = dir.join(format!("{TMP_PREFIX}{}.rrd", new_id()));
+        fs::write(&abandoned, b"torn").unwrap();
+        let writer = RecordingStore::open(&dir, 1 << 30);
+        assert!(!abandoned.exists(), "an unlocked leftover is removed");
+        let spec = SpecSummary {
+            system: "pendulum".into(),
+            methods: vec!["modin_3s".into()],
+            h: 0.1,
+            steps: 1,
+            every: 1,
+            t_end: 0.1,
+            samples_per_method: 2,
+        };
+        let entry = writer
+            .save(spec, |mut w| {
+                // Mid-write, a second store scans the directory.
+                w.write_all(b"RRF2").unwrap();
+                w.flush().unwrap();
+                let temporaries = || {
+                    fs::read_dir(&dir)
+                        .unwrap()
+                        .flatten()
+                        .filter(|f| f.file_name().to_string_lossy().starts_with(TMP_PREFIX))
+                        .count()
+                };
+                assert_eq!(temporaries(), 1);
+                let second = RecordingStore::open(&dir, 1 << 30);
+                assert!(second.list().is_empty());
+                assert_eq!(temporaries(), 1, "the write in progress was removed");
+                w.write_all(&[0; 8]).unwrap();
+                w.write_all(b"RRF2FOOT\0\0\0\0").unwrap();
+                Ok(w)
+            })
+            .unwrap();
+        assert_eq!(entry.bytes, 24);
+        let reopened = RecordingStore::open(&dir, 1 << 30);
+        assert_eq!(reopened.list(), vec![entry]);
+        fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
