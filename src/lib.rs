@@ -11,7 +11,8 @@
 //! - [`cli`]: the command line.
 #![warn(missing_docs)]
 
+pub mod api;
 pub mod cli;
 pub mod core;
 pub mod http;
-pub mod output;
+pub mod recording;

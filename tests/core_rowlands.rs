@@ -7,6 +7,7 @@
 
 mod common;
 
+use geomint::api::{codes, ErrorDetail, SimulateRequest};
 use geomint::core::diagnostics::log_log_slope;
 use geomint::core::error::{CoreError, StepError};
 use geomint::core::flows::Tangent;
@@ -16,7 +17,6 @@ use geomint::core::run::{integrate, Budget, Observer, Schedule, Stepper, StopRea
 use geomint::core::simulate::{Limits, Request, Simulation};
 use geomint::core::system::{MechanicalSystem, State, Structure, Vector};
 use geomint::core::systems::{self, ElasticPendulum3d, Pendulum};
-use geomint::output::{codes, ErrorDetail, SimulateRequest};
 use geomint::with_system;
 use nalgebra::allocator::Allocator;
 use nalgebra::{DMatrix, DefaultAllocator, U1};

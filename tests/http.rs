@@ -368,7 +368,7 @@ async fn energy_errors_and_reference_match_the_core() {
     let body = json!({"system": "harmonic_oscillator", "params": {"omega": 2.0, "gamma": 0.1},
         "methods": ["csv1", "rk4"], "h": 0.05, "t_end": 20, "q0": [1.0], "p0": [0.5]});
     let text = post(&server, &body).await.text().await.unwrap();
-    let req = geomint::output::SimulateRequest::from_value(&body)
+    let req = geomint::api::SimulateRequest::from_value(&body)
         .unwrap()
         .to_core();
     let (sim, runs) = core_runs(&req);
@@ -384,7 +384,7 @@ async fn energy_errors_and_reference_match_the_core() {
     let body = json!({"system": "elastic_pendulum_3d", "methods": ["modin_3s"], "h": 0.05, "t_end": 5,
         "compare_to_reference": true});
     let text = post(&server, &body).await.text().await.unwrap();
-    let req = geomint::output::SimulateRequest::from_value(&body)
+    let req = geomint::api::SimulateRequest::from_value(&body)
         .unwrap()
         .to_core();
     let (sim, runs) = core_runs(&req);
@@ -464,7 +464,7 @@ async fn divergence_keeps_the_samples_before_it() {
     assert_eq!(run["stop"]["reason"], "diverged");
     assert_eq!(run["stop"]["step"], step);
     assert!(step < 1000);
-    let req = geomint::output::SimulateRequest::from_value(&body)
+    let req = geomint::api::SimulateRequest::from_value(&body)
         .unwrap()
         .to_core();
     let (_, runs) = core_runs(&req);
@@ -848,7 +848,7 @@ async fn fifty_concurrent_requests_are_all_answered_correctly() {
     .await;
     for (body, (status, text)) in bodies.iter().zip(&answers) {
         assert_eq!(*status, 200);
-        let req = geomint::output::SimulateRequest::from_value(body)
+        let req = geomint::api::SimulateRequest::from_value(body)
             .unwrap()
             .to_core();
         let (sim, runs) = core_runs(&req);
@@ -963,7 +963,7 @@ async fn openapi_lists_every_route() {
         .keys()
         .map(String::as_str)
         .collect();
-    let parsed: BTreeSet<&str> = geomint::output::request::REQUEST_FIELDS
+    let parsed: BTreeSet<&str> = geomint::api::request::REQUEST_FIELDS
         .iter()
         .copied()
         .collect();

@@ -10,7 +10,7 @@ mod server;
 use decoded::Decoded;
 
 use geomint::http::Config;
-use geomint::output::recording::energy_map::difference_color;
+use geomint::recording::energy_map::difference_color;
 use rerun::components::ImageBuffer;
 use rerun::{Image, SegmentationImage};
 use serde_json::{json, Value};
@@ -148,7 +148,7 @@ async fn an_energy_map_answers_json_ndjson_and_a_recording() {
     // Read with correctly rounded floats, as `post` does, so that numbers compare bit for bit.
     let lines: Vec<Value> = text
         .lines()
-        .map(|l| geomint::output::request::parse_json(l.as_bytes()).unwrap())
+        .map(|l| geomint::api::request::parse_json(l.as_bytes()).unwrap())
         .collect();
     let kinds: Vec<&str> = lines.iter().map(|l| l["type"].as_str().unwrap()).collect();
     assert_eq!(kinds[kinds.len() - 2..], ["result", "end"]);

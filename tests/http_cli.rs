@@ -78,7 +78,7 @@ fn run_writes_json_and_ndjson_equal_to_the_core() {
     assert_eq!(labels, ["modin_3s", "triple_jump(csv1)"]);
 
     // Bit for bit the core's numbers.
-    let req = geomint::output::SimulateRequest::from_value(&spec())
+    let req = geomint::api::SimulateRequest::from_value(&spec())
         .unwrap()
         .to_core();
     let sim = Simulation::prepare(&req, &Limits::default()).unwrap();
@@ -207,7 +207,7 @@ fn run_writes_a_rerun_recording_by_extension() {
 
 #[test]
 fn study_convergence_writes_the_document_of_the_library() {
-    use geomint::output::convergence::{self, ConvergenceRequest};
+    use geomint::api::convergence::{self, ConvergenceRequest};
     let dir = scratch("convergence");
     let study = json!({"system": "harmonic_oscillator", "params": {"omega": 2, "gamma": 0.1},
         "methods": ["rk4", "csv1"], "h": [0.1, 0.05, 0.025], "t_end": 5});
@@ -228,7 +228,7 @@ fn study_convergence_writes_the_document_of_the_library() {
         stderr(&out)
     );
     // Read with correctly rounded floats, so that numbers compare bit for bit.
-    let written = geomint::output::request::parse_json(&std::fs::read(&out_path).unwrap()).unwrap();
+    let written = geomint::api::request::parse_json(&std::fs::read(&out_path).unwrap()).unwrap();
     let job = ConvergenceRequest::from_value(&study)
         .unwrap()
         .prepare(&Limits::default())

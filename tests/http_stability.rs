@@ -783,9 +783,9 @@ async fn openapi_documents_the_stability_routes() {
     assert!(doc["paths"][MAP]["post"]["responses"]["503"]["headers"]["Retry-After"].is_object());
     let schemas = doc["components"]["schemas"].as_object().unwrap();
     for (name, fields) in [
-        ("StabilityRequest", geomint::output::stability::MAP_FIELDS),
-        ("PointRequest", geomint::output::stability::POINT_FIELDS),
-        ("AxisSpec", geomint::output::stability::AXIS_FIELDS),
+        ("StabilityRequest", geomint::api::stability::MAP_FIELDS),
+        ("PointRequest", geomint::api::stability::POINT_FIELDS),
+        ("AxisSpec", geomint::api::stability::AXIS_FIELDS),
     ] {
         let documented: BTreeSet<&str> = schemas[name]["properties"]
             .as_object()

@@ -13,12 +13,12 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
+use geomint::api::document::SimulationDocument;
+use geomint::api::stream::CHUNK_SAMPLES;
+use geomint::api::{self, SimulateRequest};
 use geomint::core::run::Budget;
 use geomint::core::simulate::Limits;
-use geomint::output::document::SimulationDocument;
-use geomint::output::recording::{path_blocks, sample_steps, APPLICATION_ID};
-use geomint::output::stream::CHUNK_SAMPLES;
-use geomint::output::{self, SimulateRequest};
+use geomint::recording::{path_blocks, sample_steps, APPLICATION_ID};
 use serde_json::json;
 
 mod decoded;
@@ -158,7 +158,7 @@ fn run_streams_live_to_a_rerun_viewer() {
     let answer: SimulationDocument = {
         let spec = SimulateRequest::from_value(&body).unwrap();
         let sim = spec.prepare(&Limits::default()).unwrap();
-        output::simulate(&sim, 2, Budget::default()).unwrap()
+        api::simulate(&sim, 2, Budget::default()).unwrap()
     };
     let schedule = answer.schedule;
     let samples = schedule.samples_per_method as usize;

@@ -11,8 +11,8 @@ use serde::Serialize;
 
 use super::error::ApiError;
 use super::recordings::rrd_response;
-use crate::output::error::{codes, ErrorDetail};
-use crate::output::recording::RecordingError;
+use crate::api::error::{codes, ErrorDetail};
+use crate::recording::RecordingError;
 
 /// The media type of NDJSON streams.
 pub const NDJSON: &str = "application/x-ndjson";

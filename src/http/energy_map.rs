@@ -1,6 +1,6 @@
 //! `POST /api/v1/studies/energy-map`: an energy-error map of the planar elastic pendulum in
 //! Cartesian against polar coordinates (paper 001 Fig. 6; see
-//! [`energy_map`](crate::output::energy_map)).
+//! [`energy_map`](crate::api::energy_map)).
 //!
 //! The map is validated first (cheap), then takes every simulation slot it can get — its cells
 //! run in parallel on all cores — and runs off the async runtime. With
@@ -25,10 +25,10 @@ use super::paths;
 use super::recordings::RrdFile;
 use super::state::{cancel_on_shutdown, run_blocking, AppState, CancelOnDrop};
 use super::studies::stream_study;
+use crate::api::energy_map::{self, EnergyMapDocument, EnergyMapRequest, MapLine};
+use crate::api::error::ErrorBody;
 use crate::core::run::Budget;
-use crate::output::energy_map::{self, EnergyMapDocument, EnergyMapRequest, MapLine};
-use crate::output::error::ErrorBody;
-use crate::output::recording;
+use crate::recording;
 
 /// An energy-error map (paper 001 Fig. 6): the planar elastic pendulum released at rest from
 /// every point of an nx × ny grid of (x₀, y₀), integrated with one method in Cartesian and in

@@ -6,7 +6,7 @@ use axum::body::Body;
 use axum::http::{header, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
 
-use crate::output::error::{codes, ErrorBody, ErrorDetail};
+use crate::api::error::{codes, ErrorBody, ErrorDetail};
 
 /// An error answer: status, error detail and, for 503, a `Retry-After` hint.
 #[derive(Clone, Debug, PartialEq)]

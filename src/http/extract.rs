@@ -8,8 +8,8 @@ use axum::http::{header, StatusCode};
 use serde::de::DeserializeOwned;
 
 use super::error::ApiError;
-use crate::output::error::{codes, ErrorDetail};
-use crate::output::request::from_json;
+use crate::api::error::{codes, ErrorDetail};
+use crate::api::request::from_json;
 
 /// A JSON request body, deserialized into `T`; rejections are [`ApiError`]s.
 #[derive(Clone, Debug)]

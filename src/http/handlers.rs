@@ -12,8 +12,8 @@ use super::error::ApiError;
 use super::openapi::ApiDoc;
 use super::paths;
 use super::state::AppState;
-use crate::output::catalog::{self, MethodEntry, SystemEntry};
-use crate::output::error::{codes, ErrorBody, ErrorDetail};
+use crate::api::catalog::{self, MethodEntry, SystemEntry};
+use crate::api::error::{codes, ErrorBody, ErrorDetail};
 
 /// The health answer.
 #[derive(Clone, Debug, Serialize, ToSchema)]

@@ -55,7 +55,7 @@ pub use error::ApiError;
 pub use extract::ApiJson;
 pub use state::{run_blocking, AppState, Config};
 
-use crate::output::error::{codes, ErrorDetail};
+use crate::api::error::{codes, ErrorDetail};
 
 /// Paths of the routes.
 pub mod paths {
@@ -147,7 +147,7 @@ pub fn app(state: AppState) -> Router {
         DefaultPredicate::new()
             .and(NotForContentType::const_new(answer::NDJSON))
             .and(NotForContentType::const_new(
-                crate::output::recording::RRD_MEDIA_TYPE,
+                crate::recording::RRD_MEDIA_TYPE,
             )),
     );
     // The middleware's own time limit is a backstop: simulations stop themselves at the

@@ -6,15 +6,15 @@ use utoipa::OpenApi;
 use super::recordings::{self, RecordingCreated};
 use super::store::RecordingEntry;
 use super::{energy_map, handlers, simulate, stability, studies};
-use crate::output::catalog::{MethodEntry, SystemEntry};
-use crate::output::convergence::{ConvergenceDocument, ConvergenceLine, ConvergenceRequest};
-use crate::output::document::SimulationDocument;
-use crate::output::energy_map::{EnergyMapDocument, EnergyMapRequest, MapLine};
-use crate::output::error::ErrorBody;
-use crate::output::request::SimulateRequest;
-use crate::output::stability::{PointDocument, PointRequest, StabilityDocument, StabilityRequest};
-use crate::output::stream::StreamLine;
-use crate::output::work_precision::{StudyLine, WorkPrecisionDocument, WorkPrecisionRequest};
+use crate::api::catalog::{MethodEntry, SystemEntry};
+use crate::api::convergence::{ConvergenceDocument, ConvergenceLine, ConvergenceRequest};
+use crate::api::document::SimulationDocument;
+use crate::api::energy_map::{EnergyMapDocument, EnergyMapRequest, MapLine};
+use crate::api::error::ErrorBody;
+use crate::api::request::SimulateRequest;
+use crate::api::stability::{PointDocument, PointRequest, StabilityDocument, StabilityRequest};
+use crate::api::stream::StreamLine;
+use crate::api::work_precision::{StudyLine, WorkPrecisionDocument, WorkPrecisionRequest};
 
 /// The OpenAPI document: `ApiDoc::openapi()`.
 #[derive(OpenApi)]

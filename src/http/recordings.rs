@@ -26,11 +26,11 @@ use super::extract::ApiJson;
 use super::paths;
 use super::state::{cancel_on_shutdown, run_blocking, AppState, CancelOnDrop};
 use super::store::{is_valid_id, RecordingEntry, SpecSummary, StoreError};
+use crate::api::document;
+use crate::api::error::{codes, ErrorBody, ErrorDetail};
+use crate::api::request::SimulateRequest;
 use crate::core::run::Budget;
-use crate::output::document;
-use crate::output::error::{codes, ErrorBody, ErrorDetail};
-use crate::output::recording::{self, RRD_MEDIA_TYPE};
-use crate::output::request::SimulateRequest;
+use crate::recording::{self, RRD_MEDIA_TYPE};
 
 /// The answer to a stored recording.
 #[derive(Clone, Debug, Serialize, ToSchema)]

@@ -30,12 +30,12 @@ use super::extract::ApiJson;
 use super::paths;
 use super::recordings::RrdFile;
 use super::state::{cancel_on_shutdown, run_blocking, AppState, CancelOnDrop};
+use crate::api::document::{self, SimulationDocument};
+use crate::api::error::ErrorBody;
+use crate::api::request::SimulateRequest;
+use crate::api::stream::{self, ndjson_line, StreamError, StreamLine};
 use crate::core::run::Budget;
-use crate::output::document::{self, SimulationDocument};
-use crate::output::error::ErrorBody;
-use crate::output::recording;
-use crate::output::request::SimulateRequest;
-use crate::output::stream::{self, ndjson_line, StreamError, StreamLine};
+use crate::recording;
 
 /// How long past the time limit a stream waits for a client that does not read.
 const STALLED_CLIENT_GRACE: std::time::Duration = std::time::Duration::from_secs(10);

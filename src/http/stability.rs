@@ -5,7 +5,7 @@
 //! simulation slots — one, waiting up to the queue timeout (else 503 with `Retry-After`), plus
 //! every other free one, since each map is computed in parallel over all cores — and computes
 //! off the async runtime. Its work is bounded by the request's size (at most
-//! [`MAX_MAP_CELLS`](crate::output::stability::MAX_MAP_CELLS) cells); between methods it stops
+//! [`MAX_MAP_CELLS`](crate::api::stability::MAX_MAP_CELLS) cells); between methods it stops
 //! at the time limit (504) or when the client goes away.
 //!
 //! With `?format=rrd` the maps come as a Rerun recording (each map a tensor of spectral radii and
@@ -31,12 +31,12 @@ use super::extract::ApiJson;
 use super::paths;
 use super::recordings::RrdFile;
 use super::state::{cancel_on_shutdown, run_blocking, AppState, CancelOnDrop};
-use crate::core::run::Budget;
-use crate::output::error::ErrorBody;
-use crate::output::recording;
-use crate::output::stability::{
+use crate::api::error::ErrorBody;
+use crate::api::stability::{
     self, PointDocument, PointRequest, StabilityDocument, StabilityRequest,
 };
+use crate::core::run::Budget;
+use crate::recording;
 
 /// Stability maps of the damped oscillator q'' + 2γq' + ω²q = 0 over a (γ, h) grid.
 ///

@@ -29,7 +29,7 @@ use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use crate::core::simulate::Simulation;
-use crate::output::recording::RecordingError;
+use crate::recording::RecordingError;
 
 /// The sidecar's format tag.
 const SIDECAR_FORMAT: &str = "geomint-recording/1";

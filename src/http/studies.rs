@@ -1,6 +1,6 @@
 //! The study routes: `POST /api/v1/studies/work-precision` (see
-//! [`work_precision`](crate::output::work_precision)) and `POST /api/v1/studies/convergence`
-//! (see [`convergence`](crate::output::convergence)).
+//! [`work_precision`](crate::api::work_precision)) and `POST /api/v1/studies/convergence`
+//! (see [`convergence`](crate::api::convergence)).
 //!
 //! A study is validated first (cheap), then takes one simulation slot — its settings run one
 //! after another, so that their wall times compare — and runs off the async runtime. With
@@ -32,12 +32,12 @@ use super::extract::ApiJson;
 use super::paths;
 use super::recordings::RrdFile;
 use super::state::{cancel_on_shutdown, run_blocking, AppState, CancelOnDrop};
+use crate::api::convergence::{self, ConvergenceDocument, ConvergenceLine, ConvergenceRequest};
+use crate::api::error::{ErrorBody, ErrorDetail};
+use crate::api::study::{ProgressLine, Runner, StudyJob};
+use crate::api::work_precision::{self, StudyLine, WorkPrecisionDocument, WorkPrecisionRequest};
 use crate::core::run::Budget;
-use crate::output::convergence::{self, ConvergenceDocument, ConvergenceLine, ConvergenceRequest};
-use crate::output::error::{ErrorBody, ErrorDetail};
-use crate::output::recording;
-use crate::output::study::{ProgressLine, Runner, StudyJob};
-use crate::output::work_precision::{self, StudyLine, WorkPrecisionDocument, WorkPrecisionRequest};
+use crate::recording;
 
 /// One NDJSON line.
 fn line<L: Serialize>(l: &L) -> Bytes {

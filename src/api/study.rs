@@ -640,13 +640,13 @@ macro_rules! progress_lines {
             /// A failure (the reference run, a server fault).
             Error {
                 /// What went wrong.
-                error: $crate::output::error::ErrorDetail,
+                error: $crate::api::error::ErrorDetail,
             },
             /// The last line of a complete stream.
             End,
         }
 
-        impl $crate::output::study::ProgressLine for $name {
+        impl $crate::api::study::ProgressLine for $name {
             type Point = $point;
             type Document = $document;
             fn reference(reference: String, reference_ms: f64, total: usize) -> Self {
@@ -658,7 +658,7 @@ macro_rules! progress_lines {
             fn result(document: $document) -> Self {
                 Self::Result(document)
             }
-            fn error(error: $crate::output::error::ErrorDetail) -> Self {
+            fn error(error: $crate::api::error::ErrorDetail) -> Self {
                 Self::Error { error }
             }
             fn end() -> Self {

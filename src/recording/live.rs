@@ -1,5 +1,5 @@
 //! A simulation streamed live to a running Rerun viewer: the lines of the NDJSON stream
-//! ([`crate::output::stream`]) are logged as the integrator produces them, over gRPC, and
+//! ([`crate::api::stream`]) are logged as the integrator produces them, over gRPC, and
 //! optionally written to an `.rrd` file by the same recording stream.
 //!
 //! The header sends the blueprint, the spec and every entity's style; each `samples` chunk is
@@ -21,8 +21,8 @@ use rerun::{RecordingStream, RecordingStreamBuilder};
 use super::encode::{self, EncoderThread, EncodingSink};
 use super::simulation::{send_blueprint, Layout, SimulationLogger};
 use super::{RecordingError, APPLICATION_ID};
-use crate::output::request::SimulateRequest;
-use crate::output::stream::StreamLine;
+use crate::api::request::SimulateRequest;
+use crate::api::stream::StreamLine;
 
 /// Longest wait for the viewer's connection before anything runs.
 pub const CONNECT_TIMEOUT: Duration = Duration::from_secs(5);

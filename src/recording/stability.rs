@@ -27,7 +27,7 @@ use rerun::{
 
 use super::blueprint::{self, Node};
 use super::{encode, entity_names, RecordingError};
-use crate::output::stability::{MapDocument, StabilityDocument, StabilityRequest};
+use crate::api::stability::{MapDocument, StabilityDocument, StabilityRequest};
 
 /// The class of a cell in a `verdict` image. Class 0 is left unused: segmentation images draw
 /// it as background.

@@ -11,7 +11,7 @@
 //! Lines of different methods interleave when they run in parallel; the lines of one method
 //! come in order, its summary after its last chunk. [`DocumentCollector`] assembles the JSON
 //! document from the lines, so that one run can feed several outputs (see
-//! [`crate::output::recording::live`]).
+//! [`crate::recording::live`]).
 
 use std::time::{Duration, Instant};
 
@@ -353,8 +353,8 @@ mod tests {
     use serde_json::json;
 
     use super::*;
+    use crate::api::{simulate, SimulateRequest};
     use crate::core::simulate::Limits;
-    use crate::output::{simulate, SimulateRequest};
 
     /// The JSON of a document with its wall times zeroed (the only numbers that differ between
     /// two computations of the same runs).

@@ -23,7 +23,6 @@ pub mod convergence;
 pub mod document;
 pub mod energy_map;
 pub mod error;
-pub mod recording;
 pub mod request;
 pub mod stability;
 pub mod stream;

@@ -47,9 +47,9 @@ use super::{
     color, encode, entity_names, entity_part, method_color, RecordingError, STEP_TIMELINE,
     TIME_TIMELINE,
 };
-use crate::output::document::{Columns, ScheduleSummary, SimulationDocument};
-use crate::output::request::SimulateRequest;
-use crate::output::stream::StreamHeader;
+use crate::api::document::{Columns, ScheduleSummary, SimulationDocument};
+use crate::api::request::SimulateRequest;
+use crate::api::stream::StreamHeader;
 
 /// Degrees of freedom with a phase portrait (the first ones; an N-body run has 3N).
 pub const MAX_PHASE_DOFS: usize = 6;

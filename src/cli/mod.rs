@@ -1,0 +1,123 @@
+//! The command line: `geomint serve` (the default; [`serve`]), `geomint run spec.json` (a
+//! simulation written as JSON, NDJSON or a Rerun recording, optionally streamed live to a Rerun
+//! viewer; [`run`]), `geomint study KIND spec.json` (a work–precision or convergence study, or an
+//! energy-error map, as JSON or `.rrd`; [`study`]), and `geomint systems` / `geomint methods`
+//! (the catalogues). Every server setting can also come from a `GEOMINT_*` environment variable.
+//!
+//! Exit codes: 0 on success, 2 for a bad command line, an unreadable spec or an invalid one
+//! (the message names the field), 1 when output cannot be written, the Rerun viewer cannot be
+//! reached or the server cannot start.
+
+pub mod run;
+pub mod serve;
+pub mod study;
+
+use std::io::{self, Read, Write};
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+use crate::api::catalog;
+pub use run::RunArgs;
+pub use serve::ServeArgs;
+pub use study::StudyArgs;
+
+/// Geometric numerical integration of damped Hamiltonian systems, as a web service.
+#[derive(Debug, Parser)]
+#[command(
+    name = "geomint",
+    version,
+    about,
+    args_conflicts_with_subcommands = true
+)]
+pub struct Cli {
+    /// What to do (default: serve).
+    #[command(subcommand)]
+    pub command: Option<Command>,
+    /// Server settings when no subcommand is given.
+    #[command(flatten)]
+    pub serve: ServeArgs,
+}
+
+/// The subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Serve the HTTP API (the default).
+    Serve(ServeArgs),
+    /// Run a simulation spec (the body of POST /api/v1/simulate) without a server.
+    Run(RunArgs),
+    /// Run a study spec without a server (`work-precision`, `convergence`, `energy-map`: the
+    /// body of POST /api/v1/studies/work-precision, /convergence or /energy-map).
+    Study(StudyArgs),
+    /// Print the system catalogue as JSON.
+    Systems,
+    /// Print the method catalogue as JSON.
+    Methods,
+}
+
+/// Carries out a parsed command line.
+pub fn run(cli: Cli) -> ExitCode {
+    match cli.command.unwrap_or(Command::Serve(cli.serve)) {
+        Command::Serve(args) => serve::serve(&args),
+        Command::Run(args) => run::run_spec(&args),
+        Command::Study(args) => study::run_study(&args),
+        Command::Systems => print_json(&catalog::systems()),
+        Command::Methods => print_json(&catalog::methods()),
+    }
+}
+
+/// Parses a positive whole number, also written as `1e7`.
+pub(crate) fn parse_count(s: &str) -> Result<u64, String> {
+    let s = s.trim().replace('_', "");
+    if let Ok(n) = s.parse::<u64>() {
+        return Ok(n);
+    }
+    match s.parse::<f64>() {
+        Ok(x) if x.is_finite() && x >= 0.0 && x.fract() == 0.0 && x <= u64::MAX as f64 => {
+            Ok(x as u64)
+        }
+        _ => Err(format!("`{s}` is not a whole number ≥ 0")),
+    }
+}
+
+pub(crate) fn print_json<T: serde::Serialize>(value: &T) -> ExitCode {
+    let stdout = io::stdout();
+    let mut out = stdout.lock();
+    let written = serde_json::to_writer_pretty(&mut out, value)
+        .map_err(io::Error::from)
+        .and_then(|()| writeln!(out))
+        .and_then(|()| out.flush());
+    match written {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: cannot write to standard output: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// Exit code for bad input.
+pub(crate) const BAD_INPUT: u8 = 2;
+
+/// The exit code once the output is written (or not).
+pub(crate) fn finish_output(written: io::Result<()>) -> ExitCode {
+    match written {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: cannot write the output: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// Reads a spec file, or standard input for `-`.
+pub(crate) fn read_spec(path: &std::path::Path) -> Result<Vec<u8>, String> {
+    let source = path.display().to_string();
+    let text = if source == "-" {
+        let mut buf = Vec::new();
+        io::stdin().read_to_end(&mut buf).map(|_| buf)
+    } else {
+        std::fs::read(path)
+    };
+    text.map_err(|e| format!("cannot read the spec `{source}`: {e}"))
+}

@@ -1,0 +1,112 @@
+//! `geomint serve`: the HTTP service with its settings (flags or `GEOMINT_*` variables).
+
+use std::io::{self, IsTerminal};
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Duration;
+
+use clap::Args;
+
+use super::parse_count;
+use crate::core::simulate::Limits;
+use crate::http::{self, Config};
+
+/// Settings of `geomint serve`.
+#[derive(Clone, Debug, Args)]
+pub struct ServeArgs {
+    /// Address to listen on.
+    #[arg(long, env = "GEOMINT_ADDR", default_value = "127.0.0.1:8080")]
+    pub addr: SocketAddr,
+    /// Most steps per method (1e7 style accepted).
+    #[arg(long, env = "GEOMINT_MAX_STEPS", default_value = "10000000", value_parser = parse_count)]
+    pub max_steps: u64,
+    /// Most samples per request over all methods.
+    #[arg(long, env = "GEOMINT_MAX_SAMPLES", default_value = "1000000", value_parser = parse_count)]
+    pub max_samples: u64,
+    /// Most simulation threads at once (default: the number of cores).
+    #[arg(long, env = "GEOMINT_MAX_CONCURRENT", value_parser = clap::value_parser!(u64).range(1..=4096))]
+    pub max_concurrent: Option<u64>,
+    /// Time limit of a simulation in seconds; runs then stop with `time_limit`.
+    #[arg(long, env = "GEOMINT_REQUEST_TIMEOUT_SECS", default_value_t = 60, value_parser = clap::value_parser!(u64).range(1..))]
+    pub request_timeout_secs: u64,
+    /// How long a request waits for a free simulation slot before it gets 503, in milliseconds.
+    #[arg(long, env = "GEOMINT_QUEUE_TIMEOUT_MS", default_value_t = 250)]
+    pub queue_timeout_ms: u64,
+    /// Origins allowed by CORS, comma-separated, or `*` (default: CORS off).
+    #[arg(long, env = "GEOMINT_CORS_ORIGINS", value_delimiter = ',')]
+    pub cors_origins: Vec<String>,
+    /// Directory served at `/`, if it exists.
+    #[arg(long, env = "GEOMINT_STATIC_DIR", default_value = "static")]
+    pub static_dir: PathBuf,
+    /// Largest request body in bytes.
+    #[arg(long, env = "GEOMINT_BODY_LIMIT", default_value = "1048576", value_parser = parse_count)]
+    pub body_limit: u64,
+    /// Seconds running simulations may go on after a shutdown signal before they are cancelled.
+    #[arg(long, env = "GEOMINT_SHUTDOWN_GRACE_SECS", default_value_t = 10)]
+    pub shutdown_grace_secs: u64,
+    /// Directory of the stored Rerun recordings (created when the first one is stored).
+    #[arg(long, env = "GEOMINT_DATA_DIR", default_value = http::state::DEFAULT_DATA_DIR)]
+    pub data_dir: PathBuf,
+    /// Most bytes of stored recordings; past it the oldest are deleted (1e9 style accepted).
+    #[arg(long, env = "GEOMINT_RECORDINGS_MAX_BYTES", default_value = "1073741824", value_parser = parse_count)]
+    pub recordings_max_bytes: u64,
+    /// Log filter (tracing's EnvFilter syntax).
+    #[arg(long, env = "GEOMINT_LOG", default_value = "info")]
+    pub log: String,
+}
+
+impl ServeArgs {
+    /// The service configuration these settings describe.
+    pub fn config(&self) -> Config {
+        Config {
+            limits: Limits {
+                max_steps: self.max_steps,
+                max_samples: self.max_samples,
+            },
+            max_concurrent: self
+                .max_concurrent
+                .map_or_else(http::state::default_concurrency, |n| n as usize),
+            request_timeout: Duration::from_secs(self.request_timeout_secs),
+            queue_timeout: Duration::from_millis(self.queue_timeout_ms),
+            cors_origins: self.cors_origins.clone(),
+            static_dir: Some(self.static_dir.clone()),
+            body_limit: usize::try_from(self.body_limit).unwrap_or(usize::MAX),
+            shutdown_grace: Duration::from_secs(self.shutdown_grace_secs),
+            data_dir: self.data_dir.clone(),
+            recordings_max_bytes: self.recordings_max_bytes,
+        }
+    }
+}
+
+pub(crate) fn serve(args: &ServeArgs) -> ExitCode {
+    let filter = tracing_subscriber::EnvFilter::try_new(&args.log).unwrap_or_else(|e| {
+        eprintln!(
+            "warning: invalid log filter `{}` ({e}); using `info`",
+            args.log
+        );
+        tracing_subscriber::EnvFilter::new("info")
+    });
+    tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(io::stderr)
+        .with_ansi(io::stderr().is_terminal())
+        .init();
+    let runtime = match tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()
+    {
+        Ok(rt) => rt,
+        Err(e) => {
+            eprintln!("error: cannot start the async runtime: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    match runtime.block_on(http::serve(args.addr, args.config())) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: cannot serve on {}: {e}", args.addr);
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,281 @@
+//! `geomint study KIND spec.json`: a work–precision or convergence study, or an energy-error map,
+//! without a server, with progress on standard error; the document as JSON, or as a Rerun
+//! recording for an output file ending in `.rrd` (work–precision studies and maps).
+
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Args, ValueEnum};
+
+use super::{parse_count, print_json, read_spec, BAD_INPUT};
+use crate::api;
+use crate::api::study::{ProgressLine, Runner, StudyJob};
+use crate::core::run::Budget;
+use crate::core::simulate::Limits;
+use crate::recording;
+
+/// The kinds of study.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum StudyKind {
+    /// Wall time against energy error per method and setting.
+    WorkPrecision,
+    /// Errors at t_end against the step size per method and chart, with the fitted orders.
+    Convergence,
+    /// Energy-error map of the planar elastic pendulum, Cartesian against polar coordinates
+    /// (paper 001 Fig. 6), on all cores.
+    EnergyMap,
+}
+
+/// Settings of `geomint study`.
+#[derive(Clone, Debug, Args)]
+pub struct StudyArgs {
+    /// The kind of study.
+    #[arg(value_enum)]
+    pub kind: StudyKind,
+    /// The spec file (JSON); `-` reads standard input.
+    pub spec: PathBuf,
+    /// Output file; `.rrd` writes a Rerun recording (work-precision only), anything else JSON
+    /// (default: standard output). Progress goes to standard error.
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+    /// Most steps per setting.
+    #[arg(long, env = "GEOMINT_MAX_STEPS", default_value = "10000000", value_parser = parse_count)]
+    pub max_steps: u64,
+}
+
+pub(crate) fn run_study(args: &StudyArgs) -> ExitCode {
+    use crate::api::convergence::{self, ConvergenceLine, ConvergenceRequest};
+    use crate::api::work_precision::{self, StudyLine, WorkPrecisionRequest};
+    let source = args.spec.display().to_string();
+    let text = match read_spec(&args.spec) {
+        Ok(t) => t,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(BAD_INPUT);
+        }
+    };
+    let limits = Limits {
+        max_steps: args.max_steps,
+        ..Limits::default()
+    };
+    let reference = |reference: &str, ms: f64, total: usize| {
+        eprintln!("errors against the {reference} ({ms:.0} ms); {total} settings")
+    };
+    let error = |e: Option<f64>| e.map_or("-".into(), |e| format!("{e:.2e}"));
+    match args.kind {
+        StudyKind::WorkPrecision => {
+            let parsed = WorkPrecisionRequest::from_slice(&text)
+                .and_then(|req| req.prepare(&limits).map(|job| (req, job)));
+            let progress = |line: &StudyLine| match line {
+                StudyLine::Reference {
+                    reference: r,
+                    reference_ms,
+                    total,
+                } => reference(r, *reference_ms, *total),
+                StudyLine::Point { done, total, point } => eprintln!(
+                    "[{done}/{total}] {} {}: {:.3} ms, max energy error {}",
+                    point.method,
+                    point
+                        .h
+                        .map(|h| format!("h = {h}"))
+                        .or(point.tolerance.map(|t| format!("tol = {t:e}")))
+                        .unwrap_or_default(),
+                    point.wall_ms,
+                    error(point.max_energy_error)
+                ),
+                _ => {}
+            };
+            let rrd = |f: File, spec: &WorkPrecisionRequest, doc: &_| {
+                recording::work_precision::write_rrd(BufWriter::new(f), spec, doc)
+                    .map_err(|e| e.to_string())
+                    .and_then(|mut w| w.flush().map_err(|e| e.to_string()))
+            };
+            finish_study(
+                args,
+                &source,
+                parsed,
+                work_precision::run,
+                progress,
+                Some(rrd),
+            )
+        }
+        StudyKind::Convergence => {
+            let parsed = ConvergenceRequest::from_slice(&text)
+                .and_then(|req| req.prepare(&limits).map(|job| (req, job)));
+            let progress = |line: &ConvergenceLine| match line {
+                ConvergenceLine::Reference {
+                    reference: r,
+                    reference_ms,
+                    total,
+                } => reference(r, *reference_ms, *total),
+                ConvergenceLine::Point { done, total, point } => eprintln!(
+                    "[{done}/{total}] {} ({}) h = {}: state error {}, energy error {}, max {}",
+                    point.method,
+                    point.chart,
+                    point.h,
+                    error(point.state_error),
+                    error(point.energy_error),
+                    error(point.max_energy_error)
+                ),
+                _ => {}
+            };
+            type Rrd = fn(
+                File,
+                &ConvergenceRequest,
+                &convergence::ConvergenceDocument,
+            ) -> Result<(), String>;
+            finish_study(
+                args,
+                &source,
+                parsed,
+                convergence::run,
+                progress,
+                None::<Rrd>,
+            )
+        }
+        StudyKind::EnergyMap => run_energy_map(args, &source, &text),
+    }
+}
+
+/// An energy-error map (001 Fig. 6) on all cores, with progress on standard error.
+fn run_energy_map(args: &StudyArgs, source: &str, text: &[u8]) -> ExitCode {
+    use crate::api::energy_map::{self, EnergyMapRequest, MapLine};
+    let parsed = crate::api::request::parse_json(text)
+        .and_then(|v| EnergyMapRequest::from_value(&v))
+        .and_then(|req| req.prepare().map(|spec| (req, spec)));
+    let (request, spec) = match parsed {
+        Ok(parsed) => parsed,
+        Err(e) => {
+            eprintln!("error: {source}: {e}");
+            return ExitCode::from(BAD_INPUT);
+        }
+    };
+    eprintln!(
+        "{} cells × 2 charts × {} steps on {} threads",
+        spec.nx * spec.ny,
+        spec.steps,
+        rayon::current_num_threads()
+    );
+    let progress = |line: MapLine| {
+        if let MapLine::Progress { done, total } = line {
+            eprint!("\r{done}/{total} cells");
+            if done == total {
+                eprintln!();
+            }
+        }
+        true
+    };
+    let doc = match energy_map::run(&spec, request.t_max, Budget::default(), &progress) {
+        Ok(doc) => doc,
+        Err(e) => {
+            eprintln!("error: {source}: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    let s = &doc.summary;
+    eprintln!(
+        "{:.1} s for {} steps: Cartesian better in {} cells, polar in {}; polar diverged in {} ({} outside the predicted region)",
+        doc.wall_ms / 1e3,
+        doc.steps,
+        s.cartesian_better,
+        s.polar_better,
+        s.polar_diverged,
+        s.diverged_outside_prediction
+    );
+    let wants_rrd = wants_rrd(args);
+    write_document(
+        args,
+        wants_rrd,
+        &doc,
+        Some(|f: File, doc: &energy_map::EnergyMapDocument| {
+            recording::energy_map::write_rrd(BufWriter::new(f), doc)
+                .map_err(|e| e.to_string())
+                .and_then(|mut w| w.flush().map_err(|e| e.to_string()))
+        }),
+    )
+}
+
+/// Whether the output file's name ends in `.rrd`.
+fn wants_rrd(args: &StudyArgs) -> bool {
+    args.output
+        .as_ref()
+        .and_then(|p| p.extension())
+        .is_some_and(|e| e.eq_ignore_ascii_case("rrd"))
+}
+
+/// Runs a parsed study, reporting its progress lines with `progress` on standard error, and
+/// writes the document: as JSON, or with `rrd` for an output file ending in `.rrd` (refused for
+/// a kind without a recording).
+fn finish_study<S, L: ProgressLine>(
+    args: &StudyArgs,
+    source: &str,
+    parsed: Result<(S, StudyJob), api::ErrorDetail>,
+    run: Runner<L>,
+    progress: impl Fn(&L),
+    rrd: Option<impl FnOnce(File, &S, &L::Document) -> Result<(), String>>,
+) -> ExitCode {
+    let (spec, job) = match parsed {
+        Ok(parsed) => parsed,
+        Err(e) => {
+            eprintln!("error: {source}: {e}");
+            return ExitCode::from(BAD_INPUT);
+        }
+    };
+    let wants_rrd = wants_rrd(args);
+    if wants_rrd && rrd.is_none() {
+        eprintln!("error: this kind of study has no recording; write JSON (e.g. -o out.json)");
+        return ExitCode::from(BAD_INPUT);
+    }
+    let emit = |line: L| {
+        progress(&line);
+        true
+    };
+    let doc = match run(&job, Budget::default(), &emit) {
+        Ok(doc) => doc,
+        Err(e) => {
+            eprintln!("error: {source}: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    write_document(
+        args,
+        wants_rrd,
+        &doc,
+        rrd.map(|record| move |f: File, doc: &L::Document| record(f, &spec, doc)),
+    )
+}
+
+/// Writes a study's document to the output file — a Rerun recording through `rrd` when
+/// `wants_rrd`, pretty JSON otherwise — or prints it without one.
+fn write_document<D: serde::Serialize>(
+    args: &StudyArgs,
+    wants_rrd: bool,
+    doc: &D,
+    rrd: Option<impl FnOnce(File, &D) -> Result<(), String>>,
+) -> ExitCode {
+    let written = match (&args.output, rrd) {
+        (Some(path), Some(record)) if wants_rrd => File::create(path)
+            .map_err(|e| e.to_string())
+            .and_then(|f| record(f, doc)),
+        (Some(path), _) => File::create(path).map_err(|e| e.to_string()).and_then(|f| {
+            let mut w = BufWriter::new(f);
+            serde_json::to_writer_pretty(&mut w, doc)
+                .map_err(|e| e.to_string())
+                .and_then(|()| {
+                    writeln!(w)
+                        .and_then(|()| w.flush())
+                        .map_err(|e| e.to_string())
+                })
+        }),
+        (None, _) => return print_json(doc),
+    };
+    match written {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: cannot write the output: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
