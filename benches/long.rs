@@ -28,7 +28,8 @@ use std::collections::BTreeMap;
 use std::hint::black_box;
 use std::time::Instant;
 
-use geomint::core::methods::{self, MethodChoice, MethodId};
+use geomint::core::methods::composition::Scheme;
+use geomint::core::methods::{self, Base, Method, MethodId};
 use geomint::core::run::{integrate, Budget, Observer, Schedule, StopReason};
 use geomint::core::system::{MechanicalSystem, State};
 use geomint::core::systems::{ElasticPendulum3d, Pendulum};
@@ -70,19 +71,19 @@ where
 /// A method at one setting.
 #[derive(Clone, Debug)]
 struct Setting {
-    choice: MethodChoice,
+    choice: Method,
     /// The fixed step, or for the adaptive reference its segment length T/50.
     h: f64,
 }
 
 impl Setting {
-    fn fixed(choice: MethodChoice, h: f64) -> Self {
+    fn fixed(choice: Method, h: f64) -> Self {
         Setting { choice, h }
     }
 
     fn describe(&self) -> String {
-        match self.choice.tolerance {
-            Some(tol) if self.choice.id == MethodId::Reference => format!("tol={tol:e}"),
+        match self.choice {
+            Method::Reference { tolerance: tol } => format!("tol={tol:e}"),
             _ => format!("h={}", self.h),
         }
     }
@@ -190,7 +191,7 @@ where
             .fold(0.0, f64::max)
     });
     // Every tolerance of the adaptive reference is one method for the equal-accuracy rule.
-    let method = match setting.choice.id {
+    let method = match setting.choice.id() {
         MethodId::Reference => "reference".to_string(),
         _ => setting.choice.label(),
     };
@@ -308,12 +309,11 @@ fn run_case<S: MechanicalSystem>(
 {
     let t_end = case.t_end;
     let segment = t_end / SAMPLES as f64;
-    let kl8 = MethodChoice::composition(MethodId::KahanLi8, MethodId::Modin3s);
+    let kl8 = Method::composition(Scheme::KahanLi8, Base::Modin3s);
     let began = Instant::now();
     let (reference, _) = sampled_run(sys, &Setting::fixed(kl8.clone(), 0.025), start, t_end);
     let (coarser, _) = sampled_run(sys, &Setting::fixed(kl8.clone(), 0.05), start, t_end);
-    let mut tight = MethodChoice::new(MethodId::Reference);
-    tight.tolerance = Some(1e-13);
+    let tight = Method::Reference { tolerance: 1e-13 };
     let (adaptive, _) = sampled_run(sys, &Setting::fixed(tight, segment), start, t_end);
     let diff = |a: &Sampled| {
         a.energy
@@ -332,10 +332,10 @@ fn run_case<S: MechanicalSystem>(
         began.elapsed().as_secs_f64()
     );
 
-    let composition = |id| MethodChoice::composition(id, MethodId::Modin3s);
+    let composition = |id| Method::composition(Scheme::of(id).unwrap(), Base::Modin3s);
     let mut settings: Vec<Setting> = Vec::new();
     for h in [0.05, 0.025, 0.0125] {
-        settings.push(Setting::fixed(MethodChoice::new(MethodId::Modin3s), h));
+        settings.push(Setting::fixed(Method::new(MethodId::Modin3s), h));
     }
     for h in [0.2, 0.1, 0.05, 0.025] {
         settings.push(Setting::fixed(composition(MethodId::TripleJump), h));
@@ -347,12 +347,13 @@ fn run_case<S: MechanicalSystem>(
         settings.push(Setting::fixed(composition(MethodId::KahanLi8), h));
     }
     for h in [0.1, 0.05, 0.025, 0.0125] {
-        settings.push(Setting::fixed(MethodChoice::new(MethodId::Rk4), h));
+        settings.push(Setting::fixed(Method::new(MethodId::Rk4), h));
     }
     for tol in [1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12, 1e-13] {
-        let mut choice = MethodChoice::new(MethodId::Reference);
-        choice.tolerance = Some(tol);
-        settings.push(Setting::fixed(choice, segment));
+        settings.push(Setting::fixed(
+            Method::Reference { tolerance: tol },
+            segment,
+        ));
     }
 
     println!("| method | setting | ms | max abs dH | max abs dJ3 | force evaluations |");

@@ -3,9 +3,9 @@
 
 use std::time::Instant;
 
-use geomint::api::{self, SimulateRequest};
+use geomint::api::SimulateRequest;
 use geomint::core::run::Budget;
-use geomint::core::simulate::Limits;
+use geomint::core::simulation::Limits;
 use geomint::recording;
 
 fn main() {
@@ -17,7 +17,7 @@ fn main() {
         "h": 0.001, "t_end": 1000, "output": {"every": 1}});
     let spec = SimulateRequest::from_value(&body).expect("a valid spec");
     let sim = spec.prepare(&limits).expect("within the limits");
-    let doc = api::simulate(&sim, 1, Budget::default()).expect("the run");
+    let doc = sim.simulate(1, Budget::default()).expect("the run");
     let samples = doc.runs[0].columns.energy.len();
     let mut bytes = 0;
     let mut times: Vec<f64> = (0..6)

@@ -9,7 +9,7 @@
 use std::hint::black_box;
 use std::time::Instant;
 
-use geomint::core::methods::{self, MethodChoice, MethodId};
+use geomint::core::methods::{self, Method, MethodId};
 use geomint::core::run::{integrate, Budget, Observer, Schedule};
 use geomint::core::system::{MechanicalSystem, State};
 use geomint::core::systems::{ElasticPendulum3d, Pendulum};
@@ -34,7 +34,7 @@ const STEPS: u64 = 2000;
 const H: f64 = 0.1;
 
 /// Median ns per step and the checksum of the final states.
-fn measure<S: MechanicalSystem>(sys: &S, choice: &MethodChoice, start: &State<S::Dim>) -> (f64, f64)
+fn measure<S: MechanicalSystem>(sys: &S, choice: &Method, start: &State<S::Dim>) -> (f64, f64)
 where
     DefaultAllocator: Allocator<S::Dim>,
 {
@@ -87,10 +87,10 @@ fn stability_maps() {
         n: 400,
     };
     // rowlands needs an undamped system, so it has no map over γ > 0.
-    let choices: Vec<MethodChoice> = MethodId::ALL
+    let choices: Vec<Method> = MethodId::ALL
         .iter()
         .filter(|&&m| m != MethodId::Reference && m != MethodId::Rowlands)
-        .map(|&m| MethodChoice::new(m))
+        .map(|&m| Method::new(m))
         .collect();
     let began = Instant::now();
     let mut unstable = 0;
@@ -117,10 +117,10 @@ fn main() {
         .collect();
     let wanted = |name: &str| filter.is_empty() || filter.iter().any(|f| name.contains(f.as_str()));
     let choices = [
-        MethodChoice::new(MethodId::Modin3s),
-        MethodChoice::new(MethodId::Csv1),
-        MethodChoice::new(MethodId::Rk4),
-        MethodChoice::new(MethodId::Heun),
+        Method::new(MethodId::Modin3s),
+        Method::new(MethodId::Csv1),
+        Method::new(MethodId::Rk4),
+        Method::new(MethodId::Heun),
     ];
     println!("| problem | method | ns/step (median of 7 × 10⁷ steps) | checksum |");
     println!("|---|---|---|---|");
@@ -145,7 +145,7 @@ fn main() {
         &[0.0, 1.558_845_73, -0.6],
         &[1.341_640_79, 0.0, 0.0],
     );
-    for c in choices.iter().filter(|c| c.id != MethodId::Csv1) {
+    for c in choices.iter().filter(|c| c.id() != MethodId::Csv1) {
         let name = format!("P2 {}", c.label());
         if wanted(&name) {
             let (ns, sum) = measure(&p2, c, &p2_start);

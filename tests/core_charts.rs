@@ -12,8 +12,8 @@
 mod common;
 
 use geomint::core::error::CoreError;
-use geomint::core::methods::MethodInput;
-use geomint::core::simulate::{Limits, Request, Simulation, Trajectory};
+use geomint::core::methods::{Method, MethodId};
+use geomint::core::simulation::{Columns, Limits, Simulation, SimulationSpec};
 use geomint::core::system::{MechanicalSystem, State};
 use geomint::core::systems::{self, AnySystem};
 use geomint::with_system;
@@ -30,15 +30,15 @@ fn charted(
     methods: &[&str],
     h: f64,
     t_end: f64,
-) -> Request {
-    Request {
+) -> SimulationSpec {
+    SimulationSpec {
         chart: Some(chart.into()),
         ..common::request(system, params, methods, h, t_end)
     }
 }
 
 /// Cartesian states of a run (the chart's own state when it is Cartesian).
-fn cartesian(run: &Trajectory) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+fn cartesian(run: &Columns) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
     match (&run.cartesian_q, &run.cartesian_p) {
         (Some(x), Some(px)) => (x.clone(), px.clone()),
         _ => (run.q.clone(), run.p.clone()),
@@ -50,8 +50,7 @@ fn chart_systems() -> Vec<(String, AnySystem)> {
     let mut out = Vec::new();
     for info in systems::catalog() {
         for chart in &info.charts {
-            let params = systems::resolve(&info, &Default::default()).unwrap();
-            let sys = systems::build(info.id, chart.id, &params, 0.1).unwrap();
+            let sys = common::default_system(info, chart, 0.1);
             out.push((format!("{}/{}", info.id, chart.id), sys));
         }
     }
@@ -88,9 +87,8 @@ fn every_chart_round_trips_and_keeps_the_energy() {
                 assert!((px1[i] - px[i]).abs() < 1e-14, "{name}: p[{i}] {} vs {}", px1[i], px[i]);
             }
             // H is a scalar: the same in every chart (H̄(Q(q), P(q, p)) = H(q, p)).
-            let info = systems::info(name.split('/').next().unwrap()).unwrap();
-            let params = systems::resolve(&info, &Default::default()).unwrap();
-            let first = systems::build(info.id, info.charts[0].id, &params, 0.1).unwrap();
+            let info = common::info(name.split('/').next().unwrap());
+            let first = common::default_system(info, &info.charts[0], 0.1);
             let h_cart = with_system!(&first, c => {
                 let w = State::from_slices(c.dim(), &x, &px);
                 c.energy(&w.q, &w.p)
@@ -241,7 +239,7 @@ where
 
 #[test]
 fn closed_form_stages_agree_with_newton() {
-    use geomint::core::methods::{self, MethodChoice, MethodId};
+    use geomint::core::methods;
     use geomint::core::run::Stepper;
     for (name, any) in chart_systems() {
         with_system!(&any, sys => {
@@ -253,7 +251,7 @@ fn closed_form_stages_agree_with_newton() {
             let mut start = State::from_slices(sys.dim(), &x, &px);
             sys.from_cartesian(&x, &px, &mut start.q, &mut start.p).unwrap();
             for id in [MethodId::SymplecticEuler, MethodId::SymplecticEulerAdjoint] {
-                let choice = MethodChoice::new(id);
+                let choice = Method::new(id);
                 let h = 0.05;
                 let mut a = start.clone();
                 methods::build(&choice, sys, "test", h).unwrap().step(sys, &mut a, h).unwrap();
@@ -315,13 +313,8 @@ fn symplectic_euler_in_cartesian_coordinates_keeps_angular_momentum_to_round_off
         0.01,
         10.0,
     );
-    let (sim, runs) = run_all(&req);
-    let l = sim
-        .invariant_names()
-        .iter()
-        .position(|&n| n == "L")
-        .unwrap();
-    let column = &runs[0].invariant_columns[l];
+    let (_, runs) = run_all(&req);
+    let column = &runs[0].invariants["L"];
     let drift = column
         .iter()
         .map(|v| (v - column[0]).abs())
@@ -418,7 +411,7 @@ fn the_compensating_coordinate_makes_symplectic_euler_second_order_in_energy() {
 }
 
 /// Largest Cartesian state difference between two runs sampled at the same times.
-fn cartesian_distance(a: &Trajectory, b: &Trajectory) -> f64 {
+fn cartesian_distance(a: &Columns, b: &Columns) -> f64 {
     let ((xa, pa), (xb, pb)) = (cartesian(a), cartesian(b));
     assert_eq!(xa.len(), xb.len());
     let mut worst = 0.0f64;
@@ -462,30 +455,26 @@ fn the_exact_flow_is_chart_invariant_and_symplectic_euler_is_not() {
                 } else {
                     (0.01, 100)
                 };
-                let mut req = charted(system, chart, params.clone(), &[], h, 10.0);
+                let mut req = charted(system, chart, params.clone(), &["rk4"], h, 10.0);
                 req.every = Some(every);
-                req.methods = vec![if method == "reference" {
-                    MethodInput::Object {
-                        id: "reference".into(),
-                        inner: None,
-                        base: None,
-                        tolerance: Some(TOLERANCE),
-                        processor: None,
+                req.methods[0].method = if method == "reference" {
+                    Method::Reference {
+                        tolerance: TOLERANCE,
                     }
                 } else {
-                    MethodInput::Id(method.into())
-                }];
+                    Method::new(MethodId::parse(method).unwrap())
+                };
                 let (sim, mut out) = run_all(&req);
                 // Both start from the catalogue's Cartesian default, transformed into the chart.
                 let (x0, _) = cartesian(&out[0]);
-                let info = systems::info(system).unwrap();
+                let info = common::info(system);
                 for (a, b) in x0[0].iter().zip(&info.q0) {
                     assert!(
                         (a - b).abs() < 1e-15,
                         "{system}/{chart}: starts at {a}, not {b}"
                     );
                 }
-                assert_eq!(sim.chart, chart);
+                assert_eq!(sim.chart.id, chart);
                 runs.push(out.remove(0));
             }
             by_method.push(cartesian_distance(&runs[0], &runs[1]));
@@ -519,10 +508,14 @@ fn splittings_refuse_a_non_separable_chart_with_the_reason() {
                 method: m,
                 system,
                 requirement,
+                ..
             }) => {
                 assert_eq!(m, method);
                 assert!(system.contains("polar"), "{system}");
-                assert!(requirement.contains("separable"), "{requirement}");
+                assert!(
+                    requirement.describe().contains("separable"),
+                    "{requirement:?}"
+                );
             }
             other => panic!("{method} on polar: {other:?}"),
         }
@@ -536,9 +529,9 @@ fn splittings_refuse_a_non_separable_chart_with_the_reason() {
         1.0,
     );
     match Simulation::prepare(&bad, &Limits::default()) {
-        Err(CoreError::Invalid { field, message }) => {
-            assert_eq!(field, "chart");
-            assert!(message.contains("cartesian, polar"), "{message}");
+        Err(e @ CoreError::UnknownChart { .. }) => {
+            assert_eq!(e.field().unwrap().as_str(), "chart");
+            assert!(e.to_string().contains("cartesian, polar"), "{e}");
         }
         other => panic!("unknown chart: {other:?}"),
     }
@@ -555,9 +548,9 @@ fn splittings_refuse_a_non_separable_chart_with_the_reason() {
     singular.p0 = Some(vec![0.0, 0.0]);
     singular.initial_cartesian = true;
     match Simulation::prepare(&singular, &Limits::default()) {
-        Err(CoreError::Invalid { field, message }) => {
-            assert_eq!(field, "q0");
-            assert!(message.contains("r = 0"), "{message}");
+        Err(e @ CoreError::OutsideChart { .. }) => {
+            assert_eq!(e.field().unwrap().as_str(), "q0");
+            assert!(e.to_string().contains("r = 0"), "{e}");
         }
         other => panic!("singular start: {other:?}"),
     }
@@ -578,7 +571,7 @@ fn the_damped_cylindrical_pendulum_keeps_j3_exactly_and_dissipates_like_the_cart
         let (_, runs) = run_all(&req);
         if chart == "cylindrical" {
             for run in &runs {
-                let j3 = &run.invariant_columns[0];
+                let j3 = &run.invariants["J3"];
                 assert!(
                     j3.iter().all(|&v| v == j3[0]),
                     "J3 = p_φ must not move at all"

@@ -5,11 +5,12 @@
 
 mod common;
 
-use common::{final_state, request, run_all};
+use common::{final_state, request, run_all, run_to_columns};
 use geomint::core::diagnostics::log_log_slope;
+use geomint::core::error::Field;
 use geomint::core::methods::composition::Scheme;
-use geomint::core::methods::{MethodChoice, MethodId, MethodInput};
-use geomint::core::simulate::{run_to_trajectory, Limits, Request, Simulation};
+use geomint::core::methods::{Base, Method, MethodId};
+use geomint::core::simulation::{Limits, MethodAt, Simulation, SimulationSpec};
 use geomint::core::system::{MechanicalSystem, State};
 use geomint::core::systems::HarmonicOscillator;
 use nalgebra::U1;
@@ -24,7 +25,7 @@ const COMPOSITIONS: [MethodId; 5] = [
 ];
 
 fn scheme(id: MethodId) -> Scheme {
-    id.scheme().expect("a composition")
+    Scheme::of(id).expect("a composition")
 }
 
 /// Σ γᵏ.
@@ -99,7 +100,7 @@ fn every_composition_reaches_its_order_on_the_damped_oscillator() {
     for id in COMPOSITIONS {
         let nominal = f64::from(scheme(id).order());
         for base in bases {
-            let choice = MethodChoice::composition(id, base);
+            let choice = Method::composition(scheme(id), Base::of(base).unwrap());
             let hs = steps(scheme(id).order());
             let errors: Vec<f64> = hs
                 .iter()
@@ -128,12 +129,16 @@ fn every_composition_reaches_its_order_on_the_damped_oscillator() {
 #[test]
 fn compositions_of_conformal_bases_stay_conformal_symplectic() {
     // det ∂Ψ/∂z = e^{−2γh} per step, with negative sub-steps running the damping backwards.
-    let methods: Vec<MethodInput> = COMPOSITIONS
+    let methods: Vec<MethodAt> = COMPOSITIONS
         .iter()
-        .flat_map(|id| {
-            ["modin_3s", "csv1", "csv2"].map(|base| {
-                serde_json::from_value(json!({"id": id.as_str(), "base": base})).unwrap()
-            })
+        .flat_map(|&id| {
+            [Base::Modin3s, Base::Csv1, Base::Csv2]
+                .map(|base| Method::composition(scheme(id), base))
+        })
+        .enumerate()
+        .map(|(i, method)| MethodAt {
+            method,
+            field: Field::new("methods").index(i),
         })
         .collect();
     for (system, params, q0) in [
@@ -144,7 +149,7 @@ fn compositions_of_conformal_bases_stay_conformal_symplectic() {
         ),
         ("pendulum", json!({"gamma": 0.3}), 2.8),
     ] {
-        let req = Request {
+        let req = SimulationSpec {
             methods: methods.clone(),
             jacobian_defect: true,
             q0: Some(vec![q0]),
@@ -178,12 +183,12 @@ fn compositions_keep_j3_and_cost_one_force_evaluation_per_stage() {
     );
     let sim = Simulation::prepare(&req, &Limits::default()).unwrap();
     for (i, choice) in sim.methods.iter().enumerate() {
-        let (run, outcome) = run_to_trajectory(&sim, i, None, Default::default()).unwrap();
-        let j3 = &run.invariant_columns[0];
+        let (run, outcome) = run_to_columns(&sim, i, None, Default::default()).unwrap();
+        let j3 = &run.invariants["J3"];
         let drift = j3.iter().map(|v| (v - j3[0]).abs()).fold(0.0, f64::max);
         assert!(drift < 1e-13, "{}: J3 drift {drift:e}", choice.label());
         // 1000 steps of s stages, each one kick; the fused damping and drift flows cost nothing.
-        let stages = scheme(choice.id).weights().len() as u64;
+        let stages = scheme(choice.id()).weights().len() as u64;
         assert_eq!(
             outcome.stats.force_evaluations,
             1000 * stages,

@@ -3,17 +3,17 @@
 //! polar divergence inside the region Sec. 4.1's boundary predicts (up to one grid cell: with
 //! h = 0.2 the discrete motion need not turn back exactly where the exact one does).
 
-use geomint::core::energy_map::EnergyMapSpec;
-use geomint::core::methods::{MethodChoice, MethodId};
+use geomint::core::methods::{Method, MethodId};
 use geomint::core::run::Budget;
+use geomint::core::studies::energy_map::EnergyMapJob;
 use geomint::core::systems::{PlanarKind, PlanarSpring};
 
 const N: usize = 21;
 
-fn fig6(t_max: f64) -> EnergyMapSpec {
+fn fig6(t_max: f64) -> EnergyMapJob {
     let h = 0.2;
-    EnergyMapSpec {
-        method: MethodChoice::new(MethodId::SymplecticEuler),
+    EnergyMapJob {
+        method: Method::new(MethodId::SymplecticEuler),
         pendulum: PlanarSpring {
             m: 1.0,
             k: 1.0,
@@ -22,6 +22,7 @@ fn fig6(t_max: f64) -> EnergyMapSpec {
             kind: PlanarKind::Pendulum,
         },
         h,
+        t_max,
         steps: (t_max / h).round() as u64,
         nx: N,
         ny: N,
@@ -90,7 +91,7 @@ fn the_same_map_twice_is_bit_identical() {
     let a = spec.run(Budget::default(), &|_, _| {}).unwrap().unwrap();
     let b = spec.run(Budget::default(), &|_, _| {}).unwrap().unwrap();
     for k in 0..N * N {
-        let bits = |m: &geomint::core::energy_map::EnergyMap| {
+        let bits = |m: &geomint::core::studies::energy_map::EnergyMap| {
             (
                 m.polar[k].epsilon.map(f64::to_bits),
                 m.cartesian[k].epsilon.map(f64::to_bits),

@@ -4,20 +4,22 @@
 mod common;
 
 use common::request;
+use geomint::api::method::read_method;
 use geomint::core::error::CoreError;
+use geomint::core::error::Field;
 use geomint::core::flows;
-use geomint::core::methods::MethodInput;
-use geomint::core::simulate::{Limits, Request, Simulation};
+use geomint::core::methods::{Base, Method, MethodId};
+use geomint::core::simulation::{Limits, MethodAt, Simulation, SimulationSpec};
 use geomint::core::system::{MechanicalSystem, State};
 use geomint::core::systems::{ElasticPendulum3d, NBody, PairPotential, Pendulum};
 use nalgebra::{DVector, Dyn, U3};
 use proptest::prelude::*;
 use serde_json::json;
 
-fn field_of(req: Request) -> String {
+fn field_of(req: SimulationSpec) -> String {
     match Simulation::prepare(&req, &Limits::default()) {
         Ok(_) => panic!("request was accepted"),
-        Err(e) => e.field().unwrap_or("-").to_string(),
+        Err(e) => e.field().map_or("-".to_string(), |f| f.to_string()),
     }
 }
 
@@ -25,24 +27,24 @@ fn field_of(req: Request) -> String {
 fn bad_requests_name_the_offending_field() {
     let ok = || request("pendulum", json!({}), &["modin_3s"], 0.1, 10.0);
     assert!(Simulation::prepare(&ok(), &Limits::default()).is_ok());
-    assert_eq!(field_of(Request { h: 0.0, ..ok() }), "h");
-    assert_eq!(field_of(Request { h: -1.0, ..ok() }), "h");
+    assert_eq!(field_of(SimulationSpec { h: 0.0, ..ok() }), "h");
+    assert_eq!(field_of(SimulationSpec { h: -1.0, ..ok() }), "h");
     assert_eq!(
-        field_of(Request {
+        field_of(SimulationSpec {
             h: f64::NAN,
             ..ok()
         }),
         "h"
     );
     assert_eq!(
-        field_of(Request {
+        field_of(SimulationSpec {
             t_end: f64::INFINITY,
             ..ok()
         }),
         "t_end"
     );
     assert_eq!(
-        field_of(Request {
+        field_of(SimulationSpec {
             h: 1e-9,
             t_end: 1e3,
             ..ok()
@@ -50,7 +52,7 @@ fn bad_requests_name_the_offending_field() {
         "t_end"
     ); // 1e12 steps
     assert_eq!(
-        field_of(Request {
+        field_of(SimulationSpec {
             every: Some(1),
             h: 1e-4,
             t_end: 200.0,
@@ -59,14 +61,14 @@ fn bad_requests_name_the_offending_field() {
         "output.every"
     ); // 2e6 samples
     assert_eq!(
-        field_of(Request {
+        field_of(SimulationSpec {
             q0: Some(vec![1.0, 2.0]),
             ..ok()
         }),
         "q0"
     );
     assert_eq!(
-        field_of(Request {
+        field_of(SimulationSpec {
             p0: Some(vec![f64::NAN]),
             ..ok()
         }),
@@ -153,10 +155,6 @@ fn bad_requests_name_the_offending_field() {
         "q0"
     );
     assert_eq!(
-        field_of(request("pendulum", json!({}), &["leapfrog"], 0.1, 1.0)),
-        "methods[0]"
-    );
-    assert_eq!(
         field_of(request("pendulum", json!({}), &[], 0.1, 1.0)),
         "methods"
     );
@@ -170,27 +168,41 @@ fn bad_requests_name_the_offending_field() {
         )),
         "h"
     );
-    let object = |v: serde_json::Value| Request {
-        methods: vec![serde_json::from_value::<MethodInput>(v).unwrap()],
-        ..ok()
+    // A method object: its options are checked as it is read into a method, then the method
+    // against the system.
+    let object = |v: serde_json::Value| -> String {
+        let field = Field::new("methods").index(0);
+        match read_method(&v, &field).unwrap().at(&field) {
+            Err(e) => e.field().unwrap().to_string(),
+            Ok(at) => field_of(SimulationSpec {
+                methods: vec![at],
+                ..ok()
+            }),
+        }
     };
     assert_eq!(
-        field_of(object(
-            json!({"id": "modin_rks", "inner": "explicit_euler"})
-        )),
+        object(json!({"id": "modin_rks", "inner": "explicit_euler"})),
         "methods[0].inner"
     );
     assert_eq!(
-        field_of(object(json!({"id": "triple_jump", "base": "heun"}))),
+        object(json!({"id": "triple_jump", "base": "heun"})),
         "methods[0].base"
     );
     assert_eq!(
-        field_of(object(json!({"id": "csv1", "inner": "rk4"}))),
+        object(json!({"id": "csv1", "inner": "rk4"})),
         "methods[0].inner"
     );
     assert_eq!(
-        field_of(object(json!({"id": "reference", "tolerance": 0.0}))),
+        object(json!({"id": "reference", "tolerance": 0.0})),
         "methods[0].tolerance"
+    );
+    let unknown = Field::new("methods").index(0);
+    assert_eq!(
+        read_method(&json!("leapfrog"), &unknown)
+            .unwrap_err()
+            .field
+            .as_deref(),
+        Some("methods[0]")
     );
     assert!(matches!(
         Simulation::prepare(
@@ -215,16 +227,21 @@ fn unmet_requirements_name_the_requirement() {
             ..
         } => {
             assert_eq!(method, "csv1");
-            assert!(requirement.contains("conformal damping"), "{requirement}");
+            assert!(
+                requirement.describe().contains("conformal damping"),
+                "{requirement:?}"
+            );
         }
         other => panic!("{other:?}"),
     }
     // A triple jump inherits its base's requirements.
-    let tj = Request {
-        methods: vec![
-            serde_json::from_value(json!({"id": "triple_jump", "base": "cimp"})).unwrap(),
-        ],
-        ..request("elastic_pendulum_3d", json!({}), &[], 0.1, 1.0)
+    let tj = request("elastic_pendulum_3d", json!({}), &[], 0.1, 1.0);
+    let tj = SimulationSpec {
+        methods: vec![MethodAt {
+            method: Method::triple_jump(Base::Cimp),
+            field: Field::new("methods").index(0),
+        }],
+        ..tj
     };
     assert!(matches!(
         Simulation::prepare(&tj, &Limits::default()),
@@ -314,7 +331,7 @@ fn one_huge_reference_step_fails_cleanly_instead_of_running_unbounded() {
     );
     let sim = Simulation::prepare(&req, &Limits::default()).unwrap();
     let began = std::time::Instant::now();
-    let result = geomint::core::simulate::run_to_trajectory(&sim, 0, None, Default::default());
+    let result = common::run_to_columns(&sim, 0, None, Default::default());
     assert!(
         matches!(result, Err(CoreError::Step { step: 1, .. })),
         "{result:?}"
@@ -329,7 +346,7 @@ fn epsilon_errors_name_epsilon_and_show_its_own_range() {
         &Limits::default(),
     )
     .unwrap_err();
-    assert_eq!(err.field(), Some("params.epsilon"));
+    assert_eq!(err.field().unwrap().as_str(), "params.epsilon");
     assert!(
         err.to_string()
             .contains("3000000 is outside the valid range [0, 2000000]"),
@@ -340,8 +357,11 @@ fn epsilon_errors_name_epsilon_and_show_its_own_range() {
 #[test]
 fn composition_sub_steps_that_make_a_solve_singular_are_refused() {
     let [w1, w0, _] = geomint::core::methods::composition::triple_jump_weights();
-    let tj = |base: &str, gamma: f64, h: f64| Request {
-        methods: vec![serde_json::from_value(json!({"id": "triple_jump", "base": base})).unwrap()],
+    let tj = |base: &str, gamma: f64, h: f64| SimulationSpec {
+        methods: vec![MethodAt {
+            method: Method::triple_jump(Base::of(MethodId::parse(base).unwrap()).unwrap()),
+            field: Field::new("methods").index(0),
+        }],
         ..request("pendulum", json!({ "gamma": gamma }), &[], h, 10.0 * h)
     };
     // csv2 divides by 1 − γτ/2 with τ = w₁h: singular at γh = 2/w₁ ≈ 1.480.
@@ -369,11 +389,8 @@ fn jacobian_defect_works_with_the_reference_comparison_but_not_for_the_reference
         .iter()
         .skip(1)
         .all(|d| *d < 1e-12));
-    let with_reference = Request {
-        methods: vec![
-            MethodInput::Id("csv1".into()),
-            MethodInput::Id("reference".into()),
-        ],
+    let with_reference = SimulationSpec {
+        methods: request("pendulum", json!({}), &["csv1", "reference"], 0.1, 2.0).methods,
         ..req
     };
     assert_eq!(field_of(with_reference), "methods[1]");

@@ -5,12 +5,12 @@ mod common;
 
 use common::{conservative_only, every_fixed_step_choice as every_choice, final_state};
 use geomint::core::diagnostics::log_log_slope;
-use geomint::core::methods::{MethodChoice, MethodId};
+use geomint::core::methods::{Method, MethodId};
 use geomint::core::system::{MechanicalSystem, State};
 use geomint::core::systems::HarmonicOscillator;
 use nalgebra::U1;
 
-fn nominal_order(c: &MethodChoice) -> f64 {
+fn nominal_order(c: &Method) -> f64 {
     f64::from(c.order())
 }
 
@@ -65,13 +65,7 @@ fn reference_matches_the_exact_solution_to_its_tolerance() {
         let sys = HarmonicOscillator { omega: 2.0, gamma };
         let start = State::from_slices(U1, &[1.0], &[0.5]);
         let exact = sys.exact(10.0, &start).unwrap();
-        let z = final_state(
-            &sys,
-            &MethodChoice::new(MethodId::Reference),
-            &start,
-            0.5,
-            10.0,
-        );
+        let z = final_state(&sys, &Method::new(MethodId::Reference), &start, 0.5, 10.0);
         let err = (z.q[0] - exact.q[0]).abs() + (z.p[0] - exact.p[0]).abs();
         assert!(err < 1e-11, "gamma {gamma}: reference error {err:e}");
     }
@@ -109,7 +103,7 @@ fn symmetric_methods_are_their_own_adjoint() {
     let damped = geomint::core::systems::Pendulum { gamma: 0.2 };
     let undamped = geomint::core::systems::Pendulum { gamma: 0.0 };
     let start = State::from_slices(U1, &[2.0], &[0.3]);
-    for choice in every_choice().into_iter().filter(|c| c.id.info().symmetric) {
+    for choice in every_choice().into_iter().filter(|c| c.info().symmetric) {
         let sys = if conservative_only(&choice) {
             &undamped
         } else {
@@ -128,7 +122,7 @@ fn symmetric_methods_are_their_own_adjoint() {
         );
     }
     // And Heun, which is not symmetric, is not.
-    let heun = MethodChoice::new(MethodId::Heun);
+    let heun = Method::new(MethodId::Heun);
     let forward = final_state(&damped, &heun, &start, 0.1, 0.1);
     let mut stepper = geomint::core::methods::build(&heun, &damped, "pendulum", 0.1).unwrap();
     let mut z = forward;

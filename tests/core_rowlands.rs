@@ -7,14 +7,16 @@
 
 mod common;
 
-use geomint::api::{codes, ErrorDetail, SimulateRequest};
+use geomint::api::method::{MethodOptions, MethodSpec};
+use geomint::api::{ErrorCode, ErrorDetail, SimulateRequest};
 use geomint::core::diagnostics::log_log_slope;
+use geomint::core::error::Field;
 use geomint::core::error::{CoreError, StepError};
 use geomint::core::flows::Tangent;
 use geomint::core::methods::rowlands::{Processor, Rowlands};
-use geomint::core::methods::{self, AnyStepper, MethodChoice, MethodId, MethodInput};
+use geomint::core::methods::{self, AnyStepper, Group, Method, MethodId, MethodOption};
 use geomint::core::run::{integrate, Budget, Observer, Schedule, Stepper, StopReason};
-use geomint::core::simulate::{Limits, Request, Simulation};
+use geomint::core::simulation::{Limits, Simulation, SimulationSpec};
 use geomint::core::system::{MechanicalSystem, State, Structure, Vector};
 use geomint::core::systems::{self, ElasticPendulum3d, Pendulum};
 use geomint::with_system;
@@ -79,7 +81,7 @@ fn case_of(system: &str) -> &'static Case {
 /// original processor (eqs. 32–33).
 #[derive(Clone, Debug)]
 enum Variant {
-    Choice(MethodChoice),
+    Choice(Method),
     Printed,
 }
 
@@ -194,11 +196,11 @@ where
 
 /// The system of `case` (in its default chart, for step h) and its default initial state.
 fn system_of(case: &Case, h: f64) -> (systems::AnySystem, Vec<f64>, Vec<f64>) {
-    let info = systems::info(case.system).expect("known system");
-    let params = serde_json::from_str(case.params).expect("params JSON");
-    let resolved = systems::resolve(&info, &params).expect("valid params");
-    let chart = info.charts[0].id;
-    let system = systems::build(case.system, chart, &resolved, h).expect("system builds");
+    let info = common::info(case.system);
+    let params = common::params(serde_json::from_str(case.params).expect("params JSON"));
+    let resolved =
+        systems::params::resolve(info, &params, &Field::new("params")).expect("valid params");
+    let system = (info.build)(&resolved, &info.charts[0], h);
     (system, info.q0.clone(), info.p0.clone())
 }
 
@@ -213,8 +215,7 @@ fn measure(case: &Case, variant: &Variant, h: f64, every: u64) -> (Measured, Vec
         let reference = match sys.exact(case.t_end, &start) {
             Some(z) => flat(&z),
             None => {
-                let mut choice = MethodChoice::new(MethodId::Reference);
-                choice.tolerance = Some(1e-14);
+                let choice = Method::Reference { tolerance: 1e-14 };
                 let mut st = methods::build(&choice, sys, "test", case.t_end / 8.0).unwrap();
                 let sched = Schedule::new(case.t_end / 8.0, case.t_end, u64::MAX);
                 run(sys, &mut st, &start, sched).end
@@ -252,8 +253,8 @@ fn orders(case: &Case, variant: &Variant) -> (f64, f64, Vec<f64>, Vec<f64>) {
 
 fn choice(id: MethodId, processor: Option<Processor>) -> Variant {
     Variant::Choice(match processor {
-        Some(p) => MethodChoice::rowlands(p),
-        None => MethodChoice::new(id),
+        Some(p) => Method::Rowlands { processor: p },
+        None => Method::new(id),
     })
 }
 
@@ -366,13 +367,11 @@ fn force_evaluations_are_counted_per_gradient() {
         (Processor::Cheap, 2 + 1 + steps + 2 * samples_after_first),
     ];
     for (p, expected) in cases {
-        let v = Variant::Choice(MethodChoice::rowlands(p));
+        let v = Variant::Choice(Method::Rowlands { processor: p });
         assert_eq!(count(&v), expected, "{}", v.label());
     }
     assert_eq!(
-        count(&Variant::Choice(MethodChoice::new(
-            MethodId::VelocityVerlet
-        ))),
+        count(&Variant::Choice(Method::new(MethodId::VelocityVerlet))),
         1 + steps
     );
 
@@ -413,7 +412,7 @@ fn force_evaluations_are_counted_per_gradient() {
 fn the_driver_reports_the_given_start_processed_samples_and_leaves_the_processed_end() {
     let case = case_of("elastic_pendulum_3d");
     for p in Processor::ALL {
-        let v = Variant::Choice(MethodChoice::rowlands(p));
+        let v = Variant::Choice(Method::Rowlands { processor: p });
         // `run` checks the first sample is the start and the last the end state. Sampling does
         // not disturb the kernel: sampling every step ends where sampling only the end does.
         let (every_step, _) = measure(case, &v, 0.05, 1);
@@ -444,7 +443,7 @@ fn the_driver_reports_the_given_start_processed_samples_and_leaves_the_processed
     assert_eq!(z, start);
 }
 
-fn rowlands_request(system: &str, params: serde_json::Value) -> Request {
+fn rowlands_request(system: &str, params: serde_json::Value) -> SimulationSpec {
     common::request(system, params, &["rowlands"], 0.1, 1.0)
 }
 
@@ -465,14 +464,15 @@ fn damped_and_non_separable_systems_are_refused_with_the_reason() {
                 ..
             } => {
                 assert_eq!(method, "rowlands(cheap)");
+                let requirement = requirement.describe();
                 assert!(requirement.starts_with("no damping"), "{requirement}");
                 assert!(requirement.contains("conservative"), "{requirement}");
             }
             other => panic!("{system}: {other:?}"),
         }
-        let detail = ErrorDetail::from_core(&err, &req, &Limits::default());
+        let detail = ErrorDetail::from(&err);
         assert_eq!(detail.field.as_deref(), Some("methods[0]"));
-        assert_eq!(detail.code, codes::UNMET_REQUIREMENT);
+        assert_eq!(detail.code, ErrorCode::UnmetRequirement);
         assert!(detail.message.contains("no damping"), "{}", detail.message);
     }
     // Undamped, it runs.
@@ -484,7 +484,7 @@ fn damped_and_non_separable_systems_are_refused_with_the_reason() {
 
     // Non-separable: the planar elastic pendulum in polar coordinates, whose mass matrix
     // depends on r.
-    let req = Request {
+    let req = SimulationSpec {
         chart: Some("polar".into()),
         ..rowlands_request("elastic_pendulum_2d", json!({}))
     };
@@ -492,15 +492,15 @@ fn damped_and_non_separable_systems_are_refused_with_the_reason() {
     match &err {
         CoreError::Unmet { requirement, .. } => {
             assert!(
-                requirement.contains("separable Hamiltonian"),
-                "{requirement}"
+                requirement.describe().contains("separable Hamiltonian"),
+                "{requirement:?}"
             )
         }
         other => panic!("{other:?}"),
     }
-    let detail = ErrorDetail::from_core(&err, &req, &Limits::default());
+    let detail = ErrorDetail::from(&err);
     assert_eq!(detail.field.as_deref(), Some("methods[0]"));
-    assert_eq!(detail.code, codes::UNMET_REQUIREMENT);
+    assert_eq!(detail.code, ErrorCode::UnmetRequirement);
     assert!(
         detail.message.contains("separable Hamiltonian"),
         "{}",
@@ -525,14 +525,14 @@ fn rowlands_has_no_tangent_map_and_refuses_jacobian_defect() {
         Err(StepError::TangentUnsupported { reason }) => assert!(reason.contains("rowlands")),
         other => panic!("{other:?}"),
     }
-    let req = Request {
+    let req = SimulationSpec {
         jacobian_defect: true,
         ..rowlands_request("pendulum", json!({"gamma": 0}))
     };
     match Simulation::prepare(&req, &Limits::default()) {
-        Err(CoreError::Invalid { field, message }) => {
-            assert_eq!(field, "methods[0]");
-            assert!(message.contains("no step Jacobian"), "{message}");
+        Err(e @ CoreError::NoStepJacobian { .. }) => {
+            assert_eq!(e.field().unwrap().as_str(), "methods[0]");
+            assert!(e.to_string().contains("no step Jacobian"), "{e}");
         }
         other => panic!("{:?}", other.map(|_| ())),
     }
@@ -540,40 +540,52 @@ fn rowlands_has_no_tangent_map_and_refuses_jacobian_defect() {
 
 #[test]
 fn the_processor_option_parses_defaults_to_cheap_and_is_checked() {
-    let object = |id: &str, processor: Option<&str>| MethodInput::Object {
-        id: id.into(),
-        inner: None,
-        base: None,
-        tolerance: None,
-        processor: processor.map(str::to_string),
+    let object = |id: &str, processor: Option<&str>| {
+        MethodSpec::Options(MethodOptions {
+            id: id.into(),
+            processor: processor.map(str::to_string),
+            ..Default::default()
+        })
     };
-    let plain = MethodChoice::parse(&MethodInput::Id("rowlands".into()), "methods[0]").unwrap();
-    assert_eq!(plain.processor, Some(Processor::Cheap));
+    let at = |f: &str| Field::new(f);
+    let plain = MethodSpec::Id("rowlands".into())
+        .to_method(&at("methods[0]"))
+        .unwrap();
+    assert_eq!(
+        plain,
+        Method::Rowlands {
+            processor: Processor::Cheap
+        }
+    );
     assert_eq!(plain.label(), "rowlands(cheap)");
-    assert_eq!(plain, MethodChoice::new(MethodId::Rowlands));
+    assert_eq!(plain, Method::new(MethodId::Rowlands));
     for p in Processor::ALL {
-        let c = MethodChoice::parse(&object("rowlands", Some(p.as_str())), "methods[0]").unwrap();
-        assert_eq!(c.processor, Some(p));
+        let c = object("rowlands", Some(p.as_str()))
+            .to_method(&at("methods[0]"))
+            .unwrap();
+        assert_eq!(c, Method::Rowlands { processor: p });
         assert_eq!(c.label(), format!("rowlands({})", p.as_str()));
         assert_eq!(c.order(), if p == Processor::None { 2 } else { 4 });
     }
-    match MethodChoice::parse(&object("rowlands", Some("fancy")), "methods[1]") {
-        Err(CoreError::Invalid { field, message }) => {
-            assert_eq!(field, "methods[1].processor");
-            assert!(message.contains("none, original, cheap"), "{message}");
+    match object("rowlands", Some("fancy")).to_method(&at("methods[1]")) {
+        Err(e @ CoreError::UnknownName { .. }) => {
+            assert_eq!(e.field().unwrap().as_str(), "methods[1].processor");
+            assert!(e.to_string().contains("none, original, cheap"), "{e}");
         }
         other => panic!("{other:?}"),
     }
-    match MethodChoice::parse(&object("velocity_verlet", Some("cheap")), "methods[0]") {
-        Err(CoreError::Invalid { field, .. }) => assert_eq!(field, "methods[0].processor"),
+    match object("velocity_verlet", Some("cheap")).to_method(&at("methods[0]")) {
+        Err(e @ CoreError::UnknownOption { .. }) => {
+            assert_eq!(e.field().unwrap().as_str(), "methods[0].processor")
+        }
         other => panic!("{other:?}"),
     }
     let info = MethodId::Rowlands.info();
     assert_eq!(
         (info.order, info.symplectic, info.symmetric, info.group),
-        (4, true, true, "geometric")
+        (4, true, true, Group::Geometric)
     );
-    assert_eq!(info.options, &["processor"]);
+    assert_eq!(info.options, &[MethodOption::Processor]);
     assert!(info.reference.paper.starts_with("001"));
 
     // Through the API's request parser.
@@ -582,8 +594,13 @@ fn the_processor_option_parses_defaults_to_cheap_and_is_checked() {
              "methods": [{"id": "rowlands", "processor": "original"}]}"#,
     )
     .unwrap();
-    let sim = Simulation::prepare(&req.to_core(), &Limits::default()).unwrap();
-    assert_eq!(sim.methods[0].processor, Some(Processor::Original));
+    let sim = req.prepare(&Limits::default()).unwrap();
+    assert_eq!(
+        sim.methods[0],
+        Method::Rowlands {
+            processor: Processor::Original
+        }
+    );
     let err = SimulateRequest::from_slice(
         br#"{"system": "pendulum", "h": 0.1, "t_end": 1, "methods": [{"id": "rowlands", "processor": 2}]}"#,
     )
@@ -594,7 +611,7 @@ fn the_processor_option_parses_defaults_to_cheap_and_is_checked() {
 #[test]
 fn stability_maps_of_rowlands_need_an_undamped_axis() {
     use geomint::core::stability::{map, Axis};
-    let rowlands = MethodChoice::new(MethodId::Rowlands);
+    let rowlands = Method::new(MethodId::Rowlands);
     let h = Axis {
         min: 0.0,
         max: 1.0,

@@ -1,9 +1,9 @@
 //! Linear stability analysis on the damped oscillator (paper 003 Ch. 3) for every method.
 
-use geomint::core::methods::{MethodChoice, MethodId};
+use geomint::core::methods::{Method, MethodId};
 use geomint::core::stability::{self, Axis, Relation};
 
-fn conformal() -> Vec<MethodChoice> {
+fn conformal() -> Vec<Method> {
     [
         MethodId::Cimp,
         MethodId::Csv1,
@@ -12,7 +12,7 @@ fn conformal() -> Vec<MethodChoice> {
         MethodId::Modin2s,
     ]
     .into_iter()
-    .map(MethodChoice::new)
+    .map(Method::new)
     .collect()
 }
 
@@ -47,7 +47,7 @@ fn conformal_methods_have_det_e_minus_2_gamma_h() {
 #[test]
 fn runge_kutta_methods_do_not_have_the_conformal_determinant() {
     for id in [MethodId::Heun, MethodId::Rk3, MethodId::Rk4] {
-        let choice = MethodChoice::new(id);
+        let choice = Method::new(id);
         let a = stability::analyse(&choice, 3.51, 0.5, 0.2).unwrap();
         let miss = (a.method.det - (-0.2f64).exp()).abs();
         assert!(miss > 1e-6, "{id:?}: det misses e^(-2γh) by only {miss:e}");
@@ -77,7 +77,7 @@ fn runge_kutta_methods_do_not_have_the_conformal_determinant() {
 fn the_exact_half_trace_matches_eq_3_6() {
     let (omega, gamma, h) = (3.51f64, 0.8f64, 0.3f64);
     let beta = (omega * omega - gamma * gamma).sqrt();
-    let a = stability::analyse(&MethodChoice::new(MethodId::Csv1), omega, gamma, h).unwrap();
+    let a = stability::analyse(&Method::new(MethodId::Csv1), omega, gamma, h).unwrap();
     assert!((0.5 * a.exact.trace - (-gamma * h).exp() * (beta * h).cos()).abs() < 1e-14);
 }
 
@@ -87,7 +87,7 @@ fn half_traces_of_the_thesis_match_our_methods() {
     for (gamma, h) in [(0.3, 0.1), (1.5, 0.4), (3.0, 0.6)] {
         let omega = 3.51f64;
         let ht = |id| {
-            0.5 * stability::analyse(&MethodChoice::new(id), omega, gamma, h)
+            0.5 * stability::analyse(&Method::new(id), omega, gamma, h)
                 .unwrap()
                 .method
                 .trace
@@ -104,7 +104,7 @@ fn half_traces_of_the_thesis_match_our_methods() {
 #[test]
 fn cimp_is_stable_wherever_omega_exceeds_gamma() {
     let m = stability::map(
-        &MethodChoice::new(MethodId::Cimp),
+        &Method::new(MethodId::Cimp),
         3.51,
         Axis {
             min: 0.0,
@@ -139,7 +139,7 @@ fn numerical_maps_agree_with_the_corrected_relations_not_the_printed_ones() {
         n: 100,
     };
     for id in [MethodId::Csv1, MethodId::Csv2] {
-        let m = stability::map(&MethodChoice::new(id), 3.51, gamma, h).unwrap();
+        let m = stability::map(&Method::new(id), 3.51, gamma, h).unwrap();
         let unstable = m.stable.iter().filter(|s| !**s).count();
         println!("{id:?}: {unstable} unstable cells, corrected relation disagrees off the boundary in {}, printed in {}", m.disagreements, m.printed_disagreements);
         assert!(
@@ -172,8 +172,7 @@ fn half_trace_error_orders() {
     // 3.23): the one-step error of a second-order method in the trace, whose O(h³) terms cancel.
     let hs = [0.08, 0.04, 0.02, 0.01];
     for id in [MethodId::Cimp, MethodId::Csv1, MethodId::Csv2] {
-        let (_, order) =
-            stability::half_trace_error(&MethodChoice::new(id), 3.51, 0.5, &hs).unwrap();
+        let (_, order) = stability::half_trace_error(&Method::new(id), 3.51, 0.5, &hs).unwrap();
         println!("{id:?}: ½tr error order {order:.3}");
         assert!((order - 4.0).abs() < 0.15, "{id:?}: observed order {order}");
     }
@@ -181,7 +180,7 @@ fn half_trace_error_orders() {
 
 #[test]
 fn maps_reject_bad_grids() {
-    let c = MethodChoice::new(MethodId::Csv1);
+    let c = Method::new(MethodId::Csv1);
     let ok = Axis {
         min: 0.0,
         max: 1.0,

@@ -6,7 +6,7 @@ mod common;
 
 use common::{request, run_all};
 use geomint::core::flows;
-use geomint::core::simulate::{Limits, Request, Simulation};
+use geomint::core::simulation::{Columns, Limits, Simulation, SimulationSpec};
 use geomint::core::system::{MechanicalSystem, State};
 use geomint::core::systems::{ElasticPendulum3d, HarmonicOscillator};
 use nalgebra::{U1, U3};
@@ -37,7 +37,7 @@ fn conformal_methods_contract_phase_area_by_exactly_e_minus_2_gamma_h_per_step()
             let mut methods: Vec<&str> = CONFORMAL.to_vec();
             methods.push("heun");
             methods.push("rk4");
-            let req = Request {
+            let req = SimulationSpec {
                 jacobian_defect: true,
                 q0: Some(vec![q0]),
                 p0: Some(vec![0.1]),
@@ -47,7 +47,7 @@ fn conformal_methods_contract_phase_area_by_exactly_e_minus_2_gamma_h_per_step()
             for (choice, run) in sim.methods.iter().zip(&runs) {
                 let defects = run.jacobian_defect.as_ref().expect("defect requested");
                 let worst = defects.iter().cloned().fold(0.0, nan_max);
-                if CONFORMAL.contains(&choice.id.as_str()) {
+                if CONFORMAL.contains(&choice.id().as_str()) {
                     assert!(
                         worst < 1e-12,
                         "{system} h={h} {}: det defect {worst:e}",
@@ -103,7 +103,7 @@ fn damped_pendulum_of_paper_000_section_4_3() {
     // up to h = 1, while Heun's H(200) is 0.3317 at h = 0.1 and 1.19 … 7.4 for h ≥ 0.4.
     let methods = ["modin_3s", "modin_2s", "modin_rks", "heun"];
     for h in [0.1, 0.2, 0.4, 0.5, 0.8, 1.0] {
-        let req = Request {
+        let req = SimulationSpec {
             compare_to_reference: true,
             ..request("pendulum", json!({"epsilon": 0.01}), &methods, h, 200.0)
         };
@@ -150,11 +150,9 @@ fn elastic_pendulum_of_paper_000_section_6_2() {
                 h,
                 200.0,
             ));
-            let rxy = |run: &geomint::core::simulate::Trajectory, i: usize| {
-                run.q[i][0].hypot(run.q[i][1])
-            };
+            let rxy = |run: &Columns, i: usize| run.q[i][0].hypot(run.q[i][1]);
             for (k, run) in runs.iter().enumerate() {
-                let j = &run.invariant_columns[0];
+                let j = &run.invariants["J3"];
                 let drift = j.iter().map(|v| (v - j[0]).abs()).fold(0.0, nan_max);
                 let n = run.t.len();
                 let late_radius = (n - n / 10..n).map(|i| rxy(run, i)).fold(0.0, nan_max);
@@ -216,7 +214,7 @@ fn nbody_angular_momentum_decays_exactly_as_e_minus_2_gamma_t() {
         // Each component of L e^{2γt} is conserved, not only its length.
         let component_drift = (0..3)
             .map(|k| {
-                let c = &run.invariant_columns[k];
+                let c = &run.invariants[["L_x", "L_y", "L_z"][k]];
                 run.t
                     .iter()
                     .zip(c)
@@ -230,7 +228,7 @@ fn nbody_angular_momentum_decays_exactly_as_e_minus_2_gamma_t() {
                 "{name}: L e^(2γt) components drift by {component_drift:e}"
             );
         }
-        let l = &run.invariant_columns[3]; // |L| e^{2γt}
+        let l = &run.invariants["L_conformal"]; // |L| e^{2γt}
         let drift = l.iter().map(|v| (v / l[0] - 1.0).abs()).fold(0.0, nan_max);
         if *name == "rk4" {
             assert!(drift > 1e-12, "rk4 conserves L e^(2γt) to {drift:e}?");
@@ -306,7 +304,7 @@ fn modin_2s_linear_momentum_flow_is_exact_also_for_singular_damping() {
 
 #[test]
 fn the_same_request_gives_bit_identical_numbers() {
-    let req = Request {
+    let req = SimulationSpec {
         compare_to_reference: true,
         ..request(
             "elastic_pendulum_3d",
@@ -319,7 +317,7 @@ fn the_same_request_gives_bit_identical_numbers() {
     let (_, a) = run_all(&req);
     let (_, b) = run_all(&req);
     for (x, y) in a.iter().zip(&b) {
-        let bits = |r: &geomint::core::simulate::Trajectory| -> Vec<u64> {
+        let bits = |r: &Columns| -> Vec<u64> {
             r.q.iter()
                 .chain(&r.p)
                 .flatten()
@@ -342,8 +340,7 @@ fn a_diverging_run_reports_the_step_instead_of_panicking() {
         3000.0,
     );
     let sim = Simulation::prepare(&req, &Limits::default()).unwrap();
-    let (traj, outcome) =
-        geomint::core::simulate::run_to_trajectory(&sim, 0, None, Default::default()).unwrap();
+    let (traj, outcome) = common::run_to_columns(&sim, 0, None, Default::default()).unwrap();
     match outcome.stop {
         geomint::core::run::StopReason::Diverged { step, t } => {
             assert!(step < 1000 && (t - 3.0 * step as f64).abs() < 1e-9);
@@ -372,7 +369,10 @@ fn dissipation_drift_of_paper_003_is_flat_for_conformal_methods_and_not_for_rk3(
     );
     let (sim, runs) = run_all(&req);
     for (name, run) in methods.iter().zip(&runs) {
-        let drift = sim.dissipation_drift(run).expect("1-DOF conformal system");
+        let q: Vec<f64> = run.q.iter().map(|q| q[0]).collect();
+        let drift = sim
+            .dissipation_drift(&run.t, &q)
+            .expect("1-DOF conformal system");
         assert!(
             drift.len() > 500,
             "{name}: {} half-oscillations",
@@ -415,7 +415,7 @@ fn force_evaluations_are_counted_and_reused_across_steps() {
     .unwrap();
     let counts: Vec<u64> = (0..methods.len())
         .map(|i| {
-            geomint::core::simulate::run_to_trajectory(&sim, i, None, Default::default())
+            common::run_to_columns(&sim, i, None, Default::default())
                 .unwrap()
                 .1
                 .stats
@@ -434,7 +434,7 @@ fn force_evaluations_are_counted_and_reused_across_steps() {
 /// The step Jacobian by central differences of the step map.
 fn jacobian_by_differences<S: MechanicalSystem>(
     sys: &S,
-    choice: &geomint::core::methods::MethodChoice,
+    choice: &geomint::core::methods::Method,
     z: &State<S::Dim>,
     h: f64,
 ) -> nalgebra::DMatrix<f64>

@@ -148,7 +148,7 @@ async fn an_energy_map_answers_json_ndjson_and_a_recording() {
     // Read with correctly rounded floats, as `post` does, so that numbers compare bit for bit.
     let lines: Vec<Value> = text
         .lines()
-        .map(|l| geomint::api::request::parse_json(l.as_bytes()).unwrap())
+        .map(|l| geomint::api::json::parse_json(l.as_bytes()).unwrap())
         .collect();
     let kinds: Vec<&str> = lines.iter().map(|l| l["type"].as_str().unwrap()).collect();
     assert_eq!(kinds[kinds.len() - 2..], ["result", "end"]);
@@ -229,10 +229,11 @@ async fn bad_maps_get_errors_naming_the_field() {
             "invalid_value",
         ),
         (json!({"params": {"k": -1}}), "params.k", "invalid_value"),
+        // An unknown parameter is an unknown field, as on every other route.
         (
             json!({"params": {"gamma": 1}}),
             "params.gamma",
-            "invalid_value",
+            "unknown_field",
         ),
         (json!({"colour": "red"}), "colour", "unknown_field"),
     ] {

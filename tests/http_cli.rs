@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use std::process::{Command, Output, Stdio};
 
 use geomint::core::run::Budget;
-use geomint::core::simulate::{run_to_trajectory, Limits, Simulation};
+use geomint::core::simulation::{ColumnSink, Limits, Simulation};
 use serde_json::{json, Value};
 
 fn geomint(args: &[&str]) -> Output {
@@ -80,10 +80,14 @@ fn run_writes_json_and_ndjson_equal_to_the_core() {
     // Bit for bit the core's numbers.
     let req = geomint::api::SimulateRequest::from_value(&spec())
         .unwrap()
-        .to_core();
+        .to_spec()
+        .unwrap();
     let sim = Simulation::prepare(&req, &Limits::default()).unwrap();
     for i in 0..2 {
-        let (traj, _) = run_to_trajectory(&sim, i, None, Budget::default()).unwrap();
+        let mut sink = ColumnSink::new(sim.invariant_names());
+        sim.run_method(i, None, Budget::default(), &mut sink)
+            .unwrap();
+        let traj = sink.take();
         let q = format!("\"q\":{}", serde_json::to_string(&traj.q).unwrap());
         let e = format!(
             "\"energy_error\":{}",
@@ -207,7 +211,8 @@ fn run_writes_a_rerun_recording_by_extension() {
 
 #[test]
 fn study_convergence_writes_the_document_of_the_library() {
-    use geomint::api::convergence::{self, ConvergenceRequest};
+    use geomint::api::studies::ConvergenceRequest;
+    use geomint::core::studies::convergence;
     let dir = scratch("convergence");
     let study = json!({"system": "harmonic_oscillator", "params": {"omega": 2, "gamma": 0.1},
         "methods": ["rk4", "csv1"], "h": [0.1, 0.05, 0.025], "t_end": 5});
@@ -228,8 +233,10 @@ fn study_convergence_writes_the_document_of_the_library() {
         stderr(&out)
     );
     // Read with correctly rounded floats, so that numbers compare bit for bit.
-    let written = geomint::api::request::parse_json(&std::fs::read(&out_path).unwrap()).unwrap();
+    let written = geomint::api::json::parse_json(&std::fs::read(&out_path).unwrap()).unwrap();
     let job = ConvergenceRequest::from_value(&study)
+        .unwrap()
+        .to_spec()
         .unwrap()
         .prepare(&Limits::default())
         .unwrap();

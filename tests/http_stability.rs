@@ -4,8 +4,8 @@
 use std::collections::BTreeSet;
 use std::time::{Duration, Instant};
 
-use geomint::core::methods::{MethodChoice, MethodId};
-use geomint::core::simulate::Limits;
+use geomint::core::methods::{Base, Method, MethodId};
+use geomint::core::simulation::Limits;
 use geomint::core::stability::{self, Axis, Relation};
 mod decoded;
 mod server;
@@ -100,11 +100,11 @@ async fn maps_are_rows_by_columns_and_equal_the_core_bit_for_bit() {
     assert_eq!(doc["gamma"], axis_json(gamma));
     assert_eq!(doc["h"], axis_json(h));
     let choices = [
-        MethodChoice::new(MethodId::Csv1),
-        MethodChoice::triple_jump(MethodId::Csv1),
-        MethodChoice::new(MethodId::Rk4),
-        MethodChoice::new(MethodId::Csv2),
-        MethodChoice::new(MethodId::ImplicitMidpoint),
+        Method::new(MethodId::Csv1),
+        Method::triple_jump(Base::Csv1),
+        Method::new(MethodId::Rk4),
+        Method::new(MethodId::Csv2),
+        Method::new(MethodId::ImplicitMidpoint),
     ];
     let maps = doc["maps"].as_array().unwrap();
     assert_eq!(maps.len(), choices.len());
@@ -138,7 +138,7 @@ async fn maps_are_rows_by_columns_and_equal_the_core_bit_for_bit() {
             }
         }
         assert_eq!(got["stable"], bool_rows(&core.stable, gamma.n), "{label}");
-        let has_relation = matches!(choice.id, MethodId::Csv1 | MethodId::Csv2);
+        let has_relation = matches!(choice.id(), MethodId::Csv1 | MethodId::Csv2);
         assert_eq!(core.analytic.is_some(), has_relation, "{label}");
         for (key, grid, count, core_count) in [
             (
@@ -360,7 +360,7 @@ async fn point_answers_match_the_core_and_the_exact_flow() {
         "½tr {exact_half_trace}"
     );
     // Everything equals the core's analysis.
-    let core = stability::analyse(&MethodChoice::new(MethodId::Csv1), omega, gamma, h).unwrap();
+    let core = stability::analyse(&Method::new(MethodId::Csv1), omega, gamma, h).unwrap();
     assert_eq!(*a, serde_json::to_value(&core).unwrap());
     assert_eq!(a["stable"], true);
     assert_eq!(doc["analytic"], json!({"corrected": true, "printed": true}));
@@ -405,8 +405,7 @@ async fn point_answers_match_the_core_and_the_exact_flow() {
     assert_eq!(status, 200, "{doc}");
     assert_eq!(doc["method"], "triple_jump(csv2)");
     assert!(doc["analytic"].is_null());
-    let core =
-        stability::analyse(&MethodChoice::triple_jump(MethodId::Csv2), omega, gamma, h).unwrap();
+    let core = stability::analyse(&Method::triple_jump(Base::Csv2), omega, gamma, h).unwrap();
     assert_eq!(doc["analysis"], serde_json::to_value(&core).unwrap());
 
     // csv2 is undefined at γh = 2 (a null cell in its map): the point is refused, naming h.

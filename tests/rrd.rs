@@ -5,10 +5,10 @@
 
 use std::collections::BTreeSet;
 
-use geomint::api::document::SimulationDocument;
-use geomint::api::{self, SimulateRequest};
+use geomint::api::SimulateRequest;
 use geomint::core::run::Budget;
-use geomint::core::simulate::Limits;
+use geomint::core::simulation::Limits;
+use geomint::core::simulation::SimulationDocument;
 use geomint::recording::{self, APPLICATION_ID};
 use geomint::recording::{path_blocks, MAX_PATH_ROWS};
 
@@ -28,7 +28,7 @@ impl Run {
     fn of(body: Value, limits: &Limits) -> Run {
         let spec = SimulateRequest::from_value(&body).expect("valid request");
         let sim = spec.prepare(limits).expect("valid simulation");
-        let doc = api::simulate(&sim, 2, Budget::default()).expect("runs");
+        let doc = sim.simulate(2, Budget::default()).expect("runs");
         let json = serde_json::to_string(&doc).unwrap();
         let rrd = recording::rrd_bytes(&spec, &doc).expect("recording");
         Run { doc, json, rrd }
@@ -222,7 +222,7 @@ fn a_million_samples_make_a_complete_recording() {
         "h": 0.001, "t_end": 1000, "output": {"every": 1}}))
     .unwrap();
     let sim = spec.prepare(&limits).unwrap();
-    let doc = api::simulate(&sim, 1, Budget::default()).unwrap();
+    let doc = sim.simulate(1, Budget::default()).unwrap();
     assert_eq!(doc.runs[0].columns.energy.len(), 1_000_001);
     let bytes = recording::rrd_bytes(&spec, &doc).unwrap();
     let d = Decoded::of(&bytes);

@@ -13,11 +13,11 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
-use geomint::api::document::SimulationDocument;
-use geomint::api::stream::CHUNK_SAMPLES;
-use geomint::api::{self, SimulateRequest};
+use geomint::api::SimulateRequest;
 use geomint::core::run::Budget;
-use geomint::core::simulate::Limits;
+use geomint::core::simulation::stream::CHUNK_SAMPLES;
+use geomint::core::simulation::Limits;
+use geomint::core::simulation::SimulationDocument;
 use geomint::recording::{path_blocks, sample_steps, APPLICATION_ID};
 use serde_json::json;
 
@@ -158,7 +158,7 @@ fn run_streams_live_to_a_rerun_viewer() {
     let answer: SimulationDocument = {
         let spec = SimulateRequest::from_value(&body).unwrap();
         let sim = spec.prepare(&Limits::default()).unwrap();
-        api::simulate(&sim, 2, Budget::default()).unwrap()
+        sim.simulate(2, Budget::default()).unwrap()
     };
     let schedule = answer.schedule;
     let samples = schedule.samples_per_method as usize;

@@ -1,35 +1,43 @@
-//! Serialisation of simulations, shared by the HTTP API and the command line.
+//! The wire layer: requests as users write them (the HTTP bodies and the command line's spec
+//! files), read strictly — unknown fields at any depth, wrong types and missing fields named,
+//! floats exact — and turned into the core's specs; and the NDJSON encoding of the lines the
+//! core streams. The OpenAPI schemas of the requests are derived from the same types.
 //!
-//! - [`request`]: the simulation request as users write it, and its strict parser.
-//! - [`document`]: the JSON answer (one run per method, sample columns, stop and statistics) and
-//!   the parallel execution of a request's methods.
-//! - [`stream`]: the NDJSON form, written while the runs compute, and the document assembled
-//!   from it.
-//! - [`catalog`]: the system and method catalogues as published.
-//! - [`stability`]: linear stability requests (maps over (γ, h), single points) and answers.
-//! - [`work_precision`]: work–precision studies (time against energy error per method).
-//! - [`convergence`]: convergence studies (errors at t_end against the step size, per method
-//!   and chart, with the fitted orders).
-//! - [`study`]: what the studies share (settings, the reference run, measurements, fits,
-//!   progress lines).
-//! - [`recording`]: Rerun recordings (`.rrd`) of simulations, stability and work–precision
-//!   studies, with their default blueprints; a run streamed live to a Rerun viewer.
-//! - [`error`]: the error shape every interface reports.
+//! - [`json`]: JSON text into a value, and the field-by-field reader.
+//! - [`method`]: a method as an id or an object with options.
+//! - [`simulate`]: the simulation request.
+//! - [`stability`]: stability maps and single points.
+//! - [`studies`]: convergence and work–precision studies, energy-error maps.
 //!
-//! Everything here is synchronous; the HTTP layer calls it off the async runtime.
+//! Results are the core's typed documents, serialized as they are.
 
-pub mod catalog;
-pub mod convergence;
-pub mod document;
-pub mod energy_map;
-pub mod error;
-pub mod request;
+pub mod json;
+pub mod method;
+pub mod simulate;
 pub mod stability;
-pub mod stream;
-pub mod study;
-pub mod work_precision;
+pub mod studies;
 
-pub use document::{simulate, RunDocument, SimulationDocument, Stop};
-pub use error::{codes, ErrorBody, ErrorDetail};
-pub use request::SimulateRequest;
-pub use stream::{ndjson_line, StreamLine};
+use serde::Serialize;
+
+pub use crate::core::error::{ErrorCode, ErrorDetail};
+pub use simulate::SimulateRequest;
+
+/// The media type of NDJSON streams.
+pub const NDJSON: &str = "application/x-ndjson";
+
+/// One line of an NDJSON stream: compact JSON and a newline. Serializing the service's lines
+/// cannot fail (non-finite floats become null); if it ever did, the line says so as an error
+/// line rather than vanishing.
+pub fn ndjson_line<T: Serialize>(line: &T) -> Vec<u8> {
+    let mut out = serde_json::to_vec(line).unwrap_or_else(|e| {
+        tracing::error!(error = %e, "a stream line could not be written");
+        let error = ErrorDetail::new(
+            ErrorCode::Internal,
+            "a line of the stream could not be written",
+        );
+        serde_json::to_vec(&serde_json::json!({"type": "error", "method": null, "error": error}))
+            .unwrap_or_default()
+    });
+    out.push(b'\n');
+    out
+}

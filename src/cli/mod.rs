@@ -17,7 +17,8 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
-use crate::api::catalog;
+use crate::core::methods::MethodId;
+use crate::core::systems;
 pub use run::RunArgs;
 pub use serve::ServeArgs;
 pub use study::StudyArgs;
@@ -61,8 +62,11 @@ pub fn run(cli: Cli) -> ExitCode {
         Command::Serve(args) => serve::serve(&args),
         Command::Run(args) => run::run_spec(&args),
         Command::Study(args) => study::run_study(&args),
-        Command::Systems => print_json(&catalog::systems()),
-        Command::Methods => print_json(&catalog::methods()),
+        Command::Systems => print_json(&systems::catalog()),
+        Command::Methods => {
+            let methods: Vec<_> = MethodId::ALL.iter().map(|m| m.info()).collect();
+            print_json(&methods)
+        }
     }
 }
 

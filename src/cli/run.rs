@@ -13,10 +13,11 @@ use clap::{Args, ValueEnum};
 use rerun::sink::GrpcSink;
 
 use super::{finish_output, parse_count, read_spec, BAD_INPUT};
-use crate::api::stream::DocumentCollector;
-use crate::api::{self, SimulateRequest, SimulationDocument, StreamLine};
+use crate::api::{ndjson_line, SimulateRequest};
 use crate::core::run::Budget;
-use crate::core::simulate::{Limits, Simulation};
+use crate::core::simulation::{
+    DocumentCollector, Limits, Simulation, SimulationDocument, StreamLine,
+};
 use crate::http;
 use crate::recording::{self, live};
 
@@ -173,7 +174,7 @@ impl Job<'_> {
     fn run(&self, format: Format, mut out: Output, spec: &SimulateRequest) -> ExitCode {
         let written = match format {
             Format::Json | Format::Rrd => {
-                let doc = match api::simulate(self.sim, self.workers, Budget::default()) {
+                let doc = match self.sim.simulate(self.workers, Budget::default()) {
                     Ok(doc) => doc,
                     Err(e) => return self.bad_input(&e),
                 };
@@ -211,7 +212,7 @@ impl Job<'_> {
         url: &str,
         sink: GrpcSink,
     ) -> ExitCode {
-        let header = api::stream::header(self.sim);
+        let header = self.sim.header();
         let name = recording::recording_name(&header.system.id, &header.methods);
         let (file, mut text) = match format {
             Format::Rrd => (Some(out), None),
@@ -299,7 +300,7 @@ impl Job<'_> {
                 }
             }
             if let Some(w) = &ndjson {
-                if let Err(e) = lock(w).write_all(&api::ndjson_line(&line)) {
+                if let Err(e) = lock(w).write_all(&ndjson_line(&line)) {
                     cancel.store(true, Ordering::Relaxed);
                     lock(&failures).write.get_or_insert(e);
                     return false;
@@ -314,7 +315,7 @@ impl Job<'_> {
             cancel: Some(&cancel),
             deadline: None,
         };
-        api::stream::stream(self.sim, self.workers, budget, &emit);
+        self.sim.stream(self.workers, budget, &emit);
         failures.into_inner().unwrap_or_else(|p| p.into_inner())
     }
 

@@ -9,7 +9,7 @@ use std::time::Duration;
 use clap::Args;
 
 use super::parse_count;
-use crate::core::simulate::Limits;
+use crate::core::simulation::Limits;
 use crate::http::{self, Config};
 
 /// Settings of `geomint serve`.

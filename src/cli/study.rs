@@ -10,10 +10,10 @@ use std::process::ExitCode;
 use clap::{Args, ValueEnum};
 
 use super::{parse_count, print_json, read_spec, BAD_INPUT};
-use crate::api;
-use crate::api::study::{ProgressLine, Runner, StudyJob};
+use crate::core::error::ErrorDetail;
 use crate::core::run::Budget;
-use crate::core::simulate::Limits;
+use crate::core::simulation::Limits;
+use crate::core::studies::settings::{ProgressLine, Runner, StudyJob};
 use crate::recording;
 
 /// The kinds of study.
@@ -46,8 +46,9 @@ pub struct StudyArgs {
 }
 
 pub(crate) fn run_study(args: &StudyArgs) -> ExitCode {
-    use crate::api::convergence::{self, ConvergenceLine, ConvergenceRequest};
-    use crate::api::work_precision::{self, StudyLine, WorkPrecisionRequest};
+    use crate::api::studies::{ConvergenceRequest, WorkPrecisionRequest};
+    use crate::core::studies::convergence::{self, ConvergenceLine};
+    use crate::core::studies::work_precision::{self, StudyLine};
     let source = args.spec.display().to_string();
     let text = match read_spec(&args.spec) {
         Ok(t) => t,
@@ -66,8 +67,10 @@ pub(crate) fn run_study(args: &StudyArgs) -> ExitCode {
     let error = |e: Option<f64>| e.map_or("-".into(), |e| format!("{e:.2e}"));
     match args.kind {
         StudyKind::WorkPrecision => {
-            let parsed = WorkPrecisionRequest::from_slice(&text)
-                .and_then(|req| req.prepare(&limits).map(|job| (req, job)));
+            let parsed = WorkPrecisionRequest::from_slice(&text).and_then(|req| {
+                let job = req.to_spec()?.prepare(&limits)?;
+                Ok((req, job))
+            });
             let progress = |line: &StudyLine| match line {
                 StudyLine::Reference {
                     reference: r,
@@ -102,8 +105,10 @@ pub(crate) fn run_study(args: &StudyArgs) -> ExitCode {
             )
         }
         StudyKind::Convergence => {
-            let parsed = ConvergenceRequest::from_slice(&text)
-                .and_then(|req| req.prepare(&limits).map(|job| (req, job)));
+            let parsed = ConvergenceRequest::from_slice(&text).and_then(|req| {
+                let job = req.to_spec()?.prepare(&limits)?;
+                Ok((req, job))
+            });
             let progress = |line: &ConvergenceLine| match line {
                 ConvergenceLine::Reference {
                     reference: r,
@@ -141,11 +146,12 @@ pub(crate) fn run_study(args: &StudyArgs) -> ExitCode {
 
 /// An energy-error map (001 Fig. 6) on all cores, with progress on standard error.
 fn run_energy_map(args: &StudyArgs, source: &str, text: &[u8]) -> ExitCode {
-    use crate::api::energy_map::{self, EnergyMapRequest, MapLine};
-    let parsed = crate::api::request::parse_json(text)
+    use crate::api::studies::EnergyMapRequest;
+    use crate::core::studies::energy_map::{self, MapLine};
+    let parsed = crate::api::json::parse_json(text)
         .and_then(|v| EnergyMapRequest::from_value(&v))
-        .and_then(|req| req.prepare().map(|spec| (req, spec)));
-    let (request, spec) = match parsed {
+        .and_then(|req| Ok(req.to_spec()?.prepare()?));
+    let spec = match parsed {
         Ok(parsed) => parsed,
         Err(e) => {
             eprintln!("error: {source}: {e}");
@@ -167,7 +173,7 @@ fn run_energy_map(args: &StudyArgs, source: &str, text: &[u8]) -> ExitCode {
         }
         true
     };
-    let doc = match energy_map::run(&spec, request.t_max, Budget::default(), &progress) {
+    let doc = match energy_map::run(&spec, Budget::default(), &progress) {
         Ok(doc) => doc,
         Err(e) => {
             eprintln!("error: {source}: {e}");
@@ -211,7 +217,7 @@ fn wants_rrd(args: &StudyArgs) -> bool {
 fn finish_study<S, L: ProgressLine>(
     args: &StudyArgs,
     source: &str,
-    parsed: Result<(S, StudyJob), api::ErrorDetail>,
+    parsed: Result<(S, StudyJob), ErrorDetail>,
     run: Runner<L>,
     progress: impl Fn(&L),
     rrd: Option<impl FnOnce(File, &S, &L::Document) -> Result<(), String>>,

@@ -2,12 +2,13 @@
 //! no files, no async.
 
 pub mod diagnostics;
-pub mod energy_map;
 pub mod error;
 pub mod flows;
 pub mod methods;
 pub mod run;
-pub mod simulate;
+pub mod schema;
+pub mod simulation;
 pub mod stability;
+pub mod studies;
 pub mod system;
 pub mod systems;

@@ -179,7 +179,8 @@ pub enum StopReason {
 }
 
 /// Run statistics, shared by every output format.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, utoipa::ToSchema)]
+#[schema(as = Stats)]
 pub struct RunStats {
     /// Steps taken.
     pub steps: u64,
@@ -265,6 +266,8 @@ where
         let next_check = ((step / check_every) + 1) * check_every;
         let until = next_sample.min(next_check).min(schedule.steps);
         let fail = |step: u64, source: StepError| CoreError::Step {
+            field: None,
+            run: None,
             step: step + 1,
             t: step as f64 * h,
             source,

@@ -29,8 +29,8 @@ use nalgebra::{Complex, Matrix2, U1};
 use rayon::prelude::*;
 use serde::Serialize;
 
-use super::error::CoreError;
-use super::methods::{self, MethodChoice, MethodId};
+use super::error::{CoreError, Field, Range};
+use super::methods::{self, Method, MethodId};
 use super::run::Stepper;
 use super::system::{MechanicalSystem, State};
 use super::systems::HarmonicOscillator;
@@ -101,31 +101,25 @@ pub struct PointAnalysis {
 }
 
 fn check_point(omega: f64, gamma: f64, h: f64) -> Result<(), CoreError> {
-    if !(omega.is_finite() && omega > 0.0) {
-        return Err(CoreError::invalid("omega", "must be finite and > 0"));
-    }
-    if !(gamma.is_finite() && gamma >= 0.0) {
-        return Err(CoreError::invalid("gamma", "must be finite and ≥ 0"));
-    }
-    if !(h.is_finite() && h > 0.0) {
-        return Err(CoreError::invalid("h", "must be finite and > 0"));
-    }
+    Range::POSITIVE.check(omega, &Field::new("omega"))?;
+    Range::NON_NEGATIVE.check(gamma, &Field::new("gamma"))?;
+    Range::POSITIVE.check(h, &Field::new("h"))?;
     Ok(())
 }
 
 /// The one-step propagation matrix of `choice` on the damped oscillator.
 pub fn propagation_matrix(
-    choice: &MethodChoice,
+    choice: &Method,
     omega: f64,
     gamma: f64,
     h: f64,
 ) -> Result<Matrix2<f64>, CoreError> {
     check_point(omega, gamma, h)?;
-    if choice.id == MethodId::Reference {
-        return Err(CoreError::invalid(
-            "methods",
-            "the adaptive reference has no fixed-step propagation matrix",
-        ));
+    if choice.id() == MethodId::Reference {
+        return Err(CoreError::Unsupported {
+            field: Field::new("method"),
+            reason: "the adaptive reference has no fixed-step propagation matrix",
+        });
     }
     let sys = HarmonicOscillator { omega, gamma };
     let mut m = Matrix2::zeros();
@@ -135,6 +129,8 @@ pub fn propagation_matrix(
         stepper
             .step(&sys, &mut z, h)
             .map_err(|source| CoreError::Step {
+                field: None,
+                run: None,
                 step: 1,
                 t: 0.0,
                 source,
@@ -160,7 +156,7 @@ fn is_stable(s: &Spectrum) -> bool {
 
 /// The method and exact spectra at (ω, γ, h).
 pub fn analyse(
-    choice: &MethodChoice,
+    choice: &Method,
     omega: f64,
     gamma: f64,
     h: f64,
@@ -175,14 +171,20 @@ pub fn analyse(
     })
 }
 
-/// An evenly spaced axis of `n` points from `min` to `max`.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, serde::Deserialize)]
+/// An evenly spaced axis of `n` points from `min` to `max`, the k-th being
+/// min + (max − min)·k/(n − 1).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, serde::Deserialize, utoipa::ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(as = AxisSpec)]
 pub struct Axis {
-    /// First value.
+    /// First value (≥ 0).
+    #[schema(example = 0.0, minimum = 0.0)]
     pub min: f64,
-    /// Last value.
+    /// Last value (≥ min).
+    #[schema(example = 1.0, minimum = 0.0)]
     pub max: f64,
-    /// Number of points (≥ 2).
+    /// Number of points, 2 to 1000.
+    #[schema(example = 41, minimum = 2, maximum = 1000)]
     pub n: usize,
 }
 
@@ -192,15 +194,19 @@ impl Axis {
         self.min + (self.max - self.min) * k as f64 / (self.n - 1) as f64
     }
 
-    fn check(&self, field: &str, max_n: usize) -> Result<(), CoreError> {
-        if !(self.min.is_finite() && self.max.is_finite() && self.min <= self.max) {
-            return Err(CoreError::invalid(field, "needs finite min ≤ max"));
-        }
+    /// Checks the axis: finite, 0 ≤ min ≤ max, 2 to `max_n` points; errors name `field.min`,
+    /// `field.max` or `field.n`.
+    pub fn check(&self, field: &Field, max_n: usize) -> Result<(), CoreError> {
+        Range::NON_NEGATIVE.check(self.min, &field.key("min"))?;
+        Range::above(self.min, false).check(self.max, &field.key("max"))?;
         if self.n < 2 || self.n > max_n {
-            return Err(CoreError::invalid(
-                format!("{field}.n"),
-                format!("needs 2 to {max_n} points"),
-            ));
+            return Err(CoreError::Count {
+                field: field.key("n"),
+                got: self.n as u64,
+                min: 2,
+                max: max_n as u64,
+                what: "points",
+            });
         }
         Ok(())
     }
@@ -290,20 +296,9 @@ pub struct StabilityMap {
 pub const MAX_AXIS_POINTS: usize = 1000;
 
 /// The stability map of `choice` over the grid, computed in parallel over rows.
-pub fn map(
-    choice: &MethodChoice,
-    omega: f64,
-    gamma: Axis,
-    h: Axis,
-) -> Result<StabilityMap, CoreError> {
-    gamma.check("gamma", MAX_AXIS_POINTS)?;
-    h.check("h", MAX_AXIS_POINTS)?;
-    if gamma.min < 0.0 {
-        return Err(CoreError::invalid("gamma.min", "must be ≥ 0"));
-    }
-    if h.min < 0.0 {
-        return Err(CoreError::invalid("h.min", "must be ≥ 0"));
-    }
+pub fn map(choice: &Method, omega: f64, gamma: Axis, h: Axis) -> Result<StabilityMap, CoreError> {
+    gamma.check(&Field::new("gamma"), MAX_AXIS_POINTS)?;
+    h.check(&Field::new("h"), MAX_AXIS_POINTS)?;
     check_point(omega, 0.0, 1.0)?;
     // A method that refuses damping (rowlands) would be refused in every damped cell: say so once.
     let widest = HarmonicOscillator {
@@ -311,6 +306,7 @@ pub fn map(
         gamma: gamma.max,
     };
     choice.check(
+        &Field::new("method"),
         "harmonic_oscillator",
         widest.structure(),
         widest.damping_rate(),
@@ -335,7 +331,7 @@ pub fn map(
         (0..h.n * gamma.n)
             .map(|k| {
                 analytic_stable(
-                    choice.id,
+                    choice.id(),
                     relation,
                     omega,
                     gamma.at(k % gamma.n),
@@ -400,7 +396,7 @@ fn disagreements_off_boundary(a: &[bool], b: &[bool], rows: usize, cols: usize) 
 /// The ½ tr error |½tr M_exact − ½tr M_method| at each h, and its observed order (the slope of
 /// log error against log h).
 pub fn half_trace_error(
-    choice: &MethodChoice,
+    choice: &Method,
     omega: f64,
     gamma: f64,
     hs: &[f64],

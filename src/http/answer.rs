@@ -1,21 +1,37 @@
-//! The forms a computing route answers in — one JSON document, an NDJSON stream, or a Rerun
-//! recording — chosen by `?format=` (or, for streams, the `Accept` header), and the response of a
-//! finished document.
+//! How a computing route answers, in one place: the form it answers in (one JSON document, an
+//! NDJSON stream, or a Rerun recording — `?format=` or, for streams, the `Accept` header), and the
+//! computation behind it ([`Work`]): simulation slots taken, a deadline and a cancellation flag
+//! set when the client goes away or the server shuts down, the work run off the async runtime.
+//!
+//! Streams have bounded back-pressure: the computation waits for a slow reader, but not past the
+//! request's deadline plus [`STALLED_CLIENT_GRACE`]; a client that stops reading is then dropped,
+//! its computation cancelled and its slots freed — on every streaming route.
 
 use std::collections::BTreeMap;
+use std::convert::Infallible;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
 
-use axum::body::Body;
+use axum::body::{Body, Bytes};
 use axum::http::{header, HeaderMap, HeaderValue};
 use axum::response::Response;
+use futures_util::StreamExt;
 use serde::Serialize;
+use tokio::sync::{mpsc, OwnedSemaphorePermit};
+use tokio_stream::wrappers::ReceiverStream;
+use tracing::Instrument;
 
 use super::error::ApiError;
 use super::recordings::rrd_response;
-use crate::api::error::{codes, ErrorDetail};
+use super::state::{run_blocking, AppState};
+use crate::api::{ndjson_line, NDJSON};
+use crate::core::error::{ErrorCode, ErrorDetail};
+use crate::core::run::Budget;
 use crate::recording::RecordingError;
 
-/// The media type of NDJSON streams.
-pub const NDJSON: &str = "application/x-ndjson";
+/// How long past the time limit a stream waits for a client that does not read.
+pub const STALLED_CLIENT_GRACE: Duration = Duration::from_secs(10);
 
 /// How a route answers.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -62,21 +78,22 @@ impl Format {
         offers: &[Format],
     ) -> Result<Format, ApiError> {
         let streams = offers.contains(&Format::Ndjson);
+        let offered = |f: &Format| *f == Format::Json || offers.contains(f);
         match query.get("format").map(String::as_str) {
             None if streams && wants_stream(headers) => Ok(Format::Ndjson),
             None => Ok(Format::Json),
             Some(name) => Format::ALL
                 .iter()
                 .copied()
-                .find(|f| f.name() == name && (*f == Format::Json || offers.contains(f)))
+                .find(|f| f.name() == name && offered(f))
                 .ok_or_else(|| {
                     let known: Vec<&str> = Format::ALL
                         .iter()
-                        .filter(|f| **f == Format::Json || offers.contains(f))
+                        .filter(|f| offered(f))
                         .map(|f| f.name())
                         .collect();
                     ApiError::from(ErrorDetail::at(
-                        codes::INVALID_VALUE,
+                        ErrorCode::InvalidValue,
                         "format",
                         format!("unknown format `{name}`; one of {}", known.join(", ")),
                     ))
@@ -110,5 +127,157 @@ impl Format {
             HeaderValue::from_static("application/json"),
         );
         response
+    }
+}
+
+/// A computation a request has been admitted to: its simulation slots, its deadline and its
+/// cancellation flag (set when the server shuts down, or when the request goes away).
+pub struct Work {
+    permits: Vec<OwnedSemaphorePermit>,
+    deadline: Instant,
+    cancel: Arc<AtomicBool>,
+    state: AppState,
+}
+
+impl Work {
+    /// Admits a request that wants `slots` simulation threads: one, waiting up to the queue
+    /// timeout (else 503), plus up to `slots − 1` more that are free now.
+    pub async fn admit(state: &AppState, slots: usize) -> Result<Work, ApiError> {
+        let permits = state.acquire(slots).await?;
+        Ok(Work {
+            permits,
+            deadline: Instant::now() + state.config.request_timeout,
+            cancel: Arc::new(AtomicBool::new(false)),
+            state: state.clone(),
+        })
+    }
+
+    /// The simulation threads the request got.
+    pub fn workers(&self) -> usize {
+        self.permits.len()
+    }
+
+    /// Runs `compute` off the async runtime with the request's budget and returns what it
+    /// gives. If this future is dropped (the client went away), the computation is cancelled.
+    pub async fn run<T: Send + 'static>(
+        self,
+        compute: impl FnOnce(Budget<'_>) -> Result<T, ApiError> + Send + 'static,
+    ) -> Result<T, ApiError> {
+        let Work {
+            permits,
+            deadline,
+            cancel,
+            state,
+        } = self;
+        let _guard = CancelOnDrop(cancel.clone());
+        let mut shutdown = state.cancellation();
+        let flag = cancel.clone();
+        let watcher = tokio::spawn(async move {
+            if shutdown.wait_for(|&c| c).await.is_ok() {
+                flag.store(true, Ordering::Relaxed);
+            }
+        });
+        let result = run_blocking(move || {
+            let _permits = permits;
+            compute(Budget {
+                cancel: Some(&cancel),
+                deadline: Some(deadline),
+            })
+        })
+        .await;
+        watcher.abort();
+        result?
+    }
+
+    /// Answers with an NDJSON stream of the lines `produce` emits while it computes, its last
+    /// line included. `emit` returns false once the client has gone away (the budget's flag is
+    /// then set, so the computation stops between steps) or has not read for too long. A fault
+    /// of the computation itself (a panic) is sent as `error_line` followed by `end`.
+    pub fn stream<L, F>(
+        self,
+        produce: F,
+        error_line: fn(ErrorDetail) -> L,
+        end: fn() -> L,
+    ) -> Response
+    where
+        L: Serialize + Send + 'static,
+        F: FnOnce(Budget<'_>, &(dyn Fn(L) -> bool + Sync)) + Send + 'static,
+    {
+        let Work {
+            permits,
+            deadline,
+            cancel,
+            state,
+        } = self;
+        let (tx, rx) = mpsc::channel::<Bytes>(16);
+        let mut shutdown = state.cancellation();
+        let task = async move {
+            // Cancel the computation when the client goes away (the body, and so the
+            // receiver, is dropped) or the server shuts down.
+            let watched = tx.clone();
+            let flag = cancel.clone();
+            let watcher = tokio::spawn(async move {
+                tokio::select! {
+                    _ = watched.closed() => {
+                        tracing::info!("client went away; cancelling the computation");
+                        flag.store(true, Ordering::Relaxed);
+                    }
+                    Ok(_) = shutdown.wait_for(|&c| c) => flag.store(true, Ordering::Relaxed),
+                }
+            });
+            let sender = tx.clone();
+            let runtime = tokio::runtime::Handle::current();
+            let result = run_blocking(move || {
+                let _permits = permits;
+                // Waits while the client reads slowly, but not past the deadline plus a grace
+                // time: a client that stops reading cannot hold its slots for ever.
+                let emit = |line: L| {
+                    let patience =
+                        deadline.saturating_duration_since(Instant::now()) + STALLED_CLIENT_GRACE;
+                    let bytes = Bytes::from(ndjson_line(&line));
+                    let send = async { tokio::time::timeout(patience, sender.send(bytes)).await };
+                    let sent = matches!(runtime.block_on(send), Ok(Ok(())));
+                    if !sent {
+                        cancel.store(true, Ordering::Relaxed);
+                    }
+                    sent
+                };
+                let budget = Budget {
+                    cancel: Some(&cancel),
+                    deadline: Some(deadline),
+                };
+                produce(budget, &emit);
+            })
+            .await;
+            watcher.abort();
+            if let Err(error) = result {
+                let _ = tx
+                    .send(Bytes::from(ndjson_line(&error_line(
+                        error.detail().clone(),
+                    ))))
+                    .await;
+                let _ = tx.send(Bytes::from(ndjson_line(&end()))).await;
+            }
+            tracing::info!("stream finished");
+        };
+        tokio::spawn(task.instrument(tracing::Span::current()));
+        let body = Body::from_stream(ReceiverStream::new(rx).map(Ok::<_, Infallible>));
+        let mut response = Response::new(body);
+        let headers = response.headers_mut();
+        headers.insert(header::CONTENT_TYPE, HeaderValue::from_static(NDJSON));
+        headers.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-cache"));
+        headers.insert("x-accel-buffering", HeaderValue::from_static("no"));
+        response
+    }
+}
+
+/// Sets a cancellation flag when dropped: a request future dropped because its client went
+/// away stops its computation.
+#[derive(Debug)]
+struct CancelOnDrop(Arc<AtomicBool>);
+
+impl Drop for CancelOnDrop {
+    fn drop(&mut self) {
+        self.0.store(true, Ordering::Relaxed);
     }
 }

@@ -5,8 +5,17 @@
 use axum::body::Body;
 use axum::http::{header, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
+use serde::Serialize;
+use utoipa::ToSchema;
 
-use crate::api::error::{codes, ErrorBody, ErrorDetail};
+use crate::core::error::{CoreError, ErrorCode, ErrorDetail};
+
+/// The body of every HTTP error response: `{"error": {"code", "message", "field"}}`.
+#[derive(Clone, Debug, PartialEq, Serialize, ToSchema)]
+pub struct ErrorBody {
+    /// The error.
+    pub error: ErrorDetail,
+}
 
 /// An error answer: status, error detail and, for 503, a `Retry-After` hint.
 #[derive(Clone, Debug, PartialEq)]
@@ -17,18 +26,28 @@ pub struct ApiError {
 }
 
 /// The HTTP status of an error code.
-pub fn status_for(code: &str) -> StatusCode {
+pub fn status_for(code: ErrorCode) -> StatusCode {
     match code {
-        codes::MALFORMED_JSON | codes::BAD_REQUEST => StatusCode::BAD_REQUEST,
-        codes::PAYLOAD_TOO_LARGE => StatusCode::PAYLOAD_TOO_LARGE,
-        codes::UNSUPPORTED_MEDIA_TYPE => StatusCode::UNSUPPORTED_MEDIA_TYPE,
-        codes::NOT_FOUND => StatusCode::NOT_FOUND,
-        codes::METHOD_NOT_ALLOWED => StatusCode::METHOD_NOT_ALLOWED,
-        codes::OVERLOADED => StatusCode::SERVICE_UNAVAILABLE,
-        codes::TIMEOUT => StatusCode::GATEWAY_TIMEOUT,
-        codes::INTERNAL => StatusCode::INTERNAL_SERVER_ERROR,
-        codes::RECORDING_TOO_LARGE => StatusCode::INSUFFICIENT_STORAGE,
-        _ => StatusCode::UNPROCESSABLE_ENTITY,
+        ErrorCode::MalformedJson | ErrorCode::BadRequest => StatusCode::BAD_REQUEST,
+        ErrorCode::PayloadTooLarge => StatusCode::PAYLOAD_TOO_LARGE,
+        ErrorCode::UnsupportedMediaType => StatusCode::UNSUPPORTED_MEDIA_TYPE,
+        ErrorCode::NotFound => StatusCode::NOT_FOUND,
+        ErrorCode::MethodNotAllowed => StatusCode::METHOD_NOT_ALLOWED,
+        ErrorCode::Overloaded => StatusCode::SERVICE_UNAVAILABLE,
+        ErrorCode::Timeout => StatusCode::GATEWAY_TIMEOUT,
+        ErrorCode::Internal => StatusCode::INTERNAL_SERVER_ERROR,
+        ErrorCode::RecordingTooLarge => StatusCode::INSUFFICIENT_STORAGE,
+        ErrorCode::UnknownField
+        | ErrorCode::MissingField
+        | ErrorCode::InvalidType
+        | ErrorCode::InvalidValue
+        | ErrorCode::UnknownSystem
+        | ErrorCode::UnknownMethod
+        | ErrorCode::UnmetRequirement
+        | ErrorCode::TooManySteps
+        | ErrorCode::TooManySamples
+        | ErrorCode::TooManyCells
+        | ErrorCode::StepFailed => StatusCode::UNPROCESSABLE_ENTITY,
     }
 }
 
@@ -48,7 +67,7 @@ impl ApiError {
         Self::new(
             StatusCode::INTERNAL_SERVER_ERROR,
             ErrorDetail::new(
-                codes::INTERNAL,
+                ErrorCode::Internal,
                 "internal server error; the details are in the server log",
             ),
         )
@@ -61,7 +80,7 @@ impl ApiError {
             ..Self::new(
                 StatusCode::SERVICE_UNAVAILABLE,
                 ErrorDetail::new(
-                    codes::OVERLOADED,
+                    ErrorCode::Overloaded,
                     "every simulation slot is busy; retry after the time in Retry-After",
                 ),
             )
@@ -72,7 +91,7 @@ impl ApiError {
     pub fn not_found(message: impl Into<String>) -> Self {
         Self::new(
             StatusCode::NOT_FOUND,
-            ErrorDetail::new(codes::NOT_FOUND, message),
+            ErrorDetail::new(ErrorCode::NotFound, message),
         )
     }
 
@@ -101,11 +120,16 @@ impl ApiError {
 
 impl From<ErrorDetail> for ApiError {
     fn from(detail: ErrorDetail) -> Self {
-        let status = status_for(&detail.code);
-        if status.is_server_error() && detail.code == codes::INTERNAL {
+        if detail.code == ErrorCode::Internal {
             return ApiError::internal(detail.message);
         }
-        Self::new(status, detail)
+        Self::new(status_for(detail.code), detail)
+    }
+}
+
+impl From<CoreError> for ApiError {
+    fn from(error: CoreError) -> Self {
+        ApiError::from(ErrorDetail::from(error))
     }
 }
 

@@ -1,19 +1,20 @@
 //! [`ApiJson`], the JSON body extractor of the service. Unlike axum's own, every rejection — a
-//! wrong content type, a body over the limit, malformed JSON, a number JSON cannot carry, a
-//! field of the wrong type — answers in the service's error shape.
+//! wrong content type, a body over the limit, malformed JSON, a number JSON cannot carry —
+//! answers in the service's error shape; the request readers of [`crate::api`] then read the
+//! value field by field.
 
 use axum::body::Bytes;
 use axum::extract::{FromRequest, Request};
 use axum::http::{header, StatusCode};
-use serde::de::DeserializeOwned;
+use serde_json::Value;
 
 use super::error::ApiError;
-use crate::api::error::{codes, ErrorDetail};
-use crate::api::request::from_json;
+use crate::api::json::parse_json;
+use crate::core::error::{ErrorCode, ErrorDetail};
 
-/// A JSON request body, deserialized into `T`; rejections are [`ApiError`]s.
+/// A JSON request body as a value; rejections are [`ApiError`]s.
 #[derive(Clone, Debug)]
-pub struct ApiJson<T>(pub T);
+pub struct ApiJson(pub Value);
 
 /// Whether a content type is JSON (`application/json` or `application/*+json`).
 fn is_json(content_type: &str) -> bool {
@@ -27,10 +28,9 @@ fn is_json(content_type: &str) -> bool {
         || (essence.starts_with("application/") && essence.ends_with("+json"))
 }
 
-impl<S, T> FromRequest<S> for ApiJson<T>
+impl<S> FromRequest<S> for ApiJson
 where
     S: Send + Sync,
-    T: DeserializeOwned,
 {
     type Rejection = ApiError;
 
@@ -42,7 +42,7 @@ where
                 return Err(ApiError::new(
                     StatusCode::UNSUPPORTED_MEDIA_TYPE,
                     ErrorDetail::new(
-                        codes::UNSUPPORTED_MEDIA_TYPE,
+                        ErrorCode::UnsupportedMediaType,
                         format!(
                             "the body must be JSON (Content-Type: application/json), not `{text}`"
                         ),
@@ -55,7 +55,7 @@ where
                 ApiError::new(
                     StatusCode::PAYLOAD_TOO_LARGE,
                     ErrorDetail::new(
-                        codes::PAYLOAD_TOO_LARGE,
+                        ErrorCode::PayloadTooLarge,
                         "the request body exceeds the size limit",
                     ),
                 )
@@ -63,12 +63,12 @@ where
                 ApiError::new(
                     StatusCode::BAD_REQUEST,
                     ErrorDetail::new(
-                        codes::BAD_REQUEST,
+                        ErrorCode::BadRequest,
                         format!("the request body could not be read: {rejection}"),
                     ),
                 )
             }
         })?;
-        from_json(&bytes).map(ApiJson).map_err(ApiError::from)
+        parse_json(&bytes).map(ApiJson).map_err(ApiError::from)
     }
 }

@@ -8,12 +8,13 @@ use axum::Json;
 use serde::Serialize;
 use utoipa::{OpenApi, ToSchema};
 
-use super::error::ApiError;
+use super::error::{ApiError, ErrorBody};
 use super::openapi::ApiDoc;
 use super::paths;
 use super::state::AppState;
-use crate::api::catalog::{self, MethodEntry, SystemEntry};
-use crate::api::error::{codes, ErrorBody, ErrorDetail};
+use crate::core::error::{ErrorCode, ErrorDetail, Field};
+use crate::core::methods::{MethodId, MethodInfo};
+use crate::core::systems::{self, SystemInfo};
 
 /// The health answer.
 #[derive(Clone, Debug, Serialize, ToSchema)]
@@ -44,41 +45,41 @@ pub async fn healthz(State(state): State<AppState>) -> Json<Health> {
 /// The system catalogue: parameters with defaults and ranges, default initial state,
 /// invariants.
 #[utoipa::path(get, path = paths::SYSTEMS, tag = "catalog",
-    responses((status = 200, description = "Every system", body = Vec<SystemEntry>)))]
-pub async fn list_systems() -> Json<Vec<SystemEntry>> {
-    Json(catalog::systems())
+    responses((status = 200, description = "Every system", body = Vec<SystemInfo>)))]
+pub async fn list_systems() -> Json<&'static [SystemInfo]> {
+    Json(systems::catalog())
 }
 
 /// One system of the catalogue.
 #[utoipa::path(get, path = paths::SYSTEM, tag = "catalog",
     params(("id" = String, Path, description = "System id", example = "pendulum")),
     responses(
-        (status = 200, description = "The system", body = SystemEntry),
+        (status = 200, description = "The system", body = SystemInfo),
         (status = 404, description = "No such system", body = ErrorBody),
     ))]
-pub async fn get_system(Path(id): Path<String>) -> Result<Json<SystemEntry>, ApiError> {
-    catalog::system(&id)
+pub async fn get_system(Path(id): Path<String>) -> Result<Json<&'static SystemInfo>, ApiError> {
+    systems::info(&id, &Field::new("id"))
         .map(Json)
-        .ok_or_else(|| ApiError::not_found(format!("unknown system `{id}`")))
+        .map_err(|_| ApiError::not_found(format!("unknown system `{id}`")))
 }
 
 /// The method catalogue: order, kind, geometric properties, requirements and citation.
 #[utoipa::path(get, path = paths::METHODS, tag = "catalog",
-    responses((status = 200, description = "Every method", body = Vec<MethodEntry>)))]
-pub async fn list_methods() -> Json<Vec<MethodEntry>> {
-    Json(catalog::methods())
+    responses((status = 200, description = "Every method", body = Vec<MethodInfo>)))]
+pub async fn list_methods() -> Json<Vec<&'static MethodInfo>> {
+    Json(MethodId::ALL.iter().map(|m| m.info()).collect())
 }
 
 /// One method of the catalogue.
 #[utoipa::path(get, path = paths::METHOD, tag = "catalog",
     params(("id" = String, Path, description = "Method id", example = "modin_3s")),
     responses(
-        (status = 200, description = "The method", body = MethodEntry),
+        (status = 200, description = "The method", body = MethodInfo),
         (status = 404, description = "No such method", body = ErrorBody),
     ))]
-pub async fn get_method(Path(id): Path<String>) -> Result<Json<MethodEntry>, ApiError> {
-    catalog::method(&id)
-        .map(Json)
+pub async fn get_method(Path(id): Path<String>) -> Result<Json<&'static MethodInfo>, ApiError> {
+    MethodId::parse(&id)
+        .map(|m| Json(m.info()))
         .ok_or_else(|| ApiError::not_found(format!("unknown method `{id}`")))
 }
 
@@ -114,7 +115,7 @@ pub async fn method_not_allowed(method: axum::http::Method, uri: axum::http::Uri
     ApiError::new(
         axum::http::StatusCode::METHOD_NOT_ALLOWED,
         ErrorDetail::new(
-            codes::METHOD_NOT_ALLOWED,
+            ErrorCode::MethodNotAllowed,
             format!("`{}` does not take {method}", uri.path()),
         ),
     )

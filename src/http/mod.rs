@@ -10,6 +10,7 @@
 //! | `POST /api/v1/stability/point` | linear stability analysis at one (ω, γ, h) |
 //! | `POST /api/v1/studies/work-precision` | a work–precision study (JSON, NDJSON progress, or `?format=rrd`) |
 //! | `POST /api/v1/studies/convergence` | a convergence study: errors at t_end against h, fitted orders (JSON or NDJSON progress) |
+//! | `POST /api/v1/studies/energy-map` | an energy-error map, Cartesian against polar coordinates (JSON, NDJSON progress, or `?format=rrd`) |
 //! | `POST /api/v1/recordings`, `GET /api/v1/recordings` | store a run's Rerun recording; list them |
 //! | `GET /api/v1/recordings/{id}.rrd`, `DELETE /api/v1/recordings/{id}` | download or delete one |
 //! | `GET /api/v1/openapi.json` | the OpenAPI 3 document |
@@ -19,7 +20,6 @@
 //! of the middleware (body limit 413, time limit 504) and unknown routes (404, 405).
 
 pub mod answer;
-pub mod energy_map;
 pub mod error;
 pub mod extract;
 pub mod handlers;
@@ -52,10 +52,11 @@ use tower_http::timeout::TimeoutLayer;
 use tower_http::trace::{DefaultOnResponse, TraceLayer};
 
 pub use error::ApiError;
+pub use error::ErrorBody;
 pub use extract::ApiJson;
 pub use state::{run_blocking, AppState, Config};
 
-use crate::api::error::{codes, ErrorDetail};
+use crate::core::error::{ErrorCode, ErrorDetail};
 
 /// Paths of the routes.
 pub mod paths {
@@ -122,7 +123,7 @@ pub fn app(state: AppState) -> Router {
         .route(paths::STABILITY, post(stability::stability_map))
         .route(paths::STABILITY_POINT, post(stability::stability_point))
         .route(paths::WORK_PRECISION, post(studies::work_precision))
-        .route(paths::ENERGY_MAP, post(energy_map::energy_map))
+        .route(paths::ENERGY_MAP, post(studies::energy_map))
         .route(paths::CONVERGENCE, post(studies::convergence))
         .route(paths::OPENAPI, get(handlers::openapi_json))
         .route(
@@ -145,7 +146,7 @@ pub fn app(state: AppState) -> Router {
     // compressed already.
     let compression = CompressionLayer::new().compress_when(
         DefaultPredicate::new()
-            .and(NotForContentType::const_new(answer::NDJSON))
+            .and(NotForContentType::const_new(crate::api::NDJSON))
             .and(NotForContentType::const_new(
                 crate::recording::RRD_MEDIA_TYPE,
             )),
@@ -225,17 +226,17 @@ async fn json_errors(response: Response) -> Response {
     }
     let (code, message) = match status {
         StatusCode::PAYLOAD_TOO_LARGE => (
-            codes::PAYLOAD_TOO_LARGE,
+            ErrorCode::PayloadTooLarge,
             "the request body exceeds the size limit",
         ),
-        StatusCode::NOT_FOUND => (codes::NOT_FOUND, "not found"),
-        StatusCode::METHOD_NOT_ALLOWED => (codes::METHOD_NOT_ALLOWED, "method not allowed"),
+        StatusCode::NOT_FOUND => (ErrorCode::NotFound, "not found"),
+        StatusCode::METHOD_NOT_ALLOWED => (ErrorCode::MethodNotAllowed, "method not allowed"),
         StatusCode::GATEWAY_TIMEOUT | StatusCode::REQUEST_TIMEOUT => (
-            codes::TIMEOUT,
+            ErrorCode::Timeout,
             "the request took longer than the time limit",
         ),
-        s if s.is_server_error() => (codes::INTERNAL, "internal server error"),
-        _ => (codes::BAD_REQUEST, "bad request"),
+        s if s.is_server_error() => (ErrorCode::Internal, "internal server error"),
+        _ => (ErrorCode::BadRequest, "bad request"),
     };
     let (mut parts, _) = response.into_parts();
     let error = ApiError::new(status, ErrorDetail::new(code, message)).into_response();

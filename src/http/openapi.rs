@@ -3,18 +3,20 @@
 
 use utoipa::OpenApi;
 
+use super::error::ErrorBody;
 use super::recordings::{self, RecordingCreated};
 use super::store::RecordingEntry;
-use super::{energy_map, handlers, simulate, stability, studies};
-use crate::api::catalog::{MethodEntry, SystemEntry};
-use crate::api::convergence::{ConvergenceDocument, ConvergenceLine, ConvergenceRequest};
-use crate::api::document::SimulationDocument;
-use crate::api::energy_map::{EnergyMapDocument, EnergyMapRequest, MapLine};
-use crate::api::error::ErrorBody;
-use crate::api::request::SimulateRequest;
-use crate::api::stability::{PointDocument, PointRequest, StabilityDocument, StabilityRequest};
-use crate::api::stream::StreamLine;
-use crate::api::work_precision::{StudyLine, WorkPrecisionDocument, WorkPrecisionRequest};
+use super::{handlers, simulate, stability, studies};
+use crate::api::stability::{PointRequest, StabilityRequest};
+use crate::api::studies::{ConvergenceRequest, EnergyMapRequest, WorkPrecisionRequest};
+use crate::api::SimulateRequest;
+use crate::core::methods::MethodInfo;
+use crate::core::simulation::{SimulationDocument, StreamLine};
+use crate::core::studies::convergence::{ConvergenceDocument, ConvergenceLine};
+use crate::core::studies::energy_map::{EnergyMapDocument, MapLine};
+use crate::core::studies::stability::{PointDocument, StabilityDocument};
+use crate::core::studies::work_precision::{StudyLine, WorkPrecisionDocument};
+use crate::core::systems::SystemInfo;
 
 /// The OpenAPI document: `ApiDoc::openapi()`.
 #[derive(OpenApi)]
@@ -35,7 +37,7 @@ use crate::api::work_precision::{StudyLine, WorkPrecisionDocument, WorkPrecision
         stability::stability_map,
         stability::stability_point,
         studies::work_precision,
-        energy_map::energy_map,
+        studies::energy_map,
         studies::convergence,
         handlers::openapi_json,
         recordings::create_recording,
@@ -60,8 +62,8 @@ use crate::api::work_precision::{StudyLine, WorkPrecisionDocument, WorkPrecision
         ConvergenceRequest,
         ConvergenceDocument,
         ConvergenceLine,
-        SystemEntry,
-        MethodEntry,
+        SystemInfo,
+        MethodInfo,
         ErrorBody,
         handlers::Health,
         RecordingCreated,

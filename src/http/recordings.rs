@@ -7,29 +7,23 @@
 //! traversal attempts included, is answered 404. The simulation runs behind the same semaphore
 //! and time limit as `POST /api/v1/simulate`; writing the file happens on the blocking pool.
 
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
-use std::time::Instant;
-
 use axum::body::{Body, Bytes};
 use axum::extract::{Path, State};
 use axum::http::{header, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::Json;
 use serde::Serialize;
-use serde_json::Value;
 use tokio::io::AsyncReadExt;
 use utoipa::ToSchema;
 
-use super::error::ApiError;
+use super::answer::Work;
+use super::error::{ApiError, ErrorBody};
 use super::extract::ApiJson;
 use super::paths;
-use super::state::{cancel_on_shutdown, run_blocking, AppState, CancelOnDrop};
+use super::state::{run_blocking, AppState};
 use super::store::{is_valid_id, RecordingEntry, SpecSummary, StoreError};
-use crate::api::document;
-use crate::api::error::{codes, ErrorBody, ErrorDetail};
-use crate::api::request::SimulateRequest;
-use crate::core::run::Budget;
+use crate::api::SimulateRequest;
+use crate::core::error::{ErrorCode, ErrorDetail};
 use crate::recording::{self, RRD_MEDIA_TYPE};
 
 /// The answer to a stored recording.
@@ -67,7 +61,7 @@ fn no_recording(name: &str) -> ApiError {
 pub(crate) fn store_error(error: StoreError) -> ApiError {
     match error {
         StoreError::TooLarge { .. } => ApiError::from(ErrorDetail::at(
-            codes::RECORDING_TOO_LARGE,
+            ErrorCode::RecordingTooLarge,
             "output.every",
             format!("{error}; sample less often"),
         )),
@@ -115,41 +109,34 @@ pub(crate) fn rrd_response(body: Body, filename: &str, length: Option<u64>) -> R
     ))]
 pub async fn create_recording(
     State(state): State<AppState>,
-    ApiJson(body): ApiJson<Value>,
+    ApiJson(body): ApiJson,
 ) -> Result<Response, ApiError> {
     let request = SimulateRequest::from_value(&body)?;
     let sim = request.prepare(&state.config.limits)?;
-    let permits = state.acquire(sim.methods.len()).await?;
-    let workers = permits.len();
-    let deadline = Instant::now() + state.config.request_timeout;
-    let cancel = Arc::new(AtomicBool::new(false));
-    let _guard = CancelOnDrop(cancel.clone());
-    let shutdown = cancel_on_shutdown(&state, cancel.clone());
+    let work = Work::admit(&state, sim.methods.len()).await?;
+    let workers = work.workers();
     let store = state.recordings.clone();
-    tracing::info!(system = %sim.system_id, methods = sim.methods.len(), steps = sim.schedule.steps, "recording started");
-    let result = run_blocking(move || -> Result<RecordingEntry, ApiError> {
-        let _permits = permits;
-        let budget = Budget {
-            cancel: Some(&cancel),
-            deadline: Some(deadline),
-        };
-        let doc = document::simulate(&sim, workers, budget)?;
-        if cancel.load(Ordering::Relaxed) {
-            // The client went away or the server is stopping: nothing to keep.
-            return Err(ApiError::new(
-                StatusCode::SERVICE_UNAVAILABLE,
-                ErrorDetail::new(codes::OVERLOADED, "the recording was cancelled"),
-            ));
-        }
-        store
-            .save(SpecSummary::of(&sim), |w| {
-                recording::write_rrd(w, &request, &doc)
-            })
-            .map_err(store_error)
-    })
-    .await;
-    shutdown.abort();
-    let entry = result??;
+    tracing::info!(system = %sim.system_id(), methods = sim.methods.len(), steps = sim.schedule.steps, "recording started");
+    let entry = work
+        .run(move |budget| {
+            let doc = sim.simulate(workers, budget)?;
+            if budget
+                .cancel
+                .is_some_and(|c| c.load(std::sync::atomic::Ordering::Relaxed))
+            {
+                // The client went away or the server is stopping: nothing to keep.
+                return Err(ApiError::new(
+                    StatusCode::SERVICE_UNAVAILABLE,
+                    ErrorDetail::new(ErrorCode::Overloaded, "the recording was cancelled"),
+                ));
+            }
+            store
+                .save(SpecSummary::of(&sim), |w| {
+                    recording::write_rrd(w, &request, &doc)
+                })
+                .map_err(store_error)
+        })
+        .await?;
     let url = download_url(&entry.id);
     let mut response = (
         StatusCode::CREATED,

@@ -1,11 +1,11 @@
 //! `POST /api/v1/stability` and `POST /api/v1/stability/point`: the linear stability analysis of
-//! the core on the damped oscillator.
+//! the core on the damped oscillator (see [`crate::core::studies::stability`]).
 //!
 //! A map request is validated first (cheap, before any slot is taken), then takes the free
 //! simulation slots — one, waiting up to the queue timeout (else 503 with `Retry-After`), plus
 //! every other free one, since each map is computed in parallel over all cores — and computes
 //! off the async runtime. Its work is bounded by the request's size (at most
-//! [`MAX_MAP_CELLS`](crate::api::stability::MAX_MAP_CELLS) cells); between methods it stops
+//! [`MAX_MAP_CELLS`](crate::core::studies::stability::MAX_MAP_CELLS) cells); between methods it stops
 //! at the time limit (504) or when the client goes away.
 //!
 //! With `?format=rrd` the maps come as a Rerun recording (each map a tensor of spectral radii and
@@ -15,27 +15,20 @@
 //! so that a fault answers 500.
 
 use std::collections::BTreeMap;
-use std::sync::atomic::AtomicBool;
-use std::sync::Arc;
-use std::time::Instant;
 
 use axum::extract::{Query, State};
 use axum::http::HeaderMap;
 use axum::response::Response;
 use axum::Json;
-use serde_json::Value;
 
-use super::answer::Format;
-use super::error::ApiError;
+use super::answer::{Format, Work};
+use super::error::{ApiError, ErrorBody};
 use super::extract::ApiJson;
 use super::paths;
 use super::recordings::RrdFile;
-use super::state::{cancel_on_shutdown, run_blocking, AppState, CancelOnDrop};
-use crate::api::error::ErrorBody;
-use crate::api::stability::{
-    self, PointDocument, PointRequest, StabilityDocument, StabilityRequest,
-};
-use crate::core::run::Budget;
+use super::state::{run_blocking, AppState};
+use crate::api::stability::{PointRequest, StabilityRequest};
+use crate::core::studies::stability::{self, PointDocument, StabilityDocument};
 use crate::recording;
 
 /// Stability maps of the damped oscillator q'' + 2γq' + ω²q = 0 over a (γ, h) grid.
@@ -71,36 +64,25 @@ use crate::recording;
 pub async fn stability_map(
     State(state): State<AppState>,
     Query(query): Query<BTreeMap<String, String>>,
-    ApiJson(body): ApiJson<Value>,
+    ApiJson(body): ApiJson,
 ) -> Result<Response, ApiError> {
     let format = Format::requested(&query, &HeaderMap::new(), &[Format::Json, Format::Rrd])?;
     let request = StabilityRequest::from_value(&body)?;
-    let job = request.prepare()?;
-    let permits = state.acquire(state.config.max_concurrent).await?;
-    let deadline = Instant::now() + state.config.request_timeout;
-    let cancel = Arc::new(AtomicBool::new(false));
+    let job = request.to_spec()?.prepare()?;
+    let work = Work::admit(&state, state.config.max_concurrent).await?;
     tracing::info!(
-        methods = job.choices.len(),
+        methods = job.methods.len(),
         cells = job.cells(),
-        slots = permits.len(),
+        slots = work.workers(),
         "stability maps started"
     );
-    // The guard stops the computation between methods if this future is dropped (the client
-    // went away).
-    let _guard = CancelOnDrop(cancel.clone());
-    let shutdown = cancel_on_shutdown(&state, cancel.clone());
-    let result = run_blocking(move || {
-        let _permits = permits;
-        let budget = Budget {
-            cancel: Some(&cancel),
-            deadline: Some(deadline),
-        };
-        let doc: StabilityDocument = stability::maps(&job, budget)?;
-        format.encode(&doc, |d| recording::stability::rrd_bytes(&request, d))
-    })
-    .await;
-    shutdown.abort();
-    Ok(format.respond(result??, "geomint-stability.rrd"))
+    let bytes = work
+        .run(move |budget| {
+            let doc: StabilityDocument = stability::maps(&job, budget)?;
+            format.encode(&doc, |d| recording::stability::rrd_bytes(&request, d))
+        })
+        .await?;
+    Ok(format.respond(bytes, "geomint-stability.rrd"))
 }
 
 /// The stability analysis of one method at one (ω, γ, h).
@@ -123,10 +105,8 @@ pub async fn stability_map(
             a step that failed (code `step_failed`)", body = ErrorBody),
         (status = 500, description = "A server fault (details are logged)", body = ErrorBody),
     ))]
-pub async fn stability_point(
-    ApiJson(body): ApiJson<Value>,
-) -> Result<Json<PointDocument>, ApiError> {
-    let job = PointRequest::from_value(&body)?.prepare()?;
-    let document = run_blocking(move || stability::point(&job)).await??;
+pub async fn stability_point(ApiJson(body): ApiJson) -> Result<Json<PointDocument>, ApiError> {
+    let spec = PointRequest::from_value(&body)?.to_spec()?.prepare()?;
+    let document = run_blocking(move || stability::point(&spec)).await??;
     Ok(Json(document))
 }

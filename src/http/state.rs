@@ -3,7 +3,6 @@
 //! blocking work off the async runtime.
 
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -11,7 +10,7 @@ use tokio::sync::{watch, OwnedSemaphorePermit, Semaphore};
 
 use super::error::ApiError;
 use super::store::RecordingStore;
-use crate::core::simulate::Limits;
+use crate::core::simulation::Limits;
 
 /// Settings of the service.
 #[derive(Clone, Debug)]
@@ -136,27 +135,6 @@ impl AppState {
     pub fn cancellation(&self) -> watch::Receiver<bool> {
         self.shutdown.subscribe()
     }
-}
-
-/// Sets a cancellation flag when dropped: a request future dropped because its client went
-/// away stops its computation.
-#[derive(Debug)]
-pub struct CancelOnDrop(pub Arc<AtomicBool>);
-
-impl Drop for CancelOnDrop {
-    fn drop(&mut self) {
-        self.0.store(true, Ordering::Relaxed);
-    }
-}
-
-/// Sets `flag` when `state` cancels runs; abort the returned task once the run is over.
-pub fn cancel_on_shutdown(state: &AppState, flag: Arc<AtomicBool>) -> tokio::task::JoinHandle<()> {
-    let mut shutdown = state.cancellation();
-    tokio::spawn(async move {
-        if shutdown.wait_for(|&cancel| cancel).await.is_ok() {
-            flag.store(true, Ordering::Relaxed);
-        }
-    })
 }
 
 /// Runs blocking work on tokio's blocking pool inside the caller's tracing span. A panic

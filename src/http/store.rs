@@ -28,7 +28,7 @@ use std::time::{SystemTime, UNIX_EPOCH};
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use crate::core::simulate::Simulation;
+use crate::core::simulation::Simulation;
 use crate::recording::RecordingError;
 
 /// The sidecar's format tag.
@@ -70,7 +70,7 @@ impl SpecSummary {
     /// The summary of a prepared simulation.
     pub fn of(sim: &Simulation) -> Self {
         SpecSummary {
-            system: sim.system_id.clone(),
+            system: sim.system_id().to_string(),
             methods: sim.methods.iter().map(|m| m.label()).collect(),
             h: sim.schedule.h,
             steps: sim.schedule.steps,

@@ -1,107 +1,69 @@
-//! The study routes: `POST /api/v1/studies/work-precision` (see
-//! [`work_precision`](crate::api::work_precision)) and `POST /api/v1/studies/convergence`
-//! (see [`convergence`](crate::api::convergence)).
+//! The study routes: `POST /api/v1/studies/work-precision`, `/convergence` and `/energy-map`
+//! (see [`crate::core::studies`]).
 //!
-//! A study is validated first (cheap), then takes one simulation slot — its settings run one
-//! after another, so that their wall times compare — and runs off the async runtime. With
-//! `Accept: application/x-ndjson` (or `?format=ndjson`) it streams a `reference` line, a `point`
-//! line per finished setting (progress: `done` of `total`) and the `result`; a work–precision
-//! study answers its Rerun recording with `?format=rrd`; otherwise the result document. The
-//! request's time limit and a client that goes away stop it between steps.
+//! A study is validated first (cheap), then takes its simulation slots — one for the settings
+//! studies, whose settings run one after another so that their wall times compare; every free
+//! one for an energy map, whose cells run in parallel — and runs off the async runtime. With
+//! `Accept: application/x-ndjson` (or `?format=ndjson`) it streams its progress lines and the
+//! result; `?format=rrd` answers the study's Rerun recording (work–precision studies and maps);
+//! otherwise the result document. The request's time limit and a client that goes away stop it
+//! between steps.
 
 use std::collections::BTreeMap;
-use std::convert::Infallible;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
-use std::time::Instant;
 
-use axum::body::{Body, Bytes};
 use axum::extract::{Query, State};
-use axum::http::{header, HeaderMap, HeaderValue};
+use axum::http::HeaderMap;
 use axum::response::Response;
-use futures_util::StreamExt;
 use serde::Serialize;
-use serde_json::Value;
-use tokio::sync::mpsc;
-use tokio::sync::OwnedSemaphorePermit;
-use tokio_stream::wrappers::ReceiverStream;
 
-use super::answer::{Format, NDJSON};
-use super::error::ApiError;
+use super::answer::{Format, Work};
+use super::error::{ApiError, ErrorBody};
 use super::extract::ApiJson;
 use super::paths;
 use super::recordings::RrdFile;
-use super::state::{cancel_on_shutdown, run_blocking, AppState, CancelOnDrop};
-use crate::api::convergence::{self, ConvergenceDocument, ConvergenceLine, ConvergenceRequest};
-use crate::api::error::{ErrorBody, ErrorDetail};
-use crate::api::study::{ProgressLine, Runner, StudyJob};
-use crate::api::work_precision::{self, StudyLine, WorkPrecisionDocument, WorkPrecisionRequest};
+use super::state::AppState;
+use crate::api::studies::{ConvergenceRequest, EnergyMapRequest, WorkPrecisionRequest};
+use crate::core::error::{CoreError, ErrorDetail};
 use crate::core::run::Budget;
+use crate::core::studies::convergence::{self, ConvergenceDocument, ConvergenceLine};
+use crate::core::studies::energy_map::{self, EnergyMapDocument, MapLine};
+use crate::core::studies::settings::{ProgressLine, Runner, StudyJob};
+use crate::core::studies::work_precision::{self, StudyLine, WorkPrecisionDocument};
 use crate::recording;
 
-/// One NDJSON line.
-fn line<L: Serialize>(l: &L) -> Bytes {
-    let mut bytes = serde_json::to_vec(l).unwrap_or_default();
-    bytes.push(b'\n');
-    Bytes::from(bytes)
+/// Answers a study in `format` once `work` is admitted: NDJSON lines as it goes (`run` emits
+/// its progress; the result or the error follows, then the end), or its finished document
+/// encoded by `encode` (`file` names a `.rrd` attachment).
+async fn answer<D: Serialize + Send + 'static, L: Serialize + Send + 'static>(
+    work: Work,
+    format: Format,
+    run: impl FnOnce(Budget<'_>, &(dyn Fn(L) -> bool + Sync)) -> Result<D, CoreError> + Send + 'static,
+    lines: (fn(D) -> L, fn(ErrorDetail) -> L, fn() -> L),
+    encode: impl FnOnce(&D) -> Result<Vec<u8>, ApiError> + Send + 'static,
+    file: &'static str,
+) -> Result<Response, ApiError> {
+    let (result, error, end) = lines;
+    if format == Format::Ndjson {
+        return Ok(work.stream(
+            move |budget, emit| {
+                match run(budget, emit) {
+                    Ok(doc) => emit(result(doc)),
+                    Err(e) => emit(error(e.into())),
+                };
+                emit(end());
+            },
+            error,
+            end,
+        ));
+    }
+    let bytes = work
+        .run(move |budget| encode(&run(budget, &|_| true)?))
+        .await?;
+    Ok(format.respond(bytes, file))
 }
 
-/// Runs `study` off the async runtime with the request's budget and streams the lines it emits
-/// as NDJSON. `emit` returns false once the client has gone away (the budget's cancellation flag
-/// is then set, so the study stops between steps). A failure of the blocking task itself is sent
-/// as `error_line`, and every stream ends with `end`.
-pub(super) fn stream_study<L, F>(
-    permits: Vec<OwnedSemaphorePermit>,
-    deadline: Instant,
-    cancel: Arc<AtomicBool>,
-    shutdown: tokio::task::JoinHandle<()>,
-    study: F,
-    error_line: fn(ErrorDetail) -> L,
-    end: fn() -> L,
-) -> Response
-where
-    L: Serialize + Send + 'static,
-    F: FnOnce(Budget<'_>, &(dyn Fn(L) -> bool + Sync)) + Send + 'static,
-{
-    let (tx, rx) = mpsc::channel::<Bytes>(16);
-    let flag = cancel;
-    tokio::spawn(async move {
-        let sender = tx.clone();
-        let result = run_blocking(move || {
-            let _permits = permits;
-            let budget = Budget {
-                cancel: Some(&flag),
-                deadline: Some(deadline),
-            };
-            let emit = |l: L| {
-                let sent = sender.blocking_send(line(&l)).is_ok();
-                if !sent {
-                    flag.store(true, Ordering::Relaxed);
-                }
-                sent
-            };
-            study(budget, &emit);
-            emit(end());
-        })
-        .await;
-        shutdown.abort();
-        if let Err(error) = result {
-            let _ = tx.send(line(&error_line(error.detail().clone()))).await;
-            let _ = tx.send(line(&end())).await;
-        }
-    });
-    let body = Body::from_stream(ReceiverStream::new(rx).map(Ok::<_, Infallible>));
-    let mut response = Response::new(body);
-    let headers = response.headers_mut();
-    headers.insert(header::CONTENT_TYPE, HeaderValue::from_static(NDJSON));
-    headers.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-cache"));
-    response
-}
-
-/// Runs the validated study `job` with `run` in one simulation slot and answers in `format`:
-/// NDJSON lines as it goes, or the finished document encoded by `encode` (`file` names a `.rrd`
-/// attachment).
-async fn answer<L: ProgressLine>(
+/// Answers a settings study (`job`, run by `run`) in one slot.
+async fn answer_settings<L: ProgressLine>(
     state: AppState,
     format: Format,
     job: StudyJob,
@@ -109,41 +71,21 @@ async fn answer<L: ProgressLine>(
     encode: impl FnOnce(&L::Document) -> Result<Vec<u8>, ApiError> + Send + 'static,
     file: &'static str,
 ) -> Result<Response, ApiError> {
-    let streaming = format == Format::Ndjson;
-    let permits = state.acquire(1).await?;
-    let deadline = Instant::now() + state.config.request_timeout;
-    let cancel = Arc::new(AtomicBool::new(false));
-    let shutdown = cancel_on_shutdown(&state, cancel.clone());
-
-    if streaming {
-        return Ok(stream_study(
-            permits,
-            deadline,
-            cancel,
-            shutdown,
-            move |budget, emit| {
-                match run(&job, budget, emit) {
-                    Ok(doc) => emit(L::result(doc)),
-                    Err(error) => emit(L::error(error)),
-                };
-            },
-            L::error,
-            L::end,
-        ));
-    }
-
-    let _guard = CancelOnDrop(cancel.clone());
-    let result = run_blocking(move || -> Result<Vec<u8>, ApiError> {
-        let _permits = permits;
-        let budget = Budget {
-            cancel: Some(&cancel),
-            deadline: Some(deadline),
-        };
-        encode(&run(&job, budget, &|_| true)?)
-    })
-    .await;
-    shutdown.abort();
-    Ok(format.respond(result??, file))
+    let work = Work::admit(&state, 1).await?;
+    tracing::info!(
+        settings = job.len(),
+        format = format.name(),
+        "study started"
+    );
+    answer(
+        work,
+        format,
+        move |budget, emit: &(dyn Fn(L) -> bool + Sync)| run(&job, budget, &|l| emit(l)),
+        (L::result, L::error, L::end),
+        encode,
+        file,
+    )
+    .await
 }
 
 /// Runs a work–precision study: one system, several methods at several step sizes (or
@@ -175,20 +117,15 @@ pub async fn work_precision(
     State(state): State<AppState>,
     headers: HeaderMap,
     Query(query): Query<BTreeMap<String, String>>,
-    ApiJson(body): ApiJson<Value>,
+    ApiJson(body): ApiJson,
 ) -> Result<Response, ApiError> {
     let format = Format::requested(&query, &headers, Format::ALL)?;
     let request = WorkPrecisionRequest::from_value(&body)?;
-    let job = request.prepare(&state.config.limits)?;
-    tracing::info!(
-        settings = job.len(),
-        streaming = format == Format::Ndjson,
-        "work-precision study started"
-    );
+    let job = request.to_spec()?.prepare(&state.config.limits)?;
     let encode = move |doc: &WorkPrecisionDocument| {
         format.encode(doc, |d| recording::work_precision::rrd_bytes(&request, d))
     };
-    answer::<StudyLine>(
+    answer_settings::<StudyLine>(
         state,
         format,
         job,
@@ -229,15 +166,67 @@ pub async fn convergence(
     State(state): State<AppState>,
     headers: HeaderMap,
     Query(query): Query<BTreeMap<String, String>>,
-    ApiJson(body): ApiJson<Value>,
+    ApiJson(body): ApiJson,
 ) -> Result<Response, ApiError> {
     let format = Format::requested(&query, &headers, &[Format::Json, Format::Ndjson])?;
-    let job = ConvergenceRequest::from_value(&body)?.prepare(&state.config.limits)?;
-    tracing::info!(
-        settings = job.len(),
-        streaming = format == Format::Ndjson,
-        "convergence study started"
-    );
+    let job = ConvergenceRequest::from_value(&body)?
+        .to_spec()?
+        .prepare(&state.config.limits)?;
     let encode = |doc: &ConvergenceDocument| serde_json::to_vec(doc).map_err(ApiError::internal);
-    answer::<ConvergenceLine>(state, format, job, convergence::run, encode, "").await
+    answer_settings::<ConvergenceLine>(state, format, job, convergence::run, encode, "").await
+}
+
+/// An energy-error map (paper 001 Fig. 6): the planar elastic pendulum released at rest from
+/// every point of an nx × ny grid of (x₀, y₀), integrated with one method in Cartesian and in
+/// polar coordinates; per cell the ℓ² energy error of eq. (50) in each chart, their difference,
+/// the polar divergences and Sec. 4.1's predicted region r₀ ≥ 2l + 2mg/k·cos θ₀ with its
+/// boundary curve.
+#[utoipa::path(post, path = paths::ENERGY_MAP, tag = "studies",
+    request_body(content = EnergyMapRequest, content_type = "application/json"),
+    params(("Accept" = Option<String>, Header,
+        description = "`application/x-ndjson` streams progress lines (see MapLine)"),
+        ("format" = Option<String>, Query,
+        description = "`ndjson` as the Accept header; `rrd` the map's Rerun recording; `json` (default)")),
+    responses(
+        (status = 200, description = "The map",
+            content((EnergyMapDocument = "application/json"), (MapLine = "application/x-ndjson"),
+                (RrdFile = "application/octet-stream"))),
+        (status = 400, description = "Malformed JSON (code `malformed_json`)", body = ErrorBody),
+        (status = 413, description = "The body exceeds 1 MiB", body = ErrorBody),
+        (status = 415, description = "The body is not declared as JSON", body = ErrorBody),
+        (status = 422, description = "A field is unknown, missing, of the wrong type or out of range; \
+            a method that cannot run in polar coordinates (code `unmet_requirement`, field `method`); \
+            more than 401 points per axis or 2·10¹⁰ steps in all", body = ErrorBody),
+        (status = 503, description = "Every simulation slot is busy", body = ErrorBody,
+            headers(("Retry-After" = u64, description = "Seconds to wait before retrying"))),
+        (status = 504, description = "The map did not finish within the time limit", body = ErrorBody),
+        (status = 500, description = "A server fault (details are logged)", body = ErrorBody),
+    ))]
+pub async fn energy_map(
+    State(state): State<AppState>,
+    headers: HeaderMap,
+    Query(query): Query<BTreeMap<String, String>>,
+    ApiJson(body): ApiJson,
+) -> Result<Response, ApiError> {
+    let format = Format::requested(&query, &headers, Format::ALL)?;
+    let job = EnergyMapRequest::from_value(&body)?.to_spec()?.prepare()?;
+    let work = Work::admit(&state, state.config.max_concurrent).await?;
+    tracing::info!(
+        cells = job.nx * job.ny,
+        steps = job.steps,
+        "energy map started"
+    );
+    answer(
+        work,
+        format,
+        move |budget, emit: &(dyn Fn(MapLine) -> bool + Sync)| energy_map::run(&job, budget, emit),
+        (
+            |doc: EnergyMapDocument| MapLine::Result(Box::new(doc)),
+            |error| MapLine::Error { error },
+            || MapLine::End,
+        ),
+        move |doc: &EnergyMapDocument| format.encode(doc, recording::energy_map::rrd_bytes),
+        "geomint-energy-map.rrd",
+    )
+    .await
 }

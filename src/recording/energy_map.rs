@@ -28,7 +28,7 @@ use rerun::{
 
 use super::blueprint::{self, Node};
 use super::{encode, RecordingError};
-use crate::api::energy_map::EnergyMapDocument;
+use crate::core::studies::energy_map::EnergyMapDocument;
 
 /// The colour scale of `/map/difference` spans log₁₀(ε(x,y)/ε(r,θ)) ∈ [−RATIO_RANGE, RATIO_RANGE].
 pub const RATIO_RANGE: f64 = 2.0;

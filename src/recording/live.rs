@@ -21,8 +21,8 @@ use rerun::{RecordingStream, RecordingStreamBuilder};
 use super::encode::{self, EncoderThread, EncodingSink};
 use super::simulation::{send_blueprint, Layout, SimulationLogger};
 use super::{RecordingError, APPLICATION_ID};
-use crate::api::request::SimulateRequest;
-use crate::api::stream::StreamLine;
+use crate::api::SimulateRequest;
+use crate::core::simulation::StreamLine;
 
 /// Longest wait for the viewer's connection before anything runs.
 pub const CONNECT_TIMEOUT: Duration = Duration::from_secs(5);

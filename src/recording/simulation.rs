@@ -47,77 +47,13 @@ use super::{
     color, encode, entity_names, entity_part, method_color, RecordingError, STEP_TIMELINE,
     TIME_TIMELINE,
 };
-use crate::api::document::{Columns, ScheduleSummary, SimulationDocument};
-use crate::api::request::SimulateRequest;
-use crate::api::stream::StreamHeader;
+use crate::api::SimulateRequest;
+use crate::core::simulation::stream::StreamHeader;
+use crate::core::simulation::{Columns, ScheduleSummary, SimulationDocument};
+use crate::core::systems::World;
 
 /// Degrees of freedom with a phase portrait (the first ones; an N-body run has 3N).
 pub const MAX_PHASE_DOFS: usize = 6;
-
-/// What the world view draws for a system.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum World {
-    /// The oscillator on the x axis, (q, 0, 0).
-    Line,
-    /// A unit pendulum bob (sin q, 0, −cos q) on a rod from the origin.
-    Pendulum,
-    /// The elastic pendulum's mass at q on a spring from the origin.
-    Spring,
-    /// N bodies at q[3i..3i+3].
-    Bodies,
-    /// The planar elastic pendulum's mass at (x, y), y pointing down: drawn at (x, 0, −y) on a
-    /// spring from the origin.
-    PlanarSpring,
-    /// A particle in the plane at (x, y, 0).
-    Plane,
-}
-
-impl World {
-    fn of(system: &str) -> Self {
-        match system {
-            "pendulum" => World::Pendulum,
-            "elastic_pendulum_3d" => World::Spring,
-            "nbody" => World::Bodies,
-            "elastic_pendulum_2d" => World::PlanarSpring,
-            "free_particle_2d" => World::Plane,
-            _ => World::Line,
-        }
-    }
-
-    /// Bodies drawn per sample for `dof` degrees of freedom.
-    fn bodies(self, dof: usize) -> usize {
-        match self {
-            World::Bodies => dof / 3,
-            _ => 1,
-        }
-    }
-
-    /// The positions of the bodies for configuration `q`, appended to `out`.
-    fn positions(self, q: &[f64], out: &mut Vec<[f32; 3]>) {
-        match self {
-            World::Line => out.push([q.first().copied().unwrap_or(0.0) as f32, 0.0, 0.0]),
-            World::Pendulum => {
-                let a = q.first().copied().unwrap_or(0.0);
-                out.push([a.sin() as f32, 0.0, -a.cos() as f32]);
-            }
-            World::PlanarSpring => out.push([q[0] as f32, 0.0, -q[1] as f32]),
-            World::Plane => out.push([q[0] as f32, q[1] as f32, 0.0]),
-            World::Spring | World::Bodies => out.extend(
-                q.chunks_exact(3)
-                    .map(|c| [c[0] as f32, c[1] as f32, c[2] as f32]),
-            ),
-        }
-    }
-
-    /// What links the body to the origin, if anything.
-    fn link(self) -> Option<&'static str> {
-        match self {
-            World::Pendulum => Some("rod"),
-            World::Spring | World::PlanarSpring => Some("spring"),
-            _ => None,
-        }
-    }
-}
 
 /// Where everything of a simulation goes: entity names and colours per method, the invariant
 /// parts and what the world view shows. Made from the document ([`Layout::of`]) or, before any
@@ -143,7 +79,7 @@ impl Layout {
     /// The layout of a simulation of system `system` with `dof` degrees of freedom, methods
     /// `labels` (request order) and the system's `invariants`.
     pub fn new(
-        system: &str,
+        world: World,
         dof: usize,
         labels: Vec<String>,
         invariants: &[String],
@@ -158,7 +94,7 @@ impl Layout {
                 .collect(),
             phase_dofs: dof.min(MAX_PHASE_DOFS),
             energy_error,
-            world: World::of(system),
+            world,
             dof,
         }
     }
@@ -166,7 +102,7 @@ impl Layout {
     /// The layout of a simulation's document.
     pub fn of(doc: &SimulationDocument) -> Self {
         Layout::new(
-            &doc.system.id,
+            doc.system.world,
             doc.system.q0.len(),
             doc.runs.iter().map(|r| r.method.clone()).collect(),
             &doc.invariants,
@@ -177,7 +113,7 @@ impl Layout {
     /// The layout of a simulation announced by a stream's header.
     pub fn of_header(header: &StreamHeader) -> Self {
         Layout::new(
-            &header.system.id,
+            header.system.world,
             header.system.q0.len(),
             header.methods.clone(),
             &header.invariants,
@@ -458,10 +394,14 @@ impl RunLogger {
         // The world: the bodies, with the rod or spring to the origin; in physical (Cartesian)
         // coordinates whatever the chart.
         let per_row = self.per_row;
-        let mut positions: Vec<[f32; 3]> = Vec::with_capacity(n * per_row);
+        let mut exact: Vec<[f64; 3]> = Vec::with_capacity(n * per_row);
         for q in c.cartesian_q.as_ref().unwrap_or(&c.q) {
-            self.world.positions(q, &mut positions);
+            self.world.positions(q, &mut exact);
         }
+        let positions: Vec<[f32; 3]> = exact
+            .iter()
+            .map(|p| [p[0] as f32, p[1] as f32, p[2] as f32])
+            .collect();
         let mut columns: Vec<_> = Points3D::new(positions.iter().copied())
             .columns(std::iter::repeat_n(per_row, n))?
             .collect();

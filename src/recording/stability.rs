@@ -27,7 +27,8 @@ use rerun::{
 
 use super::blueprint::{self, Node};
 use super::{encode, entity_names, RecordingError};
-use crate::api::stability::{MapDocument, StabilityDocument, StabilityRequest};
+use crate::api::stability::StabilityRequest;
+use crate::core::studies::stability::{MapDocument, StabilityDocument};
 
 /// The class of a cell in a `verdict` image. Class 0 is left unused: segmentation images draw
 /// it as background.

@@ -18,7 +18,8 @@ use rerun::{LineStrips2D, Points2D, Radius, RecordingStream, TextDocument};
 
 use super::blueprint::{self, Node};
 use super::{color, encode, entity_names, method_color, RecordingError};
-use crate::api::work_precision::{WorkPrecisionDocument, WorkPrecisionRequest};
+use crate::api::studies::WorkPrecisionRequest;
+use crate::core::studies::work_precision::WorkPrecisionDocument;
 
 /// The per-run labels of a study (`runs[i]`'s method).
 fn run_labels(doc: &WorkPrecisionDocument) -> Vec<String> {

@@ -1,11 +1,11 @@
 //! Helpers shared by the core integration tests.
 #![allow(dead_code)]
 
-use geomint::core::methods::MethodInput;
-use geomint::core::methods::{self, MethodChoice};
+use geomint::core::methods::{self, Method, MethodId};
 use geomint::core::run::{integrate, Budget, Observer, Schedule, StopReason};
-use geomint::core::simulate::{run_to_trajectory, Limits, Request, Simulation, Trajectory};
+use geomint::core::simulation::{ColumnSink, Columns, Limits, Outcome, Simulation, SimulationSpec};
 use geomint::core::system::{MechanicalSystem, State};
+use geomint::core::systems::ParamValue;
 use nalgebra::allocator::Allocator;
 use nalgebra::DefaultAllocator;
 
@@ -21,7 +21,7 @@ where
 /// Integrates `choice` on `sys` from `start` to `t_end` with step `h`; returns the end state.
 pub fn final_state<S: MechanicalSystem>(
     sys: &S,
-    choice: &MethodChoice,
+    choice: &Method,
     start: &State<S::Dim>,
     h: f64,
     t_end: f64,
@@ -45,37 +45,68 @@ where
     z
 }
 
-/// A request sampling every step.
+/// The numbers of a JSON object as system parameters.
+pub fn params(params: serde_json::Value) -> std::collections::BTreeMap<String, ParamValue> {
+    params
+        .as_object()
+        .expect("params object")
+        .iter()
+        .map(|(k, v)| {
+            let value = match v {
+                serde_json::Value::Number(n) => ParamValue::Number(n.as_f64().unwrap()),
+                serde_json::Value::String(s) => ParamValue::Text(s.clone()),
+                serde_json::Value::Array(a) => {
+                    ParamValue::Numbers(a.iter().map(|x| x.as_f64().unwrap()).collect())
+                }
+                _ => ParamValue::Other,
+            };
+            (k.clone(), value)
+        })
+        .collect()
+}
+
+/// The method of a request id.
+pub fn method(id: &str) -> Method {
+    Method::new(MethodId::parse(id).expect("a method id"))
+}
+
+/// A simulation spec sampling every step.
 pub fn request(
     system: &str,
-    params: serde_json::Value,
+    params_json: serde_json::Value,
     methods: &[&str],
     h: f64,
     t_end: f64,
-) -> Request {
-    Request {
-        system: system.into(),
-        params: params.as_object().expect("params object").clone(),
-        methods: methods
-            .iter()
-            .map(|m| MethodInput::Id(m.to_string()))
-            .collect(),
-        h,
-        t_end,
+) -> SimulationSpec {
+    let methods: Vec<Method> = methods.iter().map(|m| method(m)).collect();
+    SimulationSpec {
+        params: params(params_json),
         every: Some(1),
-        ..Default::default()
+        ..SimulationSpec::new(system, &methods, h, t_end)
     }
 }
 
-/// Runs every method of `req`, returning the trajectories in order.
-pub fn run_all(req: &Request) -> (Simulation, Vec<Trajectory>) {
+/// Runs method `index` of `sim` into columns.
+pub fn run_to_columns(
+    sim: &Simulation,
+    index: usize,
+    reference: Option<&[f64]>,
+    budget: Budget<'_>,
+) -> Result<(Columns, Outcome), geomint::core::error::CoreError> {
+    let mut sink = ColumnSink::new(sim.invariant_names());
+    let outcome = sim.run_method(index, reference, budget, &mut sink)?;
+    Ok((sink.take(), outcome))
+}
+
+/// Runs every method of `req`, returning their samples in order.
+pub fn run_all(req: &SimulationSpec) -> (Simulation, Vec<Columns>) {
     let sim = Simulation::prepare(req, &Limits::default()).expect("valid request");
     let reference = sim
         .reference_energies(Budget::default())
         .expect("reference runs");
     let runs = (0..sim.methods.len())
         .map(|i| {
-            run_to_trajectory(&sim, i, reference.as_deref(), Budget::default())
+            run_to_columns(&sim, i, reference.as_deref(), Budget::default())
                 .expect("run succeeds")
                 .0
         })
@@ -83,30 +114,47 @@ pub fn run_all(req: &Request) -> (Simulation, Vec<Trajectory>) {
     (sim, runs)
 }
 
-/// Every fixed-step method choice: each id but the reference with default options, every
-/// triple-jump base, every inner method of modin_rks and every processor of rowlands (which
-/// needs an undamped system: see [`conservative_only`]).
-pub fn every_fixed_step_choice() -> Vec<MethodChoice> {
+/// Every fixed-step method: each id but the reference with default options, every composition
+/// base, every inner method of modin_rks and every processor of rowlands (which needs an
+/// undamped system: see [`conservative_only`]).
+pub fn every_fixed_step_choice() -> Vec<Method> {
     use geomint::core::methods::rowlands::Processor;
-    use geomint::core::methods::{MethodId, COMPOSITION_BASES, RKS_INNER};
-    let mut choices: Vec<MethodChoice> = MethodId::ALL
+    use geomint::core::methods::{Base, Inner};
+    let mut choices: Vec<Method> = MethodId::ALL
         .iter()
         .filter(|&&m| m != MethodId::Reference && m != MethodId::Rowlands)
-        .map(|&m| MethodChoice::new(m))
+        .map(|&m| Method::new(m))
         .collect();
-    choices.extend(Processor::ALL.map(MethodChoice::rowlands));
-    choices.extend(
-        COMPOSITION_BASES
-            .iter()
-            .map(|&b| MethodChoice::triple_jump(b)),
-    );
-    choices.extend(RKS_INNER.iter().map(|&i| MethodChoice::rks(i)));
+    choices.extend(Processor::ALL.map(|processor| Method::Rowlands { processor }));
+    choices.extend(Base::ALL.iter().map(|&b| Method::triple_jump(b)));
+    choices.extend(Inner::ALL.iter().map(|&inner| Method::ModinRks { inner }));
     choices
 }
 
 /// Whether `choice` runs on undamped systems only (rowlands).
-pub fn conservative_only(choice: &MethodChoice) -> bool {
+pub fn conservative_only(choice: &Method) -> bool {
     choice
         .requirements()
         .contains(&geomint::core::methods::Requirement::Conservative)
+}
+
+/// The system of catalogue entry `info` in `chart` with default parameters, for step `h`.
+pub fn default_system(
+    info: &geomint::core::systems::SystemInfo,
+    chart: &geomint::core::systems::ChartInfo,
+    h: f64,
+) -> geomint::core::systems::AnySystem {
+    let params = geomint::core::systems::params::resolve(
+        info,
+        &Default::default(),
+        &geomint::core::error::Field::new("params"),
+    )
+    .expect("default parameters are valid");
+    (info.build)(&params, chart, h)
+}
+
+/// The catalogue entry of `id`.
+pub fn info(id: &str) -> &'static geomint::core::systems::SystemInfo {
+    geomint::core::systems::info(id, &geomint::core::error::Field::new("system"))
+        .expect("a catalogue system")
 }

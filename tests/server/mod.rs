@@ -57,7 +57,7 @@ pub async fn post_json(
     let status = response.status().as_u16();
     assert_eq!(response.headers()["content-type"], "application/json");
     let bytes = response.bytes().await.unwrap();
-    let answer = geomint::api::request::parse_json(&bytes).expect("a JSON answer");
+    let answer = geomint::api::json::parse_json(&bytes).expect("a JSON answer");
     (status, answer)
 }
 

@@ -24,6 +24,8 @@
 use nalgebra::allocator::Allocator;
 use nalgebra::DefaultAllocator;
 
+use super::sources::*;
+use super::{Citation, Group, Kind, MethodId, MethodInfo, MethodOption};
 use crate::core::error::StepError;
 use crate::core::flows::Tangent;
 use crate::core::run::Stepper;
@@ -89,6 +91,31 @@ fn palindrome(half: &[f64]) -> Vec<f64> {
 }
 
 impl Scheme {
+    /// Every scheme, in catalogue order.
+    pub const ALL: [Scheme; 5] = [
+        Scheme::TripleJump,
+        Scheme::Suzuki4,
+        Scheme::Yoshida6,
+        Scheme::KahanLi6,
+        Scheme::KahanLi8,
+    ];
+
+    /// The method id of the scheme.
+    pub fn id(self) -> MethodId {
+        match self {
+            Scheme::TripleJump => MethodId::TripleJump,
+            Scheme::Suzuki4 => MethodId::Suzuki4,
+            Scheme::Yoshida6 => MethodId::Yoshida6,
+            Scheme::KahanLi6 => MethodId::KahanLi6,
+            Scheme::KahanLi8 => MethodId::KahanLi8,
+        }
+    }
+
+    /// The scheme of a composition method, if `id` is one.
+    pub fn of(id: MethodId) -> Option<Scheme> {
+        Scheme::ALL.into_iter().find(|s| s.id() == id)
+    }
+
     /// The order of the composition of a symmetric second-order method.
     pub fn order(self) -> u32 {
         match self {
@@ -166,3 +193,98 @@ where
         Ok(())
     }
 }
+
+/// Catalogue entry of `triple_jump`.
+pub const TRIPLE_JUMP_INFO: MethodInfo = MethodInfo {
+    id: "triple_jump",
+    name: "Triple-jump composition (order 4)",
+    order: 4,
+    kind: Kind::Explicit,
+    symplectic: true,
+    conformal_symplectic: true,
+    symmetric: true,
+    requirements: &[],
+    reference: Citation {
+        paper: GNI,
+        equation: "Sec. II.4, eq. (4.4)",
+    },
+    group: Group::Geometric,
+    options: &[MethodOption::Base],
+    no_step_jacobian: None,
+};
+
+/// Catalogue entry of `suzuki_4`.
+pub const SUZUKI_4_INFO: MethodInfo = MethodInfo {
+    id: "suzuki_4",
+    name: "Suzuki fractal composition (order 4, 5 stages)",
+    order: 4,
+    kind: Kind::Explicit,
+    symplectic: true,
+    conformal_symplectic: true,
+    symmetric: true,
+    requirements: &[],
+    reference: Citation {
+        paper: "Suzuki 1990; HLW",
+        equation: "Sec. II.4",
+    },
+    group: Group::Geometric,
+    options: &[MethodOption::Base],
+    no_step_jacobian: None,
+};
+
+/// Catalogue entry of `yoshida_6`.
+pub const YOSHIDA_6_INFO: MethodInfo = MethodInfo {
+    id: "yoshida_6",
+    name: "Yoshida composition (order 6, 7 stages)",
+    order: 6,
+    kind: Kind::Explicit,
+    symplectic: true,
+    conformal_symplectic: true,
+    symmetric: true,
+    requirements: &[],
+    reference: Citation {
+        paper: "Yoshida 1990, solution A; HLW",
+        equation: "Sec. V.3.2",
+    },
+    group: Group::Geometric,
+    options: &[MethodOption::Base],
+    no_step_jacobian: None,
+};
+
+/// Catalogue entry of `kahan_li_6`.
+pub const KAHAN_LI_6_INFO: MethodInfo = MethodInfo {
+    id: "kahan_li_6",
+    name: "Kahan–Li composition (order 6, 9 stages)",
+    order: 6,
+    kind: Kind::Explicit,
+    symplectic: true,
+    conformal_symplectic: true,
+    symmetric: true,
+    requirements: &[],
+    reference: Citation {
+        paper: "Kahan & Li 1997; HLW",
+        equation: "Sec. V.3.2",
+    },
+    group: Group::Geometric,
+    options: &[MethodOption::Base],
+    no_step_jacobian: None,
+};
+
+/// Catalogue entry of `kahan_li_8`.
+pub const KAHAN_LI_8_INFO: MethodInfo = MethodInfo {
+    id: "kahan_li_8",
+    name: "Kahan–Li composition (order 8, 17 stages)",
+    order: 8,
+    kind: Kind::Explicit,
+    symplectic: true,
+    conformal_symplectic: true,
+    symmetric: true,
+    requirements: &[],
+    reference: Citation {
+        paper: "Kahan & Li 1997; HLW",
+        equation: "Sec. V.3.2",
+    },
+    group: Group::Geometric,
+    options: &[MethodOption::Base],
+    no_step_jacobian: None,
+};

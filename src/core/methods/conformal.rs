@@ -17,6 +17,8 @@
 use nalgebra::allocator::Allocator;
 use nalgebra::DefaultAllocator;
 
+use super::sources::*;
+use super::{Citation, Group, Kind, MethodInfo, Requirement};
 use crate::core::error::StepError;
 use crate::core::flows::Tangent;
 use crate::core::run::Stepper;
@@ -100,3 +102,25 @@ where
         Ok(())
     }
 }
+
+/// Catalogue entry of `csv2`.
+pub const CSV2_INFO: MethodInfo = MethodInfo {
+    id: "csv2",
+    name: "Conformal Störmer–Verlet 2 (CSV2)",
+    order: 2,
+    kind: Kind::Explicit,
+    symplectic: true,
+    conformal_symplectic: true,
+    symmetric: true,
+    requirements: &[
+        Requirement::SeparableConstantMass,
+        Requirement::ConformalDamping,
+    ],
+    reference: Citation {
+        paper: FLOYD,
+        equation: "eq. (2.16)",
+    },
+    group: Group::Conformal,
+    options: &[],
+    no_step_jacobian: None,
+};

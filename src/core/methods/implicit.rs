@@ -15,6 +15,8 @@
 use nalgebra::allocator::Allocator;
 use nalgebra::{DMatrix, DVector, DefaultAllocator};
 
+use super::sources::*;
+use super::{Citation, Group, Kind, MethodInfo, Requirement};
 use crate::core::error::StepError;
 use crate::core::flows::Tangent;
 use crate::core::run::Stepper;
@@ -286,3 +288,44 @@ fn solve_matrix(a: DMatrix<f64>, b: &DMatrix<f64>) -> Option<DMatrix<f64>> {
 fn compose_scaled(c: f64, a: &DMatrix<f64>, b: &DMatrix<f64>) -> DMatrix<f64> {
     (a * b) * c
 }
+
+/// Catalogue entry of `implicit_midpoint`.
+pub const IMPLICIT_MIDPOINT_INFO: MethodInfo = MethodInfo {
+    id: "implicit_midpoint",
+    name: "Implicit midpoint",
+    order: 2,
+    kind: Kind::Implicit,
+    symplectic: true,
+    conformal_symplectic: false,
+    symmetric: true,
+    requirements: &[],
+    reference: Citation {
+        paper: GNI,
+        equation: "Sec. II.1.1",
+    },
+    group: Group::Baseline,
+    options: &[],
+    no_step_jacobian: None,
+};
+
+/// Catalogue entry of `cimp`.
+pub const CIMP_INFO: MethodInfo = MethodInfo {
+    id: "cimp",
+    name: "Conformal implicit midpoint (CIMP)",
+    order: 2,
+    kind: Kind::Implicit,
+    symplectic: true,
+    conformal_symplectic: true,
+    symmetric: true,
+    requirements: &[
+        Requirement::SeparableConstantMass,
+        Requirement::ConformalDamping,
+    ],
+    reference: Citation {
+        paper: FLOYD,
+        equation: "eq. (2.3)",
+    },
+    group: Group::Conformal,
+    options: &[],
+    no_step_jacobian: None,
+};

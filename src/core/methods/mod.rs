@@ -1,7 +1,10 @@
-//! The method catalogue: ids with their metadata (order, kind, geometric properties,
-//! requirements, citation), parsing of method choices, and construction of a stepper for a
-//! concrete system. One file per family beside this one.
+//! The methods: what a run uses ([`Method`], a method with its options), the catalogue
+//! ([`MethodId`] and its [`MethodInfo`]: order, kind, properties, requirements, citation), and the
+//! construction of a stepper for a concrete system ([`build`]). One file per family beside this
+//! one, each with the catalogue entries of its methods; a method's id is written once, in its
+//! entry.
 
+pub mod build;
 pub mod composition;
 pub mod conformal;
 pub mod implicit;
@@ -11,99 +14,20 @@ pub mod runge_kutta;
 pub mod splitting;
 pub mod symplectic_euler;
 
-use nalgebra::allocator::Allocator;
-use nalgebra::DefaultAllocator;
-use serde::{Deserialize, Serialize};
+use serde::{Serialize, Serializer};
+use utoipa::ToSchema;
 
-use crate::core::error::{CoreError, StepError};
-use crate::core::flows::Tangent;
-use crate::core::run::Stepper;
-use crate::core::system::{MechanicalSystem, State, Structure};
+use crate::core::error::{CoreError, Field};
+use crate::core::system::Structure;
 
-use composition::{Composed, Scheme};
-use conformal::Csv2;
-use implicit::{ImplicitMidpoint, MidpointField};
-use reference::Reference;
-use rowlands::{Processor, Rowlands};
-use runge_kutta::{InnerRk, MomentumRk, RungeKutta, Tableau};
-use splitting::Splitting;
-use symplectic_euler::{GeneralSymplecticEuler, Variant};
-
-/// Every method the core offers.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
-pub enum MethodId {
-    /// Forward Euler.
-    #[serde(rename = "explicit_euler")]
-    ExplicitEuler,
-    /// Heun's (explicit trapezoidal) method.
-    #[serde(rename = "heun")]
-    Heun,
-    /// Kutta's third-order method.
-    #[serde(rename = "rk3")]
-    Rk3,
-    /// Classical RK4.
-    #[serde(rename = "rk4")]
-    Rk4,
-    /// Implicit midpoint rule (Newton).
-    #[serde(rename = "implicit_midpoint")]
-    ImplicitMidpoint,
-    /// Symplectic Euler (kick then drift).
-    #[serde(rename = "symplectic_euler")]
-    SymplecticEuler,
-    /// Adjoint symplectic Euler (drift then kick).
-    #[serde(rename = "symplectic_euler_adjoint")]
-    SymplecticEulerAdjoint,
-    /// Störmer–Verlet, drift–kick–drift.
-    #[serde(rename = "position_verlet")]
-    PositionVerlet,
-    /// Störmer–Verlet, kick–drift–kick.
-    #[serde(rename = "velocity_verlet")]
-    VelocityVerlet,
-    /// Paper 000 Algorithm 3.1.
-    #[serde(rename = "modin_3s")]
-    Modin3s,
-    /// Paper 000 Algorithm 3.2.
-    #[serde(rename = "modin_2s")]
-    Modin2s,
-    /// Paper 000 Algorithm 3.3.
-    #[serde(rename = "modin_rks")]
-    ModinRks,
-    /// Paper 003 eq. (2.12).
-    #[serde(rename = "csv1")]
-    Csv1,
-    /// Paper 003 eq. (2.16).
-    #[serde(rename = "csv2")]
-    Csv2,
-    /// Paper 003 eq. (2.3).
-    #[serde(rename = "cimp")]
-    Cimp,
-    /// Fourth-order triple-jump composition of a symmetric second-order method.
-    #[serde(rename = "triple_jump")]
-    TripleJump,
-    /// Suzuki's fourth-order five-stage composition.
-    #[serde(rename = "suzuki_4")]
-    Suzuki4,
-    /// Yoshida's sixth-order seven-stage composition.
-    #[serde(rename = "yoshida_6")]
-    Yoshida6,
-    /// Kahan and Li's sixth-order nine-stage composition.
-    #[serde(rename = "kahan_li_6")]
-    KahanLi6,
-    /// Kahan and Li's eighth-order 17-stage composition.
-    #[serde(rename = "kahan_li_8")]
-    KahanLi8,
-    /// Rowlands time stepping: Störmer–Verlet on a modified potential with processing (paper 001
-    /// eqs. 30–37).
-    #[serde(rename = "rowlands")]
-    Rowlands,
-    /// Adaptive DOP853 at a tight tolerance.
-    #[serde(rename = "reference")]
-    Reference,
-}
+pub use build::{build, AnyStepper};
+use composition::Scheme;
+use rowlands::Processor;
 
 /// How much work a step takes.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, ToSchema)]
 #[serde(rename_all = "snake_case")]
+#[schema(as = MethodKind)]
 pub enum Kind {
     /// No equation solving.
     Explicit,
@@ -116,8 +40,9 @@ pub enum Kind {
 }
 
 /// A structural requirement on the system.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, ToSchema)]
 #[serde(rename_all = "snake_case")]
+#[schema(as = MethodRequirement)]
 pub enum Requirement {
     /// H = ½pᵀM⁻¹p + V(q) with constant M.
     SeparableConstantMass,
@@ -152,7 +77,8 @@ impl Requirement {
 }
 
 /// Where a method comes from.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, ToSchema)]
+#[schema(as = CitationEntry)]
 pub struct Citation {
     /// The paper or book.
     pub paper: &'static str,
@@ -160,11 +86,60 @@ pub struct Citation {
     pub equation: &'static str,
 }
 
-/// A catalogue entry for a method.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+/// The group a method is shown in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum Group {
+    /// Structure-preserving splittings and compositions (papers 000, 001).
+    Geometric,
+    /// Conformal symplectic schemes for linear damping (paper 003).
+    Conformal,
+    /// Ordinary methods to compare with.
+    Baseline,
+}
+
+/// An option a method takes in the object form of a request's method.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum MethodOption {
+    /// The inner Runge–Kutta method of modin_rks.
+    Inner,
+    /// The symmetric second-order base of a composition.
+    Base,
+    /// The tolerance of the adaptive reference.
+    Tolerance,
+    /// The processor of rowlands.
+    Processor,
+}
+
+impl MethodOption {
+    /// The option's name in requests.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            MethodOption::Inner => "inner",
+            MethodOption::Base => "base",
+            MethodOption::Tolerance => "tolerance",
+            MethodOption::Processor => "processor",
+        }
+    }
+}
+
+/// Sources cited by the catalogue entries.
+pub(crate) mod sources {
+    pub const HNW: &str = "Hairer, Nørsett, Wanner: Solving Ordinary Differential Equations I";
+    pub const GNI: &str = "Hairer, Lubich, Wanner: Geometric Numerical Integration";
+    pub const MODIN: &str = "000 Modin & Söderlind 2011";
+    pub const FLOYD: &str = "003 Floyd 2014";
+    pub const TAKACS: &str = "001 Takács & Fülöp";
+}
+
+/// A method's catalogue entry.
+#[derive(Clone, Debug, PartialEq, Serialize, ToSchema)]
+#[schema(as = MethodEntry)]
 pub struct MethodInfo {
     /// Identifier used in requests.
-    pub id: MethodId,
+    #[schema(value_type = MethodId)]
+    pub id: &'static str,
     /// Human-readable name.
     pub name: &'static str,
     /// Classical order (on smooth problems).
@@ -173,697 +148,327 @@ pub struct MethodInfo {
     pub kind: Kind,
     /// Symplectic when the damping is zero.
     pub symplectic: bool,
-    /// Conformal symplectic under linear damping (det ∂Φ/∂z = e^{−2γh}·per dof).
+    /// Conformal symplectic under linear damping (det ∂Φ/∂z = e^{−2γh} per degree of freedom).
     pub conformal_symplectic: bool,
-    /// Symmetric (self-adjoint), so it can be a triple-jump base.
+    /// Symmetric (self-adjoint), so it can be a composition's base.
     pub symmetric: bool,
     /// What the system must satisfy.
     pub requirements: &'static [Requirement],
     /// Where it comes from.
     pub reference: Citation,
-    /// Group for display: geometric, conformal or baseline.
-    pub group: &'static str,
-    /// Options the method accepts in the object form of a method choice.
-    pub options: &'static [&'static str],
+    /// Group for display.
+    pub group: Group,
+    /// Options the method accepts in the object form of a method.
+    pub options: &'static [MethodOption],
+    /// Whether the step's Jacobian can be propagated (`jacobian_defect`, stability analysis);
+    /// when not, why.
+    #[serde(skip)]
+    pub no_step_jacobian: Option<&'static str>,
 }
 
-const SEP: &[Requirement] = &[Requirement::SeparableConstantMass];
-const SEP_CONSERVATIVE: &[Requirement] = &[
-    Requirement::SeparableConstantMass,
-    Requirement::Conservative,
-];
-const SEP_CONF: &[Requirement] = &[
-    Requirement::SeparableConstantMass,
-    Requirement::ConformalDamping,
-];
-const HNW: &str = "Hairer, Nørsett, Wanner: Solving Ordinary Differential Equations I";
-const GNI: &str = "Hairer, Lubich, Wanner: Geometric Numerical Integration";
-const MODIN: &str = "000 Modin & Söderlind 2011";
-const FLOYD: &str = "003 Floyd 2014";
-const TAKACS: &str = "001 Takács & Fülöp";
+/// Declares [`MethodId`] from the catalogue entries, in catalogue order.
+macro_rules! catalogue {
+    ($($(#[$doc:meta])* $variant:ident => $info:path,)*) => {
+        /// Every method the core offers, in catalogue order. Its request id is its entry's `id`.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+        pub enum MethodId {
+            $($(#[$doc])* $variant,)*
+        }
 
-/// A catalogue row: name, order, kind, symplectic, conformal symplectic, symmetric,
-/// requirements, citation, group, options (the fields of [`MethodInfo`] after the id).
-type InfoRow = (
-    &'static str,
-    u32,
-    Kind,
-    bool,
-    bool,
-    bool,
-    &'static [Requirement],
-    Citation,
-    &'static str,
-    &'static [&'static str],
-);
+        impl MethodId {
+            /// All methods, in catalogue order.
+            pub const ALL: &'static [MethodId] = &[$(MethodId::$variant,)*];
+
+            /// The method's catalogue entry.
+            pub fn info(self) -> &'static MethodInfo {
+                match self {
+                    $(MethodId::$variant => &$info,)*
+                }
+            }
+        }
+    };
+}
+
+catalogue! {
+    /// Paper 000 Algorithm 3.1.
+    Modin3s => splitting::MODIN_3S_INFO,
+    /// Paper 000 Algorithm 3.2.
+    Modin2s => splitting::MODIN_2S_INFO,
+    /// Paper 000 Algorithm 3.3.
+    ModinRks => splitting::MODIN_RKS_INFO,
+    /// Paper 003 eq. (2.12).
+    Csv1 => splitting::CSV1_INFO,
+    /// Paper 003 eq. (2.16).
+    Csv2 => conformal::CSV2_INFO,
+    /// Paper 003 eq. (2.3).
+    Cimp => implicit::CIMP_INFO,
+    /// Fourth-order triple-jump composition of a symmetric second-order method.
+    TripleJump => composition::TRIPLE_JUMP_INFO,
+    /// Suzuki's fourth-order five-stage composition.
+    Suzuki4 => composition::SUZUKI_4_INFO,
+    /// Yoshida's sixth-order seven-stage composition.
+    Yoshida6 => composition::YOSHIDA_6_INFO,
+    /// Kahan and Li's sixth-order nine-stage composition.
+    KahanLi6 => composition::KAHAN_LI_6_INFO,
+    /// Kahan and Li's eighth-order 17-stage composition.
+    KahanLi8 => composition::KAHAN_LI_8_INFO,
+    /// Rowlands time stepping: Störmer–Verlet on a modified potential with processing.
+    Rowlands => rowlands::ROWLANDS_INFO,
+    /// Symplectic Euler (kick then drift).
+    SymplecticEuler => splitting::SYMPLECTIC_EULER_INFO,
+    /// Adjoint symplectic Euler (drift then kick).
+    SymplecticEulerAdjoint => splitting::SYMPLECTIC_EULER_ADJOINT_INFO,
+    /// Störmer–Verlet, drift–kick–drift.
+    PositionVerlet => splitting::POSITION_VERLET_INFO,
+    /// Störmer–Verlet, kick–drift–kick.
+    VelocityVerlet => splitting::VELOCITY_VERLET_INFO,
+    /// Implicit midpoint rule (Newton).
+    ImplicitMidpoint => implicit::IMPLICIT_MIDPOINT_INFO,
+    /// Forward Euler.
+    ExplicitEuler => runge_kutta::EXPLICIT_EULER_INFO,
+    /// Heun's (explicit trapezoidal) method.
+    Heun => runge_kutta::HEUN_INFO,
+    /// Kutta's third-order method.
+    Rk3 => runge_kutta::RK3_INFO,
+    /// Classical RK4.
+    Rk4 => runge_kutta::RK4_INFO,
+    /// Adaptive DOP853 at a tight tolerance.
+    Reference => reference::REFERENCE_INFO,
+}
 
 impl MethodId {
-    /// All methods, in catalogue order.
-    pub const ALL: [MethodId; 22] = [
-        MethodId::Modin3s,
-        MethodId::Modin2s,
-        MethodId::ModinRks,
-        MethodId::Csv1,
-        MethodId::Csv2,
-        MethodId::Cimp,
-        MethodId::TripleJump,
-        MethodId::Suzuki4,
-        MethodId::Yoshida6,
-        MethodId::KahanLi6,
-        MethodId::KahanLi8,
-        MethodId::Rowlands,
-        MethodId::SymplecticEuler,
-        MethodId::SymplecticEulerAdjoint,
-        MethodId::PositionVerlet,
-        MethodId::VelocityVerlet,
-        MethodId::ImplicitMidpoint,
-        MethodId::ExplicitEuler,
-        MethodId::Heun,
-        MethodId::Rk3,
-        MethodId::Rk4,
-        MethodId::Reference,
-    ];
-
     /// The id as used in requests.
     pub fn as_str(self) -> &'static str {
-        self.info().name_id()
+        self.info().id
     }
 
-    /// The composition scheme of a composition method (`triple_jump`, `suzuki_4`, …).
-    pub fn scheme(self) -> Option<Scheme> {
-        Some(match self {
-            MethodId::TripleJump => Scheme::TripleJump,
-            MethodId::Suzuki4 => Scheme::Suzuki4,
-            MethodId::Yoshida6 => Scheme::Yoshida6,
-            MethodId::KahanLi6 => Scheme::KahanLi6,
-            MethodId::KahanLi8 => Scheme::KahanLi8,
-            _ => return None,
-        })
-    }
-
-    /// Parses a request id.
+    /// The method with this id, if any.
     pub fn parse(s: &str) -> Option<MethodId> {
-        MethodId::ALL.into_iter().find(|m| m.as_str() == s)
+        MethodId::ALL.iter().copied().find(|m| m.as_str() == s)
     }
 
-    /// The method's metadata.
-    pub fn info(self) -> MethodInfo {
-        use Kind::*;
-        use MethodId as M;
-        let cite = |paper, equation| Citation { paper, equation };
-        let (
-            name,
-            order,
-            kind,
-            symplectic,
-            conformal,
-            symmetric,
-            requirements,
-            reference,
-            group,
-            options,
-        ): InfoRow = match self {
-            M::ExplicitEuler => (
-                "Explicit Euler",
-                1,
-                Explicit,
-                false,
-                false,
-                false,
-                &[],
-                cite(HNW, "Sec. I.7"),
-                "baseline",
-                &[],
-            ),
-            M::Heun => (
-                "Heun (explicit trapezoid)",
-                2,
-                Explicit,
-                false,
-                false,
-                false,
-                &[],
-                cite(MODIN, "footnote 1"),
-                "baseline",
-                &[],
-            ),
-            M::Rk3 => (
-                "Kutta's third order",
-                3,
-                Explicit,
-                false,
-                false,
-                false,
-                &[],
-                cite(HNW, "Table II.1.1"),
-                "baseline",
-                &[],
-            ),
-            M::Rk4 => (
-                "Classical Runge–Kutta 4",
-                4,
-                Explicit,
-                false,
-                false,
-                false,
-                &[],
-                cite(HNW, "Table II.1.2"),
-                "baseline",
-                &[],
-            ),
-            M::ImplicitMidpoint => (
-                "Implicit midpoint",
-                2,
-                Implicit,
-                true,
-                false,
-                true,
-                &[],
-                cite(GNI, "Sec. II.1.1"),
-                "baseline",
-                &[],
-            ),
-            M::SymplecticEuler => (
-                "Symplectic Euler",
-                1,
-                Explicit,
-                true,
-                false,
-                false,
-                &[],
-                cite(TAKACS, "eq. (42)"),
-                "baseline",
-                &[],
-            ),
-            M::SymplecticEulerAdjoint => (
-                "Symplectic Euler (adjoint)",
-                1,
-                Explicit,
-                true,
-                false,
-                false,
-                &[],
-                cite(TAKACS, "footnote 3 (the adjoint of eqs. 42–43)"),
-                "baseline",
-                &[],
-            ),
-            M::PositionVerlet => (
-                "Störmer–Verlet (drift–kick–drift)",
-                2,
-                Explicit,
-                true,
-                false,
-                true,
-                SEP,
-                cite(GNI, "Sec. I.1.4"),
-                "baseline",
-                &[],
-            ),
-            M::VelocityVerlet => (
-                "Störmer–Verlet (kick–drift–kick)",
-                2,
-                Explicit,
-                true,
-                false,
-                true,
-                SEP,
-                cite(GNI, "Sec. I.1.4"),
-                "baseline",
-                &[],
-            ),
-            M::Modin3s => (
-                "Three-term splitting (3S)",
-                2,
-                Explicit,
-                true,
-                true,
-                true,
-                SEP,
-                cite(MODIN, "Algorithm 3.1"),
-                "geometric",
-                &[],
-            ),
-            M::Modin2s => (
-                "Two-term splitting (2S)",
-                2,
-                Explicit,
-                true,
-                true,
-                true,
-                SEP,
-                cite(MODIN, "Algorithm 3.2"),
-                "geometric",
-                &[],
-            ),
-            M::ModinRks => (
-                "Runge–Kutta splitting (RKS)",
-                2,
-                Explicit,
-                true,
-                false,
-                false,
-                SEP,
-                cite(MODIN, "Algorithm 3.3"),
-                "geometric",
-                &["inner"],
-            ),
-            M::Csv1 => (
-                "Conformal Störmer–Verlet 1 (CSV1)",
-                2,
-                Explicit,
-                true,
-                true,
-                true,
-                SEP_CONF,
-                cite(FLOYD, "eq. (2.12)"),
-                "conformal",
-                &[],
-            ),
-            M::Csv2 => (
-                "Conformal Störmer–Verlet 2 (CSV2)",
-                2,
-                Explicit,
-                true,
-                true,
-                true,
-                SEP_CONF,
-                cite(FLOYD, "eq. (2.16)"),
-                "conformal",
-                &[],
-            ),
-            M::Cimp => (
-                "Conformal implicit midpoint (CIMP)",
-                2,
-                Implicit,
-                true,
-                true,
-                true,
-                SEP_CONF,
-                cite(FLOYD, "eq. (2.3)"),
-                "conformal",
-                &[],
-            ),
-            M::TripleJump => (
-                "Triple-jump composition (order 4)",
-                4,
-                Explicit,
-                true,
-                true,
-                true,
-                &[],
-                cite(GNI, "Sec. II.4, eq. (4.4)"),
-                "geometric",
-                &["base"],
-            ),
-            M::Suzuki4 => (
-                "Suzuki fractal composition (order 4, 5 stages)",
-                4,
-                Explicit,
-                true,
-                true,
-                true,
-                &[],
-                cite("Suzuki 1990; HLW", "Sec. II.4"),
-                "geometric",
-                &["base"],
-            ),
-            M::Yoshida6 => (
-                "Yoshida composition (order 6, 7 stages)",
-                6,
-                Explicit,
-                true,
-                true,
-                true,
-                &[],
-                cite("Yoshida 1990, solution A; HLW", "Sec. V.3.2"),
-                "geometric",
-                &["base"],
-            ),
-            M::KahanLi6 => (
-                "Kahan–Li composition (order 6, 9 stages)",
-                6,
-                Explicit,
-                true,
-                true,
-                true,
-                &[],
-                cite("Kahan & Li 1997; HLW", "Sec. V.3.2"),
-                "geometric",
-                &["base"],
-            ),
-            M::KahanLi8 => (
-                "Kahan–Li composition (order 8, 17 stages)",
-                8,
-                Explicit,
-                true,
-                true,
-                true,
-                &[],
-                cite("Kahan & Li 1997; HLW", "Sec. V.3.2"),
-                "geometric",
-                &["base"],
-            ),
-            M::Rowlands => (
-                "Rowlands time stepping (processed Störmer–Verlet, effective order 4)",
-                4,
-                Explicit,
-                true,
-                false,
-                true,
-                SEP_CONSERVATIVE,
-                cite(TAKACS, "eqs. (30)–(37), (32)–(33) with h²/12"),
-                "geometric",
-                &["processor"],
-            ),
-            M::Reference => (
-                "Reference: adaptive DOP853",
-                8,
-                Adaptive,
-                false,
-                false,
-                false,
-                &[],
-                cite(HNW, "Sec. II.10"),
-                "baseline",
-                &["tolerance"],
-            ),
-        };
-        MethodInfo {
-            id: self,
-            name,
-            order,
-            kind,
-            symplectic,
-            conformal_symplectic: conformal,
-            symmetric,
-            requirements,
-            reference,
-            group,
-            options,
-        }
+    /// Every id, comma-separated (for messages).
+    pub fn known() -> String {
+        names(MethodId::ALL)
     }
 }
 
-impl MethodInfo {
-    fn name_id(&self) -> &'static str {
-        match self.id {
-            MethodId::ExplicitEuler => "explicit_euler",
-            MethodId::Heun => "heun",
-            MethodId::Rk3 => "rk3",
-            MethodId::Rk4 => "rk4",
-            MethodId::ImplicitMidpoint => "implicit_midpoint",
-            MethodId::SymplecticEuler => "symplectic_euler",
-            MethodId::SymplecticEulerAdjoint => "symplectic_euler_adjoint",
-            MethodId::PositionVerlet => "position_verlet",
-            MethodId::VelocityVerlet => "velocity_verlet",
-            MethodId::Modin3s => "modin_3s",
-            MethodId::Modin2s => "modin_2s",
-            MethodId::ModinRks => "modin_rks",
-            MethodId::Csv1 => "csv1",
-            MethodId::Csv2 => "csv2",
-            MethodId::Cimp => "cimp",
-            MethodId::TripleJump => "triple_jump",
-            MethodId::Suzuki4 => "suzuki_4",
-            MethodId::Yoshida6 => "yoshida_6",
-            MethodId::KahanLi6 => "kahan_li_6",
-            MethodId::KahanLi8 => "kahan_li_8",
-            MethodId::Rowlands => "rowlands",
-            MethodId::Reference => "reference",
-        }
+impl std::fmt::Display for MethodId {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
     }
 }
 
-/// Inner methods modin_rks accepts.
-/// (At least second order, so that the splitting stays second order; paper 000 Sec. 3.)
-pub const RKS_INNER: &[MethodId] = &[
-    MethodId::Heun,
-    MethodId::Rk3,
-    MethodId::Rk4,
-    MethodId::ImplicitMidpoint,
-];
-/// Bases the compositions (triple_jump, suzuki_4, yoshida_6, kahan_li_6, kahan_li_8) accept:
-/// the symmetric second-order methods.
-pub const COMPOSITION_BASES: &[MethodId] = &[
-    MethodId::Modin3s,
-    MethodId::Modin2s,
-    MethodId::Csv1,
-    MethodId::Csv2,
-    MethodId::Cimp,
-    MethodId::PositionVerlet,
-    MethodId::VelocityVerlet,
-    MethodId::ImplicitMidpoint,
-];
+impl Serialize for MethodId {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.as_str())
+    }
+}
 
-/// A method as a request gives it: a bare id or an object with options.
-#[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
-#[serde(untagged)]
-pub enum MethodInput {
-    /// `"modin_3s"`.
-    Id(String),
-    /// `{"id": "modin_rks", "inner": "rk4"}`.
-    Object {
-        /// The method id.
-        id: String,
-        /// Inner Runge–Kutta method of modin_rks.
-        #[serde(default, skip_serializing_if = "Option::is_none")]
-        inner: Option<String>,
-        /// Base method of a composition (triple_jump, suzuki_4, …).
-        #[serde(default, skip_serializing_if = "Option::is_none")]
-        base: Option<String>,
-        /// Tolerance of reference.
-        #[serde(default, skip_serializing_if = "Option::is_none")]
-        tolerance: Option<f64>,
-        /// Processor of rowlands (none, original, cheap).
-        #[serde(default, skip_serializing_if = "Option::is_none")]
-        processor: Option<String>,
+impl utoipa::PartialSchema for MethodId {
+    fn schema() -> utoipa::openapi::RefOr<utoipa::openapi::schema::Schema> {
+        crate::core::schema::string_enum(
+            "A method id (see GET /api/v1/methods).",
+            MethodId::ALL.iter().map(|m| m.as_str()),
+        )
+    }
+}
+
+impl ToSchema for MethodId {}
+
+fn names(ids: &[MethodId]) -> String {
+    ids.iter()
+        .map(|m| m.as_str())
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// Declares a subset of the methods as its own type.
+macro_rules! method_subset {
+    ($(#[$doc:meta])* $name:ident, $rule:literal { $($variant:ident),* $(,)? }) => {
+        $(#[$doc])*
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+        pub enum $name {
+            $(#[doc = concat!("[`MethodId::", stringify!($variant), "`].")] $variant,)*
+        }
+
+        impl $name {
+            /// Every member, in catalogue order.
+            pub const ALL: &'static [$name] = &[$($name::$variant,)*];
+            /// What the subset is, for messages.
+            pub const RULE: &'static str = $rule;
+
+            /// The method's id.
+            pub fn id(self) -> MethodId {
+                match self {
+                    $($name::$variant => MethodId::$variant,)*
+                }
+            }
+
+            /// The member with this id, if it is one.
+            pub fn of(id: MethodId) -> Option<$name> {
+                $name::ALL.iter().copied().find(|m| m.id() == id)
+            }
+
+            /// Every member's id, for messages.
+            pub fn ids() -> Vec<String> {
+                $name::ALL.iter().map(|m| m.id().as_str().to_string()).collect()
+            }
+        }
+
+        impl utoipa::PartialSchema for $name {
+            fn schema() -> utoipa::openapi::RefOr<utoipa::openapi::schema::Schema> {
+                crate::core::schema::string_enum($rule, $name::ALL.iter().map(|m| m.id().as_str()))
+            }
+        }
+
+        impl ToSchema for $name {}
+    };
+}
+
+method_subset! {
+    /// The inner methods modin_rks accepts: at least second order, so that the splitting stays
+    /// second order (paper 000 Sec. 3; with forward Euler inside we measured order 1.02).
+    Inner, "modin_rks needs a Runge–Kutta inner method" { Heun, Rk3, Rk4, ImplicitMidpoint }
+}
+
+method_subset! {
+    /// The bases the compositions accept: the symmetric second-order methods.
+    Base, "a composition needs a symmetric second-order base" {
+        Modin3s, Modin2s, Csv1, Csv2, Cimp, PositionVerlet, VelocityVerlet, ImplicitMidpoint
+    }
+}
+
+/// A method with its options: what a request asks for and a run uses. Options take their
+/// defaults when a request leaves them out ([`Method::new`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Method {
+    /// One of the methods without options.
+    Plain(MethodId),
+    /// modin_rks with its inner Runge–Kutta method (default heun).
+    ModinRks {
+        /// The inner method.
+        inner: Inner,
+    },
+    /// A symmetric composition of a base (default modin_3s).
+    Composition {
+        /// The composition (triple_jump, suzuki_4, yoshida_6, kahan_li_6, kahan_li_8).
+        scheme: Scheme,
+        /// The base.
+        base: Base,
+    },
+    /// rowlands with its processor (default cheap).
+    Rowlands {
+        /// The processor.
+        processor: Processor,
+    },
+    /// The adaptive reference at a tolerance (default 1e-12).
+    Reference {
+        /// Relative and absolute tolerance, in [1e-14, 1e-2].
+        tolerance: f64,
     },
 }
 
-/// A validated method choice.
-#[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct MethodChoice {
-    /// The method.
-    pub id: MethodId,
-    /// Inner method (modin_rks).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub inner: Option<MethodId>,
-    /// Base method (a composition: triple_jump, suzuki_4, …).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub base: Option<MethodId>,
-    /// Tolerance (reference).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub tolerance: Option<f64>,
-    /// Processor (rowlands).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub processor: Option<Processor>,
-}
+/// The valid tolerances of the adaptive reference.
+pub const TOLERANCE_RANGE: crate::core::error::Range =
+    crate::core::error::Range::closed(1e-14, false, 1e-2);
 
-impl MethodChoice {
-    /// A choice with default options.
-    pub fn new(id: MethodId) -> Self {
-        let mut choice = MethodChoice {
-            id,
-            inner: None,
-            base: None,
-            tolerance: None,
-            processor: None,
-        };
-        choice.fill_defaults();
-        choice
-    }
-
-    /// A triple jump of `base`.
-    pub fn triple_jump(base: MethodId) -> Self {
-        Self::composition(MethodId::TripleJump, base)
-    }
-
-    /// The composition `id` (triple_jump, suzuki_4, …) of `base`.
-    pub fn composition(id: MethodId, base: MethodId) -> Self {
-        MethodChoice {
-            id,
-            inner: None,
-            base: Some(base),
-            tolerance: None,
-            processor: None,
+impl Method {
+    /// The method `id` with default options.
+    pub fn new(id: MethodId) -> Method {
+        match id {
+            MethodId::ModinRks => Method::ModinRks { inner: Inner::Heun },
+            MethodId::Rowlands => Method::Rowlands {
+                processor: Processor::DEFAULT,
+            },
+            MethodId::Reference => Method::Reference {
+                tolerance: reference::DEFAULT_TOLERANCE,
+            },
+            id => match Scheme::of(id) {
+                Some(scheme) => Method::Composition {
+                    scheme,
+                    base: Base::Modin3s,
+                },
+                None => Method::Plain(id),
+            },
         }
     }
 
-    /// modin_rks with `inner`.
-    pub fn rks(inner: MethodId) -> Self {
-        MethodChoice {
-            id: MethodId::ModinRks,
-            inner: Some(inner),
-            base: None,
-            tolerance: None,
-            processor: None,
+    /// The composition `scheme` of `base`.
+    pub fn composition(scheme: Scheme, base: Base) -> Method {
+        Method::Composition { scheme, base }
+    }
+
+    /// The triple jump of `base`.
+    pub fn triple_jump(base: Base) -> Method {
+        Method::composition(Scheme::TripleJump, base)
+    }
+
+    /// The method's id.
+    pub fn id(&self) -> MethodId {
+        match self {
+            Method::Plain(id) => *id,
+            Method::ModinRks { .. } => MethodId::ModinRks,
+            Method::Composition { scheme, .. } => scheme.id(),
+            Method::Rowlands { .. } => MethodId::Rowlands,
+            Method::Reference { .. } => MethodId::Reference,
         }
     }
 
-    /// rowlands with `processor`.
-    pub fn rowlands(processor: Processor) -> Self {
-        MethodChoice {
-            id: MethodId::Rowlands,
-            inner: None,
-            base: None,
-            tolerance: None,
-            processor: Some(processor),
-        }
+    /// The method's catalogue entry.
+    pub fn info(&self) -> &'static MethodInfo {
+        self.id().info()
     }
 
-    fn fill_defaults(&mut self) {
-        match self.id {
-            MethodId::ModinRks => self.inner = self.inner.or(Some(MethodId::Heun)),
-            MethodId::Reference => {
-                self.tolerance = self.tolerance.or(Some(reference::DEFAULT_TOLERANCE))
-            }
-            MethodId::Rowlands => self.processor = self.processor.or(Some(Processor::DEFAULT)),
-            id if id.scheme().is_some() => self.base = self.base.or(Some(MethodId::Modin3s)),
-            _ => {}
-        }
-    }
-
-    /// A label that tells runs apart: `modin_rks(rk4)`, `triple_jump(csv1)`, `reference(1e-12)`,
+    /// A label that tells runs apart: `modin_rks(rk4)`, `triple_jump(csv1)`, `reference(1e-10)`,
     /// `rowlands(cheap)`.
     pub fn label(&self) -> String {
-        let id = self.id.as_str();
-        if let Some(p) = self.processor {
-            return format!("{id}({})", p.as_str());
-        }
-        match (self.inner, self.base, self.tolerance) {
-            (Some(i), _, _) => format!("{id}({})", i.as_str()),
-            (_, Some(b), _) => format!("{id}({})", b.as_str()),
-            (_, _, Some(t)) if t != reference::DEFAULT_TOLERANCE => format!("{id}({t:e})"),
-            _ => id.to_string(),
+        let id = self.id().as_str();
+        match self {
+            Method::Plain(_) => id.to_string(),
+            Method::ModinRks { inner } => format!("{id}({})", inner.id()),
+            Method::Composition { base, .. } => format!("{id}({})", base.id()),
+            Method::Rowlands { processor } => format!("{id}({})", processor.as_str()),
+            Method::Reference { tolerance } if *tolerance != reference::DEFAULT_TOLERANCE => {
+                format!("{id}({tolerance:e})")
+            }
+            Method::Reference { .. } => id.to_string(),
         }
     }
 
-    /// Parses and checks a request's method; `field` names it in errors (e.g. `methods[1]`).
-    pub fn parse(input: &MethodInput, field: &str) -> Result<Self, CoreError> {
-        let lookup = |s: &str, f: &str| {
-            MethodId::parse(s).ok_or_else(|| {
-                let known: Vec<&str> = MethodId::ALL.iter().map(|m| m.as_str()).collect();
-                CoreError::invalid(
-                    f,
-                    format!("unknown method `{s}`; known: {}", known.join(", ")),
-                )
-            })
-        };
-        let mut choice = match input {
-            MethodInput::Id(id) => MethodChoice {
-                id: lookup(id, field)?,
-                inner: None,
-                base: None,
-                tolerance: None,
-                processor: None,
-            },
-            MethodInput::Object {
-                id,
-                inner,
-                base,
-                tolerance,
-                processor,
-            } => {
-                let id = lookup(id, &format!("{field}.id"))?;
-                let allowed = id.info().options;
-                for (name, present) in [
-                    ("inner", inner.is_some()),
-                    ("base", base.is_some()),
-                    ("tolerance", tolerance.is_some()),
-                    ("processor", processor.is_some()),
-                ] {
-                    if present && !allowed.contains(&name) {
-                        return Err(CoreError::invalid(
-                            format!("{field}.{name}"),
-                            format!("`{}` takes no option `{name}`", id.as_str()),
-                        ));
-                    }
-                }
-                let inner = inner
-                    .as_deref()
-                    .map(|s| lookup(s, &format!("{field}.inner")))
-                    .transpose()?;
-                let base = base
-                    .as_deref()
-                    .map(|s| lookup(s, &format!("{field}.base")))
-                    .transpose()?;
-                let processor = processor
-                    .as_deref()
-                    .map(|s| {
-                        Processor::parse(s).ok_or_else(|| {
-                            let known: Vec<&str> =
-                                Processor::ALL.iter().map(|p| p.as_str()).collect();
-                            CoreError::invalid(
-                                format!("{field}.processor"),
-                                format!("unknown processor `{s}`; known: {}", known.join(", ")),
-                            )
-                        })
-                    })
-                    .transpose()?;
-                MethodChoice {
-                    id,
-                    inner,
-                    base,
-                    tolerance: *tolerance,
-                    processor,
-                }
-            }
-        };
-        choice.fill_defaults();
-        if let Some(inner) = choice.inner {
-            if !RKS_INNER.contains(&inner) {
-                return Err(CoreError::invalid(
-                    format!("{field}.inner"),
-                    format!(
-                        "modin_rks needs a Runge–Kutta inner method: one of {}",
-                        names(RKS_INNER)
-                    ),
-                ));
-            }
-        }
-        if let Some(base) = choice.base {
-            if !COMPOSITION_BASES.contains(&base) {
-                return Err(CoreError::invalid(
-                    format!("{field}.base"),
-                    format!(
-                        "a composition needs a symmetric second-order base: one of {}",
-                        names(COMPOSITION_BASES)
-                    ),
-                ));
-            }
-        }
-        if let Some(t) = choice.tolerance {
-            if !(t.is_finite() && (1e-14..=1e-2).contains(&t)) {
-                return Err(CoreError::invalid(
-                    format!("{field}.tolerance"),
-                    "must lie in [1e-14, 1e-2]",
-                ));
-            }
-        }
-        Ok(choice)
-    }
-
-    /// The requirements of this choice (a composition inherits its base's).
+    /// The requirements on the system (a composition inherits its base's).
     pub fn requirements(&self) -> &'static [Requirement] {
-        match (self.id.scheme(), self.base) {
-            (Some(_), Some(base)) => base.info().requirements,
-            _ => self.id.info().requirements,
+        match self {
+            Method::Composition { base, .. } => base.id().info().requirements,
+            _ => self.info().requirements,
         }
     }
 
-    /// The order of this choice: the method's, except that rowlands without processing is its
-    /// second-order kernel.
+    /// The order: the method's, except that rowlands without processing is its second-order
+    /// kernel.
     pub fn order(&self) -> u32 {
-        match (self.id, self.processor) {
-            (MethodId::Rowlands, Some(Processor::None)) => 2,
-            (id, _) => id.info().order,
+        match self {
+            Method::Rowlands {
+                processor: Processor::None,
+            } => 2,
+            _ => self.info().order,
         }
     }
 
-    /// Checks the requirements against a system with this structure and damping rate
-    /// ([`MechanicalSystem::damping_rate`]); the error names the first unmet one.
+    /// Why the step has no Jacobian, if it has none (a composition has its base's).
+    pub fn no_step_jacobian(&self) -> Option<&'static str> {
+        match self {
+            Method::Composition { base, .. } => base.id().info().no_step_jacobian,
+            _ => self.info().no_step_jacobian,
+        }
+    }
+
+    /// Checks the requirements against a system with this structure and damping rate; the
+    /// error names the first unmet one, the method's `field` and the system as `system` says.
     pub fn check(
         &self,
-        system_id: &str,
+        field: &Field,
+        system: &str,
         structure: Structure,
         damping_rate: f64,
     ) -> Result<(), CoreError> {
@@ -873,245 +478,50 @@ impl MethodChoice {
             .find(|r| !r.met_by(structure, damping_rate))
         {
             None => Ok(()),
-            Some(r) => Err(CoreError::Unmet {
+            Some(&requirement) => Err(CoreError::Unmet {
+                field: field.clone(),
                 method: self.label(),
-                system: system_id.to_string(),
-                requirement: r.describe().to_string(),
+                system: system.to_string(),
+                requirement,
             }),
         }
     }
 }
 
-fn names(ids: &[MethodId]) -> String {
-    ids.iter()
-        .map(|m| m.as_str())
-        .collect::<Vec<_>>()
-        .join(", ")
-}
-
-fn tableau(id: MethodId) -> Option<&'static Tableau> {
-    match id {
-        MethodId::ExplicitEuler => Some(&runge_kutta::EXPLICIT_EULER),
-        MethodId::Heun => Some(&runge_kutta::HEUN),
-        MethodId::Rk3 => Some(&runge_kutta::RK3),
-        MethodId::Rk4 => Some(&runge_kutta::RK4),
-        _ => None,
+impl From<MethodId> for Method {
+    fn from(id: MethodId) -> Self {
+        Method::new(id)
     }
 }
 
-fn sequence(id: MethodId) -> Option<splitting::Sequence> {
-    Some(match id {
-        MethodId::Modin3s => splitting::MODIN_3S,
-        MethodId::Modin2s => splitting::MODIN_2S,
-        MethodId::ModinRks => splitting::MODIN_RKS,
-        MethodId::Csv1 => splitting::CSV1,
-        MethodId::SymplecticEuler => splitting::SYMPLECTIC_EULER,
-        MethodId::SymplecticEulerAdjoint => splitting::SYMPLECTIC_EULER_ADJOINT,
-        MethodId::PositionVerlet => splitting::POSITION_VERLET,
-        MethodId::VelocityVerlet => splitting::VELOCITY_VERLET,
-        _ => return None,
-    })
-}
-
-/// A stepper for a concrete system, chosen at run time. Matching on it once per run (see
-/// [`with_stepper!`](crate::with_stepper)) runs the driver monomorphised for the concrete stepper.
-pub enum AnyStepper<S: MechanicalSystem>
-where
-    DefaultAllocator: Allocator<S::Dim>,
-{
-    /// A splitting, or a composition of splittings.
-    Splitting(Splitting<S>),
-    /// An explicit Runge–Kutta method.
-    RungeKutta(RungeKutta<S::Dim>),
-    /// implicit_midpoint or cimp.
-    Midpoint(ImplicitMidpoint<S>),
-    /// csv2.
-    Csv2(Csv2<S>),
-    /// A composition of implicit_midpoint or cimp.
-    ComposedMidpoint(Composed<ImplicitMidpoint<S>>),
-    /// A composition of csv2.
-    ComposedCsv2(Composed<Csv2<S>>),
-    /// Symplectic Euler or its adjoint on a non-separable Hamiltonian.
-    GeneralSymplecticEuler(GeneralSymplecticEuler<S>),
-    /// The adaptive reference.
-    Reference(Reference),
-    /// rowlands.
-    Rowlands(Rowlands<S>),
-}
-
-/// Runs `$body` with `$st` bound to the concrete stepper inside an [`AnyStepper`].
-#[macro_export]
-macro_rules! with_stepper {
-    ($any:expr, $st:ident => $body:expr) => {
-        match $any {
-            $crate::core::methods::AnyStepper::Splitting($st) => $body,
-            $crate::core::methods::AnyStepper::RungeKutta($st) => $body,
-            $crate::core::methods::AnyStepper::Midpoint($st) => $body,
-            $crate::core::methods::AnyStepper::Csv2($st) => $body,
-            $crate::core::methods::AnyStepper::ComposedMidpoint($st) => $body,
-            $crate::core::methods::AnyStepper::ComposedCsv2($st) => $body,
-            $crate::core::methods::AnyStepper::GeneralSymplecticEuler($st) => $body,
-            $crate::core::methods::AnyStepper::Reference($st) => $body,
-            $crate::core::methods::AnyStepper::Rowlands($st) => $body,
+/// A method is written as requests write it: its id alone when it has no options, else
+/// `{"id", <option>}`.
+impl Serialize for Method {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        let id = self.id().as_str();
+        /// An option's value: a name or the tolerance.
+        #[derive(Serialize)]
+        #[serde(untagged)]
+        enum Value {
+            Name(&'static str),
+            Number(f64),
         }
-    };
-}
-
-impl<S: MechanicalSystem> Stepper<S> for AnyStepper<S>
-where
-    DefaultAllocator: Allocator<S::Dim>,
-{
-    fn step(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64) -> Result<(), StepError> {
-        with_stepper!(self, st => st.step(sys, z, h))
-    }
-    fn force_evaluations(&self) -> u64 {
-        with_stepper!(self, st => Stepper::<S>::force_evaluations(st))
-    }
-    fn check_interval(&self) -> u64 {
-        with_stepper!(self, st => Stepper::<S>::check_interval(st))
-    }
-    fn pre_process(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64) {
-        with_stepper!(self, st => st.pre_process(sys, z, h))
-    }
-    fn post_process(
-        &mut self,
-        sys: &S,
-        z: &State<S::Dim>,
-        h: f64,
-        out: &mut State<S::Dim>,
-    ) -> bool {
-        with_stepper!(self, st => st.post_process(sys, z, h, out))
-    }
-    fn step_tangent(
-        &mut self,
-        sys: &S,
-        z: &mut State<S::Dim>,
-        h: f64,
-        t: &mut Tangent,
-    ) -> Result<(), StepError> {
-        with_stepper!(self, st => st.step_tangent(sys, z, h, t))
-    }
-}
-
-/// Builds the stepper for `choice` on `sys` with step `h`, after checking the requirements and
-/// step-size limits. `system_id` names the system in errors.
-pub fn build<S: MechanicalSystem>(
-    choice: &MethodChoice,
-    sys: &S,
-    system_id: &str,
-    h: f64,
-) -> Result<AnyStepper<S>, CoreError>
-where
-    DefaultAllocator: Allocator<S::Dim>,
-{
-    choice.check(system_id, sys.structure(), sys.damping_rate())?;
-    let scheme = choice.id.scheme();
-    let base = match scheme {
-        Some(_) => choice.base.unwrap_or(MethodId::Modin3s),
-        None => choice.id,
-    };
-    if scheme.is_some() && !COMPOSITION_BASES.contains(&base) {
-        return Err(CoreError::invalid(
-            "methods",
-            format!("`{}` is not a composition base", base.as_str()),
-        ));
-    }
-    let inner = match choice.id {
-        MethodId::ModinRks => Some(choice.inner.unwrap_or(MethodId::Heun)),
-        _ => None,
-    };
-    if let Some(i) = inner.filter(|i| !RKS_INNER.contains(i)) {
-        return Err(CoreError::invalid(
-            "methods",
-            format!("`{}` is not an inner method of modin_rks", i.as_str()),
-        ));
-    }
-    let weights = scheme.map_or_else(|| vec![1.0], Scheme::weights);
-    check_divisors(base, sys.damping_rate(), h, &weights)?;
-    let splitting = |seq: Vec<(splitting::SubFlow, f64)>| {
-        let inner = inner.map(|i| {
-            MomentumRk::new(
-                tableau(i).map_or(InnerRk::ImplicitMidpoint, InnerRk::Explicit),
-                sys.dim(),
-            )
-        });
-        AnyStepper::Splitting(Splitting::new(sys, seq, inner))
-    };
-    if scheme.is_some() {
-        return Ok(match (sequence(base), base) {
-            (Some(seq), _) => splitting(splitting::compose(seq, &weights)),
-            (None, MethodId::Csv2) => {
-                AnyStepper::ComposedCsv2(Composed::new(Csv2::new(sys), weights))
-            }
-            (None, MethodId::Cimp) => AnyStepper::ComposedMidpoint(Composed::new(
-                ImplicitMidpoint::new(sys, MidpointField::Conformal),
-                weights,
-            )),
-            _ => AnyStepper::ComposedMidpoint(Composed::new(
-                ImplicitMidpoint::new(sys, MidpointField::Full),
-                weights,
-            )),
-        });
-    }
-    let separable = sys.structure().separable_constant_mass;
-    Ok(match choice.id {
-        MethodId::SymplecticEuler if !separable => {
-            AnyStepper::GeneralSymplecticEuler(GeneralSymplecticEuler::new(sys, Variant::Original))
-        }
-        MethodId::SymplecticEulerAdjoint if !separable => {
-            AnyStepper::GeneralSymplecticEuler(GeneralSymplecticEuler::new(sys, Variant::Adjoint))
-        }
-        MethodId::ImplicitMidpoint => {
-            AnyStepper::Midpoint(ImplicitMidpoint::new(sys, MidpointField::Full))
-        }
-        MethodId::Cimp => {
-            AnyStepper::Midpoint(ImplicitMidpoint::new(sys, MidpointField::Conformal))
-        }
-        MethodId::Csv2 => AnyStepper::Csv2(Csv2::new(sys)),
-        MethodId::Reference => AnyStepper::Reference(Reference::new(
-            choice.tolerance.unwrap_or(reference::DEFAULT_TOLERANCE),
-        )),
-        MethodId::Rowlands => AnyStepper::Rowlands(Rowlands::new(
-            sys,
-            choice.processor.unwrap_or(Processor::DEFAULT),
-        )),
-        id => match (tableau(id), sequence(id)) {
-            (Some(t), _) => AnyStepper::RungeKutta(RungeKutta::new(t, sys.dim())),
-            (None, Some(seq)) => splitting(seq.to_vec()),
-            (None, None) => unreachable!("every method id has a constructor"),
-        },
-    })
-}
-
-/// Refuses a step whose sub-steps w·h make one of the method's linear solves singular: csv2
-/// divides by 1 ∓ γτ/2, a damped θ-kick by 1 + θrτ. With a composition's negative weights
-/// these vanish at values of γh other than the plain method's.
-fn check_divisors(base: MethodId, r: f64, h: f64, weights: &[f64]) -> Result<(), CoreError> {
-    let singular = |d: f64| d.abs() < 1e-9;
-    for &w in weights {
-        let bad = match (base, sequence(base)) {
-            (MethodId::Csv2, _) => {
-                let a = 0.25 * r * w * h;
-                singular(1.0 - a) || singular(1.0 + a)
-            }
-            (_, Some(seq)) => seq.iter().any(|&(flow, frac)| match flow {
-                splitting::SubFlow::DampedKick(theta) => {
-                    singular(1.0 + theta.value() * r * w * frac * h)
-                }
-                _ => false,
-            }),
-            _ => false,
+        let option = match self {
+            Method::Plain(_) => None,
+            Method::ModinRks { inner } => Some(("inner", Value::Name(inner.id().as_str()))),
+            Method::Composition { base, .. } => Some(("base", Value::Name(base.id().as_str()))),
+            Method::Rowlands { processor } => Some(("processor", Value::Name(processor.as_str()))),
+            Method::Reference { tolerance } => Some(("tolerance", Value::Number(*tolerance))),
         };
-        if bad {
-            return Err(CoreError::invalid(
-                "h",
-                format!(
-                    "{} needs to solve a singular linear system at this step size (γh = {}): choose another h",
-                    base.as_str(),
-                    0.5 * r * h
-                ),
-            ));
+        match option {
+            None => s.serialize_str(id),
+            Some((name, value)) => {
+                let mut map = s.serialize_map(Some(2))?;
+                map.serialize_entry("id", id)?;
+                map.serialize_entry(name, &value)?;
+                map.end()
+            }
         }
     }
-    Ok(())
 }

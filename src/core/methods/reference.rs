@@ -10,6 +10,8 @@ use nalgebra::allocator::Allocator;
 use nalgebra::{DVector, DefaultAllocator};
 use ode_solvers::{Dop853, OutputType};
 
+use super::sources::*;
+use super::{Citation, Group, Kind, MethodInfo, MethodOption};
 use crate::core::error::StepError;
 use crate::core::run::Stepper;
 use crate::core::system::{MechanicalSystem, State, Vector};
@@ -144,3 +146,22 @@ fn dop853<F: ode_solvers::System<f64, DVector<f64>>>(
         })?;
     Ok((end, u64::from(stats.num_eval)))
 }
+
+/// Catalogue entry of `reference`.
+pub const REFERENCE_INFO: MethodInfo = MethodInfo {
+    id: "reference",
+    name: "Reference: adaptive DOP853",
+    order: 8,
+    kind: Kind::Adaptive,
+    symplectic: false,
+    conformal_symplectic: false,
+    symmetric: false,
+    requirements: &[],
+    reference: Citation {
+        paper: HNW,
+        equation: "Sec. II.10",
+    },
+    group: Group::Baseline,
+    options: &[MethodOption::Tolerance],
+    no_step_jacobian: Some("the adaptive reference has"),
+};

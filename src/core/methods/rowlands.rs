@@ -55,6 +55,8 @@ use nalgebra::allocator::Allocator;
 use nalgebra::{DMatrix, DefaultAllocator, U1};
 use serde::{Deserialize, Serialize};
 
+use super::sources::*;
+use super::{Citation, Group, Kind, MethodInfo, MethodOption, Requirement};
 use crate::core::error::StepError;
 use crate::core::flows::Tangent;
 use crate::core::run::Stepper;
@@ -93,6 +95,17 @@ impl Processor {
         Processor::ALL.into_iter().find(|p| p.as_str() == s)
     }
 }
+
+impl utoipa::PartialSchema for Processor {
+    fn schema() -> utoipa::openapi::RefOr<utoipa::openapi::schema::Schema> {
+        crate::core::schema::string_enum(
+            "The processor of rowlands.",
+            Processor::ALL.iter().map(|p| p.as_str()),
+        )
+    }
+}
+
+impl utoipa::ToSchema for Processor {}
 
 /// The coefficient c of the original processor: h²/12 (the paper prints h²/24; module docs).
 pub const ORIGINAL_COEFFICIENT: f64 = 1.0 / 12.0;
@@ -389,3 +402,25 @@ where
         }
     }
 }
+
+/// Catalogue entry of `rowlands`.
+pub const ROWLANDS_INFO: MethodInfo = MethodInfo {
+    id: "rowlands",
+    name: "Rowlands time stepping (processed Störmer–Verlet, effective order 4)",
+    order: 4,
+    kind: Kind::Explicit,
+    symplectic: true,
+    conformal_symplectic: false,
+    symmetric: true,
+    requirements: &[
+        Requirement::SeparableConstantMass,
+        Requirement::Conservative,
+    ],
+    reference: Citation {
+        paper: TAKACS,
+        equation: "eqs. (30)–(37), (32)–(33) with h²/12",
+    },
+    group: Group::Geometric,
+    options: &[MethodOption::Processor],
+    no_step_jacobian: Some("rowlands (whose modified kick would need third derivatives of V) has"),
+};

@@ -5,6 +5,8 @@
 use nalgebra::allocator::Allocator;
 use nalgebra::{DMatrix, DefaultAllocator, Dim};
 
+use super::sources::*;
+use super::{Citation, Group, Kind, MethodInfo};
 use crate::core::error::StepError;
 use crate::core::flows::{self, Tangent};
 use crate::core::run::Stepper;
@@ -291,3 +293,79 @@ where
         }
     }
 }
+
+/// Catalogue entry of `explicit_euler`.
+pub const EXPLICIT_EULER_INFO: MethodInfo = MethodInfo {
+    id: "explicit_euler",
+    name: "Explicit Euler",
+    order: 1,
+    kind: Kind::Explicit,
+    symplectic: false,
+    conformal_symplectic: false,
+    symmetric: false,
+    requirements: &[],
+    reference: Citation {
+        paper: HNW,
+        equation: "Sec. I.7",
+    },
+    group: Group::Baseline,
+    options: &[],
+    no_step_jacobian: None,
+};
+
+/// Catalogue entry of `heun`.
+pub const HEUN_INFO: MethodInfo = MethodInfo {
+    id: "heun",
+    name: "Heun (explicit trapezoid)",
+    order: 2,
+    kind: Kind::Explicit,
+    symplectic: false,
+    conformal_symplectic: false,
+    symmetric: false,
+    requirements: &[],
+    reference: Citation {
+        paper: MODIN,
+        equation: "footnote 1",
+    },
+    group: Group::Baseline,
+    options: &[],
+    no_step_jacobian: None,
+};
+
+/// Catalogue entry of `rk3`.
+pub const RK3_INFO: MethodInfo = MethodInfo {
+    id: "rk3",
+    name: "Kutta's third order",
+    order: 3,
+    kind: Kind::Explicit,
+    symplectic: false,
+    conformal_symplectic: false,
+    symmetric: false,
+    requirements: &[],
+    reference: Citation {
+        paper: HNW,
+        equation: "Table II.1.1",
+    },
+    group: Group::Baseline,
+    options: &[],
+    no_step_jacobian: None,
+};
+
+/// Catalogue entry of `rk4`.
+pub const RK4_INFO: MethodInfo = MethodInfo {
+    id: "rk4",
+    name: "Classical Runge–Kutta 4",
+    order: 4,
+    kind: Kind::Explicit,
+    symplectic: false,
+    conformal_symplectic: false,
+    symmetric: false,
+    requirements: &[],
+    reference: Citation {
+        paper: HNW,
+        equation: "Table II.1.2",
+    },
+    group: Group::Baseline,
+    options: &[],
+    no_step_jacobian: None,
+};

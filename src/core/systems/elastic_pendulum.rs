@@ -8,6 +8,7 @@
 
 use nalgebra::{DMatrix, U3};
 
+use super::{AnySystem, ChartInfo, ParamSpec, ParamValues, SystemInfo, World};
 use crate::core::system::{MechanicalSystem, Structure, Vector};
 
 /// The damped elastic 3-D pendulum.
@@ -263,5 +264,69 @@ impl MechanicalSystem for ElasticPendulum3dCylindrical {
         p[1] = x[0] * px[1] - x[1] * px[0];
         p[2] = px[2];
         Ok(())
+    }
+}
+
+const MASS: ParamSpec = ParamSpec::number("m", "Mass.", 1.0, 0.0, true, 1e6);
+const STIFFNESS: ParamSpec = ParamSpec::number("k", "Spring stiffness.", 1.0, 0.0, true, 1e6);
+const REST_LENGTH: ParamSpec = ParamSpec::number("l", "Spring rest length.", 1.0, 0.0, true, 1e6);
+const GRAVITY: ParamSpec = ParamSpec::number(
+    "g",
+    "Gravitational acceleration (along −z).",
+    1.0,
+    0.0,
+    false,
+    1e6,
+);
+const EPSILON: ParamSpec = ParamSpec::number(
+    "epsilon",
+    "Damping strength ε of the radial Rayleigh dissipation.",
+    0.1,
+    0.0,
+    false,
+    1e6,
+);
+const CARTESIAN: ChartInfo = ChartInfo::new(
+    "cartesian",
+    &["x", "y", "z"],
+    true,
+    "H = |p|²/(2m) + k/2 (|q| − l)² + m g z.",
+);
+const CYLINDRICAL: ChartInfo = ChartInfo::new(
+    "cylindrical",
+    &["ρ", "φ", "z"],
+    false,
+    "x = ρ cos φ, y = ρ sin φ: H = (p_ρ² + p_φ²/ρ² + p_z²)/(2m) + k/2 (√(ρ² + z²) − l)² + m g z, with J₃ = p_φ cyclic; the damping is the same spring-direction Rayleigh function.",
+);
+
+/// The catalogue entry of `elastic_pendulum_3d`.
+pub(super) fn entry() -> SystemInfo {
+    SystemInfo {
+        id: "elastic_pendulum_3d",
+        name: "Elastic 3-D pendulum, damped along the spring",
+        description: "A mass on a spring in R³ under gravity (0, 0, −g), V = k/2 (l − |q|)² + m g q_z, Rayleigh damping along the spring only, D = q qᵀ/|q|² (paper 000 Sec. 6.2, eq. 16). J₃ = (q × p)_z is conserved for every ε.",
+        degrees_of_freedom: 3,
+        charts: vec![CARTESIAN, CYLINDRICAL],
+        params: vec![MASS, STIFFNESS, REST_LENGTH, GRAVITY, EPSILON],
+        q0: vec![0.0, 1.558_845_73, -0.6],
+        p0: vec![1.341_640_79, 0.0, 0.0],
+        invariants: &["J3"],
+        exact_solution: false,
+        conformal_damping: false,
+        world: World::Spring,
+        build: |p: &ParamValues, chart: &ChartInfo, _: f64| {
+            let pendulum = ElasticPendulum3d {
+                m: p.number(&MASS),
+                k: p.number(&STIFFNESS),
+                l: p.number(&REST_LENGTH),
+                g: p.number(&GRAVITY),
+                epsilon: p.number(&EPSILON),
+            };
+            if chart.id == CYLINDRICAL.id {
+                AnySystem::ElasticPendulum3dCylindrical(ElasticPendulum3dCylindrical(pendulum))
+            } else {
+                AnySystem::ElasticPendulum3d(pendulum)
+            }
+        },
     }
 }

@@ -16,6 +16,7 @@
 
 use nalgebra::{DMatrix, U1};
 
+use super::{AnySystem, ChartInfo, ParamSpec, ParamValues, SystemInfo, World};
 use crate::core::system::{MechanicalSystem, State, Structure, Vector};
 
 /// y' = −αy.
@@ -250,3 +251,81 @@ macro_rules! first_order_system {
 
 first_order_system!(ExponentialDecay);
 first_order_system!(Gompertz);
+
+const ALPHA: ParamSpec = ParamSpec::number("alpha", "Decay rate α.", 1.0, 0.0, true, 1e6);
+const GROWTH_A: ParamSpec = ParamSpec::number("a", "Growth parameter a.", 2.0, 0.0, true, 1e6);
+const GROWTH_B: ParamSpec = ParamSpec::number(
+    "b",
+    "Growth parameter b (carrying capacity e^(a/b)).",
+    0.5,
+    0.0,
+    true,
+    1e6,
+);
+/// The id of the chart in which explicit Euler is exact.
+const TRANSFORMED: &str = "transformed";
+
+/// The catalogue entry of `exponential_decay`.
+pub(super) fn exponential_decay_entry() -> SystemInfo {
+    SystemInfo {
+        id: "exponential_decay",
+        name: "Exponential decay (first-order ODE)",
+        description: "y' = −αy (paper 001 eq. 14), run as the cotangent lift H = p f(y) (p stays 0 from p0 = 0, H = 0). In the chart `transformed`, ȳ = ln(y)/α (eq. 15) obeys ȳ' = −1 and explicit Euler is exact.",
+        degrees_of_freedom: 1,
+        charts: vec![
+            ChartInfo::new("original", &["y"], false, "y' = −αy; H = −α p y."),
+            ChartInfo::new(
+                TRANSFORMED,
+                &["ȳ"],
+                false,
+                "ȳ = ln(y)/α, p̄ = p α y (001 eq. 15): ȳ' = −1, H̄ = −p̄.",
+            ),
+        ],
+        params: vec![ALPHA],
+        q0: vec![1.0],
+        p0: vec![0.0],
+        invariants: &[],
+        exact_solution: true,
+        conformal_damping: false,
+        world: World::Line,
+        build: |p: &ParamValues, chart: &ChartInfo, _: f64| {
+            AnySystem::ExponentialDecay(ExponentialDecay {
+                alpha: p.number(&ALPHA),
+                transformed: chart.id == TRANSFORMED,
+            })
+        },
+    }
+}
+
+/// The catalogue entry of `gompertz`.
+pub(super) fn gompertz_entry() -> SystemInfo {
+    SystemInfo {
+        id: "gompertz",
+        name: "Gompertz growth (first-order ODE)",
+        description: "y' = y (a − b ln y) (paper 001 eq. 17), run as the cotangent lift H = p f(y). In the chart `transformed`, ȳ = −(1/b) ln(1 − (b/a) ln y) (eq. 18 up to its additive constant) obeys ȳ' = 1 and explicit Euler is exact; it covers 0 < y < e^(a/b).",
+        degrees_of_freedom: 1,
+        charts: vec![
+            ChartInfo::new("original", &["y"], false, "y' = y (a − b ln y); H = p y (a − b ln y)."),
+            ChartInfo::new(
+                TRANSFORMED,
+                &["ȳ"],
+                false,
+                "ȳ = −(1/b) ln(1 − (b/a) ln y), p̄ = p y (a − b ln y) (001 eq. 18): ȳ' = 1, H̄ = p̄.",
+            ),
+        ],
+        params: vec![GROWTH_A, GROWTH_B],
+        q0: vec![3.0],
+        p0: vec![0.0],
+        invariants: &[],
+        exact_solution: true,
+        conformal_damping: false,
+        world: World::Line,
+        build: |p: &ParamValues, chart: &ChartInfo, _: f64| {
+            AnySystem::Gompertz(Gompertz {
+                a: p.number(&GROWTH_A),
+                b: p.number(&GROWTH_B),
+                transformed: chart.id == TRANSFORMED,
+            })
+        },
+    }
+}

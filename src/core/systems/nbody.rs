@@ -7,6 +7,7 @@
 
 use nalgebra::Dyn;
 
+use super::{AnySystem, ChartInfo, ParamKind, ParamSpec, ParamValues, SystemInfo, World};
 use crate::core::system::{MechanicalSystem, Structure, Vector};
 
 /// The pair interaction.
@@ -130,5 +131,122 @@ impl MechanicalSystem for NBody {
         out[2] = l.z;
         // |L| e^{2γt}: constant along the exact flow.
         out[3] = l.norm() * (2.0 * self.gamma * t).exp();
+    }
+}
+
+/// Most bodies.
+const MAX_BODIES: usize = 64;
+const MASSES: ParamSpec = ParamSpec {
+    name: "masses",
+    description: "Body masses; q0 and p0 hold 3 entries per body (x, y, z).",
+    kind: ParamKind::NumberList {
+        default: &[1.0, 1.0, 1.0],
+        min: 0.0,
+        max: 1e12,
+        max_len: MAX_BODIES,
+    },
+};
+const POTENTIAL: ParamSpec = ParamSpec {
+    name: "potential",
+    description: "The pair interaction.",
+    kind: ParamKind::Choice {
+        default: "gravity",
+        options: &["gravity", "lennard_jones"],
+    },
+};
+const G: ParamSpec = ParamSpec::number(
+    "G",
+    "Gravitational constant (gravity).",
+    1.0,
+    0.0,
+    false,
+    1e12,
+);
+const SOFTENING: ParamSpec = ParamSpec::number(
+    "softening",
+    "Plummer softening length (gravity).",
+    0.0,
+    0.0,
+    false,
+    1e6,
+);
+const LJ_EPSILON: ParamSpec = ParamSpec::number(
+    "lj_epsilon",
+    "Well depth ε of the Lennard-Jones potential.",
+    1.0,
+    0.0,
+    false,
+    1e6,
+);
+const LJ_SIGMA: ParamSpec = ParamSpec::number(
+    "lj_sigma",
+    "Length scale σ of the Lennard-Jones potential.",
+    1.0,
+    0.0,
+    true,
+    1e6,
+);
+const GAMMA: ParamSpec = ParamSpec::gamma(0.0);
+const CARTESIAN: ChartInfo = ChartInfo::new(
+    "cartesian",
+    &["x₁", "y₁", "z₁", "…"],
+    true,
+    "H = Σ|p_i|²/(2m_i) + Σ V(|q_i − q_j|).",
+);
+
+/// Figure-eight choreography of three equal masses (Chenciner & Montgomery 2000; initial data
+/// from Simó's computation as quoted there), in the z = 0 plane.
+fn figure_eight() -> (Vec<f64>, Vec<f64>) {
+    let (x1, y1) = (-0.970_004_36, 0.243_087_53);
+    let (vx3, vy3) = (-0.932_407_37, -0.864_731_46);
+    let q = vec![x1, y1, 0.0, -x1, -y1, 0.0, 0.0, 0.0, 0.0];
+    let p = vec![
+        -vx3 / 2.0,
+        -vy3 / 2.0,
+        0.0,
+        -vx3 / 2.0,
+        -vy3 / 2.0,
+        0.0,
+        vx3,
+        vy3,
+        0.0,
+    ];
+    (q, p)
+}
+
+/// The catalogue entry of `nbody`.
+pub(super) fn entry() -> SystemInfo {
+    let (q0, p0) = figure_eight();
+    SystemInfo {
+        id: "nbody",
+        name: "N bodies with linear damping",
+        description: "N point masses in R³ with a pairwise radial potential (Newtonian gravity with optional softening, or Lennard-Jones) and p' = −∇V − 2γp. The total angular momentum decays exactly as e^{−2γt}. Default: the figure-eight three-body choreography.",
+        degrees_of_freedom: 9,
+        charts: vec![CARTESIAN],
+        params: vec![MASSES, POTENTIAL, G, SOFTENING, LJ_EPSILON, LJ_SIGMA, GAMMA],
+        q0,
+        p0,
+        invariants: &["L_x", "L_y", "L_z", "L_conformal"],
+        exact_solution: false,
+        conformal_damping: true,
+        world: World::Bodies,
+        build: |p: &ParamValues, _: &ChartInfo, _: f64| {
+            let potential = if p.text(&POTENTIAL) == "lennard_jones" {
+                PairPotential::LennardJones {
+                    epsilon: p.number(&LJ_EPSILON),
+                    sigma: p.number(&LJ_SIGMA),
+                }
+            } else {
+                PairPotential::Gravity {
+                    g: p.number(&G),
+                    softening: p.number(&SOFTENING),
+                }
+            };
+            AnySystem::NBody(NBody {
+                masses: p.numbers(&MASSES),
+                potential,
+                gamma: p.number(&GAMMA),
+            })
+        },
     }
 }

@@ -3,6 +3,7 @@
 
 use nalgebra::{DMatrix, U1};
 
+use super::{AnySystem, ChartInfo, ParamSpec, ParamValues, SystemInfo, World};
 use crate::core::system::{MechanicalSystem, State, Structure, Vector};
 
 /// The damped harmonic oscillator.
@@ -297,5 +298,61 @@ impl MechanicalSystem for CompensatedOscillator {
         self.from_cartesian(&[q], &[p], &mut end.q, &mut end.p)
             .ok()?;
         Some(end)
+    }
+}
+
+/// The angular frequency.
+const OMEGA: ParamSpec = ParamSpec::number("omega", "Angular frequency ω.", 1.0, 0.0, true, 1e6);
+/// The damping coefficient.
+const GAMMA: ParamSpec = ParamSpec::gamma(0.05);
+/// The margin of the compensating chart.
+const MARGIN: ParamSpec = ParamSpec::number(
+    "k",
+    "Margin k of the compensating chart, q̂ = q/(1 + k h²) (paper 001 eq. 82; chart `compensating` only).",
+    2.0,
+    0.0,
+    true,
+    1e6,
+);
+/// Cartesian coordinates.
+const CARTESIAN: ChartInfo = ChartInfo::new("cartesian", &["q"], true, "H = p²/2 + ω²q²/2.");
+/// The compensating coordinate of 001 eq. (82).
+const COMPENSATING: ChartInfo = ChartInfo::new(
+    "compensating",
+    &["Q"],
+    false,
+    "Q = (2/π)(q̂√(1 − q̂²) + arcsin q̂), q̂ = q/(1 + k h²), p̄ = p/Q'(q) (paper 001 eq. 82); H̄ = ½ p̄² Q'(q)² + ½ ω² q² is not separable. Symplectic Euler's first-order energy error vanishes along the unit-amplitude motion (ω = 1, q0 = 1, p0 = 0).",
+);
+
+/// The catalogue entry of `harmonic_oscillator`.
+pub(super) fn entry() -> SystemInfo {
+    SystemInfo {
+        id: "harmonic_oscillator",
+        name: "Damped harmonic oscillator",
+        description: "q'' + 2γq' + ω²q = 0 with T = p²/2, V = ω²q²/2 (paper 003 eq. 2.5); exact solution in the under-, critically and over-damped regimes.",
+        degrees_of_freedom: 1,
+        charts: vec![CARTESIAN, COMPENSATING],
+        params: vec![OMEGA, GAMMA, MARGIN],
+        q0: vec![1.0],
+        p0: vec![0.0],
+        invariants: &[],
+        exact_solution: true,
+        conformal_damping: true,
+        world: World::Line,
+        build: |p: &ParamValues, chart: &ChartInfo, h: f64| {
+            let oscillator = HarmonicOscillator {
+                omega: p.number(&OMEGA),
+                gamma: p.number(&GAMMA),
+            };
+            if chart.id == COMPENSATING.id {
+                AnySystem::CompensatedOscillator(CompensatedOscillator::new(
+                    oscillator,
+                    p.number(&MARGIN),
+                    h,
+                ))
+            } else {
+                AnySystem::HarmonicOscillator(oscillator)
+            }
+        },
     }
 }

@@ -3,6 +3,7 @@
 
 use nalgebra::{DMatrix, U1};
 
+use super::{AnySystem, ChartInfo, ParamSpec, ParamValues, SystemInfo, World};
 use crate::core::system::{MechanicalSystem, Structure, Vector};
 
 /// The damped pendulum with unit mass, length and gravity.
@@ -43,5 +44,34 @@ impl MechanicalSystem for Pendulum {
     fn hess_potential(&self, q: &Vector<U1>, out: &mut DMatrix<f64>) -> u64 {
         out[(0, 0)] = q[0].cos();
         0
+    }
+}
+
+/// The damping coefficient.
+const GAMMA: ParamSpec = ParamSpec::gamma(0.005);
+/// The one chart.
+const CARTESIAN: ChartInfo = ChartInfo::new("cartesian", &["q"], true, "H = p²/2 + 1 − cos q.");
+
+/// The catalogue entry of `pendulum`.
+pub(super) fn entry() -> SystemInfo {
+    SystemInfo {
+        id: "pendulum",
+        name: "Damped pendulum",
+        description:
+            "T = p²/2, V = 1 − cos q, p' = −sin q − 2γp (paper 000 Sec. 4.3, paper 003 eq. 4.5).",
+        degrees_of_freedom: 1,
+        charts: vec![CARTESIAN],
+        params: vec![GAMMA],
+        q0: vec![0.9 * std::f64::consts::PI],
+        p0: vec![0.0],
+        invariants: &[],
+        exact_solution: false,
+        conformal_damping: true,
+        world: World::Pendulum,
+        build: |p: &ParamValues, _: &ChartInfo, _: f64| {
+            AnySystem::Pendulum(Pendulum {
+                gamma: p.number(&GAMMA),
+            })
+        },
     }
 }

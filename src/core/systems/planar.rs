@@ -17,6 +17,7 @@
 
 use nalgebra::{DMatrix, U2};
 
+use super::{AnySystem, ChartInfo, ParamSpec, ParamValues, SystemInfo, World};
 use crate::core::system::{MechanicalSystem, State, Structure, Vector};
 
 /// Which first integrals a planar system reports.
@@ -319,5 +320,108 @@ pub fn wrap_angle(a: f64) -> f64 {
         w + TAU
     } else {
         w
+    }
+}
+
+const MASS: ParamSpec = ParamSpec::number("m", "Mass.", 1.0, 0.0, true, 1e6);
+const STIFFNESS: ParamSpec = ParamSpec::number("k", "Spring stiffness.", 1.0, 0.0, true, 1e6);
+const REST_LENGTH: ParamSpec = ParamSpec::number("l", "Spring rest length.", 1.0, 0.0, true, 1e6);
+const GRAVITY: ParamSpec = ParamSpec::number(
+    "g",
+    "Gravitational acceleration (along +y, downwards).",
+    0.2,
+    0.0,
+    false,
+    1e6,
+);
+const PENDULUM_CARTESIAN: ChartInfo = ChartInfo::new(
+    "cartesian",
+    &["x", "y"],
+    true,
+    "H = (p_x² + p_y²)/(2m) + k/2 (√(x² + y²) − l)² − m g y (001 eq. 73).",
+);
+const PENDULUM_POLAR: ChartInfo = ChartInfo::new(
+    "polar",
+    &["r", "θ"],
+    false,
+    "x = r sin θ, y = r cos θ (θ from the downward vertical): H = (p_r² + p_θ²/r²)/(2m) + k/2 (r − l)² − m g r cos θ (001 eq. 72); the mass matrix depends on r.",
+);
+const FREE_CARTESIAN: ChartInfo = ChartInfo::new(
+    "cartesian",
+    &["x", "y"],
+    true,
+    "H = (p_x² + p_y²)/(2m) (001 eq. 61).",
+);
+const FREE_POLAR: ChartInfo = ChartInfo::new(
+    "polar",
+    &["r", "θ"],
+    false,
+    "x = r sin θ, y = r cos θ: H = (p_r² + p_θ²/r²)/(2m) (001 eq. 62), θ cyclic, p_θ = y p_x − x p_y = −L.",
+);
+
+/// The system in Cartesian or polar coordinates, as `chart` says.
+fn in_chart(spring: PlanarSpring, chart: &ChartInfo) -> AnySystem {
+    if chart.id == PENDULUM_POLAR.id {
+        AnySystem::PlanarPolar(PlanarPolar(spring))
+    } else {
+        AnySystem::PlanarCartesian(PlanarCartesian(spring))
+    }
+}
+
+/// The planar elastic pendulum of these parameters (energy maps build both charts from it).
+pub fn planar_pendulum(p: &ParamValues) -> PlanarSpring {
+    PlanarSpring {
+        m: p.number(&MASS),
+        k: p.number(&STIFFNESS),
+        l: p.number(&REST_LENGTH),
+        g: p.number(&GRAVITY),
+        kind: PlanarKind::Pendulum,
+    }
+}
+
+/// The catalogue entry of `elastic_pendulum_2d`.
+pub(super) fn pendulum_entry() -> SystemInfo {
+    SystemInfo {
+        id: "elastic_pendulum_2d",
+        name: "Planar elastic pendulum",
+        description: "A mass on a spring in the plane under gravity along +y (y points down), paper 001 Appendix A: H = |p|²/(2m) + k/2 (|q| − l)² − m g y (eq. 73), or in polar coordinates (eq. 72). Undamped.",
+        degrees_of_freedom: 2,
+        charts: vec![PENDULUM_CARTESIAN, PENDULUM_POLAR],
+        params: vec![MASS, STIFFNESS, REST_LENGTH, GRAVITY],
+        q0: vec![0.6, 1.2],
+        p0: vec![0.0, 0.0],
+        invariants: &[],
+        exact_solution: false,
+        conformal_damping: true,
+        world: World::PlanarSpring,
+        build: |p: &ParamValues, chart: &ChartInfo, _: f64| in_chart(planar_pendulum(p), chart),
+    }
+}
+
+/// The catalogue entry of `free_particle_2d`.
+pub(super) fn free_particle_entry() -> SystemInfo {
+    SystemInfo {
+        id: "free_particle_2d",
+        name: "Free particle in the plane",
+        description: "H = |p|²/(2m), paper 001 Sec. 5.2: linear momentum (p_x, p_y) and angular momentum L = x p_y − y p_x are conserved. Symplectic Euler keeps p_θ exactly in polar coordinates but not p_x, and keeps L exactly in Cartesian ones.",
+        degrees_of_freedom: 2,
+        charts: vec![FREE_CARTESIAN, FREE_POLAR],
+        params: vec![MASS],
+        q0: vec![1.0, 0.5],
+        p0: vec![0.2, 1.0],
+        invariants: &["L", "p_x", "p_y"],
+        exact_solution: true,
+        conformal_damping: true,
+        world: World::Plane,
+        build: |p: &ParamValues, chart: &ChartInfo, _: f64| {
+            let spring = PlanarSpring {
+                m: p.number(&MASS),
+                k: 0.0,
+                l: 0.0,
+                g: 0.0,
+                kind: PlanarKind::FreeParticle,
+            };
+            in_chart(spring, chart)
+        },
     }
 }

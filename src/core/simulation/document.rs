@@ -1,29 +1,30 @@
-//! The JSON document of a simulation: the resolved system and one run per method with its
-//! sample columns, how it stopped and its statistics. [`simulate`] computes it, running the
-//! methods of a request in parallel on the same system and initial state.
+//! The results of a simulation: per method the sample columns, how the run stopped and its
+//! statistics ([`RunDocument`]), with the resolved system and the sampling
+//! ([`SimulationDocument`]). [`ColumnSink`] collects a run's samples into [`Columns`];
+//! [`DocumentCollector`](super::stream::DocumentCollector) assembles a document from a run's
+//! stream, which is how every document is made.
 
 use std::collections::BTreeMap;
-use std::sync::atomic::{AtomicUsize, Ordering};
-use std::time::Instant;
 
 use serde::Serialize;
-use serde_json::{Map, Value};
 use utoipa::ToSchema;
 
-use super::error::{codes, ErrorDetail};
+use super::run::{Sample, SampleSink};
+use super::spec::Simulation;
+use crate::core::diagnostics::DriftPoint;
 use crate::core::error::CoreError;
-use crate::core::run::{Budget, RunStats, StopReason};
-use crate::core::simulate::{Sample, SampleSink, Simulation, Trajectory};
+use crate::core::run::{RunStats, StopReason};
+use crate::core::systems::{ParamValues, SystemId, World};
 
 /// The system a simulation ran on, with every parameter resolved.
 #[derive(Clone, Debug, PartialEq, Serialize, ToSchema)]
 pub struct SystemSummary {
     /// System id.
-    #[schema(example = "pendulum")]
+    #[schema(value_type = SystemId, example = "pendulum")]
     pub id: String,
     /// All parameters, defaults filled in (`epsilon` given as `gamma` = ε/2).
-    #[schema(value_type = Object, example = json!({"gamma": 0.005}))]
-    pub params: Map<String, Value>,
+    #[schema(example = json!({"gamma": 0.005}))]
+    pub params: ParamValues,
     /// The coordinate chart the runs are in.
     #[schema(example = "cartesian")]
     pub chart: String,
@@ -31,6 +32,9 @@ pub struct SystemSummary {
     pub q0: Vec<f64>,
     /// Initial momenta.
     pub p0: Vec<f64>,
+    /// How the system appears in space (for the recordings' 3-D view; not serialized).
+    #[serde(skip)]
+    pub world: World,
 }
 
 /// The sampling of a simulation.
@@ -252,52 +256,30 @@ pub struct DivergedAt {
     pub t: f64,
 }
 
-/// One point of the dissipation drift d = ln(max |q| over a half-oscillation) + γ t* (paper 003
-/// eq. 4.4): constant for the exact flow, so a trend shows a wrong dissipation rate.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, ToSchema)]
-pub struct DriftPoint {
-    /// Time t* of the amplitude peak.
-    pub t: f64,
-    /// d(t*).
-    pub d: f64,
-}
-
-/// The dissipation drift of a run from its sample times and positions (1-DOF systems with
-/// conformal damping; `None` for others).
-pub fn dissipation_drift(sim: &Simulation, t: &[f64], q: &[Vec<f64>]) -> Option<Vec<DriftPoint>> {
-    if sim.q0.len() != 1 {
-        return None;
+impl Stop {
+    /// The stop of a run that ended in an error at a step (its samples end before it).
+    pub fn failed(error: &CoreError) -> Stop {
+        match error {
+            CoreError::Step {
+                step, t, source, ..
+            } => Stop::Failed {
+                step: *step,
+                t: *t,
+                message: source.to_string(),
+            },
+            other => Stop::Failed {
+                step: 0,
+                t: 0.0,
+                message: other.to_string(),
+            },
+        }
     }
-    let run = Trajectory {
-        t: t.to_vec(),
-        q: q.to_vec(),
-        ..Trajectory::default()
-    };
-    sim.dissipation_drift(&run).map(|points| {
-        points
-            .iter()
-            .map(|p| DriftPoint { t: p.t, d: p.d })
-            .collect()
-    })
-}
 
-/// Run statistics.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, ToSchema)]
-pub struct Stats {
-    /// Steps taken.
-    pub steps: u64,
-    /// Gradient evaluations (∇V or ∂H/∂q).
-    pub force_evaluations: u64,
-    /// Wall time of the integration loop in milliseconds.
-    pub wall_time_ms: f64,
-}
-
-impl From<RunStats> for Stats {
-    fn from(s: RunStats) -> Self {
-        Stats {
-            steps: s.steps,
-            force_evaluations: s.force_evaluations,
-            wall_time_ms: s.wall_time_ms,
+    /// Steps completed before a failure.
+    pub fn failed_steps(error: &CoreError) -> u64 {
+        match error {
+            CoreError::Step { step, .. } => step.saturating_sub(1),
+            _ => 0,
         }
     }
 }
@@ -319,7 +301,7 @@ pub struct RunDocument {
     /// Why it stopped.
     pub stop: Stop,
     /// Statistics.
-    pub stats: Stats,
+    pub stats: RunStats,
 }
 
 /// The answer to a simulation request.
@@ -338,22 +320,13 @@ pub struct SimulationDocument {
 impl SystemSummary {
     /// The summary of a prepared simulation.
     pub fn of(sim: &Simulation) -> Self {
-        let mut params = Map::new();
-        for (name, &v) in &sim.params.numbers {
-            params.insert(name.clone(), Value::from(v));
-        }
-        if let Some(masses) = &sim.params.masses {
-            params.insert("masses".into(), Value::from(masses.clone()));
-        }
-        if let Some(potential) = &sim.params.potential {
-            params.insert("potential".into(), Value::from(potential.clone()));
-        }
         SystemSummary {
-            id: sim.system_id.clone(),
-            params,
-            chart: sim.chart.clone(),
+            id: sim.system_id().to_string(),
+            params: sim.params.clone(),
+            chart: sim.chart.id.to_string(),
             q0: sim.q0.clone(),
             p0: sim.p0.clone(),
+            world: sim.world(),
         }
     }
 }
@@ -370,150 +343,4 @@ impl ScheduleSummary {
             samples_per_method: s.samples(),
         }
     }
-}
-
-/// The stop of a run that ended in an error.
-pub(crate) fn failed(error: CoreError) -> Stop {
-    match error {
-        CoreError::Step { step, t, source } => Stop::Failed {
-            step,
-            t,
-            message: source.to_string(),
-        },
-        other => Stop::Failed {
-            step: 0,
-            t: 0.0,
-            message: other.to_string(),
-        },
-    }
-}
-
-/// Runs method `index` of `sim` into a [`RunDocument`]; a failing step ends the run with
-/// [`Stop::Failed`] and keeps the samples before it.
-pub fn run_document(
-    sim: &Simulation,
-    index: usize,
-    reference: Option<&[f64]>,
-    budget: Budget<'_>,
-) -> RunDocument {
-    let mut sink = ColumnSink::new(sim.invariant_names());
-    let started = Instant::now();
-    let (stop, stats) = match sim.run_method(index, reference, budget, &mut sink) {
-        Ok(outcome) => (Stop::from(outcome.stop), Stats::from(outcome.stats)),
-        Err(e) => {
-            tracing::warn!(method = %sim.methods[index].label(), error = %e, "run failed");
-            let steps = match &e {
-                CoreError::Step { step, .. } => step.saturating_sub(1),
-                _ => 0,
-            };
-            let stats = Stats {
-                steps,
-                force_evaluations: 0,
-                wall_time_ms: started.elapsed().as_secs_f64() * 1e3,
-            };
-            (failed(e), stats)
-        }
-    };
-    let columns = sink.take();
-    RunDocument {
-        method: sim.methods[index].label(),
-        dissipation_drift: dissipation_drift(sim, &columns.t, &columns.q),
-        columns,
-        diverged_at: stop.diverged_at(),
-        stop,
-        stats,
-    }
-}
-
-/// The reference energies of `sim` (when it compares to the reference), with errors as the
-/// interfaces report them.
-pub fn reference_energies(
-    sim: &Simulation,
-    budget: Budget<'_>,
-) -> Result<Option<Vec<f64>>, ErrorDetail> {
-    sim.reference_energies(budget).map_err(|e| {
-        if budget.deadline.is_some_and(|d| Instant::now() >= d) {
-            ErrorDetail::at(
-                codes::TIMEOUT,
-                "compare_to_reference",
-                "the reference run did not finish within the time limit; ask for fewer steps",
-            )
-        } else if let CoreError::Step { .. } = e {
-            ErrorDetail::at(
-                codes::STEP_FAILED,
-                "compare_to_reference",
-                format!("reference run: {e}"),
-            )
-        } else {
-            ErrorDetail {
-                code: codes::INVALID_VALUE.to_string(),
-                message: e.to_string(),
-                field: e.field().map(str::to_string),
-            }
-        }
-    })
-}
-
-/// Runs `job(i)` for `i` in `0..count` on up to `workers` threads (the caller's thread alone when
-/// `workers` ≤ 1) and returns the results in index order. A panic in a job resumes in the
-/// caller.
-pub fn for_each_method<T: Send>(
-    count: usize,
-    workers: usize,
-    job: impl Fn(usize) -> T + Sync,
-) -> Vec<T> {
-    let workers = workers.clamp(1, count.max(1));
-    if workers == 1 {
-        return (0..count).map(job).collect();
-    }
-    let next = AtomicUsize::new(0);
-    let span = tracing::Span::current();
-    let mut results: Vec<(usize, T)> = std::thread::scope(|scope| {
-        let handles: Vec<_> = (0..workers)
-            .map(|_| {
-                scope.spawn(|| {
-                    let _entered = span.enter();
-                    let mut done = Vec::new();
-                    loop {
-                        let i = next.fetch_add(1, Ordering::Relaxed);
-                        if i >= count {
-                            break done;
-                        }
-                        done.push((i, job(i)));
-                    }
-                })
-            })
-            .collect();
-        handles
-            .into_iter()
-            .flat_map(|h| {
-                h.join()
-                    .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
-            })
-            .collect()
-    });
-    results.sort_by_key(|(i, _)| *i);
-    results.into_iter().map(|(_, r)| r).collect()
-}
-
-/// Runs every method of `sim` (on up to `workers` threads) into a [`SimulationDocument`].
-pub fn simulate(
-    sim: &Simulation,
-    workers: usize,
-    budget: Budget<'_>,
-) -> Result<SimulationDocument, ErrorDetail> {
-    let reference = reference_energies(sim, budget)?;
-    let runs = for_each_method(sim.methods.len(), workers, |i| {
-        run_document(sim, i, reference.as_deref(), budget)
-    });
-    Ok(SimulationDocument {
-        system: SystemSummary::of(sim),
-        schedule: ScheduleSummary::of(sim),
-        invariants: sim
-            .invariant_names()
-            .iter()
-            .map(|s| s.to_string())
-            .collect(),
-        runs,
-    })
 }

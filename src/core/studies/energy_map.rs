@@ -20,17 +20,24 @@
 //! Cells are independent and run in parallel (rayon, all cores); each reports to a progress
 //! callback when done. The run stops between steps when the budget says so.
 
+use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::Instant;
 
 use nalgebra::U2;
 use rayon::prelude::*;
 use serde::Serialize;
+use utoipa::ToSchema;
 
-use super::error::CoreError;
-use super::methods::{self, MethodChoice};
-use super::run::{integrate, Budget, Observer, Schedule, StopReason};
-use super::system::{MechanicalSystem, State};
-use super::systems::{PlanarCartesian, PlanarKind, PlanarPolar, PlanarSpring};
+use crate::core::error::{CoreError, ErrorDetail, Field, Range};
+use crate::core::methods::build::{self, Origin};
+use crate::core::methods::{self, Method};
+use crate::core::run::{integrate, step_count, Budget, Observer, Schedule, StopReason};
+use crate::core::simulation::MethodAt;
+use crate::core::system::{MechanicalSystem, State};
+use crate::core::systems::{
+    self, ParamValue, PlanarCartesian, PlanarKind, PlanarPolar, PlanarSpring,
+};
 use crate::with_stepper;
 
 /// Most grid points per axis.
@@ -43,13 +50,15 @@ type CellRuns = (ChartRun, ChartRun, f64);
 
 /// A validated map request.
 #[derive(Clone, Debug)]
-pub struct EnergyMapSpec {
+pub struct EnergyMapJob {
     /// The method, run in both charts.
-    pub method: MethodChoice,
+    pub method: Method,
     /// Mass, stiffness, rest length and gravity.
     pub pendulum: PlanarSpring,
     /// Step size.
     pub h: f64,
+    /// Final time.
+    pub t_max: f64,
     /// Steps per cell and chart (t_max/h).
     pub steps: u64,
     /// Grid points along x, from `x.0` to `x.1`.
@@ -105,7 +114,7 @@ impl EnergyMap {
     }
 }
 
-impl EnergyMapSpec {
+impl EnergyMapJob {
     /// Grid coordinate k of `n` points over `range`.
     fn at(range: (f64, f64), n: usize, k: usize) -> f64 {
         if n == 1 {
@@ -115,43 +124,47 @@ impl EnergyMapSpec {
         }
     }
 
-    /// Checks the grid and the work against the limits; `field` names are the request's.
+    /// Checks the grid and the work against the limits, and the method against the polar
+    /// chart's Hamiltonian; errors name the request's fields (`nx`, `x`, `t_max`, `method`).
     pub fn check(&self) -> Result<(), CoreError> {
         for (name, n) in [("nx", self.nx), ("ny", self.ny)] {
             if n == 0 || n > MAX_AXIS {
-                return Err(CoreError::invalid(
-                    name,
-                    format!("needs 1 to {MAX_AXIS} grid points, got {n}"),
-                ));
+                return Err(CoreError::Count {
+                    field: Field::new(name),
+                    got: n as u64,
+                    min: 1,
+                    max: MAX_AXIS as u64,
+                    what: "grid points",
+                });
             }
         }
         for (name, (lo, hi)) in [("x", self.x), ("y", self.y)] {
             if !(lo.is_finite() && hi.is_finite() && lo <= hi) {
-                return Err(CoreError::invalid(
-                    name,
-                    format!("must be a finite range [min, max] with min ≤ max, got [{lo}, {hi}]"),
-                ));
+                return Err(CoreError::BadInterval {
+                    field: Field::new(name),
+                    min: lo,
+                    max: hi,
+                });
             }
         }
-        let total = (self.nx * self.ny) as u64 * 2 * self.steps;
+        let cells = (self.nx * self.ny) as u64;
+        let total = cells * 2 * self.steps;
         if total > MAX_TOTAL_STEPS {
-            return Err(CoreError::invalid(
-                "t_max",
-                format!(
-                    "{} cells × 2 charts × {} steps = {total} steps exceeds the limit of {MAX_TOTAL_STEPS}",
-                    self.nx * self.ny,
-                    self.steps
-                ),
-            ));
+            return Err(CoreError::MapTooLarge {
+                field: Field::new("t_max"),
+                cells,
+                steps: self.steps,
+                total,
+                limit: MAX_TOTAL_STEPS,
+            });
         }
         let probe = PlanarPolar(self.pendulum.clone());
-        methods::build(
-            &self.method,
-            &probe,
-            "elastic_pendulum_2d (polar chart)",
-            self.h,
-        )?;
-        Ok(())
+        let origin = Origin {
+            method: &Field::new("method"),
+            h: &Field::new("h"),
+            system: "elastic_pendulum_2d (polar chart)",
+        };
+        build::check(&self.method, &probe, self.h, &origin)
     }
 
     /// The analytic prediction of Sec. 4.1 at (x₀, y₀).
@@ -329,5 +342,256 @@ impl<S: MechanicalSystem<Dim = U2>> Observer<U2> for EnergyDeviation<'_, S> {
         }
         self.sum += d * d;
         self.count += 1;
+    }
+}
+
+/// Default parameters of 001 Fig. 6 (l = m = k = 1, g = 0.02).
+pub const FIG6_G: f64 = 0.02;
+/// Points on the analytic boundary curve.
+const BOUNDARY_POINTS: usize = 360;
+
+/// An energy-error map as asked for.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EnergyMapSpec {
+    /// The method, run in both charts.
+    pub method: MethodAt,
+    /// `m`, `k`, `l`, `g` of `elastic_pendulum_2d` (g defaults to Fig. 6's 0.02).
+    pub params: BTreeMap<String, ParamValue>,
+    /// Step size.
+    pub h: f64,
+    /// Final time.
+    pub t_max: f64,
+    /// Grid points along x.
+    pub nx: usize,
+    /// Grid points along y.
+    pub ny: usize,
+    /// Range of x₀.
+    pub x: [f64; 2],
+    /// Range of y₀ (y pointing down).
+    pub y: [f64; 2],
+}
+
+impl EnergyMapSpec {
+    /// Validates the map (cheap: no integration).
+    pub fn prepare(&self) -> Result<EnergyMapJob, CoreError> {
+        let info = systems::info("elastic_pendulum_2d", &Field::new("system"))?;
+        let mut params = self.params.clone();
+        params
+            .entry("g".to_string())
+            .or_insert(ParamValue::Number(FIG6_G));
+        let resolved = systems::params::resolve(info, &params, &Field::new("params"))?;
+        let h = Range::POSITIVE.check(self.h, &Field::new("h"))?;
+        let t_max = Range::POSITIVE.check(self.t_max, &Field::new("t_max"))?;
+        if let Method::Reference { .. } = self.method.method {
+            return Err(CoreError::Unsupported {
+                field: self.method.field.clone(),
+                reason: "the adaptive reference is not a fixed-step method; choose e.g. symplectic_euler",
+            });
+        }
+        let pendulum = systems::planar_pendulum(&resolved);
+        let job = EnergyMapJob {
+            method: self.method.method,
+            pendulum,
+            h,
+            t_max,
+            steps: step_count(h, t_max),
+            nx: self.nx,
+            ny: self.ny,
+            x: (self.x[0], self.x[1]),
+            y: (self.y[0], self.y[1]),
+        };
+        job.check()
+            .map_err(|e| match e.field().map(Field::as_str) {
+                Some("method") => e.at(self.method.field.clone()),
+                _ => e,
+            })?;
+        Ok(job)
+    }
+}
+
+/// Counts over the map.
+#[derive(Clone, Debug, PartialEq, Serialize, ToSchema)]
+pub struct MapSummary {
+    /// Cells in the grid.
+    pub cells: usize,
+    /// Cells where ε(x,y) < ε(r,θ): Cartesian coordinates are more accurate.
+    pub cartesian_better: usize,
+    /// Cells where ε(r,θ) < ε(x,y).
+    pub polar_better: usize,
+    /// Cells whose polar run diverged.
+    pub polar_diverged: usize,
+    /// Cells whose Cartesian run diverged (the pivot only, where the spring has no direction).
+    pub cartesian_diverged: usize,
+    /// Cells in the region where Sec. 4.1 predicts the polar run to pass through the pivot.
+    pub predicted_divergent: usize,
+    /// Polar divergences outside that region (near its boundary, where the discrete motion
+    /// reaches a little further than the exact one).
+    pub diverged_outside_prediction: usize,
+}
+
+/// The map. Per-cell arrays are row-major: entry j·nx + i belongs to (x₀, y₀) = (xs[i], ys[j]).
+#[derive(Clone, Debug, PartialEq, Serialize, ToSchema)]
+pub struct EnergyMapDocument {
+    /// The method's label.
+    pub method: String,
+    /// m, k, l, g.
+    pub params: MapParams,
+    /// Step size.
+    pub h: f64,
+    /// Final time.
+    pub t_max: f64,
+    /// Steps per cell and chart.
+    pub steps_per_run: u64,
+    /// Grid x₀ values.
+    pub xs: Vec<f64>,
+    /// Grid y₀ values.
+    pub ys: Vec<f64>,
+    /// H at the start of each cell (p₀ = 0).
+    pub energy: Vec<f64>,
+    /// ℓ² energy error of eq. (50) in Cartesian coordinates (`null`: diverged).
+    pub epsilon_cartesian: Vec<Option<f64>>,
+    /// ℓ² energy error in polar coordinates (`null`: diverged, or the pivot).
+    pub epsilon_polar: Vec<Option<f64>>,
+    /// ε(x,y) − ε(r,θ) where both exist.
+    pub difference: Vec<Option<f64>>,
+    /// Time at which the polar run diverged (`null`: it did not).
+    pub polar_diverged_at: Vec<Option<f64>>,
+    /// Time at which the Cartesian run diverged.
+    pub cartesian_diverged_at: Vec<Option<f64>>,
+    /// Whether r₀ ≥ 2l + 2mg/k·cos θ₀ (Sec. 4.1).
+    pub predicted_divergent: Vec<bool>,
+    /// The boundary r = 2l + 2mg/k·cos θ as (x, y) points.
+    pub boundary: Vec<[f64; 2]>,
+    /// Counts.
+    pub summary: MapSummary,
+    /// Steps taken in all.
+    pub steps: u64,
+    /// Wall time in milliseconds.
+    pub wall_ms: f64,
+}
+
+/// The pendulum's parameters.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, ToSchema)]
+pub struct MapParams {
+    /// Mass.
+    pub m: f64,
+    /// Stiffness.
+    pub k: f64,
+    /// Rest length.
+    pub l: f64,
+    /// Gravity.
+    pub g: f64,
+}
+
+/// What a map's progress stream carries.
+#[derive(Clone, Debug, PartialEq, Serialize, ToSchema)]
+#[serde(tag = "type", rename_all = "snake_case")]
+pub enum MapLine {
+    /// Cells done so far (sent at most about 100 times per map).
+    Progress {
+        /// Cells done.
+        done: usize,
+        /// Cells in all.
+        total: usize,
+    },
+    /// The map.
+    Result(Box<EnergyMapDocument>),
+    /// A failure.
+    Error {
+        /// What went wrong.
+        error: ErrorDetail,
+    },
+    /// The last line of a complete stream.
+    End,
+}
+
+/// Runs the map, reporting progress about every 1 % of the cells; an error when the budget
+/// stopped it.
+pub fn run(
+    spec: &EnergyMapJob,
+    budget: Budget<'_>,
+    emit: &(dyn Fn(MapLine) -> bool + Sync),
+) -> Result<EnergyMapDocument, CoreError> {
+    let started = Instant::now();
+    let total = spec.nx * spec.ny;
+    let every = (total / 100).max(1);
+    // Cells finish on several threads: emit under a lock, and only counts above the last one
+    // sent, so that the stream's `done` only grows.
+    let last_sent = std::sync::Mutex::new(0usize);
+    let progress = |done: usize, total: usize| {
+        if done % every == 0 || done == total {
+            let mut last = last_sent.lock().unwrap_or_else(|e| e.into_inner());
+            if done > *last {
+                *last = done;
+                emit(MapLine::Progress { done, total });
+            }
+        }
+    };
+    let map = spec
+        .run(budget, &progress)?
+        .ok_or_else(|| stopped(budget))?;
+    Ok(document(spec, map, started.elapsed().as_secs_f64() * 1e3))
+}
+
+/// The error for a map the budget stopped.
+fn stopped(budget: Budget<'_>) -> CoreError {
+    if budget.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+        CoreError::Cancelled {
+            what: "map",
+            shutdown: true,
+        }
+    } else {
+        CoreError::TimeLimit {
+            field: None,
+            message:
+                "the map did not finish within the time limit; use fewer cells or a shorter t_max"
+                    .into(),
+        }
+    }
+}
+
+fn document(spec: &EnergyMapJob, map: EnergyMap, wall_ms: f64) -> EnergyMapDocument {
+    let difference = map.difference();
+    let polar_diverged_at: Vec<Option<f64>> = map.polar.iter().map(|r| r.diverged_at).collect();
+    let cartesian_diverged_at: Vec<Option<f64>> =
+        map.cartesian.iter().map(|r| r.diverged_at).collect();
+    let summary = MapSummary {
+        cells: difference.len(),
+        cartesian_better: difference.iter().flatten().filter(|&&d| d < 0.0).count(),
+        polar_better: difference.iter().flatten().filter(|&&d| d > 0.0).count(),
+        polar_diverged: polar_diverged_at.iter().flatten().count(),
+        cartesian_diverged: cartesian_diverged_at.iter().flatten().count(),
+        predicted_divergent: map.predicted_divergent.iter().filter(|&&p| p).count(),
+        diverged_outside_prediction: polar_diverged_at
+            .iter()
+            .zip(&map.predicted_divergent)
+            .filter(|(d, &p)| d.is_some() && !p)
+            .count(),
+    };
+    let s = &spec.pendulum;
+    EnergyMapDocument {
+        method: map.method,
+        params: MapParams {
+            m: s.m,
+            k: s.k,
+            l: s.l,
+            g: s.g,
+        },
+        h: spec.h,
+        t_max: spec.t_max,
+        steps_per_run: spec.steps,
+        boundary: spec.boundary(BOUNDARY_POINTS),
+        xs: map.xs,
+        ys: map.ys,
+        energy: map.energy,
+        epsilon_cartesian: map.cartesian.iter().map(|r| r.epsilon).collect(),
+        epsilon_polar: map.polar.iter().map(|r| r.epsilon).collect(),
+        difference,
+        polar_diverged_at,
+        cartesian_diverged_at,
+        predicted_divergent: map.predicted_divergent,
+        summary,
+        steps: map.steps,
+        wall_ms,
     }
 }

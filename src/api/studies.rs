@@ -1,0 +1,436 @@
+//! Study requests as users write them — the bodies of `POST /api/v1/studies/convergence`,
+//! `/work-precision` and `/energy-map`, and the spec files of `geomint study` — and their strict
+//! readers into the core's specs ([`crate::core::studies`]). Every problem names its field
+//! (`runs[1].h[2]`, `charts[1]`, `x[0]`).
+
+use std::collections::BTreeMap;
+
+use serde::Serialize;
+use serde_json::Value;
+use utoipa::ToSchema;
+
+use super::json::{self, count, list, numbers, string, wrong_type, Obj};
+use super::method::{read_method, read_methods, MethodSpec};
+use super::simulate::initial_coordinates;
+use crate::core::error::{ErrorDetail, Field};
+use crate::core::simulation::{InitialCoordinates, MethodAt};
+use crate::core::studies::convergence::ConvergenceSpec;
+use crate::core::studies::energy_map::EnergyMapSpec;
+use crate::core::studies::settings::{RunSpec, MAX_SAMPLES};
+use crate::core::studies::work_precision::{WorkPrecisionSpec, DEFAULT_SAMPLES};
+use crate::core::systems::{ChartId, ParamValue, SystemId};
+
+/// The fields of one `{method, h | tolerance}` entry (a work–precision run, a reference).
+pub const RUN_FIELDS: &[&str] = &["method", "h", "tolerance"];
+
+/// A method with its settings.
+#[derive(Clone, Debug, PartialEq, Serialize, ToSchema)]
+#[schema(as = RunSpec)]
+pub struct RunRequest {
+    /// The method.
+    pub method: MethodSpec,
+    /// Step sizes (fixed-step methods), each dividing t_end/samples.
+    pub h: Vec<f64>,
+    /// Tolerances (the adaptive `reference` only), in [1e-14, 1e-2].
+    pub tolerance: Vec<f64>,
+}
+
+/// Reads a `{"method", "h" | "tolerance"}` entry; `single` asks for one number instead of a
+/// list.
+fn run_request(v: &Value, field: &Field, single: bool) -> Result<RunRequest, ErrorDetail> {
+    let o = Obj::new(v, field.clone(), RUN_FIELDS)?;
+    let method = o.required(
+        "method",
+        "the method, e.g. \"rk4\" or {\"id\": \"kahan_li_8\", \"base\": \"modin_3s\"}",
+        read_method,
+    )?;
+    let values = |name: &str| -> Result<Vec<f64>, ErrorDetail> {
+        let read = |v: &Value, at: &Field| match single {
+            true => json::number(v, at).map(|x| vec![x]),
+            false => numbers(v, at),
+        };
+        Ok(o.optional(name, read)?.unwrap_or_default())
+    };
+    Ok(RunRequest {
+        method,
+        h: values("h")?,
+        tolerance: values("tolerance")?,
+    })
+}
+
+impl RunRequest {
+    /// The run in core terms; `field` names it (`runs[1]`, `reference`).
+    fn to_spec(&self, field: &Field) -> Result<RunSpec, ErrorDetail> {
+        Ok(RunSpec {
+            method: self.method.at(&field.key("method"))?,
+            h: self.h.clone(),
+            tolerance: self.tolerance.clone(),
+            field: field.clone(),
+        })
+    }
+}
+
+/// The fields every study has.
+struct Common {
+    system: String,
+    params: BTreeMap<String, ParamValue>,
+    q0: Option<Vec<f64>>,
+    p0: Option<Vec<f64>>,
+    t_end: f64,
+    samples: Option<u64>,
+    reference: Option<RunRequest>,
+}
+
+impl Common {
+    /// Reads the common fields of the study object `obj` (whose other fields the caller reads).
+    fn read(obj: &Obj<'_>) -> Result<Self, ErrorDetail> {
+        Ok(Common {
+            system: obj.required("system", "the system id, e.g. \"pendulum\"", string)?,
+            params: obj.optional("params", json::params)?.unwrap_or_default(),
+            t_end: obj.required("t_end", "the final time", json::number)?,
+            samples: obj.optional("samples", |v, at| {
+                count(v, at, &format!("a whole number from 1 to {MAX_SAMPLES}"))
+            })?,
+            q0: obj.optional("q0", numbers)?,
+            p0: obj.optional("p0", numbers)?,
+            reference: obj.optional("reference", |v, at| run_request(v, at, true))?,
+        })
+    }
+}
+
+/// The fields of a convergence study.
+pub const CONVERGENCE_FIELDS: &[&str] = &[
+    "system",
+    "params",
+    "chart",
+    "charts",
+    "initial_coordinates",
+    "q0",
+    "p0",
+    "t_end",
+    "methods",
+    "h",
+    "samples",
+    "reference",
+];
+
+/// A convergence study.
+#[derive(Clone, Debug, PartialEq, Serialize, ToSchema)]
+#[schema(example = json!({
+    "system": "harmonic_oscillator",
+    "params": {"omega": 1, "gamma": 0},
+    "charts": ["cartesian", "compensating"],
+    "q0": [1], "p0": [0],
+    "t_end": 10,
+    "methods": ["symplectic_euler"],
+    "h": [0.04, 0.02, 0.01, 0.005, 0.0025, 0.00125]
+}))]
+pub struct ConvergenceRequest {
+    /// System id.
+    #[schema(value_type = SystemId)]
+    pub system: String,
+    /// System parameters (as for a simulation).
+    #[schema(value_type = Object)]
+    pub params: BTreeMap<String, ParamValue>,
+    /// One coordinate chart (default: the system's first, Cartesian one).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = Option<ChartId>)]
+    pub chart: Option<String>,
+    /// Several charts, instead of `chart`: every method runs in each, from the same physical
+    /// initial state.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    #[schema(value_type = Vec<ChartId>, min_items = 1)]
+    pub charts: Vec<String>,
+    /// The coordinates `q0` and `p0` are given in: `chart` (the default with one chart) or
+    /// `cartesian` (the default, and the only choice, with several charts). Omitted `q0`/`p0`
+    /// are the catalogue's Cartesian defaults.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub initial_coordinates: Option<InitialCoordinates>,
+    /// Initial positions (default: the system's).
+    pub q0: Option<Vec<f64>>,
+    /// Initial momenta (default: the system's).
+    pub p0: Option<Vec<f64>>,
+    /// Final time (finite, > 0).
+    #[schema(exclusive_minimum = 0.0)]
+    pub t_end: f64,
+    /// The methods, as in a simulation (ids, or objects with options).
+    #[schema(min_items = 1)]
+    pub methods: Vec<MethodSpec>,
+    /// Step sizes, each dividing t_end into a whole number of steps.
+    #[schema(min_items = 1)]
+    pub h: Vec<f64>,
+    /// Evenly spaced sample times t_k = k·t_end/samples, k = 1…samples, over which the largest
+    /// energy error is taken (1 to 1000; every step size must divide t_end/samples). Default:
+    /// the largest number up to 1000 that divides every setting's step count.
+    #[schema(minimum = 1, maximum = 1000)]
+    pub samples: Option<u64>,
+    /// The run the errors are measured against where the system has no exact solution
+    /// (default: `reference` at tolerance 1e-13), in the system's Cartesian chart. Give one step
+    /// size or tolerance.
+    pub reference: Option<RunRequest>,
+}
+
+impl ConvergenceRequest {
+    /// Reads a study from JSON text.
+    pub fn from_slice(bytes: &[u8]) -> Result<Self, ErrorDetail> {
+        Self::from_value(&json::parse_json(bytes)?)
+    }
+
+    /// Reads a study from a JSON value, naming the field at fault in every error.
+    pub fn from_value(value: &Value) -> Result<Self, ErrorDetail> {
+        let obj = Obj::new(value, Field::default(), CONVERGENCE_FIELDS)?;
+        let common = Common::read(&obj)?;
+        let charts = obj.optional("charts", |v, at| list(v, at, "a list of chart ids", string))?;
+        if charts.as_ref().is_some_and(Vec::is_empty) {
+            return Err(crate::core::error::CoreError::Empty {
+                field: Field::new("charts"),
+                what: "chart",
+            }
+            .into());
+        }
+        Ok(ConvergenceRequest {
+            system: common.system,
+            params: common.params,
+            chart: obj.optional("chart", string)?,
+            charts: charts.unwrap_or_default(),
+            initial_coordinates: obj.optional("initial_coordinates", initial_coordinates)?,
+            q0: common.q0,
+            p0: common.p0,
+            t_end: common.t_end,
+            methods: obj.required(
+                "methods",
+                "the methods, e.g. [\"symplectic_euler\", \"rk4\"]",
+                read_methods,
+            )?,
+            h: obj.required(
+                "h",
+                "the step sizes, e.g. [0.04, 0.02, 0.01, 0.005]",
+                numbers,
+            )?,
+            samples: common.samples,
+            reference: common.reference,
+        })
+    }
+
+    /// The study in core terms.
+    pub fn to_spec(&self) -> Result<ConvergenceSpec, ErrorDetail> {
+        let methods = Field::new("methods");
+        Ok(ConvergenceSpec {
+            system: self.system.clone(),
+            params: self.params.clone(),
+            chart: self.chart.clone(),
+            charts: self.charts.clone(),
+            initial_coordinates: self.initial_coordinates,
+            q0: self.q0.clone(),
+            p0: self.p0.clone(),
+            t_end: self.t_end,
+            methods: self
+                .methods
+                .iter()
+                .enumerate()
+                .map(|(i, m)| m.at(&methods.index(i)))
+                .collect::<Result<Vec<MethodAt>, _>>()?,
+            h: self.h.clone(),
+            samples: self.samples,
+            reference: self
+                .reference
+                .as_ref()
+                .map(|r| r.to_spec(&Field::new("reference")))
+                .transpose()?,
+        })
+    }
+}
+
+/// The fields of a work–precision study.
+pub const STUDY_FIELDS: &[&str] = &[
+    "system",
+    "params",
+    "q0",
+    "p0",
+    "t_end",
+    "samples",
+    "runs",
+    "reference",
+];
+
+/// A work–precision study.
+#[derive(Clone, Debug, PartialEq, Serialize, ToSchema)]
+#[schema(example = json!({
+    "system": "elastic_pendulum_3d",
+    "params": {"epsilon": 0.0001},
+    "t_end": 1000,
+    "runs": [
+        {"method": {"id": "kahan_li_8", "base": "modin_3s"}, "h": [0.8, 0.4, 0.2]},
+        {"method": "rk4", "h": [0.05, 0.025]},
+        {"method": "reference", "tolerance": [1e-8, 1e-10]}
+    ]
+}))]
+pub struct WorkPrecisionRequest {
+    /// System id.
+    #[schema(value_type = SystemId)]
+    pub system: String,
+    /// System parameters (as for a simulation).
+    #[schema(value_type = Object)]
+    pub params: BTreeMap<String, ParamValue>,
+    /// Initial positions (default: the system's).
+    pub q0: Option<Vec<f64>>,
+    /// Initial momenta (default: the system's).
+    pub p0: Option<Vec<f64>>,
+    /// Final time (finite, > 0).
+    #[schema(exclusive_minimum = 0.0)]
+    pub t_end: f64,
+    /// Evenly spaced sample times t_k = k·t_end/samples, k = 1…samples (default 50, 1 to 1000),
+    /// over which the largest energy error is taken.
+    #[schema(minimum = 1, maximum = 1000)]
+    pub samples: u64,
+    /// The methods, each with its step sizes (or for `reference` its tolerances).
+    #[schema(min_items = 1)]
+    pub runs: Vec<RunRequest>,
+    /// The run the errors are measured against where the system has no exact solution
+    /// (default: `reference` at tolerance 1e-13). Give one step size or tolerance.
+    pub reference: Option<RunRequest>,
+}
+
+impl WorkPrecisionRequest {
+    /// Reads a study from JSON text.
+    pub fn from_slice(bytes: &[u8]) -> Result<Self, ErrorDetail> {
+        Self::from_value(&json::parse_json(bytes)?)
+    }
+
+    /// Reads a study from a JSON value, naming the field at fault in every error.
+    pub fn from_value(value: &Value) -> Result<Self, ErrorDetail> {
+        let obj = Obj::new(value, Field::default(), STUDY_FIELDS)?;
+        let common = Common::read(&obj)?;
+        let runs = obj.required(
+            "runs",
+            "the methods with their step sizes, e.g. [{\"method\": \"rk4\", \"h\": [0.1, 0.05]}]",
+            |v, at| {
+                list(v, at, "a list of {method, h} objects", |r, at| {
+                    run_request(r, at, false)
+                })
+            },
+        )?;
+        Ok(WorkPrecisionRequest {
+            system: common.system,
+            params: common.params,
+            q0: common.q0,
+            p0: common.p0,
+            t_end: common.t_end,
+            samples: common.samples.unwrap_or(DEFAULT_SAMPLES),
+            runs,
+            reference: common.reference,
+        })
+    }
+
+    /// The study in core terms.
+    pub fn to_spec(&self) -> Result<WorkPrecisionSpec, ErrorDetail> {
+        let runs = Field::new("runs");
+        Ok(WorkPrecisionSpec {
+            system: self.system.clone(),
+            params: self.params.clone(),
+            q0: self.q0.clone(),
+            p0: self.p0.clone(),
+            t_end: self.t_end,
+            samples: self.samples,
+            runs: self
+                .runs
+                .iter()
+                .enumerate()
+                .map(|(i, r)| r.to_spec(&runs.index(i)))
+                .collect::<Result<_, _>>()?,
+            reference: self
+                .reference
+                .as_ref()
+                .map(|r| r.to_spec(&Field::new("reference")))
+                .transpose()?,
+        })
+    }
+}
+
+/// The fields of an energy-map request.
+pub const MAP_FIELDS: &[&str] = &["method", "params", "h", "t_max", "nx", "ny", "x", "y"];
+/// Default step and horizon (Fig. 6 uses t_max = 50 000; the default is a quick look).
+const DEFAULT_H: f64 = 0.2;
+const DEFAULT_T_MAX: f64 = 2000.0;
+const DEFAULT_N: usize = 41;
+
+/// An energy-error map of the planar elastic pendulum (001 Fig. 6).
+#[derive(Clone, Debug, PartialEq, Serialize, ToSchema)]
+#[schema(example = json!({"method": "symplectic_euler", "h": 0.2, "t_max": 2000, "nx": 41, "ny": 41}))]
+pub struct EnergyMapRequest {
+    /// The method, run in both charts (default `symplectic_euler`); it must run on the polar
+    /// chart's non-separable Hamiltonian (symplectic Euler and its adjoint, implicit midpoint,
+    /// the Runge–Kutta methods).
+    pub method: MethodSpec,
+    /// `m`, `k`, `l`, `g` of `elastic_pendulum_2d` (default 1, 1, 1 and g = 0.02 as in Fig. 6).
+    #[schema(value_type = Object)]
+    pub params: BTreeMap<String, ParamValue>,
+    /// Step size (default 0.2).
+    #[schema(exclusive_minimum = 0.0)]
+    pub h: f64,
+    /// Final time (default 2000; Fig. 6 uses 50 000).
+    #[schema(exclusive_minimum = 0.0)]
+    pub t_max: f64,
+    /// Grid points along x (default 41, at most 401).
+    #[schema(minimum = 1, maximum = 401)]
+    pub nx: usize,
+    /// Grid points along y (default 41, at most 401).
+    #[schema(minimum = 1, maximum = 401)]
+    pub ny: usize,
+    /// Range [min, max] of x₀ (default [−1.5, 1.5]).
+    pub x: [f64; 2],
+    /// Range [min, max] of y₀, y pointing down along gravity (default [−1.5, 1.5]).
+    pub y: [f64; 2],
+}
+
+fn range(v: &Value, field: &Field) -> Result<[f64; 2], ErrorDetail> {
+    let pair = v
+        .as_array()
+        .filter(|a| a.len() == 2)
+        .ok_or_else(|| wrong_type(field, "a range [min, max]", v))?;
+    Ok([
+        json::number(&pair[0], &field.index(0))?,
+        json::number(&pair[1], &field.index(1))?,
+    ])
+}
+
+fn grid_points(v: &Value, field: &Field) -> Result<usize, ErrorDetail> {
+    count(v, field, "a whole number of grid points")
+        .map(|n| usize::try_from(n).unwrap_or(usize::MAX))
+}
+
+impl EnergyMapRequest {
+    /// Reads a map request from a JSON value, naming the field at fault in every error.
+    pub fn from_value(value: &Value) -> Result<Self, ErrorDetail> {
+        let obj = Obj::new(value, Field::default(), MAP_FIELDS)?;
+        let number = |name: &str, default: f64| -> Result<f64, ErrorDetail> {
+            Ok(obj.optional(name, json::number)?.unwrap_or(default))
+        };
+        Ok(EnergyMapRequest {
+            method: obj
+                .optional("method", read_method)?
+                .unwrap_or_else(|| MethodSpec::Id("symplectic_euler".into())),
+            params: obj.optional("params", json::params)?.unwrap_or_default(),
+            h: number("h", DEFAULT_H)?,
+            t_max: number("t_max", DEFAULT_T_MAX)?,
+            nx: obj.optional("nx", grid_points)?.unwrap_or(DEFAULT_N),
+            ny: obj.optional("ny", grid_points)?.unwrap_or(DEFAULT_N),
+            x: obj.optional("x", range)?.unwrap_or([-1.5, 1.5]),
+            y: obj.optional("y", range)?.unwrap_or([-1.5, 1.5]),
+        })
+    }
+
+    /// The map in core terms.
+    pub fn to_spec(&self) -> Result<EnergyMapSpec, ErrorDetail> {
+        Ok(EnergyMapSpec {
+            method: self.method.at(&Field::new("method"))?,
+            params: self.params.clone(),
+            h: self.h,
+            t_max: self.t_max,
+            nx: self.nx,
+            ny: self.ny,
+            x: self.x,
+            y: self.y,
+        })
+    }
+}

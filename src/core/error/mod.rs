@@ -1,0 +1,562 @@
+//! Typed errors of the integrator core. An error about an input carries the path of the field at
+//! fault ([`Field`], e.g. `methods[1].inner`) as the caller named it, and the numbers that explain
+//! it (the value, the valid range, the limit); its error code ([`ErrorCode`]) is chosen by its
+//! variant, and the message [`Display`](std::fmt::Display) writes.
+//!
+//! - [`field`]: field paths and valid ranges.
+//! - [`detail`]: error codes and the error shape every interface reports.
+
+mod detail;
+mod field;
+
+use thiserror::Error;
+
+use super::methods::{MethodId, Requirement};
+pub use detail::{ErrorCode, ErrorDetail};
+use field::out_of_range;
+pub use field::{show, Field, Range};
+
+/// A failure inside one step.
+#[derive(Debug, Clone, PartialEq, Error)]
+#[non_exhaustive]
+pub enum StepError {
+    /// Newton's method did not converge in an implicit step.
+    #[error("Newton iteration did not converge in {iterations} iterations (last correction {residual:e})")]
+    NewtonFailed {
+        /// Iterations made.
+        iterations: usize,
+        /// Norm of the last Newton correction.
+        residual: f64,
+    },
+    /// The adaptive reference integrator failed (step size underflow, too many steps).
+    #[error("adaptive integrator failed: {message}")]
+    AdaptiveFailed {
+        /// The integrator's own message.
+        message: String,
+    },
+    /// The method has no tangent map for this system.
+    #[error("the step Jacobian is not available for this method and system: {reason}")]
+    TangentUnsupported {
+        /// Why.
+        reason: &'static str,
+    },
+}
+
+fn list(names: &[String]) -> String {
+    names.join(", ")
+}
+
+/// Why a request to the core cannot be carried out. Every variant about an input names its
+/// field; the interfaces map variants to error codes.
+#[derive(Debug, Clone, PartialEq, Error)]
+#[non_exhaustive]
+pub enum CoreError {
+    /// No system has this id.
+    #[error("unknown system `{id}`; known: {}", list(known))]
+    UnknownSystem {
+        /// The field (`system`).
+        field: Field,
+        /// The id asked for.
+        id: String,
+        /// The ids on offer.
+        known: Vec<String>,
+    },
+    /// No method has this id.
+    #[error("{field}: unknown method `{id}`; known: {}", MethodId::known())]
+    UnknownMethod {
+        /// The field, e.g. `methods[1]` or `methods[1].inner`.
+        field: Field,
+        /// The id asked for.
+        id: String,
+    },
+    /// The system has no chart of this id.
+    #[error("{field}: `{system}` has no chart `{id}`; charts: {}", list(known))]
+    UnknownChart {
+        /// The field, e.g. `chart` or `charts[1]`.
+        field: Field,
+        /// The system.
+        system: String,
+        /// The chart asked for.
+        id: String,
+        /// The system's charts.
+        known: Vec<String>,
+    },
+    /// A parameter the system does not have.
+    #[error("{field}: unknown parameter for `{system}`; known: {}", list(known))]
+    UnknownParameter {
+        /// The field, e.g. `params.omega`.
+        field: Field,
+        /// The system.
+        system: String,
+        /// Its parameters.
+        known: Vec<String>,
+    },
+    /// A name that is not one of a fixed set (a processor, a pair potential).
+    #[error("{field}: unknown {what} `{value}`; known: {}", list(known))]
+    UnknownName {
+        /// The field.
+        field: Field,
+        /// What kind of name (`processor`, `potential`).
+        what: &'static str,
+        /// The name given.
+        value: String,
+        /// The names on offer.
+        known: Vec<String>,
+    },
+    /// An option the method does not take.
+    #[error("{field}: `{method}` takes no option `{option}`")]
+    UnknownOption {
+        /// The field, e.g. `methods[0].inner`.
+        field: Field,
+        /// The method.
+        method: MethodId,
+        /// The option given.
+        option: &'static str,
+    },
+    /// A known method where only some are allowed (the inner method of modin_rks, the base of a
+    /// composition).
+    #[error("{field}: {rule}: one of {}", list(allowed))]
+    NotAllowed {
+        /// The field.
+        field: Field,
+        /// The method given.
+        method: MethodId,
+        /// What is required, in words.
+        rule: &'static str,
+        /// The methods allowed.
+        allowed: Vec<String>,
+    },
+    /// A number outside its valid range (or not finite).
+    #[error("{}", out_of_range(field, *value, range))]
+    OutOfRange {
+        /// The field.
+        field: Field,
+        /// The value given.
+        value: f64,
+        /// The valid range.
+        range: Range,
+    },
+    /// A value that must be finite is not.
+    #[error("{field}: must be finite")]
+    NotFinite {
+        /// The field, e.g. `q0[2]`.
+        field: Field,
+    },
+    /// A value of the wrong kind (a parameter given as text where a number is needed).
+    #[error("{field}: must be {expected}")]
+    WrongKind {
+        /// The field.
+        field: Field,
+        /// What it must be, e.g. `a number`.
+        expected: &'static str,
+    },
+    /// A list of the wrong length for the system.
+    #[error("{field}: needs {expected} entries for this system, got {got}")]
+    WrongLength {
+        /// The field.
+        field: Field,
+        /// The length needed.
+        expected: usize,
+        /// The length given.
+        got: usize,
+    },
+    /// A count outside its bounds (grid points, list entries).
+    #[error("{field}: needs {min} to {max} {what}, got {got}")]
+    Count {
+        /// The field.
+        field: Field,
+        /// The count given.
+        got: u64,
+        /// Fewest allowed.
+        min: u64,
+        /// Most allowed.
+        max: u64,
+        /// What is counted (`entries`, `grid points`, `points`).
+        what: &'static str,
+    },
+    /// An input the request must give and did not.
+    #[error("missing field `{field}`: {what}")]
+    Missing {
+        /// The field.
+        field: Field,
+        /// What it is, e.g. `the step sizes, e.g. [0.1, 0.05]`.
+        what: &'static str,
+    },
+    /// A list that must not be empty.
+    #[error("{field}: give at least one {what}")]
+    Empty {
+        /// The field.
+        field: Field,
+        /// One of its entries, e.g. `method`.
+        what: &'static str,
+    },
+    /// More entries than a request may have.
+    #[error("{field}: at most {limit} {what}{}", got.map(|n| format!(", got {n}")).unwrap_or_default())]
+    TooMany {
+        /// The field.
+        field: Field,
+        /// What, per what (`methods per request`).
+        what: &'static str,
+        /// The limit.
+        limit: usize,
+        /// The count given, when the message shows it.
+        got: Option<usize>,
+    },
+    /// An entry listed twice.
+    #[error("{field}: `{value}` is listed twice")]
+    Duplicate {
+        /// The field of the second entry.
+        field: Field,
+        /// The entry.
+        value: String,
+    },
+    /// Two inputs that exclude each other were both given.
+    #[error("{field}: give either {first} or {second}, not both")]
+    Either {
+        /// The field blamed.
+        field: Field,
+        /// The first choice, in words.
+        first: &'static str,
+        /// The second choice, in words.
+        second: &'static str,
+    },
+    /// An interval given as [min, max] that is not finite or has min > max.
+    #[error("{field}: must be a finite range [min, max] with min ≤ max, got [{}, {}]", show(*min), show(*max))]
+    BadInterval {
+        /// The field.
+        field: Field,
+        /// Its first number.
+        min: f64,
+        /// Its second number.
+        max: f64,
+    },
+    /// A run (or a study's runs together) would take more steps than allowed.
+    #[error("{}", too_many_steps(field, *steps, *limit, *scope))]
+    TooManySteps {
+        /// The field blamed (t_end for a simulation, the step size of a study's setting, the
+        /// study's list of settings for a study).
+        field: Field,
+        /// The steps asked for.
+        steps: u64,
+        /// The limit.
+        limit: u64,
+        /// What the limit counts.
+        scope: StepScope,
+    },
+    /// A request would produce more samples than allowed.
+    #[error("{field}: {samples} samples in all exceeds the limit of {limit}; sample less often")]
+    TooManySamples {
+        /// The field (`output.every`).
+        field: Field,
+        /// The samples asked for.
+        samples: u64,
+        /// The limit.
+        limit: u64,
+    },
+    /// A stability request would compute more map cells than allowed.
+    #[error("{field}: {methods} methods × {gammas} γ values × {hs} h values = {cells} cells exceeds the limit of {limit} per request; ask for fewer methods or coarser axes")]
+    TooManyCells {
+        /// The field (`methods`).
+        field: Field,
+        /// Methods.
+        methods: usize,
+        /// Points of the γ axis.
+        gammas: usize,
+        /// Points of the h axis.
+        hs: usize,
+        /// Their product.
+        cells: usize,
+        /// The limit.
+        limit: usize,
+    },
+    /// An energy-error map would take more steps than allowed.
+    #[error("{field}: {cells} cells × 2 charts × {steps} steps = {total} steps exceeds the limit of {limit}")]
+    MapTooLarge {
+        /// The field (`t_max`).
+        field: Field,
+        /// Cells of the grid.
+        cells: u64,
+        /// Steps per cell and chart.
+        steps: u64,
+        /// Steps in all.
+        total: u64,
+        /// The limit.
+        limit: u64,
+    },
+    /// A method whose structural requirements the system does not meet.
+    #[error("method `{method}` cannot run on `{system}`: it requires {}", requirement.describe())]
+    Unmet {
+        /// The method's field.
+        field: Field,
+        /// The method's label.
+        method: String,
+        /// The system (and chart).
+        system: String,
+        /// The first unmet requirement.
+        requirement: Requirement,
+    },
+    /// A method without a step Jacobian where one is needed.
+    #[error("{field}: {why} no step Jacobian; drop it or jacobian_defect")]
+    NoStepJacobian {
+        /// The method's field.
+        field: Field,
+        /// The method.
+        method: MethodId,
+        /// Why it has none, as the method's catalogue entry says.
+        why: &'static str,
+    },
+    /// A request the computation does not support, with the reason.
+    #[error("{field}: {reason}")]
+    Unsupported {
+        /// The field.
+        field: Field,
+        /// Why, in words.
+        reason: &'static str,
+    },
+    /// An initial state the chart does not cover.
+    #[error("{field}: the initial state is outside the `{chart}` chart: {reason}")]
+    OutsideChart {
+        /// The field (`q0`, or `chart` when the state is the default one).
+        field: Field,
+        /// The chart.
+        chart: String,
+        /// Why (a singular point, outside the chart's range).
+        reason: String,
+    },
+    /// A study's settings that would start from different physical states (a chart whose
+    /// transformation depends on h, with the initial state given in the chart).
+    #[error("{field}: the initial state in the `{chart}` chart at h = {h} is another physical state than at the first setting; give q0 and p0 in Cartesian coordinates")]
+    StateDiffers {
+        /// The field (`q0`).
+        field: Field,
+        /// The chart.
+        chart: String,
+        /// The step size of the setting.
+        h: f64,
+    },
+    /// A system whose default initial state does not fit its parameters (N bodies with other
+    /// masses).
+    #[error(
+        "{field}: give q0 and p0 ({dimension} entries each) for a non-default number of bodies"
+    )]
+    NeedsInitialState {
+        /// The missing field (`q0` or `p0`).
+        field: Field,
+        /// Entries each needs.
+        dimension: usize,
+    },
+    /// A step size at which a method's linear solve is singular.
+    #[error("{field}: {method} needs to solve a singular linear system at this step size (γh = {gamma_h}): choose another h")]
+    SingularStep {
+        /// The field (`h`).
+        field: Field,
+        /// The method.
+        method: MethodId,
+        /// γh there.
+        gamma_h: f64,
+    },
+    /// A step size that must divide a time span into whole steps and does not.
+    #[error("{field}: must divide {span_name} = {} {purpose}; {}", show(*span), divisor_detail(*h, *span, *show_ratio))]
+    NotADivisor {
+        /// The field.
+        field: Field,
+        /// The step size.
+        h: f64,
+        /// The span.
+        span: f64,
+        /// The span's name, e.g. `t_end/samples`.
+        span_name: &'static str,
+        /// Why it must divide, e.g. `so that the samples are step endpoints`.
+        purpose: &'static str,
+        /// Whether the message shows span/h (else it shows h).
+        show_ratio: bool,
+    },
+    /// The reference run of a simulation did not finish.
+    #[error("{field}: the reference run did not finish ({stop})")]
+    ReferenceUnfinished {
+        /// The field (`compare_to_reference`).
+        field: Field,
+        /// How it stopped.
+        stop: String,
+    },
+    /// A step failed (Newton did not converge, …).
+    #[error("{}step {step} (t = {t}): {source}", run.as_ref().map(|r| format!("{r}: ")).unwrap_or_default())]
+    Step {
+        /// The input that asked for the failing run, when it was not a method of the request
+        /// (`compare_to_reference`).
+        field: Option<Field>,
+        /// Which run failed, when the message should say (`reference run`, a study's method).
+        run: Option<String>,
+        /// The step that failed, counted from 1.
+        step: u64,
+        /// The time at the start of that step.
+        t: f64,
+        /// What went wrong.
+        source: StepError,
+    },
+    /// A computation stopped because it was cancelled (its client went away, or the server is
+    /// shutting down).
+    #[error("the {what} was cancelled{}", if *shutdown { " (the server is shutting down)" } else { "" })]
+    Cancelled {
+        /// What was cancelled (`study`, `map`).
+        what: &'static str,
+        /// Whether the message blames the shutdown.
+        shutdown: bool,
+    },
+    /// A computation did not finish within its time limit.
+    #[error("{message}")]
+    TimeLimit {
+        /// The input whose work did not finish, when one is to blame (`compare_to_reference`).
+        field: Option<Field>,
+        /// What did not finish and what to do, in words.
+        message: String,
+    },
+}
+
+/// What a step limit counts.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StepScope {
+    /// The steps of one method's run.
+    PerMethod,
+    /// The steps of every setting of a study together.
+    PerStudy,
+}
+
+fn too_many_steps(field: &Field, steps: u64, limit: u64, scope: StepScope) -> String {
+    match scope {
+        StepScope::PerMethod => {
+            format!("{field}: t_end/h = {steps} steps exceeds the limit of {limit} per method")
+        }
+        StepScope::PerStudy => format!(
+            "{field}: {steps} steps over all settings exceed the limit of {limit} per study; use \
+             fewer or larger steps"
+        ),
+    }
+}
+
+fn divisor_detail(h: f64, span: f64, show_ratio: bool) -> String {
+    if show_ratio {
+        format!("t_end/h = {}", span / h)
+    } else {
+        format!("{} does not", show(h))
+    }
+}
+
+impl CoreError {
+    /// The input field the error concerns, if any.
+    pub fn field(&self) -> Option<&Field> {
+        use CoreError::*;
+        match self {
+            UnknownSystem { field, .. }
+            | UnknownMethod { field, .. }
+            | UnknownChart { field, .. }
+            | UnknownParameter { field, .. }
+            | UnknownName { field, .. }
+            | UnknownOption { field, .. }
+            | NotAllowed { field, .. }
+            | OutOfRange { field, .. }
+            | NotFinite { field }
+            | WrongKind { field, .. }
+            | WrongLength { field, .. }
+            | Count { field, .. }
+            | Missing { field, .. }
+            | Empty { field, .. }
+            | TooMany { field, .. }
+            | Duplicate { field, .. }
+            | Either { field, .. }
+            | BadInterval { field, .. }
+            | TooManySteps { field, .. }
+            | TooManySamples { field, .. }
+            | TooManyCells { field, .. }
+            | MapTooLarge { field, .. }
+            | Unmet { field, .. }
+            | NoStepJacobian { field, .. }
+            | Unsupported { field, .. }
+            | OutsideChart { field, .. }
+            | StateDiffers { field, .. }
+            | NeedsInitialState { field, .. }
+            | SingularStep { field, .. }
+            | NotADivisor { field, .. }
+            | ReferenceUnfinished { field, .. } => Some(field),
+            Step { field, .. } | TimeLimit { field, .. } => field.as_ref(),
+            Cancelled { .. } => None,
+        }
+    }
+
+    /// The same error about another field: for an input that a caller passed on under another
+    /// name (a study's setting checked as a simulation's `h`).
+    pub fn at(mut self, to: Field) -> Self {
+        use CoreError::*;
+        match &mut self {
+            UnknownSystem { field, .. }
+            | UnknownMethod { field, .. }
+            | UnknownChart { field, .. }
+            | UnknownParameter { field, .. }
+            | UnknownName { field, .. }
+            | UnknownOption { field, .. }
+            | NotAllowed { field, .. }
+            | OutOfRange { field, .. }
+            | NotFinite { field }
+            | WrongKind { field, .. }
+            | WrongLength { field, .. }
+            | Count { field, .. }
+            | Missing { field, .. }
+            | Empty { field, .. }
+            | TooMany { field, .. }
+            | Duplicate { field, .. }
+            | Either { field, .. }
+            | BadInterval { field, .. }
+            | TooManySteps { field, .. }
+            | TooManySamples { field, .. }
+            | TooManyCells { field, .. }
+            | MapTooLarge { field, .. }
+            | Unmet { field, .. }
+            | NoStepJacobian { field, .. }
+            | Unsupported { field, .. }
+            | OutsideChart { field, .. }
+            | StateDiffers { field, .. }
+            | NeedsInitialState { field, .. }
+            | SingularStep { field, .. }
+            | NotADivisor { field, .. }
+            | ReferenceUnfinished { field, .. } => *field = to,
+            Step { field, .. } | TimeLimit { field, .. } => *field = Some(to),
+            Cancelled { .. } => {}
+        }
+        self
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ranges_check_and_show_their_bounds() {
+        let h = Field::new("h");
+        assert!(Range::POSITIVE.check(0.1, &h).is_ok());
+        for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+            assert!(Range::POSITIVE.check(bad, &h).is_err());
+        }
+        assert_eq!(
+            Range::POSITIVE.check(-0.1, &h).unwrap_err().to_string(),
+            "h: must be finite and > 0, got -0.1"
+        );
+        let tolerance = Range::closed(1e-14, false, 1e-2);
+        assert_eq!(
+            tolerance
+                .check(1.0, &Field::new("methods").index(0).key("tolerance"))
+                .unwrap_err()
+                .to_string(),
+            "methods[0].tolerance: 1 is outside the valid range [1e-14, 0.01]"
+        );
+        assert_eq!(show(1e6), "1000000");
+        assert_eq!(show(2.5e-7), "2.5e-7");
+    }
+
+    #[test]
+    fn fields_build_paths() {
+        let runs = Field::new("runs");
+        assert_eq!(runs.index(1).key("h").index(2).as_str(), "runs[1].h[2]");
+        assert_eq!(Field::default().key("h").as_str(), "h");
+    }
+}

@@ -1,0 +1,275 @@
+//! From a [`Method`] to a stepper for a concrete system: the one place that knows which family
+//! runs which method. [`AnyStepper`] holds the stepper chosen at run time; matching on it once
+//! per run ([`with_stepper!`](crate::with_stepper)) runs the driver monomorphised for it.
+
+use nalgebra::allocator::Allocator;
+use nalgebra::DefaultAllocator;
+
+use super::composition::Composed;
+use super::conformal::Csv2;
+use super::implicit::{ImplicitMidpoint, MidpointField};
+use super::reference::Reference;
+use super::rowlands::Rowlands;
+use super::runge_kutta::{self, InnerRk, MomentumRk, RungeKutta, Tableau};
+use super::splitting::{self, Splitting, SubFlow};
+use super::symplectic_euler::{GeneralSymplecticEuler, Variant};
+use super::{Base, Method, MethodId};
+use crate::core::error::{CoreError, Field, StepError};
+use crate::core::flows::Tangent;
+use crate::core::run::Stepper;
+use crate::core::system::{MechanicalSystem, State};
+
+/// The Butcher tableau of an explicit Runge–Kutta method.
+fn tableau(id: MethodId) -> Option<&'static Tableau> {
+    match id {
+        MethodId::ExplicitEuler => Some(&runge_kutta::EXPLICIT_EULER),
+        MethodId::Heun => Some(&runge_kutta::HEUN),
+        MethodId::Rk3 => Some(&runge_kutta::RK3),
+        MethodId::Rk4 => Some(&runge_kutta::RK4),
+        _ => None,
+    }
+}
+
+/// The sub-flow sequence of a splitting method.
+fn sequence(id: MethodId) -> Option<splitting::Sequence> {
+    Some(match id {
+        MethodId::Modin3s => splitting::MODIN_3S,
+        MethodId::Modin2s => splitting::MODIN_2S,
+        MethodId::ModinRks => splitting::MODIN_RKS,
+        MethodId::Csv1 => splitting::CSV1,
+        MethodId::SymplecticEuler => splitting::SYMPLECTIC_EULER,
+        MethodId::SymplecticEulerAdjoint => splitting::SYMPLECTIC_EULER_ADJOINT,
+        MethodId::PositionVerlet => splitting::POSITION_VERLET,
+        MethodId::VelocityVerlet => splitting::VELOCITY_VERLET,
+        _ => return None,
+    })
+}
+
+/// A stepper for a concrete system, chosen at run time.
+pub enum AnyStepper<S: MechanicalSystem>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    /// A splitting, or a composition of splittings.
+    Splitting(Splitting<S>),
+    /// An explicit Runge–Kutta method.
+    RungeKutta(RungeKutta<S::Dim>),
+    /// implicit_midpoint or cimp.
+    Midpoint(ImplicitMidpoint<S>),
+    /// csv2.
+    Csv2(Csv2<S>),
+    /// A composition of implicit_midpoint or cimp.
+    ComposedMidpoint(Composed<ImplicitMidpoint<S>>),
+    /// A composition of csv2.
+    ComposedCsv2(Composed<Csv2<S>>),
+    /// Symplectic Euler or its adjoint on a non-separable Hamiltonian.
+    GeneralSymplecticEuler(GeneralSymplecticEuler<S>),
+    /// The adaptive reference.
+    Reference(Reference),
+    /// rowlands.
+    Rowlands(Rowlands<S>),
+}
+
+/// Runs `$body` with `$st` bound to the concrete stepper inside an [`AnyStepper`].
+#[macro_export]
+macro_rules! with_stepper {
+    ($any:expr, $st:ident => $body:expr) => {
+        match $any {
+            $crate::core::methods::AnyStepper::Splitting($st) => $body,
+            $crate::core::methods::AnyStepper::RungeKutta($st) => $body,
+            $crate::core::methods::AnyStepper::Midpoint($st) => $body,
+            $crate::core::methods::AnyStepper::Csv2($st) => $body,
+            $crate::core::methods::AnyStepper::ComposedMidpoint($st) => $body,
+            $crate::core::methods::AnyStepper::ComposedCsv2($st) => $body,
+            $crate::core::methods::AnyStepper::GeneralSymplecticEuler($st) => $body,
+            $crate::core::methods::AnyStepper::Reference($st) => $body,
+            $crate::core::methods::AnyStepper::Rowlands($st) => $body,
+        }
+    };
+}
+
+impl<S: MechanicalSystem> Stepper<S> for AnyStepper<S>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    fn step(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64) -> Result<(), StepError> {
+        with_stepper!(self, st => st.step(sys, z, h))
+    }
+    fn force_evaluations(&self) -> u64 {
+        with_stepper!(self, st => Stepper::<S>::force_evaluations(st))
+    }
+    fn check_interval(&self) -> u64 {
+        with_stepper!(self, st => Stepper::<S>::check_interval(st))
+    }
+    fn pre_process(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64) {
+        with_stepper!(self, st => st.pre_process(sys, z, h))
+    }
+    fn post_process(
+        &mut self,
+        sys: &S,
+        z: &State<S::Dim>,
+        h: f64,
+        out: &mut State<S::Dim>,
+    ) -> bool {
+        with_stepper!(self, st => st.post_process(sys, z, h, out))
+    }
+    fn step_tangent(
+        &mut self,
+        sys: &S,
+        z: &mut State<S::Dim>,
+        h: f64,
+        t: &mut Tangent,
+    ) -> Result<(), StepError> {
+        with_stepper!(self, st => st.step_tangent(sys, z, h, t))
+    }
+}
+
+/// Where a method and its step size come from, as errors name them, and the system as they
+/// call it.
+#[derive(Clone, Debug)]
+pub struct Origin<'a> {
+    /// The method's field, e.g. `methods[1]`.
+    pub method: &'a Field,
+    /// The step size's field, e.g. `h`.
+    pub h: &'a Field,
+    /// The system (and its chart), e.g. `elastic_pendulum_2d (polar chart)`.
+    pub system: &'a str,
+}
+
+/// Checks that `method` can run on `sys` at step `h`: the system meets its requirements and
+/// no linear solve of the method is singular at this step size.
+pub fn check<S: MechanicalSystem>(
+    method: &Method,
+    sys: &S,
+    h: f64,
+    origin: &Origin<'_>,
+) -> Result<(), CoreError>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    method.check(
+        origin.method,
+        origin.system,
+        sys.structure(),
+        sys.damping_rate(),
+    )?;
+    check_divisors(method, sys.damping_rate(), h, origin.h)
+}
+
+/// Builds the stepper for `method` on `sys` with step `h`, after [`check`]ing it (errors name
+/// the method `method` and the step `h`; callers with other names check first).
+pub fn build<S: MechanicalSystem>(
+    method: &Method,
+    sys: &S,
+    system: &str,
+    h: f64,
+) -> Result<AnyStepper<S>, CoreError>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    let origin = Origin {
+        method: &Field::new("method"),
+        h: &Field::new("h"),
+        system,
+    };
+    check(method, sys, h, &origin)?;
+    Ok(stepper(method, sys))
+}
+
+/// The stepper of a checked method.
+fn stepper<S: MechanicalSystem>(method: &Method, sys: &S) -> AnyStepper<S>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    let splitting = |seq: Vec<(SubFlow, f64)>, inner: Option<MethodId>| {
+        let inner = inner.map(|i| {
+            MomentumRk::new(
+                tableau(i).map_or(InnerRk::ImplicitMidpoint, InnerRk::Explicit),
+                sys.dim(),
+            )
+        });
+        AnyStepper::Splitting(Splitting::new(sys, seq, inner))
+    };
+    let separable = sys.structure().separable_constant_mass;
+    match *method {
+        Method::Composition { scheme, base } => {
+            let weights = scheme.weights();
+            match (sequence(base.id()), base) {
+                (Some(seq), _) => splitting(splitting::compose(seq, &weights), None),
+                (None, Base::Csv2) => {
+                    AnyStepper::ComposedCsv2(Composed::new(Csv2::new(sys), weights))
+                }
+                (None, Base::Cimp) => AnyStepper::ComposedMidpoint(Composed::new(
+                    ImplicitMidpoint::new(sys, MidpointField::Conformal),
+                    weights,
+                )),
+                (None, _) => AnyStepper::ComposedMidpoint(Composed::new(
+                    ImplicitMidpoint::new(sys, MidpointField::Full),
+                    weights,
+                )),
+            }
+        }
+        Method::ModinRks { inner } => splitting(splitting::MODIN_RKS.to_vec(), Some(inner.id())),
+        Method::Reference { tolerance } => AnyStepper::Reference(Reference::new(tolerance)),
+        Method::Rowlands { processor } => AnyStepper::Rowlands(Rowlands::new(sys, processor)),
+        Method::Plain(id) => match id {
+            MethodId::SymplecticEuler if !separable => AnyStepper::GeneralSymplecticEuler(
+                GeneralSymplecticEuler::new(sys, Variant::Original),
+            ),
+            MethodId::SymplecticEulerAdjoint if !separable => AnyStepper::GeneralSymplecticEuler(
+                GeneralSymplecticEuler::new(sys, Variant::Adjoint),
+            ),
+            MethodId::ImplicitMidpoint => {
+                AnyStepper::Midpoint(ImplicitMidpoint::new(sys, MidpointField::Full))
+            }
+            MethodId::Cimp => {
+                AnyStepper::Midpoint(ImplicitMidpoint::new(sys, MidpointField::Conformal))
+            }
+            MethodId::Csv2 => AnyStepper::Csv2(Csv2::new(sys)),
+            id => match (tableau(id), sequence(id)) {
+                (Some(t), _) => AnyStepper::RungeKutta(RungeKutta::new(t, sys.dim())),
+                (None, Some(seq)) => splitting(seq.to_vec(), None),
+                // A method with options written as `Plain`: its defaults.
+                (None, None) => stepper(&Method::new(id), sys),
+            },
+        },
+    }
+}
+
+/// The base method of `method` and the weights of its sub-steps (one, of weight 1, for a method
+/// that is not a composition).
+fn stages(method: &Method) -> (MethodId, Vec<f64>) {
+    match method {
+        Method::Composition { scheme, base } => (base.id(), scheme.weights()),
+        other => (other.id(), vec![1.0]),
+    }
+}
+
+/// Refuses a step whose sub-steps w·h make one of the method's linear solves singular: csv2
+/// divides by 1 ∓ γτ/2, a damped θ-kick by 1 + θrτ. With a composition's negative weights
+/// these vanish at values of γh other than the plain method's.
+fn check_divisors(method: &Method, r: f64, h: f64, field: &Field) -> Result<(), CoreError> {
+    let singular = |d: f64| d.abs() < 1e-9;
+    let (base, weights) = stages(method);
+    for &w in &weights {
+        let bad = match (base, sequence(base)) {
+            (MethodId::Csv2, _) => {
+                let a = 0.25 * r * w * h;
+                singular(1.0 - a) || singular(1.0 + a)
+            }
+            (_, Some(seq)) => seq.iter().any(|&(flow, frac)| match flow {
+                SubFlow::DampedKick(theta) => singular(1.0 + theta.value() * r * w * frac * h),
+                _ => false,
+            }),
+            _ => false,
+        };
+        if bad {
+            return Err(CoreError::SingularStep {
+                field: field.clone(),
+                method: base,
+                gamma_h: 0.5 * r * h,
+            });
+        }
+    }
+    Ok(())
+}

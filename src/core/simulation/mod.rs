@@ -1,0 +1,25 @@
+//! Simulations: a system with parameters, chart and initial state, run with one or more methods
+//! from the same state, sampled every so many steps.
+//!
+//! - [`spec`]: the simulation as asked for ([`SimulationSpec`]) and its validation into a
+//!   [`Simulation`] (cheap, before any work is queued).
+//! - [`run`]: one method's run, its samples with energies, energy errors and invariants handed
+//!   to a [`SampleSink`]; the reference run.
+//! - [`stream`]: the one way a whole simulation runs — its methods in parallel, emitting typed
+//!   lines that the NDJSON stream, the JSON document and the recordings consume.
+//! - [`document`]: the JSON document's types and the column collector.
+
+pub mod document;
+pub mod run;
+pub mod spec;
+pub mod stream;
+
+pub use document::{
+    ColumnSink, Columns, DivergedAt, RunDocument, ScheduleSummary, SimulationDocument, Stop,
+    SystemSummary,
+};
+pub use run::{for_each_method, Outcome, Sample, SampleSink};
+pub use spec::{
+    InitialCoordinates, InputFields, Limits, MethodAt, Simulation, SimulationSpec, MAX_METHODS,
+};
+pub use stream::{DocumentCollector, StreamLine};

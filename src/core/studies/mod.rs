@@ -1,0 +1,17 @@
+//! Studies: computations over many runs, each a pure function from a typed spec to a typed
+//! result, with progress reported as it goes.
+//!
+//! - [`convergence`]: errors at t_end against the step size, per method and chart, with the
+//!   fitted orders.
+//! - [`work_precision`]: wall time against energy error, per method and setting.
+//! - [`energy_map`]: energy-error maps of the planar elastic pendulum, Cartesian against polar
+//!   coordinates (paper 001 Fig. 6), cells in parallel.
+//! - [`stability`]: linear stability maps over (γ, h) and the analysis at one point (paper 003
+//!   Ch. 3).
+//! - [`settings`]: what the settings-based studies share.
+
+pub mod convergence;
+pub mod energy_map;
+pub mod settings;
+pub mod stability;
+pub mod work_precision;

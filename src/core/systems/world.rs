@@ -1,0 +1,74 @@
+//! How a system appears in physical space: which points its configuration puts where, and what
+//! joins them to the origin (a rod, a spring). Each system's catalogue entry carries its
+//! [`World`]; the recordings' 3-D view draws it from the Cartesian configuration, whatever the
+//! chart the run used.
+
+/// The embedding of a system's Cartesian configuration in 3-D space.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum World {
+    /// A point on the x axis at (q, 0, 0).
+    Line,
+    /// A unit pendulum bob at (sin q, 0, −cos q) on a rod from the origin.
+    Pendulum,
+    /// A mass at q ∈ R³ on a spring from the origin.
+    Spring,
+    /// N bodies at q[3i..3i+3].
+    Bodies,
+    /// A mass at (x, y) in the plane with y pointing down, drawn at (x, 0, −y) on a spring from
+    /// the origin.
+    PlanarSpring,
+    /// A particle in the plane at (x, y, 0).
+    Plane,
+}
+
+/// What joins a body to the origin in the drawing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Link {
+    /// A rigid rod.
+    Rod,
+    /// A spring.
+    Spring,
+}
+
+impl Link {
+    /// The entity name of the link.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Link::Rod => "rod",
+            Link::Spring => "spring",
+        }
+    }
+}
+
+impl World {
+    /// Bodies drawn per sample for `dof` degrees of freedom.
+    pub fn bodies(self, dof: usize) -> usize {
+        match self {
+            World::Bodies => dof / 3,
+            _ => 1,
+        }
+    }
+
+    /// The positions of the bodies for the Cartesian configuration `q`, appended to `out`.
+    pub fn positions(self, q: &[f64], out: &mut Vec<[f64; 3]>) {
+        let at = |i: usize| q.get(i).copied().unwrap_or(0.0);
+        match self {
+            World::Line => out.push([at(0), 0.0, 0.0]),
+            World::Pendulum => out.push([at(0).sin(), 0.0, -at(0).cos()]),
+            World::PlanarSpring => out.push([at(0), 0.0, -at(1)]),
+            World::Plane => out.push([at(0), at(1), 0.0]),
+            World::Spring | World::Bodies => {
+                out.extend(q.chunks_exact(3).map(|c| [c[0], c[1], c[2]]))
+            }
+        }
+    }
+
+    /// What joins the body to the origin, if anything.
+    pub fn link(self) -> Option<Link> {
+        match self {
+            World::Pendulum => Some(Link::Rod),
+            World::Spring | World::PlanarSpring => Some(Link::Spring),
+            _ => None,
+        }
+    }
+}
