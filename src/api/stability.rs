@@ -176,3 +176,124 @@ impl PointRequest {
         })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::core::error::ErrorCode;
+    use crate::core::run::Budget;
+    use crate::core::studies::stability::{maps, MAX_MAP_CELLS};
+
+    fn field_of_map(text: &str) -> Option<String> {
+        StabilityRequest::from_slice(text.as_bytes())
+            .and_then(|r| Ok(r.to_spec()?.prepare().map(|_| ())?))
+            .unwrap_err()
+            .field
+    }
+
+    #[test]
+    fn map_fields_are_named() {
+        let axes =
+            r#""gamma": {"min": 0, "max": 3.5, "n": 10}, "h": {"min": 0, "max": 1, "n": 10}"#;
+        for (body, field) in [
+            (format!(r#"{{"methods": ["csv1"], "omega": 1, {axes}, "x": 1}}"#), "x"),
+            (format!(r#"{{"methods": ["csv1", "reference"], "omega": 1, {axes}}}"#), "methods[1]"),
+            (
+                format!(r#"{{"methods": [{{"id": "reference"}}], "omega": 1, {axes}}}"#),
+                "methods[0].id",
+            ),
+            (
+                format!(r#"{{"methods": [{{"id": "triple_jump", "base": "heun"}}], "omega": 1, {axes}}}"#),
+                "methods[0].base",
+            ),
+            (format!(r#"{{"methods": ["csv1"], "omega": 0, {axes}}}"#), "omega"),
+            (
+                r#"{"methods": ["csv1"], "omega": 1, "gamma": {"min": 0, "max": 1, "n": 1}, "h": {"min": 0, "max": 1, "n": 2}}"#.to_string(),
+                "gamma.n",
+            ),
+            (
+                r#"{"methods": ["csv1"], "omega": 1, "gamma": {"min": 0, "max": 1, "n": 2}, "h": {"min": 1, "max": 0.5, "n": 2}}"#.to_string(),
+                "h.max",
+            ),
+            (
+                r#"{"methods": ["csv1"], "omega": 1, "gamma": {"min": 0, "max": 1, "n": 2, "k": 1}, "h": {"min": 0, "max": 1, "n": 2}}"#.to_string(),
+                "gamma.k",
+            ),
+        ] {
+            assert_eq!(field_of_map(&body).as_deref(), Some(field), "{body}");
+        }
+    }
+
+    #[test]
+    fn rowlands_is_refused_on_a_damped_axis_or_point() {
+        let h = r#""h": {"min": 0, "max": 1, "n": 10}"#;
+        let damped = format!(
+            r#"{{"methods": ["csv1", "rowlands"], "omega": 1, "gamma": {{"min": 0, "max": 1, "n": 10}}, {h}}}"#
+        );
+        let error = ErrorDetail::from(
+            StabilityRequest::from_slice(damped.as_bytes())
+                .unwrap()
+                .to_spec()
+                .unwrap()
+                .prepare()
+                .unwrap_err(),
+        );
+        assert_eq!(
+            (error.code, error.field.as_deref()),
+            (ErrorCode::UnmetRequirement, Some("methods[1]"))
+        );
+        assert!(error.message.contains("no damping"), "{}", error.message);
+        let undamped = format!(
+            r#"{{"methods": ["rowlands"], "omega": 1, "gamma": {{"min": 0, "max": 0, "n": 2}}, {h}}}"#
+        );
+        let job = StabilityRequest::from_slice(undamped.as_bytes())
+            .unwrap()
+            .to_spec()
+            .unwrap()
+            .prepare()
+            .unwrap();
+        assert!(maps(&job, Budget::default()).is_ok());
+        let point = |gamma: f64| {
+            PointRequest::from_value(&serde_json::json!({
+                "method": {"id": "rowlands", "processor": "none"}, "omega": 1, "gamma": gamma, "h": 0.1
+            }))
+            .unwrap()
+            .to_spec()
+            .unwrap()
+            .prepare()
+        };
+        let error = ErrorDetail::from(point(0.1).unwrap_err());
+        assert_eq!(
+            (error.code, error.field.as_deref()),
+            (ErrorCode::UnmetRequirement, Some("method"))
+        );
+        assert!(point(0.0).is_ok());
+    }
+
+    #[test]
+    fn the_cell_limit_counts_every_method() {
+        let axes =
+            r#""gamma": {"min": 0, "max": 1, "n": 1000}, "h": {"min": 0, "max": 1, "n": 1000}"#;
+        let one = format!(r#"{{"methods": ["csv1"], "omega": 1, {axes}}}"#);
+        let job = StabilityRequest::from_slice(one.as_bytes())
+            .unwrap()
+            .to_spec()
+            .unwrap()
+            .prepare()
+            .unwrap();
+        assert_eq!(job.cells(), MAX_MAP_CELLS);
+        let two = one.replace("\"csv1\"", "\"csv1\", \"rk4\"");
+        let error = ErrorDetail::from(
+            StabilityRequest::from_slice(two.as_bytes())
+                .unwrap()
+                .to_spec()
+                .unwrap()
+                .prepare()
+                .unwrap_err(),
+        );
+        assert_eq!(
+            (error.code, error.field.as_deref()),
+            (ErrorCode::TooManyCells, Some("methods"))
+        );
+    }
+}

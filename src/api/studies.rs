@@ -434,3 +434,70 @@ impl EnergyMapRequest {
         })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::core::simulation::Limits;
+    use serde_json::json;
+
+    fn field_of(body: Value) -> Option<String> {
+        ConvergenceRequest::from_value(&body)
+            .and_then(|r| Ok(r.to_spec()?.prepare(&Limits::default())?))
+            .unwrap_err()
+            .field
+    }
+
+    #[test]
+    fn default_samples_divide_every_step_count() {
+        let req = ConvergenceRequest::from_value(&json!({
+            "system": "harmonic_oscillator", "t_end": 9, "methods": ["rk4"], "h": [0.3, 0.45]}))
+        .unwrap();
+        let job = req.to_spec().unwrap().prepare(&Limits::default()).unwrap();
+        assert_eq!(job.samples, 10);
+    }
+
+    #[test]
+    fn fields_are_named() {
+        let ok = json!({"system": "harmonic_oscillator", "t_end": 1, "methods": ["rk4"],
+            "h": [0.1, 0.05]});
+        let with = |key: &str, v: Value| {
+            let mut body = ok.clone();
+            body[key] = v;
+            body
+        };
+        assert_eq!(
+            field_of(with("h", json!([0.1, 0.3]))).as_deref(),
+            Some("h[1]")
+        );
+        assert_eq!(field_of(with("h", json!([]))).as_deref(), Some("h"));
+        assert_eq!(
+            field_of(with("methods", json!([]))).as_deref(),
+            Some("methods")
+        );
+        assert_eq!(
+            field_of(with("chart", json!("polar"))).as_deref(),
+            Some("chart")
+        );
+        assert_eq!(
+            field_of(with("charts", json!(["cartesian", "cartesian"]))).as_deref(),
+            Some("charts[1]")
+        );
+        let mut both = with("charts", json!(["cartesian", "compensating"]));
+        both["chart"] = json!("cartesian");
+        assert_eq!(field_of(both).as_deref(), Some("charts"));
+        let mut in_chart = with("charts", json!(["cartesian", "compensating"]));
+        in_chart["q0"] = json!([0.5]);
+        in_chart["initial_coordinates"] = json!("chart");
+        assert_eq!(field_of(in_chart).as_deref(), Some("initial_coordinates"));
+        assert_eq!(field_of(with("samples", json!(3))).as_deref(), Some("h[0]"));
+        assert_eq!(
+            field_of(with(
+                "methods",
+                json!(["rk4", {"id": "kahan_li_8", "base": "heun"}])
+            ))
+            .as_deref(),
+            Some("methods[1].base")
+        );
+    }
+}

@@ -19,7 +19,8 @@ use rerun::sink::{GrpcSink, GrpcSinkConnectionState, LogSink};
 use rerun::{RecordingStream, RecordingStreamBuilder};
 
 use super::encode::{self, EncoderThread, EncodingSink};
-use super::simulation::{send_blueprint, Layout, SimulationLogger};
+use super::layout::{send_blueprint, Layout};
+use super::simulation::SimulationLogger;
 use super::{RecordingError, APPLICATION_ID};
 use crate::api::SimulateRequest;
 use crate::core::simulation::StreamLine;

@@ -15,6 +15,7 @@
 mod blueprint;
 mod encode;
 pub mod energy_map;
+pub mod layout;
 pub mod live;
 pub mod simulation;
 pub mod stability;
@@ -24,11 +25,13 @@ use std::collections::HashSet;
 
 use rerun::Color;
 
+pub use layout::{
+    path_block_len, path_blocks, sample_step, sample_steps, send_blueprint, Layout, PathBlock,
+    MAX_PATH_ROWS, MAX_PHASE_DOFS,
+};
 pub use live::{connect_viewer, viewer_url, LiveRecording, StreamRecorder};
 pub use simulation::{
-    log_simulation, path_block_len, path_blocks, recording_name, rrd_bytes, sample_step,
-    sample_steps, send_blueprint, write_rrd, Layout, PathBlock, RunLogger, SimulationLogger,
-    MAX_PATH_ROWS, MAX_PHASE_DOFS,
+    log_simulation, recording_name, rrd_bytes, write_rrd, RunLogger, SimulationLogger,
 };
 
 /// The application id of every recording.

@@ -36,124 +36,16 @@
 use std::io::Write;
 use std::sync::Mutex;
 
-use rerun::external::re_sdk_types::blueprint::components::ContainerKind;
 use rerun::{
     AsComponents as _, LineStrips2D, LineStrips3D, Points2D, Points3D, Radius, RecordingStream,
     Scalars, SeriesLines, SeriesPoints, TextDocument, TimeColumn, ViewCoordinates,
 };
 
-use super::blueprint::{self, Node};
-use super::{
-    color, encode, entity_names, entity_part, method_color, RecordingError, STEP_TIMELINE,
-    TIME_TIMELINE,
-};
+use super::layout::{path_block_len, sample_step, send_blueprint, Layout};
+use super::{color, encode, method_color, RecordingError, STEP_TIMELINE, TIME_TIMELINE};
 use crate::api::SimulateRequest;
-use crate::core::simulation::stream::StreamHeader;
 use crate::core::simulation::{Columns, ScheduleSummary, SimulationDocument};
 use crate::core::systems::World;
-
-/// Degrees of freedom with a phase portrait (the first ones; an N-body run has 3N).
-pub const MAX_PHASE_DOFS: usize = 6;
-
-/// Where everything of a simulation goes: entity names and colours per method, the invariant
-/// parts and what the world view shows. Made from the document ([`Layout::of`]) or, before any
-/// sample exists, from the stream's header ([`Layout::of_header`]).
-#[derive(Clone, Debug)]
-pub struct Layout {
-    /// Method labels, in request order.
-    pub labels: Vec<String>,
-    /// Entity names of the methods (the first path part).
-    pub methods: Vec<String>,
-    /// The system's invariants as (name, entity part).
-    pub invariants: Vec<(String, String)>,
-    /// Degrees of freedom with a phase portrait.
-    pub phase_dofs: usize,
-    /// Whether the runs carry energy errors.
-    pub energy_error: bool,
-    world: World,
-    /// Degrees of freedom of the system.
-    dof: usize,
-}
-
-impl Layout {
-    /// The layout of a simulation of system `system` with `dof` degrees of freedom, methods
-    /// `labels` (request order) and the system's `invariants`.
-    pub fn new(
-        world: World,
-        dof: usize,
-        labels: Vec<String>,
-        invariants: &[String],
-        energy_error: bool,
-    ) -> Self {
-        Layout {
-            methods: entity_names(&labels),
-            labels,
-            invariants: invariants
-                .iter()
-                .map(|n| (n.clone(), entity_part(n)))
-                .collect(),
-            phase_dofs: dof.min(MAX_PHASE_DOFS),
-            energy_error,
-            world,
-            dof,
-        }
-    }
-
-    /// The layout of a simulation's document.
-    pub fn of(doc: &SimulationDocument) -> Self {
-        Layout::new(
-            doc.system.world,
-            doc.system.q0.len(),
-            doc.runs.iter().map(|r| r.method.clone()).collect(),
-            &doc.invariants,
-            doc.runs.iter().any(|r| r.columns.energy_error.is_some()),
-        )
-    }
-
-    /// The layout of a simulation announced by a stream's header.
-    pub fn of_header(header: &StreamHeader) -> Self {
-        Layout::new(
-            header.system.world,
-            header.system.q0.len(),
-            header.methods.clone(),
-            &header.invariants,
-            header.energy_error,
-        )
-    }
-
-    /// Every entity path of method `index` that holds data, in a fixed order.
-    pub fn method_entities(&self, index: usize) -> Vec<String> {
-        let m = &self.methods[index];
-        let mut paths = vec![format!("/{m}/energy")];
-        if self.energy_error {
-            paths.push(format!("/{m}/energy_error"));
-        }
-        for (_, part) in &self.invariants {
-            paths.push(format!("/{m}/invariants/{part}"));
-        }
-        paths.push(format!("/{m}/force_evaluations"));
-        for dof in 0..self.phase_dofs {
-            paths.push(format!("/{m}/phase/{dof}/point"));
-            paths.push(format!("/{m}/phase/{dof}/path"));
-        }
-        paths.push(format!("/{m}/world/bodies"));
-        paths.push(format!("/{m}/world/path"));
-        paths
-    }
-}
-
-/// The step index of sample `i` of a run: samples are taken at step 0, every `every` steps and
-/// at the last step (`steps`), so sample i is at min(i·every, steps).
-pub fn sample_step(i: u64, every: u64, steps: u64) -> i64 {
-    i.saturating_mul(every).min(steps) as i64
-}
-
-/// The step index of every sample of a run of `count` samples (see [`sample_step`]).
-pub fn sample_steps(count: usize, every: u64, steps: u64) -> Vec<i64> {
-    (0..count as u64)
-        .map(|i| sample_step(i, every, steps))
-        .collect()
-}
 
 /// Logs every run of `doc` (and the spec) to `rec`: static styles first, then each run's
 /// samples as one chunk of columns.
@@ -536,105 +428,6 @@ fn send_scalars(
     Ok(())
 }
 
-/// Most rows of a path entity: longer runs draw their paths in blocks of several samples.
-pub const MAX_PATH_ROWS: usize = 1000;
-
-/// A block of consecutive samples drawn as one path row, logged at the time of its last sample.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct PathBlock {
-    /// First sample of the block (the last sample of the previous block).
-    pub start: usize,
-    /// Last sample of the block.
-    pub end: usize,
-}
-
-/// Samples per path row of a run of `n` samples: ⌈(n − 1)/[`MAX_PATH_ROWS`]⌉, at least 1.
-pub fn path_block_len(n: usize) -> usize {
-    n.saturating_sub(1).div_ceil(MAX_PATH_ROWS).max(1)
-}
-
-/// How the path of a run of `n` samples is cut into rows: the first row holds sample 0 alone,
-/// then each row continues the path by up to ⌈(n − 1)/[`MAX_PATH_ROWS`]⌉ samples (one sample
-/// per row for runs of up to about 1000 samples), so at most about [`MAX_PATH_ROWS`] + 1 rows.
-pub fn path_blocks(n: usize) -> Vec<PathBlock> {
-    if n == 0 {
-        return Vec::new();
-    }
-    let block = path_block_len(n);
-    let mut blocks = vec![PathBlock { start: 0, end: 0 }];
-    let mut start = 0;
-    while start + 1 < n {
-        let end = (start + block).min(n - 1);
-        blocks.push(PathBlock { start, end });
-        start = end;
-    }
-    blocks
-}
-
-/// The default layout: energy of all methods on top of the other plots (energy error,
-/// invariants, force evaluations as tabs), beside the 3-D world with the spec and a grid of
-/// phase portraits.
-fn blueprint_tree(layout: &Layout) -> Node {
-    let each = |f: &dyn Fn(&str) -> String| -> Vec<String> {
-        layout.methods.iter().map(|m| f(m)).collect()
-    };
-    let mut plots = Vec::new();
-    if layout.energy_error {
-        plots.push(Node::view(
-            "TimeSeries",
-            "energy error",
-            each(&|m| format!("/{m}/energy_error")),
-        ));
-    }
-    for (name, part) in &layout.invariants {
-        plots.push(Node::view(
-            "TimeSeries",
-            name.clone(),
-            each(&|m| format!("/{m}/invariants/{part}")),
-        ));
-    }
-    plots.push(Node::view(
-        "TimeSeries",
-        "force evaluations",
-        each(&|m| format!("/{m}/force_evaluations")),
-    ));
-    let left = Node::container(
-        ContainerKind::Vertical,
-        vec![
-            Node::view("TimeSeries", "energy", each(&|m| format!("/{m}/energy"))),
-            Node::container(ContainerKind::Tabs, plots),
-        ],
-    );
-
-    let world = Node::view("3D", "world", each(&|m| format!("/{m}/world/**")))
-        .with_trails(each(&|m| format!("/{m}/world/path")));
-    let spec = Node::view("TextDocument", "spec", vec!["/spec".to_string()]);
-    let phases: Vec<Node> = (0..layout.phase_dofs)
-        .map(|dof| {
-            Node::view(
-                "2D",
-                format!("phase (q{dof}, p{dof})"),
-                each(&|m| format!("/{m}/phase/{dof}/**")),
-            )
-            .with_trails(each(&|m| format!("/{m}/phase/{dof}/path")))
-        })
-        .collect();
-    let right = Node::container(
-        ContainerKind::Vertical,
-        vec![
-            Node::container(ContainerKind::Tabs, vec![world, spec]),
-            Node::container(ContainerKind::Grid, phases),
-        ],
-    );
-    Node::container(ContainerKind::Horizontal, vec![left, right])
-}
-
-/// Sends the default blueprint for `layout` through `rec` (as Rerun's own SDKs do: a blueprint
-/// store logged in full, then an activation command making it the active and default one).
-pub fn send_blueprint(rec: &RecordingStream, layout: &Layout) -> Result<(), RecordingError> {
-    blueprint::send(rec, &blueprint_tree(layout))
-}
-
 /// The recording name of a simulation: the system and the method labels.
 pub fn recording_name<S: AsRef<str>>(system: &str, labels: &[S]) -> String {
     let methods: Vec<&str> = labels.iter().map(|l| l.as_ref()).collect();
@@ -665,7 +458,7 @@ pub fn rrd_bytes(
 
 #[cfg(test)]
 mod tests {
-    use super::*;
+    use super::super::{entity_names, entity_part};
 
     #[test]
     fn entity_parts_are_plain_and_unique() {
@@ -677,31 +470,5 @@ mod tests {
             entity_names(&["heun", "heun", "triple_jump(csv1)", "heun"]),
             ["heun", "heun_2", "triple_jump_csv1", "heun_3"]
         );
-    }
-
-    #[test]
-    fn path_blocks_cover_every_sample_once() {
-        assert_eq!(path_blocks(0), []);
-        assert_eq!(path_blocks(1), [PathBlock { start: 0, end: 0 }]);
-        let short = path_blocks(3);
-        assert_eq!(
-            short,
-            [
-                PathBlock { start: 0, end: 0 },
-                PathBlock { start: 0, end: 1 },
-                PathBlock { start: 1, end: 2 }
-            ]
-        );
-        let long = path_blocks(1_000_001);
-        assert_eq!(long.len(), MAX_PATH_ROWS + 1);
-        assert!(long.windows(2).all(|w| w[0].end == w[1].start));
-        assert_eq!(long.last().unwrap().end, 1_000_000);
-    }
-
-    #[test]
-    fn sample_steps_end_at_the_last_step() {
-        assert_eq!(sample_steps(4, 10, 25), [0, 10, 20, 25]);
-        assert_eq!(sample_steps(3, 10, 20), [0, 10, 20]);
-        assert_eq!(sample_steps(2, 10, 25), [0, 10]);
     }
 }
