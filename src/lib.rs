@@ -1,13 +1,17 @@
 //! geomint: geometric numerical integration of Hamiltonian systems with damping.
 //!
 //! Structure-preserving integrators — the Rayleigh-damped splittings of Modin & Söderlind (paper
-//! 000), the conformal symplectic schemes of Floyd (paper 003) — beside ordinary Runge–Kutta
-//! baselines, on damped mechanical systems, served over HTTP.
+//! 000), the conformal symplectic schemes of Floyd (paper 003), the coordinate studies of Takács &
+//! Fülöp (paper 001) — beside ordinary Runge–Kutta baselines, on damped mechanical systems, served
+//! over HTTP and on the command line.
 //!
-//! - [`core`]: systems, exact sub-flows, methods, the driver loop and diagnostics; pure
-//!   computation, no I/O.
-//! - [`output`]: serialisation of runs (JSON documents and NDJSON streams).
-//! - [`http`]: the axum service: routes, errors, limits.
+//! - [`core`]: the integrator core — systems, exact sub-flows, methods, the driver, simulations
+//!   and studies as pure computations from typed specs to typed results, typed errors. No HTTP,
+//!   no files, no async.
+//! - [`api`]: the wire layer — requests read strictly into the core's specs, the NDJSON
+//!   encoding of the lines the core streams.
+//! - [`recording`]: Rerun recordings (`.rrd`) of the core's results.
+//! - [`http`]: the axum service: routes, answer forms, limits, the recording store.
 //! - [`cli`]: the command line.
 #![warn(missing_docs)]
 

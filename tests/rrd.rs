@@ -103,7 +103,10 @@ fn pendulum_recording_has_the_layout_and_the_json_energies() {
         run.assert_column(i, "energy", &decoded);
         // The force evaluations: one row, at the last step, equal to the statistics.
         let fe = d.scalars(&format!("/{m}/force_evaluations"));
-        assert_eq!(fe, [(2000, run.doc.runs[i].stats.force_evaluations as f64)]);
+        assert_eq!(
+            fe,
+            [(2000, run.doc.runs[i].outcome.stats.force_evaluations as f64)]
+        );
     }
     // The t timeline is in nanoseconds: the last sample is at 200 s.
     let chunk = d.chunks["/modin_3s/energy"]

@@ -282,7 +282,10 @@ fn run_streams_live_to_a_rerun_viewer() {
         }
         assert_eq!(
             d.scalars(&format!("/{m}/force_evaluations")),
-            [(schedule.steps as i64, run.stats.force_evaluations as f64)]
+            [(
+                schedule.steps as i64,
+                run.outcome.stats.force_evaluations as f64
+            )]
         );
     }
     // The blueprint came first, with the data.

@@ -114,8 +114,9 @@ pub(crate) fn finish_output(written: io::Result<()>) -> ExitCode {
     }
 }
 
-/// Reads a spec file, or standard input for `-`.
-pub(crate) fn read_spec(path: &std::path::Path) -> Result<Vec<u8>, String> {
+/// Reads a spec file, or standard input for `-`: its name for messages and its bytes, or the
+/// exit code after saying why it cannot be read.
+pub(crate) fn read_spec(path: &std::path::Path) -> Result<(String, Vec<u8>), ExitCode> {
     let source = path.display().to_string();
     let text = if source == "-" {
         let mut buf = Vec::new();
@@ -123,5 +124,8 @@ pub(crate) fn read_spec(path: &std::path::Path) -> Result<Vec<u8>, String> {
     } else {
         std::fs::read(path)
     };
-    text.map_err(|e| format!("cannot read the spec `{source}`: {e}"))
+    text.map(|t| (source.clone(), t)).map_err(|e| {
+        eprintln!("error: cannot read the spec `{source}`: {e}");
+        ExitCode::from(BAD_INPUT)
+    })
 }

@@ -61,13 +61,9 @@ pub struct RunArgs {
 }
 
 pub(crate) fn run_spec(args: &RunArgs) -> ExitCode {
-    let source = args.spec.display().to_string();
-    let text = match read_spec(&args.spec) {
-        Ok(t) => t,
-        Err(e) => {
-            eprintln!("error: {e}");
-            return ExitCode::from(BAD_INPUT);
-        }
+    let (source, text) = match read_spec(&args.spec) {
+        Ok(spec) => spec,
+        Err(code) => return code,
     };
     let limits = Limits {
         max_steps: args.max_steps,

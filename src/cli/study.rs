@@ -49,13 +49,9 @@ pub(crate) fn run_study(args: &StudyArgs) -> ExitCode {
     use crate::api::studies::{ConvergenceRequest, WorkPrecisionRequest};
     use crate::core::studies::convergence::{self, ConvergenceLine};
     use crate::core::studies::work_precision::{self, StudyLine};
-    let source = args.spec.display().to_string();
-    let text = match read_spec(&args.spec) {
-        Ok(t) => t,
-        Err(e) => {
-            eprintln!("error: {e}");
-            return ExitCode::from(BAD_INPUT);
-        }
+    let (source, text) = match read_spec(&args.spec) {
+        Ok(spec) => spec,
+        Err(code) => return code,
     };
     let limits = Limits {
         max_steps: args.max_steps,

@@ -33,6 +33,38 @@ use crate::recording::RecordingError;
 /// How long past the time limit a stream waits for a client that does not read.
 pub const STALLED_CLIENT_GRACE: Duration = Duration::from_secs(10);
 
+/// Declares the schema of a route's `?format=` parameter: exactly the formats it offers.
+macro_rules! format_schema {
+    ($(#[$doc:meta])* $name:ident: $($format:ident),+) => {
+        $(#[$doc])*
+        pub struct $name;
+
+        impl utoipa::PartialSchema for $name {
+            fn schema() -> utoipa::openapi::RefOr<utoipa::openapi::schema::Schema> {
+                crate::core::schema::string_enum(
+                    "The form of the answer.",
+                    [$(Format::$format.name()),+].into_iter(),
+                )
+            }
+        }
+
+        impl utoipa::ToSchema for $name {}
+    };
+}
+
+format_schema! {
+    /// `?format=` of a route answering JSON, NDJSON or a recording.
+    AnyFormat: Json, Ndjson, Rrd
+}
+format_schema! {
+    /// `?format=` of a route answering JSON or NDJSON.
+    StreamFormat: Json, Ndjson
+}
+format_schema! {
+    /// `?format=` of a route answering JSON or a recording.
+    RecordFormat: Json, Rrd
+}
+
 /// How a route answers.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Format {
@@ -157,26 +189,39 @@ impl Work {
         self.permits.len()
     }
 
+    /// Sets the cancellation flag when the server shuts down or `gone` completes (the client
+    /// went away); abort the returned task once the computation is over.
+    fn cancel_when(
+        &self,
+        gone: impl std::future::Future<Output = ()> + Send + 'static,
+    ) -> tokio::task::JoinHandle<()> {
+        let mut shutdown = self.state.cancellation();
+        let flag = self.cancel.clone();
+        tokio::spawn(async move {
+            tokio::select! {
+                () = gone => {
+                    tracing::info!("client went away; cancelling the computation");
+                    flag.store(true, Ordering::Relaxed);
+                }
+                Ok(_) = shutdown.wait_for(|&c| c) => flag.store(true, Ordering::Relaxed),
+            }
+        })
+    }
+
     /// Runs `compute` off the async runtime with the request's budget and returns what it
     /// gives. If this future is dropped (the client went away), the computation is cancelled.
     pub async fn run<T: Send + 'static>(
         self,
         compute: impl FnOnce(Budget<'_>) -> Result<T, ApiError> + Send + 'static,
     ) -> Result<T, ApiError> {
+        let watcher = self.cancel_when(std::future::pending());
+        let _guard = CancelOnDrop(self.cancel.clone());
         let Work {
             permits,
             deadline,
             cancel,
-            state,
+            ..
         } = self;
-        let _guard = CancelOnDrop(cancel.clone());
-        let mut shutdown = state.cancellation();
-        let flag = cancel.clone();
-        let watcher = tokio::spawn(async move {
-            if shutdown.wait_for(|&c| c).await.is_ok() {
-                flag.store(true, Ordering::Relaxed);
-            }
-        });
         let result = run_blocking(move || {
             let _permits = permits;
             compute(Budget {
@@ -203,28 +248,17 @@ impl Work {
         L: Serialize + Send + 'static,
         F: FnOnce(Budget<'_>, &(dyn Fn(L) -> bool + Sync)) + Send + 'static,
     {
+        let (tx, rx) = mpsc::channel::<Bytes>(16);
+        // The client has gone away when the body, and so the receiver, is dropped.
+        let watched = tx.clone();
+        let watcher = self.cancel_when(async move { watched.closed().await });
         let Work {
             permits,
             deadline,
             cancel,
-            state,
+            ..
         } = self;
-        let (tx, rx) = mpsc::channel::<Bytes>(16);
-        let mut shutdown = state.cancellation();
         let task = async move {
-            // Cancel the computation when the client goes away (the body, and so the
-            // receiver, is dropped) or the server shuts down.
-            let watched = tx.clone();
-            let flag = cancel.clone();
-            let watcher = tokio::spawn(async move {
-                tokio::select! {
-                    _ = watched.closed() => {
-                        tracing::info!("client went away; cancelling the computation");
-                        flag.store(true, Ordering::Relaxed);
-                    }
-                    Ok(_) = shutdown.wait_for(|&c| c) => flag.store(true, Ordering::Relaxed),
-                }
-            });
             let sender = tx.clone();
             let runtime = tokio::runtime::Handle::current();
             let result = run_blocking(move || {

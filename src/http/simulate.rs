@@ -14,7 +14,7 @@ use axum::extract::{Query, State};
 use axum::http::HeaderMap;
 use axum::response::Response;
 
-use super::answer::{Format, Work};
+use super::answer::{AnyFormat, Format, Work};
 use super::error::ApiError;
 use super::error::ErrorBody;
 use super::extract::ApiJson;
@@ -37,7 +37,7 @@ use crate::recording;
     request_body(content = SimulateRequest, content_type = "application/json"),
     params(("Accept" = Option<String>, Header,
         description = "`application/x-ndjson` streams the answer as NDJSON lines (see StreamLine)"),
-        ("format" = Option<String>, Query,
+        ("format" = Option<AnyFormat>, Query,
         description = "`rrd` answers with the Rerun recording of the runs (as an attachment); \
             `json` (the default) and `ndjson` as the Accept header says")),
     responses(

@@ -21,7 +21,7 @@ use axum::http::HeaderMap;
 use axum::response::Response;
 use axum::Json;
 
-use super::answer::{Format, Work};
+use super::answer::{Format, RecordFormat, Work};
 use super::error::{ApiError, ErrorBody};
 use super::extract::ApiJson;
 use super::paths;
@@ -44,7 +44,7 @@ use crate::recording;
 /// mark where the analytic relation disagrees.
 #[utoipa::path(post, path = paths::STABILITY, tag = "stability",
     request_body(content = StabilityRequest, content_type = "application/json"),
-    params(("format" = Option<String>, Query,
+    params(("format" = Option<RecordFormat>, Query,
         description = "`rrd` answers with the Rerun recording of the maps (as an attachment); \
             `json` (the default) with the JSON document")),
     responses(

@@ -16,7 +16,7 @@ use axum::http::HeaderMap;
 use axum::response::Response;
 use serde::Serialize;
 
-use super::answer::{Format, Work};
+use super::answer::{AnyFormat, Format, StreamFormat, Work};
 use super::error::{ApiError, ErrorBody};
 use super::extract::ApiJson;
 use super::paths;
@@ -96,7 +96,7 @@ async fn answer_settings<L: ProgressLine>(
     request_body(content = WorkPrecisionRequest, content_type = "application/json"),
     params(("Accept" = Option<String>, Header,
         description = "`application/x-ndjson` streams progress lines (see StudyLine)"),
-        ("format" = Option<String>, Query,
+        ("format" = Option<AnyFormat>, Query,
         description = "`ndjson` as the Accept header; `rrd` the study's Rerun recording; `json` (default)")),
     responses(
         (status = 200, description = "The study",
@@ -145,7 +145,7 @@ pub async fn work_precision(
     request_body(content = ConvergenceRequest, content_type = "application/json"),
     params(("Accept" = Option<String>, Header,
         description = "`application/x-ndjson` streams progress lines (see ConvergenceLine)"),
-        ("format" = Option<String>, Query,
+        ("format" = Option<StreamFormat>, Query,
         description = "`ndjson` as the Accept header; `json` (default)")),
     responses(
         (status = 200, description = "The study",
@@ -185,7 +185,7 @@ pub async fn convergence(
     request_body(content = EnergyMapRequest, content_type = "application/json"),
     params(("Accept" = Option<String>, Header,
         description = "`application/x-ndjson` streams progress lines (see MapLine)"),
-        ("format" = Option<String>, Query,
+        ("format" = Option<AnyFormat>, Query,
         description = "`ndjson` as the Accept header; `rrd` the map's Rerun recording; `json` (default)")),
     responses(
         (status = 200, description = "The map",

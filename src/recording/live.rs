@@ -116,7 +116,7 @@ impl StreamRecorder {
             }
             StreamLine::Summary(summary) => self
                 .logger()?
-                .finish(summary.method, summary.stats.force_evaluations),
+                .finish(summary.method, summary.outcome.stats.force_evaluations),
             StreamLine::Error(_) | StreamLine::End => Ok(()),
         }
     }

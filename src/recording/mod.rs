@@ -2,13 +2,16 @@
 //! Rerun viewer shows without configuration, each with a default blueprint.
 //!
 //! - [`simulation`]: the runs of a simulation (energies, invariants, phase portraits, the bodies
-//!   in 3-D), as JSON answers them, logged chunk by chunk.
+//!   in 3-D, drawn by the system's world embedding), as JSON answers them, logged chunk by chunk;
+//!   [`layout`] says where each entity goes and sends the default blueprint.
 //! - [`live`]: a simulation streamed live to a running Rerun viewer, each chunk of samples logged
 //!   as the integrator produces it.
 //! - [`stability`]: a stability study, each method's map as a tensor and a verdict image.
 //! - [`work_precision`]: a work–precision study as a log–log diagram in a 2-D view.
+//! - [`energy_map`]: an energy-error map as images, a segmentation of its divergences and
+//!   tensors.
 //!
-//! Both are encoded by one writer ([`encode`]): the recording's messages are encoded on their
+//! All are encoded by one writer ([`encode`]): the recording's messages are encoded on their
 //! own thread while the next columns are built. The blueprint ([`blueprint`]) is written as
 //! Rerun's blueprint records, since the 0.33 Rust blueprint API cannot set visible time ranges.
 

@@ -61,7 +61,7 @@ pub fn log_simulation(
     })?;
     for (i, run) in doc.runs.iter().enumerate() {
         logger.samples(i, 0, &run.columns)?;
-        logger.finish(i, run.stats.force_evaluations)?;
+        logger.finish(i, run.outcome.stats.force_evaluations)?;
     }
     Ok(())
 }

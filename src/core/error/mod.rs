@@ -442,86 +442,61 @@ fn divisor_detail(h: f64, span: f64, show_ratio: bool) -> String {
     }
 }
 
+/// Matches an error on where its field is: `$field` binds the field of the variants that always
+/// have one, `$maybe` the optional field of those that may, and `$none` stands for the variants
+/// without one. The variants are listed here once, for [`CoreError::field`] and [`CoreError::at`].
+macro_rules! match_field {
+    ($error:expr, $field:ident => $always:expr, $maybe:ident => $sometimes:expr, _ => $none:expr) => {
+        match $error {
+            CoreError::UnknownSystem { field: $field, .. }
+            | CoreError::UnknownMethod { field: $field, .. }
+            | CoreError::UnknownChart { field: $field, .. }
+            | CoreError::UnknownParameter { field: $field, .. }
+            | CoreError::UnknownName { field: $field, .. }
+            | CoreError::UnknownOption { field: $field, .. }
+            | CoreError::NotAllowed { field: $field, .. }
+            | CoreError::OutOfRange { field: $field, .. }
+            | CoreError::NotFinite { field: $field, .. }
+            | CoreError::WrongKind { field: $field, .. }
+            | CoreError::WrongLength { field: $field, .. }
+            | CoreError::Count { field: $field, .. }
+            | CoreError::Missing { field: $field, .. }
+            | CoreError::Empty { field: $field, .. }
+            | CoreError::TooMany { field: $field, .. }
+            | CoreError::Duplicate { field: $field, .. }
+            | CoreError::Either { field: $field, .. }
+            | CoreError::BadInterval { field: $field, .. }
+            | CoreError::TooManySteps { field: $field, .. }
+            | CoreError::TooManySamples { field: $field, .. }
+            | CoreError::TooManyCells { field: $field, .. }
+            | CoreError::MapTooLarge { field: $field, .. }
+            | CoreError::Unmet { field: $field, .. }
+            | CoreError::NoStepJacobian { field: $field, .. }
+            | CoreError::Unsupported { field: $field, .. }
+            | CoreError::OutsideChart { field: $field, .. }
+            | CoreError::StateDiffers { field: $field, .. }
+            | CoreError::NeedsInitialState { field: $field, .. }
+            | CoreError::SingularStep { field: $field, .. }
+            | CoreError::NotADivisor { field: $field, .. }
+            | CoreError::ReferenceUnfinished { field: $field, .. } => $always,
+            CoreError::Step { field: $maybe, .. } | CoreError::TimeLimit { field: $maybe, .. } => {
+                $sometimes
+            }
+            CoreError::Cancelled { .. } => $none,
+        }
+    };
+}
+
 impl CoreError {
     /// The input field the error concerns, if any.
     pub fn field(&self) -> Option<&Field> {
-        use CoreError::*;
-        match self {
-            UnknownSystem { field, .. }
-            | UnknownMethod { field, .. }
-            | UnknownChart { field, .. }
-            | UnknownParameter { field, .. }
-            | UnknownName { field, .. }
-            | UnknownOption { field, .. }
-            | NotAllowed { field, .. }
-            | OutOfRange { field, .. }
-            | NotFinite { field }
-            | WrongKind { field, .. }
-            | WrongLength { field, .. }
-            | Count { field, .. }
-            | Missing { field, .. }
-            | Empty { field, .. }
-            | TooMany { field, .. }
-            | Duplicate { field, .. }
-            | Either { field, .. }
-            | BadInterval { field, .. }
-            | TooManySteps { field, .. }
-            | TooManySamples { field, .. }
-            | TooManyCells { field, .. }
-            | MapTooLarge { field, .. }
-            | Unmet { field, .. }
-            | NoStepJacobian { field, .. }
-            | Unsupported { field, .. }
-            | OutsideChart { field, .. }
-            | StateDiffers { field, .. }
-            | NeedsInitialState { field, .. }
-            | SingularStep { field, .. }
-            | NotADivisor { field, .. }
-            | ReferenceUnfinished { field, .. } => Some(field),
-            Step { field, .. } | TimeLimit { field, .. } => field.as_ref(),
-            Cancelled { .. } => None,
-        }
+        match_field!(self, field => Some(field), field => field.as_ref(), _ => None)
     }
 
     /// The same error about another field: for an input that a caller passed on under another
     /// name (a study's setting checked as a simulation's `h`).
     pub fn at(mut self, to: Field) -> Self {
-        use CoreError::*;
-        match &mut self {
-            UnknownSystem { field, .. }
-            | UnknownMethod { field, .. }
-            | UnknownChart { field, .. }
-            | UnknownParameter { field, .. }
-            | UnknownName { field, .. }
-            | UnknownOption { field, .. }
-            | NotAllowed { field, .. }
-            | OutOfRange { field, .. }
-            | NotFinite { field }
-            | WrongKind { field, .. }
-            | WrongLength { field, .. }
-            | Count { field, .. }
-            | Missing { field, .. }
-            | Empty { field, .. }
-            | TooMany { field, .. }
-            | Duplicate { field, .. }
-            | Either { field, .. }
-            | BadInterval { field, .. }
-            | TooManySteps { field, .. }
-            | TooManySamples { field, .. }
-            | TooManyCells { field, .. }
-            | MapTooLarge { field, .. }
-            | Unmet { field, .. }
-            | NoStepJacobian { field, .. }
-            | Unsupported { field, .. }
-            | OutsideChart { field, .. }
-            | StateDiffers { field, .. }
-            | NeedsInitialState { field, .. }
-            | SingularStep { field, .. }
-            | NotADivisor { field, .. }
-            | ReferenceUnfinished { field, .. } => *field = to,
-            Step { field, .. } | TimeLimit { field, .. } => *field = Some(to),
-            Cancelled { .. } => {}
-        }
+        match_field!(&mut self, field => *field = to, field => *field = Some(to), _ => {});
         self
     }
 }

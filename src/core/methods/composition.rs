@@ -17,7 +17,7 @@
 //! flows of one kind, so that s stages cost s force evaluations per step); other bases (cimp,
 //! csv2, implicit_midpoint) are wrapped by [`Composed`].
 //!
-//! The order conditions the tables must meet are tested (`tests/core_orders.rs`): Σγ = 1 to
+//! The order conditions the tables must meet are tested (`tests/core_compositions.rs`): Σγ = 1 to
 //! round-off, Σγ³ = 0 for order ≥ 4, Σγ⁵ = 0 for order ≥ 6, Σγ⁷ = 0 for order 8, and the observed
 //! order on the damped oscillator.
 

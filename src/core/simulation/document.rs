@@ -284,15 +284,9 @@ impl Stop {
     }
 }
 
-/// One method's run.
+/// How one method's run ended: what the document and the stream's summary both report.
 #[derive(Clone, Debug, PartialEq, Serialize, ToSchema)]
-pub struct RunDocument {
-    /// The method's label, e.g. `modin_3s` or `modin_rks(rk4)`.
-    #[schema(example = "modin_3s")]
-    pub method: String,
-    /// The samples.
-    #[serde(flatten)]
-    pub columns: Columns,
+pub struct RunOutcome {
     /// The dissipation drift (1-DOF systems with conformal damping only).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub dissipation_drift: Option<Vec<DriftPoint>>,
@@ -302,6 +296,20 @@ pub struct RunDocument {
     pub stop: Stop,
     /// Statistics.
     pub stats: RunStats,
+}
+
+/// One method's run.
+#[derive(Clone, Debug, PartialEq, Serialize, ToSchema)]
+pub struct RunDocument {
+    /// The method's label, e.g. `modin_3s` or `modin_rks(rk4)`.
+    #[schema(example = "modin_3s")]
+    pub method: String,
+    /// The samples.
+    #[serde(flatten)]
+    pub columns: Columns,
+    /// How it ended.
+    #[serde(flatten)]
+    pub outcome: RunOutcome,
 }
 
 /// The answer to a simulation request.

@@ -15,8 +15,8 @@ pub mod spec;
 pub mod stream;
 
 pub use document::{
-    ColumnSink, Columns, DivergedAt, RunDocument, ScheduleSummary, SimulationDocument, Stop,
-    SystemSummary,
+    ColumnSink, Columns, DivergedAt, RunDocument, RunOutcome, ScheduleSummary, SimulationDocument,
+    Stop, SystemSummary,
 };
 pub use run::{for_each_method, Outcome, Sample, SampleSink};
 pub use spec::{

@@ -20,7 +20,7 @@ use serde::Serialize;
 use utoipa::ToSchema;
 
 use super::document::{
-    ColumnSink, Columns, DivergedAt, RunDocument, ScheduleSummary, SimulationDocument, Stop,
+    ColumnSink, Columns, RunDocument, RunOutcome, ScheduleSummary, SimulationDocument, Stop,
     SystemSummary,
 };
 use super::run::{for_each_method, Sample, SampleSink};
@@ -88,15 +88,9 @@ pub struct RunSummary {
     pub label: String,
     /// Samples sent for this method.
     pub samples: u64,
-    /// The dissipation drift (1-DOF systems with conformal damping only).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub dissipation_drift: Option<Vec<DriftPoint>>,
-    /// Where the run diverged (null unless it did).
-    pub diverged_at: Option<DivergedAt>,
-    /// Why it stopped.
-    pub stop: Stop,
-    /// Statistics.
-    pub stats: RunStats,
+    /// How it ended.
+    #[serde(flatten)]
+    pub outcome: RunOutcome,
 }
 
 /// A failure reported inside a stream.
@@ -222,13 +216,15 @@ impl Simulation {
                 method: index,
                 label: self.methods[index].label(),
                 samples: sink.offset,
-                dissipation_drift: sink
-                    .kept
-                    .as_ref()
-                    .and_then(|(t, q)| self.dissipation_drift(t, q)),
-                diverged_at: stop.diverged_at(),
-                stop,
-                stats,
+                outcome: RunOutcome {
+                    dissipation_drift: sink
+                        .kept
+                        .as_ref()
+                        .and_then(|(t, q)| self.dissipation_drift(t, q)),
+                    diverged_at: stop.diverged_at(),
+                    stop,
+                    stats,
+                },
             }));
         }
     }
@@ -349,10 +345,7 @@ impl DocumentCollector {
                 Ok(RunDocument {
                     method: s.label,
                     columns,
-                    dissipation_drift: s.dissipation_drift,
-                    diverged_at: s.diverged_at,
-                    stop: s.stop,
-                    stats: s.stats,
+                    outcome: s.outcome,
                 })
             })
             .collect::<Result<_, ErrorDetail>>()?;
@@ -435,9 +428,12 @@ mod tests {
                 serde_json::to_string(&run.columns).unwrap(),
                 serde_json::to_string(&whole).unwrap()
             );
-            assert_eq!(run.stats.steps, outcome.stats.steps);
+            assert_eq!(run.outcome.stats.steps, outcome.stats.steps);
             let q: Vec<f64> = whole.q.iter().map(|q| q[0]).collect();
-            assert_eq!(run.dissipation_drift, sim.dissipation_drift(&whole.t, &q));
+            assert_eq!(
+                run.outcome.dissipation_drift,
+                sim.dissipation_drift(&whole.t, &q)
+            );
         }
     }
 
