@@ -1,6 +1,6 @@
 //! The command line: `geomint serve` (the default; [`serve`]), `geomint run spec.json` (a
 //! simulation written as JSON, NDJSON or a Rerun recording, optionally streamed live to a Rerun
-//! viewer; [`run`]), `geomint study KIND spec.json` (a work–precision or convergence study, or an
+//! viewer; [`run`](mod@run)), `geomint study KIND spec.json` (a work–precision or convergence study, or an
 //! energy-error map, as JSON or `.rrd`; [`study`]), and `geomint systems` / `geomint methods`
 //! (the catalogues). Every server setting can also come from a `GEOMINT_*` environment variable.
 //!

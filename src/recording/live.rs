@@ -1,5 +1,5 @@
 //! A simulation streamed live to a running Rerun viewer: the lines of the NDJSON stream
-//! ([`crate::api::stream`]) are logged as the integrator produces them, over gRPC, and
+//! ([`crate::core::simulation::stream`]) are logged as the integrator produces them, over gRPC, and
 //! optionally written to an `.rrd` file by the same recording stream.
 //!
 //! The header sends the blueprint, the spec and every entity's style; each `samples` chunk is

@@ -1,7 +1,7 @@
 //! The recording of a simulation: the same runs as the JSON document, laid out as
 //! entities the Rerun viewer (0.33) shows without configuration, plus a default blueprint.
 //!
-//! Entity layout (`{m}` is a method's entity name, see [`entity_names`]):
+//! Entity layout (`{m}` is a method's entity name, see [`entity_names`](super::entity_names)):
 //!
 //! | entity | archetype | rows |
 //! |---|---|---|
@@ -10,13 +10,13 @@
 //! | `/{m}/invariants/{name}` | `Scalars` + static `SeriesLines` | one per sample |
 //! | `/{m}/force_evaluations` | `Scalars` + static `SeriesPoints` | one, at the last sample |
 //! | `/{m}/phase/{dof}/point` | `Points2D` (q, p), the current state | one per sample |
-//! | `/{m}/phase/{dof}/path` | `LineStrips2D`, the path since the previous row | see [`path_blocks`] |
+//! | `/{m}/phase/{dof}/path` | `LineStrips2D`, the path since the previous row | see [`path_blocks`](super::layout::path_blocks) |
 //! | `/{m}/world/bodies` | `Points3D`, the bodies in physical space (Cartesian coordinates whatever the chart; the planar pendulum at (x, 0, −y)); for the pendulums also `LineStrips3D`, the rod or spring from the origin | one per sample |
-//! | `/{m}/world/path` | `LineStrips3D`, each body's path since the previous row | see [`path_blocks`] |
+//! | `/{m}/world/path` | `LineStrips3D`, each body's path since the previous row | see [`path_blocks`](super::layout::path_blocks) |
 //!
 //! Timelines: `step` (sequence) and `t` (duration, seconds). Every entity of a method carries
 //! its colour; all series of one quantity share the series name pattern so that the methods
-//! overlay in one plot. Phase portraits exist for the first [`MAX_PHASE_DOFS`] degrees of freedom.
+//! overlay in one plot. Phase portraits exist for the first [`MAX_PHASE_DOFS`](super::layout::MAX_PHASE_DOFS) degrees of freedom.
 //!
 //! Paths grow with time: each row holds only the newest piece (one segment per sample for runs of
 //! up to about 1000 samples, longer pieces for longer runs), and the blueprint's views show the
@@ -77,7 +77,7 @@ pub struct SimulationLogger {
 impl SimulationLogger {
     /// Logs the spec and the static styles of every method of `layout`. `expected(i)` is the
     /// number of samples method `i` is expected to have; it sets the length of its path blocks
-    /// (see [`path_blocks`]).
+    /// (see [`path_blocks`](super::layout::path_blocks)).
     pub fn start(
         rec: &RecordingStream,
         spec: &SimulateRequest,
@@ -125,7 +125,7 @@ impl SimulationLogger {
 
 /// Logs one method's run as its samples come, chunk by chunk, each entity's new rows as columns
 /// (`send_columns`): the series, the phase points and the world's bodies at once; the paths
-/// whenever a path block (see [`path_blocks`]) is complete, keeping the samples since the last
+/// whenever a path block (see [`path_blocks`](super::layout::path_blocks)) is complete, keeping the samples since the last
 /// block's end until then; the rest of the path and the force evaluations when the run ends.
 #[derive(Debug)]
 pub struct RunLogger {

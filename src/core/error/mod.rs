@@ -6,8 +6,8 @@
 //! - [`field`]: field paths and valid ranges.
 //! - [`detail`]: error codes and the error shape every interface reports.
 
-mod detail;
-mod field;
+pub mod detail;
+pub mod field;
 
 use thiserror::Error;
 

@@ -1,6 +1,6 @@
 //! The methods: what a run uses ([`Method`], a method with its options), the catalogue
 //! ([`MethodId`] and its [`MethodInfo`]: order, kind, properties, requirements, citation), and the
-//! construction of a stepper for a concrete system ([`build`]). One file per family beside this
+//! construction of a stepper for a concrete system ([`build`](fn@build)). One file per family beside this
 //! one, each with the catalogue entries of its methods; a method's id is written once, in its
 //! entry.
 

@@ -2,7 +2,7 @@
 //! defaults, charts, default initial state, invariants, its embedding in space, and how to build
 //! it) lives in the system's own file; this module gathers the entries and holds [`AnySystem`].
 //!
-//! [`AnySystem`] is the one place where a run dispatches dynamically: [`with_system!`] matches it
+//! [`AnySystem`] is the one place where a run dispatches dynamically: [`with_system!`](crate::with_system) matches it
 //! once, and everything below runs monomorphised for the concrete system type.
 
 mod elastic_pendulum;
