@@ -11,6 +11,7 @@
 
 pub mod diagnostics;
 pub mod error;
+pub mod expr;
 pub mod flows;
 pub mod methods;
 pub mod run;
