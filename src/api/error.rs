@@ -55,6 +55,10 @@ pub mod codes {
     pub const INTERNAL: &str = "internal";
     /// A recording alone exceeds the recording store's size cap.
     pub const RECORDING_TOO_LARGE: &str = "recording_too_large";
+    /// An uploaded file is not a complete Rerun recording of a version the viewer reads.
+    pub const INVALID_RECORDING: &str = "invalid_recording";
+    /// A stored recording is not of a simulation, so it has no samples to plot.
+    pub const NOT_A_SIMULATION: &str = "not_a_simulation";
 }
 
 /// What went wrong, for machines (`code`, `field`) and people (`message`).

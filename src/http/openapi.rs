@@ -3,8 +3,9 @@
 
 use utoipa::OpenApi;
 
+use super::recorded::{RecordedDocument, RecordedRun};
 use super::recordings::{self, RecordingCreated};
-use super::store::RecordingEntry;
+use super::store::{Origin, RecordingEntry};
 use super::{energy_map, handlers, simulate, stability, studies};
 use crate::api::catalog::{MethodEntry, SystemEntry};
 use crate::api::convergence::{ConvergenceDocument, ConvergenceLine, ConvergenceRequest};
@@ -42,6 +43,7 @@ use crate::api::work_precision::{StudyLine, WorkPrecisionDocument, WorkPrecision
         recordings::list_recordings,
         recordings::get_recording,
         recordings::delete_recording,
+        recordings::recording_samples,
     ),
     components(schemas(
         SimulateRequest,
@@ -66,13 +68,16 @@ use crate::api::work_precision::{StudyLine, WorkPrecisionDocument, WorkPrecision
         handlers::Health,
         RecordingCreated,
         RecordingEntry,
+        Origin,
+        RecordedDocument,
+        RecordedRun,
     )),
     tags(
         (name = "catalog", description = "The systems and methods on offer"),
         (name = "simulation", description = "Running simulations"),
         (name = "stability", description = "Linear stability analysis on the damped oscillator"),
         (name = "studies", description = "Work–precision studies (time against accuracy per method), convergence studies (error against step size, with the observed orders, per method and coordinate chart) and energy-error maps across coordinate charts"),
-        (name = "recordings", description = "Rerun recordings (.rrd) of simulations, stored and downloadable"),
+        (name = "recordings", description = "Rerun recordings (.rrd) of simulations, stored or uploaded, downloadable, and read back as samples"),
         (name = "service", description = "Health and this document"),
     )
 )]
