@@ -79,7 +79,7 @@ function rowIds(p = page) {
 }
 
 /** Waits for the library's viewer to settle; returns its state. */
-async function viewerSettled(p, timeout = 30_000) {
+async function viewerSettled(p, timeout = 60_000) {
   await p.waitForFunction(() => ['ready', 'failed', 'unavailable']
     .includes(document.querySelector('#rec-viewer-section').dataset.viewerState), null, { timeout });
   return p.getAttribute('#rec-viewer-section', 'data-viewer-state');
@@ -172,8 +172,8 @@ test('a recording opens in the embedded viewer, from the keyboard', async () => 
   if (state === 'ready') {
     // The viewer read the recording from the server's URL: its step timeline ends at the last
     // step of the run (200 steps of h = 0.1 to t = 20).
-    await page.waitForSelector('#rec-viewer-section[data-recording-open="true"]', { timeout: 30_000 });
-    await page.waitForFunction(() => window.geomint.library.viewer.stepRange()?.max === 200, null, { timeout: 30_000 });
+    await page.waitForSelector('#rec-viewer-section[data-recording-open="true"]', { state: 'attached', timeout: 60_000 });
+    await page.waitForFunction(() => window.geomint.library.viewer.stepRange()?.max === 200, null, { timeout: 60_000 });
     assert.deepEqual(await page.evaluate(() => window.geomint.library.viewer.stepRange()), { min: 0, max: 200 });
     assert.equal(requests.slice(fetched).filter((r) => r === `GET /api/v1/recordings/${id}.rrd`).length, 1);
     // Esc hands the focus back from the viewer's canvas to its Close button.
@@ -259,10 +259,10 @@ test('a copied link opens the page on the recording; a deleted or unknown one sa
   const errors = [];
   const other = await newTab(link, errors);
   try {
-    await other.waitForSelector(`#rec-viewer-section[data-recording-id="${id}"]`, { timeout: 15_000 });
+    await other.waitForSelector(`#rec-viewer-section[data-recording-id="${id}"]`, { state: 'attached', timeout: 60_000 });
     const state = await viewerSettled(other);
     if (state === 'ready') {
-      await other.waitForFunction(() => window.geomint.library.viewer.stepRange()?.max === 200, null, { timeout: 30_000 });
+      await other.waitForFunction(() => window.geomint.library.viewer.stepRange()?.max === 200, null, { timeout: 60_000 });
     }
     assert.equal(await other.getAttribute(`#rec-list tr[data-id="${id}"]`, 'aria-current'), 'true');
     assert.equal(await other.isHidden('#rec-error'), true);
@@ -322,7 +322,7 @@ test('a local .rrd opens in the viewer without an upload, by picker and by drop,
   assert.equal(await page.getAttribute('#rec-viewer-section', 'data-source'), 'file:local-run.rrd');
   if (state === 'ready') {
     // The viewer read the file's bytes: 200 steps of h = 0.05 to t = 10.
-    await page.waitForFunction(() => window.geomint.library.viewer.stepRange()?.max === 200, null, { timeout: 30_000 });
+    await page.waitForFunction(() => window.geomint.library.viewer.stepRange()?.max === 200, null, { timeout: 60_000 });
     assert.match(await page.textContent('#rec-file-status'), /^Opened local-run\.rrd \(\d+ KiB\) from this computer .* it was not uploaded\.$/);
   }
   // Opening sent nothing to the server.
@@ -339,7 +339,7 @@ test('a local .rrd opens in the viewer without an upload, by picker and by drop,
   }, `${base}/api/v1/recordings/${made.pendulum}.rrd`);
   await page.waitForSelector('#rec-viewer-section[data-source="file:dropped.rrd"]');
   if ((await viewerSettled(page)) === 'ready') {
-    await page.waitForFunction(() => window.geomint.library.viewer.stepRange()?.max === 200, null, { timeout: 30_000 });
+    await page.waitForFunction(() => window.geomint.library.viewer.stepRange()?.max === 200, null, { timeout: 60_000 });
   }
 
   // Uploaded on request: a new entry of the library, of the dropped file's size.
