@@ -148,7 +148,10 @@ export class RecordingsPanel {
       event.preventDefault();
       drop.classList.remove('dragging');
       const dropped = event.dataTransfer?.files?.[0];
-      if (dropped) this.openLocal(dropped);
+      if (!dropped) return;
+      // The picker no longer names the file on show.
+      file.value = '';
+      this.openLocal(dropped);
     });
     window.addEventListener('hashchange', () => this.followLink());
     this.setUploadState('idle');
