@@ -912,6 +912,10 @@ async fn openapi_lists_every_route() {
             &path
                 .replace("/systems/{id}", "/systems/pendulum")
                 .replace("/methods/{id}", "/methods/rk4")
+                .replace(
+                    "/recordings/{id}/samples",
+                    &format!("/recordings/{}/samples", ids[0]),
+                )
                 .replace("/recordings/{id}", &format!("/recordings/{recording}")),
         );
         let body = match path.as_str() {

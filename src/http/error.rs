@@ -47,7 +47,9 @@ pub fn status_for(code: ErrorCode) -> StatusCode {
         | ErrorCode::TooManySteps
         | ErrorCode::TooManySamples
         | ErrorCode::TooManyCells
-        | ErrorCode::StepFailed => StatusCode::UNPROCESSABLE_ENTITY,
+        | ErrorCode::StepFailed
+        | ErrorCode::InvalidRecording
+        | ErrorCode::NotASimulation => StatusCode::UNPROCESSABLE_ENTITY,
     }
 }
 

@@ -11,8 +11,9 @@
 //! | `POST /api/v1/studies/work-precision` | a work–precision study (JSON, NDJSON progress, or `?format=rrd`) |
 //! | `POST /api/v1/studies/convergence` | a convergence study: errors at t_end against h, fitted orders (JSON or NDJSON progress) |
 //! | `POST /api/v1/studies/energy-map` | an energy-error map, Cartesian against polar coordinates (JSON, NDJSON progress, or `?format=rrd`) |
-//! | `POST /api/v1/recordings`, `GET /api/v1/recordings` | store a run's Rerun recording; list them |
+//! | `POST /api/v1/recordings`, `GET /api/v1/recordings` | store a run's Rerun recording, or an uploaded `.rrd`; list them |
 //! | `GET /api/v1/recordings/{id}.rrd`, `DELETE /api/v1/recordings/{id}` | download or delete one |
+//! | `GET /api/v1/recordings/{id}/samples` | a stored simulation recording's samples, read back as JSON |
 //! | `GET /api/v1/openapi.json` | the OpenAPI 3 document |
 //! | `/` | the static directory, when there is one |
 //!
@@ -30,6 +31,7 @@ pub mod stability;
 pub mod state;
 pub mod store;
 pub mod studies;
+mod tempfile;
 
 use std::future::Future;
 use std::net::SocketAddr;
@@ -88,6 +90,8 @@ pub mod paths {
     pub const RECORDINGS: &str = "/api/v1/recordings";
     /// One stored recording: `{id}.rrd` is the file, `{id}` its entry.
     pub const RECORDING: &str = "/api/v1/recordings/{id}";
+    /// A stored recording's samples, read back from its file.
+    pub const RECORDING_SAMPLES: &str = "/api/v1/recordings/{id}/samples";
 }
 
 /// Every route as (method, path), as the router registers them.
@@ -108,6 +112,7 @@ pub const ROUTES: &[(&str, &str)] = &[
     ("get", paths::RECORDINGS),
     ("get", paths::RECORDING),
     ("delete", paths::RECORDING),
+    ("get", paths::RECORDING_SAMPLES),
 ];
 
 /// The service: routes and middleware, shared by the server and the tests.
@@ -126,14 +131,22 @@ pub fn app(state: AppState) -> Router {
         .route(paths::ENERGY_MAP, post(studies::energy_map))
         .route(paths::CONVERGENCE, post(studies::convergence))
         .route(paths::OPENAPI, get(handlers::openapi_json))
-        .route(
-            paths::RECORDINGS,
-            post(recordings::create_recording).get(recordings::list_recordings),
-        )
+        .route(paths::RECORDINGS, get(recordings::list_recordings))
         .route(
             paths::RECORDING,
             get(recordings::get_recording).delete(recordings::delete_recording),
         )
+        .route(paths::RECORDING_SAMPLES, get(recordings::recording_samples))
+        .layer(DefaultBodyLimit::max(config.body_limit))
+        .layer(RequestBodyLimitLayer::new(config.body_limit));
+    // Storing a recording takes a JSON body under the body limit or an .rrd upload under the
+    // store's size cap; the handler enforces both (an upload is counted as it arrives), so this
+    // route has no limit layer of its own beyond the JSON extractor's.
+    let store = Router::new()
+        .route(paths::RECORDINGS, post(recordings::create_recording))
+        .layer(DefaultBodyLimit::max(config.body_limit));
+    let api = api
+        .merge(store)
         .method_not_allowed_fallback(handlers::method_not_allowed)
         .with_state(state);
     let static_dir = config.static_dir.as_ref().filter(|dir| dir.is_dir());
@@ -155,8 +168,6 @@ pub fn app(state: AppState) -> Router {
     // request time limit and answer with what they have.
     let backstop = config.request_timeout + std::time::Duration::from_secs(30);
     router
-        .layer(DefaultBodyLimit::max(config.body_limit))
-        .layer(RequestBodyLimitLayer::new(config.body_limit))
         .layer(TimeoutLayer::with_status_code(StatusCode::GATEWAY_TIMEOUT, backstop))
         .layer(map_response(json_errors))
         .layer(compression)

@@ -5,7 +5,7 @@ use utoipa::OpenApi;
 
 use super::error::ErrorBody;
 use super::recordings::{self, RecordingCreated};
-use super::store::RecordingEntry;
+use super::store::{Origin, RecordingEntry};
 use super::{handlers, simulate, stability, studies};
 use crate::api::stability::{PointRequest, StabilityRequest};
 use crate::api::studies::{ConvergenceRequest, EnergyMapRequest, WorkPrecisionRequest};
@@ -17,6 +17,7 @@ use crate::core::studies::energy_map::{EnergyMapDocument, MapLine};
 use crate::core::studies::stability::{PointDocument, StabilityDocument};
 use crate::core::studies::work_precision::{StudyLine, WorkPrecisionDocument};
 use crate::core::systems::SystemInfo;
+use crate::recording::read::{RecordedDocument, RecordedRun};
 
 /// The OpenAPI document: `ApiDoc::openapi()`.
 #[derive(OpenApi)]
@@ -44,6 +45,7 @@ use crate::core::systems::SystemInfo;
         recordings::list_recordings,
         recordings::get_recording,
         recordings::delete_recording,
+        recordings::recording_samples,
     ),
     components(schemas(
         SimulateRequest,
@@ -68,13 +70,16 @@ use crate::core::systems::SystemInfo;
         handlers::Health,
         RecordingCreated,
         RecordingEntry,
+        Origin,
+        RecordedDocument,
+        RecordedRun,
     )),
     tags(
         (name = "catalog", description = "The systems and methods on offer"),
         (name = "simulation", description = "Running simulations"),
         (name = "stability", description = "Linear stability analysis on the damped oscillator"),
         (name = "studies", description = "Work–precision studies (time against accuracy per method), convergence studies (error against step size, with the observed orders, per method and coordinate chart) and energy-error maps across coordinate charts"),
-        (name = "recordings", description = "Rerun recordings (.rrd) of simulations, stored and downloadable"),
+        (name = "recordings", description = "Rerun recordings (.rrd) of simulations, stored or uploaded, downloadable, and read back as samples"),
         (name = "service", description = "Health and this document"),
     )
 )]

@@ -7,6 +7,9 @@
 //! - A recording is written to a temporary file in the directory, checked (RRD header, stream
 //!   footer, size), then renamed into place; its sidecar the same way, after it. A recording
 //!   without a sidecar was interrupted and is never listed.
+//! - An uploaded recording ([`RecordingStore::begin_upload`]) arrives in a locked temporary file
+//!   too, is checked by the caller while it is there, and only then kept
+//!   ([`RecordingStore::keep_upload`]); an upload that is refused or cut short leaves nothing.
 //! - Past the size cap the oldest recordings are deleted; a recording larger than the whole cap
 //!   is refused.
 //! - At start-up, files that are not complete recordings of this service (a torn `.rrd`, a
@@ -20,7 +23,7 @@
 
 use std::collections::BTreeMap;
 use std::fs::{self, File};
-use std::io::{self, BufWriter, Read, Seek, SeekFrom, Write};
+use std::io::{self, BufWriter, Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::time::{SystemTime, UNIX_EPOCH};
@@ -28,13 +31,13 @@ use std::time::{SystemTime, UNIX_EPOCH};
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
+pub use super::tempfile::Upload;
+use super::tempfile::{remove_if_abandoned, write_atomically, TempFile, TMP_PREFIX};
 use crate::core::simulation::Simulation;
 use crate::recording::RecordingError;
 
 /// The sidecar's format tag.
 const SIDECAR_FORMAT: &str = "geomint-recording/1";
-/// Prefix of temporary files in the data directory.
-const TMP_PREFIX: &str = ".tmp-";
 
 /// Whether `id` is a recording id: exactly 32 lowercase hexadecimal digits.
 pub fn is_valid_id(id: &str) -> bool {
@@ -81,6 +84,39 @@ impl SpecSummary {
     }
 }
 
+/// How a recording came into the store.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum Origin {
+    /// Recorded by the server from a simulation request (`POST /api/v1/recordings` with JSON).
+    #[default]
+    Simulation,
+    /// Uploaded as an `.rrd` file (`POST /api/v1/recordings` with `application/octet-stream`).
+    Upload,
+}
+
+/// What is known of a recording before it is stored: what it holds and where it came from.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Contents {
+    /// The simulation it records, when it records one of this service's simulations.
+    pub spec: Option<SpecSummary>,
+    /// How it came.
+    pub origin: Origin,
+    /// The application id written in the recording.
+    pub application_id: Option<String>,
+}
+
+impl Contents {
+    /// A recording this server made of `spec`.
+    pub fn simulation(spec: SpecSummary) -> Self {
+        Contents {
+            spec: Some(spec),
+            origin: Origin::Simulation,
+            application_id: Some(crate::recording::APPLICATION_ID.to_string()),
+        }
+    }
+}
+
 /// One stored recording.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct RecordingEntry {
@@ -92,8 +128,16 @@ pub struct RecordingEntry {
     pub created: String,
     /// Size of the `.rrd` file in bytes.
     pub bytes: u64,
-    /// What it holds.
-    pub spec: SpecSummary,
+    /// The simulation it records; null for an uploaded recording that is not one of this
+    /// service's simulations (another application's, or a study's).
+    pub spec: Option<SpecSummary>,
+    /// How it came into the store.
+    #[serde(default)]
+    pub origin: Origin,
+    /// The application id written in the recording (`geomint` for this service's own).
+    #[serde(default)]
+    #[schema(example = "geomint")]
+    pub application_id: Option<String>,
     /// Milliseconds since the Unix epoch at creation (orders eviction).
     #[serde(default)]
     pub created_unix_ms: u64,
@@ -127,6 +171,9 @@ pub enum StoreError {
     /// The written file is not a complete recording.
     #[error("the written recording is incomplete")]
     Incomplete,
+    /// An upload is no longer in its temporary file (it was kept or discarded before).
+    #[error("the upload was already kept or discarded")]
+    UploadGone,
 }
 
 #[derive(Debug, Default)]
@@ -206,81 +253,6 @@ fn rfc3339(unix_ms: u64) -> String {
         rem % 60,
         unix_ms % 1000
     )
-}
-
-/// A temporary file in the data directory, locked by its writer for as long as it is open.
-struct TempFile {
-    path: PathBuf,
-    file: File,
-}
-
-impl TempFile {
-    /// Creates `dir/.tmp-<random><suffix>` and takes its lock. A store that scans the directory
-    /// in between could remove the new file before it is locked; then it is made again.
-    fn create(dir: &Path, suffix: &str) -> io::Result<Self> {
-        use std::os::unix::fs::MetadataExt;
-        loop {
-            let path = dir.join(format!("{TMP_PREFIX}{}{suffix}", new_id()));
-            let file = File::options().write(true).create_new(true).open(&path)?;
-            file.lock()?;
-            let ours = file.metadata()?;
-            match fs::metadata(&path) {
-                Ok(now) if now.ino() == ours.ino() && now.dev() == ours.dev() => {
-                    return Ok(TempFile { path, file })
-                }
-                Ok(_) => continue,
-                Err(e) if e.kind() == io::ErrorKind::NotFound => continue,
-                Err(e) => return Err(e),
-            }
-        }
-    }
-
-    /// Moves the file to `path`; the lock goes with the open file, which is closed after.
-    fn persist(self, path: &Path) -> io::Result<()> {
-        let result = fs::rename(&self.path, path);
-        if result.is_err() {
-            let _ = fs::remove_file(&self.path);
-        }
-        result
-    }
-
-    /// Removes the file (a write that failed).
-    fn discard(self) {
-        let _ = fs::remove_file(&self.path);
-    }
-}
-
-/// Removes a leftover temporary file whose writer is gone (its lock is free); a file still
-/// locked belongs to a write in progress and stays.
-fn remove_if_abandoned(path: &Path) {
-    let Ok(file) = File::open(path) else {
-        return;
-    };
-    match file.try_lock() {
-        Ok(()) => {
-            tracing::info!(file = %path.display(), "removing an interrupted write");
-            let _ = fs::remove_file(path);
-        }
-        Err(fs::TryLockError::WouldBlock) => {
-            tracing::debug!(file = %path.display(), "a write in progress");
-        }
-        Err(fs::TryLockError::Error(e)) => {
-            tracing::warn!(file = %path.display(), error = %e, "cannot check a temporary file");
-        }
-    }
-}
-
-/// Writes `bytes` to `path` through a locked temporary file in the same directory.
-fn write_atomically(dir: &Path, path: &Path, bytes: &[u8]) -> io::Result<()> {
-    let mut tmp = TempFile::create(dir, "")?;
-    let written = tmp.file.write_all(bytes).and_then(|()| tmp.file.sync_all());
-    match written {
-        Ok(()) => tmp.persist(path),
-        Err(e) => {
-            tmp.discard();
-            Err(e)
-        }
-    }
 }
 
 impl RecordingStore {
@@ -414,7 +386,48 @@ impl RecordingStore {
             .map_err(StoreError::from)
             .and_then(|handle| self.write_checked(&tmp.path, handle, write));
         match written {
-            Ok(bytes) => self.keep(tmp, spec, bytes),
+            Ok(bytes) => self.keep(tmp, Contents::simulation(spec), bytes),
+            Err(e) => {
+                tmp.discard();
+                Err(e)
+            }
+        }
+    }
+
+    /// Starts an upload: a new locked temporary file in the data directory to write the
+    /// uploaded bytes to (see [`Upload`]).
+    pub fn begin_upload(&self) -> Result<Upload, StoreError> {
+        fs::create_dir_all(&self.dir)?;
+        Ok(Upload {
+            tmp: Some(TempFile::create(&self.dir, ".rrd")?),
+        })
+    }
+
+    /// Keeps a complete upload, checked by the caller, under a new id with its summary `contents`;
+    /// evicts the oldest recordings past the cap, as [`RecordingStore::save`] does. An upload
+    /// over the cap or without the RRD header and stream footer is removed and refused.
+    pub fn keep_upload(
+        &self,
+        mut upload: Upload,
+        contents: Contents,
+    ) -> Result<RecordingEntry, StoreError> {
+        let tmp = upload.tmp.take().ok_or(StoreError::UploadGone)?;
+        let checked = (|| {
+            tmp.file.sync_all()?;
+            let bytes = tmp.file.metadata()?.len();
+            if bytes > self.max_bytes {
+                return Err(StoreError::TooLarge {
+                    bytes,
+                    max: self.max_bytes,
+                });
+            }
+            if !is_complete_rrd(&tmp.path, bytes)? {
+                return Err(StoreError::Incomplete);
+            }
+            Ok(bytes)
+        })();
+        match checked {
+            Ok(bytes) => self.keep(tmp, contents, bytes),
             Err(e) => {
                 tmp.discard();
                 Err(e)
@@ -450,7 +463,7 @@ impl RecordingStore {
     fn keep(
         &self,
         tmp: TempFile,
-        spec: SpecSummary,
+        contents: Contents,
         bytes: u64,
     ) -> Result<RecordingEntry, StoreError> {
         let id = new_id();
@@ -463,7 +476,9 @@ impl RecordingStore {
             id: id.to_string(),
             created: rfc3339(created_unix_ms),
             bytes,
-            spec,
+            spec: contents.spec,
+            origin: contents.origin,
+            application_id: contents.application_id,
             created_unix_ms,
         };
         tmp.persist(&self.rrd_path(id))?;
@@ -482,7 +497,7 @@ impl RecordingStore {
             self.evict(&mut index, id)
         };
         self.delete_files(&evicted);
-        tracing::info!(id, bytes, evicted = evicted.len(), "recording stored");
+        tracing::info!(id, bytes, origin = ?entry.origin, evicted = evicted.len(), "recording stored");
         Ok(entry)
     }
 
@@ -546,6 +561,8 @@ impl RecordingStore {
 
 #[cfg(test)]
 mod tests {
+    use std::io::Write;
+
     use super::*;
 
     #[test]

@@ -10,6 +10,8 @@
 //! - [`work_precision`]: a work–precision study as a log–log diagram in a 2-D view.
 //! - [`energy_map`]: an energy-error map as images, a segmentation of its divergences and
 //!   tensors.
+//! - [`read`]: recordings read back with Rerun's decoder: uploads checked, a simulation's
+//!   samples recovered for the page's charts.
 //!
 //! All are encoded by one writer ([`encode`]): the recording's messages are encoded on their
 //! own thread while the next columns are built. The blueprint ([`blueprint`]) is written as
@@ -20,6 +22,7 @@ mod encode;
 pub mod energy_map;
 pub mod layout;
 pub mod live;
+pub mod read;
 pub mod simulation;
 pub mod stability;
 pub mod work_precision;

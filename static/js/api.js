@@ -1,6 +1,7 @@
 // The page's client of the geomint HTTP API: the two catalogues, the NDJSON simulation stream
 // (POST /api/v1/simulate with Accept: application/x-ndjson) and its one-document answer, the run
-// as a Rerun recording (?format=rrd, POST /api/v1/recordings), the stability analysis
+// as a Rerun recording (?format=rrd, POST /api/v1/recordings), the stored recordings (list, entry,
+// samples read back, upload of an .rrd file, delete), the stability analysis
 // (POST /api/v1/stability, /api/v1/stability/point) and the studies (POST
 // /api/v1/studies/work-precision, /convergence and /energy-map, the map also as a recording). Errors in the service's shape, {"error": {"code", "message", "field"}}, become
 // ApiError objects that keep the field path.
@@ -189,4 +190,48 @@ export async function stabilityMaps(body, signal) {
 /** The stability analysis of one method at one (ω, γ, h): POST /api/v1/stability/point. */
 export async function stabilityPoint(body, signal) {
   return (await post('api/v1/stability/point', body, { signal })).json();
+}
+
+/** The stored recordings, newest first (GET /api/v1/recordings). */
+export async function listRecordings(signal) {
+  const response = await fetch('api/v1/recordings', { headers: { accept: 'application/json' }, signal });
+  if (!response.ok) throw await errorFrom(response);
+  return response.json();
+}
+
+/** One stored recording's entry; rejects with an ApiError of status 404 when there is none. */
+export async function getRecording(id) {
+  return getJson(`api/v1/recordings/${encodeURIComponent(id)}`);
+}
+
+/** A stored simulation recording's samples, read back from its .rrd by the server. */
+export async function recordingSamples(id, signal) {
+  const response = await fetch(`api/v1/recordings/${encodeURIComponent(id)}/samples`, {
+    headers: { accept: 'application/json' }, signal,
+  });
+  if (!response.ok) throw await errorFrom(response);
+  return response.json();
+}
+
+/** Deletes a stored recording; resolves to false when it was already gone (404). */
+export async function deleteRecording(id) {
+  const response = await fetch(`api/v1/recordings/${encodeURIComponent(id)}`, { method: 'DELETE' });
+  if (response.status === 404) return false;
+  if (!response.ok) throw await errorFrom(response);
+  return true;
+}
+
+/**
+ * Uploads an .rrd file (a File or Blob, sent as it is) to the library.
+ * @returns {Promise<{id: string, url: string, bytes: number}>}
+ */
+export async function uploadRecording(file, signal) {
+  const response = await fetch('api/v1/recordings', {
+    method: 'POST',
+    headers: { 'content-type': 'application/octet-stream', accept: 'application/json' },
+    body: file,
+    signal,
+  });
+  if (!response.ok) throw await errorFrom(response);
+  return response.json();
 }

@@ -2,9 +2,11 @@
 // simulations — streaming NDJSON into the plots with a progress bar, cancellable with the Cancel
 // button or Esc; offers the finished run as JSON or a Rerun recording (rerun.js) and sets up the
 // stability section (stability.js), the work–precision section (studies.js), the convergence
-// section (convergence.js) and the energy-error map section (energymap.js). For tests it exposes `window.geomint` (the uPlot
-// instances and their point counts) and the run's state as `data-run-state` on <body> (loading,
-// idle, running, done, cancelled, error).
+// section (convergence.js), the energy-error map section (energymap.js) and the recordings library
+// (library.js), whose recordings it plots with the same charts. For tests it exposes
+// `window.geomint` (the uPlot instances and their point counts) and the run's state as
+// `data-run-state` on <body> (loading, idle, running, done, cancelled, error); `data-source` on
+// the results says what they show (`run`, or `recording:<id>`).
 
 import { catalogues, simulateStream, ApiError } from './api.js';
 import { SimForm, el, chartName } from './form.js';
@@ -16,6 +18,7 @@ import { StabilityPanel } from './stability.js';
 import { WorkPrecisionPanel } from './studies.js';
 import { ConvergencePanel } from './convergence.js';
 import { EnergyMapPanel } from './energymap.js';
+import { RecordingsPanel, streamLines, describe, when } from './library.js';
 
 /** Shortest time between two redraws while samples stream in, in milliseconds. Redraws of long
  * runs take longer; the pause after one is at least REDRAW_SHARE times its duration, so drawing
@@ -108,6 +111,53 @@ function renderLegend(labels) {
     el('span', { class: 'swatch', style: `background:${colour(i)}`, 'aria-hidden': 'true' }), label)));
 }
 
+/** Creates the plots and the legend for a stream `header`. */
+function buildCharts(header) {
+  const system = form.systems.find((s) => s.id === header.system.id);
+  const source = system?.exact_solution ? 'exact' : header.energy_error ? 'ref' : null;
+  charts.build(header, {
+    energyErrorSource: header.energy_error ? source || 'ref' : null,
+    drift: Boolean(system?.conformal_damping) && header.system.q0.length === 1,
+    ...chartOptions(system, header.system.chart),
+  });
+  renderLegend(header.methods);
+}
+
+/**
+ * Draws a stored recording's samples (read back from its .rrd by the server) with the page's
+ * charts, in place of the results; a running simulation is cancelled first.
+ */
+async function showRecording(doc, entry) {
+  if (current?.state === 'running') {
+    current.controller.abort();
+    await current.finished;
+  }
+  current = null;
+  form.clearErrors();
+  rerun.close();
+  rerun.clearMessages();
+  const { header, samples, summaries } = streamLines(doc);
+  const store = new RunStore(doc.request, header);
+  for (const chunk of samples) store.add(chunk);
+  for (const summary of summaries) store.summarize(summary);
+  store.outcome = 'done';
+  shown = { store };
+  buildCharts(header);
+  charts.update(store);
+  renderStats(ui.stats, store);
+  ui.progress.max = Math.max(1, store.received);
+  ui.progress.value = store.received;
+  ui.download.disabled = store.received === 0;
+  // The .rrd buttons of the results would run the request again: the library row has the file.
+  rerun.setRun(null);
+  ui.results.dataset.source = `recording:${entry.id}`;
+  setStatus(`Recording ${describe(entry)}, stored ${when(entry.created)}: ${store.received} samples read back ` +
+    'from the .rrd file (positions and momenta as recorded, in single precision).');
+  setState('done');
+  ui.results.scrollIntoView({ behavior: 'smooth', block: 'start' });
+  ui.results.focus({ preventScroll: true });
+}
+
 /** Updates the plots, the stats table and the progress bar (at most every REDRAW_INTERVAL ms). */
 function scheduleRedraw(run) {
   if (run.redrawPending) return;
@@ -147,14 +197,8 @@ function onLine(run, line) {
       shown = run;
       ui.download.disabled = true;
       rerun.setRun(null);
-      const system = form.systems.find((s) => s.id === line.system.id);
-      const source = system?.exact_solution ? 'exact' : line.energy_error ? 'ref' : null;
-      charts.build(line, {
-        energyErrorSource: line.energy_error ? source || 'ref' : null,
-        drift: Boolean(system?.conformal_damping) && line.system.q0.length === 1,
-        ...chartOptions(system, line.system.chart),
-      });
-      renderLegend(line.methods);
+      ui.results.dataset.source = 'run';
+      buildCharts(line);
       renderStats(ui.stats, run.store);
       ui.progress.max = Math.max(1, run.store.expected);
       ui.progress.value = 0;
@@ -292,6 +336,7 @@ async function init() {
   const workPrecision = new WorkPrecisionPanel($('#work-precision'));
   const convergence = new ConvergencePanel($('#convergence'));
   const energyMap = new EnergyMapPanel($('#energy-map'), cats.methods);
+  const library = new RecordingsPanel($('#recordings'), showRecording);
   for (const button of ui.presets.querySelectorAll('button')) button.disabled = false;
   ui.run.disabled = false;
   ui.form.addEventListener('submit', (event) => {
@@ -313,8 +358,11 @@ async function init() {
     workPrecision,
     convergence,
     energyMap,
+    library,
   };
   setState('idle');
+  await library.refresh();
+  await library.followLink();
 }
 
 init();

@@ -54,6 +54,10 @@ pub enum ErrorCode {
     Internal,
     /// A recording alone exceeds the recording store's size cap.
     RecordingTooLarge,
+    /// An uploaded file is not a complete Rerun recording of a version the viewer reads.
+    InvalidRecording,
+    /// A stored recording is not of a simulation, so it has no samples to plot.
+    NotASimulation,
 }
 
 impl ErrorCode {
@@ -82,6 +86,8 @@ impl ErrorCode {
             BadRequest => "bad_request",
             Internal => "internal",
             RecordingTooLarge => "recording_too_large",
+            InvalidRecording => "invalid_recording",
+            NotASimulation => "not_a_simulation",
         }
     }
 }

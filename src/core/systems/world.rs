@@ -63,6 +63,20 @@ impl World {
         }
     }
 
+    /// The Cartesian configuration whose bodies stand at `points` (x, y, z of each, in a row):
+    /// the inverse of [`positions`](Self::positions), where the drawing determines it (a
+    /// pendulum's angle is not read back).
+    pub fn configuration(self, points: &[f64]) -> Option<Vec<f64>> {
+        let at = |i: usize| points.get(i).copied();
+        match self {
+            World::Pendulum => None,
+            World::Spring | World::Bodies => Some(points.to_vec()),
+            World::PlanarSpring => Some(vec![at(0)?, -at(2)?]),
+            World::Plane => Some(vec![at(0)?, at(1)?]),
+            World::Line => Some(vec![at(0)?]),
+        }
+    }
+
     /// What joins the body to the origin, if anything.
     pub fn link(self) -> Option<Link> {
         match self {
@@ -70,5 +84,38 @@ impl World {
             World::Spring | World::PlanarSpring => Some(Link::Spring),
             _ => None,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn configurations_invert_the_drawing() {
+        for world in [
+            World::Line,
+            World::Spring,
+            World::Bodies,
+            World::PlanarSpring,
+            World::Plane,
+        ] {
+            let q: Vec<f64> = match world {
+                World::Line => vec![0.5],
+                World::PlanarSpring | World::Plane => vec![0.5, -0.25],
+                _ => vec![0.5, 0.0, -0.25, 1.0, 2.0, 3.0],
+            };
+            let q = if world == World::Spring {
+                q[..3].to_vec()
+            } else {
+                q
+            };
+            let mut points = Vec::new();
+            world.positions(&q, &mut points);
+            let flat: Vec<f64> = points.iter().flatten().copied().collect();
+            assert_eq!(world.configuration(&flat), Some(q), "{world:?}");
+        }
+        assert_eq!(World::Pendulum.configuration(&[0.5, 0.0, -0.25]), None);
+        assert_eq!(World::Plane.configuration(&[]), None);
     }
 }
