@@ -88,7 +88,7 @@ fn every_chart_round_trips_and_keeps_the_energy() {
             }
             // H is a scalar: the same in every chart (H̄(Q(q), P(q, p)) = H(q, p)).
             let info = common::info(name.split('/').next().unwrap());
-            let first = common::default_system(info, &info.charts[0], 0.1);
+            let first = common::default_system(&info, &info.charts[0], 0.1);
             let h_cart = with_system!(&first, c => {
                 let w = State::from_slices(c.dim(), &x, &px);
                 c.energy(&w.q, &w.p)

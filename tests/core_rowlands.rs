@@ -199,8 +199,10 @@ fn system_of(case: &Case, h: f64) -> (systems::AnySystem, Vec<f64>, Vec<f64>) {
     let info = common::info(case.system);
     let params = common::params(serde_json::from_str(case.params).expect("params JSON"));
     let resolved =
-        systems::params::resolve(info, &params, &Field::new("params")).expect("valid params");
-    let system = (info.build)(&resolved, &info.charts[0], h);
+        systems::params::resolve(&info, &params, &Field::new("params")).expect("valid params");
+    let system = info
+        .build(&resolved, &info.charts[0], h)
+        .expect("a catalogue system builds");
     (system, info.q0.clone(), info.p0.clone())
 }
 

@@ -160,7 +160,7 @@ impl MethodSpec {
         if let Some(name) = &o.processor {
             let processor = Processor::parse(name).ok_or_else(|| CoreError::UnknownName {
                 field: field.key("processor"),
-                what: "processor",
+                what: "processor".to_string(),
                 value: name.clone(),
                 known: Processor::ALL
                     .iter()

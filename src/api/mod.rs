@@ -8,6 +8,7 @@
 //! - [`simulate`]: the simulation request.
 //! - [`stability`]: stability maps and single points.
 //! - [`studies`]: convergence and work–precision studies, energy-error maps.
+//! - [`system`]: a system as an id or a user's definition.
 //!
 //! Results are the core's typed documents, serialized as they are.
 
@@ -16,6 +17,7 @@ pub mod method;
 pub mod simulate;
 pub mod stability;
 pub mod studies;
+pub mod system;
 
 use serde::Serialize;
 

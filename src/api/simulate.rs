@@ -14,7 +14,8 @@ use crate::core::error::{CoreError, ErrorCode, ErrorDetail, Field};
 use crate::core::simulation::{
     InitialCoordinates, InputFields, Limits, MethodAt, Simulation, SimulationSpec,
 };
-use crate::core::systems::{ChartId, ParamValue, SystemId};
+use super::system::{read_system, SystemRequest};
+use crate::core::systems::{ChartId, ParamValue};
 
 /// A simulation request.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, ToSchema)]
@@ -31,9 +32,9 @@ use crate::core::systems::{ChartId, ParamValue, SystemId};
     "compare_to_reference": false
 }))]
 pub struct SimulateRequest {
-    /// System id (see `GET /api/v1/systems`).
-    #[schema(value_type = SystemId)]
-    pub system: String,
+    /// The system: a built-in or stored system's id (see `GET /api/v1/systems`), or a
+    /// definition of its own.
+    pub system: SystemRequest,
     /// System parameters by name; omitted ones take their defaults. Conformally damped systems
     /// accept `epsilon` (= 2γ) instead of `gamma`.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
@@ -132,7 +133,11 @@ impl SimulateRequest {
     pub fn from_value(value: &Value) -> Result<Self, ErrorDetail> {
         let obj = Obj::new(value, Field::default(), REQUEST_FIELDS)?;
         let mut req = SimulateRequest {
-            system: obj.required("system", "the system id, e.g. \"pendulum\"", string)?,
+            system: obj.required(
+                "system",
+                "the system id, e.g. \"pendulum\", or a system definition",
+                read_system,
+            )?,
             params: obj.optional("params", json::params)?.unwrap_or_default(),
             chart: obj.optional("chart", string)?,
             initial_coordinates: obj.optional("initial_coordinates", initial_coordinates)?,
@@ -203,7 +208,7 @@ impl SimulateRequest {
             ..InputFields::default()
         };
         Ok(SimulationSpec {
-            system: self.system.clone(),
+            system: self.system.to_ref(&Field::new("system"))?,
             params: self.params.clone(),
             chart: self.chart.clone(),
             initial_cartesian: self.initial_coordinates == Some(InitialCoordinates::Cartesian),

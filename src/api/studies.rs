@@ -18,7 +18,8 @@ use crate::core::studies::convergence::ConvergenceSpec;
 use crate::core::studies::energy_map::EnergyMapSpec;
 use crate::core::studies::settings::{RunSpec, MAX_SAMPLES};
 use crate::core::studies::work_precision::{WorkPrecisionSpec, DEFAULT_SAMPLES};
-use crate::core::systems::{ChartId, ParamValue, SystemId};
+use super::system::{read_system, SystemRequest};
+use crate::core::systems::{ChartId, ParamValue};
 
 /// The fields of one `{method, h | tolerance}` entry (a work–precision run, a reference).
 pub const RUN_FIELDS: &[&str] = &["method", "h", "tolerance"];
@@ -72,7 +73,7 @@ impl RunRequest {
 
 /// The fields every study has.
 struct Common {
-    system: String,
+    system: SystemRequest,
     params: BTreeMap<String, ParamValue>,
     q0: Option<Vec<f64>>,
     p0: Option<Vec<f64>>,
@@ -85,7 +86,11 @@ impl Common {
     /// Reads the common fields of the study object `obj` (whose other fields the caller reads).
     fn read(obj: &Obj<'_>) -> Result<Self, ErrorDetail> {
         Ok(Common {
-            system: obj.required("system", "the system id, e.g. \"pendulum\"", string)?,
+            system: obj.required(
+                "system",
+                "the system id, e.g. \"pendulum\", or a system definition",
+                read_system,
+            )?,
             params: obj.optional("params", json::params)?.unwrap_or_default(),
             t_end: obj.required("t_end", "the final time", json::number)?,
             samples: obj.optional("samples", |v, at| {
@@ -126,9 +131,8 @@ pub const CONVERGENCE_FIELDS: &[&str] = &[
     "h": [0.04, 0.02, 0.01, 0.005, 0.0025, 0.00125]
 }))]
 pub struct ConvergenceRequest {
-    /// System id.
-    #[schema(value_type = SystemId)]
-    pub system: String,
+    /// The system: a built-in or stored system's id, or a definition of its own.
+    pub system: SystemRequest,
     /// System parameters (as for a simulation).
     #[schema(value_type = Object)]
     pub params: BTreeMap<String, ParamValue>,
@@ -216,7 +220,7 @@ impl ConvergenceRequest {
     pub fn to_spec(&self) -> Result<ConvergenceSpec, ErrorDetail> {
         let methods = Field::new("methods");
         Ok(ConvergenceSpec {
-            system: self.system.clone(),
+            system: self.system.to_ref(&Field::new("system"))?,
             params: self.params.clone(),
             chart: self.chart.clone(),
             charts: self.charts.clone(),
@@ -266,9 +270,8 @@ pub const STUDY_FIELDS: &[&str] = &[
     ]
 }))]
 pub struct WorkPrecisionRequest {
-    /// System id.
-    #[schema(value_type = SystemId)]
-    pub system: String,
+    /// The system: a built-in or stored system's id, or a definition of its own.
+    pub system: SystemRequest,
     /// System parameters (as for a simulation).
     #[schema(value_type = Object)]
     pub params: BTreeMap<String, ParamValue>,
@@ -326,7 +329,7 @@ impl WorkPrecisionRequest {
     pub fn to_spec(&self) -> Result<WorkPrecisionSpec, ErrorDetail> {
         let runs = Field::new("runs");
         Ok(WorkPrecisionSpec {
-            system: self.system.clone(),
+            system: self.system.to_ref(&Field::new("system"))?,
             params: self.params.clone(),
             q0: self.q0.clone(),
             p0: self.p0.clone(),

@@ -51,6 +51,12 @@ pub struct ServeArgs {
     /// Most bytes of stored recordings; past it the oldest are deleted (1e9 style accepted).
     #[arg(long, env = "GEOMINT_RECORDINGS_MAX_BYTES", default_value = "1073741824", value_parser = parse_count)]
     pub recordings_max_bytes: u64,
+    /// Directory of the stored system definitions (created when the first one is stored).
+    #[arg(long, env = "GEOMINT_SYSTEMS_DIR", default_value = http::systems::DEFAULT_SYSTEMS_DIR)]
+    pub systems_dir: PathBuf,
+    /// Most stored system definitions.
+    #[arg(long, env = "GEOMINT_MAX_SYSTEMS", default_value_t = http::systems::DEFAULT_MAX_SYSTEMS)]
+    pub max_systems: usize,
     /// Log filter (tracing's EnvFilter syntax).
     #[arg(long, env = "GEOMINT_LOG", default_value = "info")]
     pub log: String,
@@ -75,6 +81,8 @@ impl ServeArgs {
             shutdown_grace: Duration::from_secs(self.shutdown_grace_secs),
             data_dir: self.data_dir.clone(),
             recordings_max_bytes: self.recordings_max_bytes,
+            systems_dir: self.systems_dir.clone(),
+            max_systems: self.max_systems,
         }
     }
 }

@@ -80,9 +80,7 @@ pub fn kick_theta<S: MechanicalSystem>(
     }
     z.p.axpy(-tau, grad, 1.0);
     if r != 0.0 && theta != 0.0 {
-        let a = theta * r * tau;
-        sys.project_damped(&z.q, &z.p, w);
-        z.p.axpy(-a / (1.0 + a), w, 1.0);
+        sys.damped_solve(&z.q, &mut z.p, theta, tau, w);
     }
 }
 
@@ -101,7 +99,7 @@ pub fn damp<S: MechanicalSystem>(sys: &S, z: &mut State<S::Dim>, tau: f64, w: &m
 where
     DefaultAllocator: Allocator<S::Dim>,
 {
-    damp_with(sys, z, damp_coefficient(sys.damping_rate(), tau), w);
+    damp_with(sys, z, tau, damp_coefficient(sys.damping_rate(), tau), w);
 }
 
 /// The coefficient c = 1 − e^{−rτ} of [`damp_with`].
@@ -110,22 +108,20 @@ pub fn damp_coefficient(r: f64, tau: f64) -> f64 {
     one_minus_exp_neg(r * tau)
 }
 
-/// Damping decay with a precomputed c = 1 − e^{−rτ}: p ← p − c P p. A run with a fixed step
-/// computes c once instead of an exponential per step.
+/// Damping decay over τ with a precomputed c = 1 − e^{−rτ} (see
+/// [`MechanicalSystem::damp_flow`]). A run with a fixed step computes c once instead of an
+/// exponential per step.
 #[inline]
 pub fn damp_with<S: MechanicalSystem>(
     sys: &S,
     z: &mut State<S::Dim>,
+    tau: f64,
     c: f64,
     w: &mut Vector<S::Dim>,
 ) where
     DefaultAllocator: Allocator<S::Dim>,
 {
-    if c == 0.0 {
-        return;
-    }
-    sys.project_damped(&z.q, &z.p, w);
-    z.p.axpy(-c, w, 1.0);
+    sys.damp_flow(&z.q, &mut z.p, tau, c, w);
 }
 
 /// Exact flow of p' = −g − r P p for time τ with q (and so g = ∇V(q)) frozen.
@@ -151,7 +147,8 @@ pub fn kick_damp_coefficients(r: f64, tau: f64) -> (f64, f64) {
     (one_minus_exp_neg(x), tau * one_minus_phi1_neg(x))
 }
 
-/// The exact kick-and-damp with precomputed coefficients: p ← p − τ g + P(−c p + d g).
+/// The exact kick-and-damp with precomputed coefficients (see
+/// [`MechanicalSystem::kick_damp_flow`]; for a projector p ← p − τ g + P(−c p + d g)).
 #[inline]
 #[allow(clippy::too_many_arguments)]
 pub fn kick_damp_with<S: MechanicalSystem>(
@@ -170,12 +167,7 @@ pub fn kick_damp_with<S: MechanicalSystem>(
         kick(z, tau, grad);
         return;
     }
-    w.copy_from(&z.p);
-    *w *= -c;
-    w.axpy(d, grad, 1.0);
-    sys.project_damped(&z.q, w, pw);
-    z.p.axpy(-tau, grad, 1.0);
-    z.p += &*pw;
+    sys.kick_damp_flow(&z.q, &mut z.p, grad, tau, (c, d), w, pw);
 }
 
 /// Work space for propagating a step's Jacobian ∂Φ/∂z (2n×2n, q rows first) alongside the step.

@@ -223,13 +223,13 @@ where
         true
     }
 
-    /// Names of the system's invariants (or conformal invariants), in the order `invariants`
-    /// writes them.
-    fn invariant_names(&self) -> &'static [&'static str] {
-        &[]
+    /// How many invariants (or conformal invariants) [`invariants`](Self::invariants) writes;
+    /// their names are in the system's catalogue entry.
+    fn invariant_count(&self) -> usize {
+        0
     }
 
-    /// The invariants at time t, written into `out` (length `invariant_names().len()`).
+    /// The invariants at time t, written into `out` (length `invariant_count()`).
     fn invariants(
         &self,
         _t: f64,
@@ -242,6 +242,53 @@ where
     /// The exact state at time t from (q0, p0), where a closed form is known.
     fn exact(&self, _t: f64, _start: &State<Self::Dim>) -> Option<State<Self::Dim>> {
         None
+    }
+
+    /// The exact damping decay with q frozen, p ← e^{−τ εD(q)M⁻¹} p, given c = 1 − e^{−rτ}
+    /// (computed once per step size). The default is the projector form p ← p − c P(q) p; a
+    /// system whose damping is not rate × projector overrides this and the two methods below.
+    #[inline]
+    fn damp_flow(
+        &self,
+        q: &Vector<Self::Dim>,
+        p: &mut Vector<Self::Dim>,
+        _tau: f64,
+        c: f64,
+        w: &mut Vector<Self::Dim>,
+    ) {
+        projector::damp_flow(self, q, p, c, w)
+    }
+
+    /// The exact flow of p' = −g − εD(q)M⁻¹p for time τ with q and g frozen, given
+    /// c = 1 − e^{−rτ} and d = τ(1 − φ₁(−rτ)). The default is the projector form
+    /// p ← p − τ g + P(−c p + d g) (the damped part decays, the force enters through τφ₁).
+    #[inline]
+    #[allow(clippy::too_many_arguments)]
+    fn kick_damp_flow(
+        &self,
+        q: &Vector<Self::Dim>,
+        p: &mut Vector<Self::Dim>,
+        g: &Vector<Self::Dim>,
+        tau: f64,
+        (c, d): (f64, f64),
+        w: &mut Vector<Self::Dim>,
+        pw: &mut Vector<Self::Dim>,
+    ) {
+        projector::kick_damp_flow(self, q, p, g, tau, (c, d), w, pw)
+    }
+
+    /// Solves (I + θτ εD(q)M⁻¹) x = p for x, in place (the implicit part of a θ-method kick).
+    /// The default uses (I + aP)⁻¹ = I − a/(1 + a) P with a = θ r τ.
+    #[inline]
+    fn damped_solve(
+        &self,
+        q: &Vector<Self::Dim>,
+        p: &mut Vector<Self::Dim>,
+        theta: f64,
+        tau: f64,
+        w: &mut Vector<Self::Dim>,
+    ) {
+        projector::damped_solve(self, q, p, theta, tau, w)
     }
 
     /// The damping force ε D(q) M⁻¹ p = r P(q) p, written into `out`.
@@ -270,5 +317,72 @@ where
         self.damping_force(q, p, scratch);
         *dp += &*scratch;
         dp.neg_mut();
+    }
+}
+
+/// The damping flows for a damping r P(q) with P(q) an orthogonal projector, in closed form: the
+/// defaults of [`MechanicalSystem`]'s damping flows, callable by a system that overrides them for
+/// some other form of damping and keeps these for the projector form.
+pub mod projector {
+    use super::{MechanicalSystem, Vector};
+    use nalgebra::allocator::Allocator;
+    use nalgebra::DefaultAllocator;
+
+    /// p ← p − c P(q) p with c = 1 − e^{−rτ}.
+    #[inline]
+    pub fn damp_flow<S: MechanicalSystem + ?Sized>(
+        sys: &S,
+        q: &Vector<S::Dim>,
+        p: &mut Vector<S::Dim>,
+        c: f64,
+        w: &mut Vector<S::Dim>,
+    ) where
+        DefaultAllocator: Allocator<S::Dim>,
+    {
+        if c == 0.0 {
+            return;
+        }
+        sys.project_damped(q, p, w);
+        p.axpy(-c, w, 1.0);
+    }
+
+    /// p ← p − τ g + P(q)(−c p + d g), with c = 1 − e^{−rτ} and d = τ(1 − φ₁(−rτ)).
+    #[inline]
+    #[allow(clippy::too_many_arguments)]
+    pub fn kick_damp_flow<S: MechanicalSystem + ?Sized>(
+        sys: &S,
+        q: &Vector<S::Dim>,
+        p: &mut Vector<S::Dim>,
+        g: &Vector<S::Dim>,
+        tau: f64,
+        (c, d): (f64, f64),
+        w: &mut Vector<S::Dim>,
+        pw: &mut Vector<S::Dim>,
+    ) where
+        DefaultAllocator: Allocator<S::Dim>,
+    {
+        w.copy_from(p);
+        *w *= -c;
+        w.axpy(d, g, 1.0);
+        sys.project_damped(q, w, pw);
+        p.axpy(-tau, g, 1.0);
+        *p += &*pw;
+    }
+
+    /// p ← (I + aP)⁻¹ p = p − a/(1 + a) P p with a = θ r τ.
+    #[inline]
+    pub fn damped_solve<S: MechanicalSystem + ?Sized>(
+        sys: &S,
+        q: &Vector<S::Dim>,
+        p: &mut Vector<S::Dim>,
+        theta: f64,
+        tau: f64,
+        w: &mut Vector<S::Dim>,
+    ) where
+        DefaultAllocator: Allocator<S::Dim>,
+    {
+        let a = theta * sys.damping_rate() * tau;
+        sys.project_damped(q, p, w);
+        p.axpy(-a / (1.0 + a), w, 1.0);
     }
 }

@@ -36,7 +36,8 @@ pub fn status_for(code: ErrorCode) -> StatusCode {
         ErrorCode::Overloaded => StatusCode::SERVICE_UNAVAILABLE,
         ErrorCode::Timeout => StatusCode::GATEWAY_TIMEOUT,
         ErrorCode::Internal => StatusCode::INTERNAL_SERVER_ERROR,
-        ErrorCode::RecordingTooLarge => StatusCode::INSUFFICIENT_STORAGE,
+        ErrorCode::RecordingTooLarge | ErrorCode::TooManySystems => StatusCode::INSUFFICIENT_STORAGE,
+        ErrorCode::BuiltInSystem => StatusCode::CONFLICT,
         ErrorCode::UnknownField
         | ErrorCode::MissingField
         | ErrorCode::InvalidType
@@ -49,7 +50,8 @@ pub fn status_for(code: ErrorCode) -> StatusCode {
         | ErrorCode::TooManyCells
         | ErrorCode::StepFailed
         | ErrorCode::InvalidRecording
-        | ErrorCode::NotASimulation => StatusCode::UNPROCESSABLE_ENTITY,
+        | ErrorCode::NotASimulation
+        | ErrorCode::InvalidExpression => StatusCode::UNPROCESSABLE_ENTITY,
     }
 }
 

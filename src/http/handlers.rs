@@ -1,4 +1,4 @@
-//! Handlers of the read-only routes: health, the catalogues, the OpenAPI document, and the
+//! Handlers of the read-only routes: health, the method catalogue, the OpenAPI document, and the
 //! answers for unknown routes and methods.
 
 use axum::extract::{Path, State};
@@ -12,9 +12,8 @@ use super::error::{ApiError, ErrorBody};
 use super::openapi::ApiDoc;
 use super::paths;
 use super::state::AppState;
-use crate::core::error::{ErrorCode, ErrorDetail, Field};
+use crate::core::error::{ErrorCode, ErrorDetail};
 use crate::core::methods::{MethodId, MethodInfo};
-use crate::core::systems::{self, SystemInfo};
 
 /// The health answer.
 #[derive(Clone, Debug, Serialize, ToSchema)]
@@ -40,27 +39,6 @@ pub async fn healthz(State(state): State<AppState>) -> Json<Health> {
         runs_in_progress: state.runs_in_progress(),
         max_concurrent: state.config.max_concurrent,
     })
-}
-
-/// The system catalogue: parameters with defaults and ranges, default initial state,
-/// invariants.
-#[utoipa::path(get, path = paths::SYSTEMS, tag = "catalog",
-    responses((status = 200, description = "Every system", body = Vec<SystemInfo>)))]
-pub async fn list_systems() -> Json<&'static [SystemInfo]> {
-    Json(systems::catalog())
-}
-
-/// One system of the catalogue.
-#[utoipa::path(get, path = paths::SYSTEM, tag = "catalog",
-    params(("id" = String, Path, description = "System id", example = "pendulum")),
-    responses(
-        (status = 200, description = "The system", body = SystemInfo),
-        (status = 404, description = "No such system", body = ErrorBody),
-    ))]
-pub async fn get_system(Path(id): Path<String>) -> Result<Json<&'static SystemInfo>, ApiError> {
-    systems::info(&id, &Field::new("id"))
-        .map(Json)
-        .map_err(|_| ApiError::not_found(format!("unknown system `{id}`")))
 }
 
 /// The method catalogue: order, kind, geometric properties, requirements and citation.

@@ -3,7 +3,8 @@
 //! | route | |
 //! |---|---|
 //! | `GET /healthz` | liveness and load |
-//! | `GET /api/v1/systems`, `GET /api/v1/systems/{id}` | the system catalogue |
+//! | `GET /api/v1/systems`, `GET /api/v1/systems/{id}` | the built-in systems and the stored definitions |
+//! | `POST /api/v1/systems`, `DELETE /api/v1/systems/{id}` | store a system definition, or remove one |
 //! | `GET /api/v1/methods`, `GET /api/v1/methods/{id}` | the method catalogue |
 //! | `POST /api/v1/simulate` | run a simulation (JSON, NDJSON with `Accept: application/x-ndjson`, a Rerun recording with `?format=rrd`) |
 //! | `POST /api/v1/stability` | linear stability maps over a (γ, h) grid |
@@ -31,6 +32,7 @@ pub mod stability;
 pub mod state;
 pub mod store;
 pub mod studies;
+pub mod systems;
 mod tempfile;
 
 use std::future::Future;
@@ -98,7 +100,9 @@ pub mod paths {
 pub const ROUTES: &[(&str, &str)] = &[
     ("get", paths::HEALTHZ),
     ("get", paths::SYSTEMS),
+    ("post", paths::SYSTEMS),
     ("get", paths::SYSTEM),
+    ("delete", paths::SYSTEM),
     ("get", paths::METHODS),
     ("get", paths::METHOD),
     ("post", paths::SIMULATE),
@@ -120,8 +124,14 @@ pub fn app(state: AppState) -> Router {
     let config = state.config.clone();
     let api = Router::new()
         .route(paths::HEALTHZ, get(handlers::healthz))
-        .route(paths::SYSTEMS, get(handlers::list_systems))
-        .route(paths::SYSTEM, get(handlers::get_system))
+        .route(
+            paths::SYSTEMS,
+            get(systems::list_systems).post(systems::create_system),
+        )
+        .route(
+            paths::SYSTEM,
+            get(systems::get_system).delete(systems::delete_system),
+        )
         .route(paths::METHODS, get(handlers::list_methods))
         .route(paths::METHOD, get(handlers::get_method))
         .route(paths::SIMULATE, post(simulate::simulate))
@@ -320,6 +330,7 @@ pub async fn serve(addr: SocketAddr, config: Config) -> std::io::Result<()> {
     tracing::info!(
         addr = %local,
         data_dir = %config.data_dir.display(),
+        systems_dir = %config.systems_dir.display(),
         recordings_max_bytes = config.recordings_max_bytes,
         max_concurrent = config.max_concurrent,
         max_steps = config.limits.max_steps,

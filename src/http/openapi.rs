@@ -6,9 +6,11 @@ use utoipa::OpenApi;
 use super::error::ErrorBody;
 use super::recordings::{self, RecordingCreated};
 use super::store::{Origin, RecordingEntry};
+use super::systems::{self, StoredSystem, SystemEntry};
 use super::{handlers, simulate, stability, studies};
 use crate::api::stability::{PointRequest, StabilityRequest};
 use crate::api::studies::{ConvergenceRequest, EnergyMapRequest, WorkPrecisionRequest};
+use crate::api::system::SystemDefinition;
 use crate::api::SimulateRequest;
 use crate::core::methods::MethodInfo;
 use crate::core::simulation::{SimulationDocument, StreamLine};
@@ -30,8 +32,10 @@ use crate::recording::read::{RecordedDocument, RecordedRun};
     ),
     paths(
         handlers::healthz,
-        handlers::list_systems,
-        handlers::get_system,
+        systems::list_systems,
+        systems::get_system,
+        systems::create_system,
+        systems::delete_system,
         handlers::list_methods,
         handlers::get_method,
         simulate::simulate,
@@ -65,6 +69,9 @@ use crate::recording::read::{RecordedDocument, RecordedRun};
         ConvergenceDocument,
         ConvergenceLine,
         SystemInfo,
+        SystemEntry,
+        StoredSystem,
+        SystemDefinition,
         MethodInfo,
         ErrorBody,
         handlers::Health,
@@ -75,7 +82,7 @@ use crate::recording::read::{RecordedDocument, RecordedRun};
         RecordedRun,
     )),
     tags(
-        (name = "catalog", description = "The systems and methods on offer"),
+        (name = "catalog", description = "The systems and methods on offer, and the system definitions users store"),
         (name = "simulation", description = "Running simulations"),
         (name = "stability", description = "Linear stability analysis on the damped oscillator"),
         (name = "studies", description = "Work–precision studies (time against accuracy per method), convergence studies (error against step size, with the observed orders, per method and coordinate chart) and energy-error maps across coordinate charts"),

@@ -273,7 +273,8 @@ async fn upload_recording(state: AppState, request: Request) -> Result<Response,
 
 /// Runs the simulation of `body` and stores its recording.
 async fn record_simulation(state: AppState, body: Value) -> Result<Response, ApiError> {
-    let request = SimulateRequest::from_value(&body)?;
+    let mut request = SimulateRequest::from_value(&body)?;
+    state.systems.substitute(&mut request.system);
     let sim = request.prepare(&state.config.limits)?;
     let work = Work::admit(&state, sim.methods.len()).await?;
     let workers = work.workers();

@@ -62,7 +62,8 @@ pub async fn simulate(
     ApiJson(body): ApiJson,
 ) -> Result<Response, ApiError> {
     let format = Format::requested(&query, &headers, Format::ALL)?;
-    let request = SimulateRequest::from_value(&body)?;
+    let mut request = SimulateRequest::from_value(&body)?;
+    state.systems.substitute(&mut request.system);
     let sim = request.prepare(&state.config.limits)?;
     let work = Work::admit(&state, sim.methods.len()).await?;
     let workers = work.workers();

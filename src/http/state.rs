@@ -1,5 +1,5 @@
 //! Service configuration and shared state: the limits, the semaphore that bounds concurrent
-//! runs, the shutdown signal that cancels runs, the recording store, and the helper that moves
+//! runs, the shutdown signal that cancels runs, the recording and system stores, and the helper that moves
 //! blocking work off the async runtime.
 
 use std::path::PathBuf;
@@ -10,6 +10,7 @@ use tokio::sync::{watch, OwnedSemaphorePermit, Semaphore};
 
 use super::error::ApiError;
 use super::store::RecordingStore;
+use super::systems::{SystemStore, DEFAULT_MAX_SYSTEMS, DEFAULT_SYSTEMS_DIR};
 use crate::core::simulation::Limits;
 
 /// Settings of the service.
@@ -36,6 +37,10 @@ pub struct Config {
     pub data_dir: PathBuf,
     /// Most bytes of stored recordings; past it the oldest are deleted.
     pub recordings_max_bytes: u64,
+    /// Directory of the stored system definitions.
+    pub systems_dir: PathBuf,
+    /// Most stored system definitions.
+    pub max_systems: usize,
 }
 
 /// The default directory of stored recordings.
@@ -63,6 +68,8 @@ impl Default for Config {
             shutdown_grace: Duration::from_secs(10),
             data_dir: PathBuf::from(DEFAULT_DATA_DIR),
             recordings_max_bytes: DEFAULT_RECORDINGS_MAX_BYTES,
+            systems_dir: PathBuf::from(DEFAULT_SYSTEMS_DIR),
+            max_systems: DEFAULT_MAX_SYSTEMS,
         }
     }
 }
@@ -74,17 +81,21 @@ pub struct AppState {
     pub config: Arc<Config>,
     /// The stored recordings.
     pub recordings: Arc<RecordingStore>,
+    /// The stored system definitions.
+    pub systems: Arc<SystemStore>,
     permits: Arc<Semaphore>,
     shutdown: Arc<watch::Sender<bool>>,
 }
 
 impl AppState {
-    /// State for `config`; reads back the recordings stored in its data directory.
+    /// State for `config`; reads back the recordings and system definitions stored before.
     pub fn new(config: Config) -> Self {
         let max = config.max_concurrent.max(1);
         let recordings = RecordingStore::open(&config.data_dir, config.recordings_max_bytes);
+        let systems = SystemStore::open(&config.systems_dir, config.max_systems);
         Self {
             recordings: Arc::new(recordings),
+            systems: Arc::new(systems),
             config: Arc::new(Config {
                 max_concurrent: max,
                 ..config

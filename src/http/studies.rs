@@ -120,7 +120,8 @@ pub async fn work_precision(
     ApiJson(body): ApiJson,
 ) -> Result<Response, ApiError> {
     let format = Format::requested(&query, &headers, Format::ALL)?;
-    let request = WorkPrecisionRequest::from_value(&body)?;
+    let mut request = WorkPrecisionRequest::from_value(&body)?;
+    state.systems.substitute(&mut request.system);
     let job = request.to_spec()?.prepare(&state.config.limits)?;
     let encode = move |doc: &WorkPrecisionDocument| {
         format.encode(doc, |d| recording::work_precision::rrd_bytes(&request, d))
@@ -169,9 +170,9 @@ pub async fn convergence(
     ApiJson(body): ApiJson,
 ) -> Result<Response, ApiError> {
     let format = Format::requested(&query, &headers, &[Format::Json, Format::Ndjson])?;
-    let job = ConvergenceRequest::from_value(&body)?
-        .to_spec()?
-        .prepare(&state.config.limits)?;
+    let mut request = ConvergenceRequest::from_value(&body)?;
+    state.systems.substitute(&mut request.system);
+    let job = request.to_spec()?.prepare(&state.config.limits)?;
     let encode = |doc: &ConvergenceDocument| serde_json::to_vec(doc).map_err(ApiError::internal);
     answer_settings::<ConvergenceLine>(state, format, job, convergence::run, encode, "").await
 }

@@ -63,7 +63,7 @@ impl Layout {
     /// The layout of a simulation's document.
     pub fn of(doc: &SimulationDocument) -> Self {
         Layout::new(
-            doc.system.world,
+            doc.system.world.clone(),
             doc.system.q0.len(),
             doc.runs.iter().map(|r| r.method.clone()).collect(),
             &doc.invariants,
@@ -74,7 +74,7 @@ impl Layout {
     /// The layout of a simulation announced by a stream's header.
     pub fn of_header(header: &StreamHeader) -> Self {
         Layout::new(
-            header.system.world,
+            header.system.world.clone(),
             header.system.q0.len(),
             header.methods.clone(),
             &header.invariants,

@@ -222,7 +222,7 @@ impl RunLogger {
             entity: m.clone(),
             invariants: layout.invariants.clone(),
             phase_dofs: layout.phase_dofs,
-            world: layout.world,
+            world: layout.world.clone(),
             per_row: layout.world.bodies(layout.dof).max(1),
             every: schedule.every,
             steps: schedule.steps,

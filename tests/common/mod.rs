@@ -150,11 +150,11 @@ pub fn default_system(
         &geomint::core::error::Field::new("params"),
     )
     .expect("default parameters are valid");
-    (info.build)(&params, chart, h)
+    info.build(&params, chart, h).expect("a catalogue system builds")
 }
 
 /// The catalogue entry of `id`.
-pub fn info(id: &str) -> &'static geomint::core::systems::SystemInfo {
+pub fn info(id: &str) -> std::sync::Arc<geomint::core::systems::SystemInfo> {
     geomint::core::systems::info(id, &geomint::core::error::Field::new("system"))
         .expect("a catalogue system")
 }

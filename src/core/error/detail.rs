@@ -58,6 +58,12 @@ pub enum ErrorCode {
     InvalidRecording,
     /// A stored recording is not of a simulation, so it has no samples to plot.
     NotASimulation,
+    /// An expression of a user-defined system is wrong (`position` says where).
+    InvalidExpression,
+    /// The system store holds its cap of definitions.
+    TooManySystems,
+    /// A built-in system cannot be deleted.
+    BuiltInSystem,
 }
 
 impl ErrorCode {
@@ -88,6 +94,9 @@ impl ErrorCode {
             RecordingTooLarge => "recording_too_large",
             InvalidRecording => "invalid_recording",
             NotASimulation => "not_a_simulation",
+            InvalidExpression => "invalid_expression",
+            TooManySystems => "too_many_systems",
+            BuiltInSystem => "built_in_system",
         }
     }
 }
@@ -112,6 +121,10 @@ pub struct ErrorDetail {
     /// the error concerns one.
     #[schema(example = "h")]
     pub field: Option<String>,
+    /// For an error in the text of an expression: the 0-based index of the character where it
+    /// is (Unicode characters, not bytes; the text's length for "at the end").
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub position: Option<usize>,
 }
 
 impl ErrorDetail {
@@ -121,6 +134,7 @@ impl ErrorDetail {
             code,
             message: message.into(),
             field: None,
+            position: None,
         }
     }
 
@@ -130,6 +144,7 @@ impl ErrorDetail {
             code,
             message: message.into(),
             field: Some(field.to_string()),
+            position: None,
         }
     }
 }
@@ -163,6 +178,7 @@ impl CoreError {
             Step { .. } => ErrorCode::StepFailed,
             Cancelled { .. } => ErrorCode::Overloaded,
             TimeLimit { .. } => ErrorCode::Timeout,
+            Expression { .. } => ErrorCode::InvalidExpression,
             _ => ErrorCode::InvalidValue,
         }
     }
@@ -174,6 +190,10 @@ impl From<&CoreError> for ErrorDetail {
             code: e.code(),
             message: e.to_string(),
             field: e.field().map(|f| f.to_string()),
+            position: match e {
+                CoreError::Expression { error, .. } => error.position(),
+                _ => None,
+            },
         }
     }
 }

@@ -11,6 +11,7 @@ pub mod field;
 
 use thiserror::Error;
 
+use super::expr::ExprError;
 use super::methods::{MethodId, Requirement};
 pub use detail::{ErrorCode, ErrorDetail};
 use field::out_of_range;
@@ -97,7 +98,7 @@ pub enum CoreError {
         /// The field.
         field: Field,
         /// What kind of name (`processor`, `potential`).
-        what: &'static str,
+        what: String,
         /// The name given.
         value: String,
         /// The names on offer.
@@ -379,6 +380,47 @@ pub enum CoreError {
         /// How it stopped.
         stop: String,
     },
+    /// An expression of a user-defined system that does not parse, uses a name it may not, or
+    /// whose derivatives or code grow past the limits.
+    #[error("{field}: {error}")]
+    Expression {
+        /// The field holding the expression, e.g. `system.damping.matrix[1][0]`.
+        field: Field,
+        /// What is wrong, with the character position for an error in the text.
+        error: ExprError,
+    },
+    /// A name declared twice in a user-defined system.
+    #[error("{field}: `{name}` is already declared at {first}")]
+    DuplicateName {
+        /// The second declaration.
+        field: Field,
+        /// The name.
+        name: String,
+        /// The first declaration.
+        first: Field,
+    },
+    /// A matrix that must be symmetric and is not.
+    #[error("{field}: the matrix must be symmetric, but this entry differs from {other}{}", at_point(at))]
+    NotSymmetric {
+        /// The entry (i, j).
+        field: Field,
+        /// The entry (j, i).
+        other: Field,
+        /// The configuration where the entries differ (empty when they differ as expressions).
+        at: Vec<f64>,
+    },
+    /// A matrix that must be positive (semi)definite and is not.
+    #[error("{field}: {what} must be {property}; {detail}")]
+    NotDefinite {
+        /// The field of the matrix.
+        field: Field,
+        /// Which matrix, in words.
+        what: &'static str,
+        /// What it must be (`symmetric positive definite`).
+        property: &'static str,
+        /// Where and what it is.
+        detail: String,
+    },
     /// A step failed (Newton did not converge, …).
     #[error("{}step {step} (t = {t}): {source}", run.as_ref().map(|r| format!("{r}: ")).unwrap_or_default())]
     Step {
@@ -434,6 +476,15 @@ fn too_many_steps(field: &Field, steps: u64, limit: u64, scope: StepScope) -> St
     }
 }
 
+fn at_point(q: &[f64]) -> String {
+    if q.is_empty() {
+        String::new()
+    } else {
+        let shown: Vec<String> = q.iter().map(|&x| show(x)).collect();
+        format!(" at q = [{}]", shown.join(", "))
+    }
+}
+
 fn divisor_detail(h: f64, span: f64, show_ratio: bool) -> String {
     if show_ratio {
         format!("t_end/h = {}", span / h)
@@ -478,7 +529,11 @@ macro_rules! match_field {
             | CoreError::NeedsInitialState { field: $field, .. }
             | CoreError::SingularStep { field: $field, .. }
             | CoreError::NotADivisor { field: $field, .. }
-            | CoreError::ReferenceUnfinished { field: $field, .. } => $always,
+            | CoreError::ReferenceUnfinished { field: $field, .. }
+            | CoreError::Expression { field: $field, .. }
+            | CoreError::DuplicateName { field: $field, .. }
+            | CoreError::NotSymmetric { field: $field, .. }
+            | CoreError::NotDefinite { field: $field, .. } => $always,
             CoreError::Step { field: $maybe, .. } | CoreError::TimeLimit { field: $maybe, .. } => {
                 $sometimes
             }

@@ -212,7 +212,7 @@ where
                 self.ensure_grad(sys, &z.q);
                 flows::kick_theta(sys, z, tau, theta.value(), &self.grad, &mut self.w1);
             }
-            Damp => flows::damp_with(sys, z, c, &mut self.w1),
+            Damp => flows::damp_with(sys, z, tau, c, &mut self.w1),
             KickDamp => {
                 self.ensure_grad(sys, &z.q);
                 flows::kick_damp_with(sys, z, tau, c, d, &self.grad, &mut self.w1, &mut self.w2);

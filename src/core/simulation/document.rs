@@ -131,18 +131,18 @@ impl Columns {
 /// Collects samples into [`Columns`].
 #[derive(Debug)]
 pub struct ColumnSink {
-    names: &'static [&'static str],
+    names: Vec<String>,
     columns: Columns,
     invariants: Vec<Vec<f64>>,
 }
 
 impl ColumnSink {
     /// An empty sink for a system with these invariant names.
-    pub fn new(names: &'static [&'static str]) -> Self {
+    pub fn new(names: Vec<String>) -> Self {
         Self {
+            invariants: vec![Vec::new(); names.len()],
             names,
             columns: Columns::default(),
-            invariants: vec![Vec::new(); names.len()],
         }
     }
 
@@ -334,7 +334,7 @@ impl SystemSummary {
             chart: sim.chart.id.to_string(),
             q0: sim.q0.clone(),
             p0: sim.p0.clone(),
-            world: sim.world(),
+            world: sim.world().clone(),
         }
     }
 }

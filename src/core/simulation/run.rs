@@ -85,7 +85,7 @@ impl Simulation {
                 start: &start,
                 reference,
                 sink,
-                invariants: vec![0.0; sys.invariant_names().len()],
+                invariants: vec![0.0; sys.invariant_count()],
                 cartesian: (!sys.is_cartesian()).then(|| (vec![0.0; n], vec![0.0; n])),
                 expected_det: (-sys.damping_rate() * self.schedule.h * n as f64).exp(),
                 last_det: None,

@@ -4,6 +4,7 @@
 //! fault as the caller's input names it ([`InputFields`]).
 
 use std::collections::BTreeMap;
+use std::sync::Arc;
 
 use crate::core::error::{CoreError, Field, Range, StepScope};
 use crate::core::methods::build::{self, Origin};
@@ -11,7 +12,7 @@ use crate::core::methods::Method;
 use crate::core::run::{step_count, Schedule};
 use crate::core::system::{MechanicalSystem, State};
 use crate::core::systems::{
-    self, AnySystem, ChartInfo, ParamValue, ParamValues, SystemInfo, World,
+    self, AnySystem, ChartInfo, ParamValue, ParamValues, SystemInfo, SystemRef, World,
 };
 use crate::with_system;
 
@@ -108,8 +109,8 @@ impl Default for InputFields {
 /// A simulation request in core terms (the HTTP and CLI layers parse into this).
 #[derive(Clone, Debug, PartialEq)]
 pub struct SimulationSpec {
-    /// System id.
-    pub system: String,
+    /// The system: a catalogue id or a user's definition.
+    pub system: SystemRef,
     /// System parameters by name (omitted ones take their defaults).
     pub params: BTreeMap<String, ParamValue>,
     /// Coordinate chart (default: the system's first, Cartesian one).
@@ -140,10 +141,10 @@ pub struct SimulationSpec {
 impl SimulationSpec {
     /// A spec of `system` with default parameters, state and sampling, running `methods` (named
     /// `methods[i]`) with step `h` to `t_end`.
-    pub fn new(system: &str, methods: &[Method], h: f64, t_end: f64) -> Self {
+    pub fn new(system: impl Into<SystemRef>, methods: &[Method], h: f64, t_end: f64) -> Self {
         let fields = InputFields::default();
         SimulationSpec {
-            system: system.to_string(),
+            system: system.into(),
             params: BTreeMap::new(),
             chart: None,
             initial_cartesian: false,
@@ -178,11 +179,13 @@ impl SimulationSpec {
 #[derive(Clone, Debug)]
 pub struct Simulation {
     /// The system's catalogue entry.
-    pub info: &'static SystemInfo,
+    pub info: Arc<SystemInfo>,
     /// All parameters, defaults filled in.
     pub params: ParamValues,
     /// The coordinate chart.
-    pub chart: &'static ChartInfo,
+    pub chart: ChartInfo,
+    /// How the system appears in space.
+    pub world: World,
     /// The system (and chart, when not the default) as messages name it.
     pub system_label: String,
     /// The concrete system.
@@ -228,18 +231,19 @@ impl Simulation {
     /// Validates a spec against the catalogues and the limits.
     pub fn prepare(spec: &SimulationSpec, limits: &Limits) -> Result<Simulation, CoreError> {
         let f = &spec.fields;
-        let info = systems::info(&spec.system, &f.system)?;
-        let chart = info.chart(spec.chart.as_deref(), &f.chart)?;
-        let params = systems::params::resolve(info, &spec.params, &f.params)?;
+        let info = spec.system.resolve(&f.system)?;
+        let chart = *info.chart(spec.chart.as_deref(), &f.chart)?;
+        let params = systems::params::resolve(&info, &spec.params, &f.params)?;
         let h = Range::POSITIVE.check(spec.h, &f.h)?;
-        let system = (info.build)(&params, chart, h);
+        let system = info.build(&params, &chart, h)?;
+        let world = info.world(&params)?;
         let default_chart = chart.id == info.charts[0].id;
         let system_label = if default_chart {
             info.id.to_string()
         } else {
             format!("{} ({} chart)", info.id, chart.id)
         };
-        let (q0, p0) = initial_state(spec, info, chart, &system)?;
+        let (q0, p0) = initial_state(spec, &info, &chart, &system)?;
         let t_end = Range::POSITIVE.check(spec.t_end, &f.t_end)?;
         if spec.methods.is_empty() {
             return Err(CoreError::Empty {
@@ -314,6 +318,7 @@ impl Simulation {
             info,
             params,
             chart,
+            world,
             system_label,
             system,
             methods: spec.methods.iter().map(|m| m.method).collect(),
@@ -326,13 +331,13 @@ impl Simulation {
     }
 
     /// The system's id.
-    pub fn system_id(&self) -> &'static str {
-        self.info.id
+    pub fn system_id(&self) -> &str {
+        &self.info.id
     }
 
     /// How the system appears in space.
-    pub fn world(&self) -> World {
-        self.info.world
+    pub fn world(&self) -> &World {
+        &self.world
     }
 
     /// Whether energy errors are available (an exact solution, or the reference when asked).
@@ -341,8 +346,8 @@ impl Simulation {
     }
 
     /// Names of the system's invariants.
-    pub fn invariant_names(&self) -> &'static [&'static str] {
-        with_system!(&self.system, s => s.invariant_names())
+    pub fn invariant_names(&self) -> Vec<String> {
+        self.info.invariants.iter().map(|n| n.to_string()).collect()
     }
 
     /// The exact final state (q, p) at the end of the schedule, where the system has a closed

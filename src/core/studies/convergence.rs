@@ -26,7 +26,7 @@ use crate::core::run::{Budget, StopReason};
 use crate::core::simulation::{
     InitialCoordinates, InputFields, Limits, MethodAt, SimulationSpec, SystemSummary,
 };
-use crate::core::systems::{self, ParamValue};
+use crate::core::systems::{ParamValue, SystemRef};
 
 /// Errors at or below this are round-off, which does not shrink with h: the fits leave them out.
 pub const ROUND_OFF: f64 = 1e-14;
@@ -35,7 +35,7 @@ pub const ROUND_OFF: f64 = 1e-14;
 #[derive(Clone, Debug, PartialEq)]
 pub struct ConvergenceSpec {
     /// System id.
-    pub system: String,
+    pub system: SystemRef,
     /// System parameters.
     pub params: BTreeMap<String, ParamValue>,
     /// One chart (`chart`), or none for the default.
@@ -215,7 +215,7 @@ impl ConvergenceSpec {
 
     /// Validates the study (cheap: nothing is integrated).
     pub fn prepare(&self, limits: &Limits) -> Result<StudyJob, CoreError> {
-        let info = systems::info(&self.system, &Field::new("system"))?;
+        let info = self.system.resolve(&Field::new("system"))?;
         let charts = self.chart_list()?;
         for (chart, field) in &charts {
             info.chart(*chart, field)?;
@@ -292,7 +292,7 @@ impl ConvergenceSpec {
             params: self.params.clone(),
             q0: Some(x0.clone()),
             p0: Some(px0.clone()),
-            ..SimulationSpec::new(&self.system, &[], 0.0, self.t_end)
+            ..SimulationSpec::new(self.system.clone(), &[], 0.0, self.t_end)
         };
         let reference = prepare_reference(
             first,

@@ -379,7 +379,7 @@ impl EnergyMapSpec {
         params
             .entry("g".to_string())
             .or_insert(ParamValue::Number(FIG6_G));
-        let resolved = systems::params::resolve(info, &params, &Field::new("params"))?;
+        let resolved = systems::params::resolve(&info, &params, &Field::new("params"))?;
         let h = Range::POSITIVE.check(self.h, &Field::new("h"))?;
         let t_max = Range::POSITIVE.check(self.t_max, &Field::new("t_max"))?;
         if let Method::Reference { .. } = self.method.method {

@@ -330,7 +330,7 @@ impl Truth {
 /// Collects what a study measures from one run's samples.
 pub struct Measure<'a> {
     /// The system's invariant names.
-    pub names: &'static [&'static str],
+    pub names: Vec<String>,
     reference_energies: Option<&'a [f64]>,
     /// max_k |H(t_k) − H_exact(t_k)|.
     pub max_energy_error: f64,
@@ -345,7 +345,7 @@ pub struct Measure<'a> {
 }
 
 impl<'a> Measure<'a> {
-    fn new(names: &'static [&'static str], reference_energies: Option<&'a [f64]>) -> Self {
+    fn new(names: Vec<String>, reference_energies: Option<&'a [f64]>) -> Self {
         Measure {
             names,
             reference_energies,

@@ -25,7 +25,7 @@ use crate::core::error::{CoreError, Field};
 use crate::core::methods::Method;
 use crate::core::run::{Budget, StopReason};
 use crate::core::simulation::{Limits, SimulationSpec, SystemSummary};
-use crate::core::systems::ParamValue;
+use crate::core::systems::{ParamValue, SystemRef};
 
 /// Default number of sample times.
 pub const DEFAULT_SAMPLES: u64 = 50;
@@ -34,7 +34,7 @@ pub const DEFAULT_SAMPLES: u64 = 50;
 #[derive(Clone, Debug, PartialEq)]
 pub struct WorkPrecisionSpec {
     /// System id.
-    pub system: String,
+    pub system: SystemRef,
     /// System parameters.
     pub params: BTreeMap<String, ParamValue>,
     /// Initial positions.
@@ -168,7 +168,7 @@ impl WorkPrecisionSpec {
             params: self.params.clone(),
             q0: self.q0.clone(),
             p0: self.p0.clone(),
-            ..SimulationSpec::new(&self.system, &[], 0.0, self.t_end)
+            ..SimulationSpec::new(self.system.clone(), &[], 0.0, self.t_end)
         };
         let mut template = template;
         template.fields.chart = Field::new("system");

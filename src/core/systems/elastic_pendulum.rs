@@ -8,7 +8,9 @@
 
 use nalgebra::{DMatrix, U3};
 
-use super::{AnySystem, ChartInfo, ParamSpec, ParamValues, SystemInfo, World};
+use std::borrow::Cow;
+
+use super::{AnySystem, Builder, ChartInfo, ParamSpec, ParamValues, SystemInfo, World};
 use crate::core::system::{MechanicalSystem, Structure, Vector};
 
 /// The damped elastic 3-D pendulum.
@@ -81,8 +83,8 @@ impl MechanicalSystem for ElasticPendulum3d {
         }
         0
     }
-    fn invariant_names(&self) -> &'static [&'static str] {
-        &["J3"]
+    fn invariant_count(&self) -> usize {
+        1
     }
     fn invariants(&self, _t: f64, q: &Vector<U3>, p: &Vector<U3>, out: &mut [f64]) {
         out[0] = q[0] * p[1] - q[1] * p[0];
@@ -225,8 +227,8 @@ impl MechanicalSystem for ElasticPendulum3dCylindrical {
         q1[2] = q[2] + h * p[2] * inv_m;
         true
     }
-    fn invariant_names(&self) -> &'static [&'static str] {
-        &["J3"]
+    fn invariant_count(&self) -> usize {
+        1
     }
     fn invariants(&self, _t: f64, _q: &Vector<U3>, p: &Vector<U3>, out: &mut [f64]) {
         out[0] = p[1];
@@ -302,19 +304,19 @@ const CYLINDRICAL: ChartInfo = ChartInfo::new(
 /// The catalogue entry of `elastic_pendulum_3d`.
 pub(super) fn entry() -> SystemInfo {
     SystemInfo {
-        id: "elastic_pendulum_3d",
-        name: "Elastic 3-D pendulum, damped along the spring",
-        description: "A mass on a spring in R³ under gravity (0, 0, −g), V = k/2 (l − |q|)² + m g q_z, Rayleigh damping along the spring only, D = q qᵀ/|q|² (paper 000 Sec. 6.2, eq. 16). J₃ = (q × p)_z is conserved for every ε.",
+        id: Cow::Borrowed("elastic_pendulum_3d"),
+        name: Cow::Borrowed("Elastic 3-D pendulum, damped along the spring"),
+        description: Cow::Borrowed("A mass on a spring in R³ under gravity (0, 0, −g), V = k/2 (l − |q|)² + m g q_z, Rayleigh damping along the spring only, D = q qᵀ/|q|² (paper 000 Sec. 6.2, eq. 16). J₃ = (q × p)_z is conserved for every ε."),
         degrees_of_freedom: 3,
         charts: vec![CARTESIAN, CYLINDRICAL],
         params: vec![MASS, STIFFNESS, REST_LENGTH, GRAVITY, EPSILON],
         q0: vec![0.0, 1.558_845_73, -0.6],
         p0: vec![1.341_640_79, 0.0, 0.0],
-        invariants: &["J3"],
+        invariants: vec![Cow::Borrowed("J3")],
         exact_solution: false,
         conformal_damping: false,
         world: World::Spring,
-        build: |p: &ParamValues, chart: &ChartInfo, _: f64| {
+        build: Builder::Catalog(|p: &ParamValues, chart: &ChartInfo, _: f64| {
             let pendulum = ElasticPendulum3d {
                 m: p.number(&MASS),
                 k: p.number(&STIFFNESS),
@@ -327,6 +329,6 @@ pub(super) fn entry() -> SystemInfo {
             } else {
                 AnySystem::ElasticPendulum3d(pendulum)
             }
-        },
+        }),
     }
 }

@@ -16,7 +16,9 @@
 
 use nalgebra::{DMatrix, U1};
 
-use super::{AnySystem, ChartInfo, ParamSpec, ParamValues, SystemInfo, World};
+use std::borrow::Cow;
+
+use super::{AnySystem, Builder, ChartInfo, ParamSpec, ParamValues, SystemInfo, World};
 use crate::core::system::{MechanicalSystem, State, Structure, Vector};
 
 /// y' = −αy.
@@ -268,9 +270,9 @@ const TRANSFORMED: &str = "transformed";
 /// The catalogue entry of `exponential_decay`.
 pub(super) fn exponential_decay_entry() -> SystemInfo {
     SystemInfo {
-        id: "exponential_decay",
-        name: "Exponential decay (first-order ODE)",
-        description: "y' = −αy (paper 001 eq. 14), run as the cotangent lift H = p f(y) (p stays 0 from p0 = 0, H = 0). In the chart `transformed`, ȳ = ln(y)/α (eq. 15) obeys ȳ' = −1 and explicit Euler is exact.",
+        id: Cow::Borrowed("exponential_decay"),
+        name: Cow::Borrowed("Exponential decay (first-order ODE)"),
+        description: Cow::Borrowed("y' = −αy (paper 001 eq. 14), run as the cotangent lift H = p f(y) (p stays 0 from p0 = 0, H = 0). In the chart `transformed`, ȳ = ln(y)/α (eq. 15) obeys ȳ' = −1 and explicit Euler is exact."),
         degrees_of_freedom: 1,
         charts: vec![
             ChartInfo::new("original", &["y"], false, "y' = −αy; H = −α p y."),
@@ -284,25 +286,25 @@ pub(super) fn exponential_decay_entry() -> SystemInfo {
         params: vec![ALPHA],
         q0: vec![1.0],
         p0: vec![0.0],
-        invariants: &[],
+        invariants: Vec::new(),
         exact_solution: true,
         conformal_damping: false,
         world: World::Line,
-        build: |p: &ParamValues, chart: &ChartInfo, _: f64| {
+        build: Builder::Catalog(|p: &ParamValues, chart: &ChartInfo, _: f64| {
             AnySystem::ExponentialDecay(ExponentialDecay {
                 alpha: p.number(&ALPHA),
                 transformed: chart.id == TRANSFORMED,
             })
-        },
+        }),
     }
 }
 
 /// The catalogue entry of `gompertz`.
 pub(super) fn gompertz_entry() -> SystemInfo {
     SystemInfo {
-        id: "gompertz",
-        name: "Gompertz growth (first-order ODE)",
-        description: "y' = y (a − b ln y) (paper 001 eq. 17), run as the cotangent lift H = p f(y). In the chart `transformed`, ȳ = −(1/b) ln(1 − (b/a) ln y) (eq. 18 up to its additive constant) obeys ȳ' = 1 and explicit Euler is exact; it covers 0 < y < e^(a/b).",
+        id: Cow::Borrowed("gompertz"),
+        name: Cow::Borrowed("Gompertz growth (first-order ODE)"),
+        description: Cow::Borrowed("y' = y (a − b ln y) (paper 001 eq. 17), run as the cotangent lift H = p f(y). In the chart `transformed`, ȳ = −(1/b) ln(1 − (b/a) ln y) (eq. 18 up to its additive constant) obeys ȳ' = 1 and explicit Euler is exact; it covers 0 < y < e^(a/b)."),
         degrees_of_freedom: 1,
         charts: vec![
             ChartInfo::new("original", &["y"], false, "y' = y (a − b ln y); H = p y (a − b ln y)."),
@@ -316,16 +318,16 @@ pub(super) fn gompertz_entry() -> SystemInfo {
         params: vec![GROWTH_A, GROWTH_B],
         q0: vec![3.0],
         p0: vec![0.0],
-        invariants: &[],
+        invariants: Vec::new(),
         exact_solution: true,
         conformal_damping: false,
         world: World::Line,
-        build: |p: &ParamValues, chart: &ChartInfo, _: f64| {
+        build: Builder::Catalog(|p: &ParamValues, chart: &ChartInfo, _: f64| {
             AnySystem::Gompertz(Gompertz {
                 a: p.number(&GROWTH_A),
                 b: p.number(&GROWTH_B),
                 transformed: chart.id == TRANSFORMED,
             })
-        },
+        }),
     }
 }

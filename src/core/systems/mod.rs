@@ -5,6 +5,7 @@
 //! [`AnySystem`] is the one place where a run dispatches dynamically: [`with_system!`](crate::with_system) matches it
 //! once, and everything below runs monomorphised for the concrete system type.
 
+pub mod custom;
 mod elastic_pendulum;
 mod first_order;
 mod nbody;
@@ -14,7 +15,8 @@ mod pendulum;
 mod planar;
 pub mod world;
 
-use std::sync::LazyLock;
+use std::borrow::Cow;
+use std::sync::{Arc, LazyLock};
 
 use serde::Serialize;
 use utoipa::ToSchema;
@@ -28,6 +30,7 @@ pub use pendulum::Pendulum;
 pub use planar::{
     planar_pendulum, wrap_angle, PlanarCartesian, PlanarKind, PlanarPolar, PlanarSpring,
 };
+pub use custom::system::CustomSystem;
 pub use world::World;
 
 use crate::core::error::{CoreError, Field};
@@ -67,7 +70,22 @@ impl ChartInfo {
 
 /// How a system is built from its parameters in a chart, for a run of step `h` (the
 /// oscillator's compensating chart, 001 eq. 82, depends on h).
-pub type Builder = fn(&ParamValues, &ChartInfo, f64) -> AnySystem;
+#[derive(Clone)]
+pub enum Builder {
+    /// A system of the catalogue, built by its own function.
+    Catalog(fn(&ParamValues, &ChartInfo, f64) -> AnySystem),
+    /// A system defined by a user, compiled from its model.
+    Custom(Arc<custom::CustomModel>),
+}
+
+impl std::fmt::Debug for Builder {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Builder::Catalog(_) => f.write_str("Builder::Catalog"),
+            Builder::Custom(_) => f.write_str("Builder::Custom"),
+        }
+    }
+}
 
 /// A catalogue entry.
 #[derive(Clone, Debug, Serialize, ToSchema)]
@@ -75,11 +93,13 @@ pub type Builder = fn(&ParamValues, &ChartInfo, f64) -> AnySystem;
 pub struct SystemInfo {
     /// Identifier used in requests.
     #[schema(value_type = SystemId, example = "pendulum")]
-    pub id: &'static str,
+    pub id: Cow<'static, str>,
     /// Human-readable name.
-    pub name: &'static str,
+    #[schema(value_type = String)]
+    pub name: Cow<'static, str>,
     /// What the system is, with its paper.
-    pub description: &'static str,
+    #[schema(value_type = String)]
+    pub description: Cow<'static, str>,
     /// Degrees of freedom (for N bodies: of the default case).
     pub degrees_of_freedom: usize,
     /// Coordinate charts the system is offered in; the first is the default, and its
@@ -93,7 +113,8 @@ pub struct SystemInfo {
     /// Default initial momenta.
     pub p0: Vec<f64>,
     /// Names of the invariants reported per sample.
-    pub invariants: &'static [&'static str],
+    #[schema(value_type = Vec<String>)]
+    pub invariants: Vec<Cow<'static, str>>,
     /// Whether a closed-form solution gives the energy error.
     pub exact_solution: bool,
     /// Whether the damping is conformal (so `gamma`/`epsilon` are both accepted).
@@ -107,6 +128,35 @@ pub struct SystemInfo {
 }
 
 impl SystemInfo {
+    /// The system of these parameters in `chart`, for a run of step `h`.
+    pub fn build(
+        &self,
+        params: &ParamValues,
+        chart: &ChartInfo,
+        h: f64,
+    ) -> Result<AnySystem, CoreError> {
+        match &self.build {
+            Builder::Catalog(build) => Ok(build(params, chart, h)),
+            Builder::Custom(model) => model.instantiate(params),
+        }
+    }
+
+    /// How the system appears in space with these parameters.
+    pub fn world(&self, params: &ParamValues) -> Result<World, CoreError> {
+        match &self.build {
+            Builder::Catalog(_) => Ok(self.world.clone()),
+            Builder::Custom(model) => model.world(params),
+        }
+    }
+
+    /// The user's model, for a user-defined system.
+    pub fn custom_model(&self) -> Option<&custom::CustomModel> {
+        match &self.build {
+            Builder::Catalog(_) => None,
+            Builder::Custom(model) => Some(model),
+        }
+    }
+
     /// The chart `requested` (default: the first), or an error naming `field`.
     pub fn chart(&self, requested: Option<&str>, field: &Field) -> Result<&ChartInfo, CoreError> {
         match requested {
@@ -127,8 +177,8 @@ impl SystemInfo {
 }
 
 /// The whole catalogue, in a stable order, built once.
-static CATALOG: LazyLock<Vec<SystemInfo>> = LazyLock::new(|| {
-    vec![
+static CATALOG: LazyLock<Vec<Arc<SystemInfo>>> = LazyLock::new(|| {
+    [
         oscillator::entry(),
         pendulum::entry(),
         elastic_pendulum::entry(),
@@ -138,23 +188,77 @@ static CATALOG: LazyLock<Vec<SystemInfo>> = LazyLock::new(|| {
         first_order::exponential_decay_entry(),
         first_order::gompertz_entry(),
     ]
+    .into_iter()
+    .map(Arc::new)
+    .collect()
 });
 
 /// The whole catalogue, in a stable order.
-pub fn catalog() -> &'static [SystemInfo] {
+pub fn catalog() -> &'static [Arc<SystemInfo>] {
     &CATALOG
 }
 
 /// The catalogue entry for `id`; the error names `field`.
-pub fn info(id: &str, field: &Field) -> Result<&'static SystemInfo, CoreError> {
+pub fn info(id: &str, field: &Field) -> Result<Arc<SystemInfo>, CoreError> {
     catalog()
         .iter()
         .find(|s| s.id == id)
+        .cloned()
         .ok_or_else(|| CoreError::UnknownSystem {
             field: field.clone(),
             id: id.to_string(),
             known: catalog().iter().map(|s| s.id.to_string()).collect(),
         })
+}
+
+/// A system as a request names it: an id of the catalogue, or a user's definition checked into
+/// an entry of its own. (An interface that keeps users' definitions replaces their ids by the
+/// definitions before the core sees them.)
+#[derive(Clone, Debug)]
+pub enum SystemRef {
+    /// A catalogue id.
+    Id(String),
+    /// A user-defined system.
+    Defined(Arc<SystemInfo>),
+}
+
+impl SystemRef {
+    /// The entry; an unknown id is an error naming `field`.
+    pub fn resolve(&self, field: &Field) -> Result<Arc<SystemInfo>, CoreError> {
+        match self {
+            SystemRef::Id(id) => info(id, field),
+            SystemRef::Defined(info) => Ok(Arc::clone(info)),
+        }
+    }
+}
+
+impl PartialEq for SystemRef {
+    /// The same id, or the same definition.
+    fn eq(&self, other: &Self) -> bool {
+        match (self, other) {
+            (SystemRef::Id(a), SystemRef::Id(b)) => a == b,
+            (SystemRef::Defined(a), SystemRef::Defined(b)) => a.id == b.id,
+            _ => false,
+        }
+    }
+}
+
+impl From<&str> for SystemRef {
+    fn from(id: &str) -> Self {
+        SystemRef::Id(id.to_string())
+    }
+}
+
+impl From<String> for SystemRef {
+    fn from(id: String) -> Self {
+        SystemRef::Id(id)
+    }
+}
+
+impl From<&String> for SystemRef {
+    fn from(id: &String) -> Self {
+        SystemRef::Id(id.clone())
+    }
 }
 
 /// The schema of a system id: one of the catalogue's.
@@ -164,7 +268,7 @@ impl utoipa::PartialSchema for SystemId {
     fn schema() -> utoipa::openapi::RefOr<utoipa::openapi::schema::Schema> {
         crate::core::schema::string_enum(
             "A system id (see GET /api/v1/systems).",
-            catalog().iter().map(|s| s.id),
+            catalog().iter().map(|s| &*s.id),
         )
     }
 }
@@ -214,6 +318,14 @@ pub enum AnySystem {
     ExponentialDecay(ExponentialDecay),
     /// See [`Gompertz`].
     Gompertz(Gompertz),
+    /// A user-defined system of one degree of freedom.
+    Custom1(CustomSystem<nalgebra::U1>),
+    /// A user-defined system of two degrees of freedom.
+    Custom2(CustomSystem<nalgebra::U2>),
+    /// A user-defined system of three degrees of freedom.
+    Custom3(CustomSystem<nalgebra::U3>),
+    /// A user-defined system of more degrees of freedom.
+    CustomN(CustomSystem<nalgebra::Dyn>),
 }
 
 /// Runs `$body` with `$s` bound to the concrete system inside an [`AnySystem`].
@@ -231,6 +343,10 @@ macro_rules! with_system {
             $crate::core::systems::AnySystem::PlanarPolar($s) => $body,
             $crate::core::systems::AnySystem::ExponentialDecay($s) => $body,
             $crate::core::systems::AnySystem::Gompertz($s) => $body,
+            $crate::core::systems::AnySystem::Custom1($s) => $body,
+            $crate::core::systems::AnySystem::Custom2($s) => $body,
+            $crate::core::systems::AnySystem::Custom3($s) => $body,
+            $crate::core::systems::AnySystem::CustomN($s) => $body,
         }
     };
 }

@@ -7,7 +7,9 @@
 
 use nalgebra::Dyn;
 
-use super::{AnySystem, ChartInfo, ParamKind, ParamSpec, ParamValues, SystemInfo, World};
+use std::borrow::Cow;
+
+use super::{AnySystem, Builder, ChartInfo, ParamKind, ParamSpec, ParamValues, SystemInfo, World};
 use crate::core::system::{MechanicalSystem, Structure, Vector};
 
 /// The pair interaction.
@@ -118,8 +120,8 @@ impl MechanicalSystem for NBody {
     fn damping_rate(&self) -> f64 {
         2.0 * self.gamma
     }
-    fn invariant_names(&self) -> &'static [&'static str] {
-        &["L_x", "L_y", "L_z", "L_conformal"]
+    fn invariant_count(&self) -> usize {
+        4
     }
     fn invariants(&self, t: f64, q: &Vector<Dyn>, p: &Vector<Dyn>, out: &mut [f64]) {
         let mut l = nalgebra::Vector3::zeros();
@@ -137,8 +139,8 @@ impl MechanicalSystem for NBody {
 /// Most bodies.
 const MAX_BODIES: usize = 64;
 const MASSES: ParamSpec = ParamSpec {
-    name: "masses",
-    description: "Body masses; q0 and p0 hold 3 entries per body (x, y, z).",
+    name: Cow::Borrowed("masses"),
+    description: Cow::Borrowed("Body masses; q0 and p0 hold 3 entries per body (x, y, z)."),
     kind: ParamKind::NumberList {
         default: &[1.0, 1.0, 1.0],
         min: 0.0,
@@ -147,8 +149,8 @@ const MASSES: ParamSpec = ParamSpec {
     },
 };
 const POTENTIAL: ParamSpec = ParamSpec {
-    name: "potential",
-    description: "The pair interaction.",
+    name: Cow::Borrowed("potential"),
+    description: Cow::Borrowed("The pair interaction."),
     kind: ParamKind::Choice {
         default: "gravity",
         options: &["gravity", "lennard_jones"],
@@ -218,19 +220,19 @@ fn figure_eight() -> (Vec<f64>, Vec<f64>) {
 pub(super) fn entry() -> SystemInfo {
     let (q0, p0) = figure_eight();
     SystemInfo {
-        id: "nbody",
-        name: "N bodies with linear damping",
-        description: "N point masses in R³ with a pairwise radial potential (Newtonian gravity with optional softening, or Lennard-Jones) and p' = −∇V − 2γp. The total angular momentum decays exactly as e^{−2γt}. Default: the figure-eight three-body choreography.",
+        id: Cow::Borrowed("nbody"),
+        name: Cow::Borrowed("N bodies with linear damping"),
+        description: Cow::Borrowed("N point masses in R³ with a pairwise radial potential (Newtonian gravity with optional softening, or Lennard-Jones) and p' = −∇V − 2γp. The total angular momentum decays exactly as e^{−2γt}. Default: the figure-eight three-body choreography."),
         degrees_of_freedom: 9,
         charts: vec![CARTESIAN],
         params: vec![MASSES, POTENTIAL, G, SOFTENING, LJ_EPSILON, LJ_SIGMA, GAMMA],
         q0,
         p0,
-        invariants: &["L_x", "L_y", "L_z", "L_conformal"],
+        invariants: vec![Cow::Borrowed("L_x"), Cow::Borrowed("L_y"), Cow::Borrowed("L_z"), Cow::Borrowed("L_conformal")],
         exact_solution: false,
         conformal_damping: true,
         world: World::Bodies,
-        build: |p: &ParamValues, _: &ChartInfo, _: f64| {
+        build: Builder::Catalog(|p: &ParamValues, _: &ChartInfo, _: f64| {
             let potential = if p.text(&POTENTIAL) == "lennard_jones" {
                 PairPotential::LennardJones {
                     epsilon: p.number(&LJ_EPSILON),
@@ -247,6 +249,6 @@ pub(super) fn entry() -> SystemInfo {
                 potential,
                 gamma: p.number(&GAMMA),
             })
-        },
+        }),
     }
 }

@@ -3,7 +3,9 @@
 
 use nalgebra::{DMatrix, U1};
 
-use super::{AnySystem, ChartInfo, ParamSpec, ParamValues, SystemInfo, World};
+use std::borrow::Cow;
+
+use super::{AnySystem, Builder, ChartInfo, ParamSpec, ParamValues, SystemInfo, World};
 use crate::core::system::{MechanicalSystem, State, Structure, Vector};
 
 /// The damped harmonic oscillator.
@@ -327,19 +329,19 @@ const COMPENSATING: ChartInfo = ChartInfo::new(
 /// The catalogue entry of `harmonic_oscillator`.
 pub(super) fn entry() -> SystemInfo {
     SystemInfo {
-        id: "harmonic_oscillator",
-        name: "Damped harmonic oscillator",
-        description: "q'' + 2γq' + ω²q = 0 with T = p²/2, V = ω²q²/2 (paper 003 eq. 2.5); exact solution in the under-, critically and over-damped regimes.",
+        id: Cow::Borrowed("harmonic_oscillator"),
+        name: Cow::Borrowed("Damped harmonic oscillator"),
+        description: Cow::Borrowed("q'' + 2γq' + ω²q = 0 with T = p²/2, V = ω²q²/2 (paper 003 eq. 2.5); exact solution in the under-, critically and over-damped regimes."),
         degrees_of_freedom: 1,
         charts: vec![CARTESIAN, COMPENSATING],
         params: vec![OMEGA, GAMMA, MARGIN],
         q0: vec![1.0],
         p0: vec![0.0],
-        invariants: &[],
+        invariants: Vec::new(),
         exact_solution: true,
         conformal_damping: true,
         world: World::Line,
-        build: |p: &ParamValues, chart: &ChartInfo, h: f64| {
+        build: Builder::Catalog(|p: &ParamValues, chart: &ChartInfo, h: f64| {
             let oscillator = HarmonicOscillator {
                 omega: p.number(&OMEGA),
                 gamma: p.number(&GAMMA),
@@ -353,6 +355,6 @@ pub(super) fn entry() -> SystemInfo {
             } else {
                 AnySystem::HarmonicOscillator(oscillator)
             }
-        },
+        }),
     }
 }

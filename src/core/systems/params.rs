@@ -6,6 +6,7 @@
 //! ([`ParamValues::number`]), so a parameter's name is written once; a value missing from the set
 //! reads as the spec's default, never as a silent zero.
 
+use std::borrow::Cow;
 use std::collections::BTreeMap;
 
 use serde::Serialize;
@@ -51,13 +52,15 @@ pub enum ParamKind {
 }
 
 /// One parameter of a system.
-#[derive(Clone, Copy, Debug, Serialize, PartialEq, ToSchema)]
+#[derive(Clone, Debug, Serialize, PartialEq, ToSchema)]
 #[schema(as = ParamEntry)]
 pub struct ParamSpec {
     /// Name used in `params`.
-    pub name: &'static str,
+    #[schema(value_type = String)]
+    pub name: Cow<'static, str>,
     /// What it means.
-    pub description: &'static str,
+    #[schema(value_type = String)]
+    pub description: Cow<'static, str>,
     /// Accepted values.
     #[serde(flatten)]
     pub kind: ParamKind,
@@ -75,8 +78,8 @@ impl ParamSpec {
         max: f64,
     ) -> ParamSpec {
         ParamSpec {
-            name,
-            description,
+            name: Cow::Borrowed(name),
+            description: Cow::Borrowed(description),
             kind: ParamKind::Number {
                 default,
                 min,
@@ -135,7 +138,7 @@ impl ParamValues {
     /// The value of `spec` (its default when not set).
     fn value(&self, spec: &ParamSpec) -> ParamValue {
         self.0
-            .get(spec.name)
+            .get(&*spec.name)
             .cloned()
             .unwrap_or_else(|| spec.default_value())
     }
@@ -167,6 +170,14 @@ impl ParamValues {
         }
     }
 
+    /// The number named `name`, when it is set and is a number.
+    pub fn get(&self, name: &str) -> Option<f64> {
+        match self.0.get(name) {
+            Some(ParamValue::Number(x)) => Some(*x),
+            _ => None,
+        }
+    }
+
     /// Every parameter by name.
     pub fn iter(&self) -> impl Iterator<Item = (&str, &ParamValue)> {
         self.0.iter().map(|(k, v)| (k.as_str(), v))
@@ -190,7 +201,7 @@ pub fn resolve(
         });
     }
     for name in given.keys() {
-        let known = info.params.iter().any(|p| p.name == name) || (alias && name == "epsilon");
+        let known = info.params.iter().any(|p| p.name == *name) || (alias && name == "epsilon");
         if !known {
             return Err(CoreError::UnknownParameter {
                 field: field.key(name),
@@ -205,7 +216,7 @@ pub fn resolve(
         let (name, scale) = if spec.name == "gamma" && alias {
             ("epsilon", 2.0)
         } else {
-            (spec.name, 1.0)
+            (&*spec.name, 1.0)
         };
         let at = field.key(name);
         let value = match given.get(name) {
@@ -229,7 +240,7 @@ fn check(
         field: at.clone(),
         expected,
     };
-    match (spec.kind, v) {
+    match (&spec.kind, v) {
         (
             ParamKind::Number {
                 min,
@@ -239,7 +250,7 @@ fn check(
             },
             ParamValue::Number(x),
         ) => {
-            let range = Range::closed(min * scale, min_exclusive, max * scale);
+            let range = Range::closed(*min * scale, *min_exclusive, *max * scale);
             range.check(*x, at).map(|x| ParamValue::Number(x / scale))
         }
         (ParamKind::Number { .. }, _) => Err(wrong("a number")),
@@ -249,7 +260,7 @@ fn check(
             } else {
                 Err(CoreError::UnknownName {
                     field: at.clone(),
-                    what: spec.name,
+                    what: spec.name.to_string(),
                     value: name.clone(),
                     known: options.iter().map(|o| o.to_string()).collect(),
                 })
@@ -262,16 +273,16 @@ fn check(
             },
             ParamValue::Numbers(list),
         ) => {
-            if list.is_empty() || list.len() > max_len {
+            if list.is_empty() || list.len() > *max_len {
                 return Err(CoreError::Count {
                     field: at.clone(),
                     got: list.len() as u64,
                     min: 1,
-                    max: max_len as u64,
+                    max: *max_len as u64,
                     what: "entries",
                 });
             }
-            let range = Range::closed(min, true, max);
+            let range = Range::closed(*min, true, *max);
             for &x in list {
                 range.check(x, at)?;
             }

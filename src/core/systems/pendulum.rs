@@ -3,7 +3,9 @@
 
 use nalgebra::{DMatrix, U1};
 
-use super::{AnySystem, ChartInfo, ParamSpec, ParamValues, SystemInfo, World};
+use std::borrow::Cow;
+
+use super::{AnySystem, Builder, ChartInfo, ParamSpec, ParamValues, SystemInfo, World};
 use crate::core::system::{MechanicalSystem, Structure, Vector};
 
 /// The damped pendulum with unit mass, length and gravity.
@@ -55,23 +57,24 @@ const CARTESIAN: ChartInfo = ChartInfo::new("cartesian", &["q"], true, "H = p²/
 /// The catalogue entry of `pendulum`.
 pub(super) fn entry() -> SystemInfo {
     SystemInfo {
-        id: "pendulum",
-        name: "Damped pendulum",
-        description:
+        id: Cow::Borrowed("pendulum"),
+        name: Cow::Borrowed("Damped pendulum"),
+        description: Cow::Borrowed(
             "T = p²/2, V = 1 − cos q, p' = −sin q − 2γp (paper 000 Sec. 4.3, paper 003 eq. 4.5).",
+        ),
         degrees_of_freedom: 1,
         charts: vec![CARTESIAN],
         params: vec![GAMMA],
         q0: vec![0.9 * std::f64::consts::PI],
         p0: vec![0.0],
-        invariants: &[],
+        invariants: Vec::new(),
         exact_solution: false,
         conformal_damping: true,
         world: World::Pendulum,
-        build: |p: &ParamValues, _: &ChartInfo, _: f64| {
+        build: Builder::Catalog(|p: &ParamValues, _: &ChartInfo, _: f64| {
             AnySystem::Pendulum(Pendulum {
                 gamma: p.number(&GAMMA),
             })
-        },
+        }),
     }
 }

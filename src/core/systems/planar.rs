@@ -17,7 +17,9 @@
 
 use nalgebra::{DMatrix, U2};
 
-use super::{AnySystem, ChartInfo, ParamSpec, ParamValues, SystemInfo, World};
+use std::borrow::Cow;
+
+use super::{AnySystem, Builder, ChartInfo, ParamSpec, ParamValues, SystemInfo, World};
 use crate::core::system::{MechanicalSystem, State, Structure, Vector};
 
 /// Which first integrals a planar system reports.
@@ -46,10 +48,11 @@ pub struct PlanarSpring {
 }
 
 impl PlanarSpring {
-    fn invariant_names(&self) -> &'static [&'static str] {
+    /// The invariants: none for the pendulum; L, p_x, p_y for the free particle.
+    fn invariant_count(&self) -> usize {
         match self.kind {
-            PlanarKind::Pendulum => &[],
-            PlanarKind::FreeParticle => &["L", "p_x", "p_y"],
+            PlanarKind::Pendulum => 0,
+            PlanarKind::FreeParticle => 3,
         }
     }
 
@@ -137,8 +140,8 @@ impl MechanicalSystem for PlanarCartesian {
         }
         0
     }
-    fn invariant_names(&self) -> &'static [&'static str] {
-        self.0.invariant_names()
+    fn invariant_count(&self) -> usize {
+        self.0.invariant_count()
     }
     fn invariants(&self, _t: f64, q: &Vector<U2>, p: &Vector<U2>, out: &mut [f64]) {
         self.0.invariants(q.as_slice(), p.as_slice(), out);
@@ -259,8 +262,8 @@ impl MechanicalSystem for PlanarPolar {
         q1[1] = th + h * pt / (self.0.m * r1 * r1);
         true
     }
-    fn invariant_names(&self) -> &'static [&'static str] {
-        self.0.invariant_names()
+    fn invariant_count(&self) -> usize {
+        self.0.invariant_count()
     }
     fn invariants(&self, _t: f64, q: &Vector<U2>, p: &Vector<U2>, out: &mut [f64]) {
         let (mut x, mut px) = ([0.0; 2], [0.0; 2]);
@@ -382,38 +385,38 @@ pub fn planar_pendulum(p: &ParamValues) -> PlanarSpring {
 /// The catalogue entry of `elastic_pendulum_2d`.
 pub(super) fn pendulum_entry() -> SystemInfo {
     SystemInfo {
-        id: "elastic_pendulum_2d",
-        name: "Planar elastic pendulum",
-        description: "A mass on a spring in the plane under gravity along +y (y points down), paper 001 Appendix A: H = |p|²/(2m) + k/2 (|q| − l)² − m g y (eq. 73), or in polar coordinates (eq. 72). Undamped.",
+        id: Cow::Borrowed("elastic_pendulum_2d"),
+        name: Cow::Borrowed("Planar elastic pendulum"),
+        description: Cow::Borrowed("A mass on a spring in the plane under gravity along +y (y points down), paper 001 Appendix A: H = |p|²/(2m) + k/2 (|q| − l)² − m g y (eq. 73), or in polar coordinates (eq. 72). Undamped."),
         degrees_of_freedom: 2,
         charts: vec![PENDULUM_CARTESIAN, PENDULUM_POLAR],
         params: vec![MASS, STIFFNESS, REST_LENGTH, GRAVITY],
         q0: vec![0.6, 1.2],
         p0: vec![0.0, 0.0],
-        invariants: &[],
+        invariants: Vec::new(),
         exact_solution: false,
         conformal_damping: true,
         world: World::PlanarSpring,
-        build: |p: &ParamValues, chart: &ChartInfo, _: f64| in_chart(planar_pendulum(p), chart),
+        build: Builder::Catalog(|p: &ParamValues, chart: &ChartInfo, _: f64| in_chart(planar_pendulum(p), chart)),
     }
 }
 
 /// The catalogue entry of `free_particle_2d`.
 pub(super) fn free_particle_entry() -> SystemInfo {
     SystemInfo {
-        id: "free_particle_2d",
-        name: "Free particle in the plane",
-        description: "H = |p|²/(2m), paper 001 Sec. 5.2: linear momentum (p_x, p_y) and angular momentum L = x p_y − y p_x are conserved. Symplectic Euler keeps p_θ exactly in polar coordinates but not p_x, and keeps L exactly in Cartesian ones.",
+        id: Cow::Borrowed("free_particle_2d"),
+        name: Cow::Borrowed("Free particle in the plane"),
+        description: Cow::Borrowed("H = |p|²/(2m), paper 001 Sec. 5.2: linear momentum (p_x, p_y) and angular momentum L = x p_y − y p_x are conserved. Symplectic Euler keeps p_θ exactly in polar coordinates but not p_x, and keeps L exactly in Cartesian ones."),
         degrees_of_freedom: 2,
         charts: vec![FREE_CARTESIAN, FREE_POLAR],
         params: vec![MASS],
         q0: vec![1.0, 0.5],
         p0: vec![0.2, 1.0],
-        invariants: &["L", "p_x", "p_y"],
+        invariants: vec![Cow::Borrowed("L"), Cow::Borrowed("p_x"), Cow::Borrowed("p_y")],
         exact_solution: true,
         conformal_damping: true,
         world: World::Plane,
-        build: |p: &ParamValues, chart: &ChartInfo, _: f64| {
+        build: Builder::Catalog(|p: &ParamValues, chart: &ChartInfo, _: f64| {
             let spring = PlanarSpring {
                 m: p.number(&MASS),
                 k: 0.0,
@@ -422,6 +425,6 @@ pub(super) fn free_particle_entry() -> SystemInfo {
                 kind: PlanarKind::FreeParticle,
             };
             in_chart(spring, chart)
-        },
+        }),
     }
 }

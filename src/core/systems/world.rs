@@ -1,10 +1,15 @@
 //! How a system appears in physical space: which points its configuration puts where, and what
 //! joins them to the origin (a rod, a spring). Each system's catalogue entry carries its
 //! [`World`]; the recordings' 3-D view draws it from the Cartesian configuration, whatever the
-//! chart the run used.
+//! chart the run used. A user-defined system draws its bodies where its own expressions put
+//! them ([`Drawing`]).
+
+use std::sync::Arc;
+
+use crate::core::expr::CompiledFunction;
 
 /// The embedding of a system's Cartesian configuration in 3-D space.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub enum World {
     /// A point on the x axis at (q, 0, 0).
     Line,
@@ -19,7 +24,57 @@ pub enum World {
     PlanarSpring,
     /// A particle in the plane at (x, y, 0).
     Plane,
+    /// Bodies where a user-defined system's `positions` put them.
+    Drawn(Arc<Drawing>),
 }
+
+/// The bodies of a user-defined system: its position expressions compiled as one function of q.
+/// A 2-D position (a, b) is drawn at (a, 0, b), in the vertical plane with b pointing up, like
+/// the planar pendulum.
+#[derive(Debug)]
+pub struct Drawing {
+    function: CompiledFunction,
+    /// Coordinates per body: 2 or 3.
+    dims: usize,
+    bodies: usize,
+}
+
+impl Drawing {
+    /// The drawing whose `function` gives `dims` (2 or 3) coordinates per body; a last body
+    /// with fewer has the rest at zero.
+    pub fn new(function: CompiledFunction, dims: usize) -> Self {
+        let bodies = function.output_count().div_ceil(dims);
+        Drawing {
+            function,
+            dims,
+            bodies,
+        }
+    }
+
+    /// The positions of the bodies at `q`, appended to `out`.
+    fn positions(&self, q: &[f64], out: &mut Vec<[f64; 3]>) {
+        if q.len() != self.function.input_count() {
+            return;
+        }
+        let mut values = vec![0.0; self.bodies * self.dims];
+        let outputs = self.function.output_count();
+        self.function.eval(q, &mut values[..outputs]);
+        out.extend(values.chunks_exact(self.dims).map(|c| match *c {
+            [a, b] => [a, 0.0, b],
+            [x, y, z] => [x, y, z],
+            _ => [0.0; 3],
+        }));
+    }
+}
+
+impl PartialEq for Drawing {
+    /// The same compiled drawing.
+    fn eq(&self, other: &Self) -> bool {
+        std::ptr::eq(self, other)
+    }
+}
+
+impl Eq for Drawing {}
 
 /// What joins a body to the origin in the drawing.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -42,15 +97,16 @@ impl Link {
 
 impl World {
     /// Bodies drawn per sample for `dof` degrees of freedom.
-    pub fn bodies(self, dof: usize) -> usize {
+    pub fn bodies(&self, dof: usize) -> usize {
         match self {
             World::Bodies => dof / 3,
+            World::Drawn(drawing) => drawing.bodies,
             _ => 1,
         }
     }
 
     /// The positions of the bodies for the Cartesian configuration `q`, appended to `out`.
-    pub fn positions(self, q: &[f64], out: &mut Vec<[f64; 3]>) {
+    pub fn positions(&self, q: &[f64], out: &mut Vec<[f64; 3]>) {
         let at = |i: usize| q.get(i).copied().unwrap_or(0.0);
         match self {
             World::Line => out.push([at(0), 0.0, 0.0]),
@@ -60,16 +116,17 @@ impl World {
             World::Spring | World::Bodies => {
                 out.extend(q.chunks_exact(3).map(|c| [c[0], c[1], c[2]]))
             }
+            World::Drawn(drawing) => drawing.positions(q, out),
         }
     }
 
     /// The Cartesian configuration whose bodies stand at `points` (x, y, z of each, in a row):
     /// the inverse of [`positions`](Self::positions), where the drawing determines it (a
-    /// pendulum's angle is not read back).
-    pub fn configuration(self, points: &[f64]) -> Option<Vec<f64>> {
+    /// pendulum's angle, or a user's drawing, is not read back).
+    pub fn configuration(&self, points: &[f64]) -> Option<Vec<f64>> {
         let at = |i: usize| points.get(i).copied();
         match self {
-            World::Pendulum => None,
+            World::Pendulum | World::Drawn(_) => None,
             World::Spring | World::Bodies => Some(points.to_vec()),
             World::PlanarSpring => Some(vec![at(0)?, -at(2)?]),
             World::Plane => Some(vec![at(0)?, at(1)?]),
@@ -78,7 +135,7 @@ impl World {
     }
 
     /// What joins the body to the origin, if anything.
-    pub fn link(self) -> Option<Link> {
+    pub fn link(&self) -> Option<Link> {
         match self {
             World::Pendulum => Some(Link::Rod),
             World::Spring | World::PlanarSpring => Some(Link::Spring),
@@ -105,7 +162,7 @@ mod tests {
                 World::PlanarSpring | World::Plane => vec![0.5, -0.25],
                 _ => vec![0.5, 0.0, -0.25, 1.0, 2.0, 3.0],
             };
-            let q = if world == World::Spring {
+            let q = if matches!(world, World::Spring) {
                 q[..3].to_vec()
             } else {
                 q
