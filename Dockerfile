@@ -25,15 +25,17 @@ RUN --mount=type=cache,target=/usr/local/cargo/registry \
 
 FROM debian:bookworm-slim
 RUN useradd --system --uid 10001 --no-create-home --home-dir /nonexistent --shell /usr/sbin/nologin geomint \
-    && mkdir -p /data/recordings && chown geomint /data/recordings
+    && mkdir -p /data/recordings /data/systems && chown geomint /data/recordings /data/systems
 COPY --from=builder /out/geomint /usr/local/bin/geomint
 COPY --from=page /src/static /app/static
 WORKDIR /app
 ENV GEOMINT_ADDR=0.0.0.0:8080 \
     GEOMINT_STATIC_DIR=/app/static \
-    GEOMINT_DATA_DIR=/data/recordings
-# Stored Rerun recordings; mount a volume here to keep them across containers.
-VOLUME /data/recordings
+    GEOMINT_DATA_DIR=/data/recordings \
+    GEOMINT_SYSTEMS_DIR=/data/systems
+# Stored Rerun recordings and system definitions; mount volumes here to keep them across
+# containers.
+VOLUME /data/recordings /data/systems
 USER geomint
 EXPOSE 8080
 STOPSIGNAL SIGTERM

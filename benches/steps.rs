@@ -1,76 +1,17 @@
 //! ns per step of the core's hot loop, measured like the hand-written floor loops beside the
-//! project (`../shared/peers/floor`, subcommand `bench`): h = 0.1, one timed run = 5000
-//! repetitions of a [0, 200] integration (2000 steps each, state reset each time so that the
-//! amplitude never reaches subnormal numbers), one warm-up, then the median of 7 runs.
+//! project (`../shared/peers/floor`, subcommand `bench`); the timing loop is in `common`.
 //!
 //! P1: damped pendulum, ε = 0.01, q0 = 0.9π, p0 = 0. P2: elastic 3-D pendulum, ε = 0.1,
 //! q0 = (0, 1.55884573, −0.6), p0 = (1.34164079, 0, 0) (paper 000 Secs. 4.3 and 6.2).
 
-use std::hint::black_box;
 use std::time::Instant;
 
-use geomint::core::methods::{self, Method, MethodId};
-use geomint::core::run::{integrate, Budget, Observer, Schedule};
-use geomint::core::system::{MechanicalSystem, State};
+use geomint::core::methods::{Method, MethodId};
+use geomint::core::system::State;
 use geomint::core::systems::{ElasticPendulum3d, Pendulum};
-use nalgebra::allocator::Allocator;
-use nalgebra::DefaultAllocator;
 
-struct Checksum(f64);
-
-impl<D: nalgebra::Dim> Observer<D> for Checksum
-where
-    DefaultAllocator: Allocator<D>,
-{
-    fn on_sample(&mut self, step: u64, _t: f64, z: &State<D>) {
-        if step > 0 {
-            self.0 += z.q[0];
-        }
-    }
-}
-
-const REPETITIONS: u64 = 5000;
-const STEPS: u64 = 2000;
-const H: f64 = 0.1;
-
-/// Median ns per step and the checksum of the final states.
-fn measure<S: MechanicalSystem>(sys: &S, choice: &Method, start: &State<S::Dim>) -> (f64, f64)
-where
-    DefaultAllocator: Allocator<S::Dim>,
-{
-    let schedule = Schedule {
-        h: H,
-        steps: STEPS,
-        every: u64::MAX,
-    };
-    let one_run = || {
-        let mut sum = Checksum(0.0);
-        let began = Instant::now();
-        for _ in 0..REPETITIONS {
-            let mut stepper =
-                methods::build(choice, sys, "bench", black_box(H)).expect("method builds");
-            let mut z = black_box(start.clone());
-            integrate(
-                sys,
-                &mut stepper,
-                &mut z,
-                schedule,
-                Budget::default(),
-                false,
-                &mut sum,
-            )
-            .expect("run");
-        }
-        (
-            began.elapsed().as_secs_f64() * 1e9 / (REPETITIONS * STEPS) as f64,
-            sum.0,
-        )
-    };
-    one_run();
-    let mut runs: Vec<(f64, f64)> = (0..7).map(|_| one_run()).collect();
-    runs.sort_by(|a, b| a.0.total_cmp(&b.0));
-    runs[3]
-}
+mod common;
+use common::measure;
 
 /// Wall time of 400×400 stability maps (ω = 3.51, γ ∈ [0, 3.5], h ∈ [0, 1]) for every
 /// fixed-step method, computed in parallel over the cores.

@@ -10,11 +10,11 @@ use utoipa::ToSchema;
 
 use super::json::{self, boolean, count, numbers, string, Obj};
 use super::method::{read_method, read_methods, MethodSpec};
+use super::system::{read_system, SystemRequest};
 use crate::core::error::{CoreError, ErrorCode, ErrorDetail, Field};
 use crate::core::simulation::{
     InitialCoordinates, InputFields, Limits, MethodAt, Simulation, SimulationSpec,
 };
-use super::system::{read_system, SystemRequest};
 use crate::core::systems::{ChartId, ParamValue};
 
 /// A simulation request.

@@ -12,13 +12,13 @@ use utoipa::ToSchema;
 use super::json::{self, count, list, numbers, string, wrong_type, Obj};
 use super::method::{read_method, read_methods, MethodSpec};
 use super::simulate::initial_coordinates;
+use super::system::{read_system, SystemRequest};
 use crate::core::error::{ErrorDetail, Field};
 use crate::core::simulation::{InitialCoordinates, MethodAt};
 use crate::core::studies::convergence::ConvergenceSpec;
 use crate::core::studies::energy_map::EnergyMapSpec;
 use crate::core::studies::settings::{RunSpec, MAX_SAMPLES};
 use crate::core::studies::work_precision::{WorkPrecisionSpec, DEFAULT_SAMPLES};
-use super::system::{read_system, SystemRequest};
 use crate::core::systems::{ChartId, ParamValue};
 
 /// The fields of one `{method, h | tolerance}` entry (a work–precision run, a reference).

@@ -16,9 +16,7 @@ use utoipa::ToSchema;
 
 use super::json::{self, list, number, numbers, string, wrong_type, Obj};
 use crate::core::error::{CoreError, ErrorDetail, Field};
-use crate::core::systems::custom::{
-    self, CustomDefinition, Damping, Energy, Expression, Mass,
-};
+use crate::core::systems::custom::{self, CustomDefinition, Damping, Energy, Expression, Mass};
 use crate::core::systems::{SystemInfo, SystemRef};
 
 /// A system: an id, or a definition.
@@ -204,7 +202,11 @@ fn damping(v: &Value, field: &Field) -> Result<DampingEntry, ErrorDetail> {
     let rayleigh = o.has("epsilon") || o.has("matrix");
     if o.has("gamma") && rayleigh {
         return Err(CoreError::Either {
-            field: o.field(if o.has("epsilon") { "epsilon" } else { "matrix" }),
+            field: o.field(if o.has("epsilon") {
+                "epsilon"
+            } else {
+                "matrix"
+            }),
             first: "gamma (conformal damping)",
             second: "epsilon and matrix (Rayleigh damping)",
         }

@@ -36,7 +36,9 @@ pub fn status_for(code: ErrorCode) -> StatusCode {
         ErrorCode::Overloaded => StatusCode::SERVICE_UNAVAILABLE,
         ErrorCode::Timeout => StatusCode::GATEWAY_TIMEOUT,
         ErrorCode::Internal => StatusCode::INTERNAL_SERVER_ERROR,
-        ErrorCode::RecordingTooLarge | ErrorCode::TooManySystems => StatusCode::INSUFFICIENT_STORAGE,
+        ErrorCode::RecordingTooLarge | ErrorCode::TooManySystems => {
+            StatusCode::INSUFFICIENT_STORAGE
+        }
         ErrorCode::BuiltInSystem => StatusCode::CONFLICT,
         ErrorCode::UnknownField
         | ErrorCode::MissingField

@@ -178,7 +178,7 @@ impl SystemStore {
             .and_then(|m| m.modified())
             .map(unix_ms)
             .unwrap_or(0);
-        entry(definition, created_unix_ms).map_err(|e| {
+        StoredSystem::new(definition, created_unix_ms).map_err(|e| {
             let field = e.field.map(|f| format!(" at `{f}`")).unwrap_or_default();
             format!("the definition does not check{field}: {}", e.message)
         })
@@ -195,7 +195,10 @@ impl SystemStore {
     }
 
     /// Stores a checked definition; true when it is new. Blocking file I/O.
-    pub fn insert(&self, stored: StoredSystem) -> Result<(Arc<StoredSystem>, bool), SystemStoreError> {
+    pub fn insert(
+        &self,
+        stored: StoredSystem,
+    ) -> Result<(Arc<StoredSystem>, bool), SystemStoreError> {
         let id = stored.info.id.to_string();
         if let Some(existing) = self.get(&id) {
             return Ok((existing, false));
@@ -249,19 +252,23 @@ fn unix_ms(time: SystemTime) -> u64 {
         .map_or(0, |d| u64::try_from(d.as_millis()).unwrap_or(u64::MAX))
 }
 
-/// Checks `definition` into its stored entry.
-fn entry(definition: SystemDefinition, created_unix_ms: u64) -> Result<StoredSystem, ErrorDetail> {
-    let info = definition.check(&Field::default())?;
-    let facts = info
-        .custom_model()
-        .map(|model| model.facts())
-        .ok_or_else(|| ErrorDetail::new(ErrorCode::Internal, "a definition without its model"))?;
-    Ok(StoredSystem {
-        info: (*info).clone(),
-        definition,
-        facts,
-        created_unix_ms,
-    })
+impl StoredSystem {
+    /// Checks `definition` into the entry it is stored as.
+    pub fn new(definition: SystemDefinition, created_unix_ms: u64) -> Result<Self, ErrorDetail> {
+        let info = definition.check(&Field::default())?;
+        let facts = info
+            .custom_model()
+            .map(|model| model.facts())
+            .ok_or_else(|| {
+                ErrorDetail::new(ErrorCode::Internal, "a definition without its model")
+            })?;
+        Ok(StoredSystem {
+            info: (*info).clone(),
+            definition,
+            facts,
+            created_unix_ms,
+        })
+    }
 }
 
 fn no_system(id: &str) -> ApiError {
@@ -336,7 +343,7 @@ pub async fn create_system(
     let definition = SystemDefinition::read(&body, &Field::default())?;
     let store = Arc::clone(&state.systems);
     let (stored, new) = run_blocking(move || {
-        let stored = entry(definition, unix_ms(SystemTime::now()))?;
+        let stored = StoredSystem::new(definition, unix_ms(SystemTime::now()))?;
         store.insert(stored).map_err(store_error)
     })
     .await??;
@@ -344,7 +351,11 @@ pub async fn create_system(
     if new {
         tracing::info!(id = %stored.info.id, "system stored");
     }
-    let status = if new { StatusCode::CREATED } else { StatusCode::OK };
+    let status = if new {
+        StatusCode::CREATED
+    } else {
+        StatusCode::OK
+    };
     let mut response = (status, Json(&*stored)).into_response();
     if let Ok(location) = HeaderValue::from_str(&url) {
         response.headers_mut().insert(header::LOCATION, location);

@@ -150,7 +150,8 @@ pub fn default_system(
         &geomint::core::error::Field::new("params"),
     )
     .expect("default parameters are valid");
-    info.build(&params, chart, h).expect("a catalogue system builds")
+    info.build(&params, chart, h)
+        .expect("a catalogue system builds")
 }
 
 /// The catalogue entry of `id`.

@@ -400,7 +400,10 @@ pub enum CoreError {
         first: Field,
     },
     /// A matrix that must be symmetric and is not.
-    #[error("{field}: the matrix must be symmetric, but this entry differs from {other}{}", at_point(at))]
+    #[error(
+        "{field}: the matrix must be symmetric, but this entry differs from {other}{}",
+        at_point(at)
+    )]
     NotSymmetric {
         /// The entry (i, j).
         field: Field,

@@ -21,6 +21,7 @@ use std::sync::{Arc, LazyLock};
 use serde::Serialize;
 use utoipa::ToSchema;
 
+pub use custom::system::CustomSystem;
 pub use elastic_pendulum::{ElasticPendulum3d, ElasticPendulum3dCylindrical};
 pub use first_order::{ExponentialDecay, Gompertz};
 pub use nbody::{NBody, PairPotential};
@@ -30,7 +31,6 @@ pub use pendulum::Pendulum;
 pub use planar::{
     planar_pendulum, wrap_angle, PlanarCartesian, PlanarKind, PlanarPolar, PlanarSpring,
 };
-pub use custom::system::CustomSystem;
 pub use world::World;
 
 use crate::core::error::{CoreError, Field};

@@ -293,7 +293,9 @@ mod tests {
 
     /// A x for row-major A.
     fn mul(a: &[f64], x: &[f64], n: usize) -> Vec<f64> {
-        (0..n).map(|i| (0..n).map(|k| a[i * n + k] * x[k]).sum()).collect()
+        (0..n)
+            .map(|i| (0..n).map(|k| a[i * n + k] * x[k]).sum())
+            .collect()
     }
 
     #[test]
@@ -331,7 +333,11 @@ mod tests {
         let amid = mul(&a, &mid, n);
         for i in 0..n {
             let derivative = (plus[i] - minus[i]) / 2e-6;
-            assert!((derivative + amid[i]).abs() < 1e-8, "{derivative} vs {}", -amid[i]);
+            assert!(
+                (derivative + amid[i]).abs() < 1e-8,
+                "{derivative} vs {}",
+                -amid[i]
+            );
         }
         // The kick-and-damp solves p' = −g − A p: check the derivative too.
         let g = [0.3, 0.9];

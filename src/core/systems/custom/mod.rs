@@ -18,6 +18,7 @@
 
 pub mod damping;
 pub mod model;
+mod shapes;
 pub mod system;
 
 use std::borrow::Cow;
@@ -181,7 +182,10 @@ pub fn define(definition: CustomDefinition, id: &str) -> Result<Arc<SystemInfo>,
             },
         })
         .collect();
-    let name = def.name.clone().unwrap_or_else(|| "A user-defined system".into());
+    let name = def
+        .name
+        .clone()
+        .unwrap_or_else(|| "A user-defined system".into());
     let info = SystemInfo {
         id: Cow::Owned(id.to_string()),
         name: Cow::Owned(name),
@@ -215,7 +219,10 @@ pub fn define(definition: CustomDefinition, id: &str) -> Result<Arc<SystemInfo>,
 
 /// The methods that run on a system of this structure and damping (the plain methods, and
 /// each composition when some base runs).
-pub(crate) fn applicable(structure: crate::core::system::Structure, rate: f64) -> Vec<&'static str> {
+pub(crate) fn applicable(
+    structure: crate::core::system::Structure,
+    rate: f64,
+) -> Vec<&'static str> {
     MethodId::ALL
         .iter()
         .filter(|&&id| {

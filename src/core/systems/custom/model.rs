@@ -6,8 +6,9 @@
 use std::sync::Arc;
 
 use super::damping::MassFactor;
+use super::shapes::{check_square, mass_nodes, position_nodes};
 use super::system::{Compiled, CustomSystem, DampingModel, EnergyModel};
-use super::{applicable, CustomDefinition, Damping, DampingKind, Energy, Expression, Facts, Mass};
+use super::{applicable, CustomDefinition, Damping, DampingKind, Energy, Expression, Facts};
 use super::{MAX_COORDINATES, MAX_NAMES};
 use crate::core::error::{CoreError, Field, Range};
 use crate::core::expr::{CompileOptions, CompiledFunction, ExprError, Graph, NodeId, Scope, Var};
@@ -39,8 +40,13 @@ enum EnergyNodes {
 #[derive(Clone, Debug)]
 enum DampingNodes {
     None,
-    Conformal { gamma: NodeId },
-    Rayleigh { epsilon: NodeId, matrix: Vec<NodeId> },
+    Conformal {
+        gamma: NodeId,
+    },
+    Rayleigh {
+        epsilon: NodeId,
+        matrix: Vec<NodeId>,
+    },
 }
 
 /// A checked definition with its derivatives.
@@ -78,13 +84,22 @@ fn sample_points(n: usize, count: usize) -> Vec<Vec<f64>> {
         let unit = ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64;
         -1.5 + 3.0 * unit
     };
-    (0..count).map(|_| (0..n).map(|_| next()).collect()).collect()
+    (0..count)
+        .map(|_| (0..n).map(|_| next()).collect())
+        .collect()
 }
 
 /// The largest |a_ij − b_ij| relative to the larger entries.
 fn relative_gap(a: &[f64], b: &[f64]) -> f64 {
-    let scale = a.iter().chain(b).fold(0.0f64, |m, x| m.max(x.abs())).max(1e-300);
-    a.iter().zip(b).fold(0.0f64, |m, (x, y)| m.max((x - y).abs())) / scale
+    let scale = a
+        .iter()
+        .chain(b)
+        .fold(0.0f64, |m, x| m.max(x.abs()))
+        .max(1e-300);
+    a.iter()
+        .zip(b)
+        .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()))
+        / scale
 }
 
 /// Whether the symmetric `m` (row-major n×n) is positive semidefinite, to round-off.
@@ -92,7 +107,13 @@ fn positive_semidefinite(m: &[f64], n: usize) -> bool {
     let scale = m.iter().fold(0.0f64, |a, x| a.max(x.abs()));
     // M + δI positive definite for a δ at round-off of the entries.
     let shifted: Vec<f64> = (0..n * n)
-        .map(|k| m[k] + if k / n == k % n { 1e-10 * scale + 1e-300 } else { 0.0 })
+        .map(|k| {
+            m[k] + if k / n == k % n {
+                1e-10 * scale + 1e-300
+            } else {
+                0.0
+            }
+        })
         .collect();
     MassFactor::new(&shifted, n).is_some()
 }
@@ -195,7 +216,9 @@ impl CustomModel {
         let energy = match &definition.energy {
             Energy::Separable { mass, potential } => {
                 let v = parse(potential, &in_q, &mut graph)?;
-                let gradient = graph.gradient(v, &q).map_err(expression(&potential.field))?;
+                let gradient = graph
+                    .gradient(v, &q)
+                    .map_err(expression(&potential.field))?;
                 let hessian = graph
                     .hessian(v, &q)
                     .map_err(expression(&potential.field))?
@@ -275,7 +298,12 @@ impl CustomModel {
         model.check_states()?;
         // The numbers the default parameters fix: checked now, so that a definition that can
         // never run is refused when it is made.
-        let defaults: Vec<f64> = model.definition.parameters.iter().map(|(_, v)| *v).collect();
+        let defaults: Vec<f64> = model
+            .definition
+            .parameters
+            .iter()
+            .map(|(_, v)| *v)
+            .collect();
         let numbers = model.numbers(&defaults, &model.definition.field.clone())?;
         model.facts = model.facts_of(&numbers);
         Ok(model)
@@ -317,7 +345,12 @@ impl CustomModel {
     fn structure(&self, numbers: &Numbers) -> Structure {
         Structure {
             separable_constant_mass: matches!(self.energy, EnergyNodes::Separable { .. }),
-            conformal_damping: matches!(numbers.damping, DampingModel::Conformal { .. }),
+            // No damping is conformal damping with γ = 0 (D = 0 ∝ M), as for the built-in
+            // undamped systems: the conformal methods then reduce to their symplectic kernels.
+            conformal_damping: matches!(
+                numbers.damping,
+                DampingModel::None | DampingModel::Conformal { .. }
+            ),
         }
     }
 
@@ -353,7 +386,11 @@ impl CustomModel {
             EnergyNodes::Separable { mass, .. } => {
                 let m = self.graph.eval(mass, &slots);
                 let factor = MassFactor::new(&m, n).ok_or_else(|| CoreError::NotDefinite {
-                    field: if field == at { at.key("mass") } else { field.clone() },
+                    field: if field == at {
+                        at.key("mass")
+                    } else {
+                        field.clone()
+                    },
                     what: "the mass matrix",
                     property: "symmetric positive definite",
                     detail: format!("with these parameters it is {m:?}"),
@@ -494,14 +531,12 @@ impl CustomModel {
                 .iter()
                 .enumerate()
                 .map(|(i, &v)| (Var((2 * n + i) as u32), v))
-                .chain(
-                    (inputs..2 * n)
-                        .map(|i| (Var(i as u32), 0.0)),
-                )
+                .chain((inputs..2 * n).map(|i| (Var(i as u32), 0.0)))
                 .collect(),
             ..CompileOptions::default()
         };
-        CompiledFunction::new(&self.graph, outputs, &options).map_err(expression(&self.definition.field))
+        CompiledFunction::new(&self.graph, outputs, &options)
+            .map_err(expression(&self.definition.field))
     }
 
     /// The system for a run with parameters `params`, compiled.
@@ -586,116 +621,4 @@ struct Numbers {
     /// The mass matrix (row-major) and its Cholesky factor, for a separable H.
     mass: Option<(Vec<f64>, MassFactor)>,
     damping: DampingModel,
-}
-
-/// Checks that `rows` is an n×n matrix; errors name `field` (and a row's index).
-fn check_square(rows: &[Vec<Expression>], n: usize, field: &Field) -> Result<(), CoreError> {
-    if rows.len() != n {
-        return Err(CoreError::WrongLength {
-            field: field.clone(),
-            expected: n,
-            got: rows.len(),
-        });
-    }
-    for (i, row) in rows.iter().enumerate() {
-        if row.len() != n {
-            return Err(CoreError::WrongLength {
-                field: field.index(i),
-                expected: n,
-                got: row.len(),
-            });
-        }
-    }
-    Ok(())
-}
-
-/// The mass matrix's nodes, row-major n×n.
-fn mass_nodes(
-    mass: &Mass,
-    n: usize,
-    field: &Field,
-    parse: &mut dyn FnMut(&Expression) -> Result<NodeId, CoreError>,
-) -> Result<Vec<NodeId>, CoreError> {
-    let diagonal = |entries: Vec<NodeId>, zero: NodeId| -> Vec<NodeId> {
-        (0..n * n)
-            .map(|k| if k / n == k % n { entries[k / n] } else { zero })
-            .collect()
-    };
-    let zero = |parse: &mut dyn FnMut(&Expression) -> Result<NodeId, CoreError>| {
-        parse(&Expression {
-            text: "0".into(),
-            field: field.clone(),
-        })
-    };
-    Ok(match mass {
-        Mass::Scalar(m) => {
-            let m = parse(m)?;
-            diagonal(vec![m; n], zero(parse)?)
-        }
-        Mass::Diagonal(entries) => {
-            if entries.len() != n {
-                return Err(CoreError::WrongLength {
-                    field: field.clone(),
-                    expected: n,
-                    got: entries.len(),
-                });
-            }
-            let nodes = entries.iter().map(&mut *parse).collect::<Result<Vec<_>, _>>()?;
-            diagonal(nodes, zero(parse)?)
-        }
-        Mass::Matrix(rows) => {
-            check_square(rows, n, field)?;
-            let nodes = rows
-                .iter()
-                .flatten()
-                .map(&mut *parse)
-                .collect::<Result<Vec<_>, _>>()?;
-            for i in 0..n {
-                for j in 0..i {
-                    if nodes[i * n + j] != nodes[j * n + i] {
-                        return Err(CoreError::NotSymmetric {
-                            field: field.index(i).index(j),
-                            other: field.index(j).index(i),
-                            at: Vec::new(),
-                        });
-                    }
-                }
-            }
-            nodes
-        }
-    })
-}
-
-/// The positions' nodes: every body with the same number (2 or 3) of coordinates.
-fn position_nodes(
-    bodies: &[Vec<Expression>],
-    field: &Field,
-    parse: &mut dyn FnMut(&Expression) -> Result<NodeId, CoreError>,
-) -> Result<(usize, Vec<NodeId>), CoreError> {
-    if bodies.is_empty() || bodies.len() > MAX_NAMES {
-        return Err(CoreError::Count {
-            field: field.clone(),
-            got: bodies.len() as u64,
-            min: 1,
-            max: MAX_NAMES as u64,
-            what: "bodies",
-        });
-    }
-    let dims = bodies[0].len();
-    let mut nodes = Vec::new();
-    for (i, body) in bodies.iter().enumerate() {
-        if !(2..=3).contains(&body.len()) || body.len() != dims {
-            return Err(CoreError::Count {
-                field: field.index(i),
-                got: body.len() as u64,
-                min: dims.clamp(2, 3) as u64,
-                max: if (2..=3).contains(&dims) { dims } else { 3 } as u64,
-                what: "coordinates (every body 2-D, or every body 3-D)",
-            });
-        }
-        for e in body {
-            nodes.push(parse(e)?);
-        }
-    }
-    Ok((dims, nodes))
 }

@@ -249,7 +249,11 @@ impl<D: Dim> CustomSystem<D> {
         with_buffer(n * n, |d| {
             matrix.eval(q, d);
             for (i, o) in out.iter_mut().enumerate() {
-                *o = d[i * n..(i + 1) * n].iter().zip(v).map(|(a, x)| a * x).sum();
+                *o = d[i * n..(i + 1) * n]
+                    .iter()
+                    .zip(v)
+                    .map(|(a, x)| a * x)
+                    .sum();
             }
         })
     }
@@ -325,12 +329,10 @@ where
         match &self.model.energy {
             EnergyModel::Separable { potential, .. } => potential.eval(q.as_slice(), &mut v),
             // The energy at rest: H(q, 0).
-            EnergyModel::General { hamiltonian, .. } => {
-                with_buffer(2 * q.len(), |x| {
-                    x[..q.len()].copy_from_slice(q.as_slice());
-                    hamiltonian.eval(x, &mut v)
-                })
-            }
+            EnergyModel::General { hamiltonian, .. } => with_buffer(2 * q.len(), |x| {
+                x[..q.len()].copy_from_slice(q.as_slice());
+                hamiltonian.eval(x, &mut v)
+            }),
         }
         v[0]
     }
@@ -411,7 +413,9 @@ where
 
     fn hess_potential(&self, q: &Vector<D>, out: &mut DMatrix<f64>) -> u64 {
         match &self.model.energy {
-            EnergyModel::Separable { hessian, .. } => hessian.eval(q.as_slice(), out.as_mut_slice()),
+            EnergyModel::Separable { hessian, .. } => {
+                hessian.eval(q.as_slice(), out.as_mut_slice())
+            }
             EnergyModel::General { second, .. } => {
                 let n = q.len();
                 with_buffer(3 * n * n + 2 * n, |buffer| {
@@ -519,7 +523,14 @@ where
     }
 
     #[inline]
-    fn damped_solve(&self, q: &Vector<D>, p: &mut Vector<D>, theta: f64, tau: f64, w: &mut Vector<D>) {
+    fn damped_solve(
+        &self,
+        q: &Vector<D>,
+        p: &mut Vector<D>,
+        theta: f64,
+        tau: f64,
+        w: &mut Vector<D>,
+    ) {
         let general = self.general_flow(q.as_slice(), |flows, epsilon, d| {
             flows.solve(epsilon, d, p.as_mut_slice(), theta * tau)
         });
