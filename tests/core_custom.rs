@@ -419,6 +419,15 @@ fn a_double_pendulum_as_a_general_hamiltonian_runs_the_methods_for_it_and_refuse
             ..SimulationSpec::new(system.clone(), &[method(id)], 0.001, 20.0)
         };
         let c = run(&spec).unwrap_or_else(|e| panic!("{id}: {e}"));
+        // Each sample carries the bodies where the definition's positions put them.
+        let bodies = c.bodies.as_ref().expect("the bodies' coordinates");
+        for (q, b) in c.q.iter().zip(bodies) {
+            let (a, b2) = (q[0], q[1]);
+            let expected = [a.sin(), -a.cos(), a.sin() + b2.sin(), -a.cos() - b2.cos()];
+            for (x, e) in b.iter().zip(expected) {
+                assert!((x - e).abs() < 1e-15, "{id}: {b:?} at q = {q:?}");
+            }
+        }
         let errors: Vec<f64> = c.energy.iter().map(|e| (e - c.energy[0]).abs()).collect();
         let half = errors.len() / 2;
         let first = errors[..half].iter().cloned().fold(0.0, f64::max);
@@ -631,4 +640,23 @@ fn compiled_derivatives_agree_with_central_differences_for_every_example() {
         let checked = geomint::with_system!(&system, s => check_derivatives(name, s, &points));
         assert_eq!(checked, 20, "{name}");
     }
+}
+
+#[test]
+fn a_definition_that_runs_away_stops_with_the_step_it_diverged_at() {
+    // V = −x⁴: released with energy, x reaches infinity in finite time.
+    let system = defined(json!({
+        "coordinates": ["x"], "potential": "-x^4", "q0": [1], "p0": [1],
+    }));
+    let spec = SimulationSpec::new(system, &[method("rk4")], 0.01, 100.0);
+    let sim = Simulation::prepare(&spec, &Limits::default()).expect("prepares");
+    let (columns, outcome) = run_to_columns(&sim, 0, None, Budget::default()).expect("runs");
+    let geomint::core::run::StopReason::Diverged { step, .. } = outcome.stop else {
+        panic!("finished: {:?}", outcome.stop)
+    };
+    // The blow-up time of x' = p, p' = 4x³ from (1, 1) with H = 1/2 − 1 = −1/2 is
+    // ∫₁^∞ dx / √(2x⁴ − 1) ≈ 0.8; rk4 with h = 0.01 reaches a non-finite state shortly after.
+    let t = step as f64 * 0.01;
+    assert!((0.7..1.5).contains(&t), "diverged at t = {t}");
+    assert!(columns.q.iter().flatten().all(|x| x.is_finite()));
 }

@@ -21,6 +21,8 @@ fn config() -> Config {
     Config {
         request_timeout: Duration::from_secs(15),
         data_dir: std::env::temp_dir().join(format!("geomint-http-{}", std::process::id())),
+        systems_dir: std::env::temp_dir()
+            .join(format!("geomint-http-systems-{}", std::process::id())),
         ..Config::default()
     }
 }
@@ -902,15 +904,35 @@ async fn openapi_lists_every_route() {
         let id = created["id"].as_str();
         ids.push(id.unwrap_or_else(|| panic!("{created}")).to_string());
     }
+    // Two stored system definitions: one to read, one to delete.
+    let definition = json!({"coordinates": ["x"], "potential": "x^2/2"});
+    let mut systems = Vec::new();
+    for potential in ["x^2/2", "x^4/4"] {
+        let stored: Value = c
+            .post(server.url("/api/v1/systems"))
+            .json(&json!({"coordinates": ["x"], "potential": potential}))
+            .send()
+            .await
+            .unwrap()
+            .json()
+            .await
+            .unwrap();
+        systems.push(
+            stored["id"]
+                .as_str()
+                .unwrap_or_else(|| panic!("{stored}"))
+                .to_string(),
+        );
+    }
     // Every documented route answers (path parameters filled in).
     for (method, path) in &routed {
-        let recording = match method.as_str() {
-            "delete" => ids[1].clone(),
-            _ => format!("{}.rrd", ids[0]),
+        let (recording, system) = match method.as_str() {
+            "delete" => (ids[1].clone(), &systems[1]),
+            _ => (format!("{}.rrd", ids[0]), &systems[0]),
         };
         let url = server.url(
             &path
-                .replace("/systems/{id}", "/systems/pendulum")
+                .replace("/systems/{id}", &format!("/systems/{system}"))
                 .replace("/methods/{id}", "/methods/rk4")
                 .replace(
                     "/recordings/{id}/samples",
@@ -929,6 +951,7 @@ async fn openapi_lists_every_route() {
             "/api/v1/studies/energy-map" => json!({"nx": 3, "ny": 3, "t_max": 10}),
             "/api/v1/studies/convergence" => json!({"system": "pendulum", "t_end": 1,
                 "methods": ["rk4"], "h": [0.1, 0.05]}),
+            "/api/v1/systems" => definition.clone(),
             _ => pendulum_request(),
         };
         let (status, expected) = match method.as_str() {
@@ -936,6 +959,7 @@ async fn openapi_lists_every_route() {
             "delete" => (c.delete(url).send().await.unwrap().status(), 204),
             _ => (
                 c.post(url).json(&body).send().await.unwrap().status(),
+                // (The definition posted to /api/v1/systems is stored already: 200.)
                 if path == "/api/v1/recordings" {
                     201
                 } else {
@@ -946,6 +970,7 @@ async fn openapi_lists_every_route() {
         assert_eq!(status, expected, "{method} {path}");
     }
     let _ = std::fs::remove_dir_all(&server.state.config.data_dir);
+    let _ = std::fs::remove_dir_all(&server.state.config.systems_dir);
     let schemas = doc["components"]["schemas"].as_object().unwrap();
     for name in [
         "SimulateRequest",

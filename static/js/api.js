@@ -1,15 +1,17 @@
-// The page's client of the geomint HTTP API: the two catalogues, the NDJSON simulation stream
+// The page's client of the geomint HTTP API: the two catalogues, a system definition checked and
+// stored (POST /api/v1/systems), the NDJSON simulation stream
 // (POST /api/v1/simulate with Accept: application/x-ndjson) and its one-document answer, the run
 // as a Rerun recording (?format=rrd, POST /api/v1/recordings), the stored recordings (list, entry,
 // samples read back, upload of an .rrd file, delete), the stability analysis
 // (POST /api/v1/stability, /api/v1/stability/point) and the studies (POST
-// /api/v1/studies/work-precision, /convergence and /energy-map, the map also as a recording). Errors in the service's shape, {"error": {"code", "message", "field"}}, become
-// ApiError objects that keep the field path.
+// /api/v1/studies/work-precision, /convergence and /energy-map, the map also as a recording).
+// Errors in the service's shape, {"error": {"code", "message", "field", "position"}}, become
+// ApiError objects that keep the field path and, for an expression, the character position.
 
 /** An error answered by the API (or a stream's `error` line). */
 export class ApiError extends Error {
   /**
-   * @param {{code?: string, message?: string, field?: string|null}} detail
+   * @param {{code?: string, message?: string, field?: string|null, position?: number}} detail
    * @param {number} [status] HTTP status, when the error came as a response
    * @param {number|null} [method] index of the method concerned (stream errors)
    */
@@ -18,6 +20,8 @@ export class ApiError extends Error {
     this.name = 'ApiError';
     this.code = detail?.code || 'unknown';
     this.field = detail?.field ?? null;
+    /** For an expression's error: the 0-based index of the character (code point) it is at. */
+    this.position = Number.isInteger(detail?.position) ? detail.position : null;
     this.status = status;
     this.method = method;
   }
@@ -52,6 +56,17 @@ async function getJson(path) {
 export async function catalogues() {
   const [systems, methods] = await Promise.all([getJson('api/v1/systems'), getJson('api/v1/methods')]);
   return { systems, methods };
+}
+
+/**
+ * Checks a system definition and stores it (POST /api/v1/systems). Resolves to the stored entry
+ * (its catalogue fields, `definition`, `facts`, `created_unix_ms`) with `created`: whether it was
+ * new (201) rather than stored already (200). Rejects with an ApiError naming the field (and, for
+ * an expression, the character) of a problem.
+ */
+export async function storeSystem(definition, signal) {
+  const response = await post('api/v1/systems', definition, { signal });
+  return { ...(await response.json()), created: response.status === 201 };
 }
 
 /**

@@ -1,11 +1,12 @@
 // The result plots, drawn with uPlot: energy against time, the energy error on a log axis, a
 // phase portrait per degree of freedom (in the run's chart), the trajectory in Cartesian
 // coordinates whatever the chart, so that runs in different charts compare (q(t); for planar
-// systems also the x–y plane, for 3-D systems the x–y and x–z projections), the invariants and
-// the dissipation drift. Every chosen method is one series in
-// its own colour. Time plots share the sample times (uPlot's aligned mode); phase portraits and
-// projections draw each method's points in time order (uPlot's faceted mode 2). The studies'
-// log–log diagrams (LogLogPlot) draw one polyline with dots per series.
+// systems also the x–y plane, for 3-D systems the x–y and x–z projections; for a system that
+// places its bodies itself, the bodies where it puts them), the invariants and the dissipation
+// drift. Every chosen method is one series in its own colour. Time plots share the sample times
+// (uPlot's aligned mode); phase portraits and projections draw each method's points in time order
+// (uPlot's faceted mode 2). The studies' log–log diagrams (LogLogPlot) draw one polyline with dots
+// per series.
 
 import uPlot from '../vendor/uPlot.esm.js';
 import { el } from './form.js';
@@ -143,6 +144,26 @@ function joined(...parts) {
   return parts.filter(Boolean).join('; ');
 }
 
+/**
+ * The plots of `count` bodies of `dims` (2 or 3) coordinates each, whose columns `columns(run)`
+ * holds body after body: the plane of 2-D bodies, the x–y and x–z projections of 3-D ones.
+ * `names` are the axes' names; `note` goes into the captions.
+ */
+function bodyPlots(dims, count, columns, names, note) {
+  const project = (a, b) => (r) => Array.from({ length: count }, (_, k) =>
+    [columns(r)[dims * k + a] || [], columns(r)[dims * k + b] || []]);
+  const caption = joined(count > 1 ? `${count} bodies, each in its method’s colour` : '', note);
+  const [x, y, z] = names;
+  if (dims === 2) {
+    const title = count > 1 ? `Bodies in the ${x}–${y} plane` : `Trajectory in the ${x}–${y} plane`;
+    return [pairPlot('trajectory:xy', title, x, y, project(0, 1), { caption, perMethod: count })];
+  }
+  return [
+    pairPlot('trajectory:xy', `Trajectory, ${x}–${y} projection`, x, y, project(0, 1), { caption, perMethod: count }),
+    pairPlot('trajectory:xz', `Trajectory, ${x}–${z} projection`, x, z, project(0, 2), { caption, perMethod: count }),
+  ];
+}
+
 /** The charts of one simulation, built from its stream header. */
 export class Charts {
   /** @param {HTMLElement} root the results area that holds the plot sections */
@@ -190,6 +211,10 @@ export class Charts {
    * @param {string|null} [options.cartesianNote] a caption for plots transformed to Cartesian
    *   coordinates (null in the Cartesian chart)
    * @param {boolean} [options.yDown] whether y points down (the x–y plane is drawn so)
+   * @param {string[]} [options.momentumNames] the momenta's names (default p_<coordinate>)
+   * @param {{dims: number, count: number, names: string[]}} [options.bodies] bodies the system
+   *   places itself, `dims` coordinates each, in the runs' `bodyColumns`; drawn instead of the
+   *   Cartesian coordinates, which are then the chart's
    */
   build(header, options) {
     this.clear();
@@ -217,7 +242,7 @@ export class Charts {
     const label = (chartNames, i) => {
       if (chartNames?.length === dof) {
         const n = chartNames[i];
-        return { q: n, p: n === 'q' ? 'p' : `p_${n}` };
+        return { q: n, p: options.momentumNames?.[i] ?? (n === 'q' ? 'p' : `p_${n}`) };
       }
       const c = coordinate(i);
       return { q: c ? `q_${c}` : 'q', p: c ? `p_${c}` : 'p' };
@@ -234,13 +259,15 @@ export class Charts {
     const position = (r) => r.xColumns || r.qColumns;
     const cartesian = (i) => label(options.cartesianNames, i).q;
     const trajectory = [];
-    if (dof % 3 === 0) {
-      const bodies = dof / 3;
-      const project = (a, b) => (r) => Array.from({ length: bodies }, (_, k) =>
-        [position(r)[3 * k + a] || [], position(r)[3 * k + b] || []]);
-      const caption = joined(bodies > 1 ? `${bodies} bodies, each in its method’s colour` : '', options.cartesianNote);
-      trajectory.push(pairPlot('trajectory:xy', 'Trajectory, x–y projection', 'x', 'y', project(0, 1), { caption, perMethod: bodies }));
-      trajectory.push(pairPlot('trajectory:xz', 'Trajectory, x–z projection', 'x', 'z', project(0, 2), { caption, perMethod: bodies }));
+    if (options.bodies) {
+      const { dims, count, names } = options.bodies;
+      trajectory.push(...bodyPlots(dims, count, (r) => r.bodyColumns || [], names, ''));
+      for (let i = 0; i < dof; i++) {
+        const q = cartesian(i);
+        trajectory.push(timePlot(`trajectory:${i}`, `Trajectory ${q}(t)`, q, (r) => r.qColumns[i] || []));
+      }
+    } else if (dof % 3 === 0) {
+      trajectory.push(...bodyPlots(3, dof / 3, position, ['x', 'y', 'z'], options.cartesianNote));
     } else {
       if (dof === 2) {
         const [x, y] = [cartesian(0), cartesian(1)];

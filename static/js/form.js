@@ -4,7 +4,8 @@
 // named by the error's `field` path (`h`, `params.gamma`, `q0[1]`, `methods[1].inner`,
 // `output.every`, `chart`). The initial state is entered in Cartesian coordinates (the server
 // transforms it into the chart, so every chart starts from the same physical state) or, on
-// request, in the chart's own coordinates; switching converts the values on the server.
+// request, in the chart's own coordinates; switching converts the values on the server. The
+// method checkboxes are a MethodPicker, which the Your-system section (system.js) uses too.
 
 import { simulateJson } from './api.js';
 
@@ -53,12 +54,12 @@ function richText(text) {
 }
 
 /** A number as an input shows it (shortest round-trip form). */
-function numberText(x) {
+export function numberText(x) {
   return Number.isFinite(x) ? String(x) : '';
 }
 
 /** Parses an input's text: a finite number, or null (the API then names the field). */
-function parseNumber(text) {
+export function parseNumber(text) {
   const t = String(text).trim();
   if (t === '') return null;
   const x = Number(t);
@@ -66,7 +67,7 @@ function parseNumber(text) {
 }
 
 /** Parses a comma- or space-separated list of numbers; bad entries become null. */
-function parseList(text) {
+export function parseList(text) {
   const parts = String(text).split(/[\s,;]+/).filter((s) => s !== '');
   return parts.map(parseNumber);
 }
@@ -82,6 +83,163 @@ function coordinateNames(dof, names = null) {
   if (dof === 2) return ['x', 'y'];
   if (dof === 3) return ['x', 'y', 'z'];
   return Array.from({ length: dof }, (_, i) => String(i + 1));
+}
+
+/**
+ * The method checkboxes, grouped as the catalogue groups them (geometric, conformal, baselines),
+ * each with its order, kind, citation, option input (inner method, base, processor, tolerance)
+ * and error slot. It keeps the chosen methods in the order they were ticked, which is the
+ * request's order. The simulation form offers every method; the Your-system section only those
+ * its system allows.
+ */
+export class MethodPicker {
+  /**
+   * @param {HTMLElement} box where the groups go
+   * @param {object[]} methods the method catalogue (GET /api/v1/methods)
+   * @param {object} [options]
+   * @param {string} [options.idPrefix] of the inputs' ids: `m-` gives `m-rk4` and `m-rk4-tolerance`
+   * @param {string[]|null} [options.offered] the ids of the methods offered (null: all)
+   */
+  constructor(box, methods, { idPrefix = 'm-', offered = null } = {}) {
+    Object.assign(this, { box, methods, idPrefix });
+    /** Chosen method ids in the order they were ticked. */
+    this.order = [];
+    this.offer(offered);
+  }
+
+  /**
+   * Offers the methods whose ids are in `ids` (null: all), with only the bases among them for the
+   * compositions. Methods still offered stay chosen.
+   */
+  offer(ids) {
+    const offered = ids ? this.methods.filter((m) => ids.includes(m.id)) : this.methods;
+    const keep = this.order.filter((id) => offered.some((m) => m.id === id));
+    const specs = this.read().filter((spec) => keep.includes(spec.id ?? spec));
+    this.bases = this.methods.filter((x) => x.symmetric && x.order === 2 && (!ids || ids.includes(x.id))).map((x) => x.id);
+    const group = (title, note, members) => (members.length === 0 ? null
+      : el('fieldset', { class: 'method-group' },
+        el('legend', {}, title, note ? ' ' : null, note ? el('small', { text: note }) : null),
+        members.map((m) => this.methodRow(m))));
+    const groups = GROUPS.map((g) => group(g.title, g.note, offered.filter((m) => m.group === g.id)));
+    groups.push(group('Other', null, offered.filter((m) => !GROUPS.some((g) => g.id === m.group))));
+    this.box.replaceChildren(...groups.filter(Boolean));
+    this.order = [];
+    this.fill(specs);
+  }
+
+  /** Every method's row. */
+  rows() {
+    return this.box.querySelectorAll('.method');
+  }
+
+  /** The row of method `id`, if offered. */
+  row(id) {
+    return this.box.querySelector(`.method[data-method="${id}"]`);
+  }
+
+  /** One method: checkbox, name, id, order and kind, citation, option input, error slot. */
+  methodRow(m) {
+    const id = this.idPrefix + m.id;
+    const errorId = 'err-' + id;
+    const box = el('input', { type: 'checkbox', id, name: 'method', value: m.id, 'aria-describedby': `note-${id} ${errorId}` });
+    box.addEventListener('change', () => {
+      this.order = this.order.filter((x) => x !== m.id);
+      if (box.checked) this.order.push(m.id);
+    });
+    const kind = m.kind.replace('_', ' ');
+    const label = el('label', { for: id },
+      el('span', { class: 'method-name', text: m.name }), ' ',
+      el('code', { text: m.id }));
+    const note = el('p', { class: 'method-note', id: `note-${id}` },
+      el('span', { class: 'tag', text: `order ${m.order}` }),
+      el('span', { class: `tag kind-${m.kind}`, text: kind }),
+      m.conformal_symplectic ? el('span', { class: 'tag', text: 'conformal symplectic' })
+        : m.symplectic ? el('span', { class: 'tag', text: 'symplectic' }) : null,
+      m.requirements.includes('conservative') ? el('span', { class: 'tag', text: 'undamped only' }) : null,
+      el('span', { class: 'cite', text: `${m.reference.paper}, ${m.reference.equation}` }));
+    let option = null;
+    if (m.options.includes('inner')) {
+      option = this.optionSelect(m, 'inner', 'inner method', RKS_INNER, 'heun');
+    } else if (m.options.includes('base')) {
+      const bases = this.bases;
+      option = this.optionSelect(m, 'base', 'base method', bases, bases.includes('modin_3s') ? 'modin_3s' : bases[0]);
+    } else if (m.options.includes('processor')) {
+      option = this.optionSelect(m, 'processor', 'processor', ROWLANDS_PROCESSORS, ROWLANDS_PROCESSORS[0]);
+    } else if (m.options.includes('tolerance')) {
+      const tid = `${id}-tolerance`;
+      option = el('span', { class: 'method-option' },
+        el('label', { for: tid, text: 'tolerance' }),
+        el('input', { id: tid, type: 'number', step: 'any', placeholder: '1e-12', 'data-option': 'tolerance' }));
+    }
+    const error = el('p', { class: 'field-error', id: errorId, 'aria-live': 'polite' });
+    const row = el('div', { class: 'method', 'data-method': m.id },
+      el('div', { class: 'method-head' }, box, label), note, option, error);
+    row.requirements = m.requirements;
+    return row;
+  }
+
+  optionSelect(m, option, text, values, fallback) {
+    const id = `${this.idPrefix}${m.id}-${option}`;
+    const select = el('select', { id, 'data-option': option },
+      values.map((v) => el('option', { value: v, text: v })));
+    select.value = fallback;
+    return el('span', { class: 'method-option' }, el('label', { for: id, text }), select);
+  }
+
+  /** Unticks method `id`. */
+  untick(id) {
+    const box = this.row(id)?.querySelector('input[type=checkbox]');
+    if (box) box.checked = false;
+    this.order = this.order.filter((x) => x !== id);
+  }
+
+  /** Chooses the methods of `specs` (ids, or objects with `id` and options), in that order. */
+  fill(specs) {
+    this.order = [];
+    for (const box of this.box.querySelectorAll('input[type=checkbox]')) box.checked = false;
+    for (const spec of specs) {
+      const id = typeof spec === 'string' ? spec : spec.id;
+      const row = this.row(id);
+      if (!row) continue;
+      row.querySelector('input[type=checkbox]').checked = true;
+      this.order.push(id);
+      if (typeof spec === 'object') {
+        for (const input of row.querySelectorAll('[data-option]')) {
+          const v = spec[input.dataset.option];
+          if (v !== undefined) input.value = String(v);
+        }
+      }
+    }
+  }
+
+  /** The chosen methods as the request lists them: an id, or {id, option} where one is set. */
+  read() {
+    return this.order.map((id) => {
+      const row = this.row(id);
+      const spec = { id };
+      for (const input of row.querySelectorAll('[data-option]')) {
+        const v = input.value.trim();
+        if (v === '') continue;
+        spec[input.dataset.option] = input.type === 'number' ? parseNumber(v) : v;
+      }
+      return Object.keys(spec).length === 1 ? id : spec;
+    });
+  }
+
+  /**
+   * The input and error slot an API field path names: `methods[1]` (the second chosen method),
+   * `methods[1].inner` (its option), `method` (the first). Null for paths it does not place.
+   */
+  locate(field) {
+    const match = /^methods?(?:\[(\d+)\])?(?:\.(\w+))?/.exec(field ?? '');
+    if (!match) return null;
+    const index = match[1] === undefined ? (field === 'method' ? 0 : null) : Number(match[1]);
+    const id = index === null ? null : this.order[index];
+    const row = id && this.row(id);
+    if (!row) return null;
+    const option = match[2] && row.querySelector(`[data-option="${match[2]}"]`);
+    return { input: option || row.querySelector('input[type=checkbox]'), error: row.querySelector('.field-error') };
+  }
 }
 
 /** The form: inputs, request reading and error display. */
@@ -110,8 +268,6 @@ export class SimForm {
     this.stateBox = form.querySelector('#state');
     this.methodsBox = form.querySelector('#methods');
     this.generalError = form.querySelector('#form-error');
-    /** Selected method ids in the order they were chosen (the request's order). */
-    this.order = [];
     /** Field path → {input, error} for error display. */
     this.fields = new Map();
     this.registerStatic('h');
@@ -125,7 +281,7 @@ export class SimForm {
     this.systemSelect.replaceChildren(
       ...this.systems.map((s) => el('option', { value: s.id, text: `${s.name}` })),
     );
-    this.buildMethods();
+    this.picker = new MethodPicker(this.methodsBox.querySelector('.method-groups'), this.methods);
     this.systemSelect.addEventListener('change', () => this.setSystem(this.systemSelect.value));
     this.chartSelect.addEventListener('change', () => this.changeChart(this.chartSelect.value));
     for (const radio of this.coordinateSwitch.querySelectorAll('input[type=radio]')) {
@@ -406,72 +562,6 @@ export class SimForm {
     this.stateBox.replaceChildren(...rows);
   }
 
-  /** The method checkboxes, grouped, with order, kind, source and options. */
-  buildMethods() {
-    const groups = GROUPS.map((g) => {
-      const members = this.methods.filter((m) => m.group === g.id);
-      if (members.length === 0) return null;
-      return el('fieldset', { class: 'method-group' },
-        el('legend', {}, g.title, ' ', el('small', { text: g.note })),
-        members.map((m) => this.methodRow(m)));
-    });
-    const others = this.methods.filter((m) => !GROUPS.some((g) => g.id === m.group));
-    if (others.length) {
-      groups.push(el('fieldset', { class: 'method-group' }, el('legend', { text: 'Other' }),
-        others.map((m) => this.methodRow(m))));
-    }
-    this.methodsBox.querySelector('.method-groups').replaceChildren(...groups.filter(Boolean));
-  }
-
-  /** One method: checkbox, name, id, order and kind, citation, option input, error slot. */
-  methodRow(m) {
-    const id = 'm-' + m.id;
-    const errorId = 'err-' + id;
-    const box = el('input', { type: 'checkbox', id, name: 'method', value: m.id, 'aria-describedby': `note-${id} ${errorId}` });
-    box.addEventListener('change', () => {
-      this.order = this.order.filter((x) => x !== m.id);
-      if (box.checked) this.order.push(m.id);
-    });
-    const kind = m.kind.replace('_', ' ');
-    const label = el('label', { for: id },
-      el('span', { class: 'method-name', text: m.name }), ' ',
-      el('code', { text: m.id }));
-    const note = el('p', { class: 'method-note', id: `note-${id}` },
-      el('span', { class: 'tag', text: `order ${m.order}` }),
-      el('span', { class: `tag kind-${m.kind}`, text: kind }),
-      m.conformal_symplectic ? el('span', { class: 'tag', text: 'conformal symplectic' })
-        : m.symplectic ? el('span', { class: 'tag', text: 'symplectic' }) : null,
-      m.requirements.includes('conservative') ? el('span', { class: 'tag', text: 'undamped only' }) : null,
-      el('span', { class: 'cite', text: `${m.reference.paper}, ${m.reference.equation}` }));
-    let option = null;
-    if (m.options.includes('inner')) {
-      option = this.optionSelect(m, 'inner', 'inner method', RKS_INNER, 'heun');
-    } else if (m.options.includes('base')) {
-      const bases = this.methods.filter((x) => x.symmetric && x.order === 2).map((x) => x.id);
-      option = this.optionSelect(m, 'base', 'base method', bases, bases.includes('modin_3s') ? 'modin_3s' : bases[0]);
-    } else if (m.options.includes('processor')) {
-      option = this.optionSelect(m, 'processor', 'processor', ROWLANDS_PROCESSORS, ROWLANDS_PROCESSORS[0]);
-    } else if (m.options.includes('tolerance')) {
-      const tid = `${id}-tolerance`;
-      option = el('span', { class: 'method-option' },
-        el('label', { for: tid, text: 'tolerance' }),
-        el('input', { id: tid, type: 'number', step: 'any', placeholder: '1e-12', 'data-option': 'tolerance' }));
-    }
-    const error = el('p', { class: 'field-error', id: errorId, 'aria-live': 'polite' });
-    const row = el('div', { class: 'method', 'data-method': m.id },
-      el('div', { class: 'method-head' }, box, label), note, option, error);
-    row.requirements = m.requirements;
-    return row;
-  }
-
-  optionSelect(m, option, text, values, fallback) {
-    const id = `m-${m.id}-${option}`;
-    const select = el('select', { id, 'data-option': option },
-      values.map((v) => el('option', { value: v, text: v })));
-    select.value = fallback;
-    return el('span', { class: 'method-option' }, el('label', { for: id, text }), select);
-  }
-
   /**
    * Disables methods whose requirements the chosen system does not meet, and marks those that
    * need a separable Hamiltonian when the chart is not separable (the server refuses them there,
@@ -480,7 +570,7 @@ export class SimForm {
   updateMethodAvailability() {
     const system = this.system;
     const chart = this.chart;
-    for (const row of this.methodsBox.querySelectorAll('.method')) {
+    for (const row of this.picker.rows()) {
       const separable = row.requirements.includes('separable_constant_mass') && !chart.separable;
       let soft = row.querySelector('.unmet-chart');
       if (separable && !soft) {
@@ -500,10 +590,7 @@ export class SimForm {
           row.querySelector('.method-note').append(why);
         }
         why.textContent = ` — not for this system: needs ${unmet.map((r) => REQUIREMENT_TEXT[r] || r).join(', ')}`;
-        if (box.checked) {
-          box.checked = false;
-          this.order = this.order.filter((x) => x !== row.dataset.method);
-        }
+        if (box.checked) this.picker.untick(row.dataset.method);
       } else if (why) {
         why.remove();
       }
@@ -516,24 +603,7 @@ export class SimForm {
       params: request.params || {}, q0: request.q0, p0: request.p0,
       chart: request.chart, initialCoordinates: request.initial_coordinates,
     });
-    const specs = request.methods || [request.method];
-    this.order = [];
-    for (const row of this.methodsBox.querySelectorAll('.method')) {
-      row.querySelector('input[type=checkbox]').checked = false;
-    }
-    for (const spec of specs) {
-      const id = typeof spec === 'string' ? spec : spec.id;
-      const row = this.methodsBox.querySelector(`.method[data-method="${id}"]`);
-      if (!row) continue;
-      row.querySelector('input[type=checkbox]').checked = true;
-      this.order.push(id);
-      if (typeof spec === 'object') {
-        for (const input of row.querySelectorAll('[data-option]')) {
-          const v = spec[input.dataset.option];
-          if (v !== undefined) input.value = String(v);
-        }
-      }
-    }
+    this.picker.fill(request.methods || [request.method]);
     this.form.querySelector('#h').value = numberText(request.h);
     this.form.querySelector('#t_end').value = numberText(request.t_end);
     this.form.querySelector('#every').value = request.output?.every ? String(request.output.every) : '';
@@ -556,20 +626,10 @@ export class SimForm {
       if (list) return parseList(list.value);
       return [...this.stateBox.querySelectorAll(`input[data-vector="${name}"]`)].map((i) => parseNumber(i.value));
     };
-    const methods = this.order.map((id) => {
-      const row = this.methodsBox.querySelector(`.method[data-method="${id}"]`);
-      const spec = { id };
-      for (const input of row.querySelectorAll('[data-option]')) {
-        const v = input.value.trim();
-        if (v === '') continue;
-        spec[input.dataset.option] = input.type === 'number' ? parseNumber(v) : v;
-      }
-      return Object.keys(spec).length === 1 ? id : spec;
-    });
     const request = {
       system: system.id,
       params,
-      methods,
+      methods: this.picker.read(),
       h: parseNumber(this.form.querySelector('#h').value),
       t_end: parseNumber(this.form.querySelector('#t_end').value),
       q0: vector('q0'),
@@ -612,16 +672,7 @@ export class SimForm {
   /** The input and error slot of an API field path. */
   locate(field) {
     if (!field) return null;
-    const methodMatch = /^methods?(?:\[(\d+)\])?(?:\.(\w+))?/.exec(field);
-    if (methodMatch && field.startsWith('method')) {
-      const index = methodMatch[1] === undefined ? (field === 'method' ? 0 : null) : Number(methodMatch[1]);
-      if (index === null) return this.fields.get('methods');
-      const id = this.order[index];
-      const row = id && this.methodsBox.querySelector(`.method[data-method="${id}"]`);
-      if (!row) return this.fields.get('methods');
-      const option = methodMatch[2] && row.querySelector(`[data-option="${methodMatch[2]}"]`);
-      return { input: option || row.querySelector('input[type=checkbox]'), error: row.querySelector('.field-error') };
-    }
+    if (/^methods?\b/.test(field)) return this.picker.locate(field) ?? this.fields.get('methods');
     // Exact path, then the path without its trailing index (`params.masses[2]` → `params.masses`).
     let path = field;
     for (;;) {

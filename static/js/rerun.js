@@ -88,8 +88,9 @@ export class RerunPanel {
     this.ui.view.disabled = off;
   }
 
+  /** geomint-<system id>.rrd: a built-in system's name, or a definition's `sys-…` id. */
   fileName() {
-    return `geomint-${this.store.request.system}.rrd`;
+    return `geomint-${this.store.header.system.id}.rrd`;
   }
 
   clearMessages() {

@@ -1,6 +1,8 @@
 // The results of one simulation as they stream in: per-method sample columns assembled from the
-// NDJSON `samples` chunks (with the Cartesian image of the state when the chart is not Cartesian), each method's `summary`, the stats table, and the downloadable JSON
-// document (the same shape as the JSON answer of POST /api/v1/simulate, plus the request).
+// NDJSON `samples` chunks (with the Cartesian image of the state when the chart is not Cartesian,
+// and the bodies' positions when the system places its bodies itself), each method's `summary`,
+// the stats table, and the downloadable JSON document (the same shape as the JSON answer of
+// POST /api/v1/simulate, plus the request).
 
 import { el } from './form.js';
 import { colour } from './charts.js';
@@ -22,10 +24,12 @@ function emptyRun(label, invariants, energyError) {
     dissipation_drift: null,
     // Columns for the plots, kept up to date as chunks arrive (no copying at redraw time):
     // positions and momenta per degree of freedom, Cartesian positions (null in the Cartesian
-    // chart, where they are qColumns), and |energy error| with zeros as gaps.
+    // chart, where they are qColumns), the bodies' coordinates (null unless the store places
+    // bodies), and |energy error| with zeros as gaps.
     qColumns: [],
     pColumns: [],
     xColumns: null,
+    bodyColumns: null,
     errorMagnitude: [],
   };
 }
@@ -42,10 +46,14 @@ export class RunStore {
   /**
    * @param {object} request the request body that was sent
    * @param {object} header the stream's `header` line
+   * @param {((q: number[]) => number[]) | null} [embed] the bodies' coordinates at the
+   *   configuration q, body after body, for a system whose bodies are its first coordinates
+   *   (samples that carry `bodies` are plotted from those)
    */
-  constructor(request, header) {
+  constructor(request, header, embed = null) {
     this.request = request;
     this.header = header;
+    this.embed = embed;
     this.runs = header.methods.map((label) => emptyRun(label, header.invariants, header.energy_error));
     /** How the stream ended: running, done, cancelled or error. */
     this.outcome = 'running';
@@ -74,6 +82,8 @@ export class RunStore {
     run.p.push(...chunk.p);
     appendColumns(run.qColumns, chunk.q);
     appendColumns(run.pColumns, chunk.p);
+    if (chunk.bodies) appendColumns(run.bodyColumns ??= [], chunk.bodies);
+    else if (this.embed) appendColumns(run.bodyColumns ??= [], chunk.q.map(this.embed));
     if (chunk.cartesian_q) {
       (run.cartesian_q ??= []).push(...chunk.cartesian_q);
       (run.cartesian_p ??= []).push(...(chunk.cartesian_p ?? []));

@@ -15,19 +15,11 @@ import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
 import { mkdtemp, mkdir, readFile, rm } from 'node:fs/promises';
 import { tmpdir } from 'node:os';
-import { join, dirname } from 'node:path';
-import { fileURLToPath } from 'node:url';
+import { join } from 'node:path';
 import { chromium } from 'playwright-core';
+import { artifacts, base, chromiumPath, CHROMIUM_FLAGS, HEADLESS_GPU_ERROR } from './harness.mjs';
 import { presetRequest } from '../../static/js/presets.js';
 
-const root = join(dirname(fileURLToPath(import.meta.url)), '..', '..');
-const artifacts = join(root, 'artifacts');
-const base = (process.env.GEOMINT_URL || '').replace(/\/$/, '');
-const chromiumPath = process.env.CHROMIUM_PATH || '/usr/bin/chromium';
-const CHROMIUM_FLAGS = [
-  '--headless', '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
-  '--disable-background-networking', '--disable-component-update', '--disable-sync',
-];
 /** The preset the test runs: paper 000's pendulum, modin_3s against heun at h = 0.2. */
 const PRESET = ['p000-pendulum', '3s-heun'];
 /** The stability section's defaults, as the page sends them. */
@@ -38,15 +30,6 @@ const STABILITY = {
   h: { min: 0, max: 1, n: 41 },
 };
 
-/**
- * Console errors that come from the machine having no usable GPU, not from the page. The Rerun
- * viewer renders with WebGPU or WebGL 2; where Chromium offers neither (some headless set-ups), the
- * viewer's start() logs exactly one error, `WebViewer failure: Failed to start failed to create
- * wgpu surface: … webgl2 not available …` (reproduced with Chromium's --disable-3d-apis), and
- * rejects; the page then shows its Rerun-app fallback, which the test requires whenever this
- * error is filtered out. Nothing else is filtered.
- */
-const HEADLESS_GPU_ERROR = /^WebViewer failure: Failed to start failed to create wgpu surface: .*(webgl2 not available|adapter)/;
 
 let context;
 let page;

@@ -14,24 +14,10 @@ import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
 import { mkdtemp, mkdir, rm, writeFile } from 'node:fs/promises';
 import { tmpdir } from 'node:os';
-import { join, dirname } from 'node:path';
-import { fileURLToPath } from 'node:url';
+import { join } from 'node:path';
 import { chromium } from 'playwright-core';
+import { artifacts, base, chromiumPath, CHROMIUM_FLAGS, HEADLESS_GPU_ERROR } from './harness.mjs';
 
-const root = join(dirname(fileURLToPath(import.meta.url)), '..', '..');
-const artifacts = join(root, 'artifacts');
-const base = (process.env.GEOMINT_URL || '').replace(/\/$/, '');
-const chromiumPath = process.env.CHROMIUM_PATH || '/usr/bin/chromium';
-const CHROMIUM_FLAGS = [
-  '--headless', '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
-  '--disable-background-networking', '--disable-component-update', '--disable-sync',
-];
-/**
- * The one console error of a machine whose Chromium offers neither WebGPU nor WebGL 2 (see
- * page.test.mjs): the viewer then fails to start and the page shows its fallback, which the test
- * requires whenever this error is filtered out.
- */
-const HEADLESS_GPU_ERROR = /^WebViewer failure: Failed to start failed to create wgpu surface: .*(webgl2 not available|adapter)/;
 /** The browser's log line for an answer the test asks for on purpose (404, 422). */
 const EXPECTED_REFUSAL = /Failed to load resource: the server responded with a status of (404|422)/;
 

@@ -79,6 +79,10 @@ pub struct Columns {
     /// |det ∂Φ/∂z − e^{−2γh·n}| of the step ending at each sample (absent unless asked for).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub jacobian_defect: Option<Vec<f64>>,
+    /// The bodies' coordinates per sample, body after body, 2 or 3 each as the definition's
+    /// `positions` write them (user-defined systems with `positions` only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub bodies: Option<Vec<Vec<f64>>>,
 }
 
 impl Columns {
@@ -125,6 +129,9 @@ impl Columns {
             self.invariants.entry(name).or_default().extend(values);
         }
         append(&mut self.jacobian_defect, more.jacobian_defect);
+        if let Some(more) = more.bodies {
+            self.bodies.get_or_insert_with(Vec::new).extend(more);
+        }
     }
 }
 
@@ -188,6 +195,9 @@ impl SampleSink for ColumnSink {
         }
         if let Some(d) = s.jacobian_defect {
             c.jacobian_defect.get_or_insert_with(Vec::new).push(d);
+        }
+        if let Some(b) = s.bodies {
+            c.bodies.get_or_insert_with(Vec::new).push(b.to_vec());
         }
     }
 }

@@ -14,6 +14,8 @@ use crate::core::error::{CoreError, Field};
 use crate::core::methods::{self, Method, MethodId};
 use crate::core::run::{integrate, Budget, Observer, RunStats, StopReason};
 use crate::core::system::{MechanicalSystem, State};
+use crate::core::systems::world::Drawing;
+use crate::core::systems::World;
 use crate::{with_stepper, with_system};
 
 /// One sample as sinks receive it.
@@ -37,6 +39,8 @@ pub struct Sample<'a> {
     pub invariants: &'a [f64],
     /// |det ∂Φ/∂z − e^{−r h n}| of the step that ended here, when asked for.
     pub jacobian_defect: Option<f64>,
+    /// The bodies' coordinates, for a system drawn by its definition's `positions`.
+    pub bodies: Option<&'a [f64]>,
 }
 
 /// Receives samples of one method's run.
@@ -87,6 +91,10 @@ impl Simulation {
                 sink,
                 invariants: vec![0.0; sys.invariant_count()],
                 cartesian: (!sys.is_cartesian()).then(|| (vec![0.0; n], vec![0.0; n])),
+                drawing: match &self.world {
+                    World::Drawn(drawing) => Some((&**drawing, Vec::new())),
+                    _ => None,
+                },
                 expected_det: (-sys.damping_rate() * self.schedule.h * n as f64).exp(),
                 last_det: None,
                 sample_index: 0,
@@ -157,6 +165,8 @@ where
     invariants: Vec<f64>,
     /// Buffers for the Cartesian state, when the chart is not Cartesian.
     cartesian: Option<(Vec<f64>, Vec<f64>)>,
+    /// The drawing of a user-defined system and a buffer for its bodies' coordinates.
+    drawing: Option<(&'a Drawing, Vec<f64>)>,
     expected_det: f64,
     last_det: Option<f64>,
     sample_index: usize,
@@ -179,6 +189,9 @@ where
         if let Some((x, px)) = self.cartesian.as_mut() {
             self.sys.to_cartesian(&z.q, &z.p, x, px);
         }
+        if let Some((drawing, bodies)) = self.drawing.as_mut() {
+            drawing.coordinates(z.q.as_slice(), bodies);
+        }
         self.sink.on_sample(&Sample {
             step,
             t,
@@ -192,6 +205,7 @@ where
             energy_error,
             invariants: &self.invariants,
             jacobian_defect: self.last_det.map(|d| (d - self.expected_det).abs()),
+            bodies: self.drawing.as_ref().map(|(_, bodies)| bodies.as_slice()),
         });
         self.sample_index += 1;
     }

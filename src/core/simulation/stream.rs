@@ -380,6 +380,7 @@ mod tests {
             energy_error: Some(vec![t / 2.0]),
             invariants: [("J3".to_string(), vec![3.0 * t])].into(),
             jacobian_defect: None,
+            bodies: Some(vec![vec![t, 2.0 * t]]),
         };
         let mut all = Columns::with_invariants(&["J3"]);
         all.extend(chunk(1.0));
@@ -391,6 +392,7 @@ mod tests {
         assert_eq!(all.energy_error, Some(vec![0.5, 1.0]));
         assert_eq!(all.invariants["J3"], [3.0, 6.0]);
         assert_eq!(all.jacobian_defect, None);
+        assert_eq!(all.bodies, Some(vec![vec![1.0, 2.0], vec![2.0, 4.0]]));
     }
 
     #[test]

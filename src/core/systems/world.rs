@@ -51,6 +51,17 @@ impl Drawing {
         }
     }
 
+    /// The bodies' coordinates at `q` as the definition writes them (2 or 3 per body, body
+    /// after body), into `out`.
+    pub fn coordinates(&self, q: &[f64], out: &mut Vec<f64>) {
+        out.clear();
+        if q.len() != self.function.input_count() {
+            return;
+        }
+        out.resize(self.function.output_count(), 0.0);
+        self.function.eval(q, out);
+    }
+
     /// The positions of the bodies at `q`, appended to `out`.
     fn positions(&self, q: &[f64], out: &mut Vec<[f64; 3]>) {
         if q.len() != self.function.input_count() {

@@ -1,0 +1,25 @@
+// What the browser tests share: where the page is served, the Chromium they drive and its flags,
+// where screenshots go, and the one console error a machine without WebGPU or WebGL 2 shows.
+
+import { join, dirname } from 'node:path';
+import { fileURLToPath } from 'node:url';
+
+/** The repository's root. */
+export const root = join(dirname(fileURLToPath(import.meta.url)), '..', '..');
+/** Where screenshots go. */
+export const artifacts = join(root, 'artifacts');
+/** The server under test (scripts/test-browser sets GEOMINT_URL). */
+export const base = (process.env.GEOMINT_URL || '').replace(/\/$/, '');
+/** Debian's chromium, or CHROMIUM_PATH. */
+export const chromiumPath = process.env.CHROMIUM_PATH || '/usr/bin/chromium';
+/** Headless, without the network traffic of a desktop browser. */
+export const CHROMIUM_FLAGS = [
+  '--headless', '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
+  '--disable-background-networking', '--disable-component-update', '--disable-sync',
+];
+/**
+ * The one console error of a machine whose Chromium offers neither WebGPU nor WebGL 2: the Rerun
+ * viewer then fails to start and the page shows its fallback, which the tests require whenever
+ * this error is filtered out.
+ */
+export const HEADLESS_GPU_ERROR = /^WebViewer failure: Failed to start failed to create wgpu surface: .*(webgl2 not available|adapter)/;
