@@ -420,3 +420,36 @@ async fn wrong_definitions_are_refused_at_their_field_and_character() {
     assert_eq!(answer["error"]["field"], "methods[0]");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[tokio::test]
+async fn a_definition_is_recorded_and_its_samples_read_back() {
+    let dir = systems_dir("recording");
+    let server = start(config(&dir)).await;
+    let pendulum = json!({
+        "coordinates": ["a", "b"],
+        "hamiltonian": "(p_a^2 + 2*p_b^2 - 2*p_a*p_b*cos(a - b)) / (2*(1 + sin(a - b)^2)) - 2*g*cos(a) - g*cos(b)",
+        "parameters": {"g": 9.81},
+        "positions": [["sin(a)", "-cos(a)"], ["sin(a) + sin(b)", "-cos(a) - cos(b)"]],
+        "q0": [1, 0.5]
+    });
+    let body = json!({"system": pendulum, "methods": ["implicit_midpoint"], "h": 0.01,
+        "t_end": 2, "output": {"every": 10}});
+    let (status, created) = post_json(&server, "/api/v1/recordings", &body).await;
+    assert_eq!(status, 201, "{created}");
+    let id = created["id"].as_str().unwrap();
+    let (status, read) = get(&server, &format!("/api/v1/recordings/{id}/samples")).await;
+    assert_eq!(status, 200, "{read}");
+    let (_, direct) = post_json(&server, "/api/v1/simulate", &body).await;
+    // The recording keeps single-precision positions: the samples read back agree to 1e-6.
+    let recorded = read["runs"][0]["q"].as_array().unwrap();
+    let computed = direct["runs"][0]["q"].as_array().unwrap();
+    assert_eq!(recorded.len(), computed.len());
+    assert_eq!(recorded.len(), 21);
+    for (r, c) in recorded.iter().zip(computed) {
+        for (x, y) in r.as_array().unwrap().iter().zip(c.as_array().unwrap()) {
+            let (x, y) = (x.as_f64().unwrap(), y.as_f64().unwrap());
+            assert!((x - y).abs() < 1e-6 * (1.0 + y.abs()), "{x} against {y}");
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
