@@ -220,6 +220,13 @@ fn with_phase<R>(q: &[f64], p: &[f64], f: impl FnOnce(&[f64]) -> R) -> R {
     })
 }
 
+/// `f` at the phase point (q, p); out of line, so that the separable paths that call it only
+/// for a general H stay small enough to inline.
+#[inline(never)]
+fn eval_on_phase(f: &CompiledFunction, q: &[f64], p: &[f64], out: &mut [f64]) {
+    with_phase(q, p, |x| f.eval(x, out))
+}
+
 /// A user-defined system of dimension `D` (`U1`–`U3` on the stack, `Dyn` beyond).
 pub struct CustomSystem<D: Dim> {
     dim: D,
@@ -256,6 +263,20 @@ impl<D: Dim> CustomSystem<D> {
                     .sum();
             }
         })
+    }
+
+    /// P(q) v for a damping that depends on q: D(q) v for a projector, D(q) M⁻¹ v in general (so
+    /// that r P = ε D M⁻¹ with r = ε). Out of line, so that the conformal case inlines to a copy.
+    #[inline(never)]
+    fn project_state_dependent(&self, q: &[f64], v: &[f64], out: &mut [f64]) {
+        match &self.model.damping {
+            DampingModel::General { factor, .. } => with_buffer(q.len(), |u| {
+                u.copy_from_slice(v);
+                factor.solve(u);
+                self.damping_times(q, u, out);
+            }),
+            _ => self.damping_times(q, v, out),
+        }
     }
 
     /// Applies a flow of the general damping: `f(flows, ε, D(q))`.
@@ -373,9 +394,9 @@ where
             EnergyModel::Separable { inverse_mass, .. } => {
                 inverse_mass.apply(p.as_slice(), out.as_mut_slice())
             }
-            EnergyModel::General { dp, .. } => with_phase(q.as_slice(), p.as_slice(), |x| {
-                dp.eval(x, out.as_mut_slice())
-            }),
+            EnergyModel::General { dp, .. } => {
+                eval_on_phase(dp, q.as_slice(), p.as_slice(), out.as_mut_slice())
+            }
         }
     }
 
@@ -385,12 +406,13 @@ where
             EnergyModel::Separable { gradient, .. } => {
                 gradient.eval(q.as_slice(), out.as_mut_slice())
             }
-            EnergyModel::General { dq, .. } => with_phase(q.as_slice(), p.as_slice(), |x| {
-                dq.eval(x, out.as_mut_slice())
-            }),
+            EnergyModel::General { dq, .. } => {
+                eval_on_phase(dq, q.as_slice(), p.as_slice(), out.as_mut_slice())
+            }
         }
     }
 
+    #[inline]
     fn damping_rate(&self) -> f64 {
         self.model.damping.rate()
     }
@@ -399,15 +421,7 @@ where
     fn project_damped(&self, q: &Vector<D>, v: &Vector<D>, out: &mut Vector<D>) {
         match &self.model.damping {
             DampingModel::None | DampingModel::Conformal { .. } => out.copy_from(v),
-            DampingModel::Projector { .. } => {
-                self.damping_times(q.as_slice(), v.as_slice(), out.as_mut_slice())
-            }
-            // P = D M⁻¹, so that r P = ε D M⁻¹ with r = ε.
-            DampingModel::General { factor, .. } => with_buffer(q.len(), |u| {
-                u.copy_from_slice(v.as_slice());
-                factor.solve(u);
-                self.damping_times(q.as_slice(), u, out.as_mut_slice());
-            }),
+            _ => self.project_state_dependent(q.as_slice(), v.as_slice(), out.as_mut_slice()),
         }
     }
 
