@@ -61,8 +61,6 @@ where
     slope: State<D>,
     /// The proposed end of the step, y₀ + h Σ bᵢ kᵢ.
     proposed: State<D>,
-    /// The derivative at the proposed end (the next step's k₁ when accepted).
-    end_slope: State<D>,
     /// The fifth- and third-order error estimates (without the factor h).
     err5: State<D>,
     err3: State<D>,
@@ -88,7 +86,6 @@ where
             stage: state(),
             slope: state(),
             proposed: state(),
-            end_slope: state(),
             err5: state(),
             err3: state(),
             scratch: zero.clone(),
@@ -108,6 +105,16 @@ where
     for (y, x) in y.p.iter_mut().zip(x.p.iter()) {
         *y += *x * c;
     }
+}
+
+/// y ← x in place (`clone_from` would allocate a fresh vector for a run-time dimension).
+#[inline(always)]
+fn copy<D: Dim>(y: &mut State<D>, x: &State<D>)
+where
+    DefaultAllocator: Allocator<D>,
+{
+    y.q.copy_from(&x.q);
+    y.p.copy_from(&x.p);
 }
 
 /// The components of (q, p) in the order y = (q, p) lists them.
@@ -190,7 +197,7 @@ where
         };
         h0 = with_sign_of(h0.min(length.abs()), length);
         // One Euler step, and the change of f along it.
-        self.stage.clone_from(y);
+        copy(&mut self.stage, y);
         add_scaled(&mut self.stage, f0, h0);
         field(sys, &self.stage, f1, &mut self.scratch);
         let mut d2 = 0.0;
@@ -252,10 +259,10 @@ where
                     h_new = direction * h_new.abs().min(h.abs());
                 }
                 rejected = false;
-                field(sys, &self.proposed, &mut self.end_slope, &mut self.scratch);
+                // The derivative at the new point is the next step's k₁ (FSAL).
+                field(sys, &self.proposed, &mut self.k[0], &mut self.scratch);
                 evaluations += 1;
-                std::mem::swap(&mut self.k[0], &mut self.end_slope);
-                y.clone_from(&self.proposed);
+                std::mem::swap(y, &mut self.proposed);
                 x += h;
                 if last {
                     return Ok(evaluations);
@@ -279,7 +286,7 @@ where
         t: &EmbeddedTableau,
     ) {
         for s in 1..STAGES {
-            self.stage.clone_from(y);
+            copy(&mut self.stage, y);
             // Zero coefficients included, as before (see the module docs).
             for j in 0..s {
                 add_scaled(&mut self.stage, &self.k[j], h * t.a[s][j]);
@@ -291,7 +298,7 @@ where
         for i in 5..STAGES {
             add_scaled(&mut self.slope, &self.k[i], t.b[i]);
         }
-        self.proposed.clone_from(y);
+        copy(&mut self.proposed, y);
         add_scaled(&mut self.proposed, &self.slope, h);
     }
 
@@ -313,7 +320,7 @@ where
             add_scaled(&mut self.err5, &self.k[i], t.e[i]);
         }
         // err₃ = Σ bᵢ kᵢ − bhh₁ k₁ − bhh₂ k₉ − bhh₃ k₁₂.
-        self.err3.clone_from(&self.slope);
+        copy(&mut self.err3, &self.slope);
         add_scaled(&mut self.err3, &self.k[0], -t.bhh[0]);
         add_scaled(&mut self.err3, &self.k[8], -t.bhh[1]);
         add_scaled(&mut self.err3, &self.k[11], -t.bhh[2]);
