@@ -65,7 +65,7 @@ where
     /// Symplectic Euler or its adjoint on a non-separable Hamiltonian.
     GeneralSymplecticEuler(GeneralSymplecticEuler<S>),
     /// The adaptive reference.
-    Reference(Reference),
+    Reference(Reference<S::Dim>),
     /// rowlands.
     Rowlands(Rowlands<S>),
 }
@@ -210,7 +210,9 @@ where
             }
         }
         Method::ModinRks { inner } => splitting(splitting::MODIN_RKS.to_vec(), Some(inner.id())),
-        Method::Reference { tolerance } => AnyStepper::Reference(Reference::new(tolerance)),
+        Method::Reference { tolerance } => {
+            AnyStepper::Reference(Reference::new(tolerance, sys.dim()))
+        }
         Method::Rowlands { processor } => AnyStepper::Rowlands(Rowlands::new(sys, processor)),
         Method::Plain(id) => match id {
             MethodId::SymplecticEuler if !separable => AnyStepper::GeneralSymplecticEuler(

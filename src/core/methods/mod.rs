@@ -7,6 +7,7 @@
 pub mod build;
 pub mod composition;
 pub mod conformal;
+pub mod dop853;
 pub mod implicit;
 pub mod reference;
 pub mod rowlands;
