@@ -312,6 +312,14 @@ fn the_oscillator_as_a_definition_meets_the_exact_solution_at_second_order() {
     assert!(errors[2] < 1e-4, "{errors:?}");
 }
 
+/// The largest |H − H₀| over the first half of the samples and over the second.
+fn energy_error_by_halves(energy: &[f64]) -> (f64, f64) {
+    let errors: Vec<f64> = energy.iter().map(|e| (e - energy[0]).abs()).collect();
+    let half = errors.len() / 2;
+    let largest = |part: &[f64]| part.iter().cloned().fold(0.0, f64::max);
+    (largest(&errors[..half]), largest(&errors[half..]))
+}
+
 /// Hénon–Heiles, V = (x² + y²)/2 + x²y − y³/3, at energy 1/8 (a bounded orbit).
 fn henon_heiles(damping: Option<Value>) -> SystemRef {
     let mut definition = json!({
@@ -336,12 +344,7 @@ fn henon_heiles_keeps_its_energy_error_bounded_under_modin_3s_while_rk4_drifts()
             ..SimulationSpec::new(system.clone(), &[method(id)], h, h * steps as f64)
         };
         let c = run(&spec).expect("runs");
-        let e0 = c.energy[0];
-        let errors: Vec<f64> = c.energy.iter().map(|e| (e - e0).abs()).collect();
-        let half = errors.len() / 2;
-        let first = errors[..half].iter().cloned().fold(0.0, f64::max);
-        let second = errors[half..].iter().cloned().fold(0.0, f64::max);
-        (first, second)
+        energy_error_by_halves(&c.energy)
     };
     let (first, second) = energy_error("modin_3s");
     // A band: the error of the second half of the run is no larger than that of the first
@@ -427,10 +430,7 @@ fn a_double_pendulum_as_a_general_hamiltonian_runs_the_methods_for_it_and_refuse
                 assert!((x - e).abs() < 1e-15, "{id}: {b:?} at q = {q:?}");
             }
         }
-        let errors: Vec<f64> = c.energy.iter().map(|e| (e - c.energy[0]).abs()).collect();
-        let half = errors.len() / 2;
-        let first = errors[..half].iter().cloned().fold(0.0, f64::max);
-        let second = errors[half..].iter().cloned().fold(0.0, f64::max);
+        let (first, second) = energy_error_by_halves(&c.energy);
         assert!(
             second < band && second < 1.5 * first,
             "{id}: {first:.2e}, {second:.2e}"

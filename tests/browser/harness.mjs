@@ -1,8 +1,11 @@
 // What the browser tests share: where the page is served, the Chromium they drive and its flags,
 // where screenshots go, and the one console error a machine without WebGPU or WebGL 2 shows.
 
+import { mkdir, mkdtemp } from 'node:fs/promises';
+import { tmpdir } from 'node:os';
 import { join, dirname } from 'node:path';
 import { fileURLToPath } from 'node:url';
+import { chromium } from 'playwright-core';
 
 /** The repository's root. */
 export const root = join(dirname(fileURLToPath(import.meta.url)), '..', '..');
@@ -23,3 +26,25 @@ export const CHROMIUM_FLAGS = [
  * this error is filtered out.
  */
 export const HEADLESS_GPU_ERROR = /^WebViewer failure: Failed to start failed to create wgpu surface: .*(webgl2 not available|adapter)/;
+
+/**
+ * Headless Chromium with a fresh profile directory (a persistent context is how playwright takes
+ * an explicit --user-data-dir) at `viewport`, and its first page, whose console errors and
+ * uncaught exceptions are pushed to `errors`. The caller closes the context and removes `profile`.
+ */
+export async function launch(viewport, errors) {
+  await mkdir(artifacts, { recursive: true });
+  const profile = await mkdtemp(join(tmpdir(), 'geomint-chromium-'));
+  const context = await chromium.launchPersistentContext(profile, {
+    executablePath: chromiumPath,
+    headless: true,
+    args: CHROMIUM_FLAGS,
+    viewport,
+  });
+  const page = context.pages()[0] || (await context.newPage());
+  page.on('console', (message) => {
+    if (message.type() === 'error') errors.push(message.text());
+  });
+  page.on('pageerror', (error) => errors.push(`uncaught: ${error.message}`));
+  return { context, page, profile };
+}

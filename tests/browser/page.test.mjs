@@ -13,11 +13,9 @@
 
 import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
-import { mkdtemp, mkdir, readFile, rm } from 'node:fs/promises';
-import { tmpdir } from 'node:os';
+import { readFile, rm } from 'node:fs/promises';
 import { join } from 'node:path';
-import { chromium } from 'playwright-core';
-import { artifacts, base, chromiumPath, CHROMIUM_FLAGS, HEADLESS_GPU_ERROR } from './harness.mjs';
+import { artifacts, base, HEADLESS_GPU_ERROR, launch } from './harness.mjs';
 import { presetRequest } from '../../static/js/presets.js';
 
 /** The preset the test runs: paper 000's pendulum, modin_3s against heun at h = 0.2. */
@@ -69,20 +67,7 @@ async function waitForServer() {
 before(async () => {
   assert.ok(base, 'set GEOMINT_URL to the server under test (scripts/test-browser does)');
   await waitForServer();
-  await mkdir(artifacts, { recursive: true });
-  profile = await mkdtemp(join(tmpdir(), 'geomint-chromium-'));
-  // A persistent context is how playwright takes an explicit, fresh --user-data-dir.
-  context = await chromium.launchPersistentContext(profile, {
-    executablePath: chromiumPath,
-    headless: true,
-    args: CHROMIUM_FLAGS,
-    viewport: { width: 1280, height: 800 },
-  });
-  page = context.pages()[0] || (await context.newPage());
-  page.on('console', (message) => {
-    if (message.type() === 'error') consoleErrors.push(message.text());
-  });
-  page.on('pageerror', (error) => consoleErrors.push(`uncaught: ${error.message}`));
+  ({ context, page, profile } = await launch({ width: 1280, height: 800 }, consoleErrors));
   page.on('requestfailed', (request) => {
     failedRequests.push(`${new URL(request.url()).pathname} ${request.failure()?.errorText}`);
   });

@@ -12,11 +12,10 @@
 
 import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
-import { mkdtemp, mkdir, rm, writeFile } from 'node:fs/promises';
+import { mkdtemp, rm, writeFile } from 'node:fs/promises';
 import { tmpdir } from 'node:os';
 import { join } from 'node:path';
-import { chromium } from 'playwright-core';
-import { artifacts, base, chromiumPath, CHROMIUM_FLAGS, HEADLESS_GPU_ERROR } from './harness.mjs';
+import { artifacts, base, HEADLESS_GPU_ERROR, launch } from './harness.mjs';
 
 /** The browser's log line for an answer the test asks for on purpose (404, 422). */
 const EXPECTED_REFUSAL = /Failed to load resource: the server responded with a status of (404|422)/;
@@ -83,26 +82,16 @@ async function newTab(url, errors) {
 
 before(async () => {
   assert.ok(base, 'set GEOMINT_URL to the server under test (scripts/test-browser does)');
-  await mkdir(artifacts, { recursive: true });
   for (const [name, request] of [['oscillator', OSCILLATOR], ...FILLERS.map((r, i) => [`filler${i}`, r]), ['pendulum', PENDULUM]]) {
     const { status, body } = await createRecording(request);
     assert.equal(status, 201, JSON.stringify(body));
     made[name] = body.id;
   }
   scratch = await mkdtemp(join(tmpdir(), 'geomint-recordings-'));
-  profile = await mkdtemp(join(tmpdir(), 'geomint-chromium-'));
-  context = await chromium.launchPersistentContext(profile, {
-    executablePath: chromiumPath,
-    headless: true,
-    args: CHROMIUM_FLAGS,
-    viewport: { width: 1280, height: 900 },
-  });
+  ({ context, page, profile } = await launch({ width: 1280, height: 900 }, consoleErrors));
   await context.grantPermissions(['clipboard-read', 'clipboard-write'], { origin: base });
   // Without a GPU the viewer renders in software on the page's thread, which slows every action.
   context.setDefaultTimeout(60_000);
-  page = context.pages()[0] || (await context.newPage());
-  page.on('console', (m) => { if (m.type() === 'error') consoleErrors.push(m.text()); });
-  page.on('pageerror', (e) => consoleErrors.push(`uncaught: ${e.message}`));
   page.on('request', (r) => requests.push(`${r.method()} ${new URL(r.url()).pathname}`));
   await page.goto(`${base}/`);
   await page.waitForSelector('#recordings[data-library-state="ready"]', { timeout: 15_000 });

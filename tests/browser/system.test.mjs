@@ -12,11 +12,9 @@
 
 import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
-import { mkdtemp, mkdir, readFile, rm } from 'node:fs/promises';
-import { tmpdir } from 'node:os';
+import { readFile, rm } from 'node:fs/promises';
 import { join } from 'node:path';
-import { chromium } from 'playwright-core';
-import { artifacts, base, chromiumPath, CHROMIUM_FLAGS, HEADLESS_GPU_ERROR } from './harness.mjs';
+import { artifacts, base, HEADLESS_GPU_ERROR, launch } from './harness.mjs';
 import { EXAMPLES } from '../../static/js/examples.js';
 
 /** The browser's log line for a refusal the test provokes on purpose. */
@@ -85,19 +83,7 @@ function shownError(p, id) {
 
 before(async () => {
   assert.ok(base, 'set GEOMINT_URL to the server under test (scripts/test-browser does)');
-  await mkdir(artifacts, { recursive: true });
-  profile = await mkdtemp(join(tmpdir(), 'geomint-chromium-'));
-  context = await chromium.launchPersistentContext(profile, {
-    executablePath: chromiumPath,
-    headless: true,
-    args: CHROMIUM_FLAGS,
-    viewport: { width: 1280, height: 900 },
-  });
-  page = context.pages()[0] || (await context.newPage());
-  page.on('console', (message) => {
-    if (message.type() === 'error') consoleErrors.push(message.text());
-  });
-  page.on('pageerror', (error) => consoleErrors.push(`uncaught: ${error.message}`));
+  ({ context, page, profile } = await launch({ width: 1280, height: 900 }, consoleErrors));
   await page.goto(`${base}/`);
   await page.waitForSelector('body[data-run-state="idle"]', { timeout: 15_000 });
   await settled(page, ['idle'], 5_000);
