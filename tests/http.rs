@@ -951,6 +951,8 @@ async fn openapi_lists_every_route() {
             "/api/v1/studies/energy-map" => json!({"nx": 3, "ny": 3, "t_max": 10}),
             "/api/v1/studies/convergence" => json!({"system": "pendulum", "t_end": 1,
                 "methods": ["rk4"], "h": [0.1, 0.05]}),
+            "/api/v1/studies/sweep" => json!({"system": "pendulum", "t_end": 1, "h": 0.1,
+                "methods": ["rk4"], "axes": [{"name": "params.gamma", "min": 0, "max": 1, "n": 3}]}),
             "/api/v1/systems" => definition.clone(),
             _ => pendulum_request(),
         };

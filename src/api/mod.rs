@@ -17,6 +17,7 @@ pub mod method;
 pub mod simulate;
 pub mod stability;
 pub mod studies;
+pub mod sweep;
 pub mod system;
 
 use serde::Serialize;

@@ -11,6 +11,7 @@
 pub mod run;
 pub mod serve;
 pub mod study;
+pub mod sweep;
 
 use std::io::{self, Read, Write};
 use std::process::ExitCode;
@@ -47,8 +48,9 @@ pub enum Command {
     Serve(ServeArgs),
     /// Run a simulation spec (the body of POST /api/v1/simulate) without a server.
     Run(RunArgs),
-    /// Run a study spec without a server (`work-precision`, `convergence`, `energy-map`: the
-    /// body of POST /api/v1/studies/work-precision, /convergence or /energy-map).
+    /// Run a study spec without a server (`work-precision`, `convergence`, `energy-map`,
+    /// `sweep`: the body of POST /api/v1/studies/work-precision, /convergence, /energy-map or
+    /// /sweep), or merge the parts of a sharded sweep (`merge`).
     Study(StudyArgs),
     /// Print the system catalogue as JSON.
     Systems,

@@ -1,5 +1,5 @@
-//! `geomint study KIND spec.json`: a work–precision or convergence study, or an energy-error map,
-//! without a server, with progress on standard error; the document as JSON, or as a Rerun
+//! `geomint study KIND spec.json`: a work–precision or convergence study, an energy-error map or
+//! a sweep (see [`super::sweep`]), without a server, with progress on standard error; the document as JSON, or as a Rerun
 //! recording for an output file ending in `.rrd` (work–precision studies and maps).
 
 use std::fs::File;
@@ -26,6 +26,10 @@ pub enum StudyKind {
     /// Energy-error map of the planar elastic pendulum, Cartesian against polar coordinates
     /// (paper 001 Fig. 6), on all cores.
     EnergyMap,
+    /// Any system over one or two axes, on all cores; with `--shard` one part of it.
+    Sweep,
+    /// The parts of a sweep (`--shard` outputs, every shard once) into its document.
+    Merge,
 }
 
 /// Settings of `geomint study`.
@@ -34,8 +38,16 @@ pub struct StudyArgs {
     /// The kind of study.
     #[arg(value_enum)]
     pub kind: StudyKind,
-    /// The spec file (JSON); `-` reads standard input.
+    /// The spec file (JSON); `-` reads standard input. For `merge`, the first part.
     pub spec: PathBuf,
+    /// For `merge`: the other parts.
+    pub parts: Vec<PathBuf>,
+    /// For `sweep`: run shard `i/n` only (cells in a fixed order, so parts from any machines
+    /// merge to the whole sweep bit for bit), or `auto` for the index of a Slurm array task
+    /// (`SLURM_ARRAY_TASK_ID`) or a Kubernetes Indexed Job (`JOB_COMPLETION_INDEX`) and the
+    /// count from `SLURM_ARRAY_TASK_COUNT` or `GEOMINT_SHARDS`.
+    #[arg(long)]
+    pub shard: Option<String>,
     /// Output file; `.rrd` writes a Rerun recording (work-precision only), anything else JSON
     /// (default: standard output). Progress goes to standard error.
     #[arg(short, long)]
@@ -49,14 +61,27 @@ pub(crate) fn run_study(args: &StudyArgs) -> ExitCode {
     use crate::api::studies::{ConvergenceRequest, WorkPrecisionRequest};
     use crate::core::studies::convergence::{self, ConvergenceLine};
     use crate::core::studies::work_precision::{self, StudyLine};
-    let (source, text) = match read_spec(&args.spec) {
-        Ok(spec) => spec,
-        Err(code) => return code,
-    };
     let limits = Limits {
         max_steps: args.max_steps,
         ..Limits::default()
     };
+    match args.kind {
+        StudyKind::Sweep => return super::sweep::run_sweep(args, &limits),
+        StudyKind::Merge => return super::sweep::run_merge(args, &limits),
+        _ => {}
+    }
+    let (source, text) = match read_spec(&args.spec) {
+        Ok(spec) => spec,
+        Err(code) => return code,
+    };
+    if !args.parts.is_empty() && args.kind != StudyKind::Merge {
+        eprintln!("error: one spec file only (several files are for `merge`)");
+        return ExitCode::from(BAD_INPUT);
+    }
+    if args.shard.is_some() && args.kind != StudyKind::Sweep {
+        eprintln!("error: --shard is for `sweep` only");
+        return ExitCode::from(BAD_INPUT);
+    }
     let reference = |reference: &str, ms: f64, total: usize| {
         eprintln!("errors against the {reference} ({ms:.0} ms); {total} settings")
     };
@@ -137,6 +162,7 @@ pub(crate) fn run_study(args: &StudyArgs) -> ExitCode {
             )
         }
         StudyKind::EnergyMap => run_energy_map(args, &source, &text),
+        StudyKind::Sweep | StudyKind::Merge => unreachable!("handled before the spec is read"),
     }
 }
 
@@ -251,7 +277,7 @@ fn finish_study<S, L: ProgressLine>(
 
 /// Writes a study's document to the output file — a Rerun recording through `rrd` when
 /// `wants_rrd`, pretty JSON otherwise — or prints it without one.
-fn write_document<D: serde::Serialize>(
+pub(crate) fn write_document<D: serde::Serialize>(
     args: &StudyArgs,
     wants_rrd: bool,
     doc: &D,

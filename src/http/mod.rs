@@ -86,6 +86,10 @@ pub mod paths {
     pub const ENERGY_MAP: &str = "/api/v1/studies/energy-map";
     /// Convergence studies.
     pub const CONVERGENCE: &str = "/api/v1/studies/convergence";
+    /// Sweeps of any system over one or two axes.
+    pub const SWEEP: &str = "/api/v1/studies/sweep";
+    /// Ready-made sweeps.
+    pub const SWEEP_PRESETS: &str = "/api/v1/studies/sweep/presets";
     /// The OpenAPI document.
     pub const OPENAPI: &str = "/api/v1/openapi.json";
     /// Stored recordings.
@@ -111,6 +115,8 @@ pub const ROUTES: &[(&str, &str)] = &[
     ("post", paths::WORK_PRECISION),
     ("post", paths::ENERGY_MAP),
     ("post", paths::CONVERGENCE),
+    ("post", paths::SWEEP),
+    ("get", paths::SWEEP_PRESETS),
     ("get", paths::OPENAPI),
     ("post", paths::RECORDINGS),
     ("get", paths::RECORDINGS),
@@ -140,6 +146,8 @@ pub fn app(state: AppState) -> Router {
         .route(paths::WORK_PRECISION, post(studies::work_precision))
         .route(paths::ENERGY_MAP, post(studies::energy_map))
         .route(paths::CONVERGENCE, post(studies::convergence))
+        .route(paths::SWEEP, post(studies::sweep))
+        .route(paths::SWEEP_PRESETS, get(studies::sweep_presets))
         .route(paths::OPENAPI, get(handlers::openapi_json))
         .route(paths::RECORDINGS, get(recordings::list_recordings))
         .route(

@@ -10,6 +10,7 @@ use super::systems::{self, StoredSystem, SystemEntry};
 use super::{handlers, simulate, stability, studies};
 use crate::api::stability::{PointRequest, StabilityRequest};
 use crate::api::studies::{ConvergenceRequest, EnergyMapRequest, WorkPrecisionRequest};
+use crate::api::sweep::{Preset, SweepRequest};
 use crate::api::system::SystemDefinition;
 use crate::api::SimulateRequest;
 use crate::core::methods::MethodInfo;
@@ -17,6 +18,7 @@ use crate::core::simulation::{SimulationDocument, StreamLine};
 use crate::core::studies::convergence::{ConvergenceDocument, ConvergenceLine};
 use crate::core::studies::energy_map::{EnergyMapDocument, MapLine};
 use crate::core::studies::stability::{PointDocument, StabilityDocument};
+use crate::core::studies::sweep::{SweepDocument, SweepLine};
 use crate::core::studies::work_precision::{StudyLine, WorkPrecisionDocument};
 use crate::core::systems::SystemInfo;
 use crate::recording::read::{RecordedDocument, RecordedRun};
@@ -44,6 +46,8 @@ use crate::recording::read::{RecordedDocument, RecordedRun};
         studies::work_precision,
         studies::energy_map,
         studies::convergence,
+        studies::sweep,
+        studies::sweep_presets,
         handlers::openapi_json,
         recordings::create_recording,
         recordings::list_recordings,
@@ -68,6 +72,10 @@ use crate::recording::read::{RecordedDocument, RecordedRun};
         ConvergenceRequest,
         ConvergenceDocument,
         ConvergenceLine,
+        SweepRequest,
+        SweepDocument,
+        SweepLine,
+        Preset,
         SystemInfo,
         SystemEntry,
         StoredSystem,
@@ -85,7 +93,7 @@ use crate::recording::read::{RecordedDocument, RecordedRun};
         (name = "catalog", description = "The systems and methods on offer, and the system definitions users store"),
         (name = "simulation", description = "Running simulations"),
         (name = "stability", description = "Linear stability analysis on the damped oscillator"),
-        (name = "studies", description = "Work–precision studies (time against accuracy per method), convergence studies (error against step size, with the observed orders, per method and coordinate chart) and energy-error maps across coordinate charts"),
+        (name = "studies", description = "Work–precision studies (time against accuracy per method), convergence studies (error against step size, with the observed orders, per method and coordinate chart), energy-error maps across coordinate charts, and sweeps of any system over one or two axes"),
         (name = "recordings", description = "Rerun recordings (.rrd) of simulations, stored or uploaded, downloadable, and read back as samples"),
         (name = "service", description = "Health and this document"),
     )

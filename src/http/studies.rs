@@ -1,9 +1,10 @@
-//! The study routes: `POST /api/v1/studies/work-precision`, `/convergence` and `/energy-map`
-//! (see [`crate::core::studies`]).
+//! The study routes: `POST /api/v1/studies/work-precision`, `/convergence`, `/energy-map` and
+//! `/sweep`, and `GET /api/v1/studies/sweep/presets` (see [`crate::core::studies`]).
 //!
 //! A study is validated first (cheap), then takes its simulation slots — one for the settings
 //! studies, whose settings run one after another so that their wall times compare; every free
-//! one for an energy map, whose cells run in parallel — and runs off the async runtime. With
+//! one for an energy map or a sweep, whose cells run in parallel — and runs off the async
+//! runtime. With
 //! `Accept: application/x-ndjson` (or `?format=ndjson`) it streams its progress lines and the
 //! result; `?format=rrd` answers the study's Rerun recording (work–precision studies and maps);
 //! otherwise the result document. The request's time limit and a client that goes away stop it
@@ -23,11 +24,13 @@ use super::paths;
 use super::recordings::RrdFile;
 use super::state::AppState;
 use crate::api::studies::{ConvergenceRequest, EnergyMapRequest, WorkPrecisionRequest};
+use crate::api::sweep::{self, Preset, SweepRequest};
 use crate::core::error::{CoreError, ErrorDetail};
 use crate::core::run::Budget;
 use crate::core::studies::convergence::{self, ConvergenceDocument, ConvergenceLine};
 use crate::core::studies::energy_map::{self, EnergyMapDocument, MapLine};
 use crate::core::studies::settings::{ProgressLine, Runner, StudyJob};
+use crate::core::studies::sweep::{SweepDocument, SweepLine};
 use crate::core::studies::work_precision::{self, StudyLine, WorkPrecisionDocument};
 use crate::recording;
 
@@ -230,4 +233,74 @@ pub async fn energy_map(
         "geomint-energy-map.rrd",
     )
     .await
+}
+
+/// A sweep: one system (built-in, stored or defined in the request) with one or more methods in
+/// one or more charts over a grid of one or two axes — a number parameter (`params.gamma`), the
+/// step size `h`, or a component of the initial state (`q0[i]`, `p0[i]`) — and per cell, method
+/// and chart the energy error at the end, its largest value and its ℓ² mean (paper 001 eq. 50),
+/// each invariant's drift, the time of divergence, the final state and the work. Cells run in
+/// parallel on every free slot; the document is the same bit for bit whichever executor ran
+/// its shards.
+#[utoipa::path(post, path = paths::SWEEP, tag = "studies",
+    request_body(content = SweepRequest, content_type = "application/json"),
+    params(("Accept" = Option<String>, Header,
+        description = "`application/x-ndjson` streams progress lines (see SweepLine)"),
+        ("format" = Option<StreamFormat>, Query,
+        description = "`ndjson` as the Accept header; `json` (default)")),
+    responses(
+        (status = 200, description = "The sweep",
+            content((SweepDocument = "application/json"), (SweepLine = "application/x-ndjson"))),
+        (status = 400, description = "Malformed JSON (code `malformed_json`)", body = ErrorBody),
+        (status = 413, description = "The body exceeds 1 MiB", body = ErrorBody),
+        (status = 415, description = "The body is not declared as JSON", body = ErrorBody),
+        (status = 422, description = "A field is unknown, missing, of the wrong type or out of range \
+            (e.g. `axes[0].min` puts a parameter outside its range, `axes[1].name` is not an axis); an \
+            unknown system, chart or method; more than 401 points per axis, 16 runs per cell or 2·10¹⁰ \
+            steps in all", body = ErrorBody),
+        (status = 503, description = "Every simulation slot is busy", body = ErrorBody,
+            headers(("Retry-After" = u64, description = "Seconds to wait before retrying"))),
+        (status = 504, description = "The sweep did not finish within the time limit", body = ErrorBody),
+        (status = 500, description = "A server fault (details are logged)", body = ErrorBody),
+    ))]
+pub async fn sweep(
+    State(state): State<AppState>,
+    headers: HeaderMap,
+    Query(query): Query<BTreeMap<String, String>>,
+    ApiJson(body): ApiJson,
+) -> Result<Response, ApiError> {
+    let format = Format::requested(&query, &headers, &[Format::Json, Format::Ndjson])?;
+    let mut request = SweepRequest::from_value(&body)?;
+    state.systems.substitute(&mut request.system);
+    let job = request.to_spec()?.prepare(&state.config.limits)?;
+    let work = Work::admit(&state, state.config.max_concurrent).await?;
+    tracing::info!(
+        cells = job.cells(),
+        runs = job.runs.len(),
+        steps = job.total_steps,
+        "sweep started"
+    );
+    answer(
+        work,
+        format,
+        move |budget, emit: &(dyn Fn(SweepLine) -> bool + Sync)| {
+            crate::core::studies::sweep::run(&job, budget, emit)
+        },
+        (
+            |doc: SweepDocument| SweepLine::Result(Box::new(doc)),
+            |error| SweepLine::Error { error },
+            || SweepLine::End,
+        ),
+        |doc: &SweepDocument| serde_json::to_vec(doc).map_err(ApiError::internal),
+        "",
+    )
+    .await
+}
+
+/// Ready-made sweeps: paper 001 Fig. 6's energy-error map (its numbers equal the energy-map
+/// route's) and csv1's divergence over (γ, h), the numerical counterpart of the stability map.
+#[utoipa::path(get, path = paths::SWEEP_PRESETS, tag = "studies",
+    responses((status = 200, description = "The presets", body = Vec<Preset>)))]
+pub async fn sweep_presets() -> axum::Json<Vec<Preset>> {
+    axum::Json(sweep::presets())
 }

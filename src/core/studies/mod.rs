@@ -8,10 +8,13 @@
 //!   coordinates (paper 001 Fig. 6), cells in parallel.
 //! - [`stability`]: linear stability maps over (γ, h) and the analysis at one point (paper 003
 //!   Ch. 3).
+//! - [`sweep`]: any system over a grid of one or two axes (parameters, step size, initial
+//!   state), per cell and run energy errors, invariant drift and divergence; sharded.
 //! - [`settings`]: what the settings-based studies share.
 
 pub mod convergence;
 pub mod energy_map;
 pub mod settings;
 pub mod stability;
+pub mod sweep;
 pub mod work_precision;

@@ -1,0 +1,331 @@
+//! Sweeps (core): the Fig. 6 preset reproduces the energy-error map bit for bit; shards merged
+//! in any order reproduce the local run bit for bit, and merging refuses missing, duplicate and
+//! foreign parts; csv1's divergence over (γ, h) follows the spectral radius of its propagation
+//! matrix; energy errors over an h axis show the method's order against the exact solution;
+//! J₃ stays at round-off over an ε axis; a cell outside a chart is that cell's error.
+
+use geomint::api::studies::EnergyMapRequest;
+use geomint::api::sweep::{energy_map_preset, SweepRequest};
+use geomint::core::methods::{Method, MethodId};
+use geomint::core::run::Budget;
+use geomint::core::simulation::Limits;
+use geomint::core::stability::propagation_matrix;
+use geomint::core::stability::Spectrum;
+use geomint::core::studies::energy_map;
+use geomint::core::studies::sweep::shard::{merge, ShardError};
+use geomint::core::studies::sweep::{self, Shard, SweepDocument, SweepJob, SweepPart};
+use serde_json::{json, Value};
+
+fn job(request: &Value) -> SweepJob {
+    SweepRequest::from_value(request)
+        .unwrap()
+        .to_spec()
+        .unwrap()
+        .prepare(&Limits::default())
+        .unwrap()
+}
+
+fn run(job: &SweepJob) -> SweepDocument {
+    sweep::run(job, Budget::default(), &|_| true).unwrap()
+}
+
+/// The document without its wall time, for comparing runs bit for bit.
+fn numbers(doc: &SweepDocument) -> Value {
+    let mut v = serde_json::to_value(doc).unwrap();
+    v.as_object_mut().unwrap().remove("wall_ms");
+    v
+}
+
+fn map_request() -> EnergyMapRequest {
+    EnergyMapRequest::from_value(&json!({"nx": 9, "ny": 7, "t_max": 400})).unwrap()
+}
+
+#[test]
+fn the_fig6_preset_reproduces_the_energy_map_bit_for_bit() {
+    let request = map_request();
+    let map_job = request.to_spec().unwrap().prepare().unwrap();
+    let map = energy_map::run(&map_job, Budget::default(), &|_| true).unwrap();
+    let doc = run(&job(&energy_map_preset(&request)));
+
+    assert_eq!(doc.cells, 63);
+    assert_eq!(doc.axes[0].values, map.xs);
+    assert_eq!(doc.axes[1].values, map.ys);
+    let (cartesian, polar) = (&doc.runs[0], &doc.runs[1]);
+    assert_eq!(
+        (cartesian.chart.as_str(), polar.chart.as_str()),
+        ("cartesian", "polar")
+    );
+    let bits = |v: &[Option<f64>]| v.iter().map(|x| x.map(f64::to_bits)).collect::<Vec<_>>();
+    assert_eq!(
+        bits(&cartesian.energy_error_l2),
+        bits(&map.epsilon_cartesian)
+    );
+    assert_eq!(bits(&polar.energy_error_l2), bits(&map.epsilon_polar));
+    assert_eq!(
+        bits(&cartesian.diverged_at),
+        bits(&map.cartesian_diverged_at)
+    );
+    assert_eq!(bits(&polar.diverged_at), bits(&map.polar_diverged_at));
+    // The grid holds the pivot (x₀, y₀) = (0, 0), where polar coordinates do not exist: that
+    // cell says so, and only that one.
+    let pivot = 3 * 9 + 4;
+    assert_eq!((map.xs[4], map.ys[3]), (0.0, 0.0));
+    let failed: Vec<usize> = (0..doc.cells)
+        .filter(|&c| polar.errors[c].is_some())
+        .collect();
+    assert_eq!(failed, vec![pivot]);
+    assert!(polar.errors[pivot].as_ref().unwrap().contains("polar"));
+    // The map has divergences to compare at all, and cells where each chart is the better one.
+    assert!(map.summary.polar_diverged > 0);
+    assert!(map.summary.cartesian_better > 0 && map.summary.polar_better > 0);
+}
+
+#[test]
+fn shards_merged_in_any_order_equal_the_local_run() {
+    let job = job(&energy_map_preset(&map_request()));
+    let local = numbers(&run(&job));
+    for count in [1, 2, 5, 63] {
+        let mut parts: Vec<(String, SweepPart)> = (0..count)
+            .map(|index| {
+                let shard = Shard { index, count };
+                let cells = job
+                    .run_cells(shard.cells(job.cells()).unwrap(), Budget::default(), &|| {})
+                    .unwrap()
+                    .unwrap();
+                // Through JSON, as a part travels between machines.
+                let part = SweepPart::new(&job, Value::Null, shard, cells, 1.0);
+                let text = serde_json::to_string(&part).unwrap();
+                (
+                    format!("part-{index}"),
+                    serde_json::from_str(&text).unwrap(),
+                )
+            })
+            .collect();
+        parts.reverse();
+        let (cells, _) = merge(&job, parts.clone()).unwrap();
+        assert_eq!(numbers(&job.document(cells, 0.0)), local, "{count} shards");
+
+        if count > 1 {
+            let mut missing = parts.clone();
+            missing.remove(1);
+            assert!(matches!(
+                merge(&job, missing),
+                Err(ShardError::Missing { .. })
+            ));
+            let mut twice = parts.clone();
+            twice.push(("again".into(), parts[0].1.clone()));
+            assert!(matches!(
+                merge(&job, twice),
+                Err(ShardError::Duplicate { .. })
+            ));
+        }
+        let mut foreign = parts.clone();
+        foreign[0].1.digest = "0".repeat(64);
+        let refused = merge(&job, foreign).unwrap_err();
+        assert!(matches!(refused, ShardError::Foreign { .. }));
+        assert!(refused.to_string().starts_with(&foreign_name(&parts)));
+    }
+}
+
+fn foreign_name(parts: &[(String, SweepPart)]) -> String {
+    parts[0].0.clone()
+}
+
+#[test]
+fn another_spec_has_another_digest() {
+    let a = energy_map_preset(&map_request());
+    let mut b = a.clone();
+    b["t_end"] = json!(401.0);
+    let digest = |v: &Value| SweepRequest::from_value(v).unwrap().digest();
+    assert_eq!(digest(&a), digest(&a.clone()));
+    assert_ne!(digest(&a), digest(&b));
+    // Key order in the text does not matter: the digest is of the canonical form.
+    let reordered: Value = serde_json::from_str(&reverse_keys(&a)).unwrap();
+    assert_eq!(digest(&a), digest(&reordered));
+}
+
+fn reverse_keys(v: &Value) -> String {
+    let object = v.as_object().unwrap();
+    let members: Vec<String> = object
+        .iter()
+        .rev()
+        .map(|(k, v)| format!("{}:{}", serde_json::to_string(k).unwrap(), v))
+        .collect();
+    format!("{{{}}}", members.join(","))
+}
+
+#[test]
+fn csv1_diverges_over_gamma_and_h_where_its_spectral_radius_exceeds_one() {
+    let t_end = 200.0;
+    let request = json!({
+        "system": "harmonic_oscillator",
+        "methods": ["csv1"],
+        "t_end": t_end,
+        "every": 10,
+        "axes": [
+            {"name": "params.gamma", "min": 0.0, "max": 2.0, "n": 11},
+            {"name": "h", "min": 0.2, "max": 3.0, "n": 15}
+        ]
+    });
+    let doc = run(&job(&request));
+    let csv1 = Method::new(MethodId::Csv1);
+    let (mut unstable, mut stable, mut between) = (0, 0, 0);
+    for cell in 0..doc.cells {
+        let gamma = doc.axes[0].values[cell % 11];
+        let h = doc.axes[1].values[cell / 11];
+        let rho = Spectrum::of(&propagation_matrix(&csv1, 1.0, gamma, h).unwrap()).spectral_radius;
+        let steps = (t_end / h).ceil();
+        let diverged = doc.runs[0].diverged_at[cell].is_some();
+        // Energy grows like ρ^(2n): past a factor e^12 it has left 100·(1 + H₀) far behind.
+        if steps * rho.ln() > 6.0 {
+            assert!(
+                diverged,
+                "γ = {gamma}, h = {h}: ρ = {rho} but no divergence"
+            );
+            unstable += 1;
+        } else if rho <= 1.0 + 1e-12 {
+            assert!(!diverged, "γ = {gamma}, h = {h}: ρ = {rho} but diverged");
+            stable += 1;
+        } else {
+            between += 1;
+        }
+    }
+    assert!(
+        unstable >= 20 && stable >= 20,
+        "{unstable} unstable, {stable} stable"
+    );
+    assert!(between <= 10, "{between} cells near the boundary");
+    assert_eq!(doc.energy_reference, sweep::EnergyReference::Exact);
+}
+
+#[test]
+fn an_h_axis_shows_the_order_against_the_exact_solution() {
+    let request = json!({
+        "system": "harmonic_oscillator",
+        "params": {"gamma": 0.1},
+        "methods": ["csv2", "rk4"],
+        "t_end": 10,
+        "axes": [{"name": "h", "min": 0.0125, "max": 0.1, "n": 4, "scale": "log"}]
+    });
+    let doc = run(&job(&request));
+    for (h, expected) in doc.axes[0].values.iter().zip([0.0125, 0.025, 0.05, 0.1]) {
+        assert!((h / expected - 1.0).abs() < 1e-15, "{h}");
+    }
+    for (run, order) in doc.runs.iter().zip([2.0, 4.0]) {
+        let e: Vec<f64> = run.energy_error_max.iter().map(|e| e.unwrap()).collect();
+        for k in 1..e.len() {
+            let observed = (e[k] / e[k - 1]).log2();
+            assert!(
+                (observed - order).abs() < 0.15,
+                "{}: order {observed}",
+                run.method
+            );
+        }
+        // Steps follow h: t_end/h each.
+        assert_eq!(run.steps, vec![800, 400, 200, 100]);
+    }
+}
+
+#[test]
+fn j3_stays_at_round_off_over_an_epsilon_axis() {
+    let request = json!({
+        "system": "elastic_pendulum_3d",
+        "methods": ["modin_3s"],
+        "h": 0.05,
+        "t_end": 100,
+        "every": 10,
+        "energy_reference": "reference",
+        "axes": [{"name": "params.epsilon", "min": 0.0, "max": 0.1, "n": 3}]
+    });
+    let doc = run(&job(&request));
+    let run = &doc.runs[0];
+    for cell in 0..3 {
+        let drift = run.invariant_drift["J3"][cell].unwrap();
+        assert!(drift < 1e-13, "cell {cell}: J3 drift {drift}");
+        let error = run.energy_error_max[cell].unwrap();
+        assert!(
+            error > 1e-9 && error < 1e-2,
+            "cell {cell}: energy error {error}"
+        );
+    }
+}
+
+#[test]
+fn refusals_name_the_axis() {
+    let refused = |request: Value| -> (String, String) {
+        let e = SweepRequest::from_value(&request)
+            .and_then(|r| Ok(r.to_spec()?.prepare(&Limits::default())?))
+            .unwrap_err();
+        (e.field.unwrap_or_default(), e.message)
+    };
+    let base = json!({"system": "pendulum", "methods": ["modin_3s"], "h": 0.1, "t_end": 10,
+        "axes": [{"name": "params.gamma", "min": 0, "max": 1, "n": 3}]});
+    let with = |key: &str, value: Value| {
+        let mut v = base.clone();
+        v[key] = value;
+        v
+    };
+    let cases = [
+        (
+            with(
+                "axes",
+                json!([{"name": "params.gamma", "min": -1, "max": 1, "n": 3}]),
+            ),
+            "axes[0].min",
+        ),
+        (
+            with(
+                "axes",
+                json!([{"name": "params.gamma", "min": 0, "max": 1, "n": 0}]),
+            ),
+            "axes[0].n",
+        ),
+        (
+            with(
+                "axes",
+                json!([{"name": "params.nope", "min": 0, "max": 1, "n": 2}]),
+            ),
+            "axes[0].name",
+        ),
+        (
+            with("axes", json!([{"name": "x", "min": 0, "max": 1, "n": 2}])),
+            "axes[0].name",
+        ),
+        (
+            with(
+                "axes",
+                json!([{"name": "h", "min": 1e-9, "max": 1, "n": 2}]),
+            ),
+            "axes[0]",
+        ),
+        (with("h", Value::Null), "h"),
+        (
+            with(
+                "axes",
+                json!([{"name": "q0[0]", "min": 1, "max": 0, "n": 2}]),
+            ),
+            "axes[0]",
+        ),
+        (with("axes", json!([])), "axes"),
+        (
+            with(
+                "axes",
+                json!([{"name": "params.gamma", "min": 0, "max": 1, "n": 2, "step": 1}]),
+            ),
+            "axes[0].step",
+        ),
+        (with("energy_reference", json!("exact")), "energy_reference"),
+    ];
+    for (request, field) in cases {
+        let (at, message) = refused(request);
+        assert!(at.starts_with(field), "{field}: got {at}: {message}");
+    }
+    // A smallest step that takes too many steps is blamed on the axis's end.
+    let mut small_h = with(
+        "axes",
+        json!([{"name": "h", "min": 1e-7, "max": 1, "n": 2}]),
+    );
+    small_h.as_object_mut().unwrap().remove("h");
+    let (at, message) = refused(small_h);
+    assert_eq!(at, "axes[0].min", "{message}");
+}
