@@ -19,4 +19,5 @@ pub mod api;
 pub mod cli;
 pub mod core;
 pub mod http;
+pub mod nats;
 pub mod recording;

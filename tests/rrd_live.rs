@@ -7,7 +7,7 @@
 
 use std::collections::BTreeSet;
 use std::fs::File;
-use std::net::{TcpListener, TcpStream};
+use std::net::TcpStream;
 use std::os::unix::process::CommandExt as _;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Stdio};
@@ -22,7 +22,9 @@ use geomint::recording::{path_blocks, sample_steps, APPLICATION_ID};
 use serde_json::json;
 
 mod decoded;
+mod server;
 use decoded::Decoded;
+use server::free_port;
 
 /// A child process in a process group of its own, killed with its group unless it has ended.
 struct Process {
@@ -75,15 +77,6 @@ impl Drop for Process {
             let _ = self.child.wait();
         }
     }
-}
-
-/// A port nobody listens on (at the time of asking).
-fn free_port() -> u16 {
-    TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
 }
 
 /// Polls `f` every 50 ms until it gives a value, for up to `timeout`.

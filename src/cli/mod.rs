@@ -21,7 +21,7 @@ use clap::{Parser, Subcommand};
 use crate::core::methods::MethodId;
 use crate::core::systems;
 pub use run::RunArgs;
-pub use serve::ServeArgs;
+pub use serve::{ServeArgs, WorkerArgs};
 pub use study::StudyArgs;
 
 /// Geometric numerical integration of damped Hamiltonian systems, as a web service.
@@ -52,6 +52,9 @@ pub enum Command {
     /// `sweep`: the body of POST /api/v1/studies/work-precision, /convergence, /energy-map or
     /// /sweep), or merge the parts of a sharded sweep (`merge`).
     Study(StudyArgs),
+    /// Run sweep shards from a NATS JetStream server for `geomint serve --nats` (any number of
+    /// workers, on any machines).
+    Worker(WorkerArgs),
     /// Print the system catalogue as JSON.
     Systems,
     /// Print the method catalogue as JSON.
@@ -64,6 +67,7 @@ pub fn run(cli: Cli) -> ExitCode {
         Command::Serve(args) => serve::serve(&args),
         Command::Run(args) => run::run_spec(&args),
         Command::Study(args) => study::run_study(&args),
+        Command::Worker(args) => serve::work(&args),
         Command::Systems => print_json(&systems::catalog()),
         Command::Methods => {
             let methods: Vec<_> = MethodId::ALL.iter().map(|m| m.info()).collect();

@@ -1,4 +1,5 @@
-//! `geomint serve`: the HTTP service with its settings (flags or `GEOMINT_*` variables).
+//! `geomint serve`: the HTTP service with its settings (flags or `GEOMINT_*` variables), sweeps
+//! run on NATS workers with `--nats`; and `geomint worker --nats URL`, such a worker.
 
 use std::io::{self, IsTerminal};
 use std::net::SocketAddr;
@@ -11,6 +12,7 @@ use clap::Args;
 use super::parse_count;
 use crate::core::simulation::Limits;
 use crate::http::{self, Config};
+use crate::nats::{self, Queue};
 
 /// Settings of `geomint serve`.
 #[derive(Clone, Debug, Args)]
@@ -60,6 +62,36 @@ pub struct ServeArgs {
     /// Log filter (tracing's EnvFilter syntax).
     #[arg(long, env = "GEOMINT_LOG", default_value = "info")]
     pub log: String,
+    /// Run sweeps on the workers of this NATS server (JetStream on), e.g. nats://host:4222,
+    /// instead of on this machine's cores. The server must answer at start-up.
+    #[arg(long, env = "GEOMINT_NATS_URL")]
+    pub nats: Option<String>,
+    /// Seconds a worker may hold a shard without reporting progress before it goes to another
+    /// (applies when this process creates the workers' consumer).
+    #[arg(long, env = "GEOMINT_NATS_ACK_WAIT_SECS", default_value_t = 30, value_parser = clap::value_parser!(u64).range(1..=3600))]
+    pub nats_ack_wait_secs: u64,
+    /// Steps of work per shard a sweep on NATS workers is split into (smaller: finer balance
+    /// and less lost with a worker, more messages).
+    #[arg(long, env = "GEOMINT_NATS_SHARD_STEPS", default_value = "20000000", value_parser = parse_count)]
+    pub nats_shard_steps: u64,
+}
+
+/// Settings of `geomint worker`.
+#[derive(Clone, Debug, Args)]
+pub struct WorkerArgs {
+    /// The NATS server (JetStream on) whose sweep shards this worker runs.
+    #[arg(long, env = "GEOMINT_NATS_URL")]
+    pub nats: String,
+    /// Seconds a worker may hold a shard without reporting progress before it goes to another
+    /// (applies when this process creates the workers' consumer).
+    #[arg(long, env = "GEOMINT_NATS_ACK_WAIT_SECS", default_value_t = 30, value_parser = clap::value_parser!(u64).range(1..=3600))]
+    pub ack_wait_secs: u64,
+    /// Most steps per run a shard may ask for.
+    #[arg(long, env = "GEOMINT_MAX_STEPS", default_value = "10000000", value_parser = parse_count)]
+    pub max_steps: u64,
+    /// Log filter (tracing's EnvFilter syntax).
+    #[arg(long, env = "GEOMINT_LOG", default_value = "info")]
+    pub log: String,
 }
 
 impl ServeArgs {
@@ -87,33 +119,88 @@ impl ServeArgs {
     }
 }
 
-pub(crate) fn serve(args: &ServeArgs) -> ExitCode {
-    let filter = tracing_subscriber::EnvFilter::try_new(&args.log).unwrap_or_else(|e| {
-        eprintln!(
-            "warning: invalid log filter `{}` ({e}); using `info`",
-            args.log
-        );
+/// Logs to standard error with `filter`.
+fn init_logging(filter: &str) {
+    let parsed = tracing_subscriber::EnvFilter::try_new(filter).unwrap_or_else(|e| {
+        eprintln!("warning: invalid log filter `{filter}` ({e}); using `info`");
         tracing_subscriber::EnvFilter::new("info")
     });
     tracing_subscriber::fmt()
-        .with_env_filter(filter)
+        .with_env_filter(parsed)
         .with_writer(io::stderr)
         .with_ansi(io::stderr().is_terminal())
         .init();
-    let runtime = match tokio::runtime::Builder::new_multi_thread()
+}
+
+/// The async runtime of the server and the worker.
+fn runtime() -> Result<tokio::runtime::Runtime, ExitCode> {
+    tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()
-    {
-        Ok(rt) => rt,
-        Err(e) => {
+        .map_err(|e| {
             eprintln!("error: cannot start the async runtime: {e}");
-            return ExitCode::FAILURE;
-        }
+            ExitCode::FAILURE
+        })
+}
+
+/// Connects to the NATS server, or says why not.
+fn connect(
+    runtime: &tokio::runtime::Runtime,
+    url: &str,
+    ack_wait_secs: u64,
+) -> Result<Queue, ExitCode> {
+    runtime
+        .block_on(Queue::connect(url, Duration::from_secs(ack_wait_secs)))
+        .map_err(|e| {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        })
+}
+
+pub(crate) fn serve(args: &ServeArgs) -> ExitCode {
+    init_logging(&args.log);
+    let runtime = match runtime() {
+        Ok(rt) => rt,
+        Err(code) => return code,
     };
-    match runtime.block_on(http::serve(args.addr, args.config())) {
+    let queue = match &args.nats {
+        None => None,
+        Some(url) => match connect(&runtime, url, args.nats_ack_wait_secs) {
+            Ok(mut queue) => {
+                queue.steps_per_shard = args.nats_shard_steps.max(1);
+                Some(queue)
+            }
+            Err(code) => return code,
+        },
+    };
+    match runtime.block_on(http::serve(args.addr, args.config(), queue)) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: cannot serve on {}: {e}", args.addr);
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// `geomint worker`: runs sweep shards from the NATS server until the connection fails.
+pub(crate) fn work(args: &WorkerArgs) -> ExitCode {
+    init_logging(&args.log);
+    let runtime = match runtime() {
+        Ok(rt) => rt,
+        Err(code) => return code,
+    };
+    let queue = match connect(&runtime, &args.nats, args.ack_wait_secs) {
+        Ok(queue) => queue,
+        Err(code) => return code,
+    };
+    let limits = Limits {
+        max_steps: args.max_steps,
+        ..Limits::default()
+    };
+    match runtime.block_on(nats::work(&queue, limits)) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
             ExitCode::FAILURE
         }
     }

@@ -40,6 +40,7 @@ pub fn status_for(code: ErrorCode) -> StatusCode {
             StatusCode::INSUFFICIENT_STORAGE
         }
         ErrorCode::BuiltInSystem => StatusCode::CONFLICT,
+        ErrorCode::ExecutorUnavailable => StatusCode::BAD_GATEWAY,
         ErrorCode::UnknownField
         | ErrorCode::MissingField
         | ErrorCode::InvalidType

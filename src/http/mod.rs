@@ -328,7 +328,11 @@ pub async fn shutdown_signal() {
 }
 
 /// Binds `addr` and serves until Ctrl-C or SIGTERM.
-pub async fn serve(addr: SocketAddr, config: Config) -> std::io::Result<()> {
+pub async fn serve(
+    addr: SocketAddr,
+    config: Config,
+    queue: Option<crate::nats::Queue>,
+) -> std::io::Result<()> {
     let listener = tokio::net::TcpListener::bind(addr).await?;
     let local = listener.local_addr()?;
     match config.static_dir.as_ref().filter(|d| d.is_dir()) {
@@ -345,7 +349,9 @@ pub async fn serve(addr: SocketAddr, config: Config) -> std::io::Result<()> {
         max_samples = config.limits.max_samples,
         timeout_secs = config.request_timeout.as_secs_f64(),
         cors = ?config.cors_origins,
+        nats = queue.as_ref().map(crate::nats::Queue::url),
         "geomint listening on http://{local}"
     );
-    serve_on(listener, AppState::new(config), shutdown_signal()).await
+    let state = AppState::new(config).with_queue(queue);
+    serve_on(listener, state, shutdown_signal()).await
 }

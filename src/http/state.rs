@@ -83,6 +83,8 @@ pub struct AppState {
     pub recordings: Arc<RecordingStore>,
     /// The stored system definitions.
     pub systems: Arc<SystemStore>,
+    /// The NATS work queue that runs sweeps, when the server has one (else they run here).
+    pub queue: Option<Arc<crate::nats::Queue>>,
     permits: Arc<Semaphore>,
     shutdown: Arc<watch::Sender<bool>>,
 }
@@ -96,6 +98,7 @@ impl AppState {
         Self {
             recordings: Arc::new(recordings),
             systems: Arc::new(systems),
+            queue: None,
             config: Arc::new(Config {
                 max_concurrent: max,
                 ..config
@@ -103,6 +106,12 @@ impl AppState {
             permits: Arc::new(Semaphore::new(max)),
             shutdown: Arc::new(watch::channel(false).0),
         }
+    }
+
+    /// The same state, running sweeps on the workers of `queue`.
+    pub fn with_queue(mut self, queue: Option<crate::nats::Queue>) -> Self {
+        self.queue = queue.map(Arc::new);
+        self
     }
 
     /// Simulation threads running now.

@@ -24,13 +24,13 @@ use super::paths;
 use super::recordings::RrdFile;
 use super::state::AppState;
 use crate::api::studies::{ConvergenceRequest, EnergyMapRequest, WorkPrecisionRequest};
-use crate::api::sweep::{self, Preset, SweepRequest};
+use crate::api::sweep::{self as presets, Preset, SweepRequest};
 use crate::core::error::{CoreError, ErrorDetail};
 use crate::core::run::Budget;
 use crate::core::studies::convergence::{self, ConvergenceDocument, ConvergenceLine};
 use crate::core::studies::energy_map::{self, EnergyMapDocument, MapLine};
 use crate::core::studies::settings::{ProgressLine, Runner, StudyJob};
-use crate::core::studies::sweep::{SweepDocument, SweepLine};
+use crate::core::studies::sweep::{self, SweepDocument, SweepLine};
 use crate::core::studies::work_precision::{self, StudyLine, WorkPrecisionDocument};
 use crate::recording;
 
@@ -273,18 +273,40 @@ pub async fn sweep(
     let mut request = SweepRequest::from_value(&body)?;
     state.systems.substitute(&mut request.system);
     let job = request.to_spec()?.prepare(&state.config.limits)?;
-    let work = Work::admit(&state, state.config.max_concurrent).await?;
+    // On NATS workers a sweep holds one slot here (it only waits); locally, every free one.
+    let slots = match state.queue {
+        Some(_) => 1,
+        None => state.config.max_concurrent,
+    };
+    let work = Work::admit(&state, slots).await?;
     tracing::info!(
         cells = job.cells(),
         runs = job.runs.len(),
         steps = job.total_steps,
+        distributed = state.queue.is_some(),
         "sweep started"
     );
+    let queue = state.queue.clone();
+    let canonical = request.canonical();
+    let runtime = tokio::runtime::Handle::current();
     answer(
         work,
         format,
-        move |budget, emit: &(dyn Fn(SweepLine) -> bool + Sync)| {
-            crate::core::studies::sweep::run(&job, budget, emit)
+        move |budget, emit: &(dyn Fn(SweepLine) -> bool + Sync)| match queue {
+            None => sweep::run(&job, budget, emit),
+            Some(queue) => {
+                // A blocking thread of the runtime: it may wait on the queue's futures.
+                let started = std::time::Instant::now();
+                let progress = sweep::Progress::new(job.cells(), emit);
+                let cells = runtime.block_on(crate::nats::run(
+                    &queue,
+                    canonical,
+                    &job,
+                    budget,
+                    &|cells| progress.add(cells),
+                ))?;
+                Ok(job.document(cells, started.elapsed().as_secs_f64() * 1e3))
+            }
         },
         (
             |doc: SweepDocument| SweepLine::Result(Box::new(doc)),
@@ -302,5 +324,5 @@ pub async fn sweep(
 #[utoipa::path(get, path = paths::SWEEP_PRESETS, tag = "studies",
     responses((status = 200, description = "The presets", body = Vec<Preset>)))]
 pub async fn sweep_presets() -> axum::Json<Vec<Preset>> {
-    axum::Json(sweep::presets())
+    axum::Json(presets::presets())
 }

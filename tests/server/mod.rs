@@ -36,6 +36,15 @@ pub async fn start(config: Config) -> Server {
     }
 }
 
+/// A loopback port nobody listens on (at the time of asking), for a process a test starts.
+pub fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
 /// A client that never goes through a proxy.
 pub fn client() -> reqwest::Client {
     reqwest::Client::builder().no_proxy().build().unwrap()

@@ -64,6 +64,8 @@ pub enum ErrorCode {
     TooManySystems,
     /// A built-in system cannot be deleted.
     BuiltInSystem,
+    /// The distributed executor (the NATS server that hands out a sweep's shards) failed.
+    ExecutorUnavailable,
 }
 
 impl ErrorCode {
@@ -97,6 +99,7 @@ impl ErrorCode {
             InvalidExpression => "invalid_expression",
             TooManySystems => "too_many_systems",
             BuiltInSystem => "built_in_system",
+            ExecutorUnavailable => "executor_unavailable",
         }
     }
 }
@@ -178,6 +181,7 @@ impl CoreError {
             Step { .. } => ErrorCode::StepFailed,
             Cancelled { .. } => ErrorCode::Overloaded,
             TimeLimit { .. } => ErrorCode::Timeout,
+            Executor { .. } => ErrorCode::ExecutorUnavailable,
             Expression { .. } => ErrorCode::InvalidExpression,
             _ => ErrorCode::InvalidValue,
         }

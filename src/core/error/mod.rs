@@ -439,6 +439,12 @@ pub enum CoreError {
         /// What went wrong.
         source: StepError,
     },
+    /// The executor that runs a study's shards elsewhere failed (its NATS server went away).
+    #[error("{message}")]
+    Executor {
+        /// What failed, in words.
+        message: String,
+    },
     /// A computation stopped because it was cancelled (its client went away, or the server is
     /// shutting down).
     #[error("the {what} was cancelled{}", if *shutdown { " (the server is shutting down)" } else { "" })]
@@ -540,7 +546,7 @@ macro_rules! match_field {
             CoreError::Step { field: $maybe, .. } | CoreError::TimeLimit { field: $maybe, .. } => {
                 $sometimes
             }
-            CoreError::Cancelled { .. } => $none,
+            CoreError::Cancelled { .. } | CoreError::Executor { .. } => $none,
         }
     };
 }

@@ -241,7 +241,13 @@ impl SweepSpec {
             info,
             total_steps: 0,
             digest: self.digest.clone(),
-            limits: *limits,
+            // A run's samples go into its metrics as they come and are not kept, so the sample
+            // limit (which bounds documents) does not apply — except to a reference run, whose
+            // energies are kept for the whole run.
+            limits: Limits {
+                max_samples: u64::MAX,
+                ..*limits
+            },
         };
         let damped = job.check_corners()?;
         job.against = match self.energy_reference {
@@ -256,6 +262,10 @@ impl SweepSpec {
             None if damped => EnergyReference::Reference,
             None => EnergyReference::Initial,
         };
+        if job.against == EnergyReference::Reference {
+            job.limits = *limits;
+            job.check_corners()?;
+        }
         job.total_steps = job.count_steps();
         if job.total_steps > MAX_TOTAL_STEPS {
             return Err(CoreError::TooManySteps {

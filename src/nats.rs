@@ -1,0 +1,399 @@
+//! Sweeps on many machines through a NATS JetStream work queue.
+//!
+//! `geomint serve --nats URL` puts a sweep's shards ([`Task`]s) on the work-queue stream
+//! [`STREAM`] under `geomint.sweep.shards.<study>`; any number of `geomint worker --nats URL`
+//! processes pull them one at a time through the durable consumer [`CONSUMER`], run the shard
+//! on all their cores (the same [`SweepJob::run_cells`] as the local executor) and publish the
+//! part to `geomint.sweep.parts.<study>`, then acknowledge the task. The server merges the
+//! parts as they arrive ([`shard::merge`]), so the document equals the local one bit for bit.
+//!
+//! - A worker that dies mid-shard never acknowledges it: JetStream hands the shard out again
+//!   once the consumer's ack wait passes. While a shard runs, its worker reports progress every
+//!   third of the ack wait, so a long shard is not handed out twice.
+//! - A shard that arrives twice (redelivered after a slow worker finished it after all) counts
+//!   once.
+//! - A study that its client cancels, or that passes its time limit, has its remaining tasks
+//!   purged from the stream: no worker starts them.
+//! - A lost NATS server fails the study after [`DISCONNECTED_GRACE`] with a clear error rather
+//!   than waiting for the time limit.
+
+use std::sync::atomic::Ordering;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use async_nats::jetstream::{self, consumer::pull, stream, AckKind};
+use futures_util::StreamExt;
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+
+use crate::api::sweep::SweepRequest;
+use crate::core::error::CoreError;
+use crate::core::run::Budget;
+use crate::core::simulation::Limits;
+use crate::core::studies::sweep::shard::{self, Shard, SweepPart};
+use crate::core::studies::sweep::{self as sweeps, RunMetrics, SweepJob};
+
+/// The work-queue stream of shards.
+pub const STREAM: &str = "GEOMINT_SWEEP_SHARDS";
+/// The durable pull consumer that every worker shares.
+pub const CONSUMER: &str = "geomint-workers";
+/// Subject prefix of tasks (`.<study>` follows).
+const TASKS: &str = "geomint.sweep.shards";
+/// Subject prefix of results (`.<study>` follows).
+const PARTS: &str = "geomint.sweep.parts";
+/// How long the server tolerates a lost connection before failing a study.
+pub const DISCONNECTED_GRACE: Duration = Duration::from_secs(5);
+/// The default ack wait: a shard not acknowledged (nor reported in progress) this long after it
+/// was handed out goes to another worker.
+pub const DEFAULT_ACK_WAIT: Duration = Duration::from_secs(30);
+/// Work per shard the server aims at by default (about a second of one core at ~50 ns per
+/// step), so that shards balance over workers and a lost one costs little.
+pub const DEFAULT_STEPS_PER_SHARD: u64 = 20_000_000;
+/// The size a part should stay under (NATS refuses messages over its max_payload, 1 MiB by
+/// default).
+const PART_BYTES: usize = 512 * 1024;
+
+/// One shard of a study, as a worker receives it.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Task {
+    /// The study's id (the subject its parts go to).
+    pub study: String,
+    /// The sweep request, canonical JSON with any stored system inlined.
+    pub request: Value,
+    /// Which shard.
+    pub shard: usize,
+    /// Of how many.
+    pub shards: usize,
+}
+
+/// What a worker publishes for a task.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case")]
+pub enum Reply {
+    /// The shard's part.
+    Part(Box<SweepPart>),
+    /// The shard cannot be run (the worker says why).
+    Failed {
+        /// Which shard.
+        shard: usize,
+        /// Why.
+        message: String,
+    },
+}
+
+/// A connection to the NATS server with the stream and consumer in place.
+#[derive(Clone, Debug)]
+pub struct Queue {
+    client: async_nats::Client,
+    jetstream: jetstream::Context,
+    stream: stream::Stream,
+    url: String,
+    /// Steps per shard the server aims at.
+    pub steps_per_shard: u64,
+}
+
+fn failed(what: &str, url: &str, e: impl std::fmt::Display) -> String {
+    format!("{what} (NATS server {url}): {e}")
+}
+
+impl Queue {
+    /// Connects (failing at once, not retrying, when no server answers) and creates the stream
+    /// and the workers' consumer if they do not exist. `ack_wait` applies when this call creates
+    /// the consumer.
+    pub async fn connect(url: &str, ack_wait: Duration) -> Result<Queue, String> {
+        let client = async_nats::ConnectOptions::new()
+            .connection_timeout(Duration::from_secs(5))
+            .connect(url)
+            .await
+            .map_err(|e| failed("cannot connect", url, e))?;
+        let jetstream = jetstream::new(client.clone());
+        let stream = jetstream
+            .get_or_create_stream(stream::Config {
+                name: STREAM.into(),
+                subjects: vec![format!("{TASKS}.>")],
+                retention: stream::RetentionPolicy::WorkQueue,
+                storage: stream::StorageType::File,
+                ..Default::default()
+            })
+            .await
+            .map_err(|e| failed("cannot create the shard stream (is JetStream on?)", url, e))?;
+        stream
+            .get_or_create_consumer(
+                CONSUMER,
+                pull::Config {
+                    durable_name: Some(CONSUMER.into()),
+                    ack_policy: jetstream::consumer::AckPolicy::Explicit,
+                    ack_wait,
+                    ..Default::default()
+                },
+            )
+            .await
+            .map_err(|e| failed("cannot create the workers' consumer", url, e))?;
+        Ok(Queue {
+            client,
+            jetstream,
+            stream,
+            url: url.to_string(),
+            steps_per_shard: DEFAULT_STEPS_PER_SHARD,
+        })
+    }
+
+    /// The server's URL.
+    pub fn url(&self) -> &str {
+        &self.url
+    }
+}
+
+/// How many shards the server splits `job` into: about `steps_per_shard` of work each, parts
+/// under [`PART_BYTES`], no more shards than cells.
+pub fn shard_count(job: &SweepJob, steps_per_shard: u64) -> usize {
+    let cells = job.cells().max(1);
+    let steps_per_cell = (job.total_steps / cells as u64).max(1);
+    let by_work = (steps_per_shard / steps_per_cell).max(1) as usize;
+    let dimension = job.info.q0.len().max(1);
+    let bytes_per_cell = job.runs.len() * (400 + 2 * 25 * dimension);
+    let by_size = (PART_BYTES / bytes_per_cell.max(1)).max(1);
+    cells.div_ceil(by_work.min(by_size).min(cells))
+}
+
+/// Runs `job` (asked for by the canonical `request`) on the workers: publishes its shards,
+/// collects the parts, calls `progress(cells)` as each arrives, and returns every cell's
+/// results in order. Stops (purging what no worker has started) when the budget says so, and
+/// fails when the NATS server is gone for [`DISCONNECTED_GRACE`].
+pub async fn run(
+    queue: &Queue,
+    request: Value,
+    job: &SweepJob,
+    budget: Budget<'_>,
+    progress: &(dyn Fn(usize) + Sync),
+) -> Result<Vec<Vec<RunMetrics>>, CoreError> {
+    let lost = |what: &str, e: &dyn std::fmt::Display| CoreError::Executor {
+        message: format!("the sweep failed: {what} (NATS server {}): {e}", queue.url),
+    };
+    let study = uuid::Uuid::new_v4().simple().to_string();
+    let tasks = format!("{TASKS}.{study}");
+    let mut parts_in = queue
+        .client
+        .subscribe(format!("{PARTS}.{study}"))
+        .await
+        .map_err(|e| lost("cannot subscribe to the parts", &e))?;
+    let count = shard_count(job, queue.steps_per_shard);
+    tracing::info!(study = %study, shards = count, cells = job.cells(), "sweep sent to the workers");
+    for index in 0..count {
+        let task = Task {
+            study: study.clone(),
+            request: request.clone(),
+            shard: index,
+            shards: count,
+        };
+        let payload = serde_json::to_vec(&task).map_err(|e| lost("cannot encode a task", &e))?;
+        queue
+            .jetstream
+            .publish(tasks.clone(), payload.into())
+            .await
+            .map_err(|e| lost("cannot queue a shard", &e))?
+            .await
+            .map_err(|e| lost("the stream did not take a shard", &e))?;
+    }
+
+    let purge = || async {
+        if let Err(e) = queue.stream.purge().filter(tasks.clone()).await {
+            tracing::warn!(study = %study, error = %e, "cannot purge the study's shards");
+        }
+    };
+    let mut parts: Vec<Option<SweepPart>> = vec![None; count];
+    let mut missing = count;
+    let mut disconnected_since: Option<Instant> = None;
+    while missing > 0 {
+        if budget.cancel.is_some_and(|c| c.load(Ordering::Relaxed))
+            || budget.deadline.is_some_and(|d| Instant::now() >= d)
+        {
+            purge().await;
+            return Err(sweeps::stopped(budget));
+        }
+        match queue.client.connection_state() {
+            async_nats::connection::State::Connected => disconnected_since = None,
+            _ => {
+                let since = *disconnected_since.get_or_insert_with(Instant::now);
+                if since.elapsed() >= DISCONNECTED_GRACE {
+                    return Err(CoreError::Executor {
+                        message: format!(
+                            "the sweep failed: lost the connection to the NATS server {} for {} s \
+                             with {missing} of {count} shards still out",
+                            queue.url,
+                            DISCONNECTED_GRACE.as_secs()
+                        ),
+                    });
+                }
+            }
+        }
+        let message = match tokio::time::timeout(Duration::from_millis(100), parts_in.next()).await
+        {
+            Err(_) => continue,
+            Ok(None) => return Err(lost("the subscription to the parts ended", &"closed")),
+            Ok(Some(message)) => message,
+        };
+        match serde_json::from_slice::<Reply>(&message.payload) {
+            Ok(Reply::Part(part)) if part.shard < count && part.shards == count => {
+                // A redelivered shard may arrive twice: the first copy counts.
+                if parts[part.shard].is_none() {
+                    progress(part.cells.len());
+                    let index = part.shard;
+                    parts[index] = Some(*part);
+                    missing -= 1;
+                }
+            }
+            Ok(Reply::Part(part)) => tracing::warn!(
+                shard = part.shard,
+                shards = part.shards,
+                "a part that is not a shard of this study"
+            ),
+            Ok(Reply::Failed { shard, message }) => {
+                purge().await;
+                return Err(CoreError::Executor {
+                    message: format!(
+                        "the sweep failed: a worker cannot run shard {shard}: {message}"
+                    ),
+                });
+            }
+            Err(e) => tracing::warn!(error = %e, "an unreadable reply"),
+        }
+    }
+    let named = parts
+        .into_iter()
+        .flatten()
+        .map(|p| (format!("shard {}", p.shard), p))
+        .collect();
+    shard::merge(job, named)
+        .map(|(cells, _)| cells)
+        .map_err(|e| CoreError::Executor {
+            message: format!("the sweep's parts do not fit together: {e}"),
+        })
+}
+
+/// Pulls shards one at a time and runs them until the connection fails. `limits` bound what a
+/// task may ask for.
+pub async fn work(queue: &Queue, limits: Limits) -> Result<(), String> {
+    let consumer: jetstream::consumer::PullConsumer = queue
+        .stream
+        .get_consumer(CONSUMER)
+        .await
+        .map_err(|e| failed("cannot find the workers' consumer", &queue.url, e))?;
+    let ack_wait = consumer.cached_info().config.ack_wait;
+    tracing::info!(url = %queue.url, ack_wait_secs = ack_wait.as_secs_f64(), "worker ready");
+    loop {
+        let mut batch = consumer
+            .fetch()
+            .max_messages(1)
+            .expires(Duration::from_secs(5))
+            .messages()
+            .await
+            .map_err(|e| failed("cannot fetch a shard", &queue.url, e))?;
+        let Some(message) = batch.next().await else {
+            continue;
+        };
+        let message = Arc::new(message.map_err(|e| failed("cannot fetch a shard", &queue.url, e))?);
+        // Tell JetStream the shard is being worked on, so it is not handed out again.
+        let keepalive = {
+            let message = Arc::clone(&message);
+            tokio::spawn(async move {
+                let mut tick =
+                    tokio::time::interval((ack_wait / 3).max(Duration::from_millis(100)));
+                tick.tick().await;
+                loop {
+                    tick.tick().await;
+                    let _ = message.ack_with(AckKind::Progress).await;
+                }
+            })
+        };
+        let payload = message.payload.clone();
+        let max_payload = queue.client.server_info().max_payload;
+        let reply = tokio::task::spawn_blocking(move || run_task(&payload, &limits, max_payload))
+            .await
+            .unwrap_or_else(|e| {
+                (
+                    None,
+                    Reply::Failed {
+                        shard: 0,
+                        message: format!("the shard panicked: {e}"),
+                    },
+                )
+            });
+        keepalive.abort();
+        let (study, reply) = reply;
+        if let Some(study) = study {
+            let bytes = serde_json::to_vec(&reply).unwrap_or_default();
+            queue
+                .client
+                .publish(format!("{PARTS}.{study}"), bytes.into())
+                .await
+                .map_err(|e| failed("cannot publish a part", &queue.url, e))?;
+            queue
+                .client
+                .flush()
+                .await
+                .map_err(|e| failed("cannot publish a part", &queue.url, e))?;
+        }
+        // Acknowledged only once the part is out: a worker that dies before never loses it.
+        message
+            .double_ack()
+            .await
+            .map_err(|e| failed("cannot acknowledge a shard", &queue.url, e))?;
+    }
+}
+
+/// Runs one task: its study (if the task could be read) and the reply.
+fn run_task(payload: &[u8], limits: &Limits, max_payload: usize) -> (Option<String>, Reply) {
+    let task: Task = match serde_json::from_slice(payload) {
+        Ok(task) => task,
+        Err(e) => {
+            tracing::warn!(error = %e, "an unreadable task; dropped");
+            return (
+                None,
+                Reply::Failed {
+                    shard: 0,
+                    message: e.to_string(),
+                },
+            );
+        }
+    };
+    let failed = |message: String| Reply::Failed {
+        shard: task.shard,
+        message,
+    };
+    let started = Instant::now();
+    let job = match SweepRequest::from_value(&task.request)
+        .and_then(|r| Ok(r.to_spec()?.prepare(limits)?))
+    {
+        Ok(job) => job,
+        Err(e) => return (Some(task.study.clone()), failed(e.to_string())),
+    };
+    let shard = Shard {
+        index: task.shard,
+        count: task.shards,
+    };
+    let cells = match shard.cells(job.cells()) {
+        Ok(cells) => cells,
+        Err(e) => return (Some(task.study.clone()), failed(e.to_string())),
+    };
+    tracing::info!(study = %task.study, shard = task.shard, shards = task.shards, cells = cells.len(), "shard started");
+    let reply = match job.run_cells(cells, Budget::default(), &|| {}) {
+        Ok(Some(results)) => {
+            let wall_ms = started.elapsed().as_secs_f64() * 1e3;
+            let part = SweepPart::new(&job, task.request.clone(), shard, results, wall_ms);
+            Reply::Part(Box::new(part))
+        }
+        Ok(None) => failed("stopped".into()),
+        Err(e) => failed(e.to_string()),
+    };
+    let size = serde_json::to_vec(&reply).map(|b| b.len()).unwrap_or(0);
+    if size > max_payload {
+        return (
+            Some(task.study.clone()),
+            failed(format!(
+                "its part is {size} bytes, more than the NATS server's max_payload of {max_payload}"
+            )),
+        );
+    }
+    (Some(task.study), reply)
+}

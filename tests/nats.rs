@@ -1,0 +1,296 @@
+//! Sweeps on NATS JetStream workers, with real processes: a `nats-server` with JetStream in a
+//! temporary directory on a free loopback port, two `geomint worker`s and a `geomint serve
+//! --nats`. The merged document equals the local executor's bit for bit; with one worker killed
+//! (SIGKILL) mid-study its shard is handed out again and the document is still the same; a
+//! client that goes away leaves no shard in the queue; a NATS server stopped mid-study fails the
+//! study with `executor_unavailable` well within the time limit; `serve --nats` without a
+//! server exits non-zero saying so.
+//!
+//! `nats-server` is a Debian package that the test command installs.
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use geomint::api::sweep::SweepRequest;
+use geomint::core::run::Budget;
+use geomint::core::simulation::Limits;
+use geomint::core::studies::sweep;
+use serde_json::{json, Value};
+
+mod server;
+use server::{client, free_port};
+
+/// A child process killed when dropped.
+struct Process(Child);
+
+impl Drop for Process {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn wait_for_port(port: u16, what: &str) {
+    let until = Instant::now() + Duration::from_secs(20);
+    while std::net::TcpStream::connect(("127.0.0.1", port)).is_err() {
+        assert!(
+            Instant::now() < until,
+            "{what} did not start on port {port}"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+fn nats_server_binary() -> PathBuf {
+    [
+        "/usr/sbin/nats-server",
+        "/usr/bin/nats-server",
+        "/usr/local/bin/nats-server",
+    ]
+    .iter()
+    .map(PathBuf::from)
+    .find(|p| p.exists())
+    .expect("nats-server is not installed: `apt-get install nats-server` (scripts/test does)")
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("geomint-nats-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// A NATS server with JetStream storing under `dir`.
+fn nats_server(dir: &Path) -> (Process, String) {
+    let port = free_port();
+    let child = Command::new(nats_server_binary())
+        .args(["-a", "127.0.0.1", "-p", &port.to_string(), "-js", "-sd"])
+        .arg(dir.join("jetstream"))
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let process = Process(child);
+    wait_for_port(port, "nats-server");
+    (process, format!("nats://127.0.0.1:{port}"))
+}
+
+fn geomint() -> Command {
+    let mut command = Command::new(env!("CARGO_BIN_EXE_geomint"));
+    command
+        .env_remove("GEOMINT_NATS_URL")
+        .env("GEOMINT_LOG", "warn");
+    command
+}
+
+fn worker(url: &str) -> Process {
+    Process(
+        geomint()
+            .args(["worker", "--nats", url, "--ack-wait-secs", "2"])
+            .stdout(Stdio::null())
+            .spawn()
+            .unwrap(),
+    )
+}
+
+/// `geomint serve --nats url` on a free port, with its data in `dir`.
+fn server(url: &str, dir: &Path) -> (Process, String) {
+    let port = free_port();
+    let child = geomint()
+        .args([
+            "serve",
+            "--addr",
+            &format!("127.0.0.1:{port}"),
+            "--nats",
+            url,
+        ])
+        .args([
+            "--nats-ack-wait-secs",
+            "2",
+            "--nats-shard-steps",
+            "10000000",
+        ])
+        .args(["--request-timeout-secs", "60"])
+        .arg("--data-dir")
+        .arg(dir.join("data"))
+        .arg("--systems-dir")
+        .arg(dir.join("systems"))
+        .arg("--static-dir")
+        .arg(dir.join("no-static"))
+        .stdout(Stdio::null())
+        .spawn()
+        .unwrap();
+    let process = Process(child);
+    wait_for_port(port, "geomint serve");
+    (process, format!("http://127.0.0.1:{port}"))
+}
+
+/// The Fig. 6 sweep on a 12 × 10 grid: 120 cells of 2 × 5·10⁵ steps (a few seconds on two
+/// cores), in 12 shards of 10⁷ steps.
+fn request() -> Value {
+    json!({
+        "system": "elastic_pendulum_2d",
+        "params": {"g": 0.02},
+        "charts": ["cartesian", "polar"],
+        "initial_coordinates": "cartesian",
+        "p0": [0.0, 0.0],
+        "methods": ["symplectic_euler"],
+        "h": 0.2,
+        "t_end": 100000,
+        "axes": [
+            {"name": "q0[0]", "min": -1.5, "max": 1.5, "n": 12},
+            {"name": "q0[1]", "min": -1.5, "max": 1.5, "n": 10}
+        ]
+    })
+}
+
+/// The document of the local executor, without its wall time.
+fn local() -> Value {
+    let job = SweepRequest::from_value(&request())
+        .unwrap()
+        .to_spec()
+        .unwrap()
+        .prepare(&Limits::default())
+        .unwrap();
+    numbers(serde_json::to_value(sweep::run(&job, Budget::default(), &|_| true).unwrap()).unwrap())
+}
+
+fn numbers(mut doc: Value) -> Value {
+    doc.as_object_mut().unwrap().remove("wall_ms");
+    doc
+}
+
+async fn post_sweep(base: &str) -> (u16, Value) {
+    let response = client()
+        .post(format!("{base}/api/v1/studies/sweep"))
+        .json(&request())
+        .send()
+        .await
+        .unwrap();
+    let status = response.status().as_u16();
+    let bytes = response.bytes().await.unwrap();
+    (status, geomint::api::json::parse_json(&bytes).unwrap())
+}
+
+/// Shards waiting in the queue.
+async fn queued(url: &str) -> u64 {
+    let client = async_nats::connect(url).await.unwrap();
+    let js = async_nats::jetstream::new(client);
+    let mut stream = js.get_stream(geomint::nats::STREAM).await.unwrap();
+    stream.info().await.unwrap().state.messages
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn sweeps_on_nats_workers_equal_the_local_executor() {
+    let dir = scratch("workers");
+    let (mut nats, url) = nats_server(&dir);
+    let expected = tokio::task::spawn_blocking(local).await.unwrap();
+    let mut first = worker(&url);
+    let _second = worker(&url);
+    let (_server, base) = server(&url, &dir);
+
+    // Two workers, nothing goes wrong.
+    let started = Instant::now();
+    let (status, doc) = post_sweep(&base).await;
+    assert_eq!(status, 200, "{}", doc["error"]);
+    assert!(
+        numbers(doc) == expected,
+        "the workers' document differs from the local one"
+    );
+    eprintln!("two workers: {:.1} s", started.elapsed().as_secs_f64());
+
+    // One worker killed mid-study: its shard goes to the other after the ack wait (2 s).
+    let started = Instant::now();
+    let sweep = tokio::spawn({
+        let base = base.clone();
+        async move { post_sweep(&base).await }
+    });
+    tokio::time::sleep(Duration::from_millis(1500)).await;
+    assert!(
+        !sweep.is_finished(),
+        "the sweep ended before a worker could be killed"
+    );
+    first.0.kill().unwrap();
+    first.0.wait().unwrap();
+    let (status, doc) = sweep.await.unwrap();
+    assert_eq!(status, 200, "{}", doc["error"]);
+    assert!(
+        numbers(doc) == expected,
+        "after a worker was killed, the document differs"
+    );
+    eprintln!(
+        "one worker killed: {:.1} s",
+        started.elapsed().as_secs_f64()
+    );
+
+    // A client that goes away: the shards no worker has started leave the queue.
+    let gone = tokio::spawn({
+        let base = base.clone();
+        async move { post_sweep(&base).await }
+    });
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    gone.abort();
+    let until = Instant::now() + Duration::from_secs(10);
+    loop {
+        let waiting = queued(&url).await;
+        if waiting == 0 {
+            break;
+        }
+        assert!(
+            Instant::now() < until,
+            "{waiting} shards still queued after the client left"
+        );
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+
+    // The NATS server stops mid-study: a clear error, long before the 60 s time limit.
+    let sweep = tokio::spawn({
+        let base = base.clone();
+        async move { post_sweep(&base).await }
+    });
+    tokio::time::sleep(Duration::from_millis(1000)).await;
+    assert!(
+        !sweep.is_finished(),
+        "the sweep ended before the NATS server could be stopped"
+    );
+    let stopped = Instant::now();
+    nats.0.kill().unwrap();
+    nats.0.wait().unwrap();
+    let (status, error) = sweep.await.unwrap();
+    let waited = stopped.elapsed();
+    assert_eq!(status, 502, "{}", error["error"]);
+    assert_eq!(error["error"]["code"], "executor_unavailable");
+    let message = error["error"]["message"].as_str().unwrap();
+    assert!(message.contains("NATS server"), "{message}");
+    assert!(
+        waited < Duration::from_secs(20),
+        "the error took {waited:?}"
+    );
+}
+
+#[test]
+fn serve_without_a_nats_server_says_so_and_exits_non_zero() {
+    let port = free_port();
+    let out = geomint()
+        .args([
+            "serve",
+            "--addr",
+            "127.0.0.1:0",
+            "--nats",
+            &format!("nats://127.0.0.1:{port}"),
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("cannot connect (NATS server nats://127.0.0.1:"),
+        "{stderr}"
+    );
+    let out = geomint()
+        .args(["worker", "--nats", &format!("nats://127.0.0.1:{port}")])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+}
