@@ -10,7 +10,13 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::time::Duration;
 
+mod decoded;
 mod server;
+
+use decoded::Decoded;
+use rerun::components::TensorData;
+use rerun::external::re_sdk_types::datatypes::TensorBuffer;
+use rerun::{Image, Tensor};
 
 use geomint::http::Config;
 use serde_json::{json, Value};
@@ -102,6 +108,75 @@ async fn a_sweep_answers_json_and_ndjson_with_the_same_numbers() {
     let mut streamed = result.clone();
     streamed.as_object_mut().unwrap().remove("type");
     assert_eq!(numbers(streamed), numbers(doc));
+}
+
+#[tokio::test]
+async fn a_sweep_records_a_tensor_and_a_heatmap_per_run_and_metric() {
+    let server = start(config()).await;
+    let body = damped_pendulum_sweep();
+    let (_, doc) = post_json(&server, "/api/v1/studies/sweep", &body).await;
+    let response = client()
+        .post(server.url("/api/v1/studies/sweep?format=rrd"))
+        .json(&body)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), 200);
+    assert_eq!(
+        response.headers()["content-type"],
+        "application/octet-stream"
+    );
+    let d = Decoded::of(&response.bytes().await.unwrap());
+    let paths = d.entity_paths();
+    for run in doc["runs"].as_array().unwrap() {
+        let part = format!(
+            "{}_{}",
+            run["method"].as_str().unwrap(),
+            run["chart"].as_str().unwrap()
+        );
+        for metric in [
+            "energy_error_final",
+            "energy_error_max",
+            "energy_error_l2",
+            "diverged_at",
+        ] {
+            let path = format!("/{part}/{metric}");
+            assert!(
+                paths.contains(&path) && paths.contains(&format!("{path}/heatmap")),
+                "{path}"
+            );
+        }
+        // The tensor: q0[0] rows × γ columns, equal to the JSON bit for bit, NaN for null.
+        let tensors: Vec<TensorData> = d.static_batch(
+            &format!("/{part}/energy_error_max"),
+            Tensor::descriptor_data().component,
+        );
+        let tensor = &tensors[0];
+        assert_eq!(tensor.shape(), [3, 5]);
+        let names: Vec<String> = (0..2)
+            .map(|k| tensor.dim_name(k).unwrap().to_string())
+            .collect();
+        assert_eq!(names, ["q0[0]", "params.gamma"]);
+        let TensorBuffer::F64(values) = &tensor.buffer else {
+            panic!("f64 values")
+        };
+        let json: Vec<f64> = run["energy_error_max"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap_or(f64::NAN))
+            .collect();
+        assert_eq!(values.len(), 15);
+        for (r, j) in values.iter().zip(&json) {
+            assert_eq!(r.to_bits(), j.to_bits());
+        }
+        let images = d.static_batch::<rerun::components::ImageFormat>(
+            &format!("/{part}/energy_error_max/heatmap"),
+            Image::descriptor_format().component,
+        );
+        assert_eq!((images[0].width, images[0].height), (5, 3));
+    }
+    assert!(paths.contains("/summary"));
 }
 
 #[tokio::test]

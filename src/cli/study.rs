@@ -226,7 +226,7 @@ fn run_energy_map(args: &StudyArgs, source: &str, text: &[u8]) -> ExitCode {
 }
 
 /// Whether the output file's name ends in `.rrd`.
-fn wants_rrd(args: &StudyArgs) -> bool {
+pub(crate) fn wants_rrd(args: &StudyArgs) -> bool {
     args.output
         .as_ref()
         .and_then(|p| p.extension())

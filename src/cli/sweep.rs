@@ -8,7 +8,7 @@ use std::path::Path;
 use std::process::ExitCode;
 use std::time::Instant;
 
-use super::study::{write_document, StudyArgs};
+use super::study::{wants_rrd, write_document, StudyArgs};
 use super::{read_spec, BAD_INPUT};
 use crate::api::sweep::SweepRequest;
 use crate::core::error::ErrorDetail;
@@ -134,12 +134,7 @@ pub(crate) fn run_sweep(args: &StudyArgs, limits: &Limits) -> ExitCode {
             let part = SweepPart::new(&job, request, shard, results, wall_ms);
             write_document(args, false, &part, None::<NoRecording<SweepPart>>)
         }
-        None => write_document(
-            args,
-            false,
-            &job.document(results, wall_ms),
-            None::<NoRecording<sweep::SweepDocument>>,
-        ),
+        None => whole(args, &job.document(results, wall_ms)),
     }
 }
 
@@ -180,10 +175,16 @@ pub(crate) fn run_merge(args: &StudyArgs, limits: &Limits) -> ExitCode {
         }
     };
     eprintln!("merged {} cells", cells.len());
-    write_document(
-        args,
-        false,
-        &job.document(cells, wall_ms),
-        None::<NoRecording<sweep::SweepDocument>>,
-    )
+    whole(args, &job.document(cells, wall_ms))
+}
+
+/// Writes a whole sweep's document: a Rerun recording for an output file ending in `.rrd`, JSON
+/// otherwise.
+fn whole(args: &StudyArgs, doc: &sweep::SweepDocument) -> ExitCode {
+    let record = |f: std::fs::File, doc: &sweep::SweepDocument| {
+        crate::recording::sweep::write_rrd(std::io::BufWriter::new(f), doc)
+            .map_err(|e| e.to_string())
+            .and_then(|mut w| std::io::Write::flush(&mut w).map_err(|e| e.to_string()))
+    };
+    write_document(args, wants_rrd(args), doc, Some(record))
 }

@@ -246,11 +246,12 @@ pub async fn energy_map(
     request_body(content = SweepRequest, content_type = "application/json"),
     params(("Accept" = Option<String>, Header,
         description = "`application/x-ndjson` streams progress lines (see SweepLine)"),
-        ("format" = Option<StreamFormat>, Query,
-        description = "`ndjson` as the Accept header; `json` (default)")),
+        ("format" = Option<AnyFormat>, Query,
+        description = "`ndjson` as the Accept header; `rrd` the sweep's Rerun recording (a tensor and a heatmap per run and metric); `json` (default)")),
     responses(
         (status = 200, description = "The sweep",
-            content((SweepDocument = "application/json"), (SweepLine = "application/x-ndjson"))),
+            content((SweepDocument = "application/json"), (SweepLine = "application/x-ndjson"),
+                (RrdFile = "application/octet-stream"))),
         (status = 400, description = "Malformed JSON (code `malformed_json`)", body = ErrorBody),
         (status = 413, description = "The body exceeds 1 MiB", body = ErrorBody),
         (status = 415, description = "The body is not declared as JSON", body = ErrorBody),
@@ -269,7 +270,7 @@ pub async fn sweep(
     Query(query): Query<BTreeMap<String, String>>,
     ApiJson(body): ApiJson,
 ) -> Result<Response, ApiError> {
-    let format = Format::requested(&query, &headers, &[Format::Json, Format::Ndjson])?;
+    let format = Format::requested(&query, &headers, Format::ALL)?;
     let mut request = SweepRequest::from_value(&body)?;
     state.systems.substitute(&mut request.system);
     let job = request.to_spec()?.prepare(&state.config.limits)?;
@@ -313,8 +314,8 @@ pub async fn sweep(
             |error| SweepLine::Error { error },
             || SweepLine::End,
         ),
-        |doc: &SweepDocument| serde_json::to_vec(doc).map_err(ApiError::internal),
-        "",
+        move |doc: &SweepDocument| format.encode(doc, recording::sweep::rrd_bytes),
+        "geomint-sweep.rrd",
     )
     .await
 }

@@ -25,6 +25,7 @@ pub mod live;
 pub mod read;
 pub mod simulation;
 pub mod stability;
+pub mod sweep;
 pub mod work_precision;
 
 use std::collections::HashSet;
