@@ -177,6 +177,22 @@ export async function energyMapRrd(body, signal) {
   return response.blob();
 }
 
+/** A sweep (POST /api/v1/studies/sweep) as NDJSON lines: progress, then the result. */
+export async function sweepStream(body, onLine, signal) {
+  return ndjsonStream('api/v1/studies/sweep', body, onLine, signal);
+}
+
+/** The sweep of `body` as a Rerun recording (.rrd bytes), computed afresh. */
+export async function sweepRrd(body, signal) {
+  const response = await post('api/v1/studies/sweep?format=rrd', body, { accept: 'application/octet-stream', signal });
+  return response.blob();
+}
+
+/** The server's ready-made sweeps: [{id, title, request}]. */
+export async function sweepPresets() {
+  return getJson('api/v1/studies/sweep/presets');
+}
+
 /** The simulation of `request` as a Rerun recording (.rrd bytes), computed afresh. */
 export async function simulateRrd(request, signal) {
   const response = await post('api/v1/simulate?format=rrd', request, { accept: 'application/octet-stream', signal });

@@ -20,6 +20,7 @@ import { StabilityPanel } from './stability.js';
 import { WorkPrecisionPanel } from './studies.js';
 import { ConvergencePanel } from './convergence.js';
 import { EnergyMapPanel } from './energymap.js';
+import { SweepPanel } from './sweep.js';
 import { RecordingsPanel, streamLines, describe, when } from './library.js';
 
 const $ = (selector) => document.querySelector(selector);
@@ -168,6 +169,7 @@ async function init() {
   const workPrecision = new WorkPrecisionPanel($('#work-precision'));
   const convergence = new ConvergencePanel($('#convergence'));
   const energyMap = new EnergyMapPanel($('#energy-map'), cats.methods);
+  const sweep = new SweepPanel($('#sweep'));
   const library = new RecordingsPanel($('#recordings'), showRecording);
   for (const button of ui.presets.querySelectorAll('button')) button.disabled = false;
   ui.run.disabled = false;
@@ -189,10 +191,11 @@ async function init() {
     workPrecision,
     convergence,
     energyMap,
+    sweep,
     library,
   };
   setState('idle');
-  await Promise.all([system.followLink(), (async () => {
+  await Promise.all([system.followLink(), sweep.init(), (async () => {
     await library.refresh();
     await library.followLink();
   })()]);
