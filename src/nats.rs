@@ -271,8 +271,10 @@ pub async fn run(
         })
 }
 
-/// Pulls shards one at a time and runs them until the connection fails. `limits` bound what a
-/// task may ask for.
+/// Pulls shards one at a time and runs them, for as long as the process lives: a lost
+/// connection, a failed publish or acknowledgement is logged and retried (the shard, not
+/// acknowledged, goes out again after the ack wait). Fails only when the workers' consumer cannot
+/// be found at the start. `limits` bound what a task may ask for.
 pub async fn work(queue: &Queue, limits: Limits) -> Result<(), String> {
     let consumer: jetstream::consumer::PullConsumer = queue
         .stream
@@ -282,64 +284,66 @@ pub async fn work(queue: &Queue, limits: Limits) -> Result<(), String> {
     let ack_wait = consumer.cached_info().config.ack_wait;
     tracing::info!(url = %queue.url, ack_wait_secs = ack_wait.as_secs_f64(), "worker ready");
     loop {
-        let mut batch = consumer
-            .fetch()
-            .max_messages(1)
-            .expires(Duration::from_secs(5))
-            .messages()
-            .await
-            .map_err(|e| failed("cannot fetch a shard", &queue.url, e))?;
-        let Some(message) = batch.next().await else {
-            continue;
-        };
-        let message = Arc::new(message.map_err(|e| failed("cannot fetch a shard", &queue.url, e))?);
-        // Tell JetStream the shard is being worked on, so it is not handed out again.
-        let keepalive = {
-            let message = Arc::clone(&message);
-            tokio::spawn(async move {
-                let mut tick =
-                    tokio::time::interval((ack_wait / 3).max(Duration::from_millis(100)));
-                tick.tick().await;
-                loop {
-                    tick.tick().await;
-                    let _ = message.ack_with(AckKind::Progress).await;
-                }
-            })
-        };
-        let payload = message.payload.clone();
-        let max_payload = queue.client.server_info().max_payload;
-        let reply = tokio::task::spawn_blocking(move || run_task(&payload, &limits, max_payload))
-            .await
-            .unwrap_or_else(|e| {
-                (
-                    None,
-                    Reply::Failed {
-                        shard: 0,
-                        message: format!("the shard panicked: {e}"),
-                    },
-                )
-            });
-        keepalive.abort();
-        let (study, reply) = reply;
-        if let Some(study) = study {
-            let bytes = serde_json::to_vec(&reply).unwrap_or_default();
-            queue
-                .client
-                .publish(format!("{PARTS}.{study}"), bytes.into())
-                .await
-                .map_err(|e| failed("cannot publish a part", &queue.url, e))?;
-            queue
-                .client
-                .flush()
-                .await
-                .map_err(|e| failed("cannot publish a part", &queue.url, e))?;
+        if let Err(e) = run_one(queue, &consumer, ack_wait, limits).await {
+            tracing::warn!(error = %e, "retrying in a second");
+            tokio::time::sleep(Duration::from_secs(1)).await;
         }
-        // Acknowledged only once the part is out: a worker that dies before never loses it.
-        message
-            .double_ack()
-            .await
-            .map_err(|e| failed("cannot acknowledge a shard", &queue.url, e))?;
     }
+}
+
+/// Waits up to 5 s for one shard and runs it: publishes its part, then acknowledges it.
+async fn run_one(
+    queue: &Queue,
+    consumer: &jetstream::consumer::PullConsumer,
+    ack_wait: Duration,
+    limits: Limits,
+) -> Result<(), String> {
+    let mut batch = consumer
+        .fetch()
+        .max_messages(1)
+        .expires(Duration::from_secs(5))
+        .messages()
+        .await
+        .map_err(|e| failed("cannot fetch a shard", &queue.url, e))?;
+    let Some(message) = batch.next().await else {
+        return Ok(());
+    };
+    let message = Arc::new(message.map_err(|e| failed("cannot fetch a shard", &queue.url, e))?);
+    // Tell JetStream the shard is being worked on, so it is not handed out again.
+    let keepalive = {
+        let message = Arc::clone(&message);
+        tokio::spawn(async move {
+            let mut tick = tokio::time::interval((ack_wait / 3).max(Duration::from_millis(100)));
+            tick.tick().await;
+            loop {
+                tick.tick().await;
+                let _ = message.ack_with(AckKind::Progress).await;
+            }
+        })
+    };
+    let payload = message.payload.clone();
+    let max_payload = queue.client.server_info().max_payload;
+    let reply = tokio::task::spawn_blocking(move || run_task(&payload, &limits, max_payload)).await;
+    keepalive.abort();
+    let (study, reply) = reply.map_err(|e| format!("a shard panicked: {e}"))?;
+    if let Some(study) = study {
+        let bytes = serde_json::to_vec(&reply).map_err(|e| e.to_string())?;
+        queue
+            .client
+            .publish(format!("{PARTS}.{study}"), bytes.into())
+            .await
+            .map_err(|e| failed("cannot publish a part", &queue.url, e))?;
+        queue
+            .client
+            .flush()
+            .await
+            .map_err(|e| failed("cannot publish a part", &queue.url, e))?;
+    }
+    // Acknowledged only once the part is out: a worker that dies before never loses it.
+    message
+        .double_ack()
+        .await
+        .map_err(|e| failed("cannot acknowledge a shard", &queue.url, e))
 }
 
 /// Runs one task: its study (if the task could be read) and the reply.

@@ -182,7 +182,8 @@ pub(crate) fn serve(args: &ServeArgs) -> ExitCode {
     }
 }
 
-/// `geomint worker`: runs sweep shards from the NATS server until the connection fails.
+/// `geomint worker`: runs sweep shards from the NATS server for as long as it lives (a lost
+/// connection is retried); fails when no server answers at the start.
 pub(crate) fn work(args: &WorkerArgs) -> ExitCode {
     init_logging(&args.log);
     let runtime = match runtime() {

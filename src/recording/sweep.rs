@@ -192,7 +192,7 @@ fn blueprint_tree(doc: &SweepDocument) -> Node {
             ["energy_error_max", "diverged_at"].map(|metric| {
                 Node::view(
                     "2D",
-                    &format!("{label}: {metric}"),
+                    format!("{label}: {metric}"),
                     vec![format!("/{part}/{metric}/heatmap")],
                 )
             })
