@@ -141,10 +141,13 @@ fn long_request() -> Value {
     json!({"system": "pendulum", "method": "modin_3s", "h": 1e-3, "t_end": 1e6, "output": {"every": 10000}})
 }
 
+/// `max_concurrent` slots and no short lane: small runs probe whether the long ones hold them.
 fn long_config(max_concurrent: usize) -> Config {
     Config {
         max_concurrent,
+        short_lane: 0,
         queue_timeout: Duration::ZERO,
+        long_queue_timeout: Duration::ZERO,
         limits: Limits {
             max_steps: 10_000_000_000,
             max_samples: 1_000_000,

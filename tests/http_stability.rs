@@ -682,6 +682,7 @@ async fn a_busy_server_answers_maps_503_with_retry_after() {
     let server = start(Config {
         max_concurrent: 1,
         queue_timeout: Duration::from_millis(50),
+        long_queue_timeout: Duration::from_millis(50),
         limits: Limits {
             max_steps: 10_000_000_000,
             max_samples: 1_000_000,

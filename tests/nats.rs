@@ -9,7 +9,7 @@
 //! `nats-server` is a Debian package that the test command installs.
 
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use geomint::api::sweep::SweepRequest;
@@ -19,28 +19,7 @@ use geomint::core::studies::sweep;
 use serde_json::{json, Value};
 
 mod server;
-use server::{client, free_port};
-
-/// A child process killed when dropped.
-struct Process(Child);
-
-impl Drop for Process {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
-fn wait_for_port(port: u16, what: &str) {
-    let until = Instant::now() + Duration::from_secs(20);
-    while std::net::TcpStream::connect(("127.0.0.1", port)).is_err() {
-        assert!(
-            Instant::now() < until,
-            "{what} did not start on port {port}"
-        );
-        std::thread::sleep(Duration::from_millis(50));
-    }
-}
+use server::{client, free_port, wait_for_port, Process};
 
 fn nats_server_binary() -> PathBuf {
     [

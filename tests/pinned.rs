@@ -60,6 +60,7 @@ fn config() -> Config {
         max_concurrent: 4,
         request_timeout: std::time::Duration::from_secs(120),
         queue_timeout: std::time::Duration::from_secs(60),
+        long_queue_timeout: std::time::Duration::from_secs(60),
         ..Config::default()
     }
 }

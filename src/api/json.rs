@@ -12,10 +12,11 @@ use crate::core::error::{ErrorCode, ErrorDetail, Field};
 use crate::core::systems::ParamValue;
 
 /// Parses JSON text into a value; errors are `malformed_json`, with the path of the value where
-/// the text went wrong when there is one (`q0[2]` for a number beyond ±1.8e308).
+/// the text went wrong when there is one (`q0[2]` for a number beyond ±1.8e308, `h` for a key
+/// given twice: which of the two was meant is not for the server to guess).
 pub fn parse_json(bytes: &[u8]) -> Result<Value, ErrorDetail> {
     let mut de = serde_json::Deserializer::from_slice(bytes);
-    let value: Value = serde_path_to_error::deserialize(&mut de).map_err(|e| {
+    let Strict(value) = serde_path_to_error::deserialize(&mut de).map_err(|e| {
         // A text cut short has no place where it went wrong: the rest is missing.
         let path = e.path().to_string();
         let located = path != "." && !e.inner().is_eof();
@@ -23,6 +24,70 @@ pub fn parse_json(bytes: &[u8]) -> Result<Value, ErrorDetail> {
     })?;
     de.end().map_err(|e| malformed(bytes, &e, None))?;
     Ok(value)
+}
+
+/// A JSON value read like `serde_json::Value`, except that an object with a key twice is an
+/// error rather than its last value silently winning.
+struct Strict(Value);
+
+impl<'de> serde::Deserialize<'de> for Strict {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        deserializer.deserialize_any(StrictVisitor).map(Strict)
+    }
+}
+
+struct StrictVisitor;
+
+impl<'de> serde::de::Visitor<'de> for StrictVisitor {
+    type Value = Value;
+
+    fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("a JSON value")
+    }
+    fn visit_bool<E>(self, v: bool) -> Result<Value, E> {
+        Ok(Value::Bool(v))
+    }
+    fn visit_i64<E>(self, v: i64) -> Result<Value, E> {
+        Ok(Value::from(v))
+    }
+    fn visit_u64<E>(self, v: u64) -> Result<Value, E> {
+        Ok(Value::from(v))
+    }
+    fn visit_f64<E>(self, v: f64) -> Result<Value, E> {
+        Ok(serde_json::Number::from_f64(v).map_or(Value::Null, Value::Number))
+    }
+    fn visit_str<E>(self, v: &str) -> Result<Value, E> {
+        Ok(Value::String(v.to_string()))
+    }
+    fn visit_string<E>(self, v: String) -> Result<Value, E> {
+        Ok(Value::String(v))
+    }
+    fn visit_unit<E>(self) -> Result<Value, E> {
+        Ok(Value::Null)
+    }
+    fn visit_none<E>(self) -> Result<Value, E> {
+        Ok(Value::Null)
+    }
+    fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> Result<Value, A::Error> {
+        let mut items = Vec::new();
+        while let Some(Strict(item)) = seq.next_element()? {
+            items.push(item);
+        }
+        Ok(Value::Array(items))
+    }
+    fn visit_map<A: serde::de::MapAccess<'de>>(self, mut map: A) -> Result<Value, A::Error> {
+        let mut object = serde_json::Map::new();
+        while let Some(key) = map.next_key::<String>()? {
+            if object.contains_key(&key) {
+                return Err(serde::de::Error::custom(format!(
+                    "the key `{key}` is given twice"
+                )));
+            }
+            let Strict(value) = map.next_value()?;
+            object.insert(key, value);
+        }
+        Ok(Value::Object(object))
+    }
 }
 
 fn malformed(bytes: &[u8], e: &serde_json::Error, path: Option<String>) -> ErrorDetail {

@@ -35,6 +35,28 @@ pub struct ServeArgs {
     /// How long a request waits for a free simulation slot before it gets 503, in milliseconds.
     #[arg(long, env = "GEOMINT_QUEUE_TIMEOUT_MS", default_value_t = 250)]
     pub queue_timeout_ms: u64,
+    /// How long long work (more than --short-work step-coordinates, and every study) waits its
+    /// turn for a slot before it gets 503, in seconds; a client has one such request waiting.
+    #[arg(long, env = "GEOMINT_LONG_QUEUE_TIMEOUT_SECS", default_value_t = 5)]
+    pub long_queue_timeout_secs: u64,
+    /// Simulation slots kept for short work beside --max-concurrent: small runs are served while
+    /// long ones hold every other slot.
+    #[arg(long, env = "GEOMINT_SHORT_LANE", default_value_t = 1, value_parser = clap::value_parser!(u64).range(0..=4096))]
+    pub short_lane: u64,
+    /// The largest run that counts as short work, in steps × phase-space coordinates over its
+    /// methods (1e5 style accepted).
+    #[arg(long, env = "GEOMINT_SHORT_WORK", default_value = "200000", value_parser = parse_count)]
+    pub short_work: u64,
+    /// Most open connections; past it new ones wait in the listen backlog.
+    #[arg(long, env = "GEOMINT_MAX_CONNECTIONS", default_value_t = 1024, value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
+    pub max_connections: u64,
+    /// Seconds a client has to send a request's head; an idle keep-alive connection is closed
+    /// after as long.
+    #[arg(long, env = "GEOMINT_HEADER_TIMEOUT_SECS", default_value_t = 10, value_parser = clap::value_parser!(u64).range(1..))]
+    pub header_timeout_secs: u64,
+    /// Seconds a client has to send a request's body (408 after).
+    #[arg(long, env = "GEOMINT_BODY_TIMEOUT_SECS", default_value_t = 60, value_parser = clap::value_parser!(u64).range(1..))]
+    pub body_timeout_secs: u64,
     /// Origins allowed by CORS, comma-separated, or `*` (default: CORS off).
     #[arg(long, env = "GEOMINT_CORS_ORIGINS", value_delimiter = ',')]
     pub cors_origins: Vec<String>,
@@ -107,6 +129,12 @@ impl ServeArgs {
                 .map_or_else(http::state::default_concurrency, |n| n as usize),
             request_timeout: Duration::from_secs(self.request_timeout_secs),
             queue_timeout: Duration::from_millis(self.queue_timeout_ms),
+            long_queue_timeout: Duration::from_secs(self.long_queue_timeout_secs),
+            short_lane: self.short_lane as usize,
+            short_work: self.short_work,
+            max_connections: self.max_connections as usize,
+            header_timeout: Duration::from_secs(self.header_timeout_secs),
+            body_timeout: Duration::from_secs(self.body_timeout_secs),
             cors_origins: self.cors_origins.clone(),
             static_dir: Some(self.static_dir.clone()),
             body_limit: usize::try_from(self.body_limit).unwrap_or(usize::MAX),

@@ -9,11 +9,14 @@
 
 use std::collections::BTreeMap;
 use std::convert::Infallible;
+use std::net::{IpAddr, SocketAddr};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use axum::body::{Body, Bytes};
+use axum::extract::{ConnectInfo, FromRequestParts};
+use axum::http::request::Parts;
 use axum::http::{header, HeaderMap, HeaderValue};
 use axum::response::Response;
 use futures_util::StreamExt;
@@ -24,7 +27,7 @@ use tracing::Instrument;
 
 use super::error::ApiError;
 use super::recordings::rrd_response;
-use super::state::{run_blocking, AppState};
+use super::state::{run_blocking, AppState, Cost};
 use crate::api::{ndjson_line, NDJSON};
 use crate::core::error::{ErrorCode, ErrorDetail};
 use crate::core::run::Budget;
@@ -162,6 +165,20 @@ impl Format {
     }
 }
 
+/// The address a request came from, for fair admission (none when the service runs without
+/// a listener, as under `tower::ServiceExt::oneshot`).
+#[derive(Clone, Copy, Debug)]
+pub struct Client(pub Option<IpAddr>);
+
+impl<S: Send + Sync> FromRequestParts<S> for Client {
+    type Rejection = Infallible;
+
+    async fn from_request_parts(parts: &mut Parts, _: &S) -> Result<Self, Infallible> {
+        let peer = parts.extensions.get::<ConnectInfo<SocketAddr>>();
+        Ok(Client(peer.map(|info| info.0.ip())))
+    }
+}
+
 /// A computation a request has been admitted to: its simulation slots, its deadline and its
 /// cancellation flag (set when the server shuts down, or when the request goes away).
 pub struct Work {
@@ -172,10 +189,16 @@ pub struct Work {
 }
 
 impl Work {
-    /// Admits a request that wants `slots` simulation threads: one, waiting up to the queue
-    /// timeout (else 503), plus up to `slots − 1` more that are free now.
-    pub async fn admit(state: &AppState, slots: usize) -> Result<Work, ApiError> {
-        let permits = state.acquire(slots).await?;
+    /// Admits a request that wants `slots` simulation threads and predicts `cost`: one, waiting
+    /// its turn as [`AppState::acquire`] says (else 503), plus up to `slots − 1` more that are
+    /// free now.
+    pub async fn admit(
+        state: &AppState,
+        slots: usize,
+        cost: Cost,
+        client: Client,
+    ) -> Result<Work, ApiError> {
+        let permits = state.acquire(slots, cost, client.0).await?;
         Ok(Work {
             permits,
             deadline: Instant::now() + state.config.request_timeout,

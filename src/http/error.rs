@@ -36,7 +36,8 @@ pub fn status_for(code: ErrorCode) -> StatusCode {
         ErrorCode::Overloaded => StatusCode::SERVICE_UNAVAILABLE,
         ErrorCode::Timeout => StatusCode::GATEWAY_TIMEOUT,
         ErrorCode::Internal => StatusCode::INTERNAL_SERVER_ERROR,
-        ErrorCode::RecordingTooLarge | ErrorCode::TooManySystems => {
+        ErrorCode::StorageUnavailable => StatusCode::INTERNAL_SERVER_ERROR,
+        ErrorCode::RecordingTooLarge | ErrorCode::TooManySystems | ErrorCode::StorageFull => {
             StatusCode::INSUFFICIENT_STORAGE
         }
         ErrorCode::BuiltInSystem => StatusCode::CONFLICT,
@@ -78,6 +79,41 @@ impl ApiError {
                 "internal server error; the details are in the server log",
             ),
         )
+    }
+
+    /// A failed write to the stored data (`what`: "recording store", …): 507 `storage_full` when
+    /// the file system is full, 500 `storage_unavailable` when it cannot be written, else a
+    /// plain internal error.
+    pub fn storage(what: &str, error: &(dyn std::error::Error + 'static)) -> Self {
+        let mut source = Some(error);
+        while let Some(e) = source {
+            if let Some(io) = e.downcast_ref::<std::io::Error>() {
+                let (code, message) = match io.kind() {
+                    std::io::ErrorKind::StorageFull | std::io::ErrorKind::QuotaExceeded => (
+                        ErrorCode::StorageFull,
+                        format!("{what}: the disk is full; nothing was stored"),
+                    ),
+                    std::io::ErrorKind::ReadOnlyFilesystem
+                    | std::io::ErrorKind::PermissionDenied
+                    | std::io::ErrorKind::NotFound
+                    | std::io::ErrorKind::NotADirectory => (
+                        ErrorCode::StorageUnavailable,
+                        format!(
+                            "{what}: the data directory cannot be written ({})",
+                            io.kind()
+                        ),
+                    ),
+                    _ => {
+                        source = e.source();
+                        continue;
+                    }
+                };
+                tracing::error!(error = %error, "{what}: write failed");
+                return Self::from(ErrorDetail::new(code, message));
+            }
+            source = e.source();
+        }
+        Self::internal(format!("{what}: {error}"))
     }
 
     /// Every run slot is busy: 503 with `Retry-After`.

@@ -8,7 +8,10 @@ use axum::extract::{FromRequest, Request};
 use axum::http::{header, StatusCode};
 use serde_json::Value;
 
+use axum::extract::rejection::{BytesRejection, FailedToBufferBody};
+
 use super::error::ApiError;
+use super::server::body_error;
 use crate::api::json::parse_json;
 use crate::core::error::{ErrorCode, ErrorDetail};
 
@@ -50,25 +53,20 @@ where
                 ));
             }
         }
-        let bytes = Bytes::from_request(req, state).await.map_err(|rejection| {
-            if rejection.status() == StatusCode::PAYLOAD_TOO_LARGE {
-                ApiError::new(
-                    StatusCode::PAYLOAD_TOO_LARGE,
-                    ErrorDetail::new(
-                        ErrorCode::PayloadTooLarge,
-                        "the request body exceeds the size limit",
-                    ),
-                )
-            } else {
-                ApiError::new(
-                    StatusCode::BAD_REQUEST,
-                    ErrorDetail::new(
-                        ErrorCode::BadRequest,
-                        format!("the request body could not be read: {rejection}"),
-                    ),
-                )
-            }
-        })?;
+        let bytes = Bytes::from_request(req, state)
+            .await
+            .map_err(|rejection| match rejection {
+                BytesRejection::FailedToBufferBody(FailedToBufferBody::LengthLimitError(_)) => {
+                    ApiError::new(
+                        StatusCode::PAYLOAD_TOO_LARGE,
+                        ErrorDetail::new(
+                            ErrorCode::PayloadTooLarge,
+                            "the request body exceeds the size limit",
+                        ),
+                    )
+                }
+                other => body_error(&other),
+            })?;
         parse_json(&bytes).map(ApiJson).map_err(ApiError::from)
     }
 }

@@ -27,6 +27,7 @@ pub mod extract;
 pub mod handlers;
 pub mod openapi;
 pub mod recordings;
+pub mod server;
 pub mod simulate;
 pub mod stability;
 pub mod state;
@@ -35,13 +36,10 @@ pub mod studies;
 pub mod systems;
 mod tempfile;
 
-use std::future::Future;
-use std::net::SocketAddr;
-
 use axum::body::Body;
 use axum::extract::DefaultBodyLimit;
 use axum::http::{header, HeaderValue, Method, StatusCode};
-use axum::middleware::map_response;
+use axum::middleware::{from_fn_with_state, map_response};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use axum::Router;
@@ -58,7 +56,8 @@ use tower_http::trace::{DefaultOnResponse, TraceLayer};
 pub use error::ApiError;
 pub use error::ErrorBody;
 pub use extract::ApiJson;
-pub use state::{run_blocking, AppState, Config};
+pub use server::{serve, serve_on, shutdown_signal};
+pub use state::{run_blocking, AppState, Config, Cost};
 
 use crate::core::error::{ErrorCode, ErrorDetail};
 
@@ -156,13 +155,21 @@ pub fn app(state: AppState) -> Router {
         )
         .route(paths::RECORDING_SAMPLES, get(recordings::recording_samples))
         .layer(DefaultBodyLimit::max(config.body_limit))
-        .layer(RequestBodyLimitLayer::new(config.body_limit));
+        .layer(RequestBodyLimitLayer::new(config.body_limit))
+        .layer(from_fn_with_state(
+            config.body_timeout,
+            server::body_deadline,
+        ));
     // Storing a recording takes a JSON body under the body limit or an .rrd upload under the
     // store's size cap; the handler enforces both (an upload is counted as it arrives), so this
     // route has no limit layer of its own beyond the JSON extractor's.
     let store = Router::new()
         .route(paths::RECORDINGS, post(recordings::create_recording))
-        .layer(DefaultBodyLimit::max(config.body_limit));
+        .layer(DefaultBodyLimit::max(config.body_limit))
+        .layer(from_fn_with_state(
+            config.body_timeout,
+            server::body_deadline,
+        ));
     let api = api
         .merge(store)
         .method_not_allowed_fallback(handlers::method_not_allowed)
@@ -188,6 +195,7 @@ pub fn app(state: AppState) -> Router {
     router
         .layer(TimeoutLayer::with_status_code(StatusCode::GATEWAY_TIMEOUT, backstop))
         .layer(map_response(json_errors))
+        .layer(map_response(nosniff))
         .layer(compression)
         .layer(option_layer(cors(&config.cors_origins)))
         .layer(PropagateRequestIdLayer::x_request_id())
@@ -241,6 +249,16 @@ fn cors(origins: &[String]) -> Option<CorsLayer> {
     )
 }
 
+/// Tells browsers to take every answer as the type it declares (an uploaded recording or a
+/// message echoing input is never sniffed into a script or a page).
+async fn nosniff(mut response: Response) -> Response {
+    response.headers_mut().insert(
+        header::X_CONTENT_TYPE_OPTIONS,
+        HeaderValue::from_static("nosniff"),
+    );
+    response
+}
+
 /// Gives error answers produced outside the handlers (the body limit, the time limit, static
 /// files) the service's JSON error shape.
 async fn json_errors(response: Response) -> Response {
@@ -276,82 +294,4 @@ async fn json_errors(response: Response) -> Response {
         HeaderValue::from_static("application/json"),
     );
     Response::from_parts(parts, error.into_body())
-}
-
-/// Serves `state` on `listener` until `shutdown` resolves; then stops accepting, lets running
-/// simulations go on for the configured grace time, cancels what still runs, and returns once
-/// every connection has closed.
-pub async fn serve_on(
-    listener: tokio::net::TcpListener,
-    state: AppState,
-    shutdown: impl Future<Output = ()> + Send + 'static,
-) -> std::io::Result<()> {
-    let router = app(state.clone());
-    let grace = state.config.shutdown_grace;
-    axum::serve(
-        listener,
-        router.into_make_service_with_connect_info::<SocketAddr>(),
-    )
-    .with_graceful_shutdown(async move {
-        shutdown.await;
-        tracing::info!(grace_secs = grace.as_secs_f64(), "shutting down");
-        tokio::spawn(async move {
-            tokio::time::sleep(grace).await;
-            state.cancel_runs();
-        });
-    })
-    .await
-}
-
-/// Resolves on Ctrl-C or SIGTERM.
-pub async fn shutdown_signal() {
-    let ctrl_c = async {
-        if tokio::signal::ctrl_c().await.is_err() {
-            std::future::pending::<()>().await;
-        }
-    };
-    #[cfg(unix)]
-    let terminate = async {
-        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
-            Ok(mut s) => {
-                s.recv().await;
-            }
-            Err(_) => std::future::pending::<()>().await,
-        }
-    };
-    #[cfg(not(unix))]
-    let terminate = std::future::pending::<()>();
-    tokio::select! {
-        _ = ctrl_c => {}
-        _ = terminate => {}
-    }
-}
-
-/// Binds `addr` and serves until Ctrl-C or SIGTERM.
-pub async fn serve(
-    addr: SocketAddr,
-    config: Config,
-    queue: Option<crate::nats::Queue>,
-) -> std::io::Result<()> {
-    let listener = tokio::net::TcpListener::bind(addr).await?;
-    let local = listener.local_addr()?;
-    match config.static_dir.as_ref().filter(|d| d.is_dir()) {
-        Some(dir) => tracing::info!(dir = %dir.display(), "serving static files at /"),
-        None => tracing::info!("no static directory; / answers 404"),
-    }
-    tracing::info!(
-        addr = %local,
-        data_dir = %config.data_dir.display(),
-        systems_dir = %config.systems_dir.display(),
-        recordings_max_bytes = config.recordings_max_bytes,
-        max_concurrent = config.max_concurrent,
-        max_steps = config.limits.max_steps,
-        max_samples = config.limits.max_samples,
-        timeout_secs = config.request_timeout.as_secs_f64(),
-        cors = ?config.cors_origins,
-        nats = queue.as_ref().map(crate::nats::Queue::url),
-        "geomint listening on http://{local}"
-    );
-    let state = AppState::new(config).with_queue(queue);
-    serve_on(listener, state, shutdown_signal()).await
 }

@@ -32,12 +32,12 @@ use tower::ServiceExt;
 use tower_http::services::ServeFile;
 use utoipa::ToSchema;
 
-use super::answer::Work;
+use super::answer::{Client, Work};
 use super::error::ApiError;
 use super::error::ErrorBody;
 use super::extract::ApiJson;
 use super::paths;
-use super::state::{run_blocking, AppState};
+use super::state::{run_blocking, AppState, Cost};
 use super::store::{is_valid_id, Contents, Origin, RecordingEntry, SpecSummary, StoreError};
 use crate::api::SimulateRequest;
 use crate::core::error::{ErrorCode, ErrorDetail};
@@ -83,7 +83,7 @@ pub(crate) fn store_error(error: StoreError) -> ApiError {
             "output.every",
             format!("{error}; sample less often"),
         )),
-        other => ApiError::internal(other),
+        other => ApiError::storage("recording store", &other),
     }
 }
 
@@ -174,6 +174,7 @@ fn created(entry: RecordingEntry) -> Response {
     ))]
 pub async fn create_recording(
     State(state): State<AppState>,
+    client: Client,
     request: Request,
 ) -> Result<Response, ApiError> {
     if is_rrd_upload(request.headers()) {
@@ -184,7 +185,7 @@ pub async fn create_recording(
         return Err(payload_too_large("the request body exceeds the size limit"));
     }
     let ApiJson(body) = ApiJson::from_request(request, &state).await?;
-    record_simulation(state, body).await
+    record_simulation(state, client, body).await
 }
 
 fn payload_too_large(message: impl Into<String>) -> ApiError {
@@ -218,29 +219,23 @@ async fn upload_recording(state: AppState, request: Request) -> Result<Response,
     let opener = store.clone();
     let upload = run_blocking(move || opener.begin_upload())
         .await?
-        .map_err(ApiError::internal)?;
-    let handle = upload.file().map_err(ApiError::internal)?;
+        .map_err(store_error)?;
+    let handle = upload.file().map_err(store_error)?;
     let mut file = tokio::fs::File::from_std(handle);
     let mut body = request.into_body().into_data_stream();
     let mut received = 0u64;
     // Dropping `upload` on any early return (or a client that goes away) removes its file.
     while let Some(chunk) = body.next().await {
-        let chunk = chunk.map_err(|e| {
-            ApiError::new(
-                StatusCode::BAD_REQUEST,
-                ErrorDetail::new(
-                    ErrorCode::BadRequest,
-                    format!("the upload could not be read: {e}"),
-                ),
-            )
-        })?;
+        let chunk = chunk.map_err(|e| super::server::body_error(&e))?;
         received += chunk.len() as u64;
         if received > cap {
             return Err(over_cap(format!("more than {cap}")));
         }
-        file.write_all(&chunk).await.map_err(ApiError::internal)?;
+        file.write_all(&chunk)
+            .await
+            .map_err(|e| store_error(e.into()))?;
     }
-    file.flush().await.map_err(ApiError::internal)?;
+    file.flush().await.map_err(|e| store_error(e.into()))?;
     drop(file);
     if received == 0 {
         return Err(invalid_upload(
@@ -264,7 +259,7 @@ async fn upload_recording(state: AppState, request: Request) -> Result<Response,
         store.keep_upload(upload, contents).map_err(|e| match e {
             StoreError::TooLarge { bytes, .. } => over_cap(bytes.to_string()),
             StoreError::Incomplete => invalid_upload("it lacks the RRD header or stream footer"),
-            other => ApiError::internal(other),
+            other => store_error(other),
         })
     })
     .await??;
@@ -272,11 +267,15 @@ async fn upload_recording(state: AppState, request: Request) -> Result<Response,
 }
 
 /// Runs the simulation of `body` and stores its recording.
-async fn record_simulation(state: AppState, body: Value) -> Result<Response, ApiError> {
+async fn record_simulation(
+    state: AppState,
+    client: Client,
+    body: Value,
+) -> Result<Response, ApiError> {
     let mut request = SimulateRequest::from_value(&body)?;
     state.systems.substitute(&mut request.system);
     let sim = request.prepare(&state.config.limits)?;
-    let work = Work::admit(&state, sim.methods.len()).await?;
+    let work = Work::admit(&state, sim.methods.len(), Cost::Steps(sim.cost()), client).await?;
     let workers = work.workers();
     let store = state.recordings.clone();
     tracing::info!(system = %sim.system_id(), methods = sim.methods.len(), steps = sim.schedule.steps, "recording started");
@@ -383,7 +382,7 @@ pub async fn recording_samples(
 ) -> Result<Json<RecordedDocument>, ApiError> {
     let (_, path) = state.recordings.get(&id).ok_or_else(|| no_recording(&id))?;
     // Decoding a large recording takes a core: it waits for a slot like a simulation.
-    let permits = state.acquire(1).await?;
+    let permits = state.acquire(1, Cost::Read, None).await?;
     let max = state.config.limits.max_samples;
     let decoded = run_blocking(move || {
         let _permits = permits;

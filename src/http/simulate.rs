@@ -14,13 +14,13 @@ use axum::extract::{Query, State};
 use axum::http::HeaderMap;
 use axum::response::Response;
 
-use super::answer::{AnyFormat, Format, Work};
+use super::answer::{AnyFormat, Client, Format, Work};
 use super::error::ApiError;
 use super::error::ErrorBody;
 use super::extract::ApiJson;
 use super::paths;
 use super::recordings::RrdFile;
-use super::state::AppState;
+use super::state::{AppState, Cost};
 use crate::api::SimulateRequest;
 use crate::core::simulation::stream::StreamError;
 use crate::core::simulation::{SimulationDocument, StreamLine};
@@ -59,13 +59,14 @@ pub async fn simulate(
     State(state): State<AppState>,
     headers: HeaderMap,
     Query(query): Query<BTreeMap<String, String>>,
+    client: Client,
     ApiJson(body): ApiJson,
 ) -> Result<Response, ApiError> {
     let format = Format::requested(&query, &headers, Format::ALL)?;
     let mut request = SimulateRequest::from_value(&body)?;
     state.systems.substitute(&mut request.system);
     let sim = request.prepare(&state.config.limits)?;
-    let work = Work::admit(&state, sim.methods.len()).await?;
+    let work = Work::admit(&state, sim.methods.len(), Cost::Steps(sim.cost()), client).await?;
     let workers = work.workers();
     tracing::info!(
         system = %sim.system_id(),

@@ -21,12 +21,12 @@ use axum::http::HeaderMap;
 use axum::response::Response;
 use axum::Json;
 
-use super::answer::{Format, RecordFormat, Work};
+use super::answer::{Client, Format, RecordFormat, Work};
 use super::error::{ApiError, ErrorBody};
 use super::extract::ApiJson;
 use super::paths;
 use super::recordings::RrdFile;
-use super::state::{run_blocking, AppState};
+use super::state::{run_blocking, AppState, Cost};
 use crate::api::stability::{PointRequest, StabilityRequest};
 use crate::core::studies::stability::{self, PointDocument, StabilityDocument};
 use crate::recording;
@@ -64,12 +64,13 @@ use crate::recording;
 pub async fn stability_map(
     State(state): State<AppState>,
     Query(query): Query<BTreeMap<String, String>>,
+    client: Client,
     ApiJson(body): ApiJson,
 ) -> Result<Response, ApiError> {
     let format = Format::requested(&query, &HeaderMap::new(), &[Format::Json, Format::Rrd])?;
     let request = StabilityRequest::from_value(&body)?;
     let job = request.to_spec()?.prepare()?;
-    let work = Work::admit(&state, state.config.max_concurrent).await?;
+    let work = Work::admit(&state, state.config.max_concurrent, Cost::Study, client).await?;
     tracing::info!(
         methods = job.methods.len(),
         cells = job.cells(),

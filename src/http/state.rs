@@ -2,8 +2,11 @@
 //! runs, the shutdown signal that cancels runs, the recording and system stores, and the helper that moves
 //! blocking work off the async runtime.
 
+use std::collections::HashMap;
+use std::net::IpAddr;
 use std::path::PathBuf;
 use std::sync::Arc;
+use std::sync::Mutex;
 use std::time::Duration;
 
 use tokio::sync::{watch, OwnedSemaphorePermit, Semaphore};
@@ -22,8 +25,22 @@ pub struct Config {
     pub max_concurrent: usize,
     /// Time limit of a simulation: runs still going then stop with `time_limit`.
     pub request_timeout: Duration,
-    /// How long a request waits for a free slot before it is answered 503.
+    /// How long short work waits for a free slot before it is answered 503.
     pub queue_timeout: Duration,
+    /// How long long work waits its turn (first come, first served; one waiting request per
+    /// client address) before it is answered 503.
+    pub long_queue_timeout: Duration,
+    /// Slots kept for short work only, beside the `max_concurrent` shared ones: short runs are
+    /// served while long ones hold every shared slot.
+    pub short_lane: usize,
+    /// The largest predicted cost ([`Cost`]) that counts as short work.
+    pub short_work: u64,
+    /// Most open connections; past it the server stops accepting until one closes.
+    pub max_connections: usize,
+    /// Time limit on reading a request's head, and on an idle keep-alive connection.
+    pub header_timeout: Duration,
+    /// Time limit on receiving a request's body.
+    pub body_timeout: Duration,
     /// Origins allowed by CORS; empty turns CORS off, `*` allows any origin.
     pub cors_origins: Vec<String>,
     /// Directory served at `/` (when it exists).
@@ -48,6 +65,32 @@ pub const DEFAULT_DATA_DIR: &str = "./data/recordings";
 /// The default cap on stored recordings: 1 GiB.
 pub const DEFAULT_RECORDINGS_MAX_BYTES: u64 = 1 << 30;
 
+/// The default largest cost of short work: 2·10⁵ step-coordinates, a few milliseconds.
+pub const DEFAULT_SHORT_WORK: u64 = 200_000;
+
+/// What a request predicts it will compute before it starts, for admission: short work may use
+/// the short lane, long work waits its turn.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Cost {
+    /// Steps × coordinates of every run (a simulation, a stored recording's run).
+    Steps(u64),
+    /// A study: many runs, always long work.
+    Study,
+    /// Reading back stored data: always short.
+    Read,
+}
+
+impl Cost {
+    /// Whether this is short work under `config`.
+    fn is_short(self, config: &Config) -> bool {
+        match self {
+            Cost::Steps(n) => n <= config.short_work,
+            Cost::Study => false,
+            Cost::Read => true,
+        }
+    }
+}
+
 /// The number of cores, the default of [`Config::max_concurrent`].
 pub fn default_concurrency() -> usize {
     std::thread::available_parallelism()
@@ -62,6 +105,12 @@ impl Default for Config {
             max_concurrent: default_concurrency(),
             request_timeout: Duration::from_secs(60),
             queue_timeout: Duration::from_millis(250),
+            long_queue_timeout: Duration::from_secs(5),
+            short_lane: 1,
+            short_work: DEFAULT_SHORT_WORK,
+            max_connections: 1024,
+            header_timeout: Duration::from_secs(10),
+            body_timeout: Duration::from_secs(60),
             cors_origins: Vec::new(),
             static_dir: None,
             body_limit: 1 << 20,
@@ -86,6 +135,8 @@ pub struct AppState {
     /// The NATS work queue that runs sweeps, when the server has one (else they run here).
     pub queue: Option<Arc<crate::nats::Queue>>,
     permits: Arc<Semaphore>,
+    short_lane: Arc<Semaphore>,
+    waiting_long: Arc<Mutex<HashMap<IpAddr, usize>>>,
     shutdown: Arc<watch::Sender<bool>>,
 }
 
@@ -93,6 +144,7 @@ impl AppState {
     /// State for `config`; reads back the recordings and system definitions stored before.
     pub fn new(config: Config) -> Self {
         let max = config.max_concurrent.max(1);
+        let config_short_lane = config.short_lane;
         let recordings = RecordingStore::open(&config.data_dir, config.recordings_max_bytes);
         let systems = SystemStore::open(&config.systems_dir, config.max_systems);
         Self {
@@ -104,6 +156,8 @@ impl AppState {
                 ..config
             }),
             permits: Arc::new(Semaphore::new(max)),
+            short_lane: Arc::new(Semaphore::new(config_short_lane)),
+            waiting_long: Arc::default(),
             shutdown: Arc::new(watch::channel(false).0),
         }
     }
@@ -114,26 +168,33 @@ impl AppState {
         self
     }
 
-    /// Simulation threads running now.
+    /// Simulation threads running now (shared slots and the short lane's).
     pub fn runs_in_progress(&self) -> usize {
-        self.config.max_concurrent - self.permits.available_permits()
+        self.config.max_concurrent - self.permits.available_permits() + self.config.short_lane
+            - self.short_lane.available_permits()
     }
 
-    /// Takes slots for a request of `methods` methods: one, waiting up to the queue timeout
-    /// (else 503), plus up to `methods − 1` more that are free right now.
-    pub async fn acquire(&self, methods: usize) -> Result<Vec<OwnedSemaphorePermit>, ApiError> {
-        let first = match self.permits.clone().try_acquire_owned() {
-            Ok(p) => p,
-            Err(_) => {
-                let wait = self.config.queue_timeout;
-                match tokio::time::timeout(wait, self.permits.clone().acquire_owned()).await {
-                    Ok(Ok(p)) => p,
-                    _ => {
-                        tracing::info!("no simulation slot free; answering 503");
-                        return Err(ApiError::overloaded(1));
-                    }
-                }
-            }
+    /// Takes slots for a request of `methods` methods and predicted `cost` from `client`: one,
+    /// plus up to `methods − 1` more shared slots that are free right now.
+    ///
+    /// Short work takes a shared slot or a short-lane slot, whichever frees first within the
+    /// queue timeout. Long work takes only shared slots, waiting its turn in order of arrival up
+    /// to the long queue timeout; a client has one long request waiting at most, so one client's
+    /// burst cannot push everyone else's out. Otherwise 503.
+    pub async fn acquire(
+        &self,
+        methods: usize,
+        cost: Cost,
+        client: Option<IpAddr>,
+    ) -> Result<Vec<OwnedSemaphorePermit>, ApiError> {
+        let first = if cost.is_short(&self.config) {
+            self.acquire_short().await
+        } else {
+            self.acquire_long(client).await
+        };
+        let Some(first) = first else {
+            tracing::info!(?cost, "no simulation slot free in time; answering 503");
+            return Err(ApiError::overloaded(1));
         };
         let mut permits = vec![first];
         while permits.len() < methods {
@@ -145,6 +206,40 @@ impl AppState {
         Ok(permits)
     }
 
+    async fn acquire_short(&self) -> Option<OwnedSemaphorePermit> {
+        if let Ok(p) = self.permits.clone().try_acquire_owned() {
+            return Some(p);
+        }
+        if let Ok(p) = self.short_lane.clone().try_acquire_owned() {
+            return Some(p);
+        }
+        let either = async {
+            tokio::select! {
+                p = self.permits.clone().acquire_owned() => p,
+                p = self.short_lane.clone().acquire_owned() => p,
+            }
+        };
+        match tokio::time::timeout(self.config.queue_timeout, either).await {
+            Ok(Ok(p)) => Some(p),
+            _ => None,
+        }
+    }
+
+    async fn acquire_long(&self, client: Option<IpAddr>) -> Option<OwnedSemaphorePermit> {
+        if let Ok(p) = self.permits.clone().try_acquire_owned() {
+            return Some(p);
+        }
+        let _waiting = match client {
+            Some(ip) => Some(WaitingLong::enter(&self.waiting_long, ip)?),
+            None => None,
+        };
+        let wait = self.permits.clone().acquire_owned();
+        match tokio::time::timeout(self.config.long_queue_timeout, wait).await {
+            Ok(Ok(p)) => Some(p),
+            _ => None,
+        }
+    }
+
     /// Cancels every running simulation (they end with `cancelled`) and makes new ones cancel
     /// at once. Used at shutdown.
     pub fn cancel_runs(&self) {
@@ -154,6 +249,40 @@ impl AppState {
     /// A receiver that turns true when runs are to be cancelled.
     pub fn cancellation(&self) -> watch::Receiver<bool> {
         self.shutdown.subscribe()
+    }
+}
+
+/// A client's place in the queue of long work, given up when dropped.
+struct WaitingLong {
+    queue: Arc<Mutex<HashMap<IpAddr, usize>>>,
+    client: IpAddr,
+}
+
+impl WaitingLong {
+    /// The place of `client`, unless it already waits with another long request.
+    fn enter(queue: &Arc<Mutex<HashMap<IpAddr, usize>>>, client: IpAddr) -> Option<Self> {
+        let mut waiting = queue.lock().unwrap_or_else(|p| p.into_inner());
+        let count = waiting.entry(client).or_insert(0);
+        if *count >= 1 {
+            return None;
+        }
+        *count += 1;
+        Some(Self {
+            queue: queue.clone(),
+            client,
+        })
+    }
+}
+
+impl Drop for WaitingLong {
+    fn drop(&mut self) {
+        let mut waiting = self.queue.lock().unwrap_or_else(|p| p.into_inner());
+        if let Some(count) = waiting.get_mut(&self.client) {
+            *count -= 1;
+            if *count == 0 {
+                waiting.remove(&self.client);
+            }
+        }
     }
 }
 

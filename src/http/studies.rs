@@ -17,12 +17,12 @@ use axum::http::HeaderMap;
 use axum::response::Response;
 use serde::Serialize;
 
-use super::answer::{AnyFormat, Format, StreamFormat, Work};
+use super::answer::{AnyFormat, Client, Format, StreamFormat, Work};
 use super::error::{ApiError, ErrorBody};
 use super::extract::ApiJson;
 use super::paths;
 use super::recordings::RrdFile;
-use super::state::AppState;
+use super::state::{AppState, Cost};
 use crate::api::studies::{ConvergenceRequest, EnergyMapRequest, WorkPrecisionRequest};
 use crate::api::sweep::{self as presets, Preset, SweepRequest};
 use crate::core::error::{CoreError, ErrorDetail};
@@ -68,13 +68,14 @@ async fn answer<D: Serialize + Send + 'static, L: Serialize + Send + 'static>(
 /// Answers a settings study (`job`, run by `run`) in one slot.
 async fn answer_settings<L: ProgressLine>(
     state: AppState,
+    client: Client,
     format: Format,
     job: StudyJob,
     run: Runner<L>,
     encode: impl FnOnce(&L::Document) -> Result<Vec<u8>, ApiError> + Send + 'static,
     file: &'static str,
 ) -> Result<Response, ApiError> {
-    let work = Work::admit(&state, 1).await?;
+    let work = Work::admit(&state, 1, Cost::Study, client).await?;
     tracing::info!(
         settings = job.len(),
         format = format.name(),
@@ -120,6 +121,7 @@ pub async fn work_precision(
     State(state): State<AppState>,
     headers: HeaderMap,
     Query(query): Query<BTreeMap<String, String>>,
+    client: Client,
     ApiJson(body): ApiJson,
 ) -> Result<Response, ApiError> {
     let format = Format::requested(&query, &headers, Format::ALL)?;
@@ -131,6 +133,7 @@ pub async fn work_precision(
     };
     answer_settings::<StudyLine>(
         state,
+        client,
         format,
         job,
         work_precision::run,
@@ -170,6 +173,7 @@ pub async fn convergence(
     State(state): State<AppState>,
     headers: HeaderMap,
     Query(query): Query<BTreeMap<String, String>>,
+    client: Client,
     ApiJson(body): ApiJson,
 ) -> Result<Response, ApiError> {
     let format = Format::requested(&query, &headers, &[Format::Json, Format::Ndjson])?;
@@ -177,7 +181,8 @@ pub async fn convergence(
     state.systems.substitute(&mut request.system);
     let job = request.to_spec()?.prepare(&state.config.limits)?;
     let encode = |doc: &ConvergenceDocument| serde_json::to_vec(doc).map_err(ApiError::internal);
-    answer_settings::<ConvergenceLine>(state, format, job, convergence::run, encode, "").await
+    answer_settings::<ConvergenceLine>(state, client, format, job, convergence::run, encode, "")
+        .await
 }
 
 /// An energy-error map (paper 001 Fig. 6): the planar elastic pendulum released at rest from
@@ -210,11 +215,12 @@ pub async fn energy_map(
     State(state): State<AppState>,
     headers: HeaderMap,
     Query(query): Query<BTreeMap<String, String>>,
+    client: Client,
     ApiJson(body): ApiJson,
 ) -> Result<Response, ApiError> {
     let format = Format::requested(&query, &headers, Format::ALL)?;
     let job = EnergyMapRequest::from_value(&body)?.to_spec()?.prepare()?;
-    let work = Work::admit(&state, state.config.max_concurrent).await?;
+    let work = Work::admit(&state, state.config.max_concurrent, Cost::Study, client).await?;
     tracing::info!(
         cells = job.nx * job.ny,
         steps = job.steps,
@@ -268,6 +274,7 @@ pub async fn sweep(
     State(state): State<AppState>,
     headers: HeaderMap,
     Query(query): Query<BTreeMap<String, String>>,
+    client: Client,
     ApiJson(body): ApiJson,
 ) -> Result<Response, ApiError> {
     let format = Format::requested(&query, &headers, Format::ALL)?;
@@ -279,7 +286,7 @@ pub async fn sweep(
         Some(_) => 1,
         None => state.config.max_concurrent,
     };
-    let work = Work::admit(&state, slots).await?;
+    let work = Work::admit(&state, slots, Cost::Study, client).await?;
     tracing::info!(
         cells = job.cells(),
         runs = job.runs.len(),

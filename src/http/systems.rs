@@ -284,7 +284,7 @@ fn store_error(error: SystemStoreError) -> ApiError {
             StatusCode::INSUFFICIENT_STORAGE,
             ErrorDetail::new(ErrorCode::TooManySystems, error.to_string()),
         ),
-        SystemStoreError::Io(e) => ApiError::internal(format!("system store: {e}")),
+        SystemStoreError::Io(e) => ApiError::storage("system store", &e),
     }
 }
 

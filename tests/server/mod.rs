@@ -1,7 +1,10 @@
 //! The real server on an ephemeral loopback port, shared by the HTTP test files.
 #![allow(dead_code)]
 
-use geomint::http::{app, AppState, Config};
+use std::process::Child;
+use std::time::{Duration, Instant};
+
+use geomint::http::{serve_on, AppState, Config};
 
 /// A running server.
 pub struct Server {
@@ -20,14 +23,17 @@ impl Server {
     }
 }
 
-/// Starts `app(config)` on 127.0.0.1:0 in the test's runtime.
+/// Starts the service for `config` on 127.0.0.1:0 in the test's runtime, with the server loop
+/// of `geomint serve` (its connection limits and timeouts).
 pub async fn start(config: Config) -> Server {
     let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
     let addr = listener.local_addr().unwrap();
     let state = AppState::new(config);
-    let router = app(state.clone());
+    let serving = state.clone();
     tokio::spawn(async move {
-        axum::serve(listener, router).await.unwrap();
+        serve_on(listener, serving, std::future::pending())
+            .await
+            .unwrap();
     });
     Server {
         base: format!("http://{addr}"),
@@ -43,6 +49,41 @@ pub fn free_port() -> u16 {
         .local_addr()
         .unwrap()
         .port()
+}
+
+/// A child process killed when dropped.
+pub struct Process(pub Child);
+
+impl Drop for Process {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// Waits until something listens on the loopback `port` (20 s at most).
+pub fn wait_for_port(port: u16, what: &str) {
+    let until = Instant::now() + Duration::from_secs(20);
+    while std::net::TcpStream::connect(("127.0.0.1", port)).is_err() {
+        assert!(
+            Instant::now() < until,
+            "{what} did not start on port {port}"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// The temporary files (`.tmp-…`) of a store's directory.
+pub fn temporary_files(dir: &std::path::Path) -> Vec<String> {
+    std::fs::read_dir(dir)
+        .map(|listing| {
+            listing
+                .flatten()
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .filter(|n| n.starts_with(".tmp-"))
+                .collect()
+        })
+        .unwrap_or_default()
 }
 
 /// A client that never goes through a proxy.

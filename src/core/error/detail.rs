@@ -66,6 +66,11 @@ pub enum ErrorCode {
     BuiltInSystem,
     /// The distributed executor (the NATS server that hands out a sweep's shards) failed.
     ExecutorUnavailable,
+    /// The file system of the stored data is full: nothing was stored, what was stored before
+    /// is intact; storing works again once space is freed.
+    StorageFull,
+    /// The stored data cannot be written (a read-only or removed data directory).
+    StorageUnavailable,
 }
 
 impl ErrorCode {
@@ -100,6 +105,8 @@ impl ErrorCode {
             TooManySystems => "too_many_systems",
             BuiltInSystem => "built_in_system",
             ExecutorUnavailable => "executor_unavailable",
+            StorageFull => "storage_full",
+            StorageUnavailable => "storage_unavailable",
         }
     }
 }

@@ -228,6 +228,17 @@ fn state_vector(
 }
 
 impl Simulation {
+    /// The predicted work, for admission before it starts: steps × phase-space coordinates
+    /// summed over the runs (a reference run beside each method counts as one more).
+    pub fn cost(&self) -> u64 {
+        let runs = self.methods.len() as u64 * if self.compare_to_reference { 2 } else { 1 };
+        let coordinates = 2 * self.q0.len() as u64;
+        self.schedule
+            .steps
+            .saturating_mul(coordinates)
+            .saturating_mul(runs)
+    }
+
     /// Validates a spec against the catalogues and the limits.
     pub fn prepare(spec: &SimulationSpec, limits: &Limits) -> Result<Simulation, CoreError> {
         let f = &spec.fields;

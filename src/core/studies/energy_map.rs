@@ -148,7 +148,8 @@ impl EnergyMapJob {
             }
         }
         let cells = (self.nx * self.ny) as u64;
-        let total = cells * 2 * self.steps;
+        // Saturating: t_max/h can be as large as u64 holds, and a wrapped product would pass.
+        let total = cells.saturating_mul(2).saturating_mul(self.steps);
         if total > MAX_TOTAL_STEPS {
             return Err(CoreError::MapTooLarge {
                 field: Field::new("t_max"),
