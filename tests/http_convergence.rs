@@ -345,6 +345,12 @@ async fn bad_studies_get_errors_naming_the_field() {
             "reference.h",
             "invalid_value",
         ),
+        // Where the exact solution serves, a reference given is still checked.
+        (
+            json!({"system": "harmonic_oscillator", "reference": {"method": "reference", "tolerance": 1e-20}}),
+            "reference.tolerance",
+            "invalid_value",
+        ),
         (json!({"t_end": -1}), "t_end", "invalid_value"),
         (json!({"system": "rocket"}), "system", "unknown_system"),
         (json!({"colour": "red"}), "colour", "unknown_field"),

@@ -231,9 +231,16 @@ pub fn boolean(v: &Value, field: &Field) -> Result<bool, ErrorDetail> {
         .ok_or_else(|| wrong_type(field, "true or false", v))
 }
 
-/// `v` as a whole number ≥ 0; `expected` says what it counts.
+/// `v` as a whole number ≥ 0; `expected` says what it counts. A number written with a fraction
+/// part or an exponent counts when its value is whole (`10.0`, `1e3`): JSON has one kind of
+/// number, and JSON Schema's `integer` (the OpenAPI document's) is any whole value.
 pub fn count(v: &Value, field: &Field, expected: &str) -> Result<u64, ErrorDetail> {
-    v.as_u64().ok_or_else(|| wrong_type(field, expected, v))
+    /// 2⁶⁴: the first whole f64 beyond u64.
+    const BEYOND_U64: f64 = 18_446_744_073_709_551_616.0;
+    let whole = |x: f64| (x.fract() == 0.0 && (0.0..BEYOND_U64).contains(&x)).then_some(x as u64);
+    v.as_u64()
+        .or_else(|| v.as_f64().and_then(whole))
+        .ok_or_else(|| wrong_type(field, expected, v))
 }
 
 /// A list read entry by entry, each named `field[i]` in errors; `expected` describes the list.
@@ -302,6 +309,33 @@ mod tests {
             .all(|(x, y)| x.to_bits() == y.to_bits()));
         assert_eq!(v["c\\\""].as_f64().unwrap().to_bits(), xs[5].to_bits());
         assert_eq!(v["n"].as_u64(), Some(10));
+    }
+
+    #[test]
+    fn counts_take_whole_values_in_any_notation() {
+        let at = Field::new("n");
+        let read = |text: &str| count(&parse_json(text.as_bytes()).unwrap(), &at, "a count");
+        assert_eq!(read("215.0").unwrap(), 215);
+        assert_eq!(read("1e3").unwrap(), 1000);
+        assert_eq!(read("-0.0").unwrap(), 0);
+        assert_eq!(read("18446744073709551615").unwrap(), u64::MAX);
+        assert_eq!(read("9.2233720368547758e18").unwrap(), 1 << 63);
+        for refused in [
+            "2.5",
+            "-1",
+            "-1.0",
+            "1.8446744073709552e19",
+            "1e300",
+            "\"3\"",
+            "true",
+        ] {
+            let e = read(refused).unwrap_err();
+            assert_eq!(
+                (e.code, e.field.as_deref()),
+                (ErrorCode::InvalidType, Some("n")),
+                "{refused}"
+            );
+        }
     }
 
     #[test]

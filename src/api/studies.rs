@@ -31,9 +31,27 @@ pub struct RunRequest {
     /// The method.
     pub method: MethodSpec,
     /// Step sizes (fixed-step methods), each dividing t_end/samples.
+    #[serde(default)]
+    #[schema(min_items = 1)]
     pub h: Vec<f64>,
     /// Tolerances (the adaptive `reference` only), in [1e-14, 1e-2].
+    #[serde(default)]
+    #[schema(min_items = 1)]
     pub tolerance: Vec<f64>,
+}
+
+/// The schema of a study's reference run: a method with one step size or one tolerance.
+#[derive(ToSchema)]
+#[allow(dead_code)] // only its schema is used; the reader builds a `RunRequest`
+pub struct ReferenceRun {
+    /// The method.
+    method: MethodSpec,
+    /// The step size (a fixed-step method).
+    #[schema(exclusive_minimum = 0.0)]
+    h: Option<f64>,
+    /// The tolerance (the adaptive `reference`), in [1e-14, 1e-2].
+    #[schema(minimum = 1e-14, maximum = 1e-2)]
+    tolerance: Option<f64>,
 }
 
 /// Reads a `{"method", "h" | "tolerance"}` entry; `single` asks for one number instead of a
@@ -134,6 +152,7 @@ pub struct ConvergenceRequest {
     /// The system: a built-in or stored system's id, or a definition of its own.
     pub system: SystemRequest,
     /// System parameters (as for a simulation).
+    #[serde(default)]
     #[schema(value_type = Object)]
     pub params: BTreeMap<String, ParamValue>,
     /// One coordinate chart (default: the system's first, Cartesian one).
@@ -171,6 +190,7 @@ pub struct ConvergenceRequest {
     /// The run the errors are measured against where the system has no exact solution
     /// (default: `reference` at tolerance 1e-13), in the system's Cartesian chart. Give one step
     /// size or tolerance.
+    #[schema(value_type = Option<ReferenceRun>)]
     pub reference: Option<RunRequest>,
 }
 
@@ -273,6 +293,7 @@ pub struct WorkPrecisionRequest {
     /// The system: a built-in or stored system's id, or a definition of its own.
     pub system: SystemRequest,
     /// System parameters (as for a simulation).
+    #[serde(default)]
     #[schema(value_type = Object)]
     pub params: BTreeMap<String, ParamValue>,
     /// Initial positions (default: the system's).
@@ -284,6 +305,7 @@ pub struct WorkPrecisionRequest {
     pub t_end: f64,
     /// Evenly spaced sample times t_k = k·t_end/samples, k = 1…samples (default 50, 1 to 1000),
     /// over which the largest energy error is taken.
+    #[serde(default)]
     #[schema(minimum = 1, maximum = 1000)]
     pub samples: u64,
     /// The methods, each with its step sizes (or for `reference` its tolerances).
@@ -291,6 +313,7 @@ pub struct WorkPrecisionRequest {
     pub runs: Vec<RunRequest>,
     /// The run the errors are measured against where the system has no exact solution
     /// (default: `reference` at tolerance 1e-13). Give one step size or tolerance.
+    #[schema(value_type = Option<ReferenceRun>)]
     pub reference: Option<RunRequest>,
 }
 
@@ -364,25 +387,35 @@ pub struct EnergyMapRequest {
     /// The method, run in both charts (default `symplectic_euler`); it must run on the polar
     /// chart's non-separable Hamiltonian (symplectic Euler and its adjoint, implicit midpoint,
     /// the Runge–Kutta methods).
+    #[serde(default)]
     pub method: MethodSpec,
     /// `m`, `k`, `l`, `g` of `elastic_pendulum_2d` (default 1, 1, 1 and g = 0.02 as in Fig. 6).
+    #[serde(default)]
     #[schema(value_type = Object)]
     pub params: BTreeMap<String, ParamValue>,
     /// Step size (default 0.2).
+    #[serde(default)]
     #[schema(exclusive_minimum = 0.0)]
     pub h: f64,
     /// Final time (default 2000; Fig. 6 uses 50 000).
+    #[serde(default)]
     #[schema(exclusive_minimum = 0.0)]
     pub t_max: f64,
     /// Grid points along x (default 41, at most 401).
+    #[serde(default)]
     #[schema(minimum = 1, maximum = 401)]
     pub nx: usize,
     /// Grid points along y (default 41, at most 401).
+    #[serde(default)]
     #[schema(minimum = 1, maximum = 401)]
     pub ny: usize,
     /// Range [min, max] of x₀ (default [−1.5, 1.5]).
+    #[serde(default)]
+    #[schema(min_items = 2, max_items = 2)]
     pub x: [f64; 2],
     /// Range [min, max] of y₀, y pointing down along gravity (default [−1.5, 1.5]).
+    #[serde(default)]
+    #[schema(min_items = 2, max_items = 2)]
     pub y: [f64; 2],
 }
 

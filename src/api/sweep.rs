@@ -59,6 +59,7 @@ pub struct AxisRequest {
     #[schema(minimum = 1, maximum = 401)]
     pub n: u64,
     /// `linear` (default) or `log` (min > 0).
+    #[schema(required = false)]
     pub scale: Scale,
 }
 
@@ -79,11 +80,13 @@ pub struct SweepRequest {
     /// The system: a built-in or stored system's id, or a definition of its own.
     pub system: SystemRequest,
     /// Parameters fixed for the whole sweep (an axis overrides its own).
+    #[serde(default)]
     #[schema(value_type = Object)]
     pub params: BTreeMap<String, ParamValue>,
     /// Several charts: every method runs in each, from the same physical state.
     #[serde(skip_serializing_if = "Vec::is_empty")]
-    #[schema(value_type = Vec<ChartId>)]
+    #[serde(default)]
+    #[schema(value_type = Vec<ChartId>, min_items = 1)]
     pub charts: Vec<String>,
     /// The coordinates of `q0`, `p0` and the initial-state axes: `chart` (the default with one
     /// chart) or `cartesian` (the default with several).

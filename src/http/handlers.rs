@@ -6,10 +6,10 @@ use axum::http::{header, HeaderValue};
 use axum::response::{IntoResponse, Response};
 use axum::Json;
 use serde::Serialize;
-use utoipa::{OpenApi, ToSchema};
+use utoipa::ToSchema;
 
 use super::error::{ApiError, ErrorBody};
-use super::openapi::ApiDoc;
+use super::openapi;
 use super::paths;
 use super::state::AppState;
 use crate::core::error::{ErrorCode, ErrorDetail};
@@ -66,11 +66,7 @@ pub async fn get_method(Path(id): Path<String>) -> Result<Json<&'static MethodIn
     responses((status = 200, description = "The OpenAPI document", content_type = "application/json")))]
 pub async fn openapi_json() -> Response {
     static DOC: std::sync::OnceLock<String> = std::sync::OnceLock::new();
-    let doc = DOC.get_or_init(|| {
-        ApiDoc::openapi()
-            .to_json()
-            .unwrap_or_else(|e| format!(r#"{{"error":"{e}"}}"#))
-    });
+    let doc = DOC.get_or_init(|| openapi::document().to_string());
     let mut response = doc.clone().into_response();
     response.headers_mut().insert(
         header::CONTENT_TYPE,

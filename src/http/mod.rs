@@ -51,7 +51,7 @@ use tower_http::limit::RequestBodyLimitLayer;
 use tower_http::request_id::{MakeRequestUuid, PropagateRequestIdLayer, SetRequestIdLayer};
 use tower_http::services::ServeDir;
 use tower_http::timeout::TimeoutLayer;
-use tower_http::trace::{DefaultOnResponse, TraceLayer};
+use tower_http::trace::{DefaultOnFailure, DefaultOnResponse, TraceLayer};
 
 pub use error::ApiError;
 pub use error::ErrorBody;
@@ -206,7 +206,13 @@ pub fn app(state: AppState) -> Router {
                 .and_then(|v| v.to_str().ok())
                 .unwrap_or("-");
             tracing::info_span!("request", method = %request.method(), uri = %request.uri(), id = %id)
-        }).on_response(DefaultOnResponse::new().level(tracing::Level::INFO)))
+        })
+        .on_response(DefaultOnResponse::new().level(tracing::Level::INFO))
+        // Every answer is logged at INFO with its status already. A 5xx is most often a 503 of a
+        // full server, expected under load: at the default ERROR level one line per refusal would
+        // flood the log exactly when the machine is busiest. Real faults are logged where they
+        // happen, with their details.
+        .on_failure(DefaultOnFailure::new().level(tracing::Level::DEBUG)))
         .layer(SetRequestIdLayer::x_request_id(MakeRequestUuid))
 }
 

@@ -1,8 +1,12 @@
 //! The OpenAPI 3 document of the service, generated from the handlers' `#[utoipa::path]`
-//! annotations and the request and response types, so it follows the code.
+//! annotations and the request and response types, so it follows the code; [`document`] adds
+//! what the derive cannot say (members read as absent when `null`, fields that exclude each
+//! other), so that a request valid by the document is one the readers accept.
 
+use serde_json::{json, Map, Value};
 use utoipa::OpenApi;
 
+use super::answer::{AnyFormat, RecordFormat, StreamFormat};
 use super::error::ErrorBody;
 use super::recordings::{self, RecordingCreated};
 use super::store::{Origin, RecordingEntry};
@@ -88,6 +92,9 @@ use crate::recording::read::{RecordedDocument, RecordedRun};
         Origin,
         RecordedDocument,
         RecordedRun,
+        AnyFormat,
+        StreamFormat,
+        RecordFormat,
     )),
     tags(
         (name = "catalog", description = "The systems and methods on offer, and the system definitions users store"),
@@ -99,3 +106,372 @@ use crate::recording::read::{RecordedDocument, RecordedRun};
     )
 )]
 pub struct ApiDoc;
+
+/// The document as served.
+pub fn document() -> Value {
+    let mut doc =
+        serde_json::to_value(ApiDoc::openapi()).unwrap_or_else(|e| json!({"error": e.to_string()}));
+    // The readers take an explicit `null` for an optional member as its absence.
+    null_as_absent(&mut doc);
+    unsigned_ranges(&mut doc);
+    close_requests(&mut doc);
+    if let Some(schemas) = doc
+        .pointer_mut("/components/schemas")
+        .and_then(Value::as_object_mut)
+    {
+        exactly_one_of(schemas, "SimulateRequest", &["methods", "method"]);
+        exactly_one_of(schemas, "SystemDefinition", &["potential", "hamiltonian"]);
+        not_both(schemas, "SystemDefinition", ["hamiltonian", "mass"]);
+        not_both(schemas, "ConvergenceRequest", ["chart", "charts"]);
+        exactly_one_of(schemas, "RunSpec", &["h", "tolerance"]);
+        exactly_one_of(schemas, "ReferenceRun", &["h", "tolerance"]);
+        step_given_or_swept(schemas, "SweepRequest");
+    }
+    let on_recording = ["get_recording", "recording_samples", "delete_recording"];
+    link_created(&mut doc, super::paths::RECORDINGS, &["201"], &on_recording);
+    link_created(
+        &mut doc,
+        super::paths::SYSTEMS,
+        &["200", "201"],
+        &["get_system", "delete_system"],
+    );
+    doc
+}
+
+/// Links the answers `statuses` of `POST path`, which carry the created item's `id`, to the
+/// operations on that item (OpenAPI `links`, which clients and stateful testers follow).
+fn link_created(doc: &mut Value, path: &str, statuses: &[&str], operations: &[&str]) {
+    let path = path.replace('~', "~0").replace('/', "~1");
+    for status in statuses {
+        let at = format!("/paths/{path}/post/responses/{status}");
+        if let Some(Value::Object(response)) = doc.pointer_mut(&at) {
+            let links = operations.iter().map(|op| {
+                let link = json!({"operationId": op, "parameters": {"id": "$response.body#/id"}});
+                (op.to_string(), link)
+            });
+            response.insert("links".into(), Value::Object(links.collect()));
+        }
+    }
+}
+
+/// Lets every optional member of every object schema in `value` be `null`.
+fn null_as_absent(value: &mut Value) {
+    match value {
+        Value::Object(map) => {
+            let required: Vec<String> = map
+                .get("required")
+                .and_then(Value::as_array)
+                .map(|r| {
+                    r.iter()
+                        .filter_map(Value::as_str)
+                        .map(str::to_string)
+                        .collect()
+                })
+                .unwrap_or_default();
+            if let Some(Value::Object(properties)) = map.get_mut("properties") {
+                for (name, member) in properties.iter_mut() {
+                    if !required.contains(name) {
+                        admit_null(member);
+                    }
+                }
+            }
+            for (key, child) in map.iter_mut() {
+                if key != "example" && key != "examples" {
+                    null_as_absent(child);
+                }
+            }
+        }
+        Value::Array(items) => items.iter_mut().for_each(null_as_absent),
+        _ => {}
+    }
+}
+
+/// Widens `schema` to admit `null` too.
+fn admit_null(schema: &mut Value) {
+    let null_schema = json!({"type": "null"});
+    let Value::Object(map) = schema else { return };
+    let has_null_branch = |k: &&str| {
+        map.get(*k)
+            .and_then(Value::as_array)
+            .is_some_and(|a| a.contains(&null_schema))
+    };
+    if ["oneOf", "anyOf"].iter().any(has_null_branch) {
+        return;
+    }
+    match map.get_mut("type") {
+        Some(Value::String(t)) if t != "null" => {
+            let t = std::mem::take(t);
+            map.insert("type".into(), json!([t, "null"]));
+        }
+        Some(Value::Array(types)) if !types.contains(&json!("null")) => types.push(json!("null")),
+        Some(_) => return,
+        None => {
+            *schema = json!({"anyOf": [std::mem::take(schema), null_schema]});
+            return;
+        }
+    }
+    if let Some(Value::Array(values)) = map.get_mut("enum") {
+        values.push(Value::Null);
+    }
+}
+
+/// Gives the unsigned integers their own range: the derive writes `u64` and `u32` as `int64` and
+/// `int32` with minimum 0, formats whose range ends at 2⁶³ − 1 and 2³¹ − 1, below what the
+/// readers take.
+fn unsigned_ranges(value: &mut Value) {
+    match value {
+        Value::Object(map) => {
+            let unsigned = map
+                .get("minimum")
+                .and_then(Value::as_f64)
+                .is_some_and(|m| m >= 0.0);
+            let widened = match map.get("format").and_then(Value::as_str) {
+                Some("int64") if unsigned => Some(("uint64", json!(u64::MAX))),
+                Some("int32") if unsigned => Some(("uint32", json!(u32::MAX))),
+                _ => None,
+            };
+            if let Some((format, max)) = widened {
+                map.insert("format".into(), json!(format));
+                map.entry("maximum").or_insert(max);
+            }
+            map.values_mut().for_each(unsigned_ranges);
+        }
+        Value::Array(items) => items.iter_mut().for_each(unsigned_ranges),
+        _ => {}
+    }
+}
+
+/// Closes the objects of request bodies to members they do not list (the readers refuse an
+/// unknown member, naming it): every object schema with `properties` among the components a
+/// request body refers to, directly or through other components.
+fn close_requests(doc: &mut Value) {
+    let mut pending: Vec<String> = Vec::new();
+    if let Some(paths) = doc.get("paths") {
+        for operation in paths
+            .as_object()
+            .into_iter()
+            .flat_map(|p| p.values())
+            .flat_map(|p| p.as_object())
+            .flat_map(|p| p.values())
+        {
+            if let Some(body) = operation.get("requestBody") {
+                refs_in(body, &mut pending);
+            }
+        }
+    }
+    let mut seen = std::collections::BTreeSet::new();
+    while let Some(name) = pending.pop() {
+        if !seen.insert(name.clone()) {
+            continue;
+        }
+        if let Some(schema) = doc.pointer(&format!("/components/schemas/{name}")) {
+            refs_in(schema, &mut pending);
+        }
+    }
+    for name in seen {
+        if let Some(schema) = doc.pointer_mut(&format!("/components/schemas/{name}")) {
+            close_objects(schema);
+        }
+    }
+}
+
+/// The component names `value` refers to.
+fn refs_in(value: &Value, out: &mut Vec<String>) {
+    match value {
+        Value::Object(map) => {
+            if let Some(name) = map
+                .get("$ref")
+                .and_then(Value::as_str)
+                .and_then(|r| r.strip_prefix("#/components/schemas/"))
+            {
+                out.push(name.to_string());
+            }
+            map.values().for_each(|v| refs_in(v, out));
+        }
+        Value::Array(items) => items.iter().for_each(|v| refs_in(v, out)),
+        _ => {}
+    }
+}
+
+/// Sets `additionalProperties: false` on every object schema in `value` that lists its
+/// properties and says nothing of others (not on constraint fragments, which have no `type`).
+fn close_objects(value: &mut Value) {
+    match value {
+        Value::Object(map) => {
+            let is_object = match map.get("type") {
+                Some(Value::String(t)) => t == "object",
+                Some(Value::Array(ts)) => ts.contains(&json!("object")),
+                _ => false,
+            };
+            if is_object
+                && map.contains_key("properties")
+                && !map.contains_key("additionalProperties")
+            {
+                map.insert("additionalProperties".into(), json!(false));
+            }
+            map.values_mut().for_each(close_objects);
+        }
+        Value::Array(items) => items.iter_mut().for_each(close_objects),
+        _ => {}
+    }
+}
+
+/// A member that is present and not `null`.
+fn given(name: &str) -> Value {
+    json!({"required": [name], "properties": {name: {"not": {"type": "null"}}}})
+}
+
+/// Schema `name` takes exactly one of `members`.
+fn exactly_one_of(schemas: &mut Map<String, Value>, name: &str, members: &[&str]) {
+    if let Some(Value::Object(schema)) = schemas.get_mut(name) {
+        schema.insert(
+            "oneOf".into(),
+            Value::Array(members.iter().map(|m| given(m)).collect()),
+        );
+    }
+}
+
+/// Sweep schema `name` takes `h` unless one of its axes varies `h`.
+fn step_given_or_swept(schemas: &mut Map<String, Value>, name: &str) {
+    if let Some(Value::Object(schema)) = schemas.get_mut(name) {
+        let swept = json!({"required": ["axes"], "properties": {"axes": {
+            "contains": {"required": ["name"], "properties": {"name": {"const": "h"}}}}}});
+        schema.insert("anyOf".into(), json!([given("h"), swept]));
+    }
+}
+
+/// Schema `name` does not take both `members`.
+fn not_both(schemas: &mut Map<String, Value>, name: &str, members: [&str; 2]) {
+    if let Some(Value::Object(schema)) = schemas.get_mut(name) {
+        let [a, b] = members;
+        schema.insert("not".into(), json!({"allOf": [given(a), given(b)]}));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every schema object in `value`, with its JSON pointer.
+    fn walk<'a>(value: &'a Value, at: String, out: &mut Vec<(String, &'a Value)>) {
+        match value {
+            Value::Object(map) => {
+                out.push((at.clone(), value));
+                for (k, v) in map {
+                    walk(v, format!("{at}/{k}"), out);
+                }
+            }
+            Value::Array(items) => {
+                for (i, v) in items.iter().enumerate() {
+                    walk(v, format!("{at}/{i}"), out);
+                }
+            }
+            _ => {}
+        }
+    }
+
+    #[test]
+    fn every_reference_resolves_and_every_alternative_is_a_schema() {
+        let doc = document();
+        let mut nodes = Vec::new();
+        walk(&doc, String::new(), &mut nodes);
+        for (at, node) in &nodes {
+            if let Some(target) = node.get("$ref").and_then(Value::as_str) {
+                let pointer = target.strip_prefix('#').expect("a local reference");
+                assert!(
+                    doc.pointer(pointer).is_some(),
+                    "{at}: {target} does not resolve"
+                );
+            }
+            for key in ["oneOf", "anyOf", "allOf"] {
+                if let Some(branches) = node.get(key).and_then(Value::as_array) {
+                    assert!(
+                        branches.iter().all(Value::is_object),
+                        "{at}/{key}: {branches:?}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn optional_members_admit_null_and_required_ones_do_not() {
+        let doc = document();
+        let simulate = &doc["components"]["schemas"]["SimulateRequest"];
+        assert_eq!(simulate["properties"]["h"]["type"], json!("number"));
+        assert_eq!(
+            simulate["properties"]["jacobian_defect"]["type"],
+            json!(["boolean", "null"])
+        );
+        let output = &doc["components"]["schemas"]["OutputOptions"];
+        assert_eq!(
+            output["properties"]["every"]["type"],
+            json!(["integer", "null"])
+        );
+        assert_eq!(output["properties"]["every"]["format"], json!("uint64"));
+        assert_eq!(output["properties"]["every"]["maximum"], json!(u64::MAX));
+        let map = &doc["components"]["schemas"]["EnergyMapRequest"]["properties"]["method"];
+        assert_eq!(map["anyOf"][1], json!({"type": "null"}));
+    }
+
+    #[test]
+    fn request_objects_are_closed_and_answers_open() {
+        let schemas = &document()["components"]["schemas"];
+        for name in [
+            "SimulateRequest",
+            "ConvergenceRequest",
+            "SweepRequest",
+            "AxisRequest",
+            "RunSpec",
+        ] {
+            assert_eq!(
+                schemas[name]["additionalProperties"],
+                json!(false),
+                "{name}"
+            );
+        }
+        for branch in schemas["DampingEntry"]["oneOf"].as_array().unwrap() {
+            assert_eq!(branch["additionalProperties"], json!(false));
+        }
+        // Constraint fragments stay open, and so do the answers.
+        assert!(schemas["SimulateRequest"]["oneOf"][0]
+            .get("additionalProperties")
+            .is_none());
+        assert!(schemas["SimulationDocument"]
+            .get("additionalProperties")
+            .is_none());
+    }
+
+    #[test]
+    fn exclusive_members_and_links_are_stated() {
+        let doc = document();
+        let schemas = &doc["components"]["schemas"];
+        let one_of = |name: &str| -> Vec<Value> {
+            schemas[name]["oneOf"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|b| b["required"][0].clone())
+                .collect()
+        };
+        assert_eq!(
+            one_of("SimulateRequest"),
+            [json!("methods"), json!("method")]
+        );
+        assert_eq!(one_of("RunSpec"), [json!("h"), json!("tolerance")]);
+        assert_eq!(
+            one_of("SystemDefinition"),
+            [json!("potential"), json!("hamiltonian")]
+        );
+        assert_eq!(
+            schemas["ConvergenceRequest"]["not"]["allOf"][1]["required"],
+            json!(["charts"])
+        );
+        let created =
+            &doc["paths"][super::super::paths::RECORDINGS]["post"]["responses"]["201"]["links"];
+        for op in ["get_recording", "recording_samples", "delete_recording"] {
+            assert_eq!(created[op]["operationId"], json!(op));
+            assert_eq!(created[op]["parameters"]["id"], json!("$response.body#/id"));
+        }
+    }
+}

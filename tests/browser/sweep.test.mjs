@@ -35,10 +35,16 @@ async function settled(states, timeout = 60_000) {
   return page.getAttribute('#sweep', 'data-sweep-state');
 }
 
-/** Moves the keyboard cursor to (col, row) from the map's centre and returns the readout data. */
+/** Points at cell (col, row) of the map and returns the readout data. */
 async function readAt(col, row) {
+  // A redraw replaces the canvas and lays it out in the next animation frame: aim after that
+  // frame, or the pointer may land where the old layout put the cell.
+  await page.evaluate(() => new Promise((done) => requestAnimationFrame(() => requestAnimationFrame(done))));
   const [x, y] = await page.evaluate(([c, r]) => window.geomint.sweep.map.cellCentre(c, r), [col, row]);
   const box = await page.locator('#sw-canvas').boundingBox();
+  // From outside the map, so that the move reaches the new canvas even when it ends where the
+  // pointer already was.
+  await page.mouse.move(0, 0);
   await page.mouse.move(box.x + x, box.y + y);
   return page.$eval('#sw-readout', (n) => ({ ...n.dataset, text: n.textContent }));
 }
@@ -104,6 +110,7 @@ test('the presets are the server’s and a sweep reads back the API’s numbers 
   await page.selectOption('#sw-compare', '1');
   const k = api.runs[0].energy_error_max.findIndex((e, i) => e != null && api.runs[1].energy_error_max[i] != null);
   const d = await readAt(k % 6, Math.floor(k / 6));
+  assert.equal(Number(d.cell), k);
   assert.equal(d.other, String(api.runs[1].energy_error_max[k]));
   const ratio = api.runs[0].energy_error_max[k] / api.runs[1].energy_error_max[k];
   assert.match(d.text, /ratio /);

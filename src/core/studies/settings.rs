@@ -137,7 +137,8 @@ pub fn prepare_setting(
 /// The reference run of a study whose first setting is `first`: none where the system has an
 /// exact solution; otherwise `spec` (one step size or tolerance) or by default the adaptive
 /// DOP853 at tolerance [`REFERENCE_TOLERANCE`], from `template` in the system's first (Cartesian)
-/// chart, sampled at the study's sample times.
+/// chart, sampled at the study's sample times. A `spec` given where the exact solution serves
+/// instead is checked all the same: a wrong one is refused, not silently ignored.
 pub fn prepare_reference(
     first: &Simulation,
     template: &SimulationSpec,
@@ -145,7 +146,8 @@ pub fn prepare_reference(
     samples: u64,
     limits: &Limits,
 ) -> Result<Option<Simulation>, CoreError> {
-    if first.exact_final_state().is_some() {
+    let exact = first.exact_final_state().is_some();
+    if exact && spec.is_none() {
         return Ok(None);
     }
     let field = Field::new("reference");
@@ -185,7 +187,8 @@ pub fn prepare_reference(
         },
         ..template.clone()
     };
-    prepare_setting(&template, &spec.method, setting, samples, &at, limits).map(Some)
+    let reference = prepare_setting(&template, &spec.method, setting, samples, &at, limits)?;
+    Ok((!exact).then_some(reference))
 }
 
 /// A validated study, ready to run.

@@ -261,15 +261,28 @@ impl From<&String> for SystemRef {
     }
 }
 
-/// The schema of a system id: one of the catalogue's.
+/// The schema of a system id: one of the catalogue's, or a stored definition's (`sys-` and 16
+/// lowercase hex digits).
 pub struct SystemId;
 
 impl utoipa::PartialSchema for SystemId {
     fn schema() -> utoipa::openapi::RefOr<utoipa::openapi::schema::Schema> {
-        crate::core::schema::string_enum(
-            "A system id (see GET /api/v1/systems).",
-            catalog().iter().map(|s| &*s.id),
-        )
+        use utoipa::openapi::schema::{AnyOfBuilder, ObjectBuilder, Type};
+        AnyOfBuilder::new()
+            .description(Some(
+                "A system id (see GET /api/v1/systems): a built-in system's or a stored definition's.",
+            ))
+            .item(crate::core::schema::string_enum(
+                "A built-in system.",
+                catalog().iter().map(|s| &*s.id),
+            ))
+            .item(
+                ObjectBuilder::new()
+                    .schema_type(Type::String)
+                    .description(Some("A stored definition (POST /api/v1/systems)."))
+                    .pattern(Some("^sys-[0-9a-f]{16}$")),
+            )
+            .into()
     }
 }
 
