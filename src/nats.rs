@@ -31,7 +31,7 @@ use crate::core::error::CoreError;
 use crate::core::run::Budget;
 use crate::core::simulation::Limits;
 use crate::core::studies::sweep::shard::{self, Shard, SweepPart};
-use crate::core::studies::sweep::{self as sweeps, RunMetrics, SweepJob};
+use crate::core::studies::sweep::{RunMetrics, SweepJob};
 
 /// The work-queue stream of shards.
 pub const STREAM: &str = "GEOMINT_SWEEP_SHARDS";
@@ -158,15 +158,17 @@ pub fn shard_count(job: &SweepJob, steps_per_shard: u64) -> usize {
 
 /// Runs `job` (asked for by the canonical `request`) on the workers: publishes its shards,
 /// collects the parts, calls `progress(cells)` as each arrives, and returns every cell's
-/// results in order. Stops (purging what no worker has started) when the budget says so, and
-/// fails when the NATS server is gone for [`DISCONNECTED_GRACE`].
+/// results in order. Stops (purging what no worker has started) when the budget says so: at the
+/// deadline with the cells of the parts received so far (`None` for the others, see
+/// [`SweepJob::document_within`]), on cancellation with an error. Fails when the NATS server is
+/// gone for [`DISCONNECTED_GRACE`].
 pub async fn run(
     queue: &Queue,
     request: Value,
     job: &SweepJob,
     budget: Budget<'_>,
     progress: &(dyn Fn(usize) + Sync),
-) -> Result<Vec<Vec<RunMetrics>>, CoreError> {
+) -> Result<Vec<Option<Vec<RunMetrics>>>, CoreError> {
     let lost = |what: &str, e: &dyn std::fmt::Display| CoreError::Executor {
         message: format!("the sweep failed: {what} (NATS server {}): {e}", queue.url),
     };
@@ -205,11 +207,25 @@ pub async fn run(
     let mut missing = count;
     let mut disconnected_since: Option<Instant> = None;
     while missing > 0 {
-        if budget.cancel.is_some_and(|c| c.load(Ordering::Relaxed))
-            || budget.deadline.is_some_and(|d| Instant::now() >= d)
-        {
+        if budget.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
             purge().await;
-            return Err(sweeps::stopped(budget));
+            return Err(CoreError::Cancelled {
+                what: "sweep",
+                shutdown: true,
+            });
+        }
+        if budget.deadline.is_some_and(|d| Instant::now() >= d) {
+            purge().await;
+            let mut cells = vec![None; job.cells()];
+            for part in parts.into_iter().flatten() {
+                let end = part.first_cell.saturating_add(part.cells.len());
+                if let Some(slots) = cells.get_mut(part.first_cell..end) {
+                    for (slot, cell) in slots.iter_mut().zip(part.cells) {
+                        *slot = Some(cell);
+                    }
+                }
+            }
+            return Ok(cells);
         }
         match queue.client.connection_state() {
             async_nats::connection::State::Connected => disconnected_since = None,
@@ -265,7 +281,7 @@ pub async fn run(
         .map(|p| (format!("shard {}", p.shard), p))
         .collect();
     shard::merge(job, named)
-        .map(|(cells, _)| cells)
+        .map(|(cells, _)| cells.into_iter().map(Some).collect())
         .map_err(|e| CoreError::Executor {
             message: format!("the sweep's parts do not fit together: {e}"),
         })

@@ -257,3 +257,68 @@ fn the_tableau_meets_its_order_conditions() {
     let bhh: f64 = t.bhh.iter().sum();
     assert!((bhh - 1.0).abs() < 1e-14, "Σbhh = {bhh}");
 }
+
+/// One fixed step of the reference can take up to 2·10⁵ adaptive steps: the deadline is looked
+/// at inside it too. Past the deadline the run stops at once with `time_limit` at step 0, the
+/// state as it was; without one, the same step finishes, as the driver's own check alone would
+/// let it (and bit for bit as before, see above).
+#[test]
+fn a_deadline_stops_the_reference_inside_a_long_step() {
+    let pendulum = Pendulum { gamma: 0.0 };
+    let start = State::from_slices(nalgebra::U1, &[2.0], &[0.0]);
+    // One fixed step over t = 2000 at tolerance 1e-13: thousands of adaptive steps.
+    let (h, tol) = (2000.0, 1e-13);
+    let schedule = Schedule {
+        h,
+        steps: 1,
+        every: 1,
+    };
+    let run = |deadline| {
+        let choice = Method::Reference { tolerance: tol };
+        let mut stepper = methods::build(&choice, &pendulum, "test", h).expect("builds");
+        let mut z = start.clone();
+        let budget = Budget {
+            cancel: None,
+            deadline,
+        };
+        let (stop, stats) = integrate(
+            &pendulum,
+            &mut stepper,
+            &mut z,
+            schedule,
+            budget,
+            false,
+            &mut Discard,
+        )
+        .expect("the run");
+        (stop, stats, z)
+    };
+    let (stop, stats, z) = run(None);
+    assert_eq!(stop, StopReason::Finished);
+    assert!(
+        stats.force_evaluations > 100_000,
+        "{} evaluations",
+        stats.force_evaluations
+    );
+    assert_ne!(bits(&z.q), bits(&start.q));
+
+    // A deadline in the past: the driver's check before the first step stops it.
+    let (stop, stats, z) = run(Some(std::time::Instant::now()));
+    assert_eq!(stop, StopReason::TimeLimit { step: 0 });
+    assert_eq!(stats.force_evaluations, 0);
+    assert_eq!((bits(&z.q), bits(&z.p)), (bits(&start.q), bits(&start.p)));
+
+    // A deadline that passes during the step: the stepper's own check stops it there.
+    let mut stepper = methods::build(&Method::Reference { tolerance: tol }, &pendulum, "test", h)
+        .expect("builds");
+    let mut z = start.clone();
+    geomint::core::run::Stepper::set_deadline(&mut stepper, Some(std::time::Instant::now()));
+    let error = geomint::core::run::Stepper::step(&mut stepper, &pendulum, &mut z, h).unwrap_err();
+    assert_eq!(error, geomint::core::error::StepError::DeadlinePassed);
+    assert_eq!((bits(&z.q), bits(&z.p)), (bits(&start.q), bits(&start.p)));
+    let evaluations = geomint::core::run::Stepper::force_evaluations(&stepper);
+    assert!(
+        evaluations < 10_000,
+        "{evaluations} evaluations before giving up"
+    );
+}

@@ -4,8 +4,9 @@
 //! ids in paths, content types; plus the hostile inputs named outright: JSON nested 10⁵ deep,
 //! numbers beyond f64, duplicate keys, non-JSON content types.
 //!
-//! The property: no panic, never a 5xx (but the documented 504 of a study past the request's
-//! time limit), and every refusal in the service's error shape with a known code. CI runs proptest's default of 256 cases per target; the long run sets
+//! The property: no panic, never a 5xx (work past the time limit answers with what it finished),
+//! and every refusal in the service's error shape with a known code. CI runs proptest's default
+//! of 256 cases per target; the long run sets
 //! `PROPTEST_CASES` (the README's fuzzing command runs 10⁶ per target in release).
 
 use std::sync::OnceLock;
@@ -76,15 +77,12 @@ fn send(
             .unwrap();
         (status, content_type, bytes)
     });
-    // The one 5xx a valid request may get: a study larger than the time limit allows (504
-    // `timeout`, documented), which a loaded machine meets sooner.
-    let over_time = status == 504 && String::from_utf8_lossy(&bytes).contains("\"timeout\"");
     prop_assert!(
-        !status.is_server_error() || over_time,
+        !status.is_server_error(),
         "{method} {uri}: {status} {}",
         String::from_utf8_lossy(&bytes)
     );
-    if status.is_client_error() || over_time {
+    if status.is_client_error() {
         prop_assert!(
             content_type.starts_with("application/json"),
             "{uri}: {content_type}"

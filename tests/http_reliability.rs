@@ -516,3 +516,101 @@ fn the_container_runs_as_a_user_without_privileges() {
         "the final stage runs as {user}"
     );
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn static_files_come_from_memory_with_validators_and_follow_edits() {
+    let cfg = config("assets");
+    let site = cfg.data_dir.parent().unwrap().join("site");
+    std::fs::create_dir_all(site.join("js")).unwrap();
+    std::fs::write(site.join("index.html"), "<!doctype html><p>first</p>").unwrap();
+    std::fs::write(site.join("js/app.js"), "export const answer = 42;").unwrap();
+    // Past the in-memory limit: served from disk, whole.
+    let big = vec![b'x'; 3 << 20];
+    std::fs::write(site.join("big.bin"), &big).unwrap();
+    let server = start(Config {
+        static_dir: Some(site.clone()),
+        ..cfg
+    })
+    .await;
+    let c = client();
+    let get = |path: &str| c.get(server.url(path));
+
+    let page = get("/").send().await.unwrap();
+    assert_eq!(page.status(), 200);
+    assert_eq!(page.headers()["content-type"], "text/html");
+    assert_eq!(page.headers()["cache-control"], "no-cache");
+    assert_eq!(page.headers()["x-content-type-options"], "nosniff");
+    let etag = page.headers()["etag"].to_str().unwrap().to_string();
+    let modified = page.headers()["last-modified"]
+        .to_str()
+        .unwrap()
+        .to_string();
+    assert!(etag.starts_with('"') && etag.len() == 34, "{etag}");
+    assert_eq!(page.text().await.unwrap(), "<!doctype html><p>first</p>");
+    assert_eq!(
+        get("/index.html").send().await.unwrap().headers()["etag"],
+        etag.as_str()
+    );
+
+    // Validators: the same version is 304 without a body; another tag is the file again.
+    for (name, value) in [
+        ("if-none-match", etag.clone()),
+        ("if-none-match", format!("\"other\", W/{etag}")),
+        ("if-modified-since", modified.clone()),
+    ] {
+        let answer = get("/index.html")
+            .header(name, &value)
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(answer.status(), 304, "{name}: {value}");
+        assert_eq!(answer.headers()["etag"], etag.as_str());
+        assert!(answer.bytes().await.unwrap().is_empty());
+    }
+    let other = get("/index.html")
+        .header("if-none-match", "\"other\"")
+        .header("if-modified-since", &modified)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(
+        other.status(),
+        200,
+        "If-None-Match decides over If-Modified-Since"
+    );
+
+    let head = c.head(server.url("/js/app.js")).send().await.unwrap();
+    assert_eq!(head.status(), 200);
+    assert_eq!(head.headers()["content-type"], "text/javascript");
+    assert_eq!(head.headers()["content-length"], "25");
+    assert!(head.bytes().await.unwrap().is_empty());
+    let from_disk = get("/big.bin").send().await.unwrap();
+    assert_eq!(from_disk.status(), 200);
+    assert_eq!(from_disk.bytes().await.unwrap().len(), big.len());
+    // A directory without its slash is redirected (by ServeDir); this one has no index.html.
+    let folder = get("/js").send().await.unwrap();
+    assert_eq!(folder.url().path(), "/js/");
+    assert_eq!(folder.status(), 404);
+
+    // An edit and a removal are noticed within a second or so.
+    std::fs::write(
+        site.join("index.html"),
+        "<!doctype html><p>second, longer</p>",
+    )
+    .unwrap();
+    std::fs::remove_file(site.join("js/app.js")).unwrap();
+    tokio::time::sleep(Duration::from_millis(1200)).await;
+    let page = get("/").send().await.unwrap();
+    assert_ne!(page.headers()["etag"], etag.as_str());
+    assert_eq!(
+        page.text().await.unwrap(),
+        "<!doctype html><p>second, longer</p>"
+    );
+    let answer = get("/index.html")
+        .header("if-none-match", &etag)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(answer.status(), 200);
+    assert_eq!(get("/js/app.js").send().await.unwrap().status(), 404);
+}

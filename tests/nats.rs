@@ -74,7 +74,7 @@ fn worker(url: &str) -> Process {
 }
 
 /// `geomint serve --nats url` on a free port, with its data in `dir`.
-fn server(url: &str, dir: &Path) -> (Process, String) {
+fn server(url: &str, dir: &Path, time_limit_secs: u32) -> (Process, String) {
     let port = free_port();
     let child = geomint()
         .args([
@@ -90,7 +90,7 @@ fn server(url: &str, dir: &Path) -> (Process, String) {
             "--nats-shard-steps",
             "10000000",
         ])
-        .args(["--request-timeout-secs", "60"])
+        .args(["--request-timeout-secs", &time_limit_secs.to_string()])
         .arg("--data-dir")
         .arg(dir.join("data"))
         .arg("--systems-dir")
@@ -167,7 +167,7 @@ async fn sweeps_on_nats_workers_equal_the_local_executor() {
     let expected = tokio::task::spawn_blocking(local).await.unwrap();
     let mut first = worker(&url);
     let _second = worker(&url);
-    let (_server, base) = server(&url, &dir);
+    let (_server, base) = server(&url, &dir, 60);
 
     // Two workers, nothing goes wrong.
     let started = Instant::now();
@@ -219,6 +219,55 @@ async fn sweeps_on_nats_workers_equal_the_local_executor() {
         assert!(
             Instant::now() < until,
             "{waiting} shards still queued after the client left"
+        );
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+
+    // A server whose time limit (1 s) passes mid-study: 200 with the cells of the parts received
+    // (the local executor's, bit for bit), the others listed as unfinished, the queue emptied.
+    let (_hurried, hurried) = server(&url, &dir.join("hurried"), 1);
+    let (status, doc) = post_sweep(&hurried).await;
+    assert_eq!(status, 200, "{}", doc["error"]);
+    assert_eq!(doc["stop"], "time_limit");
+    let unfinished: Vec<u64> = doc["unfinished_cells"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c.as_u64().unwrap())
+        .collect();
+    assert!(!unfinished.is_empty());
+    let cells = expected["cells"].as_u64().unwrap() as usize;
+    for (run, want) in doc["runs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .zip(expected["runs"].as_array().unwrap())
+    {
+        for cell in 0..cells {
+            if unfinished.contains(&(cell as u64)) {
+                assert_eq!(run["energy_error_l2"][cell], Value::Null);
+                assert_eq!(run["steps"][cell], 0);
+            } else {
+                for column in [
+                    "energy_error_l2",
+                    "energy_error_max",
+                    "diverged_at",
+                    "steps",
+                ] {
+                    assert_eq!(run[column][cell], want[column][cell], "{column}[{cell}]");
+                }
+            }
+        }
+    }
+    eprintln!(
+        "1 s time limit: {} of {cells} cells finished",
+        cells - unfinished.len()
+    );
+    let until = Instant::now() + Duration::from_secs(10);
+    while queued(&url).await > 0 {
+        assert!(
+            Instant::now() < until,
+            "shards still queued after the time limit"
         );
         tokio::time::sleep(Duration::from_millis(100)).await;
     }

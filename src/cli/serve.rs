@@ -160,8 +160,42 @@ fn init_logging(filter: &str) {
         .init();
 }
 
-/// The async runtime of the server and the worker.
+/// Settles glibc's malloc for a process that runs for days, before its threads start: at most
+/// four arenas (glibc's default, eight per core, lets most threads that ever allocated keep one
+/// of their own), and a fixed threshold of 128 KiB above which blocks are mapped and given back
+/// on free (the default threshold climbs after each large free, so that large transient buffers,
+/// request bodies and recordings, end up in the arenas and stay there). Measured with
+/// `scripts/soak` over ten minutes: the defaults grew the resident memory by a third, the
+/// threshold alone as much, two arenas by 9 % but at a cost in throughput under contention, four
+/// arenas with the threshold by 6 % (the README's figures). `MALLOC_ARENA_MAX` or
+/// `MALLOC_MMAP_THRESHOLD_` in the environment take precedence.
+fn tune_allocator() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    {
+        const ARENAS: libc::c_int = 4;
+        const MMAP_THRESHOLD: libc::c_int = 128 * 1024;
+        for (variable, parameter, value) in [
+            ("MALLOC_ARENA_MAX", libc::M_ARENA_MAX, ARENAS),
+            (
+                "MALLOC_MMAP_THRESHOLD_",
+                libc::M_MMAP_THRESHOLD,
+                MMAP_THRESHOLD,
+            ),
+        ] {
+            if std::env::var_os(variable).is_none() {
+                // SAFETY: mallopt only sets allocator parameters; it is called before the
+                // process starts its other threads.
+                if unsafe { libc::mallopt(parameter, value) } != 1 {
+                    tracing::warn!(parameter = variable, "mallopt refused the setting");
+                }
+            }
+        }
+    }
+}
+
+/// The async runtime of the server and the worker (with the allocator settled first).
 fn runtime() -> Result<tokio::runtime::Runtime, ExitCode> {
+    tune_allocator();
     tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()

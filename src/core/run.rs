@@ -37,6 +37,11 @@ where
         1024
     }
 
+    /// The deadline, for a stepper whose single step can take long (the adaptive reference):
+    /// it then gives up inside a step with [`StepError::DeadlinePassed`], leaving the state as it
+    /// was before that step. The driver sets it before the first step; the default ignores it.
+    fn set_deadline(&mut self, _deadline: Option<Instant>) {}
+
     /// Processing (a method Φ = χ⁻¹ ∘ K ∘ χ whose kernel K is what `step` does): maps the
     /// caller's state to the kernel's, z ← χ(z). The driver calls it once, before the first step.
     /// The default does nothing.
@@ -83,6 +88,9 @@ where
     }
     fn check_interval(&self) -> u64 {
         (**self).check_interval()
+    }
+    fn set_deadline(&mut self, deadline: Option<Instant>) {
+        (**self).set_deadline(deadline)
     }
     fn pre_process(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64) {
         (**self).pre_process(sys, z, h)
@@ -242,6 +250,7 @@ where
         None
     };
     observer.on_sample(0, 0.0, z);
+    stepper.set_deadline(budget.deadline);
     if schedule.steps > 0 {
         stepper.pre_process(sys, z, h);
     }
@@ -251,7 +260,9 @@ where
     let mut stop = StopReason::Finished;
     let mut step = 0u64;
     while step < schedule.steps {
-        if step % check_every == 0 && step > 0 {
+        // Also before the first step: work started after the deadline (a run after a reference
+        // that used up the time, a sweep's cell) stops at once.
+        if step.is_multiple_of(check_every) {
             if budget.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
                 stop = StopReason::Cancelled { step };
                 break;
@@ -275,7 +286,14 @@ where
         match tangent.as_mut() {
             None => {
                 while step < until {
-                    stepper.step(sys, z, h).map_err(|e| fail(step, e))?;
+                    match stepper.step(sys, z, h) {
+                        Ok(()) => {}
+                        Err(StepError::DeadlinePassed) => {
+                            stop = StopReason::TimeLimit { step };
+                            break;
+                        }
+                        Err(e) => return Err(fail(step, e)),
+                    }
                     step += 1;
                     // One sum is finite iff every component is (overflow aside, which is
                     // divergence too): cheaper than testing each component.
@@ -297,6 +315,9 @@ where
                     }
                 }
             }
+        }
+        if matches!(stop, StopReason::TimeLimit { .. }) {
+            break;
         }
         if !z.is_finite() {
             stop = StopReason::Diverged {

@@ -19,9 +19,11 @@
 //! | `/` | the static directory, when there is one |
 //!
 //! Every error answers `{"error": {"code", "message", "field"}}` ([`ApiError`]), including those
-//! of the middleware (body limit 413, time limit 504) and unknown routes (404, 405).
+//! of the middleware (body limit 413; 504 from a backstop past the time limit, which only a
+//! computation that ignored its deadline would reach) and unknown routes (404, 405).
 
 pub mod answer;
+pub mod assets;
 pub mod error;
 pub mod extract;
 pub mod handlers;
@@ -49,7 +51,6 @@ use tower_http::compression::CompressionLayer;
 use tower_http::cors::{AllowOrigin, CorsLayer};
 use tower_http::limit::RequestBodyLimitLayer;
 use tower_http::request_id::{MakeRequestUuid, PropagateRequestIdLayer, SetRequestIdLayer};
-use tower_http::services::ServeDir;
 use tower_http::timeout::TimeoutLayer;
 use tower_http::trace::{DefaultOnFailure, DefaultOnResponse, TraceLayer};
 
@@ -176,7 +177,10 @@ pub fn app(state: AppState) -> Router {
         .with_state(state);
     let static_dir = config.static_dir.as_ref().filter(|dir| dir.is_dir());
     let router = match static_dir {
-        Some(dir) => api.fallback_service(ServeDir::new(dir)),
+        Some(dir) => {
+            let assets = assets::Assets::new(dir);
+            api.fallback(move |request| assets.clone().serve(request))
+        }
         None => api.fallback(handlers::not_found),
     };
 

@@ -167,7 +167,6 @@ fn created(entry: RecordingEntry) -> Response {
             the message says what is wrong)", body = ErrorBody),
         (status = 503, description = "Every simulation slot is busy", body = ErrorBody,
             headers(("Retry-After" = u64, description = "Seconds to wait before retrying"))),
-        (status = 504, description = "The reference run did not finish within the time limit", body = ErrorBody),
         (status = 507, description = "The recording alone exceeds the store's size cap \
             (code `recording_too_large`, field `output.every`)", body = ErrorBody),
         (status = 500, description = "A server fault (details are logged)", body = ErrorBody),

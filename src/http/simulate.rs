@@ -52,7 +52,6 @@ use crate::recording;
             samples than the limits", body = ErrorBody),
         (status = 503, description = "Every simulation slot is busy", body = ErrorBody,
             headers(("Retry-After" = u64, description = "Seconds to wait before retrying"))),
-        (status = 504, description = "The reference run did not finish within the time limit", body = ErrorBody),
         (status = 500, description = "A server fault (details are logged)", body = ErrorBody),
     ))]
 pub async fn simulate(

@@ -6,7 +6,8 @@
 //! every other free one, since each map is computed in parallel over all cores — and computes
 //! off the async runtime. Its work is bounded by the request's size (at most
 //! [`MAX_MAP_CELLS`](crate::core::studies::stability::MAX_MAP_CELLS) cells); between methods it stops
-//! at the time limit (504) or when the client goes away.
+//! at the time limit (answering with the maps made, `stop: time_limit`) or when the client goes
+//! away.
 //!
 //! With `?format=rrd` the maps come as a Rerun recording (each map a tensor of spectral radii and
 //! an image of verdicts, see [`recording::stability`]).
@@ -58,7 +59,6 @@ use crate::recording;
             or more than 10⁶ cells in all (code `too_many_cells`)", body = ErrorBody),
         (status = 503, description = "Every simulation slot is busy", body = ErrorBody,
             headers(("Retry-After" = u64, description = "Seconds to wait before retrying"))),
-        (status = 504, description = "The maps did not finish within the time limit", body = ErrorBody),
         (status = 500, description = "A server fault (details are logged)", body = ErrorBody),
     ))]
 pub async fn stability_map(

@@ -114,7 +114,6 @@ async fn answer_settings<L: ProgressLine>(
             64 settings or 2·10⁸ steps in all", body = ErrorBody),
         (status = 503, description = "Every simulation slot is busy", body = ErrorBody,
             headers(("Retry-After" = u64, description = "Seconds to wait before retrying"))),
-        (status = 504, description = "The study did not finish within the time limit", body = ErrorBody),
         (status = 500, description = "A server fault (details are logged)", body = ErrorBody),
     ))]
 pub async fn work_precision(
@@ -166,7 +165,6 @@ pub async fn work_precision(
             (methods × charts × step sizes) or 2·10⁸ steps in all", body = ErrorBody),
         (status = 503, description = "Every simulation slot is busy", body = ErrorBody,
             headers(("Retry-After" = u64, description = "Seconds to wait before retrying"))),
-        (status = 504, description = "The study did not finish within the time limit", body = ErrorBody),
         (status = 500, description = "A server fault (details are logged)", body = ErrorBody),
     ))]
 pub async fn convergence(
@@ -208,7 +206,6 @@ pub async fn convergence(
             more than 401 points per axis or 2·10¹⁰ steps in all", body = ErrorBody),
         (status = 503, description = "Every simulation slot is busy", body = ErrorBody,
             headers(("Retry-After" = u64, description = "Seconds to wait before retrying"))),
-        (status = 504, description = "The map did not finish within the time limit", body = ErrorBody),
         (status = 500, description = "A server fault (details are logged)", body = ErrorBody),
     ))]
 pub async fn energy_map(
@@ -267,7 +264,6 @@ pub async fn energy_map(
             steps in all", body = ErrorBody),
         (status = 503, description = "Every simulation slot is busy", body = ErrorBody,
             headers(("Retry-After" = u64, description = "Seconds to wait before retrying"))),
-        (status = 504, description = "The sweep did not finish within the time limit", body = ErrorBody),
         (status = 500, description = "A server fault (details are logged)", body = ErrorBody),
     ))]
 pub async fn sweep(
@@ -313,7 +309,7 @@ pub async fn sweep(
                     budget,
                     &|cells| progress.add(cells),
                 ))?;
-                Ok(job.document(cells, started.elapsed().as_secs_f64() * 1e3))
+                job.document_within(cells, budget, started.elapsed().as_secs_f64() * 1e3)
             }
         },
         (

@@ -280,7 +280,10 @@ export class EnergyMapPanel {
     this.progress.value = doc.summary.cells;
     this.render(doc);
     this.status.textContent = `Done: ${doc.xs.length} × ${doc.ys.length} cells of ${doc.method}, h = ${fmt(doc.h)}, ` +
-      `t_max = ${fmt(doc.t_max)}: ${doc.steps.toLocaleString('en')} steps in ${fmt(doc.wall_ms / 1000, 3)} s.`;
+      `t_max = ${fmt(doc.t_max)}: ${doc.steps.toLocaleString('en')} steps in ${fmt(doc.wall_ms / 1000, 3)} s.` +
+      (doc.stop === 'time_limit'
+        ? ` The server's time limit stopped ${doc.unfinished_cells.length} cells (left blank).`
+        : '');
     this.setState('done');
   }
 

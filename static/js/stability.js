@@ -229,7 +229,10 @@ export class StabilityPanel {
     } else {
       const doc = maps.value;
       this.status.textContent = `Done: ${doc.maps.length} map${doc.maps.length > 1 ? 's' : ''} of ` +
-        `${doc.gamma.n} γ × ${doc.h.n} h values at ω = ${fmt(doc.omega)}; ½tr error at ${points.value.hs.length} step sizes.`;
+        `${doc.gamma.n} γ × ${doc.h.n} h values at ω = ${fmt(doc.omega)}; ½tr error at ${points.value.hs.length} step sizes.` +
+        (doc.stop === 'time_limit'
+          ? ` The server's time limit stopped ${map.methods.length - doc.maps.length} of ${map.methods.length} maps.`
+          : '');
       this.setState('done');
     }
   }

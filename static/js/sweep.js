@@ -192,7 +192,10 @@ export class SweepPanel {
     this.progress.value = doc.cells;
     this.showViews(doc);
     this.status.textContent = `Done: ${doc.cells} cells × ${doc.runs.length} runs of ${doc.system}, ` +
-      `${doc.steps.toLocaleString('en')} steps in ${fmt(doc.wall_ms / 1000, 3)} s.`;
+      `${doc.steps.toLocaleString('en')} steps in ${fmt(doc.wall_ms / 1000, 3)} s.` +
+      (doc.stop === 'time_limit'
+        ? ` The server's time limit stopped ${doc.unfinished_cells.length} cells (left blank).`
+        : '');
     this.setState('done');
   }
 

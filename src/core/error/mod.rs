@@ -35,6 +35,10 @@ pub enum StepError {
         /// The integrator's own message.
         message: String,
     },
+    /// The deadline passed inside a step (the adaptive reference looks at it between its inner
+    /// steps); the state is left as it was before the step.
+    #[error("the deadline passed inside a step")]
+    DeadlinePassed,
     /// The method has no tangent map for this system.
     #[error("the step Jacobian is not available for this method and system: {reason}")]
     TangentUnsupported {

@@ -101,6 +101,9 @@ where
     fn check_interval(&self) -> u64 {
         with_stepper!(self, st => Stepper::<S>::check_interval(st))
     }
+    fn set_deadline(&mut self, deadline: Option<std::time::Instant>) {
+        with_stepper!(self, st => Stepper::<S>::set_deadline(st, deadline))
+    }
     fn pre_process(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64) {
         with_stepper!(self, st => st.pre_process(sys, z, h))
     }

@@ -26,7 +26,7 @@ use super::document::{
 use super::run::{for_each_method, Sample, SampleSink};
 use super::spec::Simulation;
 use crate::core::diagnostics::{self, DriftPoint};
-use crate::core::error::{ErrorCode, ErrorDetail};
+use crate::core::error::{CoreError, ErrorCode, ErrorDetail};
 use crate::core::run::{Budget, RunStats};
 
 /// Most samples per `samples` line.
@@ -162,8 +162,10 @@ impl Simulation {
         (self.q0.len() == 1 && conformal).then(|| diagnostics::dissipation_drift(t, q, 0.5 * rate))
     }
 
-    /// The header line of this simulation's stream.
-    pub fn header(&self) -> StreamHeader {
+    /// The header line of this simulation's stream; `energy_error`: whether its chunks carry
+    /// energy errors (see [`Simulation::has_energy_error`]; not when the reference run did not
+    /// finish in time).
+    pub fn header(&self, energy_error: bool) -> StreamHeader {
         StreamHeader {
             system: SystemSummary::of(self),
             methods: self.methods.iter().map(|m| m.label()).collect(),
@@ -172,7 +174,7 @@ impl Simulation {
                 .iter()
                 .map(|s| s.to_string())
                 .collect(),
-            energy_error: self.has_energy_error(),
+            energy_error,
             jacobian_defect: self.jacobian_defect,
             schedule: ScheduleSummary::of(self),
         }
@@ -229,13 +231,24 @@ impl Simulation {
         }
     }
 
-    /// Runs the whole simulation, emitting its stream: header, the reference run if asked for,
-    /// every method (on up to `workers` threads), and the `end` line.
+    /// Runs the whole simulation, emitting its stream: the reference run if asked for, the
+    /// header, every method (on up to `workers` threads), and the `end` line. A reference run
+    /// that reaches the time limit leaves the methods no time: they stop with `time_limit` at
+    /// their first sample, without energy errors, as any run past the deadline does.
     pub fn stream(&self, workers: usize, budget: Budget<'_>, emit: Emit<'_>) {
-        if !emit(StreamLine::Header(self.header())) {
+        let reference = match self.reference_energies(budget) {
+            Ok(r) => Ok(r),
+            Err(CoreError::TimeLimit { .. }) => Ok(None),
+            Err(e) => Err(e),
+        };
+        let energy_error = match &reference {
+            Ok(r) => r.is_some() || self.info.exact_solution,
+            Err(_) => self.has_energy_error(),
+        };
+        if !emit(StreamLine::Header(self.header(energy_error))) {
             return;
         }
-        let reference = match self.reference_energies(budget) {
+        let reference = match reference {
             Ok(r) => r,
             Err(e) => {
                 emit(StreamLine::Error(StreamError {
@@ -447,10 +460,10 @@ mod tests {
         .unwrap();
         let sim = spec.prepare(&Limits::default()).unwrap();
         let mut collector = DocumentCollector::new();
-        collector.push(StreamLine::Header(sim.header()));
+        collector.push(StreamLine::Header(sim.header(true)));
         assert_eq!(collector.finish().unwrap_err().code, ErrorCode::Internal);
         let mut collector = DocumentCollector::new();
-        collector.push(StreamLine::Header(sim.header()));
+        collector.push(StreamLine::Header(sim.header(true)));
         collector.push(StreamLine::Error(StreamError {
             method: None,
             error: ErrorDetail::new(ErrorCode::Timeout, "late"),

@@ -34,6 +34,7 @@ use crate::core::methods::build::{self, Origin};
 use crate::core::methods::{self, Method};
 use crate::core::run::{integrate, step_count, Budget, Observer, Schedule, StopReason};
 use crate::core::simulation::MethodAt;
+use crate::core::studies::StudyStop;
 use crate::core::system::{MechanicalSystem, State};
 use crate::core::systems::{
     self, ParamValue, PlanarCartesian, PlanarKind, PlanarPolar, PlanarSpring,
@@ -101,6 +102,8 @@ pub struct EnergyMap {
     pub predicted_divergent: Vec<bool>,
     /// Steps taken over all cells and charts.
     pub steps: u64,
+    /// The cells the time limit stopped (their runs are `None`, `None`), in order.
+    pub unfinished: Vec<usize>,
 }
 
 impl EnergyMap {
@@ -190,7 +193,8 @@ impl EnergyMapJob {
     }
 
     /// Runs every cell; `progress(done, total)` is called as cells finish (from worker threads).
-    /// `Ok(None)` when the budget stopped the map.
+    /// Cells the deadline stopped are listed in `unfinished`; `Ok(None)` when the cancellation
+    /// flag stopped the map.
     pub fn run(
         &self,
         budget: Budget<'_>,
@@ -218,12 +222,29 @@ impl EnergyMapJob {
             polar: Vec::with_capacity(total),
             predicted_divergent: Vec::with_capacity(total),
             steps: 0,
+            unfinished: Vec::new(),
+        };
+        let not_run = ChartRun {
+            epsilon: None,
+            diverged_at: None,
         };
         for (cell, result) in cells.into_iter().enumerate() {
-            let Some((cartesian, polar, energy)) = result? else {
-                return Ok(None);
-            };
             let (x0, y0) = (map.xs[cell % self.nx], map.ys[cell / self.nx]);
+            let Some((cartesian, polar, energy)) = result? else {
+                if budget.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+                    return Ok(None);
+                }
+                map.unfinished.push(cell);
+                map.predicted_divergent
+                    .push(self.predicted_divergent(x0, y0));
+                map.energy.push(
+                    self.cartesian()
+                        .energy(&[x0, y0].into(), &[0.0, 0.0].into()),
+                );
+                map.cartesian.push(not_run);
+                map.polar.push(not_run);
+                continue;
+            };
             map.predicted_divergent
                 .push(self.predicted_divergent(x0, y0));
             map.energy.push(energy);
@@ -240,13 +261,18 @@ impl EnergyMapJob {
         Ok(Some(map))
     }
 
+    /// The pendulum in Cartesian coordinates.
+    fn cartesian(&self) -> PlanarCartesian {
+        PlanarCartesian(PlanarSpring {
+            kind: PlanarKind::Pendulum,
+            ..self.pendulum.clone()
+        })
+    }
+
     /// Both charts' runs from (x₀, y₀) at rest, and the starting energy; `None` if the budget
     /// stopped a run.
     fn cell(&self, x0: f64, y0: f64, budget: Budget<'_>) -> Result<Option<CellRuns>, CoreError> {
-        let cartesian = PlanarCartesian(PlanarSpring {
-            kind: PlanarKind::Pendulum,
-            ..self.pendulum.clone()
-        });
+        let cartesian = self.cartesian();
         let start = State::from_slices(U2, &[x0, y0], &[0.0, 0.0]);
         let energy = cartesian.energy(&start.q, &start.p);
         let Some(in_cartesian) = self.chart_run(&cartesian, start.clone(), budget)? else {
@@ -449,9 +475,9 @@ pub struct EnergyMapDocument {
     pub ys: Vec<f64>,
     /// H at the start of each cell (p₀ = 0).
     pub energy: Vec<f64>,
-    /// ℓ² energy error of eq. (50) in Cartesian coordinates (`null`: diverged).
+    /// ℓ² energy error of eq. (50) in Cartesian coordinates (`null`: diverged, or not run).
     pub epsilon_cartesian: Vec<Option<f64>>,
-    /// ℓ² energy error in polar coordinates (`null`: diverged, or the pivot).
+    /// ℓ² energy error in polar coordinates (`null`: diverged, the pivot, or not run).
     pub epsilon_polar: Vec<Option<f64>>,
     /// ε(x,y) − ε(r,θ) where both exist.
     pub difference: Vec<Option<f64>>,
@@ -469,6 +495,10 @@ pub struct EnergyMapDocument {
     pub steps: u64,
     /// Wall time in milliseconds.
     pub wall_ms: f64,
+    /// `time_limit` when the time limit stopped some cells before they finished.
+    pub stop: StudyStop,
+    /// The cells the time limit stopped (their ε and divergence times are `null`), in order.
+    pub unfinished_cells: Vec<usize>,
 }
 
 /// The pendulum's parameters.
@@ -528,26 +558,16 @@ pub fn run(
             }
         }
     };
-    let map = spec
-        .run(budget, &progress)?
-        .ok_or_else(|| stopped(budget))?;
+    let map = spec.run(budget, &progress)?.ok_or_else(cancelled)?;
     Ok(document(spec, map, started.elapsed().as_secs_f64() * 1e3))
 }
 
-/// The error for a map the budget stopped.
-fn stopped(budget: Budget<'_>) -> CoreError {
-    if budget.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
-        CoreError::Cancelled {
-            what: "map",
-            shutdown: true,
-        }
-    } else {
-        CoreError::TimeLimit {
-            field: None,
-            message:
-                "the map did not finish within the time limit; use fewer cells or a shorter t_max"
-                    .into(),
-        }
+/// The error for a map its cancellation flag stopped (the time limit gives a partial map
+/// instead).
+fn cancelled() -> CoreError {
+    CoreError::Cancelled {
+        what: "map",
+        shutdown: true,
     }
 }
 
@@ -594,5 +614,11 @@ fn document(spec: &EnergyMapJob, map: EnergyMap, wall_ms: f64) -> EnergyMapDocum
         summary,
         steps: map.steps,
         wall_ms,
+        stop: if map.unfinished.is_empty() {
+            StudyStop::Finished
+        } else {
+            StudyStop::TimeLimit
+        },
+        unfinished_cells: map.unfinished,
     }
 }

@@ -11,6 +11,10 @@
 //! - [`sweep`]: any system over a grid of one or two axes (parameters, step size, initial
 //!   state), per cell and run energy errors, invariant drift and divergence; sharded.
 //! - [`settings`]: what the settings-based studies share.
+//!
+//! A study that reaches its time limit answers with what it finished (as a run does), marked
+//! [`StudyStop::TimeLimit`], rather than failing: the time limit depends on the machine's load,
+//! and the finished part is the client's.
 
 pub mod convergence;
 pub mod energy_map;
@@ -18,3 +22,13 @@ pub mod settings;
 pub mod stability;
 pub mod sweep;
 pub mod work_precision;
+
+/// Whether a study did all its work.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, utoipa::ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum StudyStop {
+    /// Everything was computed.
+    Finished,
+    /// The time limit passed first: what was not finished is marked so in the document.
+    TimeLimit,
+}

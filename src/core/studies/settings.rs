@@ -247,7 +247,9 @@ impl StudyJob {
         self.settings.is_empty()
     }
 
-    /// Runs the reference (or takes the exact solution).
+    /// Runs the reference (or takes the exact solution). A reference run stopped by the time limit
+    /// is a truth all the same: the settings after it start past the deadline and stop at once,
+    /// so the study answers with every setting `time_limit` rather than failing.
     fn truth(&self, budget: Budget<'_>) -> Result<Truth, CoreError> {
         let Some(sim) = &self.reference else {
             return Ok(Truth {
@@ -273,22 +275,32 @@ impl StudyJob {
                 },
                 other => other,
             })?;
-        if outcome.stop != StopReason::Finished {
-            return Err(CoreError::TimeLimit {
-                field: None,
-                message: format!(
-                    "the reference run did not finish ({})",
-                    stop_name(&outcome.stop)
-                ),
-            });
-        }
+        let stopped_early = match outcome.stop {
+            StopReason::Finished => false,
+            StopReason::TimeLimit { .. } => true,
+            StopReason::Cancelled { .. } => {
+                return Err(CoreError::Cancelled {
+                    what: "study",
+                    shutdown: false,
+                })
+            }
+            StopReason::Diverged { .. } => {
+                return Err(CoreError::ReferenceUnfinished {
+                    field: Field::new("reference"),
+                    stop: stop_name(&outcome.stop).into(),
+                })
+            }
+        };
         let method = &sim.methods[0];
-        let description = match method {
+        let mut description = match method {
             Method::Reference { tolerance } => {
                 format!("adaptive DOP853 reference at tolerance {tolerance:e}")
             }
             _ => format!("{} at h = {}", method.label(), sim.schedule.h),
         };
+        if stopped_early {
+            description.push_str(", stopped at the time limit");
+        }
         Ok(Truth {
             description,
             ms: started.elapsed().as_secs_f64() * 1e3,

@@ -20,6 +20,7 @@ use crate::core::simulation::MethodAt;
 use crate::core::stability::{
     self, Axis, Eigenvalue, PointAnalysis, Relation, Spectrum, StabilityMap, MAX_AXIS_POINTS,
 };
+use crate::core::studies::StudyStop;
 use crate::core::system::MechanicalSystem;
 use crate::core::systems::HarmonicOscillator;
 
@@ -173,8 +174,11 @@ pub struct StabilityDocument {
     pub gamma: Axis,
     /// The h axis: the rows of every map.
     pub h: Axis,
-    /// One map per method, in the order asked.
+    /// One map per method, in the order asked: all of them, or those finished before the time
+    /// limit.
     pub maps: Vec<MapDocument>,
+    /// `time_limit` when the time limit passed before every method's map was made.
+    pub stop: StudyStop,
 }
 
 /// The stability map of one method: every grid is h.n rows (h values) × gamma.n columns
@@ -322,10 +326,11 @@ impl From<&StabilityMap> for MapDocument {
 }
 
 /// Computes the maps of `job`, one method after another (each in parallel over its rows).
-/// Between methods it gives up when `budget`'s deadline has passed or its flag is set (the
-/// server is shutting down or the client went away).
+/// Between methods it stops when `budget`'s deadline has passed (answering with the maps made so
+/// far) or gives up when its flag is set (the server is shutting down or the client went away).
 pub fn maps(job: &StabilityJob, budget: Budget) -> Result<StabilityDocument, CoreError> {
     let mut maps = Vec::with_capacity(job.methods.len());
+    let mut stop = StudyStop::Finished;
     for (i, method) in job.methods.iter().enumerate() {
         if budget.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
             return Err(CoreError::Cancelled {
@@ -334,14 +339,8 @@ pub fn maps(job: &StabilityJob, budget: Budget) -> Result<StabilityDocument, Cor
             });
         }
         if budget.deadline.is_some_and(|d| Instant::now() >= d) {
-            return Err(CoreError::TimeLimit {
-                field: None,
-                message: format!(
-                    "the stability maps took longer than the time limit ({i} of {} done); ask \
-                     for fewer methods or coarser axes",
-                    job.methods.len()
-                ),
-            });
+            stop = StudyStop::TimeLimit;
+            break;
         }
         let map = stability::map(method, job.omega, job.gamma, job.h)
             .map_err(|e| e.at(Field::new("methods").index(i)))?;
@@ -352,6 +351,7 @@ pub fn maps(job: &StabilityJob, budget: Budget) -> Result<StabilityDocument, Cor
         gamma: job.gamma,
         h: job.h,
         maps,
+        stop,
     })
 }
 

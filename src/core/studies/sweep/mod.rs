@@ -32,6 +32,7 @@ use crate::core::run::{step_count, Budget, StopReason};
 use crate::core::simulation::{
     InitialCoordinates, InputFields, Limits, MethodAt, Simulation, SimulationSpec,
 };
+use crate::core::studies::StudyStop;
 use crate::core::system::MechanicalSystem;
 use crate::core::systems::{ParamValue, SystemInfo, SystemRef};
 use crate::with_system;
@@ -422,22 +423,59 @@ impl SweepJob {
         budget: Budget<'_>,
         progress: &(dyn Fn() + Sync),
     ) -> Result<Option<Vec<Vec<RunMetrics>>>, CoreError> {
-        let results: Vec<Result<Option<Vec<RunMetrics>>, CoreError>> = cells
+        Ok(self
+            .run_cells_within(cells, budget, progress)?
+            .into_iter()
+            .collect())
+    }
+
+    /// [`run_cells`](Self::run_cells), keeping the cells that finished when the budget stopped
+    /// the others (`None`).
+    pub fn run_cells_within(
+        &self,
+        cells: Cells<usize>,
+        budget: Budget<'_>,
+        progress: &(dyn Fn() + Sync),
+    ) -> Result<Vec<Option<Vec<RunMetrics>>>, CoreError> {
+        cells
             .into_par_iter()
             .map(|cell| {
                 let result = self.cell(cell, budget);
                 progress();
                 result
             })
-            .collect();
-        let mut out = Vec::with_capacity(results.len());
-        for result in results {
-            match result? {
-                Some(runs) => out.push(runs),
-                None => return Ok(None),
-            }
+            .collect()
+    }
+
+    /// The document of a sweep the budget may have stopped: cells that did not finish (`None`)
+    /// are marked unfinished, with `time_limit` as the document's stop; when the cancellation
+    /// flag stopped them, the error of a stopped sweep instead.
+    pub fn document_within(
+        &self,
+        cells: Vec<Option<Vec<RunMetrics>>>,
+        budget: Budget<'_>,
+        wall_ms: f64,
+    ) -> Result<SweepDocument, CoreError> {
+        let unfinished_cells: Vec<usize> =
+            (0..cells.len()).filter(|&i| cells[i].is_none()).collect();
+        if unfinished_cells.is_empty() {
+            return Ok(self.document(cells.into_iter().flatten().collect(), wall_ms));
         }
-        Ok(Some(out))
+        if budget.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+            return Err(cancelled());
+        }
+        let not_run = || {
+            let metrics = RunMetrics::failed("not run: the sweep reached its time limit".into());
+            vec![metrics; self.runs.len()]
+        };
+        let cells = cells
+            .into_iter()
+            .map(|cell| cell.unwrap_or_else(not_run))
+            .collect();
+        let mut document = self.document(cells, wall_ms);
+        document.stop = StudyStop::TimeLimit;
+        document.unfinished_cells = unfinished_cells;
+        Ok(document)
     }
 
     /// The document of the sweep from every cell's results, in cell order.
@@ -479,6 +517,8 @@ impl SweepJob {
             force_evaluations,
             digest: self.digest.clone(),
             wall_ms,
+            stop: StudyStop::Finished,
+            unfinished_cells: Vec::new(),
         }
     }
 }
@@ -527,7 +567,7 @@ pub struct RunColumns {
     pub steps: Vec<u64>,
     /// Force evaluations.
     pub force_evaluations: Vec<u64>,
-    /// Why a run could not start (`null` where it ran).
+    /// Why a run could not start or was not run (`null` where it ran).
     pub errors: Vec<Option<String>>,
 }
 
@@ -593,6 +633,11 @@ pub struct SweepDocument {
     pub digest: String,
     /// Wall time in milliseconds.
     pub wall_ms: f64,
+    /// `time_limit` when the time limit stopped some cells: their metrics are `null` and their
+    /// `errors` say so.
+    pub stop: StudyStop,
+    /// The cells the time limit stopped, in order (empty when `stop` is `finished`).
+    pub unfinished_cells: Vec<usize>,
 }
 
 /// What a sweep's progress stream carries.
@@ -664,25 +709,15 @@ pub fn run(
 ) -> Result<SweepDocument, CoreError> {
     let started = Instant::now();
     let progress = Progress::new(job.cells(), emit);
-    let cells = job
-        .run_cells(0..job.cells(), budget, &|| progress.add(1))?
-        .ok_or_else(|| stopped(budget))?;
-    Ok(job.document(cells, started.elapsed().as_secs_f64() * 1e3))
+    let cells = job.run_cells_within(0..job.cells(), budget, &|| progress.add(1))?;
+    job.document_within(cells, budget, started.elapsed().as_secs_f64() * 1e3)
 }
 
-/// The error for a sweep the budget stopped.
-pub fn stopped(budget: Budget<'_>) -> CoreError {
-    if budget.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
-        CoreError::Cancelled {
-            what: "sweep",
-            shutdown: true,
-        }
-    } else {
-        CoreError::TimeLimit {
-            field: None,
-            message: "the sweep did not finish within the time limit; use fewer cells, a shorter \
-                      t_end, or shards (`--shard`) on several machines"
-                .into(),
-        }
+/// The error for a sweep its cancellation flag stopped (the time limit gives a partial
+/// document instead, see [`SweepJob::document_within`]).
+fn cancelled() -> CoreError {
+    CoreError::Cancelled {
+        what: "sweep",
+        shutdown: true,
     }
 }
