@@ -208,7 +208,7 @@ impl Job<'_> {
         url: &str,
         sink: GrpcSink,
     ) -> ExitCode {
-        let header = self.sim.header(self.sim.has_energy_error());
+        let header = self.sim.header();
         let name = recording::recording_name(&header.system.id, &header.methods);
         let (file, mut text) = match format {
             Format::Rrd => (Some(out), None),

@@ -59,7 +59,8 @@ pub struct StreamHeader {
     pub methods: Vec<String>,
     /// Names of the invariants in each chunk's `invariants`.
     pub invariants: Vec<String>,
-    /// Whether chunks carry `energy_error`.
+    /// Whether chunks carry `energy_error` (they do not when a reference run asked for stopped at
+    /// the time limit: the runs then stop at their first sample).
     pub energy_error: bool,
     /// Whether chunks carry `jacobian_defect`.
     pub jacobian_defect: bool,
@@ -162,10 +163,8 @@ impl Simulation {
         (self.q0.len() == 1 && conformal).then(|| diagnostics::dissipation_drift(t, q, 0.5 * rate))
     }
 
-    /// The header line of this simulation's stream; `energy_error`: whether its chunks carry
-    /// energy errors (see [`Simulation::has_energy_error`]; not when the reference run did not
-    /// finish in time).
-    pub fn header(&self, energy_error: bool) -> StreamHeader {
+    /// The header line of this simulation's stream.
+    pub fn header(&self) -> StreamHeader {
         StreamHeader {
             system: SystemSummary::of(self),
             methods: self.methods.iter().map(|m| m.label()).collect(),
@@ -174,7 +173,7 @@ impl Simulation {
                 .iter()
                 .map(|s| s.to_string())
                 .collect(),
-            energy_error,
+            energy_error: self.has_energy_error(),
             jacobian_defect: self.jacobian_defect,
             schedule: ScheduleSummary::of(self),
         }
@@ -231,25 +230,17 @@ impl Simulation {
         }
     }
 
-    /// Runs the whole simulation, emitting its stream: the reference run if asked for, the
-    /// header, every method (on up to `workers` threads), and the `end` line. A reference run
-    /// that reaches the time limit leaves the methods no time: they stop with `time_limit` at
-    /// their first sample, without energy errors, as any run past the deadline does.
+    /// Runs the whole simulation, emitting its stream: header, the reference run if asked for,
+    /// every method (on up to `workers` threads), and the `end` line. A reference run that
+    /// reaches the time limit leaves the methods no time: they stop with `time_limit` at their
+    /// first sample, whose chunk has no energy error, as any run past the deadline does.
     pub fn stream(&self, workers: usize, budget: Budget<'_>, emit: Emit<'_>) {
-        let reference = match self.reference_energies(budget) {
-            Ok(r) => Ok(r),
-            Err(CoreError::TimeLimit { .. }) => Ok(None),
-            Err(e) => Err(e),
-        };
-        let energy_error = match &reference {
-            Ok(r) => r.is_some() || self.info.exact_solution,
-            Err(_) => self.has_energy_error(),
-        };
-        if !emit(StreamLine::Header(self.header(energy_error))) {
+        if !emit(StreamLine::Header(self.header())) {
             return;
         }
-        let reference = match reference {
+        let reference = match self.reference_energies(budget) {
             Ok(r) => r,
+            Err(CoreError::TimeLimit { .. }) => None,
             Err(e) => {
                 emit(StreamLine::Error(StreamError {
                     method: None,
@@ -460,10 +451,10 @@ mod tests {
         .unwrap();
         let sim = spec.prepare(&Limits::default()).unwrap();
         let mut collector = DocumentCollector::new();
-        collector.push(StreamLine::Header(sim.header(true)));
+        collector.push(StreamLine::Header(sim.header()));
         assert_eq!(collector.finish().unwrap_err().code, ErrorCode::Internal);
         let mut collector = DocumentCollector::new();
-        collector.push(StreamLine::Header(sim.header(true)));
+        collector.push(StreamLine::Header(sim.header()));
         collector.push(StreamLine::Error(StreamError {
             method: None,
             error: ErrorDetail::new(ErrorCode::Timeout, "late"),
