@@ -1,5 +1,8 @@
 //! ns per step of the core's hot loop, measured like the hand-written floor loops beside the
 //! project (`../shared/peers/floor`, subcommand `bench`); the timing loop is in `common`.
+//! Each method twice: step by step (the form of the floor's plain loops 3S-DKD, 3S-KDK, Heun,
+//! RK4) and as runs take it, in stretches between samples where a splitting fuses the last flow
+//! of a step with the first of the next (the form of the floor's 3S-DKDm).
 //!
 //! P1: damped pendulum, ε = 0.01, q0 = 0.9π, p0 = 0. P2: elastic 3-D pendulum, ε = 0.1,
 //! q0 = (0, 1.55884573, −0.6), p0 = (1.34164079, 0, 0) (paper 000 Secs. 4.3 and 6.2).
@@ -11,7 +14,7 @@ use geomint::core::system::State;
 use geomint::core::systems::{ElasticPendulum3d, Pendulum};
 
 mod common;
-use common::measure;
+use common::{measure, measure_step_by_step};
 
 /// Wall time of 400×400 stability maps (ω = 3.51, γ ∈ [0, 3.5], h ∈ [0, 1]) for every
 /// fixed-step method, computed in parallel over the cores.
@@ -63,15 +66,21 @@ fn main() {
         Method::new(MethodId::Rk4),
         Method::new(MethodId::Heun),
     ];
-    println!("| problem | method | ns/step (median of 7 × 10⁷ steps) | checksum |");
-    println!("|---|---|---|---|");
+    println!(
+        "| problem | method | ns/step, step by step | ns/step, fused stretches | checksum (fused) |"
+    );
+    println!("|---|---|---|---|---|");
     let p1 = Pendulum { gamma: 0.005 };
     let p1_start = State::from_slices(nalgebra::U1, &[0.9 * std::f64::consts::PI], &[0.0]);
     for c in &choices {
         let name = format!("P1 {}", c.label());
         if wanted(&name) {
+            let (single, _) = measure_step_by_step(&p1, c, &p1_start);
             let (ns, sum) = measure(&p1, c, &p1_start);
-            println!("| P1 pendulum | {} | {ns:.1} | {sum:.6e} |", c.label());
+            println!(
+                "| P1 pendulum | {} | {single:.1} | {ns:.1} | {sum:.6e} |",
+                c.label()
+            );
         }
     }
     let p2 = ElasticPendulum3d {
@@ -89,9 +98,10 @@ fn main() {
     for c in choices.iter().filter(|c| c.id() != MethodId::Csv1) {
         let name = format!("P2 {}", c.label());
         if wanted(&name) {
+            let (single, _) = measure_step_by_step(&p2, c, &p2_start);
             let (ns, sum) = measure(&p2, c, &p2_start);
             println!(
-                "| P2 elastic pendulum | {} | {ns:.1} | {sum:.6e} |",
+                "| P2 elastic pendulum | {} | {single:.1} | {ns:.1} | {sum:.6e} |",
                 c.label()
             );
         }

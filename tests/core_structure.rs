@@ -518,3 +518,163 @@ fn propagated_step_jacobians_equal_finite_differences_of_the_step() {
         );
     }
 }
+
+/// Runs `method` on `sys` for `steps` steps of `h`, sampling every `every` steps: with `every` = 1
+/// the driver asks for one step at a time (nothing to fuse), with `every` = `steps` for stretches
+/// of up to 1024 steps, which splittings run with their end flows fused.
+fn final_state<S: MechanicalSystem>(
+    sys: &S,
+    method: &geomint::core::methods::Method,
+    start: &State<S::Dim>,
+    h: f64,
+    steps: u64,
+    every: u64,
+) -> (State<S::Dim>, geomint::core::run::StopReason, u64)
+where
+    nalgebra::DefaultAllocator: nalgebra::allocator::Allocator<S::Dim>,
+{
+    use geomint::core::run::{integrate, Budget, Observer, Schedule};
+    struct Nothing;
+    impl<D: nalgebra::Dim> Observer<D> for Nothing
+    where
+        nalgebra::DefaultAllocator: nalgebra::allocator::Allocator<D>,
+    {
+        fn on_sample(&mut self, _: u64, _: f64, _: &State<D>) {}
+    }
+    let mut stepper = geomint::core::methods::build(method, sys, "test", h).expect("builds");
+    let mut z = start.clone();
+    let (stop, stats) = integrate(
+        sys,
+        &mut stepper,
+        &mut z,
+        Schedule { h, steps, every },
+        Budget::default(),
+        false,
+        &mut Nothing,
+    )
+    .expect("runs");
+    (z, stop, stats.force_evaluations)
+}
+
+#[test]
+fn fused_stretches_agree_with_single_steps_to_round_off() {
+    use geomint::core::methods::composition::Scheme;
+    use geomint::core::methods::{Base, Method, MethodId};
+    use geomint::core::systems::Pendulum;
+    let fusing = [
+        Method::new(MethodId::Modin3s),
+        Method::new(MethodId::Modin2s),
+        Method::new(MethodId::ModinRks),
+        Method::new(MethodId::Csv1),
+        Method::new(MethodId::PositionVerlet),
+        Method::composition(Scheme::KahanLi8, Base::Modin3s),
+        Method::composition(Scheme::TripleJump, Base::Csv1),
+    ];
+    let steps = 20_000;
+    // The largest difference of one component, required to be round-off.
+    fn apart<D: nalgebra::Dim>(a: &State<D>, b: &State<D>, system: &str, method: &Method) -> f64
+    where
+        nalgebra::DefaultAllocator: nalgebra::allocator::Allocator<D>,
+    {
+        let d =
+            a.q.iter()
+                .chain(a.p.iter())
+                .zip(b.q.iter().chain(b.p.iter()))
+                .map(|(x, y)| (x - y).abs())
+                .fold(0.0, f64::max);
+        assert!(
+            d < 1e-11,
+            "{system} {}: fused differs by {d:e}",
+            method.label()
+        );
+        d
+    }
+    let mut worst = 0.0f64;
+    for method in &fusing {
+        let pendulum = Pendulum { gamma: 0.05 };
+        let start = State::from_slices(U1, &[2.5], &[0.3]);
+        let elastic = ElasticPendulum3d {
+            m: 1.0,
+            k: 1.0,
+            l: 1.0,
+            g: 1.0,
+            epsilon: 0.1,
+        };
+        let elastic_start =
+            State::from_slices(U3, &[0.0, 1.558_845_73, -0.6], &[1.341_640_79, 0.0, 0.0]);
+        let pairs = [(
+            final_state(&pendulum, method, &start, 0.05, steps, 1),
+            final_state(&pendulum, method, &start, 0.05, steps, steps),
+        )];
+        // csv1 needs conformal damping, which the elastic pendulum's radial damping is not.
+        let elastic_pairs: Vec<_> = if method.label().contains("csv1") {
+            Vec::new()
+        } else {
+            vec![(
+                final_state(&elastic, method, &elastic_start, 0.05, steps, 1),
+                final_state(&elastic, method, &elastic_start, 0.05, steps, steps),
+            )]
+        };
+        for ((single, _, single_forces), (fused, stop, fused_forces)) in pairs {
+            assert!(matches!(stop, geomint::core::run::StopReason::Finished));
+            assert_eq!(single_forces, fused_forces, "{}", method.label());
+            worst = worst.max(apart(&single, &fused, "pendulum", method));
+        }
+        for ((single, _, single_forces), (fused, stop, fused_forces)) in elastic_pairs {
+            assert!(matches!(stop, geomint::core::run::StopReason::Finished));
+            assert_eq!(single_forces, fused_forces, "{}", method.label());
+            worst = worst.max(apart(&single, &fused, "elastic pendulum", method));
+            // J₃ = q₁p₂ − q₂p₁ is conserved by the radial damping: to round-off in both forms.
+            let j3 = |z: &State<U3>| z.q[0] * z.p[1] - z.q[1] * z.p[0];
+            let j3_start = j3(&elastic_start);
+            assert!(
+                (j3(&fused) - j3_start).abs() < 1e-12,
+                "{}: J3 drifts",
+                method.label()
+            );
+        }
+    }
+    eprintln!("fused against single steps: largest difference {worst:e}");
+    // The fused form is really taken: it is not bit for bit the step-by-step one.
+    let pendulum = Pendulum { gamma: 0.05 };
+    let start = State::from_slices(U1, &[2.5], &[0.3]);
+    let m = Method::new(MethodId::Modin3s);
+    let single = final_state(&pendulum, &m, &start, 0.05, steps, 1).0;
+    let fused = final_state(&pendulum, &m, &start, 0.05, steps, steps).0;
+    assert_ne!((single.q[0], single.p[0]), (fused.q[0], fused.p[0]));
+    assert!(worst > 0.0);
+    // A method whose ends do not fuse (velocity Verlet's two half kicks are different θ-kicks)
+    // runs the same bits either way.
+    let m = Method::new(MethodId::VelocityVerlet);
+    let single = final_state(&pendulum, &m, &start, 0.05, steps, 1).0;
+    let fused = final_state(&pendulum, &m, &start, 0.05, steps, steps).0;
+    assert_eq!((single.q[0], single.p[0]), (fused.q[0], fused.p[0]));
+}
+
+#[test]
+fn a_fused_stretch_that_diverges_stops_where_single_steps_stop() {
+    use geomint::core::methods::{Method, MethodId};
+    use geomint::core::run::StopReason;
+    // ωh = 2.5 > 2: modin_3s is unstable on the oscillator and overflows after a few hundred
+    // steps, inside the first fused stretch.
+    let sys = HarmonicOscillator {
+        omega: 50.0,
+        gamma: 0.0,
+    };
+    let start = State::from_slices(U1, &[1.0], &[0.0]);
+    for id in [MethodId::Modin3s, MethodId::Modin2s, MethodId::Csv1] {
+        let m = Method::new(id);
+        let (single, single_stop, _) = final_state(&sys, &m, &start, 0.05, 5000, 1);
+        let (fused, fused_stop, _) = final_state(&sys, &m, &start, 0.05, 5000, 5000);
+        let step = match single_stop {
+            StopReason::Diverged { step, .. } => step,
+            other => panic!("{id:?}: expected divergence, got {other:?}"),
+        };
+        assert!(step < 1024, "{id:?}: diverged only at step {step}");
+        assert!(
+            matches!(fused_stop, StopReason::Diverged { step: s, .. } if s == step),
+            "{id:?}: {fused_stop:?} against step {step}"
+        );
+        assert_eq!(single.q.as_slice(), fused.q.as_slice(), "{id:?}");
+    }
+}

@@ -28,6 +28,25 @@ where
     /// Advances `z` by one step of size `h`.
     fn step(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64) -> Result<(), StepError>;
 
+    /// Advances `z` by up to `n` steps of size `h` with nothing observed in between, stopping
+    /// early after a step that leaves a non-finite state or at a step that fails. Returns the
+    /// number of steps completed and, if one failed, its error (the state is then the one before
+    /// that step). The default is the loop of [`Stepper::step`]; it is one call per stretch
+    /// between samples, so a stepper chosen at run time ([`AnyStepper`]) dispatches once per
+    /// stretch and the loop around a concrete `step` compiles to straight-line code.
+    ///
+    /// [`AnyStepper`]: crate::core::methods::AnyStepper
+    #[inline]
+    fn advance(
+        &mut self,
+        sys: &S,
+        z: &mut State<S::Dim>,
+        h: f64,
+        n: u64,
+    ) -> (u64, Result<(), StepError>) {
+        step_by_step(self, sys, z, h, n)
+    }
+
     /// Gradient (∇V or ∂H/∂q) evaluations so far.
     fn force_evaluations(&self) -> u64;
 
@@ -83,6 +102,16 @@ where
     fn step(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64) -> Result<(), StepError> {
         (**self).step(sys, z, h)
     }
+    #[inline]
+    fn advance(
+        &mut self,
+        sys: &S,
+        z: &mut State<S::Dim>,
+        h: f64,
+        n: u64,
+    ) -> (u64, Result<(), StepError>) {
+        (**self).advance(sys, z, h, n)
+    }
     fn force_evaluations(&self) -> u64 {
         (**self).force_evaluations()
     }
@@ -113,6 +142,42 @@ where
     ) -> Result<(), StepError> {
         (**self).step_tangent(sys, z, h, tangent)
     }
+}
+
+/// [`Stepper::advance`] as `n` calls of [`Stepper::step`]: stops after the first step that
+/// leaves a non-finite state, or at a failed step.
+#[inline(always)]
+pub fn step_by_step<S, M>(
+    stepper: &mut M,
+    sys: &S,
+    z: &mut State<S::Dim>,
+    h: f64,
+    n: u64,
+) -> (u64, Result<(), StepError>)
+where
+    S: MechanicalSystem,
+    M: Stepper<S> + ?Sized,
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    for done in 0..n {
+        if let Err(e) = stepper.step(sys, z, h) {
+            return (done, Err(e));
+        }
+        if !finite(z) {
+            return (done + 1, Ok(()));
+        }
+    }
+    (n, Ok(()))
+}
+
+/// Whether every component of `z` is finite: one sum is finite iff every component is (overflow
+/// aside, which is divergence too), and it is cheaper than testing each component.
+#[inline(always)]
+pub fn finite<D: nalgebra::Dim>(z: &State<D>) -> bool
+where
+    DefaultAllocator: Allocator<D>,
+{
+    (z.q.sum() + z.p.sum()).is_finite()
 }
 
 /// The number of steps for a run of step `h` to `t_end`: ceil(t_end/h − 1e-9).
@@ -285,21 +350,12 @@ where
         };
         match tangent.as_mut() {
             None => {
-                while step < until {
-                    match stepper.step(sys, z, h) {
-                        Ok(()) => {}
-                        Err(StepError::DeadlinePassed) => {
-                            stop = StopReason::TimeLimit { step };
-                            break;
-                        }
-                        Err(e) => return Err(fail(step, e)),
-                    }
-                    step += 1;
-                    // One sum is finite iff every component is (overflow aside, which is
-                    // divergence too): cheaper than testing each component.
-                    if !(z.q.sum() + z.p.sum()).is_finite() {
-                        break;
-                    }
+                let (done, outcome) = stepper.advance(sys, z, h, until - step);
+                step += done;
+                match outcome {
+                    Ok(()) => {}
+                    Err(StepError::DeadlinePassed) => stop = StopReason::TimeLimit { step },
+                    Err(e) => return Err(fail(step, e)),
                 }
             }
             Some(tg) => {

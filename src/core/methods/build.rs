@@ -10,10 +10,10 @@ use super::conformal::Csv2;
 use super::implicit::{ImplicitMidpoint, MidpointField};
 use super::reference::Reference;
 use super::rowlands::Rowlands;
-use super::runge_kutta::{self, InnerRk, MomentumRk, RungeKutta, Tableau};
-use super::splitting::{self, Splitting, SubFlow};
+use super::runge_kutta::{self, InnerRk, KnownTableau, MomentumRk, RungeKutta, Tableau};
+use super::splitting::{self, KnownSequence, Splitting, SubFlow};
 use super::symplectic_euler::{GeneralSymplecticEuler, Variant};
-use super::{Base, Method, MethodId};
+use super::{Base, Known, Method, MethodId};
 use crate::core::error::{CoreError, Field, StepError};
 use crate::core::flows::Tangent;
 use crate::core::run::Stepper;
@@ -50,10 +50,32 @@ pub enum AnyStepper<S: MechanicalSystem>
 where
     DefaultAllocator: Allocator<S::Dim>,
 {
-    /// A splitting, or a composition of splittings.
+    /// A composition of splittings: its sequence is built at run time.
     Splitting(Splitting<S>),
-    /// An explicit Runge–Kutta method.
-    RungeKutta(RungeKutta<S::Dim>),
+    /// modin_3s.
+    Modin3s(Splitting<S, Known<splitting::Modin3s>>),
+    /// modin_2s.
+    Modin2s(Splitting<S, Known<splitting::Modin2s>>),
+    /// modin_rks.
+    ModinRks(Splitting<S, Known<splitting::ModinRks>>),
+    /// csv1.
+    Csv1(Splitting<S, Known<splitting::Csv1>>),
+    /// Symplectic Euler on a separable Hamiltonian.
+    SymplecticEuler(Splitting<S, Known<splitting::SymplecticEuler>>),
+    /// The adjoint symplectic Euler on a separable Hamiltonian.
+    SymplecticEulerAdjoint(Splitting<S, Known<splitting::SymplecticEulerAdjoint>>),
+    /// position_verlet.
+    PositionVerlet(Splitting<S, Known<splitting::PositionVerlet>>),
+    /// velocity_verlet.
+    VelocityVerlet(Splitting<S, Known<splitting::VelocityVerlet>>),
+    /// explicit_euler.
+    ExplicitEuler(RungeKutta<S::Dim, Known<runge_kutta::ExplicitEuler>>),
+    /// heun.
+    Heun(RungeKutta<S::Dim, Known<runge_kutta::Heun>>),
+    /// rk3.
+    Rk3(RungeKutta<S::Dim, Known<runge_kutta::Rk3>>),
+    /// rk4.
+    Rk4(RungeKutta<S::Dim, Known<runge_kutta::Rk4>>),
     /// implicit_midpoint or cimp.
     Midpoint(ImplicitMidpoint<S>),
     /// csv2.
@@ -76,7 +98,18 @@ macro_rules! with_stepper {
     ($any:expr, $st:ident => $body:expr) => {
         match $any {
             $crate::core::methods::AnyStepper::Splitting($st) => $body,
-            $crate::core::methods::AnyStepper::RungeKutta($st) => $body,
+            $crate::core::methods::AnyStepper::Modin3s($st) => $body,
+            $crate::core::methods::AnyStepper::Modin2s($st) => $body,
+            $crate::core::methods::AnyStepper::ModinRks($st) => $body,
+            $crate::core::methods::AnyStepper::Csv1($st) => $body,
+            $crate::core::methods::AnyStepper::SymplecticEuler($st) => $body,
+            $crate::core::methods::AnyStepper::SymplecticEulerAdjoint($st) => $body,
+            $crate::core::methods::AnyStepper::PositionVerlet($st) => $body,
+            $crate::core::methods::AnyStepper::VelocityVerlet($st) => $body,
+            $crate::core::methods::AnyStepper::ExplicitEuler($st) => $body,
+            $crate::core::methods::AnyStepper::Heun($st) => $body,
+            $crate::core::methods::AnyStepper::Rk3($st) => $body,
+            $crate::core::methods::AnyStepper::Rk4($st) => $body,
             $crate::core::methods::AnyStepper::Midpoint($st) => $body,
             $crate::core::methods::AnyStepper::Csv2($st) => $body,
             $crate::core::methods::AnyStepper::ComposedMidpoint($st) => $body,
@@ -94,6 +127,15 @@ where
 {
     fn step(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64) -> Result<(), StepError> {
         with_stepper!(self, st => st.step(sys, z, h))
+    }
+    fn advance(
+        &mut self,
+        sys: &S,
+        z: &mut State<S::Dim>,
+        h: f64,
+        n: u64,
+    ) -> (u64, Result<(), StepError>) {
+        with_stepper!(self, st => advance_out_of_line(st, sys, z, h, n))
     }
     fn force_evaluations(&self) -> u64 {
         with_stepper!(self, st => Stepper::<S>::force_evaluations(st))
@@ -125,6 +167,23 @@ where
     ) -> Result<(), StepError> {
         with_stepper!(self, st => st.step_tangent(sys, z, h, t))
     }
+}
+
+/// One concrete stepper's [`Stepper::advance`] as a function of its own: the compiler then
+/// inlines that stepper's step into its loop, which it stops doing inside one function that
+/// holds the loops of every kind of stepper.
+#[inline(never)]
+fn advance_out_of_line<S: MechanicalSystem, M: Stepper<S>>(
+    stepper: &mut M,
+    sys: &S,
+    z: &mut State<S::Dim>,
+    h: f64,
+    n: u64,
+) -> (u64, Result<(), StepError>)
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    stepper.advance(sys, z, h, n)
 }
 
 /// Where a method and its step size come from, as errors name them, and the system as they
@@ -179,26 +238,34 @@ where
     Ok(stepper(method, sys))
 }
 
-/// The stepper of a checked method.
+/// The stepper of a checked method. The built-in splittings and tableaux get steppers with their
+/// coefficients known at compile time; compositions build their sequence at run time.
 fn stepper<S: MechanicalSystem>(method: &Method, sys: &S) -> AnyStepper<S>
 where
     DefaultAllocator: Allocator<S::Dim>,
 {
-    let splitting = |seq: Vec<(SubFlow, f64)>, inner: Option<MethodId>| {
-        let inner = inner.map(|i| {
-            MomentumRk::new(
-                tableau(i).map_or(InnerRk::ImplicitMidpoint, InnerRk::Explicit),
-                sys.dim(),
-            )
-        });
-        AnyStepper::Splitting(Splitting::new(sys, seq, inner))
-    };
+    fn known<S: MechanicalSystem, K: KnownSequence>(sys: &S) -> Splitting<S, Known<K>>
+    where
+        DefaultAllocator: Allocator<S::Dim>,
+    {
+        Splitting::new(sys, Known::new(), None)
+    }
+    fn explicit<D: nalgebra::Dim, K: KnownTableau>(dim: D) -> RungeKutta<D, Known<K>>
+    where
+        DefaultAllocator: Allocator<D>,
+    {
+        RungeKutta::new(Known::new(), dim)
+    }
     let separable = sys.structure().separable_constant_mass;
     match *method {
         Method::Composition { scheme, base } => {
             let weights = scheme.weights();
             match (sequence(base.id()), base) {
-                (Some(seq), _) => splitting(splitting::compose(seq, &weights), None),
+                (Some(seq), _) => AnyStepper::Splitting(Splitting::new(
+                    sys,
+                    splitting::compose(seq, &weights),
+                    None,
+                )),
                 (None, Base::Csv2) => {
                     AnyStepper::ComposedCsv2(Composed::new(Csv2::new(sys), weights))
                 }
@@ -212,7 +279,13 @@ where
                 )),
             }
         }
-        Method::ModinRks { inner } => splitting(splitting::MODIN_RKS.to_vec(), Some(inner.id())),
+        Method::ModinRks { inner } => {
+            let inner = MomentumRk::new(
+                tableau(inner.id()).map_or(InnerRk::ImplicitMidpoint, InnerRk::Explicit),
+                sys.dim(),
+            );
+            AnyStepper::ModinRks(Splitting::new(sys, Known::new(), Some(inner)))
+        }
         Method::Reference { tolerance } => {
             AnyStepper::Reference(Reference::new(tolerance, sys.dim()))
         }
@@ -231,12 +304,19 @@ where
                 AnyStepper::Midpoint(ImplicitMidpoint::new(sys, MidpointField::Conformal))
             }
             MethodId::Csv2 => AnyStepper::Csv2(Csv2::new(sys)),
-            id => match (tableau(id), sequence(id)) {
-                (Some(t), _) => AnyStepper::RungeKutta(RungeKutta::new(t, sys.dim())),
-                (None, Some(seq)) => splitting(seq.to_vec(), None),
-                // A method with options written as `Plain`: its defaults.
-                (None, None) => stepper(&Method::new(id), sys),
-            },
+            MethodId::Modin3s => AnyStepper::Modin3s(known(sys)),
+            MethodId::Modin2s => AnyStepper::Modin2s(known(sys)),
+            MethodId::Csv1 => AnyStepper::Csv1(known(sys)),
+            MethodId::SymplecticEuler => AnyStepper::SymplecticEuler(known(sys)),
+            MethodId::SymplecticEulerAdjoint => AnyStepper::SymplecticEulerAdjoint(known(sys)),
+            MethodId::PositionVerlet => AnyStepper::PositionVerlet(known(sys)),
+            MethodId::VelocityVerlet => AnyStepper::VelocityVerlet(known(sys)),
+            MethodId::ExplicitEuler => AnyStepper::ExplicitEuler(explicit(sys.dim())),
+            MethodId::Heun => AnyStepper::Heun(explicit(sys.dim())),
+            MethodId::Rk3 => AnyStepper::Rk3(explicit(sys.dim())),
+            MethodId::Rk4 => AnyStepper::Rk4(explicit(sys.dim())),
+            // A method with options written as `Plain`: its defaults.
+            id => stepper(&Method::new(id), sys),
         },
     }
 }

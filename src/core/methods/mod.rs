@@ -25,6 +25,56 @@ pub use build::{build, AnyStepper};
 use composition::Scheme;
 use rowlands::Processor;
 
+/// A method's coefficients as a type, `K` naming a constant table (a splitting's sequence, a
+/// Butcher tableau): a stepper generic over it sees the table when it is compiled, so its loops
+/// over flows or stages unroll and fold. The same steppers also take tables built at run time.
+pub struct Known<K>(std::marker::PhantomData<fn() -> K>);
+
+impl<K> Known<K> {
+    /// The table `K`.
+    pub const fn new() -> Self {
+        Self(std::marker::PhantomData)
+    }
+}
+
+impl<K> Default for Known<K> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// Runs `$body` with `$k` bound to 0, 1, …, `$n` − 1, the block written out once per index for
+/// `$n` ≤ 6 (the stages of the built-in tableaux, the flows of the built-in splittings): with the
+/// table known at compile time `$n` is a constant, each copy sees a constant index, and the
+/// coefficients and the kind of each flow fold. The compiler does not reliably unroll such loops
+/// by itself once their bodies are large, nor inline a closure that is called several times.
+macro_rules! unroll {
+    ($n:expr, $k:ident => $body:block) => {{
+        let n: usize = $n;
+        match n {
+            0 => {}
+            1 => unroll!(@at $k $body 0),
+            2 => unroll!(@at $k $body 0 1),
+            3 => unroll!(@at $k $body 0 1 2),
+            4 => unroll!(@at $k $body 0 1 2 3),
+            5 => unroll!(@at $k $body 0 1 2 3 4),
+            6 => unroll!(@at $k $body 0 1 2 3 4 5),
+            _ => {
+                for $k in 0..n {
+                    $body
+                }
+            }
+        }
+    }};
+    (@at $k:ident $body:block $($i:literal)*) => {{
+        $({
+            let $k: usize = $i;
+            $body
+        })*
+    }};
+}
+pub(crate) use unroll;
+
 /// How much work a step takes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, ToSchema)]
 #[serde(rename_all = "snake_case")]

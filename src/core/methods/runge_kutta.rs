@@ -6,7 +6,7 @@ use nalgebra::allocator::Allocator;
 use nalgebra::{DMatrix, DefaultAllocator, Dim};
 
 use super::sources::*;
-use super::{Citation, Group, Kind, MethodInfo};
+use super::{unroll, Citation, Group, Kind, Known, MethodInfo};
 use crate::core::error::StepError;
 use crate::core::flows::{self, Tangent};
 use crate::core::run::Stepper;
@@ -79,12 +79,64 @@ impl Tableau {
     }
 }
 
+/// Where a Runge–Kutta stepper's tableau comes from: a reference chosen at run time, or a
+/// tableau known when the program is compiled ([`Known`]), whose stage loops then unroll with the
+/// zero coefficients dropped.
+pub trait TableauSource {
+    /// The tableau.
+    fn tableau(&self) -> &'static Tableau;
+}
+
+impl TableauSource for &'static Tableau {
+    #[inline(always)]
+    fn tableau(&self) -> &'static Tableau {
+        self
+    }
+}
+
+/// A Butcher tableau known when the program is compiled.
+pub trait KnownTableau {
+    /// The tableau.
+    const TABLEAU: &'static Tableau;
+}
+
+impl<K: KnownTableau> TableauSource for Known<K> {
+    #[inline(always)]
+    fn tableau(&self) -> &'static Tableau {
+        K::TABLEAU
+    }
+}
+
+/// Declares a marker type for each built-in tableau.
+macro_rules! known_tableaux {
+    ($($(#[$doc:meta])* $marker:ident = $tableau:ident;)*) => {
+        $(
+            $(#[$doc])*
+            pub struct $marker;
+            impl KnownTableau for $marker {
+                const TABLEAU: &'static Tableau = &$tableau;
+            }
+        )*
+    };
+}
+
+known_tableaux! {
+    /// [`EXPLICIT_EULER`] as a type.
+    ExplicitEuler = EXPLICIT_EULER;
+    /// [`HEUN`] as a type.
+    Heun = HEUN;
+    /// [`RK3`] as a type.
+    Rk3 = RK3;
+    /// [`RK4`] as a type.
+    Rk4 = RK4;
+}
+
 /// An explicit Runge–Kutta method on the full vector field.
-pub struct RungeKutta<D: Dim>
+pub struct RungeKutta<D: Dim, T: TableauSource = &'static Tableau>
 where
     DefaultAllocator: Allocator<D>,
 {
-    tableau: &'static Tableau,
+    tableau: T,
     kq: Vec<Vector<D>>,
     kp: Vec<Vector<D>>,
     stage: State<D>,
@@ -93,14 +145,14 @@ where
     stage_tangents: Vec<DMatrix<f64>>,
 }
 
-impl<D: Dim> RungeKutta<D>
+impl<D: Dim, T: TableauSource> RungeKutta<D, T>
 where
     DefaultAllocator: Allocator<D>,
 {
     /// A stepper for `tableau` on a system of dimension `dim`.
-    pub fn new(tableau: &'static Tableau, dim: D) -> Self {
+    pub fn new(tableau: T, dim: D) -> Self {
         let zero = Vector::<D>::zeros_generic(dim, nalgebra::U1);
-        let s = tableau.stages();
+        let s = tableau.tableau().stages();
         Self {
             tableau,
             kq: vec![zero.clone(); s],
@@ -116,35 +168,33 @@ where
     }
 }
 
-impl<S: MechanicalSystem> Stepper<S> for RungeKutta<S::Dim>
+impl<S: MechanicalSystem, T: TableauSource> Stepper<S> for RungeKutta<S::Dim, T>
 where
     DefaultAllocator: Allocator<S::Dim>,
 {
-    #[inline]
+    #[inline(always)]
     fn step(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64) -> Result<(), StepError> {
-        let t = self.tableau;
-        for i in 0..t.stages() {
-            self.stage.q.copy_from(&z.q);
-            self.stage.p.copy_from(&z.p);
+        let t = self.tableau.tableau();
+        let stages = t.stages();
+        // One bounds check here instead of one per use.
+        let (kq, kp) = (&mut self.kq[..stages], &mut self.kp[..stages]);
+        let (stage, scratch) = (&mut self.stage, &mut self.scratch);
+        unroll!(stages, i => {
+            stage.q.copy_from(&z.q);
+            stage.p.copy_from(&z.p);
             for (j, &a) in t.a[i].iter().enumerate() {
                 if a != 0.0 {
-                    self.stage.q.axpy(h * a, &self.kq[j], 1.0);
-                    self.stage.p.axpy(h * a, &self.kp[j], 1.0);
+                    stage.q.axpy(h * a, &kq[j], 1.0);
+                    stage.p.axpy(h * a, &kp[j], 1.0);
                 }
             }
-            sys.vector_field(
-                &self.stage.q,
-                &self.stage.p,
-                &mut self.kq[i],
-                &mut self.kp[i],
-                &mut self.scratch,
-            );
-        }
-        for (i, &b) in t.b.iter().enumerate() {
-            z.q.axpy(h * b, &self.kq[i], 1.0);
-            z.p.axpy(h * b, &self.kp[i], 1.0);
-        }
-        self.force_evaluations += t.stages() as u64;
+            sys.vector_field(&stage.q, &stage.p, &mut kq[i], &mut kp[i], scratch);
+        });
+        unroll!(stages, i => {
+            z.q.axpy(h * t.b[i], &kq[i], 1.0);
+            z.p.axpy(h * t.b[i], &kp[i], 1.0);
+        });
+        self.force_evaluations += stages as u64;
         Ok(())
     }
 
@@ -161,7 +211,7 @@ where
         h: f64,
         tangent: &mut Tangent,
     ) -> Result<(), StepError> {
-        let t = self.tableau;
+        let t = self.tableau.tableau();
         let n = z.q.len();
         let r = sys.damping_rate();
         if self.stage_tangents.len() != t.stages() {

@@ -19,6 +19,10 @@
 //! csv1 and modin_3s all cost one force evaluation per step (003 Table 4.1 counts two for csv1
 //! because it does not reuse; we count what we evaluate). Compositions (the triple jump) are
 //! built by scaling and concatenating sequences, then fusing adjacent flows of the same kind.
+//!
+//! The built-in sequences are also types ([`Known`]), so their steps compile to straight-line
+//! code; between two samples, the last flow of a step and the first of the next are fused too
+//! when they are of one kind ([`Splitting::advance`]), which changes results by round-off only.
 
 use nalgebra::allocator::Allocator;
 use nalgebra::DefaultAllocator;
@@ -26,7 +30,7 @@ use nalgebra::DefaultAllocator;
 use super::runge_kutta::MomentumRk;
 use crate::core::error::StepError;
 use crate::core::flows::{self, Tangent};
-use crate::core::run::Stepper;
+use crate::core::run::{finite, step_by_step, Stepper};
 use crate::core::system::{MechanicalSystem, State, Vector};
 
 /// The implicitness θ of a damped kick.
@@ -83,7 +87,7 @@ impl SubFlow {
 pub type Sequence = &'static [(SubFlow, f64)];
 
 use super::sources::*;
-use super::{Citation, Group, Kind, MethodInfo, MethodOption, Requirement};
+use super::{unroll, Citation, Group, Kind, Known, MethodInfo, MethodOption, Requirement};
 use SubFlow::*;
 
 /// Paper 000, Algorithm 3.1.
@@ -138,40 +142,126 @@ pub fn compose(base: &[(SubFlow, f64)], weights: &[f64]) -> Vec<(SubFlow, f64)> 
     out
 }
 
+/// Where a splitting's sub-flows come from: a sequence built at run time (a composition), or
+/// one fixed in the program ([`Known`]), for which the compiler unrolls the step and resolves
+/// each flow's kind, so a built-in method runs as the straight-line code one would write by hand.
+pub trait Flows {
+    /// Whether the sequence is known at compile time: the composer then writes its step out
+    /// flow by flow; a sequence built at run time is looped over.
+    const KNOWN: bool;
+    /// The sub-flows with their fractions of h, in the order they act.
+    fn flows(&self) -> &[(SubFlow, f64)];
+}
+
+impl Flows for Vec<(SubFlow, f64)> {
+    const KNOWN: bool = false;
+    #[inline(always)]
+    fn flows(&self) -> &[(SubFlow, f64)] {
+        self
+    }
+}
+
+/// A splitting sequence known when the program is compiled.
+pub trait KnownSequence {
+    /// The sequence.
+    const FLOWS: Sequence;
+}
+
+impl<K: KnownSequence> Flows for Known<K> {
+    const KNOWN: bool = true;
+    #[inline(always)]
+    fn flows(&self) -> &[(SubFlow, f64)] {
+        K::FLOWS
+    }
+}
+
+/// Declares a marker type for each built-in sequence.
+macro_rules! known_sequences {
+    ($($(#[$doc:meta])* $marker:ident = $sequence:ident;)*) => {
+        $(
+            $(#[$doc])*
+            pub struct $marker;
+            impl KnownSequence for $marker {
+                const FLOWS: Sequence = $sequence;
+            }
+        )*
+    };
+}
+
+known_sequences! {
+    /// [`MODIN_3S`] as a type.
+    Modin3s = MODIN_3S;
+    /// [`MODIN_2S`] as a type.
+    Modin2s = MODIN_2S;
+    /// [`MODIN_RKS`] as a type.
+    ModinRks = MODIN_RKS;
+    /// [`CSV1`] as a type.
+    Csv1 = CSV1;
+    /// [`SYMPLECTIC_EULER`] as a type.
+    SymplecticEuler = SYMPLECTIC_EULER;
+    /// [`SYMPLECTIC_EULER_ADJOINT`] as a type.
+    SymplecticEulerAdjoint = SYMPLECTIC_EULER_ADJOINT;
+    /// [`POSITION_VERLET`] as a type.
+    PositionVerlet = POSITION_VERLET;
+    /// [`VELOCITY_VERLET`] as a type.
+    VelocityVerlet = VELOCITY_VERLET;
+}
+
 /// Runs a splitting sequence; one instance per run, so its buffers are allocated once.
-pub struct Splitting<S: MechanicalSystem>
+pub struct Splitting<S: MechanicalSystem, Q: Flows = Vec<(SubFlow, f64)>>
 where
     DefaultAllocator: Allocator<S::Dim>,
 {
-    sequence: Vec<(SubFlow, f64)>,
+    sequence: Q,
     /// Per-flow coefficients that depend on h only (the damping exponentials), for `coeff_h`.
     coefficients: Vec<(f64, f64)>,
+    /// The flow that ends one step and begins the next, fused (see [`Splitting::advance`]): its
+    /// time τ and coefficients for `coeff_h`, if the sequence ends and begins with one kind of
+    /// flow that fuses.
+    seam: Option<(f64, (f64, f64))>,
     coeff_h: f64,
+    work: Work<S>,
+}
+
+/// What the sub-flows change besides the state: the force cache and the work vectors.
+struct Work<S: MechanicalSystem>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
     inner: Option<MomentumRk<S::Dim>>,
     grad: Vector<S::Dim>,
     grad_valid: bool,
     w1: Vector<S::Dim>,
     w2: Vector<S::Dim>,
     force_evaluations: u64,
+    /// The state at the start of a fused stretch, to run it again step by step if it diverges.
+    start: State<S::Dim>,
 }
 
-impl<S: MechanicalSystem> Splitting<S>
+impl<S: MechanicalSystem, Q: Flows> Splitting<S, Q>
 where
     DefaultAllocator: Allocator<S::Dim>,
 {
     /// A composer for `sequence`; `inner` is the Runge–Kutta method for `MomentumRk` flows.
-    pub fn new(sys: &S, sequence: Vec<(SubFlow, f64)>, inner: Option<MomentumRk<S::Dim>>) -> Self {
+    pub fn new(sys: &S, sequence: Q, inner: Option<MomentumRk<S::Dim>>) -> Self {
         let zero = Vector::<S::Dim>::zeros_generic(sys.dim(), nalgebra::U1);
         Self {
-            coefficients: vec![(0.0, 0.0); sequence.len()],
+            coefficients: vec![(0.0, 0.0); sequence.flows().len()],
+            seam: None,
             coeff_h: f64::NAN,
             sequence,
-            inner,
-            grad: zero.clone(),
-            grad_valid: false,
-            w1: zero.clone(),
-            w2: zero,
-            force_evaluations: 0,
+            work: Work {
+                inner,
+                grad: zero.clone(),
+                grad_valid: false,
+                w1: zero.clone(),
+                w2: zero.clone(),
+                force_evaluations: 0,
+                start: State {
+                    q: zero.clone(),
+                    p: zero,
+                },
+            },
         }
     }
 
@@ -183,22 +273,101 @@ where
             return;
         }
         let r = sys.damping_rate();
-        for (k, &(flow, frac)) in self.sequence.iter().enumerate() {
-            let tau = frac * h;
-            self.coefficients[k] = match flow {
-                Damp => (flows::damp_coefficient(r, tau), 0.0),
-                KickDamp => flows::kick_damp_coefficients(r, tau),
-                _ => (0.0, 0.0),
-            };
+        let coefficients = |flow: SubFlow, tau: f64| match flow {
+            Damp => (flows::damp_coefficient(r, tau), 0.0),
+            KickDamp => flows::kick_damp_coefficients(r, tau),
+            _ => (0.0, 0.0),
+        };
+        let sequence = self.sequence.flows();
+        for (k, &(flow, frac)) in sequence.iter().enumerate() {
+            self.coefficients[k] = coefficients(flow, frac * h);
         }
+        self.seam = match (sequence.first(), sequence.last()) {
+            (Some(&(first, a)), Some(&(last, b)))
+                if sequence.len() > 2 && first == last && first.fuses() =>
+            {
+                let tau = (b + a) * h;
+                Some((tau, coefficients(first, tau)))
+            }
+            _ => None,
+        };
         self.coeff_h = h;
     }
 
-    /// Applies sub-flow `k` of the sequence for time τ.
+    /// `n ≥ 2` steps with the last flow of each step and the first of the next applied as one
+    /// flow over their summed time (exact in exact arithmetic: with q frozen, or p for a drift,
+    /// two flows of one autonomous field compose to the flow over the sum). The state between
+    /// them is never observed, and the stretch ends with the whole last step, so the result
+    /// differs from `n` separate steps only by round-off; modin_3s saves one of its two damping
+    /// flows per step this way, modin_2s and position_verlet one drift. A stretch that diverges
+    /// is run again step by step, so a run stops at the same step as it would unfused.
     #[inline(always)]
-    fn apply(&mut self, sys: &S, z: &mut State<S::Dim>, k: usize, tau: f64) {
-        let flow = self.sequence[k].0;
-        let (c, d) = self.coefficients[k];
+    fn advance_fused(
+        &mut self,
+        sys: &S,
+        z: &mut State<S::Dim>,
+        h: f64,
+        n: u64,
+        (seam_tau, seam_coefficients): (f64, (f64, f64)),
+    ) -> (u64, Result<(), StepError>) {
+        let sequence = self.sequence.flows();
+        let m = sequence.len();
+        let coefficients = &self.coefficients[..m];
+        let work = &mut self.work;
+        work.start.q.copy_from(&z.q);
+        work.start.p.copy_from(&z.p);
+        let (first, last) = (sequence[0], sequence[m - 1]);
+        work.apply(sys, z, first.0, first.1 * h, coefficients[0]);
+        for done in 1..=n {
+            // The flows between the first and the last.
+            if Q::KNOWN {
+                unroll!(m, k => {
+                    if k > 0 && k < m - 1 {
+                        let (flow, frac) = sequence[k];
+                        work.apply(sys, z, flow, frac * h, coefficients[k]);
+                    }
+                });
+            } else {
+                for k in 1..m - 1 {
+                    let (flow, frac) = sequence[k];
+                    work.apply(sys, z, flow, frac * h, coefficients[k]);
+                }
+            }
+            // The seam, or at the end of the stretch the last flow alone.
+            let (tau, cd) = if done < n {
+                (seam_tau, seam_coefficients)
+            } else {
+                (last.1 * h, coefficients[m - 1])
+            };
+            work.apply(sys, z, last.0, tau, cd);
+            if !finite(z) {
+                break;
+            }
+            if done == n {
+                return (n, Ok(()));
+            }
+        }
+        z.q.copy_from(&work.start.q);
+        z.p.copy_from(&work.start.p);
+        work.grad_valid = false;
+        step_by_step(self, sys, z, h, n)
+    }
+}
+
+impl<S: MechanicalSystem> Work<S>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    /// Applies `flow` for time τ, with its h-dependent coefficients (c, d).
+    #[inline(always)]
+    fn apply(
+        &mut self,
+        sys: &S,
+        z: &mut State<S::Dim>,
+        flow: SubFlow,
+        tau: f64,
+        (c, d): (f64, f64),
+    ) {
         match flow {
             Drift => {
                 flows::drift(sys, z, tau, &mut self.w1);
@@ -236,22 +405,47 @@ where
     }
 }
 
-impl<S: MechanicalSystem> Stepper<S> for Splitting<S>
+impl<S: MechanicalSystem, Q: Flows> Stepper<S> for Splitting<S, Q>
 where
     DefaultAllocator: Allocator<S::Dim>,
 {
-    #[inline]
+    #[inline(always)]
     fn step(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64) -> Result<(), StepError> {
         self.prepare(sys, h);
-        for k in 0..self.sequence.len() {
-            let frac = self.sequence[k].1;
-            self.apply(sys, z, k, frac * h);
+        let flows = self.sequence.flows();
+        // One bounds check here instead of one per flow.
+        let coefficients = &self.coefficients[..flows.len()];
+        let work = &mut self.work;
+        if Q::KNOWN {
+            unroll!(flows.len(), k => {
+                let (flow, frac) = flows[k];
+                work.apply(sys, z, flow, frac * h, coefficients[k]);
+            });
+        } else {
+            for (&(flow, frac), &cd) in flows.iter().zip(coefficients) {
+                work.apply(sys, z, flow, frac * h, cd);
+            }
         }
         Ok(())
     }
 
+    #[inline]
+    fn advance(
+        &mut self,
+        sys: &S,
+        z: &mut State<S::Dim>,
+        h: f64,
+        n: u64,
+    ) -> (u64, Result<(), StepError>) {
+        self.prepare(sys, h);
+        match self.seam {
+            Some(seam) if n >= 2 => self.advance_fused(sys, z, h, n, seam),
+            _ => step_by_step(self, sys, z, h, n),
+        }
+    }
+
     fn force_evaluations(&self) -> u64 {
-        self.force_evaluations
+        self.work.force_evaluations
     }
 
     fn step_tangent(
@@ -263,20 +457,20 @@ where
     ) -> Result<(), StepError> {
         let r = sys.damping_rate();
         self.prepare(sys, h);
-        for k in 0..self.sequence.len() {
-            let (flow, frac) = self.sequence[k];
+        let flows = self.sequence.flows();
+        for (&(flow, frac), &cd) in flows.iter().zip(&self.coefficients) {
             let tau = frac * h;
             // Each flow's Jacobian is taken at the state it acts on, before it moves it.
             match flow {
                 Drift => tangent.drift(tau),
                 Damp => tangent.kick_scaled((-r * tau).exp(), 0.0),
                 Kick | DampedKick(_) | KickDamp | MomentumRk => {
-                    self.force_evaluations += tangent.load_hessian(sys, &z.q);
+                    self.work.force_evaluations += tangent.load_hessian(sys, &z.q);
                     let (a, b) = match flow {
                         Kick => (1.0, tau),
                         DampedKick(theta) => flows::kick_theta_tangent(r, tau, theta.value()),
                         KickDamp => ((-r * tau).exp(), one_minus_exp_neg_over(r, tau)),
-                        _ => match self.inner.as_ref() {
+                        _ => match self.work.inner.as_ref() {
                             Some(inner) => inner.tangent_coefficients(r, tau),
                             None => (1.0, tau),
                         },
@@ -284,7 +478,7 @@ where
                     tangent.kick_scaled(a, b);
                 }
             }
-            self.apply(sys, z, k, tau);
+            self.work.apply(sys, z, flow, tau, cd);
         }
         Ok(())
     }
