@@ -118,25 +118,14 @@ where
     DefaultAllocator: Allocator<S::Dim>,
 {
     let choice = Method::Reference { tolerance: tol };
-    let mut stepper = methods::build(&choice, sys, "test", h).expect("builds");
-    let mut z = start.clone();
     let schedule = Schedule {
         h,
         steps,
         every: steps,
     };
-    let (stop, stats) = integrate(
-        sys,
-        &mut stepper,
-        &mut z,
-        schedule,
-        Budget::default(),
-        false,
-        &mut Discard,
-    )
-    .expect("the run");
+    let (z, stop, force_evaluations) = common::run_schedule(sys, &choice, start, schedule);
     assert_eq!(stop, StopReason::Finished);
-    (z, stats.force_evaluations)
+    (z, force_evaluations)
 }
 
 fn bits<D: nalgebra::Dim>(v: &Vector<D>) -> Vec<u64>

@@ -533,27 +533,8 @@ fn final_state<S: MechanicalSystem>(
 where
     nalgebra::DefaultAllocator: nalgebra::allocator::Allocator<S::Dim>,
 {
-    use geomint::core::run::{integrate, Budget, Observer, Schedule};
-    struct Nothing;
-    impl<D: nalgebra::Dim> Observer<D> for Nothing
-    where
-        nalgebra::DefaultAllocator: nalgebra::allocator::Allocator<D>,
-    {
-        fn on_sample(&mut self, _: u64, _: f64, _: &State<D>) {}
-    }
-    let mut stepper = geomint::core::methods::build(method, sys, "test", h).expect("builds");
-    let mut z = start.clone();
-    let (stop, stats) = integrate(
-        sys,
-        &mut stepper,
-        &mut z,
-        Schedule { h, steps, every },
-        Budget::default(),
-        false,
-        &mut Nothing,
-    )
-    .expect("runs");
-    (z, stop, stats.force_evaluations)
+    let schedule = geomint::core::run::Schedule { h, steps, every };
+    common::run_schedule(sys, method, start, schedule)
 }
 
 #[test]
@@ -664,8 +645,8 @@ fn a_fused_stretch_that_diverges_stops_where_single_steps_stop() {
     let start = State::from_slices(U1, &[1.0], &[0.0]);
     for id in [MethodId::Modin3s, MethodId::Modin2s, MethodId::Csv1] {
         let m = Method::new(id);
-        let (single, single_stop, _) = final_state(&sys, &m, &start, 0.05, 5000, 1);
-        let (fused, fused_stop, _) = final_state(&sys, &m, &start, 0.05, 5000, 5000);
+        let (single, single_stop, single_forces) = final_state(&sys, &m, &start, 0.05, 5000, 1);
+        let (fused, fused_stop, fused_forces) = final_state(&sys, &m, &start, 0.05, 5000, 5000);
         let step = match single_stop {
             StopReason::Diverged { step, .. } => step,
             other => panic!("{id:?}: expected divergence, got {other:?}"),
@@ -676,5 +657,87 @@ fn a_fused_stretch_that_diverges_stops_where_single_steps_stop() {
             "{id:?}: {fused_stop:?} against step {step}"
         );
         assert_eq!(single.q.as_slice(), fused.q.as_slice(), "{id:?}");
+        // The failed fused attempt's force evaluations are not counted.
+        assert_eq!(single_forces, fused_forces, "{id:?}: force evaluations");
     }
+}
+
+#[test]
+fn compositions_walked_stage_by_stage_give_the_bits_of_the_flow_by_flow_walk() {
+    use geomint::core::methods::composition::Scheme;
+    use geomint::core::methods::splitting::{self, Composition, Flows, Splitting};
+    use geomint::core::run::{Schedule, StopReason};
+    use geomint::core::systems::Pendulum;
+    // Runs the splitting on `schedule` (samples every step, or one sample: fused stretches).
+    fn run<S: MechanicalSystem>(
+        sys: &S,
+        composition: Composition,
+        start: &State<S::Dim>,
+        schedule: Schedule,
+    ) -> (Vec<u64>, u64)
+    where
+        nalgebra::DefaultAllocator: nalgebra::allocator::Allocator<S::Dim>,
+    {
+        let mut stepper = Splitting::new(sys, composition, None);
+        let (z, stop, forces) = common::run_stepper(sys, &mut stepper, start, schedule);
+        assert_eq!(stop, StopReason::Finished);
+        let bits = z.q.iter().chain(z.p.iter()).map(|x| x.to_bits()).collect();
+        (bits, forces)
+    }
+    let pendulum = Pendulum { gamma: 0.05 };
+    let pendulum_start = State::from_slices(U1, &[2.5], &[0.3]);
+    let elastic = ElasticPendulum3d {
+        m: 1.3,
+        k: 0.8,
+        l: 1.1,
+        g: 1.0,
+        epsilon: 0.1,
+    };
+    let elastic_start =
+        State::from_slices(U3, &[0.0, 1.558_845_73, -0.6], &[1.341_640_79, 0.0, 0.0]);
+    let bases = [
+        ("modin_3s", splitting::MODIN_3S),
+        ("modin_2s", splitting::MODIN_2S),
+        ("csv1", splitting::CSV1),
+        ("position_verlet", splitting::POSITION_VERLET),
+        ("velocity_verlet", splitting::VELOCITY_VERLET),
+    ];
+    let mut compared = 0;
+    for (name, base) in bases {
+        for scheme in Scheme::ALL {
+            let weights = scheme.weights();
+            let composition = || Composition::new(base, &weights);
+            // The stage-by-stage walk is the one taken, and the general one can be asked for.
+            assert!(composition().stages().is_some(), "{name}");
+            assert!(composition().without_stages().stages().is_none());
+            for every in [1, 500] {
+                let schedule = Schedule {
+                    h: 0.05,
+                    steps: 2000,
+                    every,
+                };
+                let staged = run(&pendulum, composition(), &pendulum_start, schedule);
+                let walked = run(
+                    &pendulum,
+                    composition().without_stages(),
+                    &pendulum_start,
+                    schedule,
+                );
+                assert_eq!(
+                    staged, walked,
+                    "pendulum, {scheme:?}({name}), every {every}"
+                );
+                let staged = run(&elastic, composition(), &elastic_start, schedule);
+                let walked = run(
+                    &elastic,
+                    composition().without_stages(),
+                    &elastic_start,
+                    schedule,
+                );
+                assert_eq!(staged, walked, "elastic, {scheme:?}({name}), every {every}");
+                compared += 2;
+            }
+        }
+    }
+    assert_eq!(compared, 5 * Scheme::ALL.len() * 2 * 2);
 }

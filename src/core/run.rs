@@ -37,13 +37,7 @@ where
     ///
     /// [`AnyStepper`]: crate::core::methods::AnyStepper
     #[inline]
-    fn advance(
-        &mut self,
-        sys: &S,
-        z: &mut State<S::Dim>,
-        h: f64,
-        n: u64,
-    ) -> (u64, Result<(), StepError>) {
+    fn advance(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64, n: u64) -> Advanced {
         step_by_step(self, sys, z, h, n)
     }
 
@@ -103,13 +97,7 @@ where
         (**self).step(sys, z, h)
     }
     #[inline]
-    fn advance(
-        &mut self,
-        sys: &S,
-        z: &mut State<S::Dim>,
-        h: f64,
-        n: u64,
-    ) -> (u64, Result<(), StepError>) {
+    fn advance(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64, n: u64) -> Advanced {
         (**self).advance(sys, z, h, n)
     }
     fn force_evaluations(&self) -> u64 {
@@ -144,6 +132,9 @@ where
     }
 }
 
+/// What [`Stepper::advance`] returns: the steps completed and, if a step failed, its error.
+pub type Advanced = (u64, Result<(), StepError>);
+
 /// [`Stepper::advance`] as `n` calls of [`Stepper::step`]: stops after the first step that
 /// leaves a non-finite state, or at a failed step.
 #[inline(always)]
@@ -153,7 +144,7 @@ pub fn step_by_step<S, M>(
     z: &mut State<S::Dim>,
     h: f64,
     n: u64,
-) -> (u64, Result<(), StepError>)
+) -> Advanced
 where
     S: MechanicalSystem,
     M: Stepper<S> + ?Sized,

@@ -2,7 +2,7 @@
 #![allow(dead_code)]
 
 use geomint::core::methods::{self, Method, MethodId};
-use geomint::core::run::{integrate, Budget, Observer, Schedule, StopReason};
+use geomint::core::run::{integrate, Budget, Observer, Schedule, Stepper, StopReason};
 use geomint::core::simulation::{ColumnSink, Columns, Limits, Outcome, Simulation, SimulationSpec};
 use geomint::core::system::{MechanicalSystem, State};
 use geomint::core::systems::ParamValue;
@@ -29,20 +29,49 @@ pub fn final_state<S: MechanicalSystem>(
 where
     DefaultAllocator: Allocator<S::Dim>,
 {
-    let mut stepper = methods::build(choice, sys, "test", h).expect("method builds");
+    let (z, stop, _) = run_schedule(sys, choice, start, Schedule::new(h, t_end, u64::MAX));
+    assert_eq!(stop, StopReason::Finished);
+    z
+}
+
+/// Integrates `choice` on `sys` from `start` on `schedule`, samples discarded; returns the end
+/// state, the stop reason and the force evaluations. The sampling interval decides how many steps
+/// the driver hands the stepper at once.
+pub fn run_schedule<S: MechanicalSystem>(
+    sys: &S,
+    choice: &Method,
+    start: &State<S::Dim>,
+    schedule: Schedule,
+) -> (State<S::Dim>, StopReason, u64)
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    let mut stepper = methods::build(choice, sys, "test", schedule.h).expect("method builds");
+    run_stepper(sys, &mut stepper, start, schedule)
+}
+
+/// [`run_schedule`] with a stepper made by the caller.
+pub fn run_stepper<S: MechanicalSystem, M: Stepper<S>>(
+    sys: &S,
+    stepper: &mut M,
+    start: &State<S::Dim>,
+    schedule: Schedule,
+) -> (State<S::Dim>, StopReason, u64)
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
     let mut z = start.clone();
-    let (stop, _) = integrate(
+    let (stop, stats) = integrate(
         sys,
-        &mut stepper,
+        stepper,
         &mut z,
-        Schedule::new(h, t_end, u64::MAX),
+        schedule,
         Budget::default(),
         false,
         &mut Discard,
     )
     .expect("run succeeds");
-    assert_eq!(stop, StopReason::Finished);
-    z
+    (z, stop, stats.force_evaluations)
 }
 
 /// The numbers of a JSON object as system parameters.

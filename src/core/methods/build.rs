@@ -16,7 +16,7 @@ use super::symplectic_euler::{GeneralSymplecticEuler, Variant};
 use super::{Base, Known, Method, MethodId};
 use crate::core::error::{CoreError, Field, StepError};
 use crate::core::flows::Tangent;
-use crate::core::run::Stepper;
+use crate::core::run::{Advanced, Stepper};
 use crate::core::system::{MechanicalSystem, State};
 
 /// The Butcher tableau of an explicit Runge–Kutta method.
@@ -128,13 +128,7 @@ where
     fn step(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64) -> Result<(), StepError> {
         with_stepper!(self, st => st.step(sys, z, h))
     }
-    fn advance(
-        &mut self,
-        sys: &S,
-        z: &mut State<S::Dim>,
-        h: f64,
-        n: u64,
-    ) -> (u64, Result<(), StepError>) {
+    fn advance(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64, n: u64) -> Advanced {
         with_stepper!(self, st => advance_out_of_line(st, sys, z, h, n))
     }
     fn force_evaluations(&self) -> u64 {
@@ -179,7 +173,7 @@ fn advance_out_of_line<S: MechanicalSystem, M: Stepper<S>>(
     z: &mut State<S::Dim>,
     h: f64,
     n: u64,
-) -> (u64, Result<(), StepError>)
+) -> Advanced
 where
     DefaultAllocator: Allocator<S::Dim>,
 {
@@ -263,7 +257,7 @@ where
             match (sequence(base.id()), base) {
                 (Some(seq), _) => AnyStepper::Splitting(Splitting::new(
                     sys,
-                    splitting::compose(seq, &weights),
+                    splitting::Composition::new(seq, &weights),
                     None,
                 )),
                 (None, Base::Csv2) => {

@@ -13,9 +13,10 @@
 //! composition of a conformal symplectic base stays conformal symplectic (det ∂Ψ/∂z = e^{−2γh}
 //! per degree of freedom) and keeps what the base keeps exactly (the elastic pendulum's J₃).
 //!
-//! Splitting bases are composed as data (`splitting::compose`, which also fuses adjacent exact
-//! flows of one kind, so that s stages cost s force evaluations per step); other bases (cimp,
-//! csv2, implicit_midpoint) are wrapped by [`Composed`].
+//! Splitting bases are composed as data (`splitting::Composition`, which also fuses adjacent
+//! exact flows of one kind, so that s stages cost s force evaluations per step, and runs the
+//! stages with the base's flows written out); other bases (cimp, csv2, implicit_midpoint) are
+//! wrapped by [`Composed`].
 //!
 //! The order conditions the tables must meet are tested (`tests/core_compositions.rs`): Σγ = 1 to
 //! round-off, Σγ³ = 0 for order ≥ 4, Σγ⁵ = 0 for order ≥ 6, Σγ⁷ = 0 for order 8, and the observed
