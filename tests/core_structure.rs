@@ -740,4 +740,38 @@ fn compositions_walked_stage_by_stage_give_the_bits_of_the_flow_by_flow_walk() {
         }
     }
     assert_eq!(compared, 5 * Scheme::ALL.len() * 2 * 2);
+
+    // One stage of weight 1 is the base itself, bit for bit, and no stage at all leaves the state
+    // as it is.
+    let schedule = Schedule {
+        h: 0.05,
+        steps: 2000,
+        every: 500,
+    };
+    for (name, base) in bases {
+        let id = geomint::core::methods::MethodId::parse(name).expect("a method id");
+        let method = geomint::core::methods::Method::new(id);
+        let (z, _, forces) = common::run_schedule(&pendulum, &method, &pendulum_start, schedule);
+        let bits = z.q.iter().chain(z.p.iter()).map(|x| x.to_bits()).collect();
+        let one_stage = run(
+            &pendulum,
+            Composition::new(base, &[1.0]),
+            &pendulum_start,
+            schedule,
+        );
+        assert_eq!(one_stage, (bits, forces), "{name}");
+        let none = run(
+            &pendulum,
+            Composition::new(base, &[]),
+            &pendulum_start,
+            schedule,
+        );
+        let start_bits: Vec<u64> = pendulum_start
+            .q
+            .iter()
+            .chain(pendulum_start.p.iter())
+            .map(|x| x.to_bits())
+            .collect();
+        assert_eq!(none, (start_bits, 0), "{name}");
+    }
 }

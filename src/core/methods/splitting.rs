@@ -17,13 +17,15 @@
 //!
 //! The composer keeps the last ∇V(q) and reuses it while q has not moved, so velocity Verlet,
 //! csv1 and modin_3s all cost one force evaluation per step (003 Table 4.1 counts two for csv1
-//! because it does not reuse; we count what we evaluate). Compositions (the triple jump) are
-//! built by scaling and concatenating sequences, then fusing adjacent flows of the same kind.
+//! because it does not reuse; we count what we evaluate, except that a fused stretch that
+//! diverges and is rerun counts only the rerun). Compositions (the triple jump) are built by
+//! scaling and concatenating sequences, then fusing adjacent flows of the same kind.
 //!
 //! The built-in sequences are also types ([`Known`]), so their steps compile to straight-line
 //! code, and a composition of one is walked stage by stage with the base's flow kinds known at
-//! compile time ([`Composition`]); between two samples, the last flow of a step and the first of the next are fused too
-//! when they are of one kind ([`Splitting::advance`]), which changes results by round-off only.
+//! compile time ([`Composition`]); between two samples, the last flow of a step and the first of
+//! the next are fused too when they are of one kind ([`Splitting::advance`]), which changes
+//! results by round-off only.
 
 use nalgebra::allocator::Allocator;
 use nalgebra::DefaultAllocator;
@@ -150,7 +152,8 @@ pub fn compose(base: &[(SubFlow, f64)], weights: &[f64]) -> Vec<(SubFlow, f64)> 
 /// Where a splitting's sub-flows come from: a sequence built at run time (a [`Composition`]), or
 /// one fixed in the program ([`Known`]), for which the compiler unrolls the step and resolves
 /// each flow's kind, so a built-in method runs as the straight-line code one would write by hand.
-pub trait Flows {
+/// Sealed: the composer trusts what [`Flows::stages`] says about the layout of the flows.
+pub trait Flows: sealed::Sealed {
     /// Whether the sequence is known at compile time: the composer then writes its step out
     /// flow by flow; a sequence built at run time is looped over.
     const KNOWN: bool;
@@ -175,6 +178,13 @@ impl<K: KnownSequence> Flows for Known<K> {
     fn flows(&self) -> &[(SubFlow, f64)] {
         K::FLOWS
     }
+}
+
+mod sealed {
+    /// Implemented by the two sources of flows only.
+    pub trait Sealed {}
+    impl<K: super::KnownSequence> Sealed for super::Known<K> {}
+    impl Sealed for super::Composition {}
 }
 
 /// The built-in splittings a composition accepts as its base (the symmetric second-order ones).
@@ -220,9 +230,16 @@ pub struct Composition {
 impl Composition {
     /// Φ_{w_k h} ∘ … ∘ Φ_{w_1 h} for the splitting `base`.
     pub fn new(base: Sequence, weights: &[f64]) -> Self {
+        let flows = compose(base, weights);
+        // The stages are laid out as the walk expects (a shared first flow when the base's ends
+        // fuse, then `weights.len()` stages of the rest), which holds for every built-in base
+        // and checks that no flows fused inside a stage; else walk flow by flow.
+        let shared = usize::from(base.len() > 1 && base[base.len() - 1].0.fuses_with(base[0].0));
+        let laid_out =
+            !weights.is_empty() && flows.len() == shared + weights.len() * (base.len() - shared);
         Self {
-            flows: compose(base, weights),
-            base: ComposedBase::of(base),
+            base: ComposedBase::of(base).filter(|_| laid_out),
+            flows,
         }
     }
 
@@ -253,7 +270,8 @@ trait Walk {
     const START: usize;
     /// Flows per stage.
     fn period(flows: &[(SubFlow, f64)]) -> usize;
-    /// The kind of flow `i` of the sequence, which is flow `j` of the base's.
+    /// The kind of flow `i` of the sequence; `j` is its index in the base's sequence, for a walk
+    /// that knows the base.
     fn kind(flows: &[(SubFlow, f64)], i: usize, j: usize) -> SubFlow;
 }
 
@@ -266,12 +284,17 @@ struct Unrolled;
 /// A composition of the built-in sequence `K`: stage after stage, each written out with `K`'s
 /// kinds. [`compose`] lays the stages out as `K`'s flows, with each stage's first flow merged
 /// into the previous stage's last when the two fuse: after that shared first flow, every stage
-/// is `PERIOD` flows.
+/// is `PERIOD` flows ([`Composition::new`] checks the layout).
 struct Stages<K>(std::marker::PhantomData<K>);
 
 impl<K: KnownSequence> Stages<K> {
+    /// Whether `K`'s last flow and its first fuse, so that stages share one flow.
     const FUSED: bool = K::FLOWS[K::FLOWS.len() - 1].0.fuses_with(K::FLOWS[0].0);
-    const PERIOD: usize = K::FLOWS.len() - Self::FUSED as usize;
+    /// Flows per stage after the shared one.
+    const PERIOD: usize = {
+        assert!(K::FLOWS.len() >= 2, "a composed base has two flows or more");
+        K::FLOWS.len() - Self::FUSED as usize
+    };
 }
 
 impl Walk for Loop {
@@ -326,7 +349,8 @@ fn walk<W: Walk, S: MechanicalSystem>(
     DefaultAllocator: Allocator<S::Dim>,
 {
     let (start, period) = (W::START, W::period(flows));
-    if lo < start {
+    debug_assert_eq!((flows.len() - start) % period, 0, "whole stages");
+    if lo < start && start <= hi {
         let kind = W::kind(flows, 0, 0);
         work.apply(sys, z, kind, flows[0].1 * h, coefficients[0]);
     }
@@ -353,7 +377,8 @@ fn walk<W: Walk, S: MechanicalSystem>(
 }
 
 /// Runs `$call` with `$walk` the [`Walk`] that suits the sequence of the splitting `$split`:
-/// unrolled for a built-in, stage by stage for a composition of one, else a loop.
+/// unrolled for a built-in, stage by stage for a composition of one, else a loop. Used inside
+/// `impl<…, Q: Flows> … for Splitting<S, Q>`, whose `Q` it reads.
 macro_rules! with_walk {
     ($split:expr, $walk:ident => $call:expr) => {
         if Q::KNOWN {
