@@ -537,6 +537,11 @@ where
     common::run_schedule(sys, method, start, schedule)
 }
 
+/// Paper 000 Sec. 6.2's start of the elastic 3-D pendulum: off the vertical, moving sideways.
+fn elastic_start() -> State<U3> {
+    State::from_slices(U3, &[0.0, 1.558_845_73, -0.6], &[1.341_640_79, 0.0, 0.0])
+}
+
 #[test]
 fn fused_stretches_agree_with_single_steps_to_round_off() {
     use geomint::core::methods::composition::Scheme;
@@ -581,8 +586,7 @@ fn fused_stretches_agree_with_single_steps_to_round_off() {
             g: 1.0,
             epsilon: 0.1,
         };
-        let elastic_start =
-            State::from_slices(U3, &[0.0, 1.558_845_73, -0.6], &[1.341_640_79, 0.0, 0.0]);
+        let elastic_start = elastic_start();
         let pairs = [(
             final_state(&pendulum, method, &start, 0.05, steps, 1),
             final_state(&pendulum, method, &start, 0.05, steps, steps),
@@ -693,8 +697,7 @@ fn compositions_walked_stage_by_stage_give_the_bits_of_the_flow_by_flow_walk() {
         g: 1.0,
         epsilon: 0.1,
     };
-    let elastic_start =
-        State::from_slices(U3, &[0.0, 1.558_845_73, -0.6], &[1.341_640_79, 0.0, 0.0]);
+    let elastic_start = elastic_start();
     let bases = [
         ("modin_3s", splitting::MODIN_3S),
         ("modin_2s", splitting::MODIN_2S),
