@@ -5,7 +5,7 @@
 
 use geomint::core::methods::{Method, MethodId};
 use geomint::core::run::Budget;
-use geomint::core::studies::energy_map::EnergyMapJob;
+use geomint::core::studies::energy_map::{ChartRun, EnergyMap, EnergyMapJob, Engine};
 use geomint::core::systems::{PlanarKind, PlanarSpring};
 
 const N: usize = 21;
@@ -99,4 +99,79 @@ fn the_same_map_twice_is_bit_identical() {
         };
         assert_eq!(bits(&a), bits(&b), "cell {k}");
     }
+}
+
+/// Every number of a map as bits (NaN included), cell by cell.
+fn map_bits(map: &EnergyMap) -> Vec<[Option<u64>; 5]> {
+    let bits = |x: Option<f64>| x.map(f64::to_bits);
+    (0..map.energy.len())
+        .map(|k| {
+            [
+                Some(map.energy[k].to_bits()),
+                bits(map.cartesian[k].epsilon),
+                bits(map.cartesian[k].diverged_at),
+                bits(map.polar[k].epsilon),
+                bits(map.polar[k].diverged_at),
+            ]
+        })
+        .collect()
+}
+
+#[test]
+fn cells_run_side_by_side_give_the_bits_of_cells_run_one_by_one() {
+    let mut jobs = Vec::new();
+    for id in [MethodId::SymplecticEuler, MethodId::SymplecticEulerAdjoint] {
+        // Fig. 6 (divergent polar cells, the pivot, 441 cells: a last group of one).
+        jobs.push(EnergyMapJob {
+            method: Method::new(id),
+            ..fig6(2000.0)
+        });
+        // Another pendulum (1/m inexact), a grid off the pivot and of 5 × 3 cells.
+        let mut other = fig6(300.0);
+        other.method = Method::new(id);
+        other.pendulum.m = 1.3;
+        other.pendulum.k = 0.7;
+        other.pendulum.g = 0.4;
+        (other.nx, other.ny, other.x, other.y) = (5, 3, (0.2, 2.9), (-2.0, 1.1));
+        jobs.push(other.clone());
+        // No spring (the force's k = 0 branch).
+        other.pendulum.k = 0.0;
+        jobs.push(other.clone());
+        // Starts so far out that H₀ overflows: blown up at t = 0.
+        (other.x, other.y) = ((1e200, 1e201), (-1e155, 1e160));
+        jobs.push(other);
+    }
+    let mut steps = 0;
+    for job in &jobs {
+        let run = |engine| {
+            job.run_with(engine, Budget::default(), &|_, _| {})
+                .unwrap()
+                .unwrap()
+        };
+        let side_by_side = run(Engine::Lanes);
+        let one_by_one = run(Engine::CellByCell);
+        assert_eq!(
+            map_bits(&side_by_side),
+            map_bits(&one_by_one),
+            "{:?} {:?}",
+            job.method,
+            job.pendulum
+        );
+        assert_eq!(side_by_side.steps, one_by_one.steps);
+        steps += one_by_one.steps;
+    }
+    // The grids reach every outcome: finished, blown up, non-finite, and no polar chart.
+    let fig6 = jobs[0].run(Budget::default(), &|_, _| {}).unwrap().unwrap();
+    assert!(fig6.polar.iter().any(|r| r.epsilon.is_some()));
+    assert!(fig6.polar.iter().any(|r| r.diverged_at.is_some()));
+    assert!(fig6.cartesian.iter().any(|r| r.diverged_at.is_some()));
+    assert!(fig6.polar.iter().any(|r| *r
+        == ChartRun {
+            epsilon: None,
+            diverged_at: None
+        }));
+    eprintln!(
+        "{} maps, {steps} steps: the same bits side by side",
+        jobs.len()
+    );
 }
