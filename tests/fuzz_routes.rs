@@ -20,11 +20,14 @@ use proptest::test_runner::{Config as RunnerConfig, TestCaseError, TestRunner};
 use serde_json::{json, Value};
 use tower::ServiceExt;
 
+mod server;
+
 /// A service with small limits, so that the valid requests mutation makes stay cheap.
 fn service() -> &'static (AppState, tokio::runtime::Runtime) {
     static SERVICE: OnceLock<(AppState, tokio::runtime::Runtime)> = OnceLock::new();
     SERVICE.get_or_init(|| {
-        let dir = std::env::temp_dir().join(format!("geomint-fuzz-{}", std::process::id()));
+        // The service is a static, never dropped: the next test process removes this folder.
+        let dir = server::scratch_dir("fuzz-routes");
         let state = AppState::new(Config {
             limits: Limits {
                 max_steps: 20_000,

@@ -20,9 +20,8 @@ const NDJSON: &str = "application/x-ndjson";
 fn config() -> Config {
     Config {
         request_timeout: Duration::from_secs(15),
-        data_dir: std::env::temp_dir().join(format!("geomint-http-{}", std::process::id())),
-        systems_dir: std::env::temp_dir()
-            .join(format!("geomint-http-systems-{}", std::process::id())),
+        data_dir: server::scratch_dir("http"),
+        systems_dir: server::scratch_dir("http-systems"),
         ..Config::default()
     }
 }

@@ -8,6 +8,8 @@ use geomint::core::run::Budget;
 use geomint::core::simulation::{ColumnSink, Limits, Simulation};
 use serde_json::{json, Value};
 
+mod server;
+
 fn geomint(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_geomint"))
         .args(args)
@@ -19,7 +21,7 @@ fn geomint(args: &[&str]) -> Output {
 
 /// A scratch directory of this test process.
 fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("geomint-cli-{}-{name}", std::process::id()));
+    let dir = server::scratch_dir(&format!("cli-{name}"));
     std::fs::create_dir_all(&dir).unwrap();
     dir
 }

@@ -20,7 +20,7 @@ mod server;
 use server::{client, free_port, temporary_files, wait_for_port, Process};
 
 fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("geomint-faults-{}-{name}", std::process::id()));
+    let dir = server::scratch_dir(&format!("faults-{name}"));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     dir

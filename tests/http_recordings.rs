@@ -18,8 +18,7 @@ use tokio::io::{AsyncReadExt, AsyncWriteExt};
 
 /// A scratch data directory of this test process.
 fn data_dir(name: &str) -> PathBuf {
-    let dir =
-        std::env::temp_dir().join(format!("geomint-recordings-{}-{name}", std::process::id()));
+    let dir = server::scratch_dir(&format!("recordings-{name}"));
     let _ = std::fs::remove_dir_all(&dir);
     dir
 }

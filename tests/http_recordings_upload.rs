@@ -21,7 +21,7 @@ use server::{client, start, Server};
 
 /// A scratch data directory of this test process.
 fn data_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("geomint-uploads-{}-{name}", std::process::id()));
+    let dir = server::scratch_dir(&format!("uploads-{name}"));
     let _ = std::fs::remove_dir_all(&dir);
     dir
 }

@@ -19,8 +19,7 @@ mod server;
 use server::{client, start, temporary_files, Server};
 
 fn scratch(name: &str) -> PathBuf {
-    let dir =
-        std::env::temp_dir().join(format!("geomint-reliability-{}-{name}", std::process::id()));
+    let dir = server::scratch_dir(&format!("reliability-{name}"));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     dir

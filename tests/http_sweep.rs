@@ -25,9 +25,8 @@ use server::{client, post_json, post_ndjson, start};
 fn config() -> Config {
     Config {
         request_timeout: Duration::from_secs(60),
-        data_dir: std::env::temp_dir().join(format!("geomint-sweep-{}", std::process::id())),
-        systems_dir: std::env::temp_dir()
-            .join(format!("geomint-sweep-systems-{}", std::process::id())),
+        data_dir: server::scratch_dir("sweep"),
+        systems_dir: server::scratch_dir("sweep-systems"),
         ..Config::default()
     }
 }
@@ -301,7 +300,7 @@ fn geomint(args: &[&str], env: &[(&str, &str)]) -> Output {
 }
 
 fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("geomint-sweep-cli-{}-{name}", std::process::id()));
+    let dir = server::scratch_dir(&format!("sweep-cli-{name}"));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     dir

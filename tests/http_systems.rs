@@ -19,7 +19,7 @@ use server::{client, post_json, start, Server};
 
 /// A scratch systems directory of this test process.
 fn systems_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("geomint-systems-{}-{name}", std::process::id()));
+    let dir = server::scratch_dir(&format!("systems-{name}"));
     let _ = std::fs::remove_dir_all(&dir);
     dir
 }

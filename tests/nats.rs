@@ -34,7 +34,7 @@ fn nats_server_binary() -> PathBuf {
 }
 
 fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("geomint-nats-{}-{name}", std::process::id()));
+    let dir = server::scratch_dir(&format!("nats-{name}"));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     dir

@@ -112,7 +112,7 @@ fn run_streams_live_to_a_rerun_viewer() {
         "GEOMINT_PYTHON is set but there is no `rerun` command beside it at {}",
         rerun.display()
     );
-    let dir = std::env::temp_dir().join(format!("geomint-rrd-live-{}", std::process::id()));
+    let dir = server::scratch_dir("rrd-live");
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
 
@@ -297,7 +297,7 @@ fn run_streams_live_to_a_rerun_viewer() {
 /// A viewer that is not there: a clear error and exit code 1, not a hang.
 #[test]
 fn run_without_a_viewer_fails_with_exit_code_1() {
-    let dir = std::env::temp_dir().join(format!("geomint-rrd-noviewer-{}", std::process::id()));
+    let dir = server::scratch_dir("rrd-noviewer");
     std::fs::create_dir_all(&dir).unwrap();
     let spec_path: PathBuf = dir.join("spec.json");
     std::fs::write(

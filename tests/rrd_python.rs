@@ -10,6 +10,8 @@ use std::time::Duration;
 use geomint::http::{app, AppState, Config};
 use serde_json::{json, Value};
 
+mod server;
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn python_rerun_sdk_reads_a_server_recording() {
     let Some(python) = std::env::var_os("GEOMINT_PYTHON") else {
@@ -19,7 +21,7 @@ async fn python_rerun_sdk_reads_a_server_recording() {
         );
         return;
     };
-    let dir = std::env::temp_dir().join(format!("geomint-rrd-python-{}", std::process::id()));
+    let dir = server::scratch_dir("rrd-python");
     let _ = std::fs::remove_dir_all(&dir);
     let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
     let addr = listener.local_addr().unwrap();

@@ -73,6 +73,31 @@ pub fn wait_for_port(port: u16, what: &str) {
     }
 }
 
+/// A fresh scratch path `label` of this test process, under the build's scratch folder
+/// (`target/tmp/scratch/PID/label`; removed if a previous use left it, not created). Folders of
+/// test processes that are gone are removed first: a test that fails, or whose service is a
+/// static that is never dropped, cannot clean up after itself.
+pub fn scratch_dir(label: &str) -> std::path::PathBuf {
+    let root = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("scratch");
+    let gone = |pid: u32| {
+        cfg!(target_os = "linux") && !std::path::Path::new(&format!("/proc/{pid}")).exists()
+    };
+    for entry in std::fs::read_dir(&root).into_iter().flatten().flatten() {
+        let pid = entry
+            .file_name()
+            .to_str()
+            .and_then(|name| name.parse().ok());
+        if pid.is_some_and(gone) {
+            // Best effort: another test process may be removing it at the same time.
+            let _ = std::fs::remove_dir_all(entry.path());
+        }
+    }
+    let dir = root.join(std::process::id().to_string()).join(label);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(dir.parent().expect("a parent")).expect("the scratch folder");
+    dir
+}
+
 /// The temporary files (`.tmp-…`) of a store's directory.
 pub fn temporary_files(dir: &std::path::Path) -> Vec<String> {
     std::fs::read_dir(dir)
