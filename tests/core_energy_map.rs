@@ -143,6 +143,7 @@ fn cells_run_side_by_side_give_the_bits_of_cells_run_one_by_one() {
     }
     let mut steps = 0;
     for job in &jobs {
+        assert!(job.runs_in_lanes(), "{:?}", job.method);
         let run = |engine| {
             job.run_with(engine, Budget::default(), &|_, _| {})
                 .unwrap()
@@ -174,4 +175,31 @@ fn cells_run_side_by_side_give_the_bits_of_cells_run_one_by_one() {
         "{} maps, {steps} steps: the same bits side by side",
         jobs.len()
     );
+}
+
+#[test]
+fn a_spent_budget_leaves_every_cell_unfinished_in_lanes_as_cell_by_cell() {
+    let job = fig6(2000.0);
+    assert!(job.runs_in_lanes());
+    let past = Budget {
+        cancel: None,
+        deadline: Some(std::time::Instant::now()),
+    };
+    for engine in [Engine::Lanes, Engine::CellByCell] {
+        let map = job.run_with(engine, past, &|_, _| {}).unwrap().unwrap();
+        // Both look at the clock before the first step.
+        assert_eq!(map.unfinished.len(), N * N, "{engine:?}");
+        assert_eq!(map.steps, 0);
+    }
+    let cancel = std::sync::atomic::AtomicBool::new(true);
+    let cancelled = Budget {
+        cancel: Some(&cancel),
+        deadline: None,
+    };
+    for engine in [Engine::Lanes, Engine::CellByCell] {
+        assert!(job
+            .run_with(engine, cancelled, &|_, _| {})
+            .unwrap()
+            .is_none());
+    }
 }

@@ -7,8 +7,11 @@
 //! the same order (the composer's kick and drift, the chart's closed-form stages, its energy),
 //! and IEEE addition, multiplication, division and square root round the same in a SIMD lane as
 //! in a scalar register, so a map run here is bit for bit the map run cell by cell
-//! (`tests/core_energy_map.rs` compares every cell of both). The sine and cosine stay the
-//! library's, one call per lane. What the lanes save besides the packing: the energy that
+//! (`tests/core_energy_map.rs` compares every cell of both). The sine and cosine stay the C
+//! library's, one call per lane; the compiler makes one `sincos` call of the sine and cosine of
+//! one angle, and the energy takes its cosine where the one-cell path calls `cos` alone, which
+//! gives the same bits with glibc (whose `sincos` and `cos` share their code; the test would
+//! show a library where they differ). What the lanes save besides the packing: the energy that
 //! eq. (50) asks for after every step shares |q| (Cartesian) or sin θ, cos θ (polar) with the
 //! force of the next step instead of computing them again, and the per-step calls through the
 //! generic composer and observer go.
@@ -116,8 +119,8 @@ struct Tally {
     non_finite: Lane,
 }
 
-/// Runs `steps` steps of `order` in `chart` from `start`, and per lane the chart run the
-/// one-cell path reports; `None` when the budget stopped the run.
+/// Runs `steps` steps of `order` in `chart` from `start`; returns, per lane, the [`ChartRun`]
+/// the one-cell path reports, or `None` when the budget stopped the run.
 pub fn run(
     pendulum: &PlanarSpring,
     chart: Chart,
@@ -131,29 +134,36 @@ pub fn run(
     let c = Constants::new(pendulum, h);
     let tally = dispatch(&c, chart, order, start, steps, &limit, budget)?;
     Some(std::array::from_fn(|i| {
-        let at = |step: f64| step * h;
-        if start.idle[i] {
-            ChartRun {
-                epsilon: None,
-                diverged_at: None,
-            }
-        } else if tally.non_finite[i] != f64::INFINITY {
-            ChartRun {
-                epsilon: None,
-                diverged_at: Some(at(tally.non_finite[i])),
-            }
-        } else if tally.blown[i] != f64::INFINITY {
-            ChartRun {
-                epsilon: None,
-                diverged_at: Some(at(tally.blown[i])),
-            }
-        } else {
-            ChartRun {
-                epsilon: Some((tally.sum[i] / (steps + 1) as f64).sqrt()),
-                diverged_at: None,
-            }
-        }
+        outcome(&tally, start.idle[i], i, h, steps)
     }))
+}
+
+/// Lane `i`'s outcome as the one-cell path reports it: a state that stopped being finite ends
+/// the run there (whether or not the energy left its band before), a run that left the band
+/// reports the first sample that did, and a finished one its ε.
+fn outcome(tally: &Tally, idle: bool, i: usize, h: f64, steps: u64) -> ChartRun {
+    let never = ChartRun {
+        epsilon: None,
+        diverged_at: None,
+    };
+    if idle {
+        never
+    } else if tally.non_finite[i] != f64::INFINITY {
+        ChartRun {
+            diverged_at: Some(tally.non_finite[i] * h),
+            ..never
+        }
+    } else if tally.blown[i] != f64::INFINITY {
+        ChartRun {
+            diverged_at: Some(tally.blown[i] * h),
+            ..never
+        }
+    } else {
+        ChartRun {
+            epsilon: Some((tally.sum[i] / (steps + 1) as f64).sqrt()),
+            diverged_at: None,
+        }
+    }
 }
 
 /// Picks the kernel, compiled for AVX2 when the CPU has it.
@@ -174,8 +184,9 @@ fn dispatch(
     integrate(c, chart, order, start, steps, limit, budget)
 }
 
-/// [`integrate`] compiled with AVX2 (f64×4 registers). No FMA: a fused multiply-add rounds once
-/// where the one-cell path rounds twice.
+/// [`integrate`] compiled with AVX2 (f64×4 registers). Still no fused multiply-add, which would
+/// round once where the one-cell path rounds twice: rustc never contracts a·b + c into one
+/// (only `mul_add` does), whatever the target features.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 fn integrate_avx2(
@@ -203,10 +214,10 @@ fn integrate(
 ) -> Option<Tally> {
     match (chart, order) {
         (Chart::Cartesian, Order::MomentumFirst) => {
-            lanes(c, start, steps, limit, budget, CartesianKick::<true>)
+            lanes(c, start, steps, limit, budget, Cartesian::<true>)
         }
         (Chart::Cartesian, Order::PositionFirst) => {
-            lanes(c, start, steps, limit, budget, CartesianKick::<false>)
+            lanes(c, start, steps, limit, budget, Cartesian::<false>)
         }
         (Chart::Polar, Order::MomentumFirst) => {
             lanes(c, start, steps, limit, budget, Polar::<true>)
@@ -229,7 +240,7 @@ struct Cells {
 /// nothing but arithmetic in it, which the compiler turns into SIMD instructions.
 trait Kernel {
     /// `shared` for the state as it starts.
-    fn prime(&self, c: &Constants, z: &mut Cells);
+    fn prime(&self, z: &mut Cells);
     /// One step of every lane; H at the new states into `energy`.
     fn step(&self, c: &Constants, z: &mut Cells, energy: &mut Lane);
 }
@@ -251,7 +262,7 @@ fn lanes<K: Kernel>(
         p: start.p,
         shared: [[0.0; LANES]; 2],
     };
-    kernel.prime(c, &mut z);
+    kernel.prime(&mut z);
     let mut tally = Tally {
         sum: [0.0; LANES],
         blown: [f64::INFINITY; LANES],
@@ -273,15 +284,16 @@ fn lanes<K: Kernel>(
     let mut energy = [0.0; LANES];
     let mut step = 0u64;
     while step < steps {
+        // Before the budget: lanes that are all done (diverged or idle) have their outcome.
+        if tally.non_finite.iter().all(|&s| s != f64::INFINITY) {
+            break;
+        }
         if budget
             .cancel
             .is_some_and(|flag| flag.load(Ordering::Relaxed))
             || budget.deadline.is_some_and(|d| Instant::now() >= d)
         {
             return None;
-        }
-        if tally.non_finite.iter().all(|&s| s != f64::INFINITY) {
-            break;
         }
         let until = (step + CHECK_EVERY).min(steps);
         while step < until {
@@ -311,9 +323,9 @@ fn lanes<K: Kernel>(
 /// The Cartesian chart, H = |p|²/2m + ½k(|q| − l)² − m g y, through the composer's kick
 /// (p ← p − h∇V(q)) and drift (q ← q + h·(p·(1/m))); `KICK_FIRST` is symplectic Euler,
 /// otherwise its adjoint. `shared` holds |q|.
-struct CartesianKick<const KICK_FIRST: bool>;
+struct Cartesian<const KICK_FIRST: bool>;
 
-impl<const KICK_FIRST: bool> CartesianKick<KICK_FIRST> {
+impl<const KICK_FIRST: bool> Cartesian<KICK_FIRST> {
     #[inline(always)]
     fn norm(z: &mut Cells) {
         for i in 0..LANES {
@@ -344,9 +356,9 @@ impl<const KICK_FIRST: bool> CartesianKick<KICK_FIRST> {
     }
 }
 
-impl<const KICK_FIRST: bool> Kernel for CartesianKick<KICK_FIRST> {
+impl<const KICK_FIRST: bool> Kernel for Cartesian<KICK_FIRST> {
     #[inline(always)]
-    fn prime(&self, _: &Constants, z: &mut Cells) {
+    fn prime(&self, z: &mut Cells) {
         Self::norm(z);
     }
 
@@ -385,7 +397,7 @@ impl<const MOMENTUM_FIRST: bool> Polar<MOMENTUM_FIRST> {
 
 impl<const MOMENTUM_FIRST: bool> Kernel for Polar<MOMENTUM_FIRST> {
     #[inline(always)]
-    fn prime(&self, _: &Constants, z: &mut Cells) {
+    fn prime(&self, z: &mut Cells) {
         Self::turn(z);
     }
 
@@ -439,9 +451,14 @@ mod tests {
     use crate::core::systems::PlanarKind;
 
     /// The portable build of the kernels (what a CPU without AVX2 runs) and the one this CPU
-    /// is dispatched to give the same bits, in every chart and order, through blow-ups.
+    /// is dispatched to give the same bits, in every chart and order, through blow-ups; a lane
+    /// left idle changes nothing in the others.
     #[test]
     fn the_portable_kernels_give_the_bits_of_the_dispatched_ones() {
+        #[cfg(target_arch = "x86_64")]
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            eprintln!("no AVX2 here: the portable build is compared with itself");
+        }
         let pendulum = PlanarSpring {
             m: 1.3,
             k: 0.7,
@@ -475,7 +492,48 @@ mod tests {
                 assert_eq!(portable.blown[2], 1.0, "{chart:?} {order:?}");
                 assert_eq!(portable.non_finite[3], 1.0, "{chart:?} {order:?}");
                 assert_eq!(portable.non_finite[..3], [f64::INFINITY; 3]);
+                let idle = Start {
+                    idle: [false, true, false, false],
+                    ..start
+                };
+                let with_idle =
+                    dispatch(&c, chart, order, &idle, 20_000, &limit, Budget::default()).unwrap();
+                assert_eq!(with_idle.non_finite[1], 0.0);
+                for lane in [0, 2, 3] {
+                    assert_eq!(
+                        bits(&with_idle).map(|b| b[lane]),
+                        bits(&dispatched).map(|b| b[lane])
+                    );
+                }
             }
         }
+    }
+
+    /// A run whose state stops being finite reports that step, even after its energy left the
+    /// band (as the one-cell path, whose integration stops there); a run that only left the band
+    /// reports the first sample outside it; an idle lane nothing.
+    #[test]
+    fn a_non_finite_state_outranks_an_energy_blow_up() {
+        let tally = Tally {
+            sum: [8.0, f64::NAN, 8.0, 8.0],
+            blown: [f64::INFINITY, 5.0, 5.0, f64::INFINITY],
+            non_finite: [f64::INFINITY, 9.0, f64::INFINITY, 0.0],
+        };
+        let outcomes: Vec<_> = (0..LANES)
+            .map(|i| outcome(&tally, i == 3, i, 0.5, 7))
+            .collect();
+        let run = |epsilon, diverged_at| ChartRun {
+            epsilon,
+            diverged_at,
+        };
+        assert_eq!(
+            outcomes,
+            [
+                run(Some(1.0), None),
+                run(None, Some(4.5)),
+                run(None, Some(2.5)),
+                run(None, None)
+            ]
+        );
     }
 }
