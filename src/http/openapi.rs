@@ -154,36 +154,51 @@ fn link_created(doc: &mut Value, path: &str, statuses: &[&str], operations: &[&s
     }
 }
 
-/// Lets every optional member of every object schema in `value` be `null`.
-fn null_as_absent(value: &mut Value) {
+/// Calls `visit` on every object in `value`, each before its members, except under the members
+/// named in `skip`.
+fn for_each_object(
+    value: &mut Value,
+    skip: &[&str],
+    visit: &mut impl FnMut(&mut Map<String, Value>),
+) {
     match value {
         Value::Object(map) => {
-            let required: Vec<String> = map
-                .get("required")
-                .and_then(Value::as_array)
-                .map(|r| {
-                    r.iter()
-                        .filter_map(Value::as_str)
-                        .map(str::to_string)
-                        .collect()
-                })
-                .unwrap_or_default();
-            if let Some(Value::Object(properties)) = map.get_mut("properties") {
-                for (name, member) in properties.iter_mut() {
-                    if !required.contains(name) {
-                        admit_null(member);
-                    }
-                }
-            }
+            visit(map);
             for (key, child) in map.iter_mut() {
-                if key != "example" && key != "examples" {
-                    null_as_absent(child);
+                if !skip.contains(&key.as_str()) {
+                    for_each_object(child, skip, visit);
                 }
             }
         }
-        Value::Array(items) => items.iter_mut().for_each(null_as_absent),
+        Value::Array(items) => items
+            .iter_mut()
+            .for_each(|item| for_each_object(item, skip, visit)),
         _ => {}
     }
+}
+
+/// Lets every optional member of every object schema in `value` be `null` (not inside examples,
+/// which are data).
+fn null_as_absent(value: &mut Value) {
+    for_each_object(value, &["example", "examples"], &mut |map| {
+        let required: Vec<String> = map
+            .get("required")
+            .and_then(Value::as_array)
+            .map(|r| {
+                r.iter()
+                    .filter_map(Value::as_str)
+                    .map(str::to_string)
+                    .collect()
+            })
+            .unwrap_or_default();
+        if let Some(Value::Object(properties)) = map.get_mut("properties") {
+            for (name, member) in properties.iter_mut() {
+                if !required.contains(name) {
+                    admit_null(member);
+                }
+            }
+        }
+    });
 }
 
 /// Widens `schema` to admit `null` too.
@@ -219,26 +234,21 @@ fn admit_null(schema: &mut Value) {
 /// `int32` with minimum 0, formats whose range ends at 2⁶³ − 1 and 2³¹ − 1, below what the
 /// readers take.
 fn unsigned_ranges(value: &mut Value) {
-    match value {
-        Value::Object(map) => {
-            let unsigned = map
-                .get("minimum")
-                .and_then(Value::as_f64)
-                .is_some_and(|m| m >= 0.0);
-            let widened = match map.get("format").and_then(Value::as_str) {
-                Some("int64") if unsigned => Some(("uint64", json!(u64::MAX))),
-                Some("int32") if unsigned => Some(("uint32", json!(u32::MAX))),
-                _ => None,
-            };
-            if let Some((format, max)) = widened {
-                map.insert("format".into(), json!(format));
-                map.entry("maximum").or_insert(max);
-            }
-            map.values_mut().for_each(unsigned_ranges);
+    for_each_object(value, &[], &mut |map| {
+        let unsigned = map
+            .get("minimum")
+            .and_then(Value::as_f64)
+            .is_some_and(|m| m >= 0.0);
+        let widened = match map.get("format").and_then(Value::as_str) {
+            Some("int64") if unsigned => Some(("uint64", json!(u64::MAX))),
+            Some("int32") if unsigned => Some(("uint32", json!(u32::MAX))),
+            _ => None,
+        };
+        if let Some((format, max)) = widened {
+            map.insert("format".into(), json!(format));
+            map.entry("maximum").or_insert(max);
         }
-        Value::Array(items) => items.iter_mut().for_each(unsigned_ranges),
-        _ => {}
-    }
+    });
 }
 
 /// Closes the objects of request bodies to members they do not list (the readers refuse an
@@ -296,24 +306,17 @@ fn refs_in(value: &Value, out: &mut Vec<String>) {
 /// Sets `additionalProperties: false` on every object schema in `value` that lists its
 /// properties and says nothing of others (not on constraint fragments, which have no `type`).
 fn close_objects(value: &mut Value) {
-    match value {
-        Value::Object(map) => {
-            let is_object = match map.get("type") {
-                Some(Value::String(t)) => t == "object",
-                Some(Value::Array(ts)) => ts.contains(&json!("object")),
-                _ => false,
-            };
-            if is_object
-                && map.contains_key("properties")
-                && !map.contains_key("additionalProperties")
-            {
-                map.insert("additionalProperties".into(), json!(false));
-            }
-            map.values_mut().for_each(close_objects);
+    for_each_object(value, &[], &mut |map| {
+        let is_object = match map.get("type") {
+            Some(Value::String(t)) => t == "object",
+            Some(Value::Array(ts)) => ts.contains(&json!("object")),
+            _ => false,
+        };
+        if is_object && map.contains_key("properties") && !map.contains_key("additionalProperties")
+        {
+            map.insert("additionalProperties".into(), json!(false));
         }
-        Value::Array(items) => items.iter_mut().for_each(close_objects),
-        _ => {}
-    }
+    });
 }
 
 /// A member that is present and not `null`.

@@ -7,14 +7,15 @@
 //! the same order (the composer's kick and drift, the chart's closed-form stages, its energy),
 //! and IEEE addition, multiplication, division and square root round the same in a SIMD lane as
 //! in a scalar register, so a map run here is bit for bit the map run cell by cell
-//! (`tests/core_energy_map.rs` compares every cell of both). The sine and cosine stay the C
-//! library's, one call per lane; the compiler makes one `sincos` call of the sine and cosine of
-//! one angle, and the energy takes its cosine where the one-cell path calls `cos` alone, which
-//! gives the same bits with glibc (whose `sincos` and `cos` share their code; the test would
-//! show a library where they differ). What the lanes save besides the packing: the energy that
-//! eq. (50) asks for after every step shares |q| (Cartesian) or sin θ, cos θ (polar) with the
-//! force of the next step instead of computing them again, and the per-step calls through the
-//! generic composer and observer go.
+//! (`tests/core_energy_map.rs` compares every cell of both).
+//!
+//! Sine and cosine stay the C library's, one call per lane. The compiler turns the sine and
+//! cosine of one angle into one `sincos` call, and the energy reuses its cosine where the
+//! one-cell path calls `cos`: with glibc, whose `sincos` and `cos` share their code, the bits are
+//! the same (the test would catch a library where they differ). Besides the packing, the lanes
+//! save work twice: the energy that eq. (50) asks for after every step shares |q| (Cartesian) or
+//! sin θ, cos θ (polar) with the next step's force, and the per-step calls through the generic
+//! composer and observer are gone.
 
 // The lanes are indexed side by side in several arrays at once: loops over lane numbers are the
 // form the compiler vectorises.
