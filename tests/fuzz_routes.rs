@@ -136,6 +136,7 @@ fn odd_value() -> impl Strategy<Value = Value> {
             "log",
             "sys-0123456789abcdef",
             "kahan_li_8",
+            "blanes_casas_murua_8",
             "x^2",
             "sin(",
         ])

@@ -89,6 +89,19 @@ async fn simulations_are_pinned() {
         .await
     );
     assert_json_snapshot!(
+        "processed_compositions",
+        pin(
+            &s,
+            sim,
+            json!({"system": "elastic_pendulum_3d", "params": {"epsilon": 0.001},
+            "methods": [{"id": "blanes_casas_murua_8", "base": "modin_3s"},
+                {"id": "blanes_casas_murua_8", "base": "modin_2s"},
+                {"id": "blanes_casas_murua_8", "base": "implicit_midpoint"}],
+            "h": 0.2, "t_end": 8, "output": {"every": 10}})
+        )
+        .await
+    );
+    assert_json_snapshot!(
         "oscillator_jacobian_defect",
         pin(
             &s,

@@ -20,7 +20,7 @@ use super::system::{MechanicalSystem, State};
 /// A one-step method for systems of type `S`. Explicit implementations keep their work buffers,
 /// so a step allocates nothing. A stepper may keep the last force evaluation for the next step
 /// (the end of one step is the start of the next), so `step` must be given the state its previous
-/// call produced; start a new stepper for an unrelated state.
+/// call produced; start a new stepper, or [`restart`](Stepper::restart) it, for an unrelated state.
 pub trait Stepper<S: MechanicalSystem>
 where
     DefaultAllocator: Allocator<S::Dim>,
@@ -55,10 +55,18 @@ where
     /// was before that step. The driver sets it before the first step; the default ignores it.
     fn set_deadline(&mut self, _deadline: Option<Instant>) {}
 
+    /// Forgets what the stepper carries from one step to the next (the force at the last
+    /// position), so that its next step may start from an unrelated state. The default has
+    /// nothing to forget.
+    fn restart(&mut self) {}
+
     /// Processing (a method Φ = χ⁻¹ ∘ K ∘ χ whose kernel K is what `step` does): maps the
     /// caller's state to the kernel's, z ← χ(z). The driver calls it once, before the first step.
-    /// The default does nothing.
-    fn pre_process(&mut self, _sys: &S, _z: &mut State<S::Dim>, _h: f64) {}
+    /// The default does nothing. A processor that fails (a Newton solve inside it) leaves `z`
+    /// as it was.
+    fn pre_process(&mut self, _sys: &S, _z: &mut State<S::Dim>, _h: f64) -> Result<(), StepError> {
+        Ok(())
+    }
 
     /// Processing: writes the output state χ⁻¹(z) for the kernel state `z` into `out` and returns
     /// true; returns false (leaving `out` alone) when `z` itself is the output, as it is for every
@@ -70,8 +78,8 @@ where
         _z: &State<S::Dim>,
         _h: f64,
         _out: &mut State<S::Dim>,
-    ) -> bool {
-        false
+    ) -> Result<bool, StepError> {
+        Ok(false)
     }
 
     /// Advances `z` by one step and multiplies `tangent.jac` by the step's Jacobian ∂Φ/∂z.
@@ -109,7 +117,10 @@ where
     fn set_deadline(&mut self, deadline: Option<Instant>) {
         (**self).set_deadline(deadline)
     }
-    fn pre_process(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64) {
+    fn restart(&mut self) {
+        (**self).restart()
+    }
+    fn pre_process(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64) -> Result<(), StepError> {
         (**self).pre_process(sys, z, h)
     }
     fn post_process(
@@ -118,7 +129,7 @@ where
         z: &State<S::Dim>,
         h: f64,
         out: &mut State<S::Dim>,
-    ) -> bool {
+    ) -> Result<bool, StepError> {
         (**self).post_process(sys, z, h, out)
     }
     fn step_tangent(
@@ -305,10 +316,19 @@ where
     } else {
         None
     };
+    // A step that fails, counted from 0; a failing processor is charged to the step it is
+    // applied with (the first, or the one that ends at the output).
+    let fail = |step: u64, source: StepError| CoreError::Step {
+        field: None,
+        run: None,
+        step: step + 1,
+        t: step as f64 * h,
+        source,
+    };
     observer.on_sample(0, 0.0, z);
     stepper.set_deadline(budget.deadline);
     if schedule.steps > 0 {
-        stepper.pre_process(sys, z, h);
+        stepper.pre_process(sys, z, h).map_err(|e| fail(0, e))?;
     }
     // The post-processed state of the last sample, and that sample's step.
     let mut processed = z.clone();
@@ -332,13 +352,6 @@ where
         let next_sample = ((step / every) + 1) * every;
         let next_check = ((step / check_every) + 1) * check_every;
         let until = next_sample.min(next_check).min(schedule.steps);
-        let fail = |step: u64, source: StepError| CoreError::Step {
-            field: None,
-            run: None,
-            step: step + 1,
-            t: step as f64 * h,
-            source,
-        };
         match tangent.as_mut() {
             None => {
                 let (done, outcome) = stepper.advance(sys, z, h, until - step);
@@ -374,7 +387,10 @@ where
             break;
         }
         if step % every == 0 || step == schedule.steps {
-            if stepper.post_process(sys, z, h, &mut processed) {
+            if stepper
+                .post_process(sys, z, h, &mut processed)
+                .map_err(|e| fail(step.saturating_sub(1), e))?
+            {
                 processed_at = Some(step);
                 observer.on_sample(step, step as f64 * h, &processed);
             } else {
@@ -385,7 +401,10 @@ where
     // Leave the output state, not the kernel's, to the caller.
     if step > 0
         && !matches!(stop, StopReason::Diverged { .. })
-        && (processed_at == Some(step) || stepper.post_process(sys, z, h, &mut processed))
+        && (processed_at == Some(step)
+            || stepper
+                .post_process(sys, z, h, &mut processed)
+                .map_err(|e| fail(step.saturating_sub(1), e))?)
     {
         z.clone_from(&processed);
     }

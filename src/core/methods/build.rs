@@ -5,7 +5,7 @@
 use nalgebra::allocator::Allocator;
 use nalgebra::DefaultAllocator;
 
-use super::composition::Composed;
+use super::composition::{inverse, Composed, Processed};
 use super::conformal::Csv2;
 use super::implicit::{ImplicitMidpoint, MidpointField};
 use super::reference::Reference;
@@ -90,6 +90,8 @@ where
     Reference(Reference<S::Dim>),
     /// rowlands.
     Rowlands(Rowlands<S>),
+    /// A processed composition: kernel, processor and output map, each a composition stepper.
+    Processed(Box<Processed<AnyStepper<S>>>),
 }
 
 /// Runs `$body` with `$st` bound to the concrete stepper inside an [`AnyStepper`].
@@ -117,6 +119,7 @@ macro_rules! with_stepper {
             $crate::core::methods::AnyStepper::GeneralSymplecticEuler($st) => $body,
             $crate::core::methods::AnyStepper::Reference($st) => $body,
             $crate::core::methods::AnyStepper::Rowlands($st) => $body,
+            $crate::core::methods::AnyStepper::Processed($st) => $body,
         }
     };
 }
@@ -140,7 +143,10 @@ where
     fn set_deadline(&mut self, deadline: Option<std::time::Instant>) {
         with_stepper!(self, st => Stepper::<S>::set_deadline(st, deadline))
     }
-    fn pre_process(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64) {
+    fn restart(&mut self) {
+        with_stepper!(self, st => Stepper::<S>::restart(st))
+    }
+    fn pre_process(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64) -> Result<(), StepError> {
         with_stepper!(self, st => st.pre_process(sys, z, h))
     }
     fn post_process(
@@ -149,7 +155,7 @@ where
         z: &State<S::Dim>,
         h: f64,
         out: &mut State<S::Dim>,
-    ) -> bool {
+    ) -> Result<bool, StepError> {
         with_stepper!(self, st => st.post_process(sys, z, h, out))
     }
     fn step_tangent(
@@ -232,6 +238,31 @@ where
     Ok(stepper(method, sys))
 }
 
+/// The stepper of the composition of `base` with `weights` (a processed method's kernel,
+/// processor or output map, or a plain composition).
+fn composed<S: MechanicalSystem>(sys: &S, base: Base, weights: &[f64]) -> AnyStepper<S>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    let weights = weights.to_vec();
+    match (sequence(base.id()), base) {
+        (Some(seq), _) => AnyStepper::Splitting(Splitting::new(
+            sys,
+            splitting::Composition::new(seq, &weights),
+            None,
+        )),
+        (None, Base::Csv2) => AnyStepper::ComposedCsv2(Composed::new(Csv2::new(sys), weights)),
+        (None, Base::Cimp) => AnyStepper::ComposedMidpoint(Composed::new(
+            ImplicitMidpoint::new(sys, MidpointField::Conformal),
+            weights,
+        )),
+        (None, _) => AnyStepper::ComposedMidpoint(Composed::new(
+            ImplicitMidpoint::new(sys, MidpointField::Full),
+            weights,
+        )),
+    }
+}
+
 /// The stepper of a checked method. The built-in splittings and tableaux get steppers with their
 /// coefficients known at compile time; compositions build their sequence at run time.
 fn stepper<S: MechanicalSystem>(method: &Method, sys: &S) -> AnyStepper<S>
@@ -252,27 +283,14 @@ where
     }
     let separable = sys.structure().separable_constant_mass;
     match *method {
-        Method::Composition { scheme, base } => {
-            let weights = scheme.weights();
-            match (sequence(base.id()), base) {
-                (Some(seq), _) => AnyStepper::Splitting(Splitting::new(
-                    sys,
-                    splitting::Composition::new(seq, &weights),
-                    None,
-                )),
-                (None, Base::Csv2) => {
-                    AnyStepper::ComposedCsv2(Composed::new(Csv2::new(sys), weights))
-                }
-                (None, Base::Cimp) => AnyStepper::ComposedMidpoint(Composed::new(
-                    ImplicitMidpoint::new(sys, MidpointField::Conformal),
-                    weights,
-                )),
-                (None, _) => AnyStepper::ComposedMidpoint(Composed::new(
-                    ImplicitMidpoint::new(sys, MidpointField::Full),
-                    weights,
-                )),
-            }
-        }
+        Method::Composition { scheme, base } => match scheme.processor() {
+            Some(processor) => AnyStepper::Processed(Box::new(Processed::new(
+                composed(sys, base, &scheme.weights()),
+                composed(sys, base, &processor),
+                composed(sys, base, &inverse(&processor)),
+            ))),
+            None => composed(sys, base, &scheme.weights()),
+        },
         Method::ModinRks { inner } => {
             let inner = MomentumRk::new(
                 tableau(inner.id()).map_or(InnerRk::ImplicitMidpoint, InnerRk::Explicit),
@@ -316,10 +334,14 @@ where
 }
 
 /// The base method of `method` and the weights of its sub-steps (one, of weight 1, for a method
-/// that is not a composition).
+/// that is not a composition; a processed method's processor's too, which run with the same h).
 fn stages(method: &Method) -> (MethodId, Vec<f64>) {
     match method {
-        Method::Composition { scheme, base } => (base.id(), scheme.weights()),
+        Method::Composition { scheme, base } => {
+            let mut weights = scheme.weights();
+            weights.extend(scheme.processor().unwrap_or_default());
+            (base.id(), weights)
+        }
         other => (other.id(), vec![1.0]),
     }
 }

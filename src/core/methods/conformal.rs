@@ -83,6 +83,10 @@ where
         self.force_evaluations
     }
 
+    fn restart(&mut self) {
+        self.grad_valid = false;
+    }
+
     fn step_tangent(
         &mut self,
         sys: &S,

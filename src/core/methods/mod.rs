@@ -263,6 +263,8 @@ catalogue! {
     KahanLi6 => composition::KAHAN_LI_6_INFO,
     /// Kahan and Li's eighth-order 17-stage composition.
     KahanLi8 => composition::KAHAN_LI_8_INFO,
+    /// Blanes, Casas and Murua's processed composition of effective order 8, 13 stages.
+    BlanesCasasMurua8 => composition::BLANES_CASAS_MURUA_8_INFO,
     /// Rowlands time stepping: Störmer–Verlet on a modified potential with processing.
     Rowlands => rowlands::ROWLANDS_INFO,
     /// Symplectic Euler (kick then drift).
@@ -403,7 +405,8 @@ pub enum Method {
     },
     /// A symmetric composition of a base (default modin_3s).
     Composition {
-        /// The composition (triple_jump, suzuki_4, yoshida_6, kahan_li_6, kahan_li_8).
+        /// The composition (triple_jump, suzuki_4, yoshida_6, kahan_li_6, kahan_li_8,
+        /// blanes_casas_murua_8).
         scheme: Scheme,
         /// The base.
         base: Base,

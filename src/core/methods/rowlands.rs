@@ -336,9 +336,9 @@ where
         })
     }
 
-    fn pre_process(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64) {
+    fn pre_process(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64) -> Result<(), StepError> {
         match self.processor {
-            Processor::None => return,
+            Processor::None => return Ok(()),
             Processor::Original => self.original(sys, z, h, 1.0),
             Processor::Cheap => {
                 // Eqs. (34)–(35): U_q^{±1/2} at q ± h/2 M⁻¹p.
@@ -361,6 +361,7 @@ where
         }
         // The kernel starts from a new position.
         self.cached_h2 = None;
+        Ok(())
     }
 
     fn post_process(
@@ -369,13 +370,13 @@ where
         z: &State<S::Dim>,
         h: f64,
         out: &mut State<S::Dim>,
-    ) -> bool {
+    ) -> Result<bool, StepError> {
         match self.processor {
-            Processor::None => false,
+            Processor::None => Ok(false),
             Processor::Original => {
                 out.clone_from(z);
                 self.original(sys, out, h, -1.0);
-                true
+                Ok(true)
             }
             Processor::Cheap => {
                 // Eqs. (36)–(37) with z̄_{j+1} = K_h(z̄_j), z̄_{j−1} = K_{−h}(z̄_j), on copies.
@@ -397,7 +398,7 @@ where
                 out.p += &self.behind.p;
                 out.p.axpy(-2.0, &z.p, 1.0);
                 out.p.axpy(1.0, &z.p, -1.0 / 12.0);
-                true
+                Ok(true)
             }
         }
     }

@@ -256,6 +256,10 @@ where
         self.work.force_evaluations
     }
 
+    fn restart(&mut self) {
+        self.work.grad_valid = false;
+    }
+
     fn step_tangent(
         &mut self,
         sys: &S,
