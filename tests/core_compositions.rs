@@ -7,14 +7,13 @@
 
 mod common;
 
-use common::{final_state, request, run_all, run_stepper, run_to_columns};
+use common::{final_state, request, run_all, run_stepper, run_to_columns, Discard};
 use geomint::core::diagnostics::log_log_slope;
-use geomint::core::error::Field;
-use geomint::core::error::StepError;
+use geomint::core::error::{Field, StepError};
 use geomint::core::methods::composition::{inverse, Processed, Scheme};
 use geomint::core::methods::splitting::{self, Composition, Splitting};
 use geomint::core::methods::{self, Base, Method, MethodId};
-use geomint::core::run::{Schedule, Stepper, StopReason};
+use geomint::core::run::{integrate, Budget, Schedule, Stepper, StopReason};
 use geomint::core::simulation::{Limits, MethodAt, Simulation, SimulationSpec};
 use geomint::core::system::{MechanicalSystem, State};
 use geomint::core::systems::{HarmonicOscillator, Pendulum};
@@ -43,7 +42,7 @@ fn power_sum(weights: &[f64], k: i32) -> f64 {
 fn weights_meet_the_order_conditions_of_symmetric_compositions() {
     // For a symmetric composition of a symmetric second-order method, order p needs (among
     // others) Σγ = 1 and Σγ^k = 0 for the odd k = 3, …, p − 1 (Hairer–Lubich–Wanner V.3); the
-    // tables are given to 26 digits, so these hold to round-off.
+    // tables are given to 26 digits (Blanes–Casas–Murua's to 15), so these hold to round-off.
     for id in COMPOSITIONS {
         let s = scheme(id);
         // A processed scheme's kernel too: the processor can remove the other terms of the
@@ -391,4 +390,48 @@ fn a_processor_that_fails_is_an_error_of_the_first_step_and_leaves_the_state() {
         message.starts_with("step 1 (t = 0): Newton iteration did not converge"),
         "{message}"
     );
+}
+
+#[test]
+fn a_processed_run_stopped_before_its_first_step_leaves_the_state_as_given() {
+    // The processor runs with the first step: a run the budget stops before it (cancelled, or
+    // started after its deadline) hands back the caller's state, not π(z₀), and costs nothing.
+    let sys = HarmonicOscillator {
+        omega: 2.0,
+        gamma: 0.3,
+    };
+    let method = Method::composition(Scheme::BlanesCasasMurua8, Base::Cimp);
+    let cancelled = std::sync::atomic::AtomicBool::new(true);
+    let budgets = [
+        Budget {
+            cancel: Some(&cancelled),
+            deadline: None,
+        },
+        Budget {
+            cancel: None,
+            deadline: Some(std::time::Instant::now()),
+        },
+    ];
+    for budget in budgets {
+        let mut stepper = methods::build(&method, &sys, "oscillator", 0.1).unwrap();
+        let mut z = State::from_slices(U1, &[1.0], &[0.5]);
+        let (stop, stats) = integrate(
+            &sys,
+            &mut stepper,
+            &mut z,
+            Schedule::new(0.1, 4.0, 10),
+            budget,
+            false,
+            &mut Discard,
+        )
+        .unwrap();
+        assert!(
+            matches!(
+                stop,
+                StopReason::Cancelled { step: 0 } | StopReason::TimeLimit { step: 0 }
+            ),
+            "{stop:?}"
+        );
+        assert_eq!((z.q[0], z.p[0], stats.force_evaluations), (1.0, 0.5, 0));
+    }
 }

@@ -2,7 +2,8 @@
 //! in any order reproduce the local run bit for bit, and merging refuses missing, duplicate and
 //! foreign parts; csv1's divergence over (γ, h) follows the spectral radius of its propagation
 //! matrix; energy errors over an h axis show the method's order against the exact solution;
-//! J₃ stays at round-off over an ε axis; a cell outside a chart is that cell's error.
+//! J₃ stays at round-off over an ε axis; a cell outside a chart is that cell's error; sweeps of
+//! the map's kind run in SIMD lanes with the one-cell path's numbers bit for bit.
 
 use geomint::api::studies::EnergyMapRequest;
 use geomint::api::sweep::{energy_map_preset, SweepRequest};
@@ -328,4 +329,91 @@ fn refusals_name_the_axis() {
     small_h.as_object_mut().unwrap().remove("h");
     let (at, message) = refused(small_h);
     assert_eq!(at, "axes[0].min", "{message}");
+}
+
+#[test]
+fn sweeps_of_the_maps_kind_run_in_lanes_with_the_numbers_of_cell_by_cell() {
+    // Every metric of every run — errors, divergence, the last finite state in Cartesian
+    // coordinates, steps and force evaluations — bit for bit between the lanes and the one-cell
+    // path, over grids that reach every outcome, and over a shard that starts off a group of four.
+    let preset = |method: &str, params: Value, x: [f64; 2], y: [f64; 2], n: [usize; 2]| {
+        let map = EnergyMapRequest::from_value(&json!({"method": method, "params": params,
+            "x": x, "y": y, "nx": n[0], "ny": n[1], "t_max": 300}))
+        .unwrap();
+        energy_map_preset(&map)
+    };
+    let mut requests = Vec::new();
+    for method in ["symplectic_euler", "symplectic_euler_adjoint"] {
+        // Fig. 6's window: divergent polar runs, the pivot, a last group of three.
+        requests.push(preset(method, json!({}), [-3.0, 3.0], [-3.0, 3.0], [9, 7]));
+        // Another pendulum, far enough out that the energy leaves its band.
+        requests.push(preset(
+            method,
+            json!({"m": 1.3, "k": 0.7, "g": 0.4}),
+            [0.2, 40.0],
+            [-2.0, 1.1],
+            [5, 3],
+        ));
+        // Starts so far out that H₀ overflows.
+        requests.push(preset(
+            method,
+            json!({}),
+            [1e200, 1e201],
+            [-1e155, 1e160],
+            [3, 2],
+        ));
+    }
+    // Axes over the initial momenta, from a start off the pivot.
+    requests.push(
+        json!({"system": "elastic_pendulum_2d", "charts": ["polar", "cartesian"],
+        "initial_coordinates": "cartesian", "q0": [1.0, -0.5],
+        "methods": ["symplectic_euler_adjoint", "symplectic_euler"], "h": 0.05, "t_end": 20,
+        "axes": [{"name": "p0[0]", "min": -4, "max": 4, "n": 5},
+                 {"name": "p0[1]", "min": -4, "max": 4, "n": 3}]}),
+    );
+    let mut outcomes = [0usize; 4];
+    for request in &requests {
+        let job = job(request);
+        assert!(job.runs_in_lanes(), "{request}");
+        // As text: the shortest decimal that reads back to the same bits, −0 included.
+        let in_lanes = numbers(&run(&job)).to_string();
+        let one_by_one = job.clone().cell_by_cell();
+        assert!(!one_by_one.runs_in_lanes());
+        assert_eq!(
+            in_lanes,
+            numbers(&run(&one_by_one)).to_string(),
+            "{request}"
+        );
+        let shard = 1..job.cells().min(7);
+        let part = |job: &SweepJob| {
+            let cells = job.run_cells(shard.clone(), Budget::default(), &|| {});
+            serde_json::to_string(&cells.unwrap().unwrap()).unwrap()
+        };
+        assert_eq!(part(&job), part(&one_by_one), "{request}: cells {shard:?}");
+        let doc = run(&job);
+        let full = doc.steps / (doc.cells * doc.runs.len()) as u64;
+        for r in &doc.runs {
+            for c in 0..doc.cells {
+                let k = if r.errors[c].is_some() {
+                    0
+                } else if r.steps[c] < full {
+                    1 // stopped: not finite
+                } else if r.diverged_at[c].is_some() {
+                    2 // left its energy band
+                } else {
+                    3
+                };
+                outcomes[k] += 1;
+            }
+        }
+    }
+    println!("outcomes (failed, not finite, blown, finished): {outcomes:?}");
+    assert!(outcomes.iter().all(|&n| n > 0), "outcomes {outcomes:?}");
+    // Not the maps' kind: sampled more sparsely, or another method.
+    let mut sparse = energy_map_preset(&map_request());
+    sparse["every"] = json!(2);
+    assert!(!job(&sparse).runs_in_lanes());
+    let mut other = energy_map_preset(&map_request());
+    other["methods"] = json!(["rk4"]);
+    assert!(!job(&other).runs_in_lanes());
 }

@@ -327,9 +327,6 @@ where
     };
     observer.on_sample(0, 0.0, z);
     stepper.set_deadline(budget.deadline);
-    if schedule.steps > 0 {
-        stepper.pre_process(sys, z, h).map_err(|e| fail(0, e))?;
-    }
     // The post-processed state of the last sample, and that sample's step.
     let mut processed = z.clone();
     let mut processed_at = None;
@@ -347,6 +344,11 @@ where
                 stop = StopReason::TimeLimit { step };
                 break;
             }
+        }
+        // Processing starts with the run: a run the budget stopped before its first step
+        // leaves the caller's state as it was.
+        if step == 0 {
+            stepper.pre_process(sys, z, h).map_err(|e| fail(0, e))?;
         }
         // Steps up to the next sample, the next budget check or the end.
         let next_sample = ((step / every) + 1) * every;

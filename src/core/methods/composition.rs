@@ -200,8 +200,8 @@ impl Scheme {
     /// Blanes, Casas and Murua publish g₁ … g₁₀ (Σg = 0) and the processor
     /// −(g₁, …, g₁₀, −g₁, …, −g₁₀); read first element first, that is
     /// π = Φ_{g₁₀h} ∘ … ∘ Φ_{g₁h} ∘ Φ_{−g₁₀h} ∘ … ∘ Φ_{−g₁h}. The reading is checked by the
-    /// observed order (8.0, `tests/core_compositions.rs`); with π and π⁻¹ swapped the method is
-    /// of order 4, as the kernel alone is.
+    /// observed order (8.0, `tests/core_compositions.rs`); with π and π⁻¹ swapped (π⁻¹ before
+    /// the first step, π at the outputs) the method is of order 4, as the kernel alone is.
     pub fn processor(self) -> Option<Vec<f64>> {
         match self {
             Scheme::BlanesCasasMurua8 => {
@@ -234,7 +234,7 @@ pub struct Composed<M> {
 }
 
 impl<M> Composed<M> {
-    /// Composes `base` with `weights` (which should sum to one).
+    /// Composes `base` with `weights` (summing to one for a method, to zero for a processor).
     pub fn new(base: M, weights: Vec<f64>) -> Self {
         Self { base, weights }
     }
@@ -359,8 +359,9 @@ where
     }
 
     /// The kernel's step Jacobian. Over n steps the method's map is π⁻¹ ∘ Kⁿ ∘ π, so a step's
-    /// Jacobian is the kernel's conjugated by ∂π/∂z: the same determinant and eigenvalues, which
-    /// is what the Jacobian defect and the stability analysis read from it.
+    /// Jacobian is the kernel's conjugated by ∂π/∂z: the same determinant (what the Jacobian
+    /// defect reads) and eigenvalues, not the same matrix. (The stability analysis propagates
+    /// `step`, the kernel, and so reports the kernel's matrix, with the method's spectrum.)
     fn step_tangent(
         &mut self,
         sys: &S,
@@ -475,7 +476,8 @@ pub const BLANES_CASAS_MURUA_8_INFO: MethodInfo = MethodInfo {
     kind: Kind::Explicit,
     symplectic: true,
     conformal_symplectic: true,
-    symmetric: true,
+    // The kernel is; π⁻¹ ∘ K ∘ π is only to O(h¹⁰), since π does not change with the sign of h.
+    symmetric: false,
     requirements: &[],
     reference: Citation {
         paper: "Blanes, Casas & Murua 2006 (SIAM J. Sci. Comput. 27); Acta Numerica 33 (2024)",

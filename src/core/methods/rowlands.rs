@@ -324,6 +324,10 @@ where
         self.work.force_evaluations
     }
 
+    fn restart(&mut self) {
+        self.cached_h2 = None;
+    }
+
     fn step_tangent(
         &mut self,
         _sys: &S,

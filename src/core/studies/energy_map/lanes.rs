@@ -1,4 +1,5 @@
-//! The map's cells four at a time: symplectic Euler and its adjoint on the planar elastic
+//! The map's cells four at a time (and a sweep's, when it is the map's kind of sweep: see
+//! [`crate::core::studies::sweep`]): symplectic Euler and its adjoint on the planar elastic
 //! pendulum, in either chart, with the state of [`LANES`] cells side by side so that the
 //! compiler packs the lanes into SIMD registers (f64×2 on any x86-64, f64×4 where the CPU has
 //! AVX2, chosen when the map runs).
@@ -111,13 +112,27 @@ impl Constants {
     }
 }
 
-/// Per-lane sums of eq. (50) and the first steps at which a lane left the energy band or the
-/// finite numbers (as f64, exact to 2⁵³, so that the lanes compare and select in SIMD registers;
-/// ∞: never).
-struct Tally {
-    sum: Lane,
-    blown: Lane,
-    non_finite: Lane,
+/// Per lane: the sum of eq. (50) and the first steps at which the lane left the energy band or
+/// the finite numbers (as f64, exact to 2⁵³, so that the lanes compare and select in SIMD
+/// registers; ∞: never). A sweep's run ([`run_measured`]) also keeps the largest and the last
+/// |H − H₀| and the state the one-cell path ends with; the map's run leaves them alone.
+#[derive(Clone, Copy, Debug)]
+pub struct Tally {
+    /// Σ (H − H₀)² over the samples, the first included.
+    pub sum: Lane,
+    /// The first step whose energy left the band.
+    pub blown: Lane,
+    /// The first step whose state is not finite (0 for an idle lane).
+    pub non_finite: Lane,
+    /// The largest |H − H₀| (sweeps only).
+    pub max: Lane,
+    /// The last H − H₀ (sweeps only).
+    pub last: Lane,
+    /// The last finite state before the lane stopped, as the one-cell path's last sample
+    /// (sweeps only).
+    pub q: [Lane; 2],
+    /// Its momenta.
+    pub p: [Lane; 2],
 }
 
 /// Runs `steps` steps of `order` in `chart` from `start`; returns, per lane, the [`ChartRun`]
@@ -131,12 +146,39 @@ pub fn run(
     steps: u64,
     budget: Budget<'_>,
 ) -> Option<[ChartRun; LANES]> {
-    let limit = start.energy.map(|e| DIVERGENCE * (1.0 + e.abs()));
-    let c = Constants::new(pendulum, h);
-    let tally = dispatch(&c, chart, order, start, steps, &limit, budget)?;
+    let tally = tally::<false>(pendulum, chart, order, start, h, steps, budget)?;
     Some(std::array::from_fn(|i| {
         outcome(&tally, start.idle[i], i, h, steps)
     }))
+}
+
+/// [`run`] keeping what a sweep's run measures (the whole [`Tally`]), or `None` when the budget
+/// stopped the run.
+pub fn run_measured(
+    pendulum: &PlanarSpring,
+    chart: Chart,
+    order: Order,
+    start: &Start,
+    h: f64,
+    steps: u64,
+    budget: Budget<'_>,
+) -> Option<Tally> {
+    tally::<true>(pendulum, chart, order, start, h, steps, budget)
+}
+
+/// The tally of a run (the whole of it when `MEASURED`), `None` when the budget stopped it.
+fn tally<const MEASURED: bool>(
+    pendulum: &PlanarSpring,
+    chart: Chart,
+    order: Order,
+    start: &Start,
+    h: f64,
+    steps: u64,
+    budget: Budget<'_>,
+) -> Option<Tally> {
+    let limit = start.energy.map(|e| DIVERGENCE * (1.0 + e.abs()));
+    let c = Constants::new(pendulum, h);
+    dispatch::<MEASURED>(&c, chart, order, start, steps, &limit, budget)
 }
 
 /// Lane `i`'s outcome as the one-cell path reports it: a state that stopped being finite ends
@@ -167,8 +209,9 @@ fn outcome(tally: &Tally, idle: bool, i: usize, h: f64, steps: u64) -> ChartRun 
     }
 }
 
-/// Picks the kernel, compiled for AVX2 when the CPU has it.
-fn dispatch(
+/// Picks the kernel, compiled for AVX2 when the CPU has it; `MEASURED`: keep the whole
+/// [`Tally`].
+fn dispatch<const MEASURED: bool>(
     c: &Constants,
     chart: Chart,
     order: Order,
@@ -180,9 +223,9 @@ fn dispatch(
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU supports AVX2, checked just above.
-        return unsafe { integrate_avx2(c, chart, order, start, steps, limit, budget) };
+        return unsafe { integrate_avx2::<MEASURED>(c, chart, order, start, steps, limit, budget) };
     }
-    integrate(c, chart, order, start, steps, limit, budget)
+    integrate::<MEASURED>(c, chart, order, start, steps, limit, budget)
 }
 
 /// [`integrate`] compiled with AVX2 (f64×4 registers). Still no fused multiply-add, which would
@@ -190,7 +233,7 @@ fn dispatch(
 /// (only `mul_add` does), whatever the target features.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn integrate_avx2(
+fn integrate_avx2<const MEASURED: bool>(
     c: &Constants,
     chart: Chart,
     order: Order,
@@ -199,12 +242,12 @@ fn integrate_avx2(
     limit: &Lane,
     budget: Budget<'_>,
 ) -> Option<Tally> {
-    integrate(c, chart, order, start, steps, limit, budget)
+    integrate::<MEASURED>(c, chart, order, start, steps, limit, budget)
 }
 
 /// One kernel per (chart, order), each a loop the compiler specialises.
 #[inline(always)]
-fn integrate(
+fn integrate<const MEASURED: bool>(
     c: &Constants,
     chart: Chart,
     order: Order,
@@ -215,16 +258,16 @@ fn integrate(
 ) -> Option<Tally> {
     match (chart, order) {
         (Chart::Cartesian, Order::MomentumFirst) => {
-            lanes(c, start, steps, limit, budget, Cartesian::<true>)
+            lanes::<_, MEASURED>(c, start, steps, limit, budget, Cartesian::<true>)
         }
         (Chart::Cartesian, Order::PositionFirst) => {
-            lanes(c, start, steps, limit, budget, Cartesian::<false>)
+            lanes::<_, MEASURED>(c, start, steps, limit, budget, Cartesian::<false>)
         }
         (Chart::Polar, Order::MomentumFirst) => {
-            lanes(c, start, steps, limit, budget, Polar::<true>)
+            lanes::<_, MEASURED>(c, start, steps, limit, budget, Polar::<true>)
         }
         (Chart::Polar, Order::PositionFirst) => {
-            lanes(c, start, steps, limit, budget, Polar::<false>)
+            lanes::<_, MEASURED>(c, start, steps, limit, budget, Polar::<false>)
         }
     }
 }
@@ -250,7 +293,7 @@ trait Kernel {
 /// budget looked at every [`CHECK_EVERY`] steps, and the run left early once every lane is
 /// non-finite (where the one-cell path stops).
 #[inline(always)]
-fn lanes<K: Kernel>(
+fn lanes<K: Kernel, const MEASURED: bool>(
     c: &Constants,
     start: &Start,
     steps: u64,
@@ -268,6 +311,10 @@ fn lanes<K: Kernel>(
         sum: [0.0; LANES],
         blown: [f64::INFINITY; LANES],
         non_finite: [f64::INFINITY; LANES],
+        max: [0.0; LANES],
+        last: [0.0; LANES],
+        q: start.q,
+        p: start.p,
     };
     for i in 0..LANES {
         // The first sample, H₀ − H₀: zero, or NaN where H₀ is not finite.
@@ -315,6 +362,17 @@ fn lanes<K: Kernel>(
                 let first = |seen: f64, fine: bool| if fine { seen } else { seen.min(at) };
                 tally.non_finite[i] = first(tally.non_finite[i], finite);
                 tally.blown[i] = first(tally.blown[i], within);
+                if MEASURED {
+                    // As the sweep's measure: `f64::max` of the magnitudes, the last deviation,
+                    // and the state of the last step before the one-cell path would stop.
+                    tally.max[i] = tally.max[i].max(d.abs());
+                    tally.last[i] = d;
+                    let going = tally.non_finite[i] == f64::INFINITY;
+                    for k in 0..2 {
+                        tally.q[k][i] = if going { z.q[k][i] } else { tally.q[k][i] };
+                        tally.p[k][i] = if going { z.p[k][i] } else { tally.p[k][i] };
+                    }
+                }
             }
         }
     }
@@ -477,13 +535,17 @@ mod tests {
             idle: [false; LANES],
         };
         let limit = start.energy.map(|e| DIVERGENCE * (1.0 + e.abs()));
-        let bits = |t: &Tally| [t.sum, t.blown, t.non_finite].map(|lane| lane.map(f64::to_bits));
+        let bits = |t: &Tally| {
+            let [q0, q1, p0, p1] = [t.q[0], t.q[1], t.p[0], t.p[1]];
+            [t.sum, t.blown, t.non_finite, t.max, t.last, q0, q1, p0, p1]
+                .map(|lane| lane.map(f64::to_bits))
+        };
         for chart in [Chart::Cartesian, Chart::Polar] {
             for order in [Order::MomentumFirst, Order::PositionFirst] {
                 let portable =
-                    integrate(&c, chart, order, &start, 20_000, &limit, Budget::default());
+                    integrate::<true>(&c, chart, order, &start, 20_000, &limit, Budget::default());
                 let dispatched =
-                    dispatch(&c, chart, order, &start, 20_000, &limit, Budget::default());
+                    dispatch::<true>(&c, chart, order, &start, 20_000, &limit, Budget::default());
                 let (portable, dispatched) = (portable.unwrap(), dispatched.unwrap());
                 assert_eq!(bits(&portable), bits(&dispatched), "{chart:?} {order:?}");
                 assert!(
@@ -498,7 +560,8 @@ mod tests {
                     ..start
                 };
                 let with_idle =
-                    dispatch(&c, chart, order, &idle, 20_000, &limit, Budget::default()).unwrap();
+                    dispatch::<true>(&c, chart, order, &idle, 20_000, &limit, Budget::default())
+                        .unwrap();
                 assert_eq!(with_idle.non_finite[1], 0.0);
                 for lane in [0, 2, 3] {
                     assert_eq!(
@@ -519,6 +582,10 @@ mod tests {
             sum: [8.0, f64::NAN, 8.0, 8.0],
             blown: [f64::INFINITY, 5.0, 5.0, f64::INFINITY],
             non_finite: [f64::INFINITY, 9.0, f64::INFINITY, 0.0],
+            max: [0.0; LANES],
+            last: [0.0; LANES],
+            q: [[0.0; LANES]; 2],
+            p: [[0.0; LANES]; 2],
         };
         let outcomes: Vec<_> = (0..LANES)
             .map(|i| outcome(&tally, i == 3, i, 0.5, 7))

@@ -42,7 +42,7 @@ use crate::with_stepper;
 use lanes::{Order, LANES};
 
 mod document;
-mod lanes;
+pub(crate) mod lanes;
 
 pub use document::{run, EnergyMapDocument, MapLine, MapParams, MapSummary};
 

@@ -99,12 +99,49 @@ impl Measure {
         }
     }
 
+    /// What the samples of a run integrated elsewhere (in SIMD lanes) leave: the first time H
+    /// left its band, Σ e², the number of samples, max |e|, the last e and the last sample's
+    /// Cartesian state, for a system without invariants.
+    pub(super) fn of_lane(
+        blown_at: Option<f64>,
+        (sum, count): (f64, u64),
+        (max, last): (f64, f64),
+        (q, p): (Vec<f64>, Vec<f64>),
+    ) -> Self {
+        Measure {
+            blown_at,
+            sum,
+            count,
+            max,
+            last: Some(last),
+            q,
+            p,
+            ..Measure::new(EnergyReference::Initial)
+        }
+    }
+
     /// The metrics of a run that ended with `outcome`.
     pub fn finish(self, outcome: &Outcome) -> RunMetrics {
-        let diverged_at = match outcome.stop {
+        let stopped_at = match outcome.stop {
             StopReason::Diverged { t, .. } => Some(t),
-            _ => self.blown_at,
+            _ => None,
         };
+        self.finish_at(
+            stopped_at,
+            outcome.stats.steps,
+            outcome.stats.force_evaluations,
+        )
+    }
+
+    /// The metrics of a run that took `steps` steps and `force_evaluations` evaluations and, if
+    /// its state stopped being finite, stopped at time `stopped_at`.
+    pub(super) fn finish_at(
+        self,
+        stopped_at: Option<f64>,
+        steps: u64,
+        force_evaluations: u64,
+    ) -> RunMetrics {
+        let diverged_at = stopped_at.or(self.blown_at);
         let finite = |x: f64| x.is_finite().then_some(x);
         let healthy = diverged_at.is_none();
         let count = self.count.max(1) as f64;
@@ -122,8 +159,8 @@ impl Measure {
             diverged_at,
             final_q: self.q,
             final_p: self.p,
-            steps: outcome.stats.steps,
-            force_evaluations: outcome.stats.force_evaluations,
+            steps,
+            force_evaluations,
             error: None,
         }
     }

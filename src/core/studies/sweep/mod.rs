@@ -11,6 +11,7 @@
 
 pub mod axis;
 pub mod document;
+mod lanes;
 pub mod metrics;
 pub mod shard;
 
@@ -106,6 +107,8 @@ pub struct SweepJob {
     /// The request's identity.
     pub digest: String,
     limits: Limits,
+    /// How the cells run four at a time, when the sweep is one the lanes run.
+    lanes: Option<lanes::LanePlan>,
 }
 
 impl SweepSpec {
@@ -244,6 +247,7 @@ impl SweepSpec {
             info,
             total_steps: 0,
             digest: self.digest.clone(),
+            lanes: None,
             // A run's samples go into its metrics as they come and are not kept, so the sample
             // limit (which bounds documents) does not apply — except to a reference run, whose
             // energies are kept for the whole run.
@@ -269,6 +273,7 @@ impl SweepSpec {
             job.limits = *limits;
             job.check_corners()?;
         }
+        job.lanes = job.lane_plan();
         job.total_steps = job.count_steps();
         if job.total_steps > MAX_TOTAL_STEPS {
             return Err(CoreError::TooManySteps {
@@ -286,6 +291,20 @@ impl SweepJob {
     /// Cells in all.
     pub fn cells(&self) -> usize {
         self.grid.cells()
+    }
+
+    /// Whether the cells run four at a time in SIMD lanes (the energy map's kind of sweep: see
+    /// [`lanes`]); the numbers are those of the one-cell path either way.
+    pub fn runs_in_lanes(&self) -> bool {
+        self.lanes.is_some()
+    }
+
+    /// The same sweep run cell by cell, through the generic stepper and observer.
+    pub fn cell_by_cell(self) -> Self {
+        Self {
+            lanes: None,
+            ..self
+        }
     }
 
     /// Names of the system's invariants.
@@ -439,6 +458,26 @@ impl SweepJob {
         budget: Budget<'_>,
         progress: &(dyn Fn() + Sync),
     ) -> Result<Vec<Option<Vec<RunMetrics>>>, CoreError> {
+        if let Some(plan) = &self.lanes {
+            // Groups of four from the start of the range, so that a shard runs as it would in
+            // the whole sweep's range up to the lane boundaries; a cell's numbers do not depend
+            // on its neighbours either way.
+            let groups: Vec<Cells<usize>> = cells
+                .clone()
+                .step_by(lanes::LANES)
+                .map(|first| first..(first + lanes::LANES).min(cells.end))
+                .collect();
+            let done: Vec<Vec<Option<Vec<RunMetrics>>>> = groups
+                .into_par_iter()
+                .map(|group| {
+                    let n = group.len();
+                    let results = self.lane_group(plan, group, budget);
+                    (0..n).for_each(|_| progress());
+                    results
+                })
+                .collect();
+            return Ok(done.into_iter().flatten().collect());
+        }
         cells
             .into_par_iter()
             .map(|cell| {
