@@ -273,6 +273,7 @@ fn integrate<const MEASURED: bool>(
 }
 
 /// The state of the lanes and what the last energy left for the next step.
+#[derive(Clone, Copy)]
 struct Cells {
     q: [Lane; 2],
     p: [Lane; 2],
@@ -344,6 +345,7 @@ fn lanes<K: Kernel, const MEASURED: bool>(
             return None;
         }
         let until = (step + CHECK_EVERY).min(steps);
+        let (block, at_block) = (step, z);
         while step < until {
             step += 1;
             kernel.step(c, &mut z, &mut energy);
@@ -363,15 +365,46 @@ fn lanes<K: Kernel, const MEASURED: bool>(
                 tally.non_finite[i] = first(tally.non_finite[i], finite);
                 tally.blown[i] = first(tally.blown[i], within);
                 if MEASURED {
-                    // As the sweep's measure: `f64::max` of the magnitudes, the last deviation,
-                    // and the state of the last step before the one-cell path would stop.
-                    tally.max[i] = tally.max[i].max(d.abs());
+                    // As the sweep's measure: the largest magnitude (`f64::max`, written as the
+                    // comparison it is here, where the running maximum is never NaN: one
+                    // `maxpd`) and the last deviation.
+                    let size = d.abs();
+                    tally.max[i] = if size > tally.max[i] {
+                        size
+                    } else {
+                        tally.max[i]
+                    };
                     tally.last[i] = d;
-                    let going = tally.non_finite[i] == f64::INFINITY;
-                    for k in 0..2 {
-                        tally.q[k][i] = if going { z.q[k][i] } else { tally.q[k][i] };
-                        tally.p[k][i] = if going { z.p[k][i] } else { tally.p[k][i] };
+                }
+            }
+        }
+        if MEASURED {
+            // A lane whose state stopped being finite in this block ends, as the one-cell path
+            // does, with the state of the step before: run again from the block's start up to
+            // that step (the lanes do not touch each other, so its bits are the ones it had).
+            for i in 0..LANES {
+                let stopped = tally.non_finite[i];
+                if stopped > block as f64 && stopped <= until as f64 {
+                    let mut again = at_block;
+                    let mut scratch = [0.0; LANES];
+                    for _ in block + 1..stopped as u64 {
+                        kernel.step(c, &mut again, &mut scratch);
                     }
+                    for k in 0..2 {
+                        tally.q[k][i] = again.q[k][i];
+                        tally.p[k][i] = again.p[k][i];
+                    }
+                }
+            }
+        }
+    }
+    if MEASURED {
+        // The others end where the run ends.
+        for i in 0..LANES {
+            if tally.non_finite[i] == f64::INFINITY {
+                for k in 0..2 {
+                    tally.q[k][i] = z.q[k][i];
+                    tally.p[k][i] = z.p[k][i];
                 }
             }
         }

@@ -7,7 +7,8 @@
 //! depends only on the spec and the cell, so the local executor (all cores), the batch arrays
 //! (`--shard i/n` then `merge`) and the NATS workers all give bit-identical merged documents.
 //! The energy-error map of Fig. 6 and the numerical stability map are presets of the sweep
-//! (requests in [`crate::api::sweep`]).
+//! (requests in [`crate::api::sweep`]). Sweeps of the map's kind run four cells at a time in the
+//! map's SIMD lanes (`sweep/lanes.rs`), with the same numbers.
 
 pub mod axis;
 pub mod document;
@@ -294,7 +295,7 @@ impl SweepJob {
     }
 
     /// Whether the cells run four at a time in SIMD lanes (the energy map's kind of sweep: see
-    /// [`lanes`]); the numbers are those of the one-cell path either way.
+    /// `sweep/lanes.rs`); the numbers are those of the one-cell path either way.
     pub fn runs_in_lanes(&self) -> bool {
         self.lanes.is_some()
     }
