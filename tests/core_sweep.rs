@@ -15,6 +15,7 @@ use geomint::core::stability::Spectrum;
 use geomint::core::studies::energy_map;
 use geomint::core::studies::sweep::shard::{merge, ShardError};
 use geomint::core::studies::sweep::{self, Shard, SweepDocument, SweepJob, SweepPart};
+use geomint::core::studies::StudyStop;
 use serde_json::{json, Value};
 
 fn job(request: &Value) -> SweepJob {
@@ -391,7 +392,13 @@ fn sweeps_of_the_maps_kind_run_in_lanes_with_the_numbers_of_cell_by_cell() {
         };
         assert_eq!(part(&job), part(&one_by_one), "{request}: cells {shard:?}");
         let doc = run(&job);
-        let full = doc.steps / (doc.cells * doc.runs.len()) as u64;
+        let full = doc
+            .runs
+            .iter()
+            .flat_map(|r| &r.steps)
+            .max()
+            .copied()
+            .unwrap();
         for r in &doc.runs {
             for c in 0..doc.cells {
                 let k = if r.errors[c].is_some() {
@@ -399,7 +406,7 @@ fn sweeps_of_the_maps_kind_run_in_lanes_with_the_numbers_of_cell_by_cell() {
                 } else if r.steps[c] < full {
                     1 // stopped: not finite
                 } else if r.diverged_at[c].is_some() {
-                    2 // left its energy band
+                    2 // left its energy band, to the end
                 } else {
                     3
                 };
@@ -416,4 +423,24 @@ fn sweeps_of_the_maps_kind_run_in_lanes_with_the_numbers_of_cell_by_cell() {
     let mut other = energy_map_preset(&map_request());
     other["methods"] = json!(["rk4"]);
     assert!(!job(&other).runs_in_lanes());
+}
+
+#[test]
+fn a_sweep_in_lanes_stopped_by_its_budget_leaves_its_cells_unfinished_or_fails() {
+    let job = job(&energy_map_preset(&map_request()));
+    assert!(job.runs_in_lanes());
+    let past = Budget {
+        cancel: None,
+        deadline: Some(std::time::Instant::now()),
+    };
+    let doc = sweep::run(&job, past, &|_| true).unwrap();
+    assert_eq!(doc.stop, StudyStop::TimeLimit);
+    assert_eq!(doc.unfinished_cells, (0..job.cells()).collect::<Vec<_>>());
+    let cancelled = std::sync::atomic::AtomicBool::new(true);
+    let budget = Budget {
+        cancel: Some(&cancelled),
+        deadline: None,
+    };
+    let refused = sweep::run(&job, budget, &|_| true).unwrap_err();
+    assert!(refused.to_string().contains("cancelled"), "{refused}");
 }

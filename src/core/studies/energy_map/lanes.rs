@@ -606,6 +606,56 @@ mod tests {
         }
     }
 
+    /// A lane whose state stops being finite at step s ends with the state of step s − 1, which
+    /// the measured run finds by running its block again: the same bits as a run of s − 1
+    /// steps, which ends where it stops and reruns nothing. A spring too stiff for the step
+    /// (hω ≈ 2.1 and 2.4: the amplitude grows about twofold per step) overflows after a few
+    /// hundred to a thousand steps, across the first block boundary.
+    #[test]
+    fn a_stopped_lane_ends_with_the_state_of_the_step_before() {
+        let steps = 3000;
+        let mut stops = Vec::new();
+        for k in [110.0, 150.0] {
+            let pendulum = PlanarSpring {
+                m: 1.0,
+                k,
+                l: 1.0,
+                g: 0.02,
+                kind: PlanarKind::Pendulum,
+            };
+            for chart in [Chart::Cartesian, Chart::Polar] {
+                for order in [Order::MomentumFirst, Order::PositionFirst] {
+                    let start = Start {
+                        q: [[1.5, 2.0, 1e-3, 0.4], [0.3, -1.0, 1.2, 1.1]],
+                        p: [[0.0; LANES]; 2],
+                        energy: [0.0; LANES],
+                        idle: [false; LANES],
+                    };
+                    let run = |steps| {
+                        let budget = Budget::default();
+                        tally::<true>(&pendulum, chart, order, &start, 0.2, steps, budget).unwrap()
+                    };
+                    let full = run(steps);
+                    for i in 0..LANES {
+                        let stopped = full.non_finite[i];
+                        if stopped == f64::INFINITY {
+                            continue;
+                        }
+                        let before = run(stopped as u64 - 1);
+                        assert_eq!(before.non_finite[i], f64::INFINITY);
+                        let bits = |t: &Tally| {
+                            [t.q[0][i], t.q[1][i], t.p[0][i], t.p[1][i]].map(f64::to_bits)
+                        };
+                        assert_eq!(bits(&full), bits(&before), "{chart:?} {order:?} lane {i}");
+                        stops.push(stopped as u64);
+                    }
+                }
+            }
+        }
+        println!("stops: {stops:?}");
+        assert!(stops.iter().any(|&s| s > 1) && stops.iter().any(|&s| s > CHECK_EVERY));
+    }
+
     /// A run whose state stops being finite reports that step, even after its energy left the
     /// band (as the one-cell path, whose integration stops there); a run that only left the band
     /// reports the first sample outside it; an idle lane nothing.

@@ -51,11 +51,15 @@ impl SweepJob {
         }
         let mut runs = Vec::with_capacity(self.templates.len());
         let mut schedule = None;
-        for template in &self.templates {
+        for (k, template) in self.templates.iter().enumerate() {
             if template.every != Some(1) {
                 return None;
             }
-            let sim = Simulation::prepare(template, &self.limits).ok()?;
+            // The template, or the first and last cells where its own start is outside the chart.
+            let cells = [0, self.cells().saturating_sub(1)];
+            let sim = std::iter::once(template.clone())
+                .chain(cells.map(|c| self.cell_spec(k, &self.grid.point(c))))
+                .find_map(|spec| Simulation::prepare(&spec, &self.limits).ok())?;
             let order = Order::of(&sim.methods[0])?;
             let (pendulum, chart) = match &sim.system {
                 AnySystem::PlanarCartesian(PlanarCartesian(s)) => (s.clone(), Chart::Cartesian),
@@ -165,9 +169,15 @@ impl LanePlan {
                 (x, px)
             }
         });
+        // Samples at steps 0 to `steps`, or to s − 1 for a run stopped at s.
+        let samples = if stopped_at.is_some() {
+            steps
+        } else {
+            steps + 1
+        };
         Measure::of_lane(
             at(tally.blown[i]),
-            (tally.sum[i], steps + 1),
+            (tally.sum[i], samples),
             (tally.max[i], tally.last[i]),
             cartesian,
         )
