@@ -3,7 +3,8 @@
 //! foreign parts; csv1's divergence over (γ, h) follows the spectral radius of its propagation
 //! matrix; energy errors over an h axis show the method's order against the exact solution;
 //! J₃ stays at round-off over an ε axis; a cell outside a chart is that cell's error; sweeps of
-//! the map's kind run in SIMD lanes with the one-cell path's numbers bit for bit.
+//! the map's kind run in SIMD lanes with the one-cell path's numbers bit for bit, and leave the
+//! same partial document at the time limit.
 
 use geomint::api::studies::EnergyMapRequest;
 use geomint::api::sweep::{energy_map_preset, SweepRequest};
@@ -443,4 +444,38 @@ fn a_sweep_in_lanes_stopped_by_its_budget_leaves_its_cells_unfinished_or_fails()
     };
     let refused = sweep::run(&job, budget, &|_| true).unwrap_err();
     assert!(refused.to_string().contains("cancelled"), "{refused}");
+}
+
+#[test]
+fn a_cell_outside_the_chart_keeps_its_failure_when_the_lanes_reach_the_time_limit() {
+    // In the polar chart only, the middle cell starts at the pivot, outside the chart: as on the
+    // one-cell path, it keeps its failure after the time limit, and only the others are
+    // unfinished.
+    let past = Budget {
+        cancel: None,
+        deadline: Some(std::time::Instant::now()),
+    };
+    let polar = job(
+        &json!({"system": "elastic_pendulum_2d", "charts": ["polar"],
+        "initial_coordinates": "cartesian",
+        "methods": ["symplectic_euler", "symplectic_euler_adjoint"], "h": 0.05, "t_end": 20,
+        "axes": [{"name": "q0[0]", "min": -1, "max": 1, "n": 3},
+                 {"name": "q0[1]", "min": -1, "max": 1, "n": 3}]}),
+    );
+    assert!(polar.runs_in_lanes());
+    let stopped = |job: &SweepJob| numbers(&sweep::run(job, past, &|_| true).unwrap());
+    let in_lanes = stopped(&polar);
+    assert_eq!(in_lanes, stopped(&polar.clone().cell_by_cell()));
+    assert_eq!(
+        in_lanes["unfinished_cells"],
+        json!([0, 1, 2, 3, 5, 6, 7, 8])
+    );
+    for run in in_lanes["runs"].as_array().unwrap() {
+        let pivot = run["errors"][4].as_str().unwrap();
+        assert!(!pivot.contains("not run"), "{pivot}");
+        assert!(
+            run["errors"][0].as_str().unwrap().contains("not run"),
+            "{run}"
+        );
+    }
 }

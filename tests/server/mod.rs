@@ -74,7 +74,7 @@ pub fn wait_for_port(port: u16, what: &str) {
 }
 
 /// A fresh scratch path `label` of this test process, under the build's scratch folder
-/// (`target/tmp/scratch/PID/label`; removed if a previous use left it, not created). Folders of
+/// (`target/tmp/scratch/PID/label-N`, N counting the calls; not created). Folders of
 /// test processes that are gone are removed first: a test that fails, or whose service is a
 /// static that is never dropped, cannot clean up after itself.
 pub fn scratch_dir(label: &str) -> std::path::PathBuf {
@@ -92,7 +92,14 @@ pub fn scratch_dir(label: &str) -> std::path::PathBuf {
             let _ = std::fs::remove_dir_all(entry.path());
         }
     }
-    let dir = root.join(std::process::id().to_string()).join(label);
+    // A fresh directory per call: tests of one binary run in parallel and often share a
+    // label (every test's `config()`), so a stable name would let one test's set-up remove
+    // another's store while it is in use.
+    static CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let dir = root
+        .join(std::process::id().to_string())
+        .join(format!("{label}-{call}"));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(dir.parent().expect("a parent")).expect("the scratch folder");
     dir

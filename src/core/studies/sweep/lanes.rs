@@ -85,8 +85,10 @@ impl SweepJob {
         Some(LanePlan { runs, h, steps })
     }
 
-    /// The runs of `cells` (at most [`LANES`]), side by side; `None` for every cell when the
-    /// budget stopped them.
+    /// The runs of `cells` (at most [`LANES`]), side by side. As on the one-cell path, a cell
+    /// is `None` when the budget stopped one of its runs, and keeps its results when every run
+    /// either failed to start or finished (a cell whose starts are all outside the chart keeps
+    /// its failures after the time limit).
     pub(super) fn lane_group(
         &self,
         plan: &LanePlan,
@@ -95,7 +97,10 @@ impl SweepJob {
     ) -> Vec<Option<Vec<RunMetrics>>> {
         let n = cells.len();
         debug_assert!(n <= LANES);
-        let mut results: Vec<Vec<RunMetrics>> = vec![Vec::with_capacity(plan.runs.len()); n];
+        let mut results: Vec<Vec<Option<RunMetrics>>> =
+            vec![Vec::with_capacity(plan.runs.len()); n];
+        // Once the budget stopped a run, the later ones are only prepared, for their failures.
+        let mut stopped = false;
         for (k, run) in plan.runs.iter().enumerate() {
             let mut start = Start {
                 q: [[0.0; LANES]; 2],
@@ -122,26 +127,34 @@ impl SweepJob {
                     Err(e) => failed[i] = Some(RunMetrics::failed(e.to_string())),
                 }
             }
-            let Some(tally) = lanes::run_measured(
-                &run.pendulum,
-                run.chart,
-                run.order,
-                &start,
-                plan.h,
-                plan.steps,
-                budget,
-            ) else {
-                return vec![None; n];
+            let tally = if stopped {
+                None
+            } else {
+                let measured = lanes::run_measured(
+                    &run.pendulum,
+                    run.chart,
+                    run.order,
+                    &start,
+                    plan.h,
+                    plan.steps,
+                    budget,
+                );
+                stopped = measured.is_none();
+                measured
             };
             for (i, result) in results.iter_mut().enumerate() {
-                let metrics = match failed[i].take() {
-                    Some(failed) => failed,
-                    None => plan.metrics(run, &tally, i),
+                let metrics = match (failed[i].take(), &tally) {
+                    (Some(failed), _) => Some(failed),
+                    (None, Some(tally)) => Some(plan.metrics(run, tally, i)),
+                    (None, None) => None,
                 };
                 result.push(metrics);
             }
         }
-        results.into_iter().map(Some).collect()
+        results
+            .into_iter()
+            .map(|runs| runs.into_iter().collect())
+            .collect()
     }
 }
 
