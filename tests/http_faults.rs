@@ -17,7 +17,7 @@ use geomint::recording::read::inspect;
 use serde_json::{json, Value};
 
 mod server;
-use server::{client, free_port, temporary_files, wait_for_port, Process};
+use server::{client, spawn_listening, temporary_files, Process, SERVE_LISTENING, SERVE_LOG};
 
 fn scratch(name: &str) -> PathBuf {
     let dir = server::scratch_dir(&format!("faults-{name}"));
@@ -26,24 +26,22 @@ fn scratch(name: &str) -> PathBuf {
     dir
 }
 
-/// `geomint serve` on a free port with its recordings in `data` and definitions in `systems`.
+/// `geomint serve` on a port of its own with its recordings in `data` and definitions in
+/// `systems`.
 fn serve(data: &Path, systems: &Path, extra: &[&str]) -> (Process, String) {
-    let port = free_port();
-    let child = Command::new(env!("CARGO_BIN_EXE_geomint"))
-        .env("GEOMINT_LOG", "warn")
-        .args(["serve", "--addr", &format!("127.0.0.1:{port}")])
+    let mut command = Command::new(env!("CARGO_BIN_EXE_geomint"));
+    command
+        .env("GEOMINT_LOG", SERVE_LOG)
+        .args(["serve", "--addr", "127.0.0.1:0"])
         .arg("--data-dir")
         .arg(data)
         .arg("--systems-dir")
         .arg(systems)
         .args(["--static-dir", "no-static-here"])
         .args(extra)
-        .stdout(Stdio::null())
-        .spawn()
-        .unwrap();
-    let process = Process(child);
-    wait_for_port(port, "geomint serve");
-    (process, format!("http://127.0.0.1:{port}"))
+        .stdout(Stdio::null());
+    let (process, address) = spawn_listening(command, "geomint serve", SERVE_LISTENING);
+    (process, format!("http://{address}"))
 }
 
 fn recording_request(every: u64) -> Value {
@@ -368,11 +366,12 @@ async fn sigterm_ends_runs_and_streams_with_their_stop_reason_and_exits_0() {
             "--max-concurrent",
             "2",
             "--max-steps",
-            "1e9",
+            "1e10",
         ],
     );
-    let long = json!({"system": "pendulum", "method": "modin_3s", "h": 1e-3, "t_end": 1e5,
-        "output": {"every": 1000000}});
+    // 10⁹ steps each, about 10 s: still running when the 1 s grace period ends.
+    let long = json!({"system": "pendulum", "method": "modin_3s", "h": 1e-3, "t_end": 1e6,
+        "output": {"every": 10000000}});
     let stream = client()
         .post(format!("{base}/api/v1/simulate"))
         .header("accept", "application/x-ndjson")

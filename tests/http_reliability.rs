@@ -40,10 +40,11 @@ fn small_run() -> Value {
         "output": {"every": 100}})
 }
 
-/// 10⁸ steps: holds a slot far longer than any test waits.
+/// 10⁹ steps (about 10 s in this build): holds a slot far longer than any test waits, and goes
+/// when its client does.
 fn long_run() -> Value {
-    json!({"system": "pendulum", "method": "modin_3s", "h": 1e-3, "t_end": 1e5,
-        "output": {"every": 1000000}})
+    json!({"system": "pendulum", "method": "modin_3s", "h": 1e-3, "t_end": 1e6,
+        "output": {"every": 10000000}})
 }
 
 async fn post(server: &Server, body: &Value) -> reqwest::Response {
@@ -322,7 +323,7 @@ async fn short_runs_pass_long_ones_and_long_ones_wait_their_turn() {
         short_lane: 1,
         long_queue_timeout: Duration::from_millis(600),
         limits: Limits {
-            max_steps: 1_000_000_000,
+            max_steps: 10_000_000_000,
             max_samples: 1_000_000,
         },
         ..config("lanes")

@@ -169,13 +169,14 @@ async fn an_energy_map_past_the_time_limit_keeps_the_cells_it_finished() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn stability_maps_past_the_time_limit_keep_the_maps_made() {
     let _serial = ONE_AT_A_TIME.lock().await;
-    // A limit that has passed before the first map.
+    // The limit (1 ms) is checked before each map, and passes during the first: a map of
+    // 301 × 301 cells takes tens of milliseconds.
     let (short, long) = servers(Duration::from_millis(1)).await;
     let request = json!({
         "methods": ["csv1", "rk4", "csv2"],
         "omega": 1,
-        "gamma": {"min": 0, "max": 2, "n": 41},
-        "h": {"min": 0, "max": 3, "n": 61}
+        "gamma": {"min": 0, "max": 2, "n": 301},
+        "h": {"min": 0, "max": 3, "n": 301}
     });
     let (status, partial) = post_json(&short, "/api/v1/stability", &request).await;
     assert_eq!(status, 200, "{partial}");

@@ -308,13 +308,14 @@ fn run_without_a_viewer_fails_with_exit_code_1() {
     )
     .unwrap();
     let output = dir.join("out.json");
+    let (_held, port) = server::closed_port();
     let started = Instant::now();
     let mut geomint = Process::spawn(
         "geomint",
         Command::new(env!("CARGO_BIN_EXE_geomint"))
             .arg("run")
             .arg(&spec_path)
-            .args(["--rerun-addr", &format!("127.0.0.1:{}", free_port()), "-o"])
+            .args(["--rerun-addr", &format!("127.0.0.1:{port}"), "-o"])
             .arg(&output)
             .stdin(Stdio::null())
             .stderr(File::create(dir.join("geomint.err")).unwrap()),

@@ -1,5 +1,6 @@
-// What the browser tests share: where the page is served, the Chromium they drive and its flags,
-// where screenshots go, and the one console error a machine without WebGPU or WebGL 2 shows.
+// What the browser tests share: where the page is served and the wait for it, the Chromium they
+// drive and its flags, where screenshots go, and the one console error a machine without WebGPU or
+// WebGL 2 shows.
 
 import { mkdir, mkdtemp } from 'node:fs/promises';
 import { tmpdir } from 'node:os';
@@ -26,6 +27,24 @@ export const CHROMIUM_FLAGS = [
  * this error is filtered out.
  */
 export const HEADLESS_GPU_ERROR = /^WebViewer failure: Failed to start failed to create wgpu surface: .*(webgl2 not available|adapter)/;
+
+/**
+ * Waits (up to 30 s) until the server answers `/healthz`: every test file may be the first to talk
+ * to it, whatever order the runner takes them in.
+ */
+export async function waitForServer() {
+  const deadline = Date.now() + 30_000;
+  for (;;) {
+    try {
+      const response = await fetch(`${base}/healthz`);
+      if (response.ok) return;
+    } catch {
+      // not listening yet
+    }
+    if (Date.now() > deadline) throw new Error(`no server answers at ${base}`);
+    await new Promise((resolve) => setTimeout(resolve, 200));
+  }
+}
 
 /**
  * Headless Chromium with a fresh profile directory (a persistent context is how playwright takes

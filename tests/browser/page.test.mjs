@@ -15,7 +15,7 @@ import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
 import { readFile, rm } from 'node:fs/promises';
 import { join } from 'node:path';
-import { artifacts, base, HEADLESS_GPU_ERROR, launch } from './harness.mjs';
+import { artifacts, base, HEADLESS_GPU_ERROR, launch, waitForServer } from './harness.mjs';
 import { presetRequest } from '../../static/js/presets.js';
 
 /** The preset the test runs: paper 000's pendulum, modin_3s against heun at h = 0.2. */
@@ -48,20 +48,6 @@ async function postJson(path, body) {
 /** POSTs a simulation request to the API as JSON; returns status and body. */
 function simulate(request) {
   return postJson('/api/v1/simulate', request);
-}
-
-async function waitForServer() {
-  const deadline = Date.now() + 30_000;
-  for (;;) {
-    try {
-      const response = await fetch(`${base}/healthz`);
-      if (response.ok) return;
-    } catch {
-      // not listening yet
-    }
-    if (Date.now() > deadline) throw new Error(`no server answers at ${base}`);
-    await new Promise((resolve) => setTimeout(resolve, 200));
-  }
 }
 
 before(async () => {

@@ -15,7 +15,7 @@ import assert from 'node:assert/strict';
 import { mkdtemp, rm, writeFile } from 'node:fs/promises';
 import { tmpdir } from 'node:os';
 import { join } from 'node:path';
-import { artifacts, base, HEADLESS_GPU_ERROR, launch } from './harness.mjs';
+import { artifacts, base, HEADLESS_GPU_ERROR, launch, waitForServer } from './harness.mjs';
 
 /** The browser's log line for an answer the test asks for on purpose (404, 422). */
 const EXPECTED_REFUSAL = /Failed to load resource: the server responded with a status of (404|422)/;
@@ -82,6 +82,7 @@ async function newTab(url, errors) {
 
 before(async () => {
   assert.ok(base, 'set GEOMINT_URL to the server under test (scripts/test-browser does)');
+  await waitForServer();
   for (const [name, request] of [['oscillator', OSCILLATOR], ...FILLERS.map((r, i) => [`filler${i}`, r]), ['pendulum', PENDULUM]]) {
     const { status, body } = await createRecording(request);
     assert.equal(status, 201, JSON.stringify(body));

@@ -10,7 +10,7 @@ import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
 import { rm } from 'node:fs/promises';
 import { join } from 'node:path';
-import { artifacts, base, launch } from './harness.mjs';
+import { artifacts, base, launch, waitForServer } from './harness.mjs';
 
 /** The browser's log line for the refusal the test provokes on purpose. */
 const LOGGED_422 = /Failed to load resource: the server responded with a status of 422/;
@@ -51,6 +51,7 @@ async function readAt(col, row) {
 
 before(async () => {
   assert.ok(base, 'set GEOMINT_URL to the server under test (scripts/test-browser does)');
+  await waitForServer();
   ({ context, page, profile } = await launch({ width: 1280, height: 900 }, consoleErrors));
   await page.goto(`${base}/`);
   await page.waitForSelector('body[data-run-state="idle"]', { timeout: 15_000 });

@@ -14,7 +14,7 @@ import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
 import { readFile, rm } from 'node:fs/promises';
 import { join } from 'node:path';
-import { artifacts, base, HEADLESS_GPU_ERROR, launch } from './harness.mjs';
+import { artifacts, base, HEADLESS_GPU_ERROR, launch, waitForServer } from './harness.mjs';
 import { EXAMPLES } from '../../static/js/examples.js';
 
 /** The browser's log line for a refusal the test provokes on purpose. */
@@ -83,6 +83,7 @@ function shownError(p, id) {
 
 before(async () => {
   assert.ok(base, 'set GEOMINT_URL to the server under test (scripts/test-browser does)');
+  await waitForServer();
   ({ context, page, profile } = await launch({ width: 1280, height: 900 }, consoleErrors));
   await page.goto(`${base}/`);
   await page.waitForSelector('body[data-run-state="idle"]', { timeout: 15_000 });

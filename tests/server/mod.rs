@@ -1,7 +1,8 @@
 //! The real server on an ephemeral loopback port, shared by the HTTP test files.
 #![allow(dead_code)]
 
-use std::process::Child;
+use std::io::{BufRead, BufReader};
+use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use geomint::http::{serve_on, AppState, Config};
@@ -40,6 +41,61 @@ pub async fn start(config: Config) -> Server {
         addr,
         state,
     }
+}
+
+/// The log filter for a `geomint serve` a test starts: warnings, and the line that says where it
+/// listens (after [`SERVE_LISTENING`]).
+pub const SERVE_LOG: &str = "warn,geomint::http::server=info";
+/// What precedes the address in that line.
+pub const SERVE_LISTENING: &str = "listening on http://";
+
+/// Starts `command`, a server told to listen on a port the system picks, and returns it with the
+/// `host:port` its log (stderr) names after `marker`. A port chosen beforehand could be taken
+/// meanwhile by a server another test starts, and the test would then talk to that one. The rest
+/// of the log is read and dropped, so that the server never blocks on a full pipe.
+pub fn spawn_listening(mut command: Command, what: &str, marker: &str) -> (Process, String) {
+    let mut child = command.stderr(Stdio::piped()).spawn().unwrap();
+    let log = child.stderr.take().expect("a piped stderr");
+    let process = Process(child);
+    let (tell, told) = std::sync::mpsc::channel::<Result<String, String>>();
+    let marker = marker.to_owned();
+    std::thread::spawn(move || {
+        let mut tell = Some(tell);
+        let mut before = Vec::new();
+        for line in BufReader::new(log).lines().map_while(Result::ok) {
+            let Some(tell_now) = tell.as_ref() else {
+                continue;
+            };
+            match line.find(&marker) {
+                Some(at) => {
+                    let address: String = line[at + marker.len()..]
+                        .chars()
+                        .take_while(|c| c.is_ascii_digit() || matches!(c, '.' | ':'))
+                        .collect();
+                    let _ = tell_now.send(Ok(address));
+                    tell = None;
+                }
+                None => before.push(line),
+            }
+        }
+        if let Some(tell) = tell {
+            let _ = tell.send(Err(before.join("\n")));
+        }
+    });
+    match told.recv_timeout(Duration::from_secs(20)) {
+        Ok(Ok(address)) => (process, address),
+        Ok(Err(log)) => panic!("{what} ended without listening:\n{log}"),
+        Err(_) => panic!("{what} did not say where it listens within 20 s"),
+    }
+}
+
+/// A loopback port bound but not listened on, for as long as the socket lives: connections to
+/// it are refused, and no test running beside this one can start a server on it meanwhile.
+pub fn closed_port() -> (tokio::net::TcpSocket, u16) {
+    let socket = tokio::net::TcpSocket::new_v4().unwrap();
+    socket.bind(([127, 0, 0, 1], 0).into()).unwrap();
+    let port = socket.local_addr().unwrap().port();
+    (socket, port)
 }
 
 /// A loopback port nobody listens on (at the time of asking), for a process a test starts.
