@@ -1,5 +1,5 @@
 //! Sweeps on NATS JetStream workers, with real processes: a `nats-server` with JetStream in a
-//! temporary directory on a free loopback port, two `geomint worker`s and a `geomint serve
+//! temporary directory on a loopback port it picks, two `geomint worker`s and a `geomint serve
 //! --nats`. The merged document equals the local executor's bit for bit; with one worker killed
 //! (SIGKILL) mid-study its shard is handed out again and the document is still the same; a
 //! client that goes away leaves no shard in the queue; a NATS server stopped mid-study fails the

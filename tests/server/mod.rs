@@ -51,18 +51,27 @@ pub const SERVE_LISTENING: &str = "listening on http://";
 
 /// Starts `command`, a server told to listen on a port the system picks, and returns it with the
 /// `host:port` its log (stderr) names after `marker`. A port chosen beforehand could be taken
-/// meanwhile by a server another test starts, and the test would then talk to that one. The rest
-/// of the log is read and dropped, so that the server never blocks on a full pipe.
+/// meanwhile by a server another test starts, and the test would then talk to that one. The log
+/// is read to its end (and shown with the test's output), so that the server never blocks on a
+/// full pipe.
 pub fn spawn_listening(mut command: Command, what: &str, marker: &str) -> (Process, String) {
     let mut child = command.stderr(Stdio::piped()).spawn().unwrap();
     let log = child.stderr.take().expect("a piped stderr");
     let process = Process(child);
     let (tell, told) = std::sync::mpsc::channel::<Result<String, String>>();
     let marker = marker.to_owned();
+    // The thread inherits the test's output capture: the log shows when the test fails.
     std::thread::spawn(move || {
         let mut tell = Some(tell);
         let mut before = Vec::new();
-        for line in BufReader::new(log).lines().map_while(Result::ok) {
+        let mut log = BufReader::new(log);
+        let mut bytes = Vec::new();
+        // Byte lines, read to the end whatever they hold: a pipe closed early would make the
+        // server's next log line fail.
+        while log.read_until(b'\n', &mut bytes).is_ok_and(|n| n > 0) {
+            let line = String::from_utf8_lossy(&bytes).trim_end().to_owned();
+            bytes.clear();
+            eprintln!("{line}");
             let Some(tell_now) = tell.as_ref() else {
                 continue;
             };
