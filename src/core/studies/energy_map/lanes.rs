@@ -114,8 +114,8 @@ impl Constants {
 
 /// Per lane: the sum of eq. (50) and the first steps at which the lane left the energy band or
 /// the finite numbers (as f64, exact to 2⁵³, so that the lanes compare and select in SIMD
-/// registers; ∞: never). A sweep's run ([`run_measured`]) also keeps the largest and the last
-/// |H − H₀| and the state the one-cell path ends with; the map's run leaves them alone.
+/// registers; ∞: never). A sweep's run ([`tally`] with `MEASURED`) also keeps the largest and
+/// the last |H − H₀| and the state the one-cell path ends with; the map's run leaves them alone.
 #[derive(Clone, Copy, Debug)]
 pub struct Tally {
     /// Σ (H − H₀)² over the samples, the first included.
@@ -152,22 +152,9 @@ pub fn run(
     }))
 }
 
-/// [`run`] keeping what a sweep's run measures (the whole [`Tally`]), or `None` when the budget
-/// stopped the run.
-pub fn run_measured(
-    pendulum: &PlanarSpring,
-    chart: Chart,
-    order: Order,
-    start: &Start,
-    h: f64,
-    steps: u64,
-    budget: Budget<'_>,
-) -> Option<Tally> {
-    tally::<true>(pendulum, chart, order, start, h, steps, budget)
-}
-
-/// The tally of a run (the whole of it when `MEASURED`), `None` when the budget stopped it.
-fn tally<const MEASURED: bool>(
+/// The tally of a run, `None` when the budget stopped it. The map's run ([`run`]) leaves
+/// `MEASURED` off; a sweep's run sets it, for the whole [`Tally`].
+pub fn tally<const MEASURED: bool>(
     pendulum: &PlanarSpring,
     chart: Chart,
     order: Order,

@@ -130,7 +130,7 @@ impl SweepJob {
             let tally = if stopped {
                 None
             } else {
-                let measured = lanes::run_measured(
+                let measured = lanes::tally::<true>(
                     &run.pendulum,
                     run.chart,
                     run.order,
