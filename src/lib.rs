@@ -17,7 +17,8 @@
 
 pub mod api;
 pub mod cli;
-pub mod core;
+/// The integrator core ([`geomint_core`]), under the name the service's modules use.
+pub use geomint_core as core;
 pub mod http;
 pub mod nats;
 pub mod recording;

@@ -1,0 +1,489 @@
+//! Symmetric compositions that raise the order of a symmetric second-order method Φ:
+//! Ψ_h = Φ_{γ_s h} ∘ … ∘ Φ_{γ_1 h} with palindromic weights γ (γ_i = γ_{s+1−i}) summing to one.
+//!
+//! | scheme | order | stages | source |
+//! |---|---|---|---|
+//! | `triple_jump` | 4 | 3 | Creutz & Gocksch 1989, Yoshida 1990; Hairer–Lubich–Wanner (HLW), *Geometric Numerical Integration*, II.4 eq. (4.4) |
+//! | `suzuki_4` | 4 | 5 | Suzuki 1990 (fractal); HLW Sec. II.4 |
+//! | `yoshida_6` | 6 | 7 | Yoshida 1990, solution A; HLW Sec. V.3.2 |
+//! | `kahan_li_6` | 6 | 9 | Kahan & Li 1997 (s9odr6a); HLW Sec. V.3.2 |
+//! | `kahan_li_8` | 8 | 17 | Kahan & Li 1997 (s17odr8a); HLW Sec. V.3.2 |
+//! | `blanes_casas_murua_8` | 8 (processed) | 13 + 20 per output | Blanes, Casas & Murua 2006 (SIAM J. Sci. Comput. 27), tabulated in Blanes, Casas & Murua 2024 (Acta Numerica 33, Table 8.1) |
+//!
+//! **Processing.** `blanes_casas_murua_8` is a processed method Ψ̂_h = π⁻¹ ∘ K_h ∘ π (Blanes,
+//! Casas & Ros): the kernel K_h is a 13-stage symmetric composition that is of order 4 on its own
+//! (its weights meet Σγ³ = Σγ⁵ = Σγ⁷ = 0, not the other conditions of order 6 and 8), but
+//! conjugate to an eighth-order map, and the processor π is a 20-stage composition whose weights
+//! sum to zero. The driver applies π once before the first step and π⁻¹ only at
+//! the outputs (`Stepper::pre_process`, `post_process`), so over n steps π⁻¹ ∘ K_hⁿ ∘ π costs the
+//! kernel's 13 stages per step, against kahan_li_8's 17, with a smaller error constant. π⁻¹ is π
+//! backwards with negated weights, since a symmetric base has Φ_{−τ} = Φ_τ⁻¹; with damping both
+//! run its flows backwards in time exactly, as negative weights do here anyway, so the outputs
+//! keep what the base keeps exactly.
+//!
+//! Some weights are negative; the damping sub-flows then run backwards in time exactly, so a
+//! composition of a conformal symplectic base stays conformal symplectic (det ∂Ψ/∂z = e^{−2γh}
+//! per degree of freedom) and keeps what the base keeps exactly (the elastic pendulum's J₃).
+//!
+//! Splitting bases are composed as data (`splitting::Composition`, which also fuses adjacent
+//! exact flows of one kind, so that s stages cost s force evaluations per step, and runs the
+//! stages with the base's flows written out); other bases (cimp, csv2, implicit_midpoint) are
+//! wrapped by [`Composed`].
+//!
+//! The order conditions the tables must meet are tested (`tests/core/compositions.rs`): Σγ = 1 to
+//! round-off, Σγ³ = 0 for order ≥ 4, Σγ⁵ = 0 for order ≥ 6, Σγ⁷ = 0 for order 8, and the observed
+//! order on the damped oscillator.
+
+use std::time::Instant;
+
+use nalgebra::allocator::Allocator;
+use nalgebra::DefaultAllocator;
+
+use super::sources::*;
+use super::{Citation, Group, Kind, MethodId, MethodInfo, MethodOption};
+use crate::error::StepError;
+use crate::flows::Tangent;
+use crate::run::{Advanced, Stepper};
+use crate::system::{MechanicalSystem, State};
+
+/// A symmetric composition scheme.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Scheme {
+    /// Order 4, 3 stages.
+    TripleJump,
+    /// Order 4, 5 stages.
+    Suzuki4,
+    /// Order 6, 7 stages.
+    Yoshida6,
+    /// Order 6, 9 stages.
+    KahanLi6,
+    /// Order 8, 17 stages.
+    KahanLi8,
+    /// Effective order 8: a 13-stage kernel with a 20-stage processor.
+    BlanesCasasMurua8,
+}
+
+/// Yoshida's order-6 weights γ_1 … γ_4 (γ_4 the middle one), HLW Sec. V.3.2.
+#[allow(clippy::excessive_precision)] // as published (26 digits); the compiler rounds to f64
+const YOSHIDA_6: [f64; 4] = [
+    0.784_513_610_477_557_263_819_497_63,
+    0.235_573_213_359_358_133_684_793_18,
+    -1.177_679_984_178_871_006_946_415_68,
+    1.315_186_320_683_911_218_884_249_73,
+];
+
+/// Kahan and Li's order-6 weights γ_1 … γ_5 (γ_5 the middle one), HLW Sec. V.3.2.
+#[allow(clippy::excessive_precision)] // as published (26 digits); the compiler rounds to f64
+const KAHAN_LI_6: [f64; 5] = [
+    0.392_161_444_007_314_139_279_250_56,
+    0.332_599_136_789_359_438_599_748_64,
+    -0.706_246_172_557_639_359_809_964_82,
+    0.082_213_596_293_550_800_231_490_45,
+    0.798_543_990_934_829_963_398_950_35,
+];
+
+/// Kahan and Li's order-8 weights γ_1 … γ_9 (γ_9 the middle one), HLW Sec. V.3.2.
+#[allow(clippy::excessive_precision)] // as published (26 digits); the compiler rounds to f64
+const KAHAN_LI_8: [f64; 9] = [
+    0.130_202_483_088_890_080_878_817_63,
+    0.561_162_981_775_108_384_561_964_41,
+    -0.389_474_962_644_847_286_408_078_60,
+    0.158_841_906_555_155_600_896_210_75,
+    -0.395_903_894_133_237_577_336_231_54,
+    0.184_539_640_978_315_707_091_832_54,
+    0.258_374_387_686_322_047_293_979_11,
+    0.295_011_723_609_310_298_870_966_24,
+    -0.605_508_533_830_034_511_698_921_08,
+];
+
+/// Blanes, Casas and Murua's kernel of effective order 8 (2006; Acta Numerica 2024, Table 8.1):
+/// a₁, a₁, a₃, a₄, a₅, a₆ and the middle weight 1 − 2(2a₁ + a₃ + a₄ + a₅ + a₆), as published
+/// (a₁ = 0.168 is their free choice).
+const BLANES_CASAS_MURUA_8: [f64; 6] = [
+    0.168,
+    0.168,
+    0.585_550_530_805_562,
+    -0.460_090_457_516_872,
+    0.172_863_148_729_731,
+    0.179_664_539_695_039,
+];
+
+/// Their processor's g₂ … g₁₀ (g₁ = −(g₂ + … + g₁₀)); see [`Scheme::processor`].
+#[allow(clippy::excessive_precision)] // as published
+const BLANES_CASAS_MURUA_8_PROCESSOR: [f64; 9] = [
+    -0.008_488_123_494_574_411,
+    -0.337_188_967_354_338,
+    0.333_987_768_164_597,
+    0.588_351_189_003_849,
+    0.162_324_207_599_241,
+    -0.511_744_926_116_413,
+    0.236_885_952_363_384,
+    0.598_212_975_943_381,
+    -0.543_415_765_371_656,
+];
+
+/// The palindrome γ_1 … γ_m … γ_1 of a half table ending with its middle weight.
+fn palindrome(half: &[f64]) -> Vec<f64> {
+    let (middle, outer) = half.split_last().expect("a table has a middle weight");
+    outer
+        .iter()
+        .chain(std::iter::once(middle))
+        .chain(outer.iter().rev())
+        .copied()
+        .collect()
+}
+
+impl Scheme {
+    /// Every scheme, in catalogue order.
+    pub const ALL: [Scheme; 6] = [
+        Scheme::TripleJump,
+        Scheme::Suzuki4,
+        Scheme::Yoshida6,
+        Scheme::KahanLi6,
+        Scheme::KahanLi8,
+        Scheme::BlanesCasasMurua8,
+    ];
+
+    /// The method id of the scheme.
+    pub fn id(self) -> MethodId {
+        match self {
+            Scheme::TripleJump => MethodId::TripleJump,
+            Scheme::Suzuki4 => MethodId::Suzuki4,
+            Scheme::Yoshida6 => MethodId::Yoshida6,
+            Scheme::KahanLi6 => MethodId::KahanLi6,
+            Scheme::KahanLi8 => MethodId::KahanLi8,
+            Scheme::BlanesCasasMurua8 => MethodId::BlanesCasasMurua8,
+        }
+    }
+
+    /// The scheme of a composition method, if `id` is one.
+    pub fn of(id: MethodId) -> Option<Scheme> {
+        Scheme::ALL.into_iter().find(|s| s.id() == id)
+    }
+
+    /// The order of the composition of a symmetric second-order method (of the processed method,
+    /// for a scheme with a processor).
+    pub fn order(self) -> u32 {
+        match self {
+            Scheme::TripleJump | Scheme::Suzuki4 => 4,
+            Scheme::Yoshida6 | Scheme::KahanLi6 => 6,
+            Scheme::KahanLi8 | Scheme::BlanesCasasMurua8 => 8,
+        }
+    }
+
+    /// The weights γ_1 … γ_s of the step (the kernel's, for a processed scheme), in the order the
+    /// stages act.
+    pub fn weights(self) -> Vec<f64> {
+        match self {
+            Scheme::TripleJump => triple_jump_weights().to_vec(),
+            Scheme::Suzuki4 => {
+                // Suzuki's fractal: four equal outer steps around one negative middle step.
+                let w = 1.0 / (4.0 - 4f64.cbrt());
+                vec![w, w, 1.0 - 4.0 * w, w, w]
+            }
+            Scheme::Yoshida6 => palindrome(&YOSHIDA_6),
+            Scheme::KahanLi6 => palindrome(&KAHAN_LI_6),
+            Scheme::KahanLi8 => palindrome(&KAHAN_LI_8),
+            Scheme::BlanesCasasMurua8 => {
+                let outer: f64 = BLANES_CASAS_MURUA_8.iter().sum();
+                let mut half = BLANES_CASAS_MURUA_8.to_vec();
+                half.push(1.0 - 2.0 * outer);
+                palindrome(&half)
+            }
+        }
+    }
+
+    /// The processor π of a processed scheme, as the weights of its stages in the order they
+    /// act (they sum to zero); `None` for a plain composition. The output map π⁻¹ is the same
+    /// list reversed with each weight negated ([`inverse`]).
+    ///
+    /// Blanes, Casas and Murua publish g₁ … g₁₀ (Σg = 0) and the processor
+    /// −(g₁, …, g₁₀, −g₁, …, −g₁₀); read first element first, that is
+    /// π = Φ_{g₁₀h} ∘ … ∘ Φ_{g₁h} ∘ Φ_{−g₁₀h} ∘ … ∘ Φ_{−g₁h}. The reading is checked by the
+    /// observed order (8.0, `tests/core/compositions.rs`); with π and π⁻¹ swapped (π⁻¹ before
+    /// the first step, π at the outputs) the method is of order 4, as the kernel alone is.
+    pub fn processor(self) -> Option<Vec<f64>> {
+        match self {
+            Scheme::BlanesCasasMurua8 => {
+                let rest = &BLANES_CASAS_MURUA_8_PROCESSOR;
+                let g1 = -rest.iter().sum::<f64>();
+                let g: Vec<f64> = std::iter::once(g1).chain(rest.iter().copied()).collect();
+                Some(g.iter().map(|x| -x).chain(g.iter().copied()).collect())
+            }
+            _ => None,
+        }
+    }
+}
+
+/// The weights of the inverse of a composition of a symmetric base (Φ_{−τ} = Φ_τ⁻¹): the stages
+/// backwards, each with its weight negated.
+pub fn inverse(weights: &[f64]) -> Vec<f64> {
+    weights.iter().rev().map(|w| -w).collect()
+}
+
+/// The triple-jump weights (w₁, w₀, w₁): w₁ = 1/(2 − 2^{1/3}), w₀ = 1 − 2w₁.
+pub fn triple_jump_weights() -> [f64; 3] {
+    let w1 = 1.0 / (2.0 - 2f64.cbrt());
+    [w1, 1.0 - 2.0 * w1, w1]
+}
+
+/// A base stepper applied with sub-steps w_k h.
+pub struct Composed<M> {
+    base: M,
+    weights: Vec<f64>,
+}
+
+impl<M> Composed<M> {
+    /// Composes `base` with `weights` (summing to one for a method, to zero for a processor).
+    pub fn new(base: M, weights: Vec<f64>) -> Self {
+        Self { base, weights }
+    }
+}
+
+impl<S: MechanicalSystem, M: Stepper<S>> Stepper<S> for Composed<M>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    #[inline]
+    fn step(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64) -> Result<(), StepError> {
+        for &w in &self.weights {
+            self.base.step(sys, z, w * h)?;
+        }
+        Ok(())
+    }
+
+    fn force_evaluations(&self) -> u64 {
+        self.base.force_evaluations()
+    }
+
+    fn check_interval(&self) -> u64 {
+        self.base.check_interval()
+    }
+
+    fn restart(&mut self) {
+        self.base.restart()
+    }
+
+    fn step_tangent(
+        &mut self,
+        sys: &S,
+        z: &mut State<S::Dim>,
+        h: f64,
+        tangent: &mut Tangent,
+    ) -> Result<(), StepError> {
+        for &w in &self.weights {
+            self.base.step_tangent(sys, z, w * h, tangent)?;
+        }
+        Ok(())
+    }
+}
+
+/// A processed method π⁻¹ ∘ K ∘ π: three compositions of one base, the kernel K that `step`
+/// runs, the processor π and the output map π⁻¹ (module docs). π and π⁻¹ act on copies or once,
+/// so the kernel's force cache is never disturbed; each is restarted before it runs, since the
+/// state it starts from is not where it left off.
+pub struct Processed<M> {
+    kernel: M,
+    processor: M,
+    output: M,
+}
+
+impl<M> Processed<M> {
+    /// The kernel, the processor and the output map, each a stepper whose one step of h is the
+    /// whole composition.
+    pub fn new(kernel: M, processor: M, output: M) -> Self {
+        Self {
+            kernel,
+            processor,
+            output,
+        }
+    }
+}
+
+impl<S: MechanicalSystem, M: Stepper<S>> Stepper<S> for Processed<M>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    #[inline]
+    fn step(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64) -> Result<(), StepError> {
+        self.kernel.step(sys, z, h)
+    }
+
+    #[inline]
+    fn advance(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64, n: u64) -> Advanced {
+        self.kernel.advance(sys, z, h, n)
+    }
+
+    fn force_evaluations(&self) -> u64 {
+        self.kernel.force_evaluations()
+            + self.processor.force_evaluations()
+            + self.output.force_evaluations()
+    }
+
+    fn check_interval(&self) -> u64 {
+        self.kernel.check_interval()
+    }
+
+    fn set_deadline(&mut self, deadline: Option<Instant>) {
+        self.kernel.set_deadline(deadline);
+        self.processor.set_deadline(deadline);
+        self.output.set_deadline(deadline);
+    }
+
+    fn restart(&mut self) {
+        self.kernel.restart()
+    }
+
+    fn pre_process(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64) -> Result<(), StepError> {
+        let before = z.clone();
+        self.processor.restart();
+        if let Err(e) = self.processor.step(sys, z, h) {
+            z.clone_from(&before);
+            return Err(e);
+        }
+        self.kernel.restart();
+        Ok(())
+    }
+
+    fn post_process(
+        &mut self,
+        sys: &S,
+        z: &State<S::Dim>,
+        h: f64,
+        out: &mut State<S::Dim>,
+    ) -> Result<bool, StepError> {
+        out.clone_from(z);
+        self.output.restart();
+        self.output.step(sys, out, h)?;
+        Ok(true)
+    }
+
+    /// The kernel's step Jacobian. Over n steps the method's map is π⁻¹ ∘ Kⁿ ∘ π, so a step's
+    /// Jacobian is the kernel's conjugated by ∂π/∂z: the same determinant (what the Jacobian
+    /// defect reads) and eigenvalues, not the same matrix. (The stability analysis propagates
+    /// `step`, the kernel, and so reports the kernel's matrix, with the method's spectrum.)
+    fn step_tangent(
+        &mut self,
+        sys: &S,
+        z: &mut State<S::Dim>,
+        h: f64,
+        tangent: &mut Tangent,
+    ) -> Result<(), StepError> {
+        self.kernel.step_tangent(sys, z, h, tangent)
+    }
+}
+
+/// Catalogue entry of `triple_jump`.
+pub const TRIPLE_JUMP_INFO: MethodInfo = MethodInfo {
+    id: "triple_jump",
+    name: "Triple-jump composition (order 4)",
+    order: 4,
+    kind: Kind::Explicit,
+    symplectic: true,
+    conformal_symplectic: true,
+    symmetric: true,
+    requirements: &[],
+    reference: Citation {
+        paper: GNI,
+        equation: "Sec. II.4, eq. (4.4)",
+    },
+    group: Group::Geometric,
+    options: &[MethodOption::Base],
+    no_step_jacobian: None,
+};
+
+/// Catalogue entry of `suzuki_4`.
+pub const SUZUKI_4_INFO: MethodInfo = MethodInfo {
+    id: "suzuki_4",
+    name: "Suzuki fractal composition (order 4, 5 stages)",
+    order: 4,
+    kind: Kind::Explicit,
+    symplectic: true,
+    conformal_symplectic: true,
+    symmetric: true,
+    requirements: &[],
+    reference: Citation {
+        paper: "Suzuki 1990; HLW",
+        equation: "Sec. II.4",
+    },
+    group: Group::Geometric,
+    options: &[MethodOption::Base],
+    no_step_jacobian: None,
+};
+
+/// Catalogue entry of `yoshida_6`.
+pub const YOSHIDA_6_INFO: MethodInfo = MethodInfo {
+    id: "yoshida_6",
+    name: "Yoshida composition (order 6, 7 stages)",
+    order: 6,
+    kind: Kind::Explicit,
+    symplectic: true,
+    conformal_symplectic: true,
+    symmetric: true,
+    requirements: &[],
+    reference: Citation {
+        paper: "Yoshida 1990, solution A; HLW",
+        equation: "Sec. V.3.2",
+    },
+    group: Group::Geometric,
+    options: &[MethodOption::Base],
+    no_step_jacobian: None,
+};
+
+/// Catalogue entry of `kahan_li_6`.
+pub const KAHAN_LI_6_INFO: MethodInfo = MethodInfo {
+    id: "kahan_li_6",
+    name: "Kahan–Li composition (order 6, 9 stages)",
+    order: 6,
+    kind: Kind::Explicit,
+    symplectic: true,
+    conformal_symplectic: true,
+    symmetric: true,
+    requirements: &[],
+    reference: Citation {
+        paper: "Kahan & Li 1997; HLW",
+        equation: "Sec. V.3.2",
+    },
+    group: Group::Geometric,
+    options: &[MethodOption::Base],
+    no_step_jacobian: None,
+};
+
+/// Catalogue entry of `kahan_li_8`.
+pub const KAHAN_LI_8_INFO: MethodInfo = MethodInfo {
+    id: "kahan_li_8",
+    name: "Kahan–Li composition (order 8, 17 stages)",
+    order: 8,
+    kind: Kind::Explicit,
+    symplectic: true,
+    conformal_symplectic: true,
+    symmetric: true,
+    requirements: &[],
+    reference: Citation {
+        paper: "Kahan & Li 1997; HLW",
+        equation: "Sec. V.3.2",
+    },
+    group: Group::Geometric,
+    options: &[MethodOption::Base],
+    no_step_jacobian: None,
+};
+
+/// Catalogue entry of `blanes_casas_murua_8`.
+pub const BLANES_CASAS_MURUA_8_INFO: MethodInfo = MethodInfo {
+    id: "blanes_casas_murua_8",
+    name: "Blanes–Casas–Murua processed composition (order 8, 13 stages)",
+    order: 8,
+    kind: Kind::Explicit,
+    symplectic: true,
+    conformal_symplectic: true,
+    // The kernel is; π⁻¹ ∘ K ∘ π is only to O(h¹⁰), since π does not change with the sign of h.
+    symmetric: false,
+    requirements: &[],
+    reference: Citation {
+        paper: "Blanes, Casas & Murua 2006 (SIAM J. Sci. Comput. 27); Acta Numerica 33 (2024)",
+        equation: "Table 8.1, order 8, s = 13",
+    },
+    group: Group::Geometric,
+    options: &[MethodOption::Base],
+    no_step_jacobian: None,
+};

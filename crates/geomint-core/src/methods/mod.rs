@@ -1,0 +1,594 @@
+//! The methods: what a run uses ([`Method`], a method with its options), the catalogue
+//! ([`MethodId`] and its [`MethodInfo`]: order, kind, properties, requirements, citation), and the
+//! construction of a stepper for a concrete system ([`build`](fn@build)). One file per family beside this
+//! one, each with the catalogue entries of its methods; a method's id is written once, in its
+//! entry.
+
+pub mod build;
+pub mod composition;
+pub mod conformal;
+pub mod dop853;
+pub mod implicit;
+pub mod reference;
+pub mod rowlands;
+pub mod runge_kutta;
+pub mod splitting;
+pub mod symplectic_euler;
+
+use serde::{Serialize, Serializer};
+
+use crate::error::{CoreError, Field};
+use crate::system::Structure;
+
+pub use build::{build, AnyStepper};
+use composition::Scheme;
+use rowlands::Processor;
+
+/// A method's coefficients as a type, `K` naming a constant table (a splitting's sequence, a
+/// Butcher tableau): a stepper generic over it sees the table when it is compiled, so its loops
+/// over flows or stages unroll and fold. The same steppers also take tables built at run time.
+pub struct Known<K>(std::marker::PhantomData<fn() -> K>);
+
+impl<K> Known<K> {
+    /// The table `K`.
+    pub const fn new() -> Self {
+        Self(std::marker::PhantomData)
+    }
+}
+
+impl<K> Default for Known<K> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// Runs `$body` with `$k` bound to 0, 1, …, `$n` − 1, the block written out once per index for
+/// `$n` ≤ 6 (the stages of the built-in tableaux, the flows of the built-in splittings): with the
+/// table known at compile time `$n` is a constant, each copy sees a constant index, and the
+/// coefficients and the kind of each flow fold. The compiler does not reliably unroll such loops
+/// by itself once their bodies are large, nor inline a closure that is called several times.
+macro_rules! unroll {
+    ($n:expr, $k:ident => $body:block) => {{
+        let n: usize = $n;
+        match n {
+            0 => {}
+            1 => unroll!(@at $k $body 0),
+            2 => unroll!(@at $k $body 0 1),
+            3 => unroll!(@at $k $body 0 1 2),
+            4 => unroll!(@at $k $body 0 1 2 3),
+            5 => unroll!(@at $k $body 0 1 2 3 4),
+            6 => unroll!(@at $k $body 0 1 2 3 4 5),
+            _ => {
+                for $k in 0..n {
+                    $body
+                }
+            }
+        }
+    }};
+    (@at $k:ident $body:block $($i:literal)*) => {{
+        $({
+            let $k: usize = $i;
+            $body
+        })*
+    }};
+}
+pub(crate) use unroll;
+
+/// How much work a step takes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+#[serde(rename_all = "snake_case")]
+#[cfg_attr(feature = "openapi", schema(as = MethodKind))]
+pub enum Kind {
+    /// No equation solving.
+    Explicit,
+    /// A linear solve per step.
+    LinearlyImplicit,
+    /// A nonlinear (Newton) solve per step.
+    Implicit,
+    /// Adaptive step size control inside each step.
+    Adaptive,
+}
+
+/// A structural requirement on the system.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+#[serde(rename_all = "snake_case")]
+#[cfg_attr(feature = "openapi", schema(as = MethodRequirement))]
+pub enum Requirement {
+    /// H = ½pᵀM⁻¹p + V(q) with constant M.
+    SeparableConstantMass,
+    /// D ∝ M (linear damping p' = … − 2γp).
+    ConformalDamping,
+    /// No damping: the system's damping rate is zero.
+    Conservative,
+}
+
+impl Requirement {
+    /// The requirement in words, for error messages.
+    pub fn describe(self) -> &'static str {
+        match self {
+            Requirement::SeparableConstantMass => {
+                "a separable Hamiltonian with a constant mass matrix (its drift and kick flows must be exact)"
+            }
+            Requirement::ConformalDamping => "conformal damping D ∝ M (p' = −∇V − 2γp)",
+            Requirement::Conservative => {
+                "no damping (its modified potential and processors are derived for a conservative Hamiltonian; set the damping to 0)"
+            }
+        }
+    }
+
+    /// Whether a system with this structure and damping rate meets the requirement.
+    pub fn met_by(self, s: Structure, damping_rate: f64) -> bool {
+        match self {
+            Requirement::SeparableConstantMass => s.separable_constant_mass,
+            Requirement::ConformalDamping => s.conformal_damping,
+            Requirement::Conservative => damping_rate == 0.0,
+        }
+    }
+}
+
+/// Where a method comes from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+#[cfg_attr(feature = "openapi", schema(as = CitationEntry))]
+pub struct Citation {
+    /// The paper or book.
+    pub paper: &'static str,
+    /// Equation, algorithm or section.
+    pub equation: &'static str,
+}
+
+/// The group a method is shown in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+#[serde(rename_all = "snake_case")]
+pub enum Group {
+    /// Structure-preserving splittings and compositions (papers 000, 001).
+    Geometric,
+    /// Conformal symplectic schemes for linear damping (paper 003).
+    Conformal,
+    /// Ordinary methods to compare with.
+    Baseline,
+}
+
+/// An option a method takes in the object form of a request's method.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+#[serde(rename_all = "snake_case")]
+pub enum MethodOption {
+    /// The inner Runge–Kutta method of modin_rks.
+    Inner,
+    /// The symmetric second-order base of a composition.
+    Base,
+    /// The tolerance of the adaptive reference.
+    Tolerance,
+    /// The processor of rowlands.
+    Processor,
+}
+
+impl MethodOption {
+    /// The option's name in requests.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            MethodOption::Inner => "inner",
+            MethodOption::Base => "base",
+            MethodOption::Tolerance => "tolerance",
+            MethodOption::Processor => "processor",
+        }
+    }
+}
+
+/// Sources cited by the catalogue entries.
+pub(crate) mod sources {
+    pub const HNW: &str = "Hairer, Nørsett, Wanner: Solving Ordinary Differential Equations I";
+    pub const GNI: &str = "Hairer, Lubich, Wanner: Geometric Numerical Integration";
+    pub const MODIN: &str = "000 Modin & Söderlind 2011";
+    pub const FLOYD: &str = "003 Floyd 2014";
+    pub const TAKACS: &str = "001 Takács & Fülöp";
+}
+
+/// A method's catalogue entry.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+#[cfg_attr(feature = "openapi", schema(as = MethodEntry))]
+pub struct MethodInfo {
+    /// Identifier used in requests.
+    #[cfg_attr(feature = "openapi", schema(value_type = MethodId))]
+    pub id: &'static str,
+    /// Human-readable name.
+    pub name: &'static str,
+    /// Classical order (on smooth problems).
+    pub order: u32,
+    /// Work per step.
+    pub kind: Kind,
+    /// Symplectic when the damping is zero.
+    pub symplectic: bool,
+    /// Conformal symplectic under linear damping (det ∂Φ/∂z = e^{−2γh} per degree of freedom).
+    pub conformal_symplectic: bool,
+    /// Symmetric (self-adjoint), so it can be a composition's base.
+    pub symmetric: bool,
+    /// What the system must satisfy.
+    pub requirements: &'static [Requirement],
+    /// Where it comes from.
+    pub reference: Citation,
+    /// Group for display.
+    pub group: Group,
+    /// Options the method accepts in the object form of a method.
+    pub options: &'static [MethodOption],
+    /// Whether the step's Jacobian can be propagated (`jacobian_defect`, stability analysis);
+    /// when not, why.
+    #[serde(skip)]
+    pub no_step_jacobian: Option<&'static str>,
+}
+
+/// Declares [`MethodId`] from the catalogue entries, in catalogue order.
+macro_rules! catalogue {
+    ($($(#[$doc:meta])* $variant:ident => $info:path,)*) => {
+        /// Every method the core offers, in catalogue order. Its request id is its entry's `id`.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+        pub enum MethodId {
+            $($(#[$doc])* $variant,)*
+        }
+
+        impl MethodId {
+            /// All methods, in catalogue order.
+            pub const ALL: &'static [MethodId] = &[$(MethodId::$variant,)*];
+
+            /// The method's catalogue entry.
+            pub fn info(self) -> &'static MethodInfo {
+                match self {
+                    $(MethodId::$variant => &$info,)*
+                }
+            }
+        }
+    };
+}
+
+catalogue! {
+    /// Paper 000 Algorithm 3.1.
+    Modin3s => splitting::MODIN_3S_INFO,
+    /// Paper 000 Algorithm 3.2.
+    Modin2s => splitting::MODIN_2S_INFO,
+    /// Paper 000 Algorithm 3.3.
+    ModinRks => splitting::MODIN_RKS_INFO,
+    /// Paper 003 eq. (2.12).
+    Csv1 => splitting::CSV1_INFO,
+    /// Paper 003 eq. (2.16).
+    Csv2 => conformal::CSV2_INFO,
+    /// Paper 003 eq. (2.3).
+    Cimp => implicit::CIMP_INFO,
+    /// Fourth-order triple-jump composition of a symmetric second-order method.
+    TripleJump => composition::TRIPLE_JUMP_INFO,
+    /// Suzuki's fourth-order five-stage composition.
+    Suzuki4 => composition::SUZUKI_4_INFO,
+    /// Yoshida's sixth-order seven-stage composition.
+    Yoshida6 => composition::YOSHIDA_6_INFO,
+    /// Kahan and Li's sixth-order nine-stage composition.
+    KahanLi6 => composition::KAHAN_LI_6_INFO,
+    /// Kahan and Li's eighth-order 17-stage composition.
+    KahanLi8 => composition::KAHAN_LI_8_INFO,
+    /// Blanes, Casas and Murua's processed composition of effective order 8, 13 stages.
+    BlanesCasasMurua8 => composition::BLANES_CASAS_MURUA_8_INFO,
+    /// Rowlands time stepping: Störmer–Verlet on a modified potential with processing.
+    Rowlands => rowlands::ROWLANDS_INFO,
+    /// Symplectic Euler (kick then drift).
+    SymplecticEuler => splitting::SYMPLECTIC_EULER_INFO,
+    /// Adjoint symplectic Euler (drift then kick).
+    SymplecticEulerAdjoint => splitting::SYMPLECTIC_EULER_ADJOINT_INFO,
+    /// Störmer–Verlet, drift–kick–drift.
+    PositionVerlet => splitting::POSITION_VERLET_INFO,
+    /// Störmer–Verlet, kick–drift–kick.
+    VelocityVerlet => splitting::VELOCITY_VERLET_INFO,
+    /// Implicit midpoint rule (Newton).
+    ImplicitMidpoint => implicit::IMPLICIT_MIDPOINT_INFO,
+    /// Forward Euler.
+    ExplicitEuler => runge_kutta::EXPLICIT_EULER_INFO,
+    /// Heun's (explicit trapezoidal) method.
+    Heun => runge_kutta::HEUN_INFO,
+    /// Kutta's third-order method.
+    Rk3 => runge_kutta::RK3_INFO,
+    /// Classical RK4.
+    Rk4 => runge_kutta::RK4_INFO,
+    /// Adaptive DOP853 at a tight tolerance.
+    Reference => reference::REFERENCE_INFO,
+}
+
+impl MethodId {
+    /// The id as used in requests.
+    pub fn as_str(self) -> &'static str {
+        self.info().id
+    }
+
+    /// The method with this id, if any.
+    pub fn parse(s: &str) -> Option<MethodId> {
+        MethodId::ALL.iter().copied().find(|m| m.as_str() == s)
+    }
+
+    /// Every id, comma-separated (for messages).
+    pub fn known() -> String {
+        names(MethodId::ALL)
+    }
+}
+
+impl std::fmt::Display for MethodId {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl Serialize for MethodId {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.as_str())
+    }
+}
+
+#[cfg(feature = "openapi")]
+
+impl utoipa::PartialSchema for MethodId {
+    fn schema() -> utoipa::openapi::RefOr<utoipa::openapi::schema::Schema> {
+        crate::schema::string_enum(
+            "A method id (see GET /api/v1/methods).",
+            MethodId::ALL.iter().map(|m| m.as_str()),
+        )
+    }
+}
+
+#[cfg(feature = "openapi")]
+
+impl utoipa::ToSchema for MethodId {}
+
+fn names(ids: &[MethodId]) -> String {
+    ids.iter()
+        .map(|m| m.as_str())
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// Declares a subset of the methods as its own type.
+macro_rules! method_subset {
+    ($(#[$doc:meta])* $name:ident, $rule:literal { $($variant:ident),* $(,)? }) => {
+        $(#[$doc])*
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+        pub enum $name {
+            $(#[doc = concat!("[`MethodId::", stringify!($variant), "`].")] $variant,)*
+        }
+
+        impl $name {
+            /// Every member, in catalogue order.
+            pub const ALL: &'static [$name] = &[$($name::$variant,)*];
+            /// What the subset is, for messages.
+            pub const RULE: &'static str = $rule;
+
+            /// The method's id.
+            pub fn id(self) -> MethodId {
+                match self {
+                    $($name::$variant => MethodId::$variant,)*
+                }
+            }
+
+            /// The member with this id, if it is one.
+            pub fn of(id: MethodId) -> Option<$name> {
+                $name::ALL.iter().copied().find(|m| m.id() == id)
+            }
+
+            /// Every member's id, for messages.
+            pub fn ids() -> Vec<String> {
+                $name::ALL.iter().map(|m| m.id().as_str().to_string()).collect()
+            }
+        }
+
+        #[cfg(feature = "openapi")]
+
+        impl utoipa::PartialSchema for $name {
+            fn schema() -> utoipa::openapi::RefOr<utoipa::openapi::schema::Schema> {
+                crate::schema::string_enum($rule, $name::ALL.iter().map(|m| m.id().as_str()))
+            }
+        }
+
+        #[cfg(feature = "openapi")]
+
+        impl utoipa::ToSchema for $name {}
+    };
+}
+
+method_subset! {
+    /// The inner methods modin_rks accepts: at least second order, so that the splitting stays
+    /// second order (paper 000 Sec. 3; with forward Euler inside we measured order 1.02).
+    Inner, "modin_rks needs a Runge–Kutta inner method" { Heun, Rk3, Rk4, ImplicitMidpoint }
+}
+
+method_subset! {
+    /// The bases the compositions accept: the symmetric second-order methods.
+    Base, "a composition needs a symmetric second-order base" {
+        Modin3s, Modin2s, Csv1, Csv2, Cimp, PositionVerlet, VelocityVerlet, ImplicitMidpoint
+    }
+}
+
+/// A method with its options: what a request asks for and a run uses. Options take their
+/// defaults when a request leaves them out ([`Method::new`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Method {
+    /// One of the methods without options.
+    Plain(MethodId),
+    /// modin_rks with its inner Runge–Kutta method (default heun).
+    ModinRks {
+        /// The inner method.
+        inner: Inner,
+    },
+    /// A symmetric composition of a base (default modin_3s).
+    Composition {
+        /// The composition (triple_jump, suzuki_4, yoshida_6, kahan_li_6, kahan_li_8,
+        /// blanes_casas_murua_8).
+        scheme: Scheme,
+        /// The base.
+        base: Base,
+    },
+    /// rowlands with its processor (default cheap).
+    Rowlands {
+        /// The processor.
+        processor: Processor,
+    },
+    /// The adaptive reference at a tolerance (default 1e-12).
+    Reference {
+        /// Relative and absolute tolerance, in [1e-14, 1e-2].
+        tolerance: f64,
+    },
+}
+
+/// The valid tolerances of the adaptive reference.
+pub const TOLERANCE_RANGE: crate::error::Range =
+    crate::error::Range::closed(1e-14, false, 1e-2);
+
+impl Method {
+    /// The method `id` with default options.
+    pub fn new(id: MethodId) -> Method {
+        match id {
+            MethodId::ModinRks => Method::ModinRks { inner: Inner::Heun },
+            MethodId::Rowlands => Method::Rowlands {
+                processor: Processor::DEFAULT,
+            },
+            MethodId::Reference => Method::Reference {
+                tolerance: reference::DEFAULT_TOLERANCE,
+            },
+            id => match Scheme::of(id) {
+                Some(scheme) => Method::Composition {
+                    scheme,
+                    base: Base::Modin3s,
+                },
+                None => Method::Plain(id),
+            },
+        }
+    }
+
+    /// The composition `scheme` of `base`.
+    pub fn composition(scheme: Scheme, base: Base) -> Method {
+        Method::Composition { scheme, base }
+    }
+
+    /// The triple jump of `base`.
+    pub fn triple_jump(base: Base) -> Method {
+        Method::composition(Scheme::TripleJump, base)
+    }
+
+    /// The method's id.
+    pub fn id(&self) -> MethodId {
+        match self {
+            Method::Plain(id) => *id,
+            Method::ModinRks { .. } => MethodId::ModinRks,
+            Method::Composition { scheme, .. } => scheme.id(),
+            Method::Rowlands { .. } => MethodId::Rowlands,
+            Method::Reference { .. } => MethodId::Reference,
+        }
+    }
+
+    /// The method's catalogue entry.
+    pub fn info(&self) -> &'static MethodInfo {
+        self.id().info()
+    }
+
+    /// A label that tells runs apart: `modin_rks(rk4)`, `triple_jump(csv1)`, `reference(1e-10)`,
+    /// `rowlands(cheap)`.
+    pub fn label(&self) -> String {
+        let id = self.id().as_str();
+        match self {
+            Method::Plain(_) => id.to_string(),
+            Method::ModinRks { inner } => format!("{id}({})", inner.id()),
+            Method::Composition { base, .. } => format!("{id}({})", base.id()),
+            Method::Rowlands { processor } => format!("{id}({})", processor.as_str()),
+            Method::Reference { tolerance } if *tolerance != reference::DEFAULT_TOLERANCE => {
+                format!("{id}({tolerance:e})")
+            }
+            Method::Reference { .. } => id.to_string(),
+        }
+    }
+
+    /// The requirements on the system (a composition inherits its base's).
+    pub fn requirements(&self) -> &'static [Requirement] {
+        match self {
+            Method::Composition { base, .. } => base.id().info().requirements,
+            _ => self.info().requirements,
+        }
+    }
+
+    /// The order: the method's, except that rowlands without processing is its second-order
+    /// kernel.
+    pub fn order(&self) -> u32 {
+        match self {
+            Method::Rowlands {
+                processor: Processor::None,
+            } => 2,
+            _ => self.info().order,
+        }
+    }
+
+    /// Why the step has no Jacobian, if it has none (a composition has its base's).
+    pub fn no_step_jacobian(&self) -> Option<&'static str> {
+        match self {
+            Method::Composition { base, .. } => base.id().info().no_step_jacobian,
+            _ => self.info().no_step_jacobian,
+        }
+    }
+
+    /// Checks the requirements against a system with this structure and damping rate; the
+    /// error names the first unmet one, the method's `field` and the system as `system` says.
+    pub fn check(
+        &self,
+        field: &Field,
+        system: &str,
+        structure: Structure,
+        damping_rate: f64,
+    ) -> Result<(), CoreError> {
+        match self
+            .requirements()
+            .iter()
+            .find(|r| !r.met_by(structure, damping_rate))
+        {
+            None => Ok(()),
+            Some(&requirement) => Err(CoreError::Unmet {
+                field: field.clone(),
+                method: self.label(),
+                system: system.to_string(),
+                requirement,
+            }),
+        }
+    }
+}
+
+impl From<MethodId> for Method {
+    fn from(id: MethodId) -> Self {
+        Method::new(id)
+    }
+}
+
+/// A method is written as requests write it: its id alone when it has no options, else
+/// `{"id", <option>}`.
+impl Serialize for Method {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        let id = self.id().as_str();
+        /// An option's value: a name or the tolerance.
+        #[derive(Serialize)]
+        #[serde(untagged)]
+        enum Value {
+            Name(&'static str),
+            Number(f64),
+        }
+        let option = match self {
+            Method::Plain(_) => None,
+            Method::ModinRks { inner } => Some(("inner", Value::Name(inner.id().as_str()))),
+            Method::Composition { base, .. } => Some(("base", Value::Name(base.id().as_str()))),
+            Method::Rowlands { processor } => Some(("processor", Value::Name(processor.as_str()))),
+            Method::Reference { tolerance } => Some(("tolerance", Value::Number(*tolerance))),
+        };
+        match option {
+            None => s.serialize_str(id),
+            Some((name, value)) => {
+                let mut map = s.serialize_map(Some(2))?;
+                map.serialize_entry("id", id)?;
+                map.serialize_entry(name, &value)?;
+                map.end()
+            }
+        }
+    }
+}

@@ -1,0 +1,421 @@
+//! Explicit Runge–Kutta methods as Butcher tableaux, run by one generic stepper on the full damped
+//! vector field; and the same tableaux on the momentum equation alone, as the inner method of
+//! modin_rks (paper 000 Algorithm 3.3).
+
+use nalgebra::allocator::Allocator;
+use nalgebra::{DMatrix, DefaultAllocator, Dim};
+
+use super::sources::*;
+use super::{unroll, Citation, Group, Kind, Known, MethodInfo};
+use crate::error::StepError;
+use crate::flows::{self, Tangent};
+use crate::run::Stepper;
+use crate::system::{MechanicalSystem, State, Vector};
+
+/// An explicit Butcher tableau: stage i uses `a[i][j]` for j < i.
+#[derive(Debug)]
+pub struct Tableau {
+    /// Lower-triangular coefficients, row i of length i.
+    pub a: &'static [&'static [f64]],
+    /// Weights.
+    pub b: &'static [f64],
+    /// Nodes (c_i = Σ_j a_ij).
+    pub c: &'static [f64],
+    /// Classical order.
+    pub order: u32,
+}
+
+/// Forward Euler.
+pub const EXPLICIT_EULER: Tableau = Tableau {
+    a: &[&[]],
+    b: &[1.0],
+    c: &[0.0],
+    order: 1,
+};
+
+/// Heun's method, the explicit trapezoidal rule (Hairer–Nørsett–Wanner, Solving ODEs I, Table
+/// II.1.1; paper 000 footnote 1 calls it Runge's).
+pub const HEUN: Tableau = Tableau {
+    a: &[&[], &[1.0]],
+    b: &[0.5, 0.5],
+    c: &[0.0, 1.0],
+    order: 2,
+};
+
+/// Kutta's third-order method (Hairer–Nørsett–Wanner, Solving ODEs I, Table II.1.1).
+pub const RK3: Tableau = Tableau {
+    a: &[&[], &[0.5], &[-1.0, 2.0]],
+    b: &[1.0 / 6.0, 2.0 / 3.0, 1.0 / 6.0],
+    c: &[0.0, 0.5, 1.0],
+    order: 3,
+};
+
+/// The classical fourth-order Runge–Kutta method (Hairer–Nørsett–Wanner, Table II.1.2).
+pub const RK4: Tableau = Tableau {
+    a: &[&[], &[0.5], &[0.0, 0.5], &[0.0, 0.0, 1.0]],
+    b: &[1.0 / 6.0, 1.0 / 3.0, 1.0 / 3.0, 1.0 / 6.0],
+    c: &[0.0, 0.5, 0.5, 1.0],
+    order: 4,
+};
+
+impl Tableau {
+    /// Number of stages.
+    pub fn stages(&self) -> usize {
+        self.b.len()
+    }
+
+    /// The stability function R(x) = 1 + x bᵀ(I − xA)⁻¹𝟙 and the forcing weight S(x) of one step
+    /// of y' = x y − 1 (from y0 = 0): returns (R(x), −y1). Used for tangent maps of linear flows.
+    fn linear_response(&self, x: f64) -> (f64, f64) {
+        let run = |y0: f64, forcing: f64| {
+            let mut k = [0.0f64; 8];
+            for i in 0..self.stages() {
+                let yi = y0 + self.a[i].iter().zip(&k).map(|(a, k)| a * k).sum::<f64>();
+                k[i] = x * yi - forcing;
+            }
+            y0 + self.b.iter().zip(&k).map(|(b, k)| b * k).sum::<f64>()
+        };
+        (run(1.0, 0.0), -run(0.0, 1.0))
+    }
+}
+
+/// Where a Runge–Kutta stepper's tableau comes from: a reference chosen at run time, or a
+/// tableau known when the program is compiled ([`Known`]), whose stage loops then unroll with the
+/// zero coefficients dropped.
+pub trait TableauSource {
+    /// The tableau.
+    fn tableau(&self) -> &'static Tableau;
+}
+
+impl TableauSource for &'static Tableau {
+    #[inline(always)]
+    fn tableau(&self) -> &'static Tableau {
+        self
+    }
+}
+
+/// A Butcher tableau known when the program is compiled.
+pub trait KnownTableau {
+    /// The tableau.
+    const TABLEAU: &'static Tableau;
+}
+
+impl<K: KnownTableau> TableauSource for Known<K> {
+    #[inline(always)]
+    fn tableau(&self) -> &'static Tableau {
+        K::TABLEAU
+    }
+}
+
+/// Declares a marker type for each built-in tableau.
+macro_rules! known_tableaux {
+    ($($(#[$doc:meta])* $marker:ident = $tableau:ident;)*) => {
+        $(
+            $(#[$doc])*
+            pub struct $marker;
+            impl KnownTableau for $marker {
+                const TABLEAU: &'static Tableau = &$tableau;
+            }
+        )*
+    };
+}
+
+known_tableaux! {
+    /// [`EXPLICIT_EULER`] as a type.
+    ExplicitEuler = EXPLICIT_EULER;
+    /// [`HEUN`] as a type.
+    Heun = HEUN;
+    /// [`RK3`] as a type.
+    Rk3 = RK3;
+    /// [`RK4`] as a type.
+    Rk4 = RK4;
+}
+
+/// An explicit Runge–Kutta method on the full vector field.
+pub struct RungeKutta<D: Dim, T: TableauSource = &'static Tableau>
+where
+    DefaultAllocator: Allocator<D>,
+{
+    tableau: T,
+    kq: Vec<Vector<D>>,
+    kp: Vec<Vector<D>>,
+    stage: State<D>,
+    scratch: Vector<D>,
+    force_evaluations: u64,
+    stage_tangents: Vec<DMatrix<f64>>,
+}
+
+impl<D: Dim, T: TableauSource> RungeKutta<D, T>
+where
+    DefaultAllocator: Allocator<D>,
+{
+    /// A stepper for `tableau` on a system of dimension `dim`.
+    pub fn new(tableau: T, dim: D) -> Self {
+        let zero = Vector::<D>::zeros_generic(dim, nalgebra::U1);
+        let s = tableau.tableau().stages();
+        Self {
+            tableau,
+            kq: vec![zero.clone(); s],
+            kp: vec![zero.clone(); s],
+            stage: State {
+                q: zero.clone(),
+                p: zero.clone(),
+            },
+            scratch: zero,
+            force_evaluations: 0,
+            stage_tangents: Vec::new(),
+        }
+    }
+}
+
+impl<S: MechanicalSystem, T: TableauSource> Stepper<S> for RungeKutta<S::Dim, T>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    #[inline(always)]
+    fn step(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64) -> Result<(), StepError> {
+        let t = self.tableau.tableau();
+        let stages = t.stages();
+        // One bounds check here instead of one per use.
+        let (kq, kp) = (&mut self.kq[..stages], &mut self.kp[..stages]);
+        let (stage, scratch) = (&mut self.stage, &mut self.scratch);
+        unroll!(stages, i => {
+            stage.q.copy_from(&z.q);
+            stage.p.copy_from(&z.p);
+            for (j, &a) in t.a[i].iter().enumerate() {
+                if a != 0.0 {
+                    stage.q.axpy(h * a, &kq[j], 1.0);
+                    stage.p.axpy(h * a, &kp[j], 1.0);
+                }
+            }
+            sys.vector_field(&stage.q, &stage.p, &mut kq[i], &mut kp[i], scratch);
+        });
+        unroll!(stages, i => {
+            z.q.axpy(h * t.b[i], &kq[i], 1.0);
+            z.p.axpy(h * t.b[i], &kp[i], 1.0);
+        });
+        self.force_evaluations += stages as u64;
+        Ok(())
+    }
+
+    fn force_evaluations(&self) -> u64 {
+        self.force_evaluations
+    }
+
+    /// The variational equation integrated by the same tableau: K_i = J(Z_i)(Y + h Σ a_ij K_j), with Y the Jacobian so far,
+    /// with J = [[0, M⁻¹], [−∇²V, −r I]] (constant M, conformal damping).
+    fn step_tangent(
+        &mut self,
+        sys: &S,
+        z: &mut State<S::Dim>,
+        h: f64,
+        tangent: &mut Tangent,
+    ) -> Result<(), StepError> {
+        let t = self.tableau.tableau();
+        let n = z.q.len();
+        let r = sys.damping_rate();
+        if self.stage_tangents.len() != t.stages() {
+            self.stage_tangents = vec![DMatrix::zeros(2 * n, 2 * n); t.stages()];
+        }
+        let mut jac = DMatrix::zeros(2 * n, 2 * n);
+        for i in 0..t.stages() {
+            self.stage.q.copy_from(&z.q);
+            self.stage.p.copy_from(&z.p);
+            let mut arg = tangent.jac.clone();
+            for (j, &a) in t.a[i].iter().enumerate() {
+                self.stage.q.axpy(h * a, &self.kq[j], 1.0);
+                self.stage.p.axpy(h * a, &self.kp[j], 1.0);
+                arg += h * a * &self.stage_tangents[j];
+            }
+            self.force_evaluations += tangent.load_hessian(sys, &self.stage.q);
+            jac.fill(0.0);
+            jac.view_mut((0, n), (n, n)).copy_from(&tangent.minv);
+            jac.view_mut((n, 0), (n, n)).copy_from(&(-&tangent.hess));
+            jac.view_mut((n, n), (n, n)).fill_with_identity();
+            jac.view_mut((n, n), (n, n)).scale_mut(-r);
+            self.stage_tangents[i] = &jac * arg;
+            sys.vector_field(
+                &self.stage.q,
+                &self.stage.p,
+                &mut self.kq[i],
+                &mut self.kp[i],
+                &mut self.scratch,
+            );
+        }
+        for (i, &b) in t.b.iter().enumerate() {
+            z.q.axpy(h * b, &self.kq[i], 1.0);
+            z.p.axpy(h * b, &self.kp[i], 1.0);
+            tangent.jac += h * b * &self.stage_tangents[i];
+        }
+        self.force_evaluations += t.stages() as u64;
+        Ok(())
+    }
+}
+
+/// The Runge–Kutta method used on the momentum equation p' = −∇V(q) − r P(q) p with q frozen.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum InnerRk {
+    /// An explicit tableau.
+    Explicit(&'static Tableau),
+    /// The implicit midpoint rule, solved in closed form since the equation is linear in p.
+    ImplicitMidpoint,
+}
+
+impl PartialEq for Tableau {
+    fn eq(&self, other: &Self) -> bool {
+        std::ptr::eq(self, other)
+    }
+}
+impl Eq for Tableau {}
+
+/// Work space of the momentum Runge–Kutta sub-flow.
+pub struct MomentumRk<D: Dim>
+where
+    DefaultAllocator: Allocator<D>,
+{
+    method: InnerRk,
+    k: Vec<Vector<D>>,
+    stage: Vector<D>,
+    projected: Vector<D>,
+}
+
+impl<D: Dim> MomentumRk<D>
+where
+    DefaultAllocator: Allocator<D>,
+{
+    /// Work space for `method` in dimension `dim`.
+    pub fn new(method: InnerRk, dim: D) -> Self {
+        let zero = Vector::<D>::zeros_generic(dim, nalgebra::U1);
+        let stages = match method {
+            InnerRk::Explicit(t) => t.stages(),
+            InnerRk::ImplicitMidpoint => 0,
+        };
+        Self {
+            method,
+            k: vec![zero.clone(); stages],
+            stage: zero.clone(),
+            projected: zero,
+        }
+    }
+
+    /// One step of size τ of p' = −g − r P p, with g = ∇V(q) given.
+    #[inline]
+    pub fn step<S: MechanicalSystem<Dim = D>>(
+        &mut self,
+        sys: &S,
+        z: &mut State<D>,
+        tau: f64,
+        g: &Vector<D>,
+    ) {
+        let r = sys.damping_rate();
+        match self.method {
+            InnerRk::Explicit(t) => {
+                for i in 0..t.stages() {
+                    self.stage.copy_from(&z.p);
+                    for (j, &a) in t.a[i].iter().enumerate() {
+                        self.stage.axpy(tau * a, &self.k[j], 1.0);
+                    }
+                    sys.project_damped(&z.q, &self.stage, &mut self.projected);
+                    let ki = &mut self.k[i];
+                    ki.copy_from(g);
+                    ki.axpy(r, &self.projected, 1.0);
+                    ki.neg_mut();
+                }
+                for (i, &b) in t.b.iter().enumerate() {
+                    z.p.axpy(tau * b, &self.k[i], 1.0);
+                }
+            }
+            // On a field linear in p the implicit midpoint rule is the trapezoidal rule.
+            InnerRk::ImplicitMidpoint => {
+                flows::kick_theta(sys, z, tau, 0.5, g, &mut self.projected)
+            }
+        }
+    }
+
+    /// For P = I: one step maps p to A p − B ∇V(q); returns (A, B).
+    pub fn tangent_coefficients(&self, r: f64, tau: f64) -> (f64, f64) {
+        match self.method {
+            InnerRk::Explicit(t) => {
+                let (a, b) = t.linear_response(-r * tau);
+                (a, tau * b)
+            }
+            InnerRk::ImplicitMidpoint => flows::kick_theta_tangent(r, tau, 0.5),
+        }
+    }
+}
+
+/// Catalogue entry of `explicit_euler`.
+pub const EXPLICIT_EULER_INFO: MethodInfo = MethodInfo {
+    id: "explicit_euler",
+    name: "Explicit Euler",
+    order: 1,
+    kind: Kind::Explicit,
+    symplectic: false,
+    conformal_symplectic: false,
+    symmetric: false,
+    requirements: &[],
+    reference: Citation {
+        paper: HNW,
+        equation: "Sec. I.7",
+    },
+    group: Group::Baseline,
+    options: &[],
+    no_step_jacobian: None,
+};
+
+/// Catalogue entry of `heun`.
+pub const HEUN_INFO: MethodInfo = MethodInfo {
+    id: "heun",
+    name: "Heun (explicit trapezoid)",
+    order: 2,
+    kind: Kind::Explicit,
+    symplectic: false,
+    conformal_symplectic: false,
+    symmetric: false,
+    requirements: &[],
+    reference: Citation {
+        paper: MODIN,
+        equation: "footnote 1",
+    },
+    group: Group::Baseline,
+    options: &[],
+    no_step_jacobian: None,
+};
+
+/// Catalogue entry of `rk3`.
+pub const RK3_INFO: MethodInfo = MethodInfo {
+    id: "rk3",
+    name: "Kutta's third order",
+    order: 3,
+    kind: Kind::Explicit,
+    symplectic: false,
+    conformal_symplectic: false,
+    symmetric: false,
+    requirements: &[],
+    reference: Citation {
+        paper: HNW,
+        equation: "Table II.1.1",
+    },
+    group: Group::Baseline,
+    options: &[],
+    no_step_jacobian: None,
+};
+
+/// Catalogue entry of `rk4`.
+pub const RK4_INFO: MethodInfo = MethodInfo {
+    id: "rk4",
+    name: "Classical Runge–Kutta 4",
+    order: 4,
+    kind: Kind::Explicit,
+    symplectic: false,
+    conformal_symplectic: false,
+    symmetric: false,
+    requirements: &[],
+    reference: Citation {
+        paper: HNW,
+        equation: "Table II.1.2",
+    },
+    group: Group::Baseline,
+    options: &[],
+    no_step_jacobian: None,
+};

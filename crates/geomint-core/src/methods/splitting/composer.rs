@@ -1,0 +1,349 @@
+//! The composer: one splitting run, its force cache and work vectors, and the fused stretches
+//! between samples.
+
+use nalgebra::allocator::Allocator;
+use nalgebra::DefaultAllocator;
+
+use super::walk::{with_walk, Loop, Stages, Unrolled, Walk};
+use super::*;
+use crate::error::StepError;
+use crate::flows::{self, Tangent};
+use crate::methods::runge_kutta::MomentumRk;
+use crate::methods::unroll;
+use crate::run::{finite, step_by_step, Advanced, Stepper};
+use crate::system::{MechanicalSystem, State, Vector};
+
+/// Runs a splitting sequence; one instance per run, so its buffers are allocated once.
+pub struct Splitting<S: MechanicalSystem, Q: Flows = Composition>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    sequence: Q,
+    /// Per-flow coefficients that depend on h only (the damping exponentials), for `coeff_h`.
+    coefficients: Vec<(f64, f64)>,
+    /// The flow that ends one step and begins the next, fused (see [`Splitting::advance`]): its
+    /// time τ and coefficients for `coeff_h`, if the sequence ends and begins with one kind of
+    /// flow that fuses.
+    seam: Option<(f64, (f64, f64))>,
+    coeff_h: f64,
+    work: Work<S>,
+}
+
+/// What the sub-flows change besides the state: the force cache and the work vectors.
+struct Work<S: MechanicalSystem>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    inner: Option<MomentumRk<S::Dim>>,
+    grad: Vector<S::Dim>,
+    grad_valid: bool,
+    w1: Vector<S::Dim>,
+    w2: Vector<S::Dim>,
+    force_evaluations: u64,
+    /// The state at the start of a fused stretch, to run it again step by step if it diverges.
+    start: State<S::Dim>,
+    /// The force cache at the start of a fused stretch, restored with `start` so that a rerun
+    /// counts exactly the evaluations of the step-by-step run.
+    start_grad: Vector<S::Dim>,
+}
+
+impl<S: MechanicalSystem, Q: Flows> Splitting<S, Q>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    /// A composer for `sequence`; `inner` is the Runge–Kutta method for `MomentumRk` flows.
+    pub fn new(sys: &S, sequence: Q, inner: Option<MomentumRk<S::Dim>>) -> Self {
+        let zero = Vector::<S::Dim>::zeros_generic(sys.dim(), nalgebra::U1);
+        Self {
+            coefficients: vec![(0.0, 0.0); sequence.flows().len()],
+            seam: None,
+            coeff_h: f64::NAN,
+            sequence,
+            work: Work {
+                inner,
+                grad: zero.clone(),
+                grad_valid: false,
+                w1: zero.clone(),
+                w2: zero.clone(),
+                force_evaluations: 0,
+                start: State {
+                    q: zero.clone(),
+                    p: zero.clone(),
+                },
+                start_grad: zero,
+            },
+        }
+    }
+
+    /// Recomputes the h-dependent coefficients when the step size changes (once per fixed-step
+    /// run; compositions of splittings are flattened into one sequence, so they too).
+    #[inline]
+    fn prepare(&mut self, sys: &S, h: f64) {
+        if h == self.coeff_h {
+            return;
+        }
+        let r = sys.damping_rate();
+        let coefficients = |flow: SubFlow, tau: f64| match flow {
+            Damp => (flows::damp_coefficient(r, tau), 0.0),
+            KickDamp => flows::kick_damp_coefficients(r, tau),
+            _ => (0.0, 0.0),
+        };
+        let sequence = self.sequence.flows();
+        for (k, &(flow, frac)) in sequence.iter().enumerate() {
+            self.coefficients[k] = coefficients(flow, frac * h);
+        }
+        self.seam = match (sequence.first(), sequence.last()) {
+            (Some(&(first, a)), Some(&(last, b)))
+                if sequence.len() > 2 && last.fuses_with(first) =>
+            {
+                let tau = (b + a) * h;
+                Some((tau, coefficients(first, tau)))
+            }
+            _ => None,
+        };
+        self.coeff_h = h;
+    }
+
+    /// `n ≥ 2` steps with the last flow of each step and the first of the next applied as one
+    /// flow over their summed time (exact in exact arithmetic: with q frozen, or p for a drift,
+    /// two flows of one autonomous field compose to the flow over the sum). The state between
+    /// them is never observed, and the stretch ends with the whole last step, so the result
+    /// differs from `n` separate steps only by round-off; modin_3s saves one of its two damping
+    /// flows per step this way, modin_2s and position_verlet one drift. A stretch that diverges
+    /// is run again step by step, so a run stops at the same step as it would unfused.
+    #[inline(always)]
+    fn advance_fused<W: Walk>(
+        &mut self,
+        sys: &S,
+        z: &mut State<S::Dim>,
+        h: f64,
+        n: u64,
+        (seam_tau, seam_coefficients): (f64, (f64, f64)),
+    ) -> Advanced {
+        let sequence = self.sequence.flows();
+        let m = sequence.len();
+        let coefficients = &self.coefficients[..m];
+        let work = &mut self.work;
+        work.start.q.copy_from(&z.q);
+        work.start.p.copy_from(&z.p);
+        work.start_grad.copy_from(&work.grad);
+        let (start_grad_valid, start_count) = (work.grad_valid, work.force_evaluations);
+        let first = sequence[0];
+        let last = W::kind(sequence, m - 1, W::START + W::period(sequence) - 1);
+        let last_frac = sequence[m - 1].1;
+        work.apply(sys, z, first.0, first.1 * h, coefficients[0]);
+        for done in 1..=n {
+            // The flows between the first and the last.
+            walk::<W, S>(work, sys, z, h, sequence, coefficients, 1, m - 1);
+            // The seam, or at the end of the stretch the last flow alone.
+            let (tau, cd) = if done < n {
+                (seam_tau, seam_coefficients)
+            } else {
+                (last_frac * h, coefficients[m - 1])
+            };
+            work.apply(sys, z, last, tau, cd);
+            if !finite(z) {
+                break;
+            }
+            if done == n {
+                return (n, Ok(()));
+            }
+        }
+        // Diverged: run the stretch again step by step from where it started, with the force
+        // cache and the count as they were, so that the stop step, the state and the count are
+        // those of single steps.
+        z.q.copy_from(&work.start.q);
+        z.p.copy_from(&work.start.p);
+        work.grad.copy_from(&work.start_grad);
+        work.grad_valid = start_grad_valid;
+        work.force_evaluations = start_count;
+        step_by_step(self, sys, z, h, n)
+    }
+
+    /// One step, walking the sequence with `W`.
+    #[inline(always)]
+    fn step_with<W: Walk>(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64) {
+        let flows = self.sequence.flows();
+        // One bounds check here instead of one per flow.
+        let coefficients = &self.coefficients[..flows.len()];
+        walk::<W, S>(
+            &mut self.work,
+            sys,
+            z,
+            h,
+            flows,
+            coefficients,
+            0,
+            flows.len(),
+        );
+    }
+}
+
+impl<S: MechanicalSystem> Work<S>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    /// Applies `flow` for time τ, with its h-dependent coefficients (c, d).
+    #[inline(always)]
+    fn apply(
+        &mut self,
+        sys: &S,
+        z: &mut State<S::Dim>,
+        flow: SubFlow,
+        tau: f64,
+        (c, d): (f64, f64),
+    ) {
+        match flow {
+            Drift => {
+                flows::drift(sys, z, tau, &mut self.w1);
+                self.grad_valid = false;
+            }
+            Kick => {
+                self.ensure_grad(sys, &z.q);
+                flows::kick(z, tau, &self.grad);
+            }
+            DampedKick(theta) => {
+                self.ensure_grad(sys, &z.q);
+                flows::kick_theta(sys, z, tau, theta.value(), &self.grad, &mut self.w1);
+            }
+            Damp => flows::damp_with(sys, z, tau, c, &mut self.w1),
+            KickDamp => {
+                self.ensure_grad(sys, &z.q);
+                flows::kick_damp_with(sys, z, tau, c, d, &self.grad, &mut self.w1, &mut self.w2);
+            }
+            MomentumRk => {
+                self.ensure_grad(sys, &z.q);
+                if let Some(inner) = self.inner.as_mut() {
+                    inner.step(sys, z, tau, &self.grad);
+                }
+            }
+        }
+    }
+
+    #[inline]
+    fn ensure_grad(&mut self, sys: &S, q: &Vector<S::Dim>) {
+        if !self.grad_valid {
+            sys.grad_potential(q, &mut self.grad);
+            self.force_evaluations += 1;
+            self.grad_valid = true;
+        }
+    }
+}
+
+impl<S: MechanicalSystem, Q: Flows> Stepper<S> for Splitting<S, Q>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    #[inline(always)]
+    fn step(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64) -> Result<(), StepError> {
+        self.prepare(sys, h);
+        with_walk!(self, W => self.step_with::<W>(sys, z, h));
+        Ok(())
+    }
+
+    #[inline]
+    fn advance(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64, n: u64) -> Advanced {
+        self.prepare(sys, h);
+        match self.seam {
+            Some(seam) if n >= 2 => {
+                with_walk!(self, W => self.advance_fused::<W>(sys, z, h, n, seam))
+            }
+            _ => step_by_step(self, sys, z, h, n),
+        }
+    }
+
+    fn force_evaluations(&self) -> u64 {
+        self.work.force_evaluations
+    }
+
+    fn restart(&mut self) {
+        self.work.grad_valid = false;
+    }
+
+    fn step_tangent(
+        &mut self,
+        sys: &S,
+        z: &mut State<S::Dim>,
+        h: f64,
+        tangent: &mut Tangent,
+    ) -> Result<(), StepError> {
+        let r = sys.damping_rate();
+        self.prepare(sys, h);
+        let flows = self.sequence.flows();
+        for (&(flow, frac), &cd) in flows.iter().zip(&self.coefficients) {
+            let tau = frac * h;
+            // Each flow's Jacobian is taken at the state it acts on, before it moves it.
+            match flow {
+                Drift => tangent.drift(tau),
+                Damp => tangent.kick_scaled((-r * tau).exp(), 0.0),
+                Kick | DampedKick(_) | KickDamp | MomentumRk => {
+                    self.work.force_evaluations += tangent.load_hessian(sys, &z.q);
+                    let (a, b) = match flow {
+                        Kick => (1.0, tau),
+                        DampedKick(theta) => flows::kick_theta_tangent(r, tau, theta.value()),
+                        KickDamp => ((-r * tau).exp(), one_minus_exp_neg_over(r, tau)),
+                        _ => match self.work.inner.as_ref() {
+                            Some(inner) => inner.tangent_coefficients(r, tau),
+                            None => (1.0, tau),
+                        },
+                    };
+                    tangent.kick_scaled(a, b);
+                }
+            }
+            self.work.apply(sys, z, flow, tau, cd);
+        }
+        Ok(())
+    }
+}
+
+/// Applies `flows[lo..hi]` to `z` with their h-dependent coefficients, walking with `W`.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn walk<W: Walk, S: MechanicalSystem>(
+    work: &mut Work<S>,
+    sys: &S,
+    z: &mut State<S::Dim>,
+    h: f64,
+    flows: &[(SubFlow, f64)],
+    coefficients: &[(f64, f64)],
+    lo: usize,
+    hi: usize,
+) where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    let (start, period) = (W::START, W::period(flows));
+    debug_assert_eq!((flows.len() - start) % period, 0, "whole stages");
+    if lo < start && start <= hi {
+        let kind = W::kind(flows, 0, 0);
+        work.apply(sys, z, kind, flows[0].1 * h, coefficients[0]);
+    }
+    let stages = flows[start..].chunks_exact(period);
+    let stage_coefficients = coefficients[start..].chunks_exact(period);
+    let mut at = start;
+    for (stage, cds) in stages.zip(stage_coefficients) {
+        if at >= lo && at + period <= hi {
+            unroll!(period, k => {
+                let kind = W::kind(flows, at + k, start + k);
+                work.apply(sys, z, kind, stage[k].1 * h, cds[k]);
+            });
+        } else {
+            // A stage the range starts or ends inside.
+            unroll!(period, k => {
+                if at + k >= lo && at + k < hi {
+                    let kind = W::kind(flows, at + k, start + k);
+                    work.apply(sys, z, kind, stage[k].1 * h, cds[k]);
+                }
+            });
+        }
+        at += period;
+    }
+}
+
+/// (1 − e^{−rτ})/r, which tends to τ as r → 0.
+fn one_minus_exp_neg_over(r: f64, tau: f64) -> f64 {
+    if r == 0.0 {
+        tau
+    } else {
+        flows::one_minus_exp_neg(r * tau) / r
+    }
+}

@@ -1,0 +1,420 @@
+//! The driver loop: advances a stepper over a run's steps, hands samples to an observer, and stops
+//! on the end, a non-finite state, cancellation or a deadline. It knows nothing of any particular
+//! method, and observers know nothing of integrators.
+//!
+//! A run of step h to t_end has n = ceil(t_end/h − 1e-9) steps, all of size h; sample times are
+//! t_k = k·h computed from the step index (never accumulated), so the same inputs give
+//! bit-identical output. Samples are taken at step 0, every `every`-th step and the last step.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+use nalgebra::allocator::Allocator;
+use nalgebra::DefaultAllocator;
+use serde::Serialize;
+
+use super::error::{CoreError, StepError};
+use super::flows::Tangent;
+use super::system::{MechanicalSystem, State};
+
+/// A one-step method for systems of type `S`. Explicit implementations keep their work buffers,
+/// so a step allocates nothing. A stepper may keep the last force evaluation for the next step
+/// (the end of one step is the start of the next), so `step` must be given the state its previous
+/// call produced; start a new stepper, or [`restart`](Stepper::restart) it, for an unrelated state.
+pub trait Stepper<S: MechanicalSystem>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    /// Advances `z` by one step of size `h`.
+    fn step(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64) -> Result<(), StepError>;
+
+    /// Advances `z` by up to `n` steps of size `h` with nothing observed in between, stopping
+    /// early after a step that leaves a non-finite state or at a step that fails. Returns the
+    /// number of steps completed and, if one failed, its error (the state is then the one before
+    /// that step). The default is the loop of [`Stepper::step`]; it is one call per stretch
+    /// between samples, so a stepper chosen at run time ([`AnyStepper`]) dispatches once per
+    /// stretch and the loop around a concrete `step` compiles to straight-line code.
+    ///
+    /// [`AnyStepper`]: crate::methods::AnyStepper
+    #[inline]
+    fn advance(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64, n: u64) -> Advanced {
+        step_by_step(self, sys, z, h, n)
+    }
+
+    /// Gradient (∇V or ∂H/∂q) evaluations so far.
+    fn force_evaluations(&self) -> u64;
+
+    /// How many steps may pass between two looks at the cancellation flag and the clock: many
+    /// for cheap explicit steps, one for steps that may take long (Newton, adaptive).
+    fn check_interval(&self) -> u64 {
+        1024
+    }
+
+    /// The deadline, for a stepper whose single step can take long (the adaptive reference):
+    /// it then gives up inside a step with [`StepError::DeadlinePassed`], leaving the state as it
+    /// was before that step. The driver sets it before the first step; the default ignores it.
+    fn set_deadline(&mut self, _deadline: Option<Instant>) {}
+
+    /// Forgets what the stepper carries from one step to the next (the force at the last
+    /// position), so that its next step may start from an unrelated state. The default has
+    /// nothing to forget.
+    fn restart(&mut self) {}
+
+    /// Processing (a method Φ = χ⁻¹ ∘ K ∘ χ whose kernel K is what `step` does): maps the
+    /// caller's state to the kernel's, z ← χ(z). The driver calls it once, before the first step.
+    /// The default does nothing. A processor that fails (a Newton solve inside it) leaves `z`
+    /// as it was.
+    fn pre_process(&mut self, _sys: &S, _z: &mut State<S::Dim>, _h: f64) -> Result<(), StepError> {
+        Ok(())
+    }
+
+    /// Processing: writes the output state χ⁻¹(z) for the kernel state `z` into `out` and returns
+    /// true; returns false (leaving `out` alone) when `z` itself is the output, as it is for every
+    /// method without processing (the default). The driver calls it at the samples after step 0
+    /// and at the end; it must leave the state `step` continues from (caches included) unchanged.
+    fn post_process(
+        &mut self,
+        _sys: &S,
+        _z: &State<S::Dim>,
+        _h: f64,
+        _out: &mut State<S::Dim>,
+    ) -> Result<bool, StepError> {
+        Ok(false)
+    }
+
+    /// Advances `z` by one step and multiplies `tangent.jac` by the step's Jacobian ∂Φ/∂z.
+    fn step_tangent(
+        &mut self,
+        _sys: &S,
+        _z: &mut State<S::Dim>,
+        _h: f64,
+        _tangent: &mut Tangent,
+    ) -> Result<(), StepError> {
+        Err(StepError::TangentUnsupported {
+            reason: "this method has no tangent map",
+        })
+    }
+}
+
+impl<S: MechanicalSystem, T: Stepper<S> + ?Sized> Stepper<S> for Box<T>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    #[inline]
+    fn step(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64) -> Result<(), StepError> {
+        (**self).step(sys, z, h)
+    }
+    #[inline]
+    fn advance(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64, n: u64) -> Advanced {
+        (**self).advance(sys, z, h, n)
+    }
+    fn force_evaluations(&self) -> u64 {
+        (**self).force_evaluations()
+    }
+    fn check_interval(&self) -> u64 {
+        (**self).check_interval()
+    }
+    fn set_deadline(&mut self, deadline: Option<Instant>) {
+        (**self).set_deadline(deadline)
+    }
+    fn restart(&mut self) {
+        (**self).restart()
+    }
+    fn pre_process(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64) -> Result<(), StepError> {
+        (**self).pre_process(sys, z, h)
+    }
+    fn post_process(
+        &mut self,
+        sys: &S,
+        z: &State<S::Dim>,
+        h: f64,
+        out: &mut State<S::Dim>,
+    ) -> Result<bool, StepError> {
+        (**self).post_process(sys, z, h, out)
+    }
+    fn step_tangent(
+        &mut self,
+        sys: &S,
+        z: &mut State<S::Dim>,
+        h: f64,
+        tangent: &mut Tangent,
+    ) -> Result<(), StepError> {
+        (**self).step_tangent(sys, z, h, tangent)
+    }
+}
+
+/// What [`Stepper::advance`] returns: the steps completed and, if a step failed, its error.
+pub type Advanced = (u64, Result<(), StepError>);
+
+/// [`Stepper::advance`] as `n` calls of [`Stepper::step`]: stops after the first step that
+/// leaves a non-finite state, or at a failed step.
+#[inline(always)]
+pub fn step_by_step<S, M>(
+    stepper: &mut M,
+    sys: &S,
+    z: &mut State<S::Dim>,
+    h: f64,
+    n: u64,
+) -> Advanced
+where
+    S: MechanicalSystem,
+    M: Stepper<S> + ?Sized,
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    for done in 0..n {
+        if let Err(e) = stepper.step(sys, z, h) {
+            return (done, Err(e));
+        }
+        if !finite(z) {
+            return (done + 1, Ok(()));
+        }
+    }
+    (n, Ok(()))
+}
+
+/// Whether every component of `z` is finite: one sum is finite iff every component is (overflow
+/// aside, which is divergence too), and it is cheaper than testing each component.
+#[inline(always)]
+pub fn finite<D: nalgebra::Dim>(z: &State<D>) -> bool
+where
+    DefaultAllocator: Allocator<D>,
+{
+    (z.q.sum() + z.p.sum()).is_finite()
+}
+
+/// The number of steps for a run of step `h` to `t_end`: ceil(t_end/h − 1e-9).
+pub fn step_count(h: f64, t_end: f64) -> u64 {
+    (t_end / h - 1e-9).ceil().max(0.0) as u64
+}
+
+/// Fixed-step schedule of a run.
+#[derive(Clone, Copy, Debug)]
+pub struct Schedule {
+    /// Step size.
+    pub h: f64,
+    /// Number of steps.
+    pub steps: u64,
+    /// Sample every this many steps (≥ 1); the last step is always sampled.
+    pub every: u64,
+}
+
+impl Schedule {
+    /// The schedule for step `h` to `t_end`, sampling every `every` steps.
+    pub fn new(h: f64, t_end: f64, every: u64) -> Self {
+        Self {
+            h,
+            steps: step_count(h, t_end),
+            every: every.max(1),
+        }
+    }
+
+    /// Number of samples the run produces if it finishes.
+    pub fn samples(&self) -> u64 {
+        let regular = self.steps / self.every + 1;
+        if self.steps % self.every == 0 {
+            regular
+        } else {
+            regular + 1
+        }
+    }
+}
+
+/// Limits checked inside the loop: blocking work cannot be aborted from outside.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Budget<'a> {
+    /// Set to stop the run (a client went away).
+    pub cancel: Option<&'a AtomicBool>,
+    /// Stop when this instant passes.
+    pub deadline: Option<Instant>,
+}
+
+/// Why a run stopped.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case", tag = "reason")]
+pub enum StopReason {
+    /// All steps were taken.
+    Finished,
+    /// The state became non-finite at this step (its samples end just before).
+    Diverged {
+        /// The first step whose result is non-finite.
+        step: u64,
+        /// Its time.
+        t: f64,
+    },
+    /// The cancellation flag was set.
+    Cancelled {
+        /// Steps completed.
+        step: u64,
+    },
+    /// The deadline passed.
+    TimeLimit {
+        /// Steps completed.
+        step: u64,
+    },
+}
+
+/// Run statistics, shared by every output format.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+#[cfg_attr(feature = "openapi", schema(as = Stats))]
+pub struct RunStats {
+    /// Steps taken.
+    pub steps: u64,
+    /// Gradient evaluations (∇V or ∂H/∂q).
+    pub force_evaluations: u64,
+    /// Wall time of the integration loop in milliseconds.
+    pub wall_time_ms: f64,
+}
+
+/// Receives the run's samples as they are produced.
+pub trait Observer<D: nalgebra::Dim>
+where
+    DefaultAllocator: Allocator<D>,
+{
+    /// A sample at `step`, time `t`.
+    fn on_sample(&mut self, step: u64, t: f64, z: &State<D>);
+
+    /// The Jacobian determinant of the step that ended at `step` (only when asked for).
+    fn on_step_determinant(&mut self, _step: u64, _det: f64) {}
+}
+
+/// Runs `stepper` from `z` over `schedule`, reporting samples to `observer`.
+///
+/// With `track_determinant`, each step also propagates its Jacobian (slower; for diagnostics)
+/// and reports det ∂Φ/∂z to the observer.
+///
+/// For a processing method (see [`Stepper::pre_process`]) the sample at step 0 is the caller's
+/// state as given, `z` is pre-processed once before the first step, the later samples are
+/// post-processed kernel states, and on return `z` holds the post-processed final state (the
+/// kernel state if the run diverged). Methods without processing see none of this: their loop is
+/// the same.
+pub fn integrate<S, M, O>(
+    sys: &S,
+    stepper: &mut M,
+    z: &mut State<S::Dim>,
+    schedule: Schedule,
+    budget: Budget<'_>,
+    track_determinant: bool,
+    observer: &mut O,
+) -> Result<(StopReason, RunStats), CoreError>
+where
+    S: MechanicalSystem,
+    M: Stepper<S> + ?Sized,
+    O: Observer<S::Dim>,
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    let started = Instant::now();
+    let h = schedule.h;
+    let every = schedule.every.max(1);
+    // Tangent propagation costs O(n³) per step: look at the budget every step then.
+    let check_every = if track_determinant {
+        1
+    } else {
+        stepper.check_interval().max(1)
+    };
+    let mut tangent = if track_determinant {
+        Some(Tangent::new(sys, z))
+    } else {
+        None
+    };
+    // A step that fails, counted from 0; a failing processor is charged to the step it is
+    // applied with (the first, or the one that ends at the output).
+    let fail = |step: u64, source: StepError| CoreError::Step {
+        field: None,
+        run: None,
+        step: step + 1,
+        t: step as f64 * h,
+        source,
+    };
+    observer.on_sample(0, 0.0, z);
+    stepper.set_deadline(budget.deadline);
+    // The post-processed state of the last sample, and that sample's step.
+    let mut processed = z.clone();
+    let mut processed_at = None;
+    let mut stop = StopReason::Finished;
+    let mut step = 0u64;
+    while step < schedule.steps {
+        // Also before the first step: work started after the deadline (a run after a reference
+        // that used up the time, a sweep's cell) stops at once.
+        if step.is_multiple_of(check_every) {
+            if budget.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+                stop = StopReason::Cancelled { step };
+                break;
+            }
+            if budget.deadline.is_some_and(|d| Instant::now() >= d) {
+                stop = StopReason::TimeLimit { step };
+                break;
+            }
+        }
+        // Processing starts with the run: a run the budget stopped before its first step
+        // leaves the caller's state as it was.
+        if step == 0 {
+            stepper.pre_process(sys, z, h).map_err(|e| fail(0, e))?;
+        }
+        // Steps up to the next sample, the next budget check or the end.
+        let next_sample = ((step / every) + 1) * every;
+        let next_check = ((step / check_every) + 1) * check_every;
+        let until = next_sample.min(next_check).min(schedule.steps);
+        match tangent.as_mut() {
+            None => {
+                let (done, outcome) = stepper.advance(sys, z, h, until - step);
+                step += done;
+                match outcome {
+                    Ok(()) => {}
+                    Err(StepError::DeadlinePassed) => stop = StopReason::TimeLimit { step },
+                    Err(e) => return Err(fail(step, e)),
+                }
+            }
+            Some(tg) => {
+                while step < until {
+                    tg.reset();
+                    stepper
+                        .step_tangent(sys, z, h, tg)
+                        .map_err(|e| fail(step, e))?;
+                    step += 1;
+                    observer.on_step_determinant(step, tg.jac.determinant());
+                    if !z.is_finite() {
+                        break;
+                    }
+                }
+            }
+        }
+        if matches!(stop, StopReason::TimeLimit { .. }) {
+            break;
+        }
+        if !z.is_finite() {
+            stop = StopReason::Diverged {
+                step,
+                t: step as f64 * h,
+            };
+            break;
+        }
+        if step % every == 0 || step == schedule.steps {
+            if stepper
+                .post_process(sys, z, h, &mut processed)
+                .map_err(|e| fail(step.saturating_sub(1), e))?
+            {
+                processed_at = Some(step);
+                observer.on_sample(step, step as f64 * h, &processed);
+            } else {
+                observer.on_sample(step, step as f64 * h, z);
+            }
+        }
+    }
+    // Leave the output state, not the kernel's, to the caller.
+    if step > 0
+        && !matches!(stop, StopReason::Diverged { .. })
+        && (processed_at == Some(step)
+            || stepper
+                .post_process(sys, z, h, &mut processed)
+                .map_err(|e| fail(step.saturating_sub(1), e))?)
+    {
+        z.clone_from(&processed);
+    }
+    let stats = RunStats {
+        steps: step,
+        force_evaluations: stepper.force_evaluations(),
+        wall_time_ms: started.elapsed().as_secs_f64() * 1e3,
+    };
+    Ok((stop, stats))
+}

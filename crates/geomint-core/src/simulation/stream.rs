@@ -1,0 +1,472 @@
+//! The one way a simulation runs: its methods in parallel, each sending its samples in chunks as
+//! they are computed, as a sequence of typed lines ([`StreamLine`]). Every output is a consumer of
+//! these lines: the NDJSON stream writes them, [`DocumentCollector`] assembles the JSON document
+//! from them, a Rerun recording logs them.
+//!
+//! 1. a `header` line: the system, the method labels, the invariant names and the schedule;
+//! 2. `samples` lines: column chunks of one method (`method` is its index in the header), at
+//!    most [`CHUNK_SAMPLES`] samples each, flushed at least every [`CHUNK_INTERVAL`] while
+//!    samples come; `offset` is the index of the chunk's first sample in its run;
+//! 3. a `summary` line per method once it ends (how it stopped, statistics, sample count);
+//! 4. an `error` line if something fails that is not part of one run's outcome;
+//! 5. a final `end` line — a stream without it was cut short.
+//!
+//! Lines of different methods interleave when they run in parallel; the lines of one method
+//! come in order, its summary after its last chunk.
+
+use std::time::{Duration, Instant};
+
+use serde::Serialize;
+
+use super::document::{
+    ColumnSink, Columns, RunDocument, RunOutcome, ScheduleSummary, SimulationDocument, Stop,
+    SystemSummary,
+};
+use super::run::{for_each_method, Sample, SampleSink};
+use super::spec::Simulation;
+use crate::diagnostics::{self, DriftPoint};
+use crate::error::{CoreError, ErrorCode, ErrorDetail};
+use crate::run::{Budget, RunStats};
+
+/// Most samples per `samples` line.
+pub const CHUNK_SAMPLES: usize = 256;
+/// Longest time samples wait before their chunk is written.
+pub const CHUNK_INTERVAL: Duration = Duration::from_millis(50);
+
+/// One line of a simulation's stream.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+#[serde(tag = "type", rename_all = "snake_case")]
+pub enum StreamLine {
+    /// The first line.
+    Header(StreamHeader),
+    /// A chunk of one method's samples.
+    Samples(SamplesChunk),
+    /// One method's run has ended.
+    Summary(RunSummary),
+    /// A failure outside any one run's outcome (the reference run, a server fault).
+    Error(StreamError),
+    /// The last line of a complete stream.
+    End,
+}
+
+/// What the stream will contain.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+pub struct StreamHeader {
+    /// The system, parameters resolved.
+    pub system: SystemSummary,
+    /// Method labels; `method` in later lines indexes this list.
+    pub methods: Vec<String>,
+    /// Names of the invariants in each chunk's `invariants`.
+    pub invariants: Vec<String>,
+    /// Whether chunks carry `energy_error` (they do not when a reference run asked for stopped at
+    /// the time limit: the runs then stop at their first sample).
+    pub energy_error: bool,
+    /// Whether chunks carry `jacobian_defect`.
+    pub jacobian_defect: bool,
+    /// The sampling.
+    pub schedule: ScheduleSummary,
+}
+
+/// A chunk of one method's samples.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+pub struct SamplesChunk {
+    /// Index of the method in the header's `methods`.
+    pub method: usize,
+    /// Index of this chunk's first sample within the run.
+    pub offset: u64,
+    /// The samples.
+    #[serde(flatten)]
+    pub columns: Columns,
+}
+
+/// How one method's run ended.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+pub struct RunSummary {
+    /// Index of the method in the header's `methods`.
+    pub method: usize,
+    /// The method's label.
+    pub label: String,
+    /// Samples sent for this method.
+    pub samples: u64,
+    /// How it ended.
+    #[serde(flatten)]
+    pub outcome: RunOutcome,
+}
+
+/// A failure reported inside a stream.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+pub struct StreamError {
+    /// The method concerned, if any.
+    pub method: Option<usize>,
+    /// What went wrong.
+    pub error: ErrorDetail,
+}
+
+/// Receives the lines of a stream; returns false once nobody listens any more (the producer
+/// then stops sending, and the caller should cancel the runs).
+pub type Emit<'a> = &'a (dyn Fn(StreamLine) -> bool + Sync);
+
+/// Chunks one method's samples into `samples` lines.
+struct ChunkSink<'a> {
+    method: usize,
+    buffer: ColumnSink,
+    offset: u64,
+    last_flush: Instant,
+    emit: Emit<'a>,
+    open: bool,
+    /// Times and positions kept for the dissipation drift (1-DOF systems only).
+    kept: Option<(Vec<f64>, Vec<f64>)>,
+}
+
+impl ChunkSink<'_> {
+    fn flush(&mut self) {
+        if self.buffer.is_empty() || !self.open {
+            return;
+        }
+        let n = self.buffer.len() as u64;
+        let line = StreamLine::Samples(SamplesChunk {
+            method: self.method,
+            offset: self.offset,
+            columns: self.buffer.take(),
+        });
+        self.open = (self.emit)(line);
+        self.offset += n;
+        self.last_flush = Instant::now();
+    }
+}
+
+impl SampleSink for ChunkSink<'_> {
+    fn on_sample(&mut self, sample: &Sample<'_>) {
+        if !self.open {
+            return;
+        }
+        if let Some((t, q)) = &mut self.kept {
+            t.push(sample.t);
+            q.push(sample.q[0]);
+        }
+        self.buffer.on_sample(sample);
+        if self.buffer.len() >= CHUNK_SAMPLES || self.last_flush.elapsed() >= CHUNK_INTERVAL {
+            self.flush();
+        }
+    }
+}
+
+impl Simulation {
+    /// The dissipation drift of paper 003 eq. (4.4) from a run's sample times and positions,
+    /// for a 1-DOF system with conformal damping; `None` for other systems.
+    pub fn dissipation_drift(&self, t: &[f64], q: &[f64]) -> Option<Vec<DriftPoint>> {
+        use crate::system::MechanicalSystem;
+        let (conformal, rate) = crate::with_system!(&self.system, s => {
+            (s.structure().conformal_damping, s.damping_rate())
+        });
+        (self.q0.len() == 1 && conformal).then(|| diagnostics::dissipation_drift(t, q, 0.5 * rate))
+    }
+
+    /// The header line of this simulation's stream.
+    pub fn header(&self) -> StreamHeader {
+        StreamHeader {
+            system: SystemSummary::of(self),
+            methods: self.methods.iter().map(|m| m.label()).collect(),
+            invariants: self
+                .invariant_names()
+                .iter()
+                .map(|s| s.to_string())
+                .collect(),
+            energy_error: self.has_energy_error(),
+            jacobian_defect: self.jacobian_defect,
+            schedule: ScheduleSummary::of(self),
+        }
+    }
+
+    /// Runs method `index`, sending its chunks and then its summary to `emit`. A failing step
+    /// ends the run with [`Stop::Failed`]; the samples before it have been sent.
+    fn stream_method(
+        &self,
+        index: usize,
+        reference: Option<&[f64]>,
+        budget: Budget<'_>,
+        emit: Emit<'_>,
+    ) {
+        let mut sink = ChunkSink {
+            method: index,
+            buffer: ColumnSink::new(self.invariant_names()),
+            offset: 0,
+            last_flush: Instant::now(),
+            emit,
+            open: true,
+            kept: (self.q0.len() == 1).then(|| (Vec::new(), Vec::new())),
+        };
+        let started = Instant::now();
+        let result = self.run_method(index, reference, budget, &mut sink);
+        sink.flush();
+        let (stop, stats) = match result {
+            Ok(outcome) => (Stop::from(outcome.stop), outcome.stats),
+            Err(e) => {
+                tracing::warn!(method = %self.methods[index].label(), error = %e, "run failed");
+                let stats = RunStats {
+                    steps: Stop::failed_steps(&e),
+                    force_evaluations: 0,
+                    wall_time_ms: started.elapsed().as_secs_f64() * 1e3,
+                };
+                (Stop::failed(&e), stats)
+            }
+        };
+        if sink.open {
+            emit(StreamLine::Summary(RunSummary {
+                method: index,
+                label: self.methods[index].label(),
+                samples: sink.offset,
+                outcome: RunOutcome {
+                    dissipation_drift: sink
+                        .kept
+                        .as_ref()
+                        .and_then(|(t, q)| self.dissipation_drift(t, q)),
+                    diverged_at: stop.diverged_at(),
+                    stop,
+                    stats,
+                },
+            }));
+        }
+    }
+
+    /// Runs the whole simulation, emitting its stream: header, the reference run if asked for,
+    /// every method (on up to `workers` threads), and the `end` line. A reference run that
+    /// reaches the time limit leaves the methods no time: they stop with `time_limit` at their
+    /// first sample, whose chunk has no energy error, as any run past the deadline does.
+    pub fn stream(&self, workers: usize, budget: Budget<'_>, emit: Emit<'_>) {
+        if !emit(StreamLine::Header(self.header())) {
+            return;
+        }
+        let reference = match self.reference_energies(budget) {
+            Ok(r) => r,
+            Err(CoreError::TimeLimit { .. }) => None,
+            Err(e) => {
+                emit(StreamLine::Error(StreamError {
+                    method: None,
+                    error: ErrorDetail::from(&e),
+                }));
+                emit(StreamLine::End);
+                return;
+            }
+        };
+        for_each_method(self.methods.len(), workers, |i| {
+            self.stream_method(i, reference.as_deref(), budget, emit)
+        });
+        emit(StreamLine::End);
+    }
+
+    /// Runs every method (on up to `workers` threads) into the [`SimulationDocument`]: the
+    /// stream, collected.
+    pub fn simulate(
+        &self,
+        workers: usize,
+        budget: Budget<'_>,
+    ) -> Result<SimulationDocument, ErrorDetail> {
+        let collector = std::sync::Mutex::new(DocumentCollector::new());
+        let emit = |line: StreamLine| {
+            collector
+                .lock()
+                .unwrap_or_else(|p| p.into_inner())
+                .push(line);
+            true
+        };
+        self.stream(workers, budget, &emit);
+        collector
+            .into_inner()
+            .unwrap_or_else(|p| p.into_inner())
+            .finish()
+    }
+}
+
+/// Assembles the [`SimulationDocument`] of a stream from its lines: the header's system,
+/// schedule and invariants, each method's chunks appended in order, its summary's outcome.
+#[derive(Debug, Default)]
+pub struct DocumentCollector {
+    header: Option<StreamHeader>,
+    columns: Vec<Columns>,
+    summaries: Vec<Option<RunSummary>>,
+    error: Option<ErrorDetail>,
+    ended: bool,
+}
+
+impl DocumentCollector {
+    /// A collector that has seen no line.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Takes in the next line of the stream.
+    pub fn push(&mut self, line: StreamLine) {
+        match line {
+            StreamLine::Header(header) => {
+                self.columns =
+                    vec![Columns::with_invariants(&header.invariants); header.methods.len()];
+                self.summaries = vec![None; header.methods.len()];
+                self.header = Some(header);
+            }
+            StreamLine::Samples(chunk) => match self.columns.get_mut(chunk.method) {
+                Some(columns) if columns.len() as u64 == chunk.offset => {
+                    columns.extend(chunk.columns)
+                }
+                _ => self.fail(format!(
+                    "samples of method {} from {} do not continue its run",
+                    chunk.method, chunk.offset
+                )),
+            },
+            StreamLine::Summary(summary) => match self.summaries.get_mut(summary.method) {
+                Some(slot) => *slot = Some(summary),
+                None => self.fail(format!("a summary of method {}", summary.method)),
+            },
+            StreamLine::Error(e) => {
+                self.error.get_or_insert(e.error);
+            }
+            StreamLine::End => self.ended = true,
+        }
+    }
+
+    fn fail(&mut self, message: String) {
+        self.error
+            .get_or_insert_with(|| ErrorDetail::new(ErrorCode::Internal, message));
+    }
+
+    /// The document, once the stream has ended; the stream's error if it reported one.
+    pub fn finish(self) -> Result<SimulationDocument, ErrorDetail> {
+        if let Some(error) = self.error {
+            return Err(error);
+        }
+        let cut = |what: &str| ErrorDetail::new(ErrorCode::Internal, format!("the stream {what}"));
+        let header = self.header.ok_or_else(|| cut("has no header"))?;
+        if !self.ended {
+            return Err(cut("was cut short"));
+        }
+        let runs = self
+            .columns
+            .into_iter()
+            .zip(self.summaries)
+            .map(|(columns, summary)| {
+                let s = summary.ok_or_else(|| cut("lacks a summary"))?;
+                Ok(RunDocument {
+                    method: s.label,
+                    columns,
+                    outcome: s.outcome,
+                })
+            })
+            .collect::<Result<_, ErrorDetail>>()?;
+        Ok(SimulationDocument {
+            system: header.system,
+            schedule: header.schedule,
+            invariants: header.invariants,
+            runs,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Mutex;
+
+    use super::*;
+    use crate::methods::{Inner, Method, MethodId};
+    use crate::simulation::{Limits, SimulationSpec};
+
+    #[test]
+    fn columns_extend_appends_every_column() {
+        let chunk = |t: f64| Columns {
+            t: vec![t],
+            q: vec![vec![t]],
+            p: vec![vec![-t]],
+            cartesian_q: Some(vec![vec![10.0 * t]]),
+            cartesian_p: Some(vec![vec![-10.0 * t]]),
+            energy: vec![2.0 * t],
+            energy_error: Some(vec![t / 2.0]),
+            invariants: [("J3".to_string(), vec![3.0 * t])].into(),
+            jacobian_defect: None,
+            bodies: Some(vec![vec![t, 2.0 * t]]),
+        };
+        let mut all = Columns::with_invariants(&["J3"]);
+        all.extend(chunk(1.0));
+        all.extend(chunk(2.0));
+        assert_eq!(all.t, [1.0, 2.0]);
+        assert_eq!(all.q, [[1.0], [2.0]]);
+        assert_eq!(all.cartesian_q, Some(vec![vec![10.0], vec![20.0]]));
+        assert_eq!(all.cartesian_p, Some(vec![vec![-10.0], vec![-20.0]]));
+        assert_eq!(all.energy_error, Some(vec![0.5, 1.0]));
+        assert_eq!(all.invariants["J3"], [3.0, 6.0]);
+        assert_eq!(all.jacobian_defect, None);
+        assert_eq!(all.bodies, Some(vec![vec![1.0, 2.0], vec![2.0, 4.0]]));
+    }
+
+    #[test]
+    fn the_collected_stream_holds_every_sample_of_each_run() {
+        // Two methods, 1001 samples each: several chunks per method, interleaved over two
+        // threads; an exact solution (energy errors) and the dissipation drift of a 1-DOF
+        // system. The document assembled from the chunks equals each run made in one piece.
+        let methods = [
+            Method::Plain(MethodId::Modin3s),
+            Method::ModinRks { inner: Inner::Rk4 },
+        ];
+        let mut spec =
+            SimulationSpec::new("harmonic_oscillator", &methods, 0.01, 50.0).param("epsilon", 0.05);
+        spec.every = Some(5);
+        let sim = Simulation::prepare(&spec, &Limits::default()).unwrap();
+        let collector = Mutex::new(DocumentCollector::new());
+        let chunks = Mutex::new(0usize);
+        let emit = |line: StreamLine| {
+            if let StreamLine::Samples(_) = line {
+                *chunks.lock().unwrap() += 1;
+            }
+            collector.lock().unwrap().push(line);
+            true
+        };
+        sim.stream(2, Budget::default(), &emit);
+        assert!(chunks.into_inner().unwrap() >= 8);
+        let mut collected = collector.into_inner().unwrap().finish().unwrap();
+        assert_eq!(collected.runs.len(), 2);
+        for (i, run) in collected.runs.iter_mut().enumerate() {
+            let mut whole = ColumnSink::new(sim.invariant_names());
+            let outcome = sim
+                .run_method(i, None, Budget::default(), &mut whole)
+                .unwrap();
+            let whole = whole.take();
+            assert_eq!(run.columns.len(), 1001);
+            assert!(run.columns.energy_error.is_some());
+            assert_eq!(
+                serde_json::to_string(&run.columns).unwrap(),
+                serde_json::to_string(&whole).unwrap()
+            );
+            assert_eq!(run.outcome.stats.steps, outcome.stats.steps);
+            let q: Vec<f64> = whole.q.iter().map(|q| q[0]).collect();
+            assert_eq!(
+                run.outcome.dissipation_drift,
+                sim.dissipation_drift(&whole.t, &q)
+            );
+        }
+    }
+
+    #[test]
+    fn a_stream_cut_short_or_failed_makes_no_document() {
+        let spec = SimulationSpec::new(
+            "harmonic_oscillator",
+            &[Method::Plain(MethodId::Csv1)],
+            0.1,
+            1.0,
+        );
+        let sim = Simulation::prepare(&spec, &Limits::default()).unwrap();
+        let mut collector = DocumentCollector::new();
+        collector.push(StreamLine::Header(sim.header()));
+        assert_eq!(collector.finish().unwrap_err().code, ErrorCode::Internal);
+        let mut collector = DocumentCollector::new();
+        collector.push(StreamLine::Header(sim.header()));
+        collector.push(StreamLine::Error(StreamError {
+            method: None,
+            error: ErrorDetail::new(ErrorCode::Timeout, "late"),
+        }));
+        collector.push(StreamLine::End);
+        assert_eq!(collector.finish().unwrap_err().code, ErrorCode::Timeout);
+    }
+}

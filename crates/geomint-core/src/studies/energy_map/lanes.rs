@@ -1,0 +1,677 @@
+//! The map's cells four at a time (and a sweep's, when it is the map's kind of sweep: see
+//! [`crate::studies::sweep`]): symplectic Euler and its adjoint on the planar elastic
+//! pendulum, in either chart, with the state of [`LANES`] cells side by side so that the
+//! compiler packs the lanes into SIMD registers (f64×2 on any x86-64, f64×4 where the CPU has
+//! AVX2, chosen when the map runs).
+//!
+//! Every lane does exactly the arithmetic of the one-cell path, operation for operation and in
+//! the same order (the composer's kick and drift, the chart's closed-form stages, its energy),
+//! and IEEE addition, multiplication, division and square root round the same in a SIMD lane as
+//! in a scalar register, so a map run here is bit for bit the map run cell by cell
+//! (`tests/core/energy_map.rs` compares every cell of both).
+//!
+//! Sine and cosine stay the C library's, one call per lane. The compiler turns the sine and
+//! cosine of one angle into one `sincos` call, and the energy reuses its cosine where the
+//! one-cell path calls `cos`: with glibc, whose `sincos` and `cos` share their code, the bits are
+//! the same (the test would catch a library where they differ). Besides the packing, the lanes
+//! save work twice: the energy that eq. (50) asks for after every step shares |q| (Cartesian) or
+//! sin θ, cos θ (polar) with the next step's force, and the per-step calls through the generic
+//! composer and observer are gone.
+
+// The lanes are indexed side by side in several arrays at once: loops over lane numbers are the
+// form the compiler vectorises.
+#![allow(clippy::needless_range_loop)]
+
+use std::sync::atomic::Ordering;
+use std::time::Instant;
+
+use crate::methods::{Method, MethodId};
+use crate::run::Budget;
+use crate::systems::PlanarSpring;
+
+use super::{ChartRun, DIVERGENCE};
+
+/// Cells integrated side by side.
+pub const LANES: usize = 4;
+/// One value per lane.
+pub type Lane = [f64; LANES];
+/// Steps between two looks at the budget (the one-cell path's interval).
+const CHECK_EVERY: u64 = 1024;
+
+/// The chart a lane kernel works in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Chart {
+    /// (x, y, p_x, p_y).
+    Cartesian,
+    /// (r, θ, p_r, p_θ).
+    Polar,
+}
+
+/// Which symplectic Euler: 001 eqs. (42)–(43) (momentum first) or its adjoint (position first).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Order {
+    /// p₁ from (q, p₁), then q₁ from (q, p₁).
+    MomentumFirst,
+    /// q₁ from (q₁, p), then p₁ from (q₁, p).
+    PositionFirst,
+}
+
+impl Order {
+    /// The order of `method`, if the lanes run it.
+    pub fn of(method: &Method) -> Option<Order> {
+        match method {
+            Method::Plain(MethodId::SymplecticEuler) => Some(Order::MomentumFirst),
+            Method::Plain(MethodId::SymplecticEulerAdjoint) => Some(Order::PositionFirst),
+            _ => None,
+        }
+    }
+}
+
+/// The starting states of [`LANES`] cells in one chart, and which lanes hold a cell.
+#[derive(Clone, Copy, Debug)]
+pub struct Start {
+    /// q₀, component by component.
+    pub q: [Lane; 2],
+    /// p₀, component by component.
+    pub p: [Lane; 2],
+    /// H(q₀, p₀) as the one-cell path computes it.
+    pub energy: Lane,
+    /// Lanes without a cell (the padding of the last group, the pivot in polar coordinates).
+    pub idle: [bool; LANES],
+}
+
+/// The pendulum's constants, combined as the one-cell path combines them.
+#[derive(Clone, Copy, Debug)]
+struct Constants {
+    h: f64,
+    m: f64,
+    k: f64,
+    l: f64,
+    /// 1/m (the Cartesian drift multiplies by it).
+    inv_m: f64,
+    /// m·g.
+    mg: f64,
+    /// 0.5·k.
+    half_k: f64,
+    /// (h·m)·g (the polar momentum stage's θ-kick).
+    hmg: f64,
+}
+
+impl Constants {
+    fn new(pendulum: &PlanarSpring, h: f64) -> Self {
+        Constants {
+            h,
+            m: pendulum.m,
+            k: pendulum.k,
+            l: pendulum.l,
+            inv_m: 1.0 / pendulum.m,
+            mg: pendulum.m * pendulum.g,
+            half_k: 0.5 * pendulum.k,
+            hmg: h * pendulum.m * pendulum.g,
+        }
+    }
+}
+
+/// Per lane: the sum of eq. (50) and the first steps at which the lane left the energy band or
+/// the finite numbers (as f64, exact to 2⁵³, so that the lanes compare and select in SIMD
+/// registers; ∞: never). A sweep's run ([`tally`] with `MEASURED`) also keeps the largest and
+/// the last |H − H₀| and the state the one-cell path ends with; the map's run leaves them alone.
+#[derive(Clone, Copy, Debug)]
+pub struct Tally {
+    /// Σ (H − H₀)² over the samples, the first included.
+    pub sum: Lane,
+    /// The first step whose energy left the band.
+    pub blown: Lane,
+    /// The first step whose state is not finite (0 for an idle lane).
+    pub non_finite: Lane,
+    /// The largest |H − H₀| (sweeps only).
+    pub max: Lane,
+    /// The last H − H₀ (sweeps only).
+    pub last: Lane,
+    /// The last finite state before the lane stopped, as the one-cell path's last sample
+    /// (sweeps only).
+    pub q: [Lane; 2],
+    /// Its momenta.
+    pub p: [Lane; 2],
+}
+
+/// Runs `steps` steps of `order` in `chart` from `start`; returns, per lane, the [`ChartRun`]
+/// the one-cell path reports, or `None` when the budget stopped the run.
+pub fn run(
+    pendulum: &PlanarSpring,
+    chart: Chart,
+    order: Order,
+    start: &Start,
+    h: f64,
+    steps: u64,
+    budget: Budget<'_>,
+) -> Option<[ChartRun; LANES]> {
+    let tally = tally::<false>(pendulum, chart, order, start, h, steps, budget)?;
+    Some(std::array::from_fn(|i| {
+        outcome(&tally, start.idle[i], i, h, steps)
+    }))
+}
+
+/// The tally of a run, `None` when the budget stopped it. The map's run ([`run`]) leaves
+/// `MEASURED` off; a sweep's run sets it, for the whole [`Tally`].
+pub fn tally<const MEASURED: bool>(
+    pendulum: &PlanarSpring,
+    chart: Chart,
+    order: Order,
+    start: &Start,
+    h: f64,
+    steps: u64,
+    budget: Budget<'_>,
+) -> Option<Tally> {
+    let limit = start.energy.map(|e| DIVERGENCE * (1.0 + e.abs()));
+    let c = Constants::new(pendulum, h);
+    dispatch::<MEASURED>(&c, chart, order, start, steps, &limit, budget)
+}
+
+/// Lane `i`'s outcome as the one-cell path reports it: a state that stopped being finite ends
+/// the run there (whether or not the energy left its band before), a run that left the band
+/// reports the first sample that did, and a finished one its ε.
+fn outcome(tally: &Tally, idle: bool, i: usize, h: f64, steps: u64) -> ChartRun {
+    let never = ChartRun {
+        epsilon: None,
+        diverged_at: None,
+    };
+    if idle {
+        never
+    } else if tally.non_finite[i] != f64::INFINITY {
+        ChartRun {
+            diverged_at: Some(tally.non_finite[i] * h),
+            ..never
+        }
+    } else if tally.blown[i] != f64::INFINITY {
+        ChartRun {
+            diverged_at: Some(tally.blown[i] * h),
+            ..never
+        }
+    } else {
+        ChartRun {
+            epsilon: Some((tally.sum[i] / (steps + 1) as f64).sqrt()),
+            diverged_at: None,
+        }
+    }
+}
+
+/// Picks the kernel, compiled for AVX2 when the CPU has it; `MEASURED`: keep the whole
+/// [`Tally`].
+fn dispatch<const MEASURED: bool>(
+    c: &Constants,
+    chart: Chart,
+    order: Order,
+    start: &Start,
+    steps: u64,
+    limit: &Lane,
+    budget: Budget<'_>,
+) -> Option<Tally> {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU supports AVX2, checked just above.
+        return unsafe { integrate_avx2::<MEASURED>(c, chart, order, start, steps, limit, budget) };
+    }
+    integrate::<MEASURED>(c, chart, order, start, steps, limit, budget)
+}
+
+/// [`integrate`] compiled with AVX2 (f64×4 registers). Still no fused multiply-add, which would
+/// round once where the one-cell path rounds twice: rustc never contracts a·b + c into one
+/// (only `mul_add` does), whatever the target features.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn integrate_avx2<const MEASURED: bool>(
+    c: &Constants,
+    chart: Chart,
+    order: Order,
+    start: &Start,
+    steps: u64,
+    limit: &Lane,
+    budget: Budget<'_>,
+) -> Option<Tally> {
+    integrate::<MEASURED>(c, chart, order, start, steps, limit, budget)
+}
+
+/// One kernel per (chart, order), each a loop the compiler specialises.
+#[inline(always)]
+fn integrate<const MEASURED: bool>(
+    c: &Constants,
+    chart: Chart,
+    order: Order,
+    start: &Start,
+    steps: u64,
+    limit: &Lane,
+    budget: Budget<'_>,
+) -> Option<Tally> {
+    match (chart, order) {
+        (Chart::Cartesian, Order::MomentumFirst) => {
+            lanes::<_, MEASURED>(c, start, steps, limit, budget, Cartesian::<true>)
+        }
+        (Chart::Cartesian, Order::PositionFirst) => {
+            lanes::<_, MEASURED>(c, start, steps, limit, budget, Cartesian::<false>)
+        }
+        (Chart::Polar, Order::MomentumFirst) => {
+            lanes::<_, MEASURED>(c, start, steps, limit, budget, Polar::<true>)
+        }
+        (Chart::Polar, Order::PositionFirst) => {
+            lanes::<_, MEASURED>(c, start, steps, limit, budget, Polar::<false>)
+        }
+    }
+}
+
+/// The state of the lanes and what the last energy left for the next step.
+#[derive(Clone, Copy)]
+struct Cells {
+    q: [Lane; 2],
+    p: [Lane; 2],
+    /// |q| (Cartesian) or (sin θ, cos θ) (polar) at the current q.
+    shared: [Lane; 2],
+}
+
+/// One chart's step on all lanes, and its energy. Each operation is a loop over the lanes with
+/// nothing but arithmetic in it, which the compiler turns into SIMD instructions.
+trait Kernel {
+    /// `shared` for the state as it starts.
+    fn prime(&self, z: &mut Cells);
+    /// One step of every lane; H at the new states into `energy`.
+    fn step(&self, c: &Constants, z: &mut Cells, energy: &mut Lane);
+}
+
+/// The loop: every lane one step, its energy deviation summed, the first blow-up noted; the
+/// budget looked at every [`CHECK_EVERY`] steps, and the run left early once every lane is
+/// non-finite (where the one-cell path stops).
+#[inline(always)]
+fn lanes<K: Kernel, const MEASURED: bool>(
+    c: &Constants,
+    start: &Start,
+    steps: u64,
+    limit: &Lane,
+    budget: Budget<'_>,
+    kernel: K,
+) -> Option<Tally> {
+    let mut z = Cells {
+        q: start.q,
+        p: start.p,
+        shared: [[0.0; LANES]; 2],
+    };
+    kernel.prime(&mut z);
+    let mut tally = Tally {
+        sum: [0.0; LANES],
+        blown: [f64::INFINITY; LANES],
+        non_finite: [f64::INFINITY; LANES],
+        max: [0.0; LANES],
+        last: [0.0; LANES],
+        q: start.q,
+        p: start.p,
+    };
+    for i in 0..LANES {
+        // The first sample, H₀ − H₀: zero, or NaN where H₀ is not finite.
+        let d = start.energy[i] - start.energy[i];
+        tally.sum[i] += d * d;
+        let within = d.abs() <= limit[i];
+        if !within {
+            tally.blown[i] = 0.0;
+        }
+        // An idle lane counts as stopped from the start.
+        if start.idle[i] {
+            tally.non_finite[i] = 0.0;
+        }
+    }
+    let mut energy = [0.0; LANES];
+    let mut step = 0u64;
+    while step < steps {
+        // Before the budget: lanes that are all done (diverged or idle) have their outcome.
+        if tally.non_finite.iter().all(|&s| s != f64::INFINITY) {
+            break;
+        }
+        if budget
+            .cancel
+            .is_some_and(|flag| flag.load(Ordering::Relaxed))
+            || budget.deadline.is_some_and(|d| Instant::now() >= d)
+        {
+            return None;
+        }
+        let until = (step + CHECK_EVERY).min(steps);
+        let (block, at_block) = (step, z);
+        while step < until {
+            step += 1;
+            kernel.step(c, &mut z, &mut energy);
+            let at = step as f64;
+            for i in 0..LANES {
+                // `&`, not `&&`: no branches in the lane loop.
+                let finite = (z.q[0][i].abs() < f64::INFINITY)
+                    & (z.q[1][i].abs() < f64::INFINITY)
+                    & (z.p[0][i].abs() < f64::INFINITY)
+                    & (z.p[1][i].abs() < f64::INFINITY);
+                let d = energy[i] - start.energy[i];
+                // NaN compares false: a non-finite energy has blown up too.
+                let within = d.abs() <= limit[i];
+                tally.sum[i] += d * d;
+                // The step numbers grow: the minimum keeps the first.
+                let first = |seen: f64, fine: bool| if fine { seen } else { seen.min(at) };
+                tally.non_finite[i] = first(tally.non_finite[i], finite);
+                tally.blown[i] = first(tally.blown[i], within);
+                if MEASURED {
+                    // As the sweep's measure: the largest magnitude (`f64::max`, written as the
+                    // comparison it is here, where the running maximum is never NaN: one
+                    // `maxpd`) and the last deviation.
+                    let size = d.abs();
+                    tally.max[i] = if size > tally.max[i] {
+                        size
+                    } else {
+                        tally.max[i]
+                    };
+                    tally.last[i] = d;
+                }
+            }
+        }
+        if MEASURED {
+            // A lane whose state stopped being finite in this block ends, as the one-cell path
+            // does, with the state of the step before: run again from the block's start up to
+            // that step (the lanes do not touch each other, so its bits are the ones it had).
+            for i in 0..LANES {
+                let stopped = tally.non_finite[i];
+                if stopped > block as f64 && stopped <= until as f64 {
+                    let mut again = at_block;
+                    let mut scratch = [0.0; LANES];
+                    for _ in block + 1..stopped as u64 {
+                        kernel.step(c, &mut again, &mut scratch);
+                    }
+                    for k in 0..2 {
+                        tally.q[k][i] = again.q[k][i];
+                        tally.p[k][i] = again.p[k][i];
+                    }
+                }
+            }
+        }
+    }
+    if MEASURED {
+        // The others end where the run ends.
+        for i in 0..LANES {
+            if tally.non_finite[i] == f64::INFINITY {
+                for k in 0..2 {
+                    tally.q[k][i] = z.q[k][i];
+                    tally.p[k][i] = z.p[k][i];
+                }
+            }
+        }
+    }
+    Some(tally)
+}
+
+/// The Cartesian chart, H = |p|²/2m + ½k(|q| − l)² − m g y, through the composer's kick
+/// (p ← p − h∇V(q)) and drift (q ← q + h·(p·(1/m))); `KICK_FIRST` is symplectic Euler,
+/// otherwise its adjoint. `shared` holds |q|.
+struct Cartesian<const KICK_FIRST: bool>;
+
+impl<const KICK_FIRST: bool> Cartesian<KICK_FIRST> {
+    #[inline(always)]
+    fn norm(z: &mut Cells) {
+        for i in 0..LANES {
+            z.shared[0][i] = (z.q[0][i] * z.q[0][i] + z.q[1][i] * z.q[1][i]).sqrt();
+        }
+    }
+
+    #[inline(always)]
+    fn kick(c: &Constants, z: &mut Cells) {
+        for i in 0..LANES {
+            let factor = if c.k == 0.0 {
+                0.0
+            } else {
+                c.k * (1.0 - c.l / z.shared[0][i])
+            };
+            z.p[0][i] += -c.h * (factor * z.q[0][i]);
+            z.p[1][i] += -c.h * (factor * z.q[1][i] - c.mg);
+        }
+    }
+
+    #[inline(always)]
+    fn drift(c: &Constants, z: &mut Cells) {
+        for i in 0..LANES {
+            z.q[0][i] += c.h * (z.p[0][i] * c.inv_m);
+            z.q[1][i] += c.h * (z.p[1][i] * c.inv_m);
+        }
+        Self::norm(z);
+    }
+}
+
+impl<const KICK_FIRST: bool> Kernel for Cartesian<KICK_FIRST> {
+    #[inline(always)]
+    fn prime(&self, z: &mut Cells) {
+        Self::norm(z);
+    }
+
+    #[inline(always)]
+    fn step(&self, c: &Constants, z: &mut Cells, energy: &mut Lane) {
+        if KICK_FIRST {
+            Self::kick(c, z);
+            Self::drift(c, z);
+        } else {
+            Self::drift(c, z);
+            Self::kick(c, z);
+        }
+        for i in 0..LANES {
+            let (px, py) = (z.p[0][i], z.p[1][i]);
+            let kinetic = 0.5 * (px * px + py * py) / c.m;
+            let stretch = z.shared[0][i] - c.l;
+            energy[i] = kinetic + (c.half_k * stretch * stretch - c.mg * z.q[1][i]);
+        }
+    }
+}
+
+/// The polar chart, H = (p_r² + p_θ²/r²)/2m + ½k(r − l)² − m g r cos θ, through its closed-form
+/// stages; `MOMENTUM_FIRST` is symplectic Euler, otherwise its adjoint. `shared` holds
+/// (sin θ, cos θ).
+struct Polar<const MOMENTUM_FIRST: bool>;
+
+impl<const MOMENTUM_FIRST: bool> Polar<MOMENTUM_FIRST> {
+    /// sin θ, cos θ: the library's, lane by lane.
+    #[inline(always)]
+    fn turn(z: &mut Cells) {
+        for i in 0..LANES {
+            (z.shared[0][i], z.shared[1][i]) = z.q[1][i].sin_cos();
+        }
+    }
+}
+
+impl<const MOMENTUM_FIRST: bool> Kernel for Polar<MOMENTUM_FIRST> {
+    #[inline(always)]
+    fn prime(&self, z: &mut Cells) {
+        Self::turn(z);
+    }
+
+    #[inline(always)]
+    fn step(&self, c: &Constants, z: &mut Cells, energy: &mut Lane) {
+        if MOMENTUM_FIRST {
+            // p_θ first (∂H/∂θ holds no p), p_r with the new p_θ, then q with the new p and the
+            // old r.
+            for i in 0..LANES {
+                let (r, pr, pt) = (z.q[0][i], z.p[0][i], z.p[1][i]);
+                let (sin, cos) = (z.shared[0][i], z.shared[1][i]);
+                let pt1 = pt - c.hmg * r * sin;
+                let dh_dr = -pt1 * pt1 / (c.m * r * r * r) + c.k * (r - c.l) - c.mg * cos;
+                let pr1 = pr - c.h * dh_dr;
+                z.p[0][i] = pr1;
+                z.p[1][i] = pt1;
+                z.q[0][i] += c.h * (pr1 / c.m);
+                z.q[1][i] += c.h * (pt1 / (c.m * r * r));
+            }
+            Self::turn(z);
+        } else {
+            // r first (ṙ holds no q), θ with the new r, then p from ∂H/∂q at the new q.
+            for i in 0..LANES {
+                let r1 = z.q[0][i] + c.h * z.p[0][i] / c.m;
+                z.q[0][i] = r1;
+                z.q[1][i] += c.h * z.p[1][i] / (c.m * r1 * r1);
+            }
+            Self::turn(z);
+            for i in 0..LANES {
+                let (r1, pt) = (z.q[0][i], z.p[1][i]);
+                let (sin, cos) = (z.shared[0][i], z.shared[1][i]);
+                let mut dh_dr = c.k * (r1 - c.l) - c.mg * cos;
+                dh_dr -= pt * pt / (c.m * r1 * r1 * r1);
+                let dh_dth = c.mg * r1 * sin;
+                z.p[0][i] += -c.h * dh_dr;
+                z.p[1][i] += -c.h * dh_dth;
+            }
+        }
+        for i in 0..LANES {
+            let (r, pr, pt, cos) = (z.q[0][i], z.p[0][i], z.p[1][i], z.shared[1][i]);
+            let kinetic = 0.5 * (pr * pr + pt * pt / (r * r)) / c.m;
+            let stretch = r - c.l;
+            energy[i] = kinetic + (c.half_k * stretch * stretch - c.mg * r * cos);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::systems::PlanarKind;
+
+    /// The portable build of the kernels (what a CPU without AVX2 runs) and the one this CPU
+    /// is dispatched to give the same bits, in every chart and order, through blow-ups; a lane
+    /// left idle changes nothing in the others.
+    #[test]
+    fn the_portable_kernels_give_the_bits_of_the_dispatched_ones() {
+        #[cfg(target_arch = "x86_64")]
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            eprintln!("no AVX2 here: the portable build is compared with itself");
+        }
+        let pendulum = PlanarSpring {
+            m: 1.3,
+            k: 0.7,
+            l: 1.0,
+            g: 0.4,
+            kind: PlanarKind::Pendulum,
+        };
+        let c = Constants::new(&pendulum, 0.2);
+        // Two ordinary starts, one far outside its energy band (H₀ given as 0.3), one at the
+        // origin (the pivot in either chart: 0/0 at the first step).
+        let start = Start {
+            q: [[0.3, 1.9, 2.6, 0.0], [1.2, -0.4, 0.5, 0.0]],
+            p: [[0.0, 0.1, 20.0, 0.0], [0.0, -0.2, 20.0, 0.0]],
+            energy: [0.4, 1.1, 0.3, 0.3],
+            idle: [false; LANES],
+        };
+        let limit = start.energy.map(|e| DIVERGENCE * (1.0 + e.abs()));
+        let bits = |t: &Tally| {
+            let [q0, q1, p0, p1] = [t.q[0], t.q[1], t.p[0], t.p[1]];
+            [t.sum, t.blown, t.non_finite, t.max, t.last, q0, q1, p0, p1]
+                .map(|lane| lane.map(f64::to_bits))
+        };
+        for chart in [Chart::Cartesian, Chart::Polar] {
+            for order in [Order::MomentumFirst, Order::PositionFirst] {
+                let portable =
+                    integrate::<true>(&c, chart, order, &start, 20_000, &limit, Budget::default());
+                let dispatched =
+                    dispatch::<true>(&c, chart, order, &start, 20_000, &limit, Budget::default());
+                let (portable, dispatched) = (portable.unwrap(), dispatched.unwrap());
+                assert_eq!(bits(&portable), bits(&dispatched), "{chart:?} {order:?}");
+                assert!(
+                    portable.sum[..2].iter().all(|s| *s > 0.0),
+                    "{chart:?} {order:?}"
+                );
+                assert_eq!(portable.blown[2], 1.0, "{chart:?} {order:?}");
+                assert_eq!(portable.non_finite[3], 1.0, "{chart:?} {order:?}");
+                assert_eq!(portable.non_finite[..3], [f64::INFINITY; 3]);
+                let idle = Start {
+                    idle: [false, true, false, false],
+                    ..start
+                };
+                let with_idle =
+                    dispatch::<true>(&c, chart, order, &idle, 20_000, &limit, Budget::default())
+                        .unwrap();
+                assert_eq!(with_idle.non_finite[1], 0.0);
+                for lane in [0, 2, 3] {
+                    assert_eq!(
+                        bits(&with_idle).map(|b| b[lane]),
+                        bits(&dispatched).map(|b| b[lane])
+                    );
+                }
+            }
+        }
+    }
+
+    /// A lane whose state stops being finite at step s ends with the state of step s − 1, which
+    /// the measured run finds by running its block again: the same bits as a run of s − 1
+    /// steps, which ends where it stops and reruns nothing. A spring too stiff for the step
+    /// (hω ≈ 2.1 and 2.4: the amplitude grows about twofold per step) overflows after a few
+    /// hundred to a thousand steps, across the first block boundary.
+    #[test]
+    fn a_stopped_lane_ends_with_the_state_of_the_step_before() {
+        let steps = 3000;
+        let mut stops = Vec::new();
+        for k in [110.0, 150.0] {
+            let pendulum = PlanarSpring {
+                m: 1.0,
+                k,
+                l: 1.0,
+                g: 0.02,
+                kind: PlanarKind::Pendulum,
+            };
+            for chart in [Chart::Cartesian, Chart::Polar] {
+                for order in [Order::MomentumFirst, Order::PositionFirst] {
+                    let start = Start {
+                        q: [[1.5, 2.0, 1e-3, 0.4], [0.3, -1.0, 1.2, 1.1]],
+                        p: [[0.0; LANES]; 2],
+                        energy: [0.0; LANES],
+                        idle: [false; LANES],
+                    };
+                    let run = |steps| {
+                        let budget = Budget::default();
+                        tally::<true>(&pendulum, chart, order, &start, 0.2, steps, budget).unwrap()
+                    };
+                    let full = run(steps);
+                    for i in 0..LANES {
+                        let stopped = full.non_finite[i];
+                        if stopped == f64::INFINITY {
+                            continue;
+                        }
+                        let before = run(stopped as u64 - 1);
+                        assert_eq!(before.non_finite[i], f64::INFINITY);
+                        let bits = |t: &Tally| {
+                            [t.q[0][i], t.q[1][i], t.p[0][i], t.p[1][i]].map(f64::to_bits)
+                        };
+                        assert_eq!(bits(&full), bits(&before), "{chart:?} {order:?} lane {i}");
+                        stops.push(stopped as u64);
+                    }
+                }
+            }
+        }
+        println!("stops: {stops:?}");
+        assert!(stops.iter().any(|&s| s > 1) && stops.iter().any(|&s| s > CHECK_EVERY));
+    }
+
+    /// A run whose state stops being finite reports that step, even after its energy left the
+    /// band (as the one-cell path, whose integration stops there); a run that only left the band
+    /// reports the first sample outside it; an idle lane nothing.
+    #[test]
+    fn a_non_finite_state_outranks_an_energy_blow_up() {
+        let tally = Tally {
+            sum: [8.0, f64::NAN, 8.0, 8.0],
+            blown: [f64::INFINITY, 5.0, 5.0, f64::INFINITY],
+            non_finite: [f64::INFINITY, 9.0, f64::INFINITY, 0.0],
+            max: [0.0; LANES],
+            last: [0.0; LANES],
+            q: [[0.0; LANES]; 2],
+            p: [[0.0; LANES]; 2],
+        };
+        let outcomes: Vec<_> = (0..LANES)
+            .map(|i| outcome(&tally, i == 3, i, 0.5, 7))
+            .collect();
+        let run = |epsilon, diverged_at| ChartRun {
+            epsilon,
+            diverged_at,
+        };
+        assert_eq!(
+            outcomes,
+            [
+                run(Some(1.0), None),
+                run(None, Some(4.5)),
+                run(None, Some(2.5)),
+                run(None, None)
+            ]
+        );
+    }
+}

@@ -1,0 +1,584 @@
+//! What the settings-based studies share — [work–precision](super::work_precision) and
+//! [convergence](super::convergence): a setting (a method at a step size, or the adaptive
+//! reference at a tolerance) prepared as a simulation sampled at the study's sample times, the
+//! run that errors are measured against (the exact solution or a reference run in the system's
+//! Cartesian chart), one setting's measurements from its samples, and the progress lines.
+//!
+//! A study runs one system from one initial state to `t_end`, sampled at the same `samples` times
+//! t_k = k·t_end/samples in every setting, so that errors over the samples compare between
+//! settings and a reference run supplies the energies at exactly those times.
+
+use std::time::Instant;
+
+use serde::Serialize;
+
+use crate::error::{CoreError, ErrorDetail, Field, Range, StepScope};
+use crate::methods::{Method, MethodId, TOLERANCE_RANGE};
+use crate::run::{Budget, StopReason};
+use crate::simulation::{
+    InputFields, Limits, MethodAt, Outcome, Sample, SampleSink, Simulation, SimulationSpec,
+    SystemSummary,
+};
+
+/// Most settings (step sizes and tolerances over all runs) in one study.
+pub const MAX_SETTINGS: usize = 64;
+/// Most fixed steps over all settings of one study.
+pub const MAX_STUDY_STEPS: u64 = 200_000_000;
+/// Most sample times.
+pub const MAX_SAMPLES: u64 = 1000;
+/// Tolerance of the default reference run.
+pub const REFERENCE_TOLERANCE: f64 = 1e-13;
+/// Runs shorter than this many milliseconds are timed [`SHORT_RUN_REPEATS`] times.
+const SHORT_RUN_MS: f64 = 20.0;
+/// Timings of a short run; its wall time is their median.
+const SHORT_RUN_REPEATS: usize = 5;
+
+/// A method with its settings, as a study lists it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RunSpec {
+    /// The method and its field (`runs[1].method`).
+    pub method: MethodAt,
+    /// Step sizes (fixed-step methods), each dividing t_end/samples.
+    pub h: Vec<f64>,
+    /// Tolerances (the adaptive `reference` only), in [1e-14, 1e-2].
+    pub tolerance: Vec<f64>,
+    /// The run's field (`runs[1]`, `reference`).
+    pub field: Field,
+}
+
+/// Checks a study's final time.
+pub fn check_t_end(t_end: f64) -> Result<f64, CoreError> {
+    Range::POSITIVE.check(t_end, &Field::new("t_end"))
+}
+
+/// Checks a study's number of sample times.
+pub fn check_samples(samples: u64) -> Result<u64, CoreError> {
+    if (1..=MAX_SAMPLES).contains(&samples) {
+        Ok(samples)
+    } else {
+        Err(CoreError::Count {
+            field: Field::new("samples"),
+            got: samples,
+            min: 1,
+            max: MAX_SAMPLES,
+            what: "sample times",
+        })
+    }
+}
+
+/// How many steps of `h` make up `span`, if a whole number of them does (within round-off).
+pub fn whole_steps(span: f64, h: f64) -> Option<u64> {
+    let n = span / h;
+    let whole = n.round();
+    ((n - whole).abs() <= 1e-9 * n.max(1.0) && whole >= 1.0).then_some(whole as u64)
+}
+
+/// A setting as requested.
+#[derive(Clone, Copy, Debug)]
+pub enum Setting {
+    /// A fixed step size.
+    Step(f64),
+    /// A tolerance of the adaptive reference.
+    Tolerance(f64),
+}
+
+/// Prepares one setting: `method` at step `h` on `template` (system, parameters, chart, initial
+/// state, t_end, and the fields naming them) — for a tolerance, the adaptive reference in
+/// segments of t_end/samples — sampled at the `samples` times of the study. Every step size must
+/// divide t_end/samples, so that the samples are step endpoints. `at` names the setting
+/// (`runs[1].h[2]`).
+pub fn prepare_setting(
+    template: &SimulationSpec,
+    method: &MethodAt,
+    setting: Setting,
+    samples: u64,
+    at: &Field,
+    limits: &Limits,
+) -> Result<Simulation, CoreError> {
+    let segment = template.t_end / samples as f64;
+    let (h, method_value) = match setting {
+        Setting::Step(h) => {
+            Range::POSITIVE.check(h, at)?;
+            if whole_steps(segment, h).is_none() {
+                return Err(CoreError::NotADivisor {
+                    field: at.clone(),
+                    h,
+                    span: segment,
+                    span_name: "t_end/samples",
+                    purpose: "so that the samples are step endpoints",
+                    show_ratio: false,
+                });
+            }
+            (h, method.method)
+        }
+        Setting::Tolerance(t) => {
+            let tolerance = TOLERANCE_RANGE.check(t, at)?;
+            (segment, Method::Reference { tolerance })
+        }
+    };
+    let steps = (template.t_end / h).round().max(1.0) as u64;
+    let spec = SimulationSpec {
+        methods: vec![MethodAt {
+            method: method_value,
+            field: method.field.clone(),
+        }],
+        h,
+        every: Some((steps / samples).max(1)),
+        fields: InputFields {
+            h: at.clone(),
+            steps: at.clone(),
+            ..template.fields.clone()
+        },
+        ..template.clone()
+    };
+    Simulation::prepare(&spec, limits)
+}
+
+/// The reference run of a study whose first setting is `first`: none where the system has an
+/// exact solution; otherwise `spec` (one step size or tolerance) or by default the adaptive
+/// DOP853 at tolerance [`REFERENCE_TOLERANCE`], from `template` in the system's first (Cartesian)
+/// chart, sampled at the study's sample times. A `spec` given where the exact solution serves
+/// instead is checked all the same: a wrong one is refused, not silently ignored.
+pub fn prepare_reference(
+    first: &Simulation,
+    template: &SimulationSpec,
+    spec: Option<&RunSpec>,
+    samples: u64,
+    limits: &Limits,
+) -> Result<Option<Simulation>, CoreError> {
+    let exact = first.exact_final_state().is_some();
+    if exact && spec.is_none() {
+        return Ok(None);
+    }
+    let field = Field::new("reference");
+    let default = RunSpec {
+        method: MethodAt {
+            method: Method::new(MethodId::Reference),
+            field: field.key("method"),
+        },
+        h: Vec::new(),
+        tolerance: vec![REFERENCE_TOLERANCE],
+        field: field.clone(),
+    };
+    let spec = spec.unwrap_or(&default);
+    let (setting, at) = match (spec.h.first(), spec.tolerance.first()) {
+        (Some(&h), None) => (Setting::Step(h), field.key("h")),
+        (None, Some(&t)) => (Setting::Tolerance(t), field.key("tolerance")),
+        (None, None) => {
+            return Err(CoreError::Missing {
+                field: field.key("h"),
+                what: "the reference's step size (or tolerance)",
+            })
+        }
+        (Some(_), Some(_)) => {
+            return Err(CoreError::Either {
+                field,
+                first: "`h`",
+                second: "`tolerance`",
+            })
+        }
+    };
+    let template = SimulationSpec {
+        chart: None,
+        initial_cartesian: false,
+        fields: InputFields {
+            chart: field.clone(),
+            ..template.fields.clone()
+        },
+        ..template.clone()
+    };
+    let reference = prepare_setting(&template, &spec.method, setting, samples, &at, limits)?;
+    Ok((!exact).then_some(reference))
+}
+
+/// A validated study, ready to run.
+#[derive(Clone, Debug)]
+pub struct StudyJob {
+    /// One prepared simulation per setting, with the index of its run (or series).
+    pub settings: Vec<(usize, Simulation)>,
+    /// The reference run, where the system has no exact solution.
+    pub reference: Option<Simulation>,
+    /// The system as the document reports it.
+    pub system: SystemSummary,
+    /// Final time.
+    pub t_end: f64,
+    /// Sample times.
+    pub samples: u64,
+}
+
+impl StudyJob {
+    /// The job of `settings` (at least one), refused at `field` when they take more than
+    /// [`MAX_STUDY_STEPS`] steps in all.
+    pub fn new(
+        settings: Vec<(usize, Simulation)>,
+        reference: Option<Simulation>,
+        system: SystemSummary,
+        t_end: f64,
+        samples: u64,
+        field: &str,
+    ) -> Result<Self, CoreError> {
+        let total_steps = settings
+            .iter()
+            .fold(0u64, |n, (_, sim)| n.saturating_add(sim.schedule.steps));
+        if total_steps > MAX_STUDY_STEPS {
+            return Err(CoreError::TooManySteps {
+                field: Field::new(field),
+                steps: total_steps,
+                limit: MAX_STUDY_STEPS,
+                scope: StepScope::PerStudy,
+            });
+        }
+        Ok(StudyJob {
+            settings,
+            reference,
+            system,
+            t_end,
+            samples,
+        })
+    }
+
+    /// Number of settings.
+    pub fn len(&self) -> usize {
+        self.settings.len()
+    }
+
+    /// Whether the study has no settings (never, once validated).
+    pub fn is_empty(&self) -> bool {
+        self.settings.is_empty()
+    }
+
+    /// Runs the reference (or takes the exact solution). A reference run stopped by the time limit
+    /// is a truth all the same: the settings after it start past the deadline and stop at once,
+    /// so the study answers with every setting `time_limit` rather than failing.
+    fn truth(&self, budget: Budget<'_>) -> Result<Truth, CoreError> {
+        let Some(sim) = &self.reference else {
+            return Ok(Truth {
+                description: "exact solution".into(),
+                ms: 0.0,
+                energies: None,
+                final_state: None,
+            });
+        };
+        let started = Instant::now();
+        let mut sink = Measure::new(sim.invariant_names(), None);
+        let outcome = sim
+            .run_method(0, None, budget, &mut sink)
+            .map_err(|e| match e {
+                CoreError::Step {
+                    step, t, source, ..
+                } => CoreError::Step {
+                    field: None,
+                    run: Some("the reference run failed".into()),
+                    step,
+                    t,
+                    source,
+                },
+                other => other,
+            })?;
+        let stopped_early = match outcome.stop {
+            StopReason::Finished => false,
+            StopReason::TimeLimit { .. } => true,
+            StopReason::Cancelled { .. } => {
+                return Err(CoreError::Cancelled {
+                    what: "study",
+                    shutdown: false,
+                })
+            }
+            StopReason::Diverged { .. } => {
+                return Err(CoreError::ReferenceUnfinished {
+                    field: Field::new("reference"),
+                    stop: stop_name(&outcome.stop).into(),
+                })
+            }
+        };
+        let method = &sim.methods[0];
+        let mut description = match method {
+            Method::Reference { tolerance } => {
+                format!("adaptive DOP853 reference at tolerance {tolerance:e}")
+            }
+            _ => format!("{} at h = {}", method.label(), sim.schedule.h),
+        };
+        if stopped_early {
+            description.push_str(", stopped at the time limit");
+        }
+        Ok(Truth {
+            description,
+            ms: started.elapsed().as_secs_f64() * 1e3,
+            energies: Some(sink.energies),
+            final_state: sink.last,
+        })
+    }
+}
+
+/// What a study's errors are measured against.
+#[derive(Clone, Debug)]
+pub struct Truth {
+    /// `exact solution`, or the reference run's label and setting.
+    pub description: String,
+    /// Wall time of the reference run in milliseconds (0 for an exact solution).
+    pub ms: f64,
+    /// The reference energies at the sample times (None for an exact solution).
+    pub energies: Option<Vec<f64>>,
+    /// The reference run's final state in Cartesian coordinates.
+    final_state: Option<(Vec<f64>, Vec<f64>)>,
+}
+
+impl Truth {
+    /// The Euclidean distance of a Cartesian state at t_end from the true one of `sim`'s run.
+    pub fn state_error(&self, sim: &Simulation, last: &(Vec<f64>, Vec<f64>)) -> Option<f64> {
+        let truth = match &self.final_state {
+            Some(state) => state.clone(),
+            None => sim.exact_final_cartesian()?,
+        };
+        let (q, p) = last;
+        Some(
+            q.iter()
+                .chain(p)
+                .zip(truth.0.iter().chain(&truth.1))
+                .map(|(a, b)| (a - b).powi(2))
+                .sum::<f64>()
+                .sqrt(),
+        )
+    }
+}
+
+/// Collects what a study measures from one run's samples.
+pub struct Measure<'a> {
+    /// The system's invariant names.
+    pub names: Vec<String>,
+    reference_energies: Option<&'a [f64]>,
+    /// max_k |H(t_k) − H_exact(t_k)|.
+    pub max_energy_error: f64,
+    /// H − H_exact at the last sample.
+    pub last_energy_error: Option<f64>,
+    invariants_at_start: Vec<f64>,
+    /// max_k |I(t_k) − I(0)| per invariant.
+    pub drift: Vec<f64>,
+    energies: Vec<f64>,
+    /// The last state, in Cartesian coordinates.
+    pub last: Option<(Vec<f64>, Vec<f64>)>,
+}
+
+impl<'a> Measure<'a> {
+    fn new(names: Vec<String>, reference_energies: Option<&'a [f64]>) -> Self {
+        Measure {
+            names,
+            reference_energies,
+            max_energy_error: 0.0,
+            last_energy_error: None,
+            invariants_at_start: Vec::new(),
+            drift: Vec::new(),
+            energies: Vec::new(),
+            last: None,
+        }
+    }
+}
+
+impl SampleSink for Measure<'_> {
+    fn on_sample(&mut self, s: &Sample<'_>) {
+        if let Some(e) = s.energy_error {
+            self.max_energy_error = self.max_energy_error.max(e.abs());
+        }
+        self.last_energy_error = s.energy_error;
+        if self.invariants_at_start.is_empty() {
+            self.invariants_at_start = s.invariants.to_vec();
+            self.drift = vec![0.0; s.invariants.len()];
+        }
+        for (k, (&v, &v0)) in s
+            .invariants
+            .iter()
+            .zip(&self.invariants_at_start)
+            .enumerate()
+        {
+            self.drift[k] = self.drift[k].max((v - v0).abs());
+        }
+        if self.reference_energies.is_none() {
+            self.energies.push(s.energy);
+        }
+        let (q, p) = s.cartesian.unwrap_or((s.q, s.p));
+        self.last = Some((q.to_vec(), p.to_vec()));
+    }
+}
+
+/// Runs the setting `sim` once against the reference `energies` and measures it; also returns
+/// the wall time in milliseconds.
+pub fn measure_once<'a>(
+    sim: &Simulation,
+    energies: Option<&'a [f64]>,
+    budget: Budget<'_>,
+) -> Result<(Outcome, Measure<'a>, f64), CoreError> {
+    let mut sink = Measure::new(sim.invariant_names(), energies);
+    let began = Instant::now();
+    let outcome = sim
+        .run_method(0, energies, budget, &mut sink)
+        .map_err(|e| match e {
+            CoreError::Step {
+                step, t, source, ..
+            } => CoreError::Step {
+                field: None,
+                run: Some(sim.methods[0].label()),
+                step,
+                t,
+                source,
+            },
+            other => other,
+        })?;
+    Ok((outcome, sink, began.elapsed().as_secs_f64() * 1e3))
+}
+
+/// [`measure_once`], with short runs timed again (their numbers are the same, bit for bit): the
+/// wall time is the median, so that one scheduling hiccup does not move a point of a diagram.
+pub fn measure_timed<'a>(
+    sim: &Simulation,
+    energies: Option<&'a [f64]>,
+    budget: Budget<'_>,
+) -> Result<(Outcome, Measure<'a>, f64), CoreError> {
+    let (outcome, sink, first) = measure_once(sim, energies, budget)?;
+    let mut times = vec![first];
+    while outcome.stop == StopReason::Finished
+        && times.len() < SHORT_RUN_REPEATS
+        && times[0] < SHORT_RUN_MS
+    {
+        times.push(measure_once(sim, energies, budget)?.2);
+    }
+    times.sort_by(f64::total_cmp);
+    Ok((outcome, sink, times[times.len() / 2]))
+}
+
+/// How a run stopped, as studies report it.
+pub fn stop_name(stop: &StopReason) -> &'static str {
+    match stop {
+        StopReason::Finished => "finished",
+        StopReason::Diverged { .. } => "diverged",
+        StopReason::Cancelled { .. } => "cancelled",
+        StopReason::TimeLimit { .. } => "time_limit",
+    }
+}
+
+/// The lines of a study's progress stream.
+pub trait ProgressLine: Serialize + Send + 'static {
+    /// One setting's measurements.
+    type Point: Clone;
+    /// The whole study.
+    type Document: Serialize + Send + 'static;
+    /// The reference run is done (or the exact solution is used).
+    fn reference(reference: String, reference_ms: f64, total: usize) -> Self;
+    /// A setting is done.
+    fn point(done: usize, total: usize, point: Self::Point) -> Self;
+    /// The study is done.
+    fn result(document: Self::Document) -> Self;
+    /// The study failed.
+    fn error(error: ErrorDetail) -> Self;
+    /// The last line of a complete stream.
+    fn end() -> Self;
+}
+
+/// A study's run function: the job, given a time budget and where to report its lines (see
+/// [`run_settings`]), to its document.
+pub type Runner<L> = fn(
+    &StudyJob,
+    Budget<'_>,
+    &dyn Fn(L) -> bool,
+) -> Result<<L as ProgressLine>::Document, CoreError>;
+
+/// Declares a study's progress line type, `$name`, carrying `$point` per setting and `$document`
+/// at the end, and implements [`ProgressLine`] for it.
+macro_rules! progress_lines {
+    ($(#[$meta:meta])* $name:ident, $point:ty, $document:ty) => {
+        $(#[$meta])*
+        #[derive(Clone, Debug, PartialEq, serde::Serialize)]
+        #[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+        #[serde(tag = "type", rename_all = "snake_case")]
+        pub enum $name {
+            /// The reference run is done (or the exact solution is used).
+            Reference {
+                /// What the errors are measured against.
+                reference: String,
+                /// Its wall time in milliseconds.
+                reference_ms: f64,
+                /// Settings to run.
+                total: usize,
+            },
+            /// One setting is done.
+            Point {
+                /// Settings done so far.
+                done: usize,
+                /// Settings in all.
+                total: usize,
+                /// The setting's measurements.
+                point: $point,
+            },
+            /// The whole study.
+            Result($document),
+            /// A failure (the reference run, a server fault).
+            Error {
+                /// What went wrong.
+                error: $crate::error::ErrorDetail,
+            },
+            /// The last line of a complete stream.
+            End,
+        }
+
+        impl $crate::studies::settings::ProgressLine for $name {
+            type Point = $point;
+            type Document = $document;
+            fn reference(reference: String, reference_ms: f64, total: usize) -> Self {
+                Self::Reference { reference, reference_ms, total }
+            }
+            fn point(done: usize, total: usize, point: $point) -> Self {
+                Self::Point { done, total, point }
+            }
+            fn result(document: $document) -> Self {
+                Self::Result(document)
+            }
+            fn error(error: $crate::error::ErrorDetail) -> Self {
+                Self::Error { error }
+            }
+            fn end() -> Self {
+                Self::End
+            }
+        }
+    };
+}
+pub(crate) use progress_lines;
+
+/// Runs a study: the reference (or the exact solution), then every setting in order, measured by
+/// `measure` (given the setting's run index, its simulation and the truth; it returns the point
+/// and how the run stopped). Reports each line to `emit`, which returns false once nobody
+/// listens; a cancelled run or a missing listener ends the study.
+pub fn run_settings<L: ProgressLine>(
+    job: &StudyJob,
+    budget: Budget<'_>,
+    emit: &dyn Fn(L) -> bool,
+    measure: impl Fn(usize, &Simulation, &Truth) -> Result<(L::Point, StopReason), CoreError>,
+) -> Result<(Truth, Vec<L::Point>), CoreError> {
+    let total = job.settings.len();
+    let truth = job.truth(budget)?;
+    emit(L::reference(truth.description.clone(), truth.ms, total));
+    let mut points = Vec::with_capacity(total);
+    for (done, (run, sim)) in job.settings.iter().enumerate() {
+        let (point, stop) = measure(*run, sim, &truth)?;
+        let listening = emit(L::point(done + 1, total, point.clone()));
+        points.push(point);
+        if !listening || matches!(stop, StopReason::Cancelled { .. }) {
+            return Err(CoreError::Cancelled {
+                what: "study",
+                shutdown: false,
+            });
+        }
+    }
+    Ok((truth, points))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn whole_steps_allow_round_off_only() {
+        assert_eq!(whole_steps(10.0, 0.04), Some(250));
+        assert_eq!(whole_steps(10.0, 0.04 / 32.0), Some(8000));
+        assert_eq!(whole_steps(10.0, 0.3), None);
+        assert_eq!(whole_steps(1.0, 3.0), None);
+    }
+}

@@ -1,0 +1,235 @@
+//! The axes of a sweep: what an axis varies (a system parameter, the step size, a component of
+//! the initial state) and the values it takes.
+
+use serde::Serialize;
+
+use crate::error::{CoreError, Field, Range};
+use crate::simulation::SimulationSpec;
+use crate::systems::ParamValue;
+
+/// Most points along one axis.
+pub const MAX_POINTS: usize = 401;
+
+/// What an axis varies.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Target {
+    /// A number parameter of the system (`params.gamma`).
+    Param(String),
+    /// The step size (`h`).
+    Step,
+    /// Initial position `i` (`q0[i]`), in the coordinates `initial_coordinates` names.
+    Q0(usize),
+    /// Initial momentum `i` (`p0[i]`).
+    P0(usize),
+}
+
+impl Target {
+    /// Reads `params.<name>`, `h`, `q0[i]` or `p0[i]`.
+    pub fn parse(text: &str) -> Option<Target> {
+        let component = |prefix: &str| -> Option<usize> {
+            let index = text.strip_prefix(prefix)?.strip_suffix(']')?;
+            // Digits only: no sign, no spaces, no leading `+`.
+            (!index.is_empty() && index.bytes().all(|b| b.is_ascii_digit()))
+                .then(|| index.parse().ok())
+                .flatten()
+        };
+        if text == "h" {
+            return Some(Target::Step);
+        }
+        if let Some(name) = text.strip_prefix("params.") {
+            return (!name.is_empty()).then(|| Target::Param(name.to_string()));
+        }
+        if let Some(i) = component("q0[") {
+            return Some(Target::Q0(i));
+        }
+        component("p0[").map(Target::P0)
+    }
+
+    /// The name the axis has in requests and documents.
+    pub fn name(&self) -> String {
+        match self {
+            Target::Param(name) => format!("params.{name}"),
+            Target::Step => "h".into(),
+            Target::Q0(i) => format!("q0[{i}]"),
+            Target::P0(i) => format!("p0[{i}]"),
+        }
+    }
+}
+
+/// How the points of an axis are spaced.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+#[serde(rename_all = "snake_case")]
+pub enum Scale {
+    /// Evenly: min + (max − min)·k/(n − 1).
+    #[default]
+    Linear,
+    /// Evenly in the logarithm (min > 0): min·(max/min)^(k/(n − 1)).
+    Log,
+}
+
+/// One axis of a sweep.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Axis {
+    /// What it varies.
+    pub target: Target,
+    /// The first value.
+    pub min: f64,
+    /// The last value.
+    pub max: f64,
+    /// Points (1 to [`MAX_POINTS`]); one point sits at the middle of [min, max].
+    pub n: usize,
+    /// Spacing.
+    pub scale: Scale,
+    /// Where the request gave it (`axes[1]`).
+    pub field: Field,
+}
+
+impl Axis {
+    /// Checks the range and the count; errors name `axes[k].min`, `.max` or `.n`.
+    pub fn check(&self) -> Result<(), CoreError> {
+        if self.n == 0 || self.n > MAX_POINTS {
+            return Err(CoreError::Count {
+                field: self.field.key("n"),
+                got: self.n as u64,
+                min: 1,
+                max: MAX_POINTS as u64,
+                what: "points",
+            });
+        }
+        if !(self.min.is_finite() && self.max.is_finite() && self.min <= self.max) {
+            return Err(CoreError::BadInterval {
+                field: self.field.clone(),
+                min: self.min,
+                max: self.max,
+            });
+        }
+        if self.scale == Scale::Log {
+            Range::POSITIVE.check(self.min, &self.field.key("min"))?;
+        }
+        if self.target == Target::Step {
+            Range::POSITIVE.check(self.min, &self.field.key("min"))?;
+        }
+        Ok(())
+    }
+
+    /// Point `k` of the axis. The linear spacing is computed exactly as the energy-error map's
+    /// grid, so that its preset reproduces the map bit for bit.
+    pub fn value(&self, k: usize) -> f64 {
+        if self.n == 1 {
+            return match self.scale {
+                Scale::Linear => 0.5 * (self.min + self.max),
+                Scale::Log => (self.min * self.max).sqrt(),
+            };
+        }
+        let fraction = k as f64 / (self.n - 1) as f64;
+        match self.scale {
+            Scale::Linear => self.min + (self.max - self.min) * fraction,
+            Scale::Log if k + 1 == self.n => self.max,
+            Scale::Log => self.min * (self.max / self.min).powf(fraction),
+        }
+    }
+
+    /// All points.
+    pub fn values(&self) -> Vec<f64> {
+        (0..self.n).map(|k| self.value(k)).collect()
+    }
+
+    /// `spec` with this axis at `value`. A component of q0/p0 fills in the rest of the vector
+    /// from `default` (the system's default state) when the spec gives none.
+    pub fn apply(&self, spec: &mut SimulationSpec, value: f64, default: (&[f64], &[f64])) {
+        let set = |given: &mut Option<Vec<f64>>, default: &[f64], i: usize| {
+            let v = given.get_or_insert_with(|| default.to_vec());
+            if v.len() <= i {
+                // Too short for the system: the simulation's own check names the vector.
+                v.resize(i + 1, 0.0);
+            }
+            v[i] = value;
+        };
+        match &self.target {
+            Target::Param(name) => {
+                spec.params.insert(name.clone(), ParamValue::Number(value));
+            }
+            Target::Step => spec.h = value,
+            Target::Q0(i) => set(&mut spec.q0, default.0, *i),
+            Target::P0(i) => set(&mut spec.p0, default.1, *i),
+        }
+    }
+
+    /// The field a simulation names for this axis's input (`params.gamma`, `h`, `q0`).
+    pub fn input_field(&self) -> &'static str {
+        match self.target {
+            Target::Param(_) => "params",
+            Target::Step => "h",
+            Target::Q0(_) => "q0",
+            Target::P0(_) => "p0",
+        }
+    }
+}
+
+/// The grid of a sweep: one or two axes, cells in row-major order (the first axis runs fastest:
+/// cell j·n₀ + i is (axes[0][i], axes[1][j])).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Grid {
+    /// The axes.
+    pub axes: Vec<Axis>,
+}
+
+impl Grid {
+    /// Cells in all.
+    pub fn cells(&self) -> usize {
+        self.axes.iter().map(|a| a.n).product()
+    }
+
+    /// The axis values of `cell`, one per axis.
+    pub fn point(&self, cell: usize) -> Vec<f64> {
+        let mut rest = cell;
+        self.axes
+            .iter()
+            .map(|a| {
+                let k = rest % a.n;
+                rest /= a.n;
+                a.value(k)
+            })
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn targets_read_their_names_back() {
+        for name in ["h", "params.gamma", "q0[0]", "p0[12]"] {
+            assert_eq!(Target::parse(name).unwrap().name(), name);
+        }
+        for bad in [
+            "", "params.", "q0[]", "q0[-1]", "q0[+1]", "q0[1", "x", "p0[ 1]",
+        ] {
+            assert_eq!(Target::parse(bad), None, "{bad}");
+        }
+    }
+
+    #[test]
+    fn log_axes_end_on_their_bounds() {
+        let axis = Axis {
+            target: Target::Step,
+            min: 1e-3,
+            max: 1.0,
+            n: 7,
+            scale: Scale::Log,
+            field: Field::new("axes").index(0),
+        };
+        let v = axis.values();
+        assert_eq!((v[0], v[6]), (1e-3, 1.0));
+        assert!((v[3] - 10f64.powf(-1.5)).abs() < 1e-15);
+        let grid = Grid {
+            axes: vec![axis.clone(), Axis { n: 3, ..axis }],
+        };
+        assert_eq!(grid.cells(), 21);
+        let point = grid.point(7 + 6);
+        assert_eq!(point[0], v[6]);
+        assert!((point[1] - 10f64.powf(-1.5)).abs() < 1e-15);
+    }
+}

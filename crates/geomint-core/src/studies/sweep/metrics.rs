@@ -1,0 +1,213 @@
+//! What a sweep measures in each run of each cell, from the run's samples: the energy error at
+//! the end, its largest value and its ℓ² mean (paper 001 eq. 50), each invariant's drift, the
+//! time of divergence and the final state.
+
+use serde::{Deserialize, Serialize};
+
+use crate::run::StopReason;
+use crate::simulation::{Outcome, Sample, SampleSink};
+
+/// A run whose energy leaves H₀ by more than this many times 1 + |H₀| has diverged (the test of
+/// the energy-error map).
+pub const DIVERGENCE: f64 = 100.0;
+
+/// What the energy error of a sample is measured against.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+#[serde(rename_all = "snake_case")]
+pub enum EnergyReference {
+    /// H at the same time on the exact solution.
+    Exact,
+    /// H₀, the energy at the start: the exact flow keeps it when nothing is damped (eq. 50).
+    Initial,
+    /// H at the same time on a reference run (adaptive DOP853 at tolerance 1e-13).
+    Reference,
+}
+
+/// What one run of one cell measured. A run that diverged reports its time of divergence, its
+/// steps and its last finite state, and no error figures; a run that could not start (its
+/// initial state is outside the chart) only its `error`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+pub struct RunMetrics {
+    /// The energy error at the last sample.
+    pub energy_error_final: Option<f64>,
+    /// The largest |energy error| over the samples.
+    pub energy_error_max: Option<f64>,
+    /// √(1/(J+1) Σ_j e_j²) over the J + 1 samples (001 eq. 50 when measured against H₀ at every
+    /// step).
+    pub energy_error_l2: Option<f64>,
+    /// max |I(t) − I(0)| over the samples, per invariant of the system (`null`: not finite).
+    pub invariant_drift: Vec<Option<f64>>,
+    /// When the run diverged: the time of the first non-finite state, else the first sample
+    /// whose |H − H₀| exceeded 100·(1 + |H₀|).
+    pub diverged_at: Option<f64>,
+    /// The last sample's positions, in Cartesian coordinates.
+    pub final_q: Vec<f64>,
+    /// The last sample's momenta, in Cartesian coordinates.
+    pub final_p: Vec<f64>,
+    /// Steps taken.
+    pub steps: u64,
+    /// Force evaluations.
+    pub force_evaluations: u64,
+    /// Why the run could not start.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
+}
+
+impl RunMetrics {
+    /// A run that could not start, and why.
+    pub fn failed(reason: String) -> Self {
+        RunMetrics {
+            error: Some(reason),
+            ..RunMetrics::default()
+        }
+    }
+}
+
+/// Collects a run's metrics from its samples.
+pub struct Measure {
+    against: EnergyReference,
+    start: Option<f64>,
+    limit: f64,
+    blown_at: Option<f64>,
+    sum: f64,
+    count: u64,
+    max: f64,
+    last: Option<f64>,
+    invariants0: Vec<f64>,
+    drift: Vec<f64>,
+    q: Vec<f64>,
+    p: Vec<f64>,
+}
+
+impl Measure {
+    /// A collector measuring energy errors against `against`.
+    pub fn new(against: EnergyReference) -> Self {
+        Measure {
+            against,
+            start: None,
+            limit: f64::INFINITY,
+            blown_at: None,
+            sum: 0.0,
+            count: 0,
+            max: 0.0,
+            last: None,
+            invariants0: Vec::new(),
+            drift: Vec::new(),
+            q: Vec::new(),
+            p: Vec::new(),
+        }
+    }
+
+    /// What the samples of a run integrated elsewhere (in SIMD lanes) leave: the first time H
+    /// left its band, Σ e², the number of samples, max |e|, the last e and the last sample's
+    /// Cartesian state, for a system without invariants.
+    pub(super) fn of_lane(
+        blown_at: Option<f64>,
+        (sum, count): (f64, u64),
+        (max, last): (f64, f64),
+        (q, p): (Vec<f64>, Vec<f64>),
+    ) -> Self {
+        Measure {
+            blown_at,
+            sum,
+            count,
+            max,
+            last: Some(last),
+            q,
+            p,
+            ..Measure::new(EnergyReference::Initial)
+        }
+    }
+
+    /// The metrics of a run that ended with `outcome`.
+    pub fn finish(self, outcome: &Outcome) -> RunMetrics {
+        let stopped_at = match outcome.stop {
+            StopReason::Diverged { t, .. } => Some(t),
+            _ => None,
+        };
+        self.finish_at(
+            stopped_at,
+            outcome.stats.steps,
+            outcome.stats.force_evaluations,
+        )
+    }
+
+    /// The metrics of a run that took `steps` steps and `force_evaluations` evaluations and, if
+    /// its state stopped being finite, stopped at time `stopped_at`.
+    pub(super) fn finish_at(
+        self,
+        stopped_at: Option<f64>,
+        steps: u64,
+        force_evaluations: u64,
+    ) -> RunMetrics {
+        let diverged_at = stopped_at.or(self.blown_at);
+        let finite = |x: f64| x.is_finite().then_some(x);
+        let healthy = diverged_at.is_none();
+        let count = self.count.max(1) as f64;
+        RunMetrics {
+            energy_error_final: self.last.filter(|_| healthy).and_then(finite),
+            energy_error_max: healthy.then_some(self.max).and_then(finite),
+            energy_error_l2: (healthy && self.last.is_some())
+                .then(|| (self.sum / count).sqrt())
+                .and_then(finite),
+            invariant_drift: self
+                .drift
+                .iter()
+                .map(|&d| healthy.then_some(d).and_then(finite))
+                .collect(),
+            diverged_at,
+            final_q: self.q,
+            final_p: self.p,
+            steps,
+            force_evaluations,
+            error: None,
+        }
+    }
+}
+
+impl SampleSink for Measure {
+    fn on_sample(&mut self, sample: &Sample<'_>) {
+        let start = *self.start.get_or_insert_with(|| {
+            self.limit = DIVERGENCE * (1.0 + sample.energy.abs());
+            self.invariants0 = sample.invariants.to_vec();
+            self.drift = vec![0.0; sample.invariants.len()];
+            sample.energy
+        });
+        let from_start = sample.energy - start;
+        // NaN compares false: a non-finite energy counts as blown up too.
+        if self.blown_at.is_none() && !(from_start.abs() <= self.limit) {
+            self.blown_at = Some(sample.t);
+        }
+        let error = match self.against {
+            EnergyReference::Initial => Some(from_start),
+            EnergyReference::Exact | EnergyReference::Reference => sample.energy_error,
+        };
+        if let Some(e) = error {
+            self.sum += e * e;
+            self.count += 1;
+            self.max = self.max.max(e.abs());
+        }
+        self.last = error;
+        for ((d, &now), &then) in self
+            .drift
+            .iter_mut()
+            .zip(sample.invariants)
+            .zip(&self.invariants0)
+        {
+            // A NaN drift stays NaN (and is reported as null).
+            let change = (now - then).abs();
+            *d = if change > *d || change.is_nan() {
+                change
+            } else {
+                *d
+            };
+        }
+        let (q, p) = sample.cartesian.unwrap_or((sample.q, sample.p));
+        self.q.clear();
+        self.q.extend_from_slice(q);
+        self.p.clear();
+        self.p.extend_from_slice(p);
+    }
+}

@@ -1,0 +1,649 @@
+//! Sweeps: one system run with one or more methods in one or more charts over a grid of one or
+//! two axes — a system parameter (γ, ε, a stiffness…), the step size, or a component of the
+//! initial state — and per cell and run the metrics of [`metrics`]: energy errors (final,
+//! largest, ℓ² of paper 001 eq. 50), invariant drift, time of divergence, final state, work.
+//!
+//! A sweep is split into shards ([`shard`]): ranges of cells in a fixed order. A cell's result
+//! depends only on the spec and the cell, so the local executor (all cores), the batch arrays
+//! (`--shard i/n` then `merge`) and the NATS workers all give bit-identical merged documents.
+//! The energy-error map of Fig. 6 and the numerical stability map are presets of the sweep
+//! (requests in [`crate::api::sweep`]). Sweeps of the map's kind run four cells at a time in the
+//! map's SIMD lanes (`sweep/lanes.rs`), with the same numbers.
+
+pub mod axis;
+pub mod document;
+mod lanes;
+pub mod metrics;
+pub mod shard;
+
+use std::collections::BTreeMap;
+use std::ops::Range as Cells;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Arc;
+use std::time::Instant;
+
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+pub use axis::{Axis, Grid, Scale, Target};
+pub use document::{AxisDocument, RunColumns, SweepDocument};
+pub use metrics::{EnergyReference, RunMetrics};
+pub use shard::{Shard, SweepPart};
+
+use crate::error::{CoreError, ErrorDetail, Field, StepScope};
+use crate::run::{step_count, Budget, StopReason};
+use crate::simulation::{
+    InitialCoordinates, InputFields, Limits, MethodAt, Simulation, SimulationSpec,
+};
+use crate::studies::StudyStop;
+use crate::system::MechanicalSystem;
+use crate::systems::{ParamValue, SystemInfo, SystemRef};
+use crate::with_system;
+use metrics::Measure;
+
+/// Most runs (methods × charts) per cell.
+pub const MAX_RUNS: usize = 16;
+/// Most steps over all cells and runs of one sweep.
+pub const MAX_TOTAL_STEPS: u64 = 20_000_000_000;
+
+/// A sweep as asked for, in core terms.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SweepSpec {
+    /// The system.
+    pub system: SystemRef,
+    /// Parameters fixed for the whole sweep (an axis overrides its own).
+    pub params: BTreeMap<String, ParamValue>,
+    /// Charts, each with its field; `None` is the system's default chart.
+    pub charts: Vec<(Option<String>, Field)>,
+    /// The coordinates of `q0`/`p0` and of the initial-state axes (default: the chart's with one
+    /// chart, Cartesian with several).
+    pub initial_coordinates: Option<InitialCoordinates>,
+    /// Initial positions (default: the system's).
+    pub q0: Option<Vec<f64>>,
+    /// Initial momenta (default: the system's).
+    pub p0: Option<Vec<f64>>,
+    /// The methods.
+    pub methods: Vec<MethodAt>,
+    /// Step size (unless an axis varies it).
+    pub h: Option<f64>,
+    /// Final time.
+    pub t_end: f64,
+    /// Sample every this many steps (default 1: every step, as eq. 50 sums).
+    pub every: Option<u64>,
+    /// What energy errors are measured against (default: the exact solution where the system
+    /// has one, else H₀ if nothing is damped, else a reference run).
+    pub energy_reference: Option<EnergyReference>,
+    /// One or two axes.
+    pub axes: Vec<Axis>,
+    /// The identity of the request (a digest of its canonical form): parts of a sweep carry it,
+    /// and merging refuses parts of another.
+    pub digest: String,
+}
+
+/// A method in a chart: one run per cell.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+pub struct RunLabel {
+    /// The method's label.
+    pub method: String,
+    /// The chart's id.
+    pub chart: String,
+}
+
+/// A validated sweep, ready to run over any range of its cells.
+#[derive(Clone, Debug)]
+pub struct SweepJob {
+    /// One simulation template per run (the axes are applied per cell).
+    templates: Vec<SimulationSpec>,
+    /// The runs, in the order of `templates`.
+    pub runs: Vec<RunLabel>,
+    /// The grid.
+    pub grid: Grid,
+    /// What energy errors are measured against.
+    pub against: EnergyReference,
+    /// The system's entry.
+    pub info: Arc<SystemInfo>,
+    /// Steps over all cells and runs.
+    pub total_steps: u64,
+    /// The request's identity.
+    pub digest: String,
+    limits: Limits,
+    /// How the cells run four at a time, when the sweep is one the lanes run.
+    lanes: Option<lanes::LanePlan>,
+}
+
+impl SweepSpec {
+    /// Validates the sweep (cheap: builds the system at the corners of the grid, integrates
+    /// nothing). Problems that only some cells have — an initial state outside a chart — are
+    /// those cells' results, not errors of the request.
+    pub fn prepare(&self, limits: &Limits) -> Result<SweepJob, CoreError> {
+        let info = self.system.resolve(&Field::new("system"))?;
+        if self.axes.is_empty() || self.axes.len() > 2 {
+            return Err(CoreError::Count {
+                field: Field::new("axes"),
+                got: self.axes.len() as u64,
+                min: 1,
+                max: 2,
+                what: "axes",
+            });
+        }
+        for (k, axis) in self.axes.iter().enumerate() {
+            axis.check()?;
+            if let Some(earlier) = self.axes[..k].iter().find(|a| a.target == axis.target) {
+                return Err(CoreError::Duplicate {
+                    field: axis.field.key("name"),
+                    value: earlier.target.name(),
+                });
+            }
+        }
+        let step_axis = self.axes.iter().find(|a| a.target == Target::Step);
+        let h = match (self.h, step_axis) {
+            (Some(_), Some(axis)) => {
+                return Err(CoreError::Either {
+                    field: axis.field.clone(),
+                    first: "`h`",
+                    second: "an axis over `h`",
+                })
+            }
+            (Some(h), None) => h,
+            (None, Some(axis)) => axis.min,
+            (None, None) => {
+                return Err(CoreError::Missing {
+                    field: Field::new("h"),
+                    what: "the step size (or an axis over `h`)",
+                })
+            }
+        };
+        if self.methods.is_empty() {
+            return Err(CoreError::Empty {
+                field: Field::new("methods"),
+                what: "method",
+            });
+        }
+        let charts: Vec<(Option<String>, Field)> = if self.charts.is_empty() {
+            vec![(None, Field::new("chart"))]
+        } else {
+            self.charts.clone()
+        };
+        let runs = self.methods.len() * charts.len();
+        if runs > MAX_RUNS {
+            return Err(CoreError::TooMany {
+                field: Field::new("methods"),
+                what: "runs (methods × charts) per cell",
+                limit: MAX_RUNS,
+                got: Some(runs),
+            });
+        }
+        let several = charts.len() > 1;
+        let given = self.q0.is_some() || self.p0.is_some();
+        if several && given && self.initial_coordinates == Some(InitialCoordinates::Chart) {
+            return Err(CoreError::Unsupported {
+                field: Field::new("initial_coordinates"),
+                reason: "with several charts q0 and p0 are one physical state: give them in \
+                         `cartesian` coordinates",
+            });
+        }
+        let initial_cartesian = match self.initial_coordinates {
+            Some(c) => c == InitialCoordinates::Cartesian,
+            None => several,
+        };
+        let mut templates = Vec::with_capacity(runs);
+        let mut labels = Vec::with_capacity(runs);
+        for method in &self.methods {
+            for (chart, chart_field) in &charts {
+                let id = info.chart(chart.as_deref(), chart_field)?.id;
+                templates.push(SimulationSpec {
+                    system: self.system.clone(),
+                    params: self.params.clone(),
+                    chart: chart.clone(),
+                    initial_cartesian,
+                    methods: vec![method.clone()],
+                    h,
+                    t_end: self.t_end,
+                    q0: self.q0.clone(),
+                    p0: self.p0.clone(),
+                    every: Some(self.every.unwrap_or(1)),
+                    compare_to_reference: false,
+                    jacobian_defect: false,
+                    fields: InputFields {
+                        chart: chart_field.clone(),
+                        every: Field::new("every"),
+                        steps: Field::new("t_end"),
+                        ..InputFields::default()
+                    },
+                });
+                labels.push(RunLabel {
+                    method: method.method.label(),
+                    chart: id.to_string(),
+                });
+            }
+        }
+        let fills_state = self
+            .axes
+            .iter()
+            .find(|a| matches!(a.target, Target::Q0(_) | Target::P0(_)));
+        if let Some(axis) = fills_state {
+            let in_chart = !initial_cartesian && charts.iter().any(|(c, _)| c.is_some());
+            let missing = match axis.target {
+                Target::Q0(_) => self.q0.is_none(),
+                _ => self.p0.is_none(),
+            };
+            if in_chart && missing {
+                return Err(CoreError::Missing {
+                    field: Field::new(axis.input_field()),
+                    what: "the initial state in the chart's coordinates, which the axis varies \
+                           (or `initial_coordinates: \"cartesian\"`)",
+                });
+            }
+        }
+
+        let grid = Grid {
+            axes: self.axes.clone(),
+        };
+        let mut job = SweepJob {
+            templates,
+            runs: labels,
+            grid,
+            against: EnergyReference::Initial,
+            info,
+            total_steps: 0,
+            digest: self.digest.clone(),
+            lanes: None,
+            // A run's samples go into its metrics as they come and are not kept, so the sample
+            // limit (which bounds documents) does not apply — except to a reference run, whose
+            // energies are kept for the whole run.
+            limits: Limits {
+                max_samples: u64::MAX,
+                ..*limits
+            },
+        };
+        let damped = job.check_corners()?;
+        job.against = match self.energy_reference {
+            Some(EnergyReference::Exact) if !job.info.exact_solution => {
+                return Err(CoreError::Unsupported {
+                    field: Field::new("energy_reference"),
+                    reason: "the system has no exact solution; use `reference` or `initial`",
+                })
+            }
+            Some(chosen) => chosen,
+            None if job.info.exact_solution => EnergyReference::Exact,
+            None if damped => EnergyReference::Reference,
+            None => EnergyReference::Initial,
+        };
+        if job.against == EnergyReference::Reference {
+            job.limits = *limits;
+            job.check_corners()?;
+        }
+        job.lanes = job.lane_plan();
+        job.total_steps = job.count_steps();
+        if job.total_steps > MAX_TOTAL_STEPS {
+            return Err(CoreError::TooManySteps {
+                field: Field::new("axes"),
+                steps: job.total_steps,
+                limit: MAX_TOTAL_STEPS,
+                scope: StepScope::PerStudy,
+            });
+        }
+        Ok(job)
+    }
+}
+
+impl SweepJob {
+    /// Cells in all.
+    pub fn cells(&self) -> usize {
+        self.grid.cells()
+    }
+
+    /// Whether the cells run four at a time in SIMD lanes (the energy map's kind of sweep: see
+    /// `sweep/lanes.rs`); the numbers are those of the one-cell path either way.
+    pub fn runs_in_lanes(&self) -> bool {
+        self.lanes.is_some()
+    }
+
+    /// The same sweep run cell by cell, through the generic stepper and observer.
+    pub fn cell_by_cell(self) -> Self {
+        Self {
+            lanes: None,
+            ..self
+        }
+    }
+
+    /// Names of the system's invariants.
+    pub fn invariant_names(&self) -> Vec<String> {
+        self.info.invariants.iter().map(|n| n.to_string()).collect()
+    }
+
+    /// The spec of run `run` at `cell`.
+    fn cell_spec(&self, run: usize, point: &[f64]) -> SimulationSpec {
+        let mut spec = self.templates[run].clone();
+        let defaults = (self.info.q0.as_slice(), self.info.p0.as_slice());
+        for (axis, &value) in self.grid.axes.iter().zip(point) {
+            axis.apply(&mut spec, value, defaults);
+        }
+        spec
+    }
+
+    /// Prepares every run at the corners of the grid: an input the sweep cannot take at all (a
+    /// parameter out of its range at one end of its axis, too many steps at the smallest h) is
+    /// an error of the request, named at the axis end that causes it. Returns whether any corner
+    /// has damping.
+    fn check_corners(&self) -> Result<bool, CoreError> {
+        let ends = |axis: &Axis| [(axis.min, "min"), (axis.max, "max")];
+        let mut corners: Vec<Vec<(f64, Field)>> = vec![Vec::new()];
+        for axis in &self.grid.axes {
+            corners = corners
+                .into_iter()
+                .flat_map(|c| {
+                    ends(axis).map(|(v, end)| {
+                        let mut c = c.clone();
+                        c.push((v, axis.field.key(end)));
+                        c
+                    })
+                })
+                .collect();
+        }
+        let mut damped = false;
+        for run in 0..self.templates.len() {
+            for corner in &corners {
+                let point: Vec<f64> = corner.iter().map(|(v, _)| *v).collect();
+                let mut spec = self.cell_spec(run, &point);
+                for (axis, (_, end)) in self.grid.axes.iter().zip(corner) {
+                    if axis.target == Target::Step {
+                        spec.fields.h = end.clone();
+                        spec.fields.steps = end.clone();
+                    }
+                }
+                match Simulation::prepare(&spec, &self.limits) {
+                    Ok(sim) => damped |= with_system!(&sim.system, s => s.damping_rate()) != 0.0,
+                    Err(CoreError::OutsideChart { .. }) => {}
+                    Err(e) => {
+                        let blamed = e.field().map(Field::as_str).and_then(|f| {
+                            self.grid
+                                .axes
+                                .iter()
+                                .zip(corner)
+                                .find(|(a, _)| a.target.name() == f)
+                                .map(|(a, (_, end))| match e {
+                                    // The axis names a parameter the system does not have.
+                                    CoreError::UnknownParameter { .. } => a.field.key("name"),
+                                    _ => end.clone(),
+                                })
+                        });
+                        return Err(match blamed {
+                            Some(end) => e.at(end),
+                            None => e,
+                        });
+                    }
+                }
+            }
+        }
+        Ok(damped)
+    }
+
+    /// Steps over all cells and runs.
+    fn count_steps(&self) -> u64 {
+        let per_cell: u64 = match self.grid.axes.iter().position(|a| a.target == Target::Step) {
+            None => step_count(self.templates[0].h, self.templates[0].t_end),
+            Some(k) => {
+                let axis = &self.grid.axes[k];
+                let others: u64 = self.cells() as u64 / axis.n as u64;
+                let over_h: u64 = axis
+                    .values()
+                    .iter()
+                    .map(|&h| step_count(h, self.templates[0].t_end))
+                    .sum();
+                return over_h
+                    .saturating_mul(others)
+                    .saturating_mul(self.templates.len() as u64);
+            }
+        };
+        per_cell
+            .saturating_mul(self.cells() as u64)
+            .saturating_mul(self.templates.len() as u64)
+    }
+
+    /// The runs of one cell; `None` when the budget stopped one.
+    fn cell(&self, cell: usize, budget: Budget<'_>) -> Result<Option<Vec<RunMetrics>>, CoreError> {
+        let point = self.grid.point(cell);
+        let mut results = Vec::with_capacity(self.templates.len());
+        for run in 0..self.templates.len() {
+            let spec = self.cell_spec(run, &point);
+            let mut sim = match Simulation::prepare(&spec, &self.limits) {
+                Ok(sim) => sim,
+                Err(e) => {
+                    results.push(RunMetrics::failed(e.to_string()));
+                    continue;
+                }
+            };
+            sim.compare_to_reference = self.against == EnergyReference::Reference;
+            let reference = match sim.reference_energies(budget) {
+                Ok(r) => r,
+                Err(CoreError::TimeLimit { .. } | CoreError::Cancelled { .. }) => return Ok(None),
+                Err(e) => {
+                    results.push(RunMetrics::failed(e.to_string()));
+                    continue;
+                }
+            };
+            let mut measure = Measure::new(self.against);
+            match sim.run_method(0, reference.as_deref(), budget, &mut measure) {
+                Ok(outcome) => match outcome.stop {
+                    StopReason::Cancelled { .. } | StopReason::TimeLimit { .. } => return Ok(None),
+                    _ => results.push(measure.finish(&outcome)),
+                },
+                Err(e) => results.push(RunMetrics::failed(e.to_string())),
+            }
+        }
+        Ok(Some(results))
+    }
+
+    /// Runs `cells` (a shard, or all of them) on all cores; `progress()` is called as each cell
+    /// finishes (from worker threads). The results are in cell order, whatever the threads did;
+    /// `Ok(None)` when the budget stopped the sweep.
+    pub fn run_cells(
+        &self,
+        cells: Cells<usize>,
+        budget: Budget<'_>,
+        progress: &(dyn Fn() + Sync),
+    ) -> Result<Option<Vec<Vec<RunMetrics>>>, CoreError> {
+        Ok(self
+            .run_cells_within(cells, budget, progress)?
+            .into_iter()
+            .collect())
+    }
+
+    /// [`run_cells`](Self::run_cells), keeping the cells that finished when the budget stopped
+    /// the others (`None`).
+    pub fn run_cells_within(
+        &self,
+        cells: Cells<usize>,
+        budget: Budget<'_>,
+        progress: &(dyn Fn() + Sync),
+    ) -> Result<Vec<Option<Vec<RunMetrics>>>, CoreError> {
+        if let Some(plan) = &self.lanes {
+            // Groups of four from the start of the range, so that a shard runs as it would in
+            // the whole sweep's range up to the lane boundaries; a cell's numbers do not depend
+            // on its neighbours either way.
+            let groups: Vec<Cells<usize>> = cells
+                .clone()
+                .step_by(lanes::LANES)
+                .map(|first| first..(first + lanes::LANES).min(cells.end))
+                .collect();
+            let done: Vec<Vec<Option<Vec<RunMetrics>>>> = groups
+                .into_par_iter()
+                .map(|group| {
+                    let n = group.len();
+                    let results = self.lane_group(plan, group, budget);
+                    (0..n).for_each(|_| progress());
+                    results
+                })
+                .collect();
+            return Ok(done.into_iter().flatten().collect());
+        }
+        cells
+            .into_par_iter()
+            .map(|cell| {
+                let result = self.cell(cell, budget);
+                progress();
+                result
+            })
+            .collect()
+    }
+
+    /// The document of a sweep the budget may have stopped: cells that did not finish (`None`)
+    /// are marked unfinished, with `time_limit` as the document's stop; when the cancellation
+    /// flag stopped them, the error of a stopped sweep instead.
+    pub fn document_within(
+        &self,
+        cells: Vec<Option<Vec<RunMetrics>>>,
+        budget: Budget<'_>,
+        wall_ms: f64,
+    ) -> Result<SweepDocument, CoreError> {
+        let unfinished_cells: Vec<usize> =
+            (0..cells.len()).filter(|&i| cells[i].is_none()).collect();
+        if unfinished_cells.is_empty() {
+            return Ok(self.document(cells.into_iter().flatten().collect(), wall_ms));
+        }
+        if budget.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+            return Err(cancelled());
+        }
+        let not_run = || {
+            let metrics = RunMetrics::failed("not run: the sweep reached its time limit".into());
+            vec![metrics; self.runs.len()]
+        };
+        let cells = cells
+            .into_iter()
+            .map(|cell| cell.unwrap_or_else(not_run))
+            .collect();
+        let mut document = self.document(cells, wall_ms);
+        document.stop = StudyStop::TimeLimit;
+        document.unfinished_cells = unfinished_cells;
+        Ok(document)
+    }
+
+    /// The document of the sweep from every cell's results, in cell order.
+    pub fn document(&self, cells: Vec<Vec<RunMetrics>>, wall_ms: f64) -> SweepDocument {
+        let names = self.invariant_names();
+        let mut runs: Vec<RunColumns> = self
+            .runs
+            .iter()
+            .map(|label| RunColumns::new(label.clone(), &names, cells.len()))
+            .collect();
+        let (mut steps, mut force_evaluations) = (0u64, 0u64);
+        for cell in cells {
+            for (columns, metrics) in runs.iter_mut().zip(cell) {
+                steps += metrics.steps;
+                force_evaluations += metrics.force_evaluations;
+                columns.push(metrics, &names);
+            }
+        }
+        SweepDocument {
+            system: self.info.id.to_string(),
+            axes: self
+                .grid
+                .axes
+                .iter()
+                .map(|a| AxisDocument {
+                    name: a.target.name(),
+                    min: a.min,
+                    max: a.max,
+                    n: a.n,
+                    scale: a.scale,
+                    values: a.values(),
+                })
+                .collect(),
+            cells: self.cells(),
+            energy_reference: self.against,
+            invariants: names,
+            runs,
+            steps,
+            force_evaluations,
+            digest: self.digest.clone(),
+            wall_ms,
+            stop: StudyStop::Finished,
+            unfinished_cells: Vec::new(),
+        }
+    }
+}
+
+/// What a sweep's progress stream carries.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+#[serde(tag = "type", rename_all = "snake_case")]
+pub enum SweepLine {
+    /// Cells done so far (sent at most about 100 times per sweep).
+    Progress {
+        /// Cells done.
+        done: usize,
+        /// Cells in all.
+        total: usize,
+    },
+    /// The sweep.
+    Result(Box<SweepDocument>),
+    /// A failure.
+    Error {
+        /// What went wrong.
+        error: ErrorDetail,
+    },
+    /// The last line of a complete stream.
+    End,
+}
+
+/// Reports progress about every 1 % of `total` cells, never going backwards although cells
+/// finish on several threads.
+pub struct Progress<'a> {
+    total: usize,
+    every: usize,
+    done: AtomicUsize,
+    last_sent: std::sync::Mutex<usize>,
+    emit: &'a (dyn Fn(SweepLine) -> bool + Sync),
+}
+
+impl<'a> Progress<'a> {
+    /// Progress over `total` cells, sent through `emit`.
+    pub fn new(total: usize, emit: &'a (dyn Fn(SweepLine) -> bool + Sync)) -> Self {
+        Progress {
+            total,
+            every: (total / 100).max(1),
+            done: AtomicUsize::new(0),
+            last_sent: std::sync::Mutex::new(0),
+            emit,
+        }
+    }
+
+    /// `cells` more cells are done.
+    pub fn add(&self, cells: usize) {
+        let before = self.done.fetch_add(cells, Ordering::Relaxed);
+        let done = before + cells;
+        if done / self.every != before / self.every || done == self.total {
+            let mut last = self.last_sent.lock().unwrap_or_else(|e| e.into_inner());
+            if done > *last {
+                *last = done;
+                (self.emit)(SweepLine::Progress {
+                    done,
+                    total: self.total,
+                });
+            }
+        }
+    }
+}
+
+/// Runs the whole sweep here, on all cores, reporting progress through `emit`.
+pub fn run(
+    job: &SweepJob,
+    budget: Budget<'_>,
+    emit: &(dyn Fn(SweepLine) -> bool + Sync),
+) -> Result<SweepDocument, CoreError> {
+    let started = Instant::now();
+    let progress = Progress::new(job.cells(), emit);
+    let cells = job.run_cells_within(0..job.cells(), budget, &|| progress.add(1))?;
+    job.document_within(cells, budget, started.elapsed().as_secs_f64() * 1e3)
+}
+
+/// The error for a sweep its cancellation flag stopped (the time limit gives a partial
+/// document instead, see [`SweepJob::document_within`]).
+fn cancelled() -> CoreError {
+    CoreError::Cancelled {
+        what: "sweep",
+        shutdown: true,
+    }
+}

@@ -1,0 +1,555 @@
+//! A user-defined system compiled for one run: its functions are native code with the run's
+//! parameters folded in, and [`CustomSystem`] implements [`MechanicalSystem`] on them like a
+//! hand-written system, generic over the dimension so that one, two and three degrees of
+//! freedom run on stack vectors. A step allocates nothing: outputs go straight into the
+//! caller's vectors, and the few intermediate buffers are on the stack (or, past 8 numbers,
+//! in a buffer kept per thread).
+
+use std::cell::Cell;
+use std::sync::Arc;
+
+use nalgebra::allocator::Allocator;
+use nalgebra::{DMatrix, DefaultAllocator, Dim};
+
+use super::damping::{Flows, MassFactor};
+use crate::expr::CompiledFunction;
+use crate::system::{projector, MechanicalSystem, Structure, Vector};
+
+/// M⁻¹ of a constant mass matrix, in the cheapest form that represents it exactly.
+#[derive(Debug)]
+pub enum InverseMass {
+    /// M = m I: M⁻¹p = p / m.
+    Scalar(f64),
+    /// A diagonal M: M⁻¹p = p_i / m_i.
+    Diagonal(Vec<f64>),
+    /// A full M: M⁻¹, row-major.
+    Full(Vec<f64>),
+}
+
+impl InverseMass {
+    /// M⁻¹ of the symmetric positive definite `m` (row-major n×n, factor `factor`).
+    fn new(m: &[f64], factor: &MassFactor, n: usize) -> Self {
+        let off_diagonal_zero = (0..n * n).all(|k| k / n == k % n || m[k] == 0.0);
+        let diagonal: Vec<f64> = (0..n).map(|i| m[i * n + i]).collect();
+        if off_diagonal_zero && diagonal.iter().all(|&d| d == diagonal[0]) {
+            InverseMass::Scalar(diagonal[0])
+        } else if off_diagonal_zero {
+            InverseMass::Diagonal(diagonal)
+        } else {
+            InverseMass::Full(factor.inverse())
+        }
+    }
+
+    /// out = M⁻¹ v.
+    #[inline]
+    fn apply(&self, v: &[f64], out: &mut [f64]) {
+        match self {
+            InverseMass::Scalar(m) => {
+                for (o, x) in out.iter_mut().zip(v) {
+                    *o = x / m;
+                }
+            }
+            InverseMass::Diagonal(d) => {
+                for ((o, x), m) in out.iter_mut().zip(v).zip(d) {
+                    *o = x / m;
+                }
+            }
+            InverseMass::Full(inverse) => {
+                let n = v.len();
+                for (i, o) in out.iter_mut().enumerate() {
+                    *o = inverse[i * n..(i + 1) * n]
+                        .iter()
+                        .zip(v)
+                        .map(|(a, x)| a * x)
+                        .sum();
+                }
+            }
+        }
+    }
+
+    /// ½ vᵀ M⁻¹ v.
+    #[inline]
+    fn half_quadratic(&self, v: &[f64]) -> f64 {
+        match self {
+            InverseMass::Scalar(m) => 0.5 * v.iter().map(|x| x * x).sum::<f64>() / m,
+            InverseMass::Diagonal(d) => 0.5 * v.iter().zip(d).map(|(x, m)| x * x / m).sum::<f64>(),
+            InverseMass::Full(inverse) => {
+                let n = v.len();
+                let quadratic: f64 = (0..n)
+                    .map(|i| {
+                        let row: f64 = (0..n).map(|j| inverse[i * n + j] * v[j]).sum();
+                        v[i] * row
+                    })
+                    .sum();
+                0.5 * quadratic
+            }
+        }
+    }
+}
+
+/// The energy's compiled functions.
+#[derive(Debug)]
+pub enum EnergyModel {
+    /// H = ½ pᵀM⁻¹p + V(q): V, ∇V and ∇²V of q.
+    Separable {
+        /// V(q), one output.
+        potential: CompiledFunction,
+        /// ∇V(q), n outputs.
+        gradient: CompiledFunction,
+        /// ∇²V(q), n² outputs (symmetric, so row- and column-major alike).
+        hessian: CompiledFunction,
+        /// M⁻¹.
+        inverse_mass: InverseMass,
+    },
+    /// A general H(q, p): functions of (q, p).
+    General {
+        /// H, one output.
+        hamiltonian: CompiledFunction,
+        /// ∂H/∂q, n outputs.
+        dq: CompiledFunction,
+        /// ∂H/∂p, n outputs.
+        dp: CompiledFunction,
+        /// ∂²H/∂q², ∂²H/∂q∂p (entry (i, j) = ∂²H/∂q_i∂p_j) and ∂²H/∂p², each row-major.
+        second: CompiledFunction,
+    },
+}
+
+impl EnergyModel {
+    /// A separable energy with constant mass `m` (row-major n×n, factor `factor`).
+    pub fn separable(
+        potential: CompiledFunction,
+        gradient: CompiledFunction,
+        hessian: CompiledFunction,
+        m: &[f64],
+        factor: &MassFactor,
+        n: usize,
+    ) -> Self {
+        EnergyModel::Separable {
+            potential,
+            gradient,
+            hessian,
+            inverse_mass: InverseMass::new(m, factor, n),
+        }
+    }
+}
+
+/// The damping in the form the flows use.
+#[derive(Clone, Debug, PartialEq)]
+pub enum DampingModel {
+    /// Undamped.
+    None,
+    /// p' = … − r p (r = 2γ).
+    Conformal {
+        /// r.
+        rate: f64,
+    },
+    /// p' = … − r D(q) p with D(q) an orthogonal projector (M = mI, r = ε/m).
+    Projector {
+        /// r.
+        rate: f64,
+    },
+    /// p' = … − ε D(q) M⁻¹ p with a general D(q).
+    General {
+        /// ε.
+        epsilon: f64,
+        /// The Cholesky factor of M.
+        factor: MassFactor,
+    },
+}
+
+impl DampingModel {
+    /// The rate the methods see: r P(q) is the damping operator, with P(q) = D(q) M⁻¹ and r = ε
+    /// for a general D.
+    pub fn rate(&self) -> f64 {
+        match self {
+            DampingModel::None => 0.0,
+            DampingModel::Conformal { rate } | DampingModel::Projector { rate } => *rate,
+            DampingModel::General { epsilon, .. } => *epsilon,
+        }
+    }
+}
+
+/// A user-defined system's functions, compiled for one run's parameters.
+#[derive(Debug)]
+pub struct Compiled {
+    /// Degrees of freedom.
+    pub n: usize,
+    /// What the methods may rely on.
+    pub structure: Structure,
+    /// The energy.
+    pub energy: EnergyModel,
+    /// The damping.
+    pub damping: DampingModel,
+    /// D(q), n² outputs row-major, for Rayleigh damping.
+    pub damping_matrix: Option<CompiledFunction>,
+    /// The invariants, functions of (q, p).
+    pub invariants: Option<CompiledFunction>,
+}
+
+thread_local! {
+    /// A buffer for intermediate values too long for the stack buffer (kept per thread, taken
+    /// while used, so a nested use gets its own).
+    static SPARE: Cell<Vec<f64>> = const { Cell::new(Vec::new()) };
+}
+
+/// Runs `f` on a zeroed buffer of `len` numbers: on the stack for up to 8, else a per-thread
+/// buffer that is allocated once.
+#[inline]
+fn with_buffer<R>(len: usize, f: impl FnOnce(&mut [f64]) -> R) -> R {
+    if len <= 8 {
+        let mut buffer = [0.0; 8];
+        f(&mut buffer[..len])
+    } else {
+        let mut buffer = SPARE.with(Cell::take);
+        buffer.clear();
+        buffer.resize(len, 0.0);
+        let result = f(&mut buffer);
+        SPARE.with(|spare| spare.set(buffer));
+        result
+    }
+}
+
+/// Runs `f` on (q, p) laid out as the compiled functions of both read them.
+#[inline]
+fn with_phase<R>(q: &[f64], p: &[f64], f: impl FnOnce(&[f64]) -> R) -> R {
+    let n = q.len();
+    with_buffer(2 * n, |x| {
+        x[..n].copy_from_slice(q);
+        x[n..].copy_from_slice(p);
+        f(x)
+    })
+}
+
+/// `f` at the phase point (q, p); out of line, so that the separable paths that call it only
+/// for a general H stay small enough to inline.
+#[inline(never)]
+fn eval_on_phase(f: &CompiledFunction, q: &[f64], p: &[f64], out: &mut [f64]) {
+    with_phase(q, p, |x| f.eval(x, out))
+}
+
+/// A user-defined system of dimension `D` (`U1`–`U3` on the stack, `Dyn` beyond).
+pub struct CustomSystem<D: Dim> {
+    dim: D,
+    model: Arc<Compiled>,
+}
+
+impl<D: Dim> CustomSystem<D> {
+    /// The system of `model`, whose dimension is `dim`.
+    pub fn new(dim: D, model: Arc<Compiled>) -> Self {
+        debug_assert_eq!(dim.value(), model.n);
+        CustomSystem { dim, model }
+    }
+
+    /// The compiled model.
+    pub fn model(&self) -> &Compiled {
+        &self.model
+    }
+
+    /// out = D(q) v (no mass factor).
+    #[inline]
+    fn damping_times(&self, q: &[f64], v: &[f64], out: &mut [f64]) {
+        let n = q.len();
+        let Some(matrix) = &self.model.damping_matrix else {
+            out.fill(0.0);
+            return;
+        };
+        with_buffer(n * n, |d| {
+            matrix.eval(q, d);
+            for (i, o) in out.iter_mut().enumerate() {
+                *o = d[i * n..(i + 1) * n]
+                    .iter()
+                    .zip(v)
+                    .map(|(a, x)| a * x)
+                    .sum();
+            }
+        })
+    }
+
+    /// P(q) v for a damping that depends on q: D(q) v for a projector, D(q) M⁻¹ v in general (so
+    /// that r P = ε D M⁻¹ with r = ε). Out of line, so that the conformal case inlines to a copy.
+    #[inline(never)]
+    fn project_state_dependent(&self, q: &[f64], v: &[f64], out: &mut [f64]) {
+        match &self.model.damping {
+            DampingModel::General { factor, .. } => with_buffer(q.len(), |u| {
+                u.copy_from_slice(v);
+                factor.solve(u);
+                self.damping_times(q, u, out);
+            }),
+            _ => self.damping_times(q, v, out),
+        }
+    }
+
+    /// Applies a flow of the general damping: `f(flows, ε, D(q))`.
+    #[inline]
+    fn general_flow(&self, q: &[f64], f: impl FnOnce(&Flows, f64, &[f64])) -> bool {
+        let (DampingModel::General { epsilon, factor }, Some(matrix)) =
+            (&self.model.damping, &self.model.damping_matrix)
+        else {
+            return false;
+        };
+        let n = q.len();
+        with_buffer(n * n, |d| {
+            matrix.eval(q, d);
+            f(&Flows::new(factor), *epsilon, d);
+        });
+        true
+    }
+}
+
+impl<D: Dim> Clone for CustomSystem<D> {
+    fn clone(&self) -> Self {
+        CustomSystem {
+            dim: self.dim,
+            model: Arc::clone(&self.model),
+        }
+    }
+}
+
+impl<D: Dim> PartialEq for CustomSystem<D> {
+    /// The same compiled model.
+    fn eq(&self, other: &Self) -> bool {
+        Arc::ptr_eq(&self.model, &other.model)
+    }
+}
+
+impl<D: Dim> std::fmt::Debug for CustomSystem<D> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("CustomSystem")
+            .field("n", &self.model.n)
+            .field("structure", &self.model.structure)
+            .field("damping", &self.model.damping)
+            .finish_non_exhaustive()
+    }
+}
+
+impl<D: Dim> MechanicalSystem for CustomSystem<D>
+where
+    DefaultAllocator: Allocator<D>,
+{
+    type Dim = D;
+
+    fn dim(&self) -> D {
+        self.dim
+    }
+
+    fn structure(&self) -> Structure {
+        self.model.structure
+    }
+
+    fn kinetic(&self, q: &Vector<D>, p: &Vector<D>) -> f64 {
+        match &self.model.energy {
+            EnergyModel::Separable { inverse_mass, .. } => {
+                inverse_mass.half_quadratic(p.as_slice())
+            }
+            EnergyModel::General { .. } => self.energy(q, p) - self.potential(q),
+        }
+    }
+
+    fn potential(&self, q: &Vector<D>) -> f64 {
+        let mut v = [0.0];
+        match &self.model.energy {
+            EnergyModel::Separable { potential, .. } => potential.eval(q.as_slice(), &mut v),
+            // The energy at rest: H(q, 0).
+            EnergyModel::General { hamiltonian, .. } => with_buffer(2 * q.len(), |x| {
+                x[..q.len()].copy_from_slice(q.as_slice());
+                hamiltonian.eval(x, &mut v)
+            }),
+        }
+        v[0]
+    }
+
+    fn energy(&self, q: &Vector<D>, p: &Vector<D>) -> f64 {
+        match &self.model.energy {
+            EnergyModel::Separable { .. } => self.kinetic(q, p) + self.potential(q),
+            EnergyModel::General { hamiltonian, .. } => {
+                let mut v = [0.0];
+                with_phase(q.as_slice(), p.as_slice(), |x| hamiltonian.eval(x, &mut v));
+                v[0]
+            }
+        }
+    }
+
+    #[inline]
+    fn grad_potential(&self, q: &Vector<D>, out: &mut Vector<D>) {
+        match &self.model.energy {
+            EnergyModel::Separable { gradient, .. } => {
+                gradient.eval(q.as_slice(), out.as_mut_slice())
+            }
+            // Methods that use ∇V require a separable H; a general H answers ∂H/∂q at p = 0.
+            EnergyModel::General { dq, .. } => with_buffer(2 * q.len(), |x| {
+                x[..q.len()].copy_from_slice(q.as_slice());
+                dq.eval(x, out.as_mut_slice())
+            }),
+        }
+    }
+
+    #[inline]
+    fn velocity(&self, q: &Vector<D>, p: &Vector<D>, out: &mut Vector<D>) {
+        self.dh_dp(q, p, out)
+    }
+
+    #[inline]
+    fn dh_dp(&self, q: &Vector<D>, p: &Vector<D>, out: &mut Vector<D>) {
+        match &self.model.energy {
+            EnergyModel::Separable { inverse_mass, .. } => {
+                inverse_mass.apply(p.as_slice(), out.as_mut_slice())
+            }
+            EnergyModel::General { dp, .. } => {
+                eval_on_phase(dp, q.as_slice(), p.as_slice(), out.as_mut_slice())
+            }
+        }
+    }
+
+    #[inline]
+    fn dh_dq(&self, q: &Vector<D>, p: &Vector<D>, out: &mut Vector<D>) {
+        match &self.model.energy {
+            EnergyModel::Separable { gradient, .. } => {
+                gradient.eval(q.as_slice(), out.as_mut_slice())
+            }
+            EnergyModel::General { dq, .. } => {
+                eval_on_phase(dq, q.as_slice(), p.as_slice(), out.as_mut_slice())
+            }
+        }
+    }
+
+    #[inline]
+    fn damping_rate(&self) -> f64 {
+        self.model.damping.rate()
+    }
+
+    #[inline]
+    fn project_damped(&self, q: &Vector<D>, v: &Vector<D>, out: &mut Vector<D>) {
+        match &self.model.damping {
+            DampingModel::None | DampingModel::Conformal { .. } => out.copy_from(v),
+            _ => self.project_state_dependent(q.as_slice(), v.as_slice(), out.as_mut_slice()),
+        }
+    }
+
+    fn hess_potential(&self, q: &Vector<D>, out: &mut DMatrix<f64>) -> u64 {
+        match &self.model.energy {
+            EnergyModel::Separable { hessian, .. } => {
+                hessian.eval(q.as_slice(), out.as_mut_slice())
+            }
+            EnergyModel::General { second, .. } => {
+                let n = q.len();
+                with_buffer(3 * n * n + 2 * n, |buffer| {
+                    let (x, values) = buffer.split_at_mut(2 * n);
+                    x[..n].copy_from_slice(q.as_slice());
+                    second.eval(x, values);
+                    out.as_mut_slice().copy_from_slice(&values[..n * n]);
+                })
+            }
+        }
+        0
+    }
+
+    fn hessian_h(
+        &self,
+        q: &Vector<D>,
+        p: &Vector<D>,
+        hqq: &mut DMatrix<f64>,
+        hqp: &mut DMatrix<f64>,
+        hpp: &mut DMatrix<f64>,
+    ) -> bool {
+        let n = q.len();
+        match &self.model.energy {
+            EnergyModel::Separable {
+                hessian,
+                inverse_mass,
+                ..
+            } => {
+                hessian.eval(q.as_slice(), hqq.as_mut_slice());
+                hqp.fill(0.0);
+                hpp.fill(0.0);
+                for i in 0..n {
+                    match inverse_mass {
+                        InverseMass::Scalar(m) => hpp[(i, i)] = 1.0 / m,
+                        InverseMass::Diagonal(d) => hpp[(i, i)] = 1.0 / d[i],
+                        InverseMass::Full(inverse) => {
+                            for j in 0..n {
+                                hpp[(i, j)] = inverse[i * n + j];
+                            }
+                        }
+                    }
+                }
+            }
+            EnergyModel::General { second, .. } => {
+                with_buffer(3 * n * n + 2 * n, |buffer| {
+                    let (x, values) = buffer.split_at_mut(2 * n);
+                    x[..n].copy_from_slice(q.as_slice());
+                    x[n..].copy_from_slice(p.as_slice());
+                    second.eval(x, values);
+                    // ∂²H/∂q² and ∂²H/∂p² are symmetric; ∂²H/∂q∂p is stored row-major.
+                    hqq.as_mut_slice().copy_from_slice(&values[..n * n]);
+                    hpp.as_mut_slice()
+                        .copy_from_slice(&values[2 * n * n..3 * n * n]);
+                    for i in 0..n {
+                        for j in 0..n {
+                            hqp[(i, j)] = values[n * n + i * n + j];
+                        }
+                    }
+                })
+            }
+        }
+        true
+    }
+
+    fn invariant_count(&self) -> usize {
+        self.model
+            .invariants
+            .as_ref()
+            .map_or(0, CompiledFunction::output_count)
+    }
+
+    fn invariants(&self, _t: f64, q: &Vector<D>, p: &Vector<D>, out: &mut [f64]) {
+        if let Some(invariants) = &self.model.invariants {
+            with_phase(q.as_slice(), p.as_slice(), |x| invariants.eval(x, out));
+        }
+    }
+
+    #[inline]
+    fn damp_flow(&self, q: &Vector<D>, p: &mut Vector<D>, tau: f64, c: f64, w: &mut Vector<D>) {
+        let general = self.general_flow(q.as_slice(), |flows, epsilon, d| {
+            flows.decay(epsilon, d, p.as_mut_slice(), tau)
+        });
+        if !general {
+            projector::damp_flow(self, q, p, c, w);
+        }
+    }
+
+    #[inline]
+    fn kick_damp_flow(
+        &self,
+        q: &Vector<D>,
+        p: &mut Vector<D>,
+        g: &Vector<D>,
+        tau: f64,
+        (c, d): (f64, f64),
+        w: &mut Vector<D>,
+        pw: &mut Vector<D>,
+    ) {
+        let general = self.general_flow(q.as_slice(), |flows, epsilon, matrix| {
+            flows.kick_decay(epsilon, matrix, p.as_mut_slice(), g.as_slice(), tau)
+        });
+        if !general {
+            projector::kick_damp_flow(self, q, p, g, tau, (c, d), w, pw);
+        }
+    }
+
+    #[inline]
+    fn damped_solve(
+        &self,
+        q: &Vector<D>,
+        p: &mut Vector<D>,
+        theta: f64,
+        tau: f64,
+        w: &mut Vector<D>,
+    ) {
+        let general = self.general_flow(q.as_slice(), |flows, epsilon, d| {
+            flows.solve(epsilon, d, p.as_mut_slice(), theta * tau)
+        });
+        if !general {
+            projector::damped_solve(self, q, p, theta, tau, w);
+        }
+    }
+}

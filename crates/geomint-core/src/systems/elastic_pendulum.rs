@@ -1,0 +1,334 @@
+//! The elastic 3-D pendulum with damping along the spring (paper 000 Sec. 6.2, eq. 16): a mass m on
+//! a spring of stiffness k and rest length l, gravity (0, 0, −g),
+//! V = k/2 (l − |q|)² + m g q_z, M = m I, D(q) = q qᵀ/|q|².
+//!
+//! Only the radial momentum is damped, at the rate ε/m; D is singular (rank one). Both gravity
+//! and the spring are invariant under rotations about the z axis, and so is D, so
+//! J₃ = (q × p)_z is conserved for every ε.
+
+use nalgebra::{DMatrix, U3};
+
+use std::borrow::Cow;
+
+use super::{AnySystem, Builder, ChartInfo, ParamSpec, ParamValues, SystemInfo, World};
+use crate::system::{MechanicalSystem, Structure, Vector};
+
+/// The damped elastic 3-D pendulum.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ElasticPendulum3d {
+    /// Mass.
+    pub m: f64,
+    /// Spring stiffness.
+    pub k: f64,
+    /// Spring rest length.
+    pub l: f64,
+    /// Gravitational acceleration (acting along −z).
+    pub g: f64,
+    /// Damping strength ε of the radial dissipation.
+    pub epsilon: f64,
+}
+
+impl MechanicalSystem for ElasticPendulum3d {
+    type Dim = U3;
+    fn dim(&self) -> U3 {
+        U3
+    }
+    fn structure(&self) -> Structure {
+        Structure {
+            separable_constant_mass: true,
+            conformal_damping: false,
+        }
+    }
+    fn kinetic(&self, _q: &Vector<U3>, p: &Vector<U3>) -> f64 {
+        0.5 * p.norm_squared() / self.m
+    }
+    fn potential(&self, q: &Vector<U3>) -> f64 {
+        let stretch = self.l - q.norm();
+        0.5 * self.k * stretch * stretch + self.m * self.g * q[2]
+    }
+    #[inline]
+    fn grad_potential(&self, q: &Vector<U3>, out: &mut Vector<U3>) {
+        let r = q.norm();
+        let c = self.k * (1.0 - self.l / r);
+        out[0] = c * q[0];
+        out[1] = c * q[1];
+        out[2] = c * q[2] + self.m * self.g;
+    }
+    #[inline]
+    fn velocity(&self, _q: &Vector<U3>, p: &Vector<U3>, out: &mut Vector<U3>) {
+        let inv_m = 1.0 / self.m;
+        out[0] = p[0] * inv_m;
+        out[1] = p[1] * inv_m;
+        out[2] = p[2] * inv_m;
+    }
+    fn damping_rate(&self) -> f64 {
+        self.epsilon / self.m
+    }
+    #[inline]
+    fn project_damped(&self, q: &Vector<U3>, v: &Vector<U3>, out: &mut Vector<U3>) {
+        let c = q.dot(v) / q.norm_squared();
+        out[0] = c * q[0];
+        out[1] = c * q[1];
+        out[2] = c * q[2];
+    }
+    fn hess_potential(&self, q: &Vector<U3>, out: &mut DMatrix<f64>) -> u64 {
+        // ∇V = k(1 − l/r) q + m g e_z, so ∇²V = k(1 − l/r) I + k l q qᵀ / r³.
+        let r = q.norm();
+        let a = self.k * (1.0 - self.l / r);
+        let b = self.k * self.l / (r * r * r);
+        for i in 0..3 {
+            for j in 0..3 {
+                out[(i, j)] = b * q[i] * q[j] + if i == j { a } else { 0.0 };
+            }
+        }
+        0
+    }
+    fn invariant_count(&self) -> usize {
+        1
+    }
+    fn invariants(&self, _t: f64, q: &Vector<U3>, p: &Vector<U3>, out: &mut [f64]) {
+        out[0] = q[0] * p[1] - q[1] * p[0];
+    }
+}
+
+/// The same pendulum in cylindrical coordinates (ρ, φ, z), x = ρ cos φ, y = ρ sin φ:
+/// H = (p_ρ² + p_φ²/ρ² + p_z²)/(2m) + k/2 (s − l)² + m g z with s = √(ρ² + z²). φ is cyclic, so
+/// p_φ = J₃ is constant in every method's numbers, not only the exact flow's. The damping is the
+/// same Rayleigh function ε/2 ṡ² written in these coordinates: with u = (ρ, 0, z)/s the force on
+/// the momenta is −(ε/m) u (u·p), a projector onto u at the rate ε/m as in Cartesian coordinates.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ElasticPendulum3dCylindrical(pub ElasticPendulum3d);
+
+impl ElasticPendulum3dCylindrical {
+    /// s = √(ρ² + z²) and the unit vector u = (ρ, 0, z)/s along the spring.
+    #[inline]
+    fn spring(q: &Vector<U3>) -> (f64, f64, f64) {
+        let s = q[0].hypot(q[2]);
+        (s, q[0] / s, q[2] / s)
+    }
+}
+
+impl MechanicalSystem for ElasticPendulum3dCylindrical {
+    type Dim = U3;
+    fn dim(&self) -> U3 {
+        U3
+    }
+    fn structure(&self) -> Structure {
+        Structure {
+            separable_constant_mass: false,
+            conformal_damping: false,
+        }
+    }
+    fn kinetic(&self, q: &Vector<U3>, p: &Vector<U3>) -> f64 {
+        let rho = q[0];
+        0.5 * (p[0] * p[0] + p[1] * p[1] / (rho * rho) + p[2] * p[2]) / self.0.m
+    }
+    fn potential(&self, q: &Vector<U3>) -> f64 {
+        let (s, _, _) = Self::spring(q);
+        let stretch = s - self.0.l;
+        0.5 * self.0.k * stretch * stretch + self.0.m * self.0.g * q[2]
+    }
+    fn grad_potential(&self, q: &Vector<U3>, out: &mut Vector<U3>) {
+        let (s, ur, uz) = Self::spring(q);
+        let f = self.0.k * (s - self.0.l);
+        out[0] = f * ur;
+        out[1] = 0.0;
+        out[2] = f * uz + self.0.m * self.0.g;
+    }
+    fn velocity(&self, q: &Vector<U3>, p: &Vector<U3>, out: &mut Vector<U3>) {
+        self.dh_dp(q, p, out)
+    }
+    #[inline]
+    fn dh_dp(&self, q: &Vector<U3>, p: &Vector<U3>, out: &mut Vector<U3>) {
+        let inv_m = 1.0 / self.0.m;
+        out[0] = p[0] * inv_m;
+        out[1] = p[1] * inv_m / (q[0] * q[0]);
+        out[2] = p[2] * inv_m;
+    }
+    #[inline]
+    fn dh_dq(&self, q: &Vector<U3>, p: &Vector<U3>, out: &mut Vector<U3>) {
+        self.grad_potential(q, out);
+        out[0] -= p[1] * p[1] / (self.0.m * q[0] * q[0] * q[0]);
+    }
+    fn damping_rate(&self) -> f64 {
+        self.0.epsilon / self.0.m
+    }
+    #[inline]
+    fn project_damped(&self, q: &Vector<U3>, v: &Vector<U3>, out: &mut Vector<U3>) {
+        let (_, ur, uz) = Self::spring(q);
+        let c = ur * v[0] + uz * v[2];
+        out[0] = c * ur;
+        out[1] = 0.0;
+        out[2] = c * uz;
+    }
+    fn hessian_h(
+        &self,
+        q: &Vector<U3>,
+        p: &Vector<U3>,
+        hqq: &mut DMatrix<f64>,
+        hqp: &mut DMatrix<f64>,
+        hpp: &mut DMatrix<f64>,
+    ) -> bool {
+        let (m, k, l) = (self.0.m, self.0.k, self.0.l);
+        let (rho, p_phi) = (q[0], p[1]);
+        let (s, _, _) = Self::spring(q);
+        // The spring in the (ρ, z) plane: k(1 − l/s) I + k l w wᵀ/s³ with w = (ρ, z).
+        let a = k * (1.0 - l / s);
+        let b = k * l / (s * s * s);
+        hqq.fill(0.0);
+        hqq[(0, 0)] = a + b * rho * rho + 3.0 * p_phi * p_phi / (m * rho.powi(4));
+        hqq[(0, 2)] = b * rho * q[2];
+        hqq[(2, 0)] = b * rho * q[2];
+        hqq[(2, 2)] = a + b * q[2] * q[2];
+        hqp.fill(0.0);
+        hqp[(0, 1)] = -2.0 * p_phi / (m * rho * rho * rho);
+        hpp.fill(0.0);
+        hpp[(0, 0)] = 1.0 / m;
+        hpp[(1, 1)] = 1.0 / (m * rho * rho);
+        hpp[(2, 2)] = 1.0 / m;
+        true
+    }
+    #[inline]
+    fn solve_momentum_stage(
+        &self,
+        q: &Vector<U3>,
+        p: &Vector<U3>,
+        h: f64,
+        p1: &mut Vector<U3>,
+    ) -> bool {
+        // p_φ is unchanged (φ is cyclic and undamped); then (p_ρ, p_z) solve the linear system
+        // (I + c u uᵀ) x = b with c = h r and |u| = 1, whose inverse is I − c/(1 + c) u uᵀ.
+        let (m, k, l) = (self.0.m, self.0.k, self.0.l);
+        let (rho, p_phi) = (q[0], p[1]);
+        let (s, ur, uz) = Self::spring(q);
+        let f = k * (s - l);
+        let b_rho = p[0] - h * (f * ur - p_phi * p_phi / (m * rho * rho * rho));
+        let b_z = p[2] - h * (f * uz + m * self.0.g);
+        let c = h * self.damping_rate();
+        let along = c / (1.0 + c) * (ur * b_rho + uz * b_z);
+        p1[0] = b_rho - along * ur;
+        p1[1] = p_phi;
+        p1[2] = b_z - along * uz;
+        true
+    }
+    #[inline]
+    fn solve_position_stage(
+        &self,
+        q: &Vector<U3>,
+        p: &Vector<U3>,
+        h: f64,
+        q1: &mut Vector<U3>,
+    ) -> bool {
+        // ρ and z first (their velocities do not involve q), then φ with the new ρ.
+        let inv_m = 1.0 / self.0.m;
+        let rho1 = q[0] + h * p[0] * inv_m;
+        q1[0] = rho1;
+        q1[1] = q[1] + h * p[1] * inv_m / (rho1 * rho1);
+        q1[2] = q[2] + h * p[2] * inv_m;
+        true
+    }
+    fn invariant_count(&self) -> usize {
+        1
+    }
+    fn invariants(&self, _t: f64, _q: &Vector<U3>, p: &Vector<U3>, out: &mut [f64]) {
+        out[0] = p[1];
+    }
+    fn is_cartesian(&self) -> bool {
+        false
+    }
+    fn to_cartesian(&self, q: &Vector<U3>, p: &Vector<U3>, x: &mut [f64], px: &mut [f64]) {
+        let (rho, phi) = (q[0], q[1]);
+        let (sin, cos) = phi.sin_cos();
+        x[0] = rho * cos;
+        x[1] = rho * sin;
+        x[2] = q[2];
+        px[0] = p[0] * cos - p[1] / rho * sin;
+        px[1] = p[0] * sin + p[1] / rho * cos;
+        px[2] = p[2];
+    }
+    fn from_cartesian(
+        &self,
+        x: &[f64],
+        px: &[f64],
+        q: &mut Vector<U3>,
+        p: &mut Vector<U3>,
+    ) -> Result<(), String> {
+        let rho = x[0].hypot(x[1]);
+        if rho == 0.0 {
+            return Err("the cylindrical chart is singular on the axis ρ = 0".to_string());
+        }
+        let phi = x[1].atan2(x[0]);
+        let (sin, cos) = phi.sin_cos();
+        q[0] = rho;
+        q[1] = phi;
+        q[2] = x[2];
+        p[0] = px[0] * cos + px[1] * sin;
+        p[1] = x[0] * px[1] - x[1] * px[0];
+        p[2] = px[2];
+        Ok(())
+    }
+}
+
+const MASS: ParamSpec = ParamSpec::number("m", "Mass.", 1.0, 0.0, true, 1e6);
+const STIFFNESS: ParamSpec = ParamSpec::number("k", "Spring stiffness.", 1.0, 0.0, true, 1e6);
+const REST_LENGTH: ParamSpec = ParamSpec::number("l", "Spring rest length.", 1.0, 0.0, true, 1e6);
+const GRAVITY: ParamSpec = ParamSpec::number(
+    "g",
+    "Gravitational acceleration (along −z).",
+    1.0,
+    0.0,
+    false,
+    1e6,
+);
+const EPSILON: ParamSpec = ParamSpec::number(
+    "epsilon",
+    "Damping strength ε of the radial Rayleigh dissipation.",
+    0.1,
+    0.0,
+    false,
+    1e6,
+);
+const CARTESIAN: ChartInfo = ChartInfo::new(
+    "cartesian",
+    &["x", "y", "z"],
+    true,
+    "H = |p|²/(2m) + k/2 (|q| − l)² + m g z.",
+);
+const CYLINDRICAL: ChartInfo = ChartInfo::new(
+    "cylindrical",
+    &["ρ", "φ", "z"],
+    false,
+    "x = ρ cos φ, y = ρ sin φ: H = (p_ρ² + p_φ²/ρ² + p_z²)/(2m) + k/2 (√(ρ² + z²) − l)² + m g z, with J₃ = p_φ cyclic; the damping is the same spring-direction Rayleigh function.",
+);
+
+/// The catalogue entry of `elastic_pendulum_3d`.
+pub(super) fn entry() -> SystemInfo {
+    SystemInfo {
+        id: Cow::Borrowed("elastic_pendulum_3d"),
+        name: Cow::Borrowed("Elastic 3-D pendulum, damped along the spring"),
+        description: Cow::Borrowed("A mass on a spring in R³ under gravity (0, 0, −g), V = k/2 (l − |q|)² + m g q_z, Rayleigh damping along the spring only, D = q qᵀ/|q|² (paper 000 Sec. 6.2, eq. 16). J₃ = (q × p)_z is conserved for every ε."),
+        degrees_of_freedom: 3,
+        charts: vec![CARTESIAN, CYLINDRICAL],
+        params: vec![MASS, STIFFNESS, REST_LENGTH, GRAVITY, EPSILON],
+        q0: vec![0.0, 1.558_845_73, -0.6],
+        p0: vec![1.341_640_79, 0.0, 0.0],
+        invariants: vec![Cow::Borrowed("J3")],
+        exact_solution: false,
+        conformal_damping: false,
+        world: World::Spring,
+        build: Builder::Catalog(|p: &ParamValues, chart: &ChartInfo, _: f64| {
+            let pendulum = ElasticPendulum3d {
+                m: p.number(&MASS),
+                k: p.number(&STIFFNESS),
+                l: p.number(&REST_LENGTH),
+                g: p.number(&GRAVITY),
+                epsilon: p.number(&EPSILON),
+            };
+            if chart.id == CYLINDRICAL.id {
+                AnySystem::ElasticPendulum3dCylindrical(ElasticPendulum3dCylindrical(pendulum))
+            } else {
+                AnySystem::ElasticPendulum3d(pendulum)
+            }
+        }),
+    }
+}

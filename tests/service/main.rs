@@ -1,0 +1,38 @@
+//! The service's integration tests, in one binary: the HTTP routes against the real server on an
+//! ephemeral port, the command line and the NATS executor as real processes, recordings decoded
+//! by Rerun's own readers (Rust and Python), the pinned answers, the fuzz targets, and the core
+//! behaviours that requests reach through the wire layer (definitions, method options, sweeps).
+
+#[path = "../../crates/geomint-core/tests/core/common.rs"]
+#[allow(dead_code)]
+mod common;
+#[allow(dead_code)]
+mod decoded;
+#[allow(dead_code)]
+mod server;
+
+mod definitions;
+mod fuzz_definitions;
+mod fuzz_routes;
+mod http;
+mod http_charts;
+mod http_cli;
+mod http_convergence;
+mod http_faults;
+mod http_recordings;
+mod http_recordings_upload;
+mod http_reliability;
+mod http_stability;
+mod http_studies;
+mod http_sweep;
+mod http_systems;
+mod http_time_limit;
+mod method_inputs;
+mod nats;
+mod pinned;
+mod rowlands;
+mod rrd;
+#[cfg(unix)]
+mod rrd_live;
+mod rrd_python;
+mod sweeps;

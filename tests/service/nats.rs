@@ -1,0 +1,333 @@
+//! Sweeps on NATS JetStream workers, with real processes: a `nats-server` with JetStream in a
+//! temporary directory on a loopback port it picks, two `geomint worker`s and a `geomint serve
+//! --nats`. The merged document equals the local executor's bit for bit; with one worker killed
+//! (SIGKILL) mid-study its shard is handed out again and the document is still the same; a
+//! client that goes away leaves no shard in the queue; a NATS server stopped mid-study fails the
+//! study with `executor_unavailable` well within the time limit; `serve --nats` without a
+//! server exits non-zero saying so.
+//!
+//! `nats-server` is a Debian package that the test command installs.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use geomint::api::sweep::SweepRequest;
+use geomint::core::run::Budget;
+use geomint::core::simulation::Limits;
+use geomint::core::studies::sweep;
+use serde_json::{json, Value};
+
+use crate::server;
+use server::{client, spawn_listening, Process, SERVE_LISTENING, SERVE_LOG};
+
+fn nats_server_binary() -> PathBuf {
+    [
+        "/usr/sbin/nats-server",
+        "/usr/bin/nats-server",
+        "/usr/local/bin/nats-server",
+    ]
+    .iter()
+    .map(PathBuf::from)
+    .find(|p| p.exists())
+    .expect("nats-server is not installed: `apt-get install nats-server` (scripts/test does)")
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = server::scratch_dir(&format!("nats-{name}"));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// A NATS server with JetStream storing under `dir`, on a port it picks (`-p -1`).
+fn nats_server(dir: &Path) -> (Process, String) {
+    let mut command = Command::new(nats_server_binary());
+    command
+        .args(["-a", "127.0.0.1", "-p", "-1", "-js", "-sd"])
+        .arg(dir.join("jetstream"))
+        .stdout(Stdio::null());
+    let (process, address) = spawn_listening(
+        command,
+        "nats-server",
+        "Listening for client connections on ",
+    );
+    (process, format!("nats://{address}"))
+}
+
+fn geomint() -> Command {
+    let mut command = Command::new(env!("CARGO_BIN_EXE_geomint"));
+    command
+        .env_remove("GEOMINT_NATS_URL")
+        .env("GEOMINT_LOG", "warn");
+    command
+}
+
+fn worker(url: &str) -> Process {
+    Process(
+        geomint()
+            .args(["worker", "--nats", url, "--ack-wait-secs", "2"])
+            .stdout(Stdio::null())
+            .spawn()
+            .unwrap(),
+    )
+}
+
+/// `geomint serve --nats url` on a port of its own, with its data in `dir`.
+fn server(url: &str, dir: &Path, time_limit_secs: u32) -> (Process, String) {
+    let mut command = geomint();
+    command
+        .env("GEOMINT_LOG", SERVE_LOG)
+        .args(["serve", "--addr", "127.0.0.1:0", "--nats", url])
+        .args([
+            "--nats-ack-wait-secs",
+            "2",
+            "--nats-shard-steps",
+            "40000000",
+        ])
+        .args(["--request-timeout-secs", &time_limit_secs.to_string()])
+        .arg("--data-dir")
+        .arg(dir.join("data"))
+        .arg("--systems-dir")
+        .arg(dir.join("systems"))
+        .arg("--static-dir")
+        .arg(dir.join("no-static"))
+        .stdout(Stdio::null());
+    let (process, address) = spawn_listening(command, "geomint serve", SERVE_LISTENING);
+    (process, format!("http://{address}"))
+}
+
+/// The Fig. 6 sweep on a 12 × 10 grid: 120 cells of 2 × 5·10⁶ steps (several seconds on two
+/// cores, four cells at a time in SIMD lanes), in 30 shards of 4·10⁷ steps (four cells each).
+fn request() -> Value {
+    json!({
+        "system": "elastic_pendulum_2d",
+        "params": {"g": 0.02},
+        "charts": ["cartesian", "polar"],
+        "initial_coordinates": "cartesian",
+        "p0": [0.0, 0.0],
+        "methods": ["symplectic_euler"],
+        "h": 0.2,
+        "t_end": 1000000,
+        "axes": [
+            {"name": "q0[0]", "min": -1.5, "max": 1.5, "n": 12},
+            {"name": "q0[1]", "min": -1.5, "max": 1.5, "n": 10}
+        ]
+    })
+}
+
+/// The document of the local executor, without its wall time.
+fn local() -> Value {
+    let job = SweepRequest::from_value(&request())
+        .unwrap()
+        .to_spec()
+        .unwrap()
+        .prepare(&Limits::default())
+        .unwrap();
+    numbers(serde_json::to_value(sweep::run(&job, Budget::default(), &|_| true).unwrap()).unwrap())
+}
+
+fn numbers(mut doc: Value) -> Value {
+    doc.as_object_mut().unwrap().remove("wall_ms");
+    doc
+}
+
+async fn post_sweep(base: &str) -> (u16, Value) {
+    let response = client()
+        .post(format!("{base}/api/v1/studies/sweep"))
+        .json(&request())
+        .send()
+        .await
+        .unwrap();
+    let status = response.status().as_u16();
+    let bytes = response.bytes().await.unwrap();
+    (status, geomint::api::json::parse_json(&bytes).unwrap())
+}
+
+/// Shards waiting in the queue.
+async fn queued(url: &str) -> u64 {
+    let client = async_nats::connect(url).await.unwrap();
+    let js = async_nats::jetstream::new(client);
+    let mut stream = js.get_stream(geomint::nats::STREAM).await.unwrap();
+    stream.info().await.unwrap().state.messages
+}
+
+/// Waits until a study's shards are queued and the workers have finished at least one: the
+/// study is then under way on the workers, with most of its shards still to do, whatever the
+/// machine's speed.
+async fn until_a_shard_is_done(url: &str) {
+    let until = Instant::now() + Duration::from_secs(20);
+    let mut most = 0;
+    loop {
+        let waiting = queued(url).await;
+        if most > 0 && waiting < most {
+            return;
+        }
+        most = most.max(waiting);
+        assert!(Instant::now() < until, "no shard was done within 20 s");
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn sweeps_on_nats_workers_equal_the_local_executor() {
+    let dir = scratch("workers");
+    let (mut nats, url) = nats_server(&dir);
+    let expected = tokio::task::spawn_blocking(local).await.unwrap();
+    let mut first = worker(&url);
+    let _second = worker(&url);
+    let (_server, base) = server(&url, &dir, 60);
+
+    // Two workers, nothing goes wrong.
+    let started = Instant::now();
+    let (status, doc) = post_sweep(&base).await;
+    assert_eq!(status, 200, "{}", doc["error"]);
+    assert!(
+        numbers(doc) == expected,
+        "the workers' document differs from the local one"
+    );
+    eprintln!("two workers: {:.1} s", started.elapsed().as_secs_f64());
+
+    // One worker killed mid-study: its shard goes to the other after the ack wait (2 s).
+    let started = Instant::now();
+    let sweep = tokio::spawn({
+        let base = base.clone();
+        async move { post_sweep(&base).await }
+    });
+    until_a_shard_is_done(&url).await;
+    assert!(
+        !sweep.is_finished(),
+        "the sweep ended before a worker could be killed"
+    );
+    first.0.kill().unwrap();
+    first.0.wait().unwrap();
+    let (status, doc) = sweep.await.unwrap();
+    assert_eq!(status, 200, "{}", doc["error"]);
+    assert!(
+        numbers(doc) == expected,
+        "after a worker was killed, the document differs"
+    );
+    eprintln!(
+        "one worker killed: {:.1} s",
+        started.elapsed().as_secs_f64()
+    );
+
+    // A client that goes away: the shards no worker has started leave the queue.
+    let gone = tokio::spawn({
+        let base = base.clone();
+        async move { post_sweep(&base).await }
+    });
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    gone.abort();
+    let until = Instant::now() + Duration::from_secs(10);
+    loop {
+        let waiting = queued(&url).await;
+        if waiting == 0 {
+            break;
+        }
+        assert!(
+            Instant::now() < until,
+            "{waiting} shards still queued after the client left"
+        );
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+
+    // A server whose time limit (1 s) passes mid-study: 200 with the cells of the parts received
+    // (the local executor's, bit for bit), the others listed as unfinished, the queue emptied.
+    let (_hurried, hurried) = server(&url, &dir.join("hurried"), 1);
+    let (status, doc) = post_sweep(&hurried).await;
+    assert_eq!(status, 200, "{}", doc["error"]);
+    assert_eq!(doc["stop"], "time_limit");
+    let unfinished: Vec<u64> = doc["unfinished_cells"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c.as_u64().unwrap())
+        .collect();
+    assert!(!unfinished.is_empty());
+    let cells = expected["cells"].as_u64().unwrap() as usize;
+    for (run, want) in doc["runs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .zip(expected["runs"].as_array().unwrap())
+    {
+        for cell in 0..cells {
+            if unfinished.contains(&(cell as u64)) {
+                assert_eq!(run["energy_error_l2"][cell], Value::Null);
+                assert_eq!(run["steps"][cell], 0);
+            } else {
+                for column in [
+                    "energy_error_l2",
+                    "energy_error_max",
+                    "diverged_at",
+                    "steps",
+                ] {
+                    assert_eq!(run[column][cell], want[column][cell], "{column}[{cell}]");
+                }
+            }
+        }
+    }
+    eprintln!(
+        "1 s time limit: {} of {cells} cells finished",
+        cells - unfinished.len()
+    );
+    let until = Instant::now() + Duration::from_secs(10);
+    while queued(&url).await > 0 {
+        assert!(
+            Instant::now() < until,
+            "shards still queued after the time limit"
+        );
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+
+    // The NATS server stops mid-study: a clear error, long before the 60 s time limit.
+    let sweep = tokio::spawn({
+        let base = base.clone();
+        async move { post_sweep(&base).await }
+    });
+    until_a_shard_is_done(&url).await;
+    assert!(
+        !sweep.is_finished(),
+        "the sweep ended before the NATS server could be stopped"
+    );
+    let stopped = Instant::now();
+    nats.0.kill().unwrap();
+    nats.0.wait().unwrap();
+    let (status, error) = sweep.await.unwrap();
+    let waited = stopped.elapsed();
+    assert_eq!(status, 502, "{}", error["error"]);
+    assert_eq!(error["error"]["code"], "executor_unavailable");
+    let message = error["error"]["message"].as_str().unwrap();
+    assert!(message.contains("NATS server"), "{message}");
+    assert!(
+        waited < Duration::from_secs(20),
+        "the error took {waited:?}"
+    );
+}
+
+#[test]
+fn serve_without_a_nats_server_says_so_and_exits_non_zero() {
+    let (_held, port) = server::closed_port();
+    let out = geomint()
+        .args([
+            "serve",
+            "--addr",
+            "127.0.0.1:0",
+            "--nats",
+            &format!("nats://127.0.0.1:{port}"),
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("cannot connect (NATS server nats://127.0.0.1:"),
+        "{stderr}"
+    );
+    let out = geomint()
+        .args(["worker", "--nats", &format!("nats://127.0.0.1:{port}")])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+}
