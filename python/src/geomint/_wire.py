@@ -997,7 +997,7 @@ ROUTES: Dict[str, Route] = {
         "POST", "/api/v1/recordings", {JSON: RecordingCreated}, bytes, request_media=RRD, status=201
     ),
     "list_recordings": Route("GET", "/api/v1/recordings", {JSON: List[RecordingEntry]}),
-    "get_recording": Route("GET", "/api/v1/recordings/{id}", {JSON: RecordingEntry, RRD: bytes}),
+    "get_recording": Route("GET", "/api/v1/recordings/{id}", {RRD: bytes}),
     "recording_samples": Route("GET", "/api/v1/recordings/{id}/samples", {JSON: RecordedDocument}),
     "delete_recording": Route("DELETE", "/api/v1/recordings/{id}", status=204),
     "stability_map": Route(
