@@ -1,0 +1,69 @@
+"""geomint's Python client: geometric numerical integration of damped Hamiltonian systems, run by
+a geomint server, with the answers as numpy arrays (and xarray or pandas objects on request).
+
+>>> import geomint                                                   # doctest: +SKIP
+>>> client = geomint.Client("http://127.0.0.1:8080")                 # doctest: +SKIP
+>>> sim = client.simulate("pendulum", ["modin_3s", "heun"], h=0.1, t_end=200)  # doctest: +SKIP
+>>> sim["modin_3s"].energy                                           # doctest: +SKIP
+"""
+
+from ._version import __version__
+from .catalog import Chart, Definition, Facts, Method, Parameter, System
+from .client import DEFAULT_URL, Client
+from .errors import GeomintError, OverloadedError, RefusedError, ServerError, ValidationError
+from .recording import Recording, RecordingInfo
+from .simulation import DivergedAt, Run, Schedule, Simulation, Stats, Stop, SystemState
+from .studies import (
+    Axis,
+    Convergence,
+    ConvergenceSeries,
+    EnergyMap,
+    OrderFit,
+    Spectrum,
+    StabilityMap,
+    StabilityMaps,
+    StabilityPoint,
+    Sweep,
+    SweepRun,
+    WorkPrecision,
+    WorkPrecisionRun,
+)
+
+__all__ = [
+    "DEFAULT_URL",
+    "Axis",
+    "Chart",
+    "Client",
+    "Convergence",
+    "ConvergenceSeries",
+    "Definition",
+    "DivergedAt",
+    "EnergyMap",
+    "Facts",
+    "GeomintError",
+    "Method",
+    "OrderFit",
+    "OverloadedError",
+    "Parameter",
+    "Recording",
+    "RecordingInfo",
+    "RefusedError",
+    "Run",
+    "Schedule",
+    "ServerError",
+    "Simulation",
+    "Spectrum",
+    "StabilityMap",
+    "StabilityMaps",
+    "StabilityPoint",
+    "Stats",
+    "Stop",
+    "Sweep",
+    "SweepRun",
+    "SystemState",
+    "System",
+    "ValidationError",
+    "WorkPrecision",
+    "WorkPrecisionRun",
+    "__version__",
+]

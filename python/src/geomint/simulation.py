@@ -1,0 +1,387 @@
+"""A simulation's answer as numpy arrays: one :class:`Run` per method."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Dict, Iterator, List, Mapping, Optional, Tuple, Union
+
+import numpy as np
+
+from . import _arrays, _optional
+from ._lookup import pick
+from ._arrays import FloatArray
+from ._wire import (
+    Columns,
+    DivergedAt as DivergedAtDoc,
+    DriftPoint,
+    HeaderLine,
+    ParamValue,
+    RecordedDocument,
+    RecordedRun,
+    RunOutcome,
+    SamplesLine,
+    ScheduleSummary,
+    SimulateRequest,
+    SimulationDocument,
+    Stats as StatsDoc,
+    Stop as StopDoc,
+    SummaryLine,
+    SystemSummary,
+)
+from .errors import ServerError
+
+
+@dataclass(frozen=True)
+class Stop:
+    """Why a run stopped: ``finished``, ``diverged``, ``cancelled``, ``time_limit`` or ``failed``
+    (with the step, the time and a message where the server gives them)."""
+
+    reason: str
+    step: Optional[int] = None
+    t: Optional[float] = None
+    message: Optional[str] = None
+
+    @classmethod
+    def from_json(cls, doc: StopDoc) -> "Stop":
+        if doc["reason"] == "finished":
+            return cls("finished")
+        if doc["reason"] == "diverged":
+            return cls("diverged", doc["step"], doc["t"])
+        if doc["reason"] == "failed":
+            return cls("failed", doc["step"], doc["t"], doc["message"])
+        return cls(doc["reason"], doc["step"])
+
+
+@dataclass(frozen=True)
+class Stats:
+    """Steps, force evaluations and wall time of a run (a recording holds no wall time)."""
+
+    steps: int
+    force_evaluations: Optional[int]
+    wall_time_ms: Optional[float]
+
+    @classmethod
+    def from_json(cls, doc: StatsDoc) -> "Stats":
+        return cls(doc["steps"], doc["force_evaluations"], doc["wall_time_ms"])
+
+
+@dataclass(frozen=True)
+class DivergedAt:
+    """The first step whose state was not finite, and its time."""
+
+    step: int
+    t: float
+
+    @classmethod
+    def from_json(cls, doc: Optional[DivergedAtDoc]) -> Optional["DivergedAt"]:
+        return None if doc is None else cls(doc["step"], doc["t"])
+
+
+@dataclass(frozen=True, eq=False)
+class Schedule:
+    """The sampling: step size, steps, a sample every ``every`` steps, samples per method."""
+
+    h: float
+    steps: int
+    every: int
+    t_end: float
+    samples_per_method: int
+
+    @classmethod
+    def from_json(cls, doc: ScheduleSummary) -> "Schedule":
+        return cls(doc["h"], doc["steps"], doc["every"], doc["t_end"], doc["samples_per_method"])
+
+
+@dataclass(frozen=True, eq=False)
+class SystemState:
+    """The system a run used: its id, chart, every parameter resolved, and the initial state."""
+
+    id: str
+    chart: str
+    params: Mapping[str, ParamValue]
+    q0: FloatArray
+    p0: FloatArray
+
+    @classmethod
+    def from_json(cls, doc: SystemSummary) -> "SystemState":
+        return cls(doc["id"], doc["chart"], dict(doc["params"]), _arrays.floats(doc["q0"]),
+                   _arrays.floats(doc["p0"]))
+
+    @property
+    def dof(self) -> int:
+        """Degrees of freedom: the length of ``q0``."""
+        return int(self.q0.shape[0])
+
+
+def _optional_rows(values: Optional[List[List[float]]], width: int) -> Optional[FloatArray]:
+    return None if values is None else _arrays.rows(values, width)
+
+
+def _optional_floats(values: Optional[List[Optional[float]]]) -> Optional[FloatArray]:
+    return None if values is None else _arrays.floats(values)
+
+
+@dataclass(frozen=True, eq=False)
+class Run:
+    """One method's run: sample columns as numpy arrays (float64, the server's bits).
+
+    ``t``, ``energy`` and ``energy_error`` have one entry per sample; ``q`` and ``p`` are
+    (samples, degrees of freedom); ``invariants`` maps each invariant's name to its values.
+    ``energy_error`` is ``None`` unless measured (an exact solution, or ``compare_to_reference``);
+    ``cartesian_q``/``cartesian_p`` come with a non-Cartesian chart, ``bodies`` with a defined
+    system (per sample, every body's position one after the other), ``jacobian_defect`` when asked
+    for, ``dissipation_drift`` (``t``, ``d``) for 1-DOF conformally damped systems.
+    """
+
+    method: str
+    t: FloatArray
+    q: FloatArray
+    p: FloatArray
+    energy: FloatArray
+    invariants: Mapping[str, FloatArray]
+    stop: Optional[Stop]
+    stats: Optional[Stats]
+    energy_error: Optional[FloatArray] = None
+    cartesian_q: Optional[FloatArray] = None
+    cartesian_p: Optional[FloatArray] = None
+    bodies: Optional[FloatArray] = None
+    jacobian_defect: Optional[FloatArray] = None
+    dissipation_drift: Optional[Tuple[FloatArray, FloatArray]] = None
+    diverged_at: Optional[DivergedAt] = None
+
+    @property
+    def samples(self) -> int:
+        """The number of samples."""
+        return int(self.t.shape[0])
+
+    @classmethod
+    def _from_columns(
+        cls,
+        method: str,
+        columns: Columns,
+        dof: int,
+        stop: Optional[Stop],
+        stats: Optional[Stats],
+        drift: Optional[List[DriftPoint]],
+        diverged_at: Optional[DivergedAt],
+    ) -> "Run":
+        cartesian = columns.get("cartesian_q")
+        cartesian_width = len(cartesian[0]) if cartesian else 0
+        bodies = columns.get("bodies")
+        return cls(
+            method=method,
+            t=_arrays.floats(columns["t"]),
+            q=_arrays.rows(columns["q"], dof),
+            p=_arrays.rows(columns["p"], dof),
+            energy=_arrays.floats(columns["energy"]),
+            invariants={k: _arrays.floats(v) for k, v in columns["invariants"].items()},
+            stop=stop,
+            stats=stats,
+            energy_error=_optional_floats(columns.get("energy_error")),
+            cartesian_q=_optional_rows(columns.get("cartesian_q"), cartesian_width),
+            cartesian_p=_optional_rows(columns.get("cartesian_p"), cartesian_width),
+            bodies=None if bodies is None else _arrays.rows(bodies, len(bodies[0]) if bodies else 0),
+            jacobian_defect=_optional_floats(columns.get("jacobian_defect")),
+            dissipation_drift=None if not drift else (
+                _arrays.floats([d["t"] for d in drift]), _arrays.floats([d["d"] for d in drift])
+            ),
+            diverged_at=diverged_at,
+        )
+
+    @classmethod
+    def from_outcome(cls, method: str, columns: Columns, outcome: RunOutcome, dof: int) -> "Run":
+        """A run from its samples and how it ended (a JSON answer's run, or a stream's chunks
+        and summary)."""
+        return cls._from_columns(
+            method, columns, dof, Stop.from_json(outcome["stop"]), Stats.from_json(outcome["stats"]),
+            outcome.get("dissipation_drift"), DivergedAt.from_json(outcome.get("diverged_at")),
+        )
+
+    @classmethod
+    def from_recorded(cls, doc: RecordedRun, dof: int) -> "Run":
+        """A run read back from a stored recording (no stop reason, no wall time)."""
+        stats = Stats(doc["last_step"], doc.get("force_evaluations"), None)
+        return cls._from_columns(doc["method"], doc, dof, None, stats, doc.get("dissipation_drift"), None)
+
+    def columns(self) -> Dict[str, FloatArray]:
+        """Every per-sample column, flat: ``t``, ``q0``…, ``p0``…, ``energy``, ``energy_error``,
+        the invariants by name, ``cartesian_q0``…, ``cartesian_p0``…."""
+        out: Dict[str, FloatArray] = {"t": self.t}
+        for i in range(self.q.shape[1]):
+            out[f"q{i}"] = self.q[:, i]
+        for i in range(self.p.shape[1]):
+            out[f"p{i}"] = self.p[:, i]
+        out["energy"] = self.energy
+        if self.energy_error is not None:
+            out["energy_error"] = self.energy_error
+        out.update(self.invariants)
+        for name, values in (("cartesian_q", self.cartesian_q), ("cartesian_p", self.cartesian_p)):
+            if values is not None:
+                for i in range(values.shape[1]):
+                    out[f"{name}{i}"] = values[:, i]
+        return out
+
+    def to_pandas(self) -> Any:
+        """The samples as a pandas DataFrame, one row per sample (see :meth:`columns`)."""
+        pd = _optional.pandas()
+        return pd.DataFrame(self.columns())
+
+
+@dataclass(frozen=True, eq=False)
+class Simulation:
+    """The answer to a simulation: the system as run, the schedule and one :class:`Run` per
+    method in the order asked. Index it by position or by the method's label."""
+
+    system: SystemState
+    schedule: Schedule
+    invariants: Tuple[str, ...]
+    runs: Tuple[Run, ...]
+    request: Optional[SimulateRequest] = field(default=None, repr=False)
+
+    @classmethod
+    def from_json(cls, doc: SimulationDocument, request: Optional[SimulateRequest] = None) -> "Simulation":
+        """The simulation of a simulation's JSON answer."""
+        system = SystemState.from_json(doc["system"])
+        runs = tuple(Run.from_outcome(r["method"], r, r, system.dof) for r in doc["runs"])
+        return cls(system, Schedule.from_json(doc["schedule"]), tuple(doc["invariants"]), runs, request)
+
+    @classmethod
+    def from_recorded(cls, doc: RecordedDocument) -> "Simulation":
+        """The runs read back from a stored recording (``q``, ``p`` are single precision there)."""
+        system = SystemState.from_json(doc["system"])
+        runs = tuple(Run.from_recorded(r, system.dof) for r in doc["runs"])
+        return cls(system, Schedule.from_json(doc["schedule"]), tuple(doc["invariants"]), runs)
+
+    @property
+    def methods(self) -> List[str]:
+        """The runs' labels, in order."""
+        return [r.method for r in self.runs]
+
+    def __len__(self) -> int:
+        return len(self.runs)
+
+    def __iter__(self) -> Iterator[Run]:
+        return iter(self.runs)
+
+    def __getitem__(self, key: Union[int, str]) -> Run:
+        return pick(self.runs, key, lambda r: (r.method,), "run")
+
+    def to_pandas(self) -> Any:
+        """Every run's samples in one long DataFrame with a ``method`` column."""
+        pd = _optional.pandas()
+        frames = [r.to_pandas().assign(method=r.method) for r in self.runs]
+        frame = pd.concat(frames, ignore_index=True)
+        return frame[["method"] + [c for c in frame.columns if c != "method"]]
+
+    def to_xarray(self) -> Any:
+        """The runs as an xarray Dataset with dimensions ``run`` (the methods' labels), ``t`` and
+        ``dof`` (and ``invariant``): ``q``, ``p``, ``energy``, ``energy_error``, ``invariants``,
+        ``cartesian_q``, ``cartesian_p``; ``ds.sel(run="heun")`` picks a method. A run that
+        stopped early is NaN past its last sample.
+        Runs whose sample times differ (which one request does not produce) are laid along a
+        ``sample`` dimension with ``t`` as a variable instead."""
+        xr = _optional.xarray()
+        length = max((r.samples for r in self.runs), default=0)
+        longest = max(self.runs, key=lambda r: r.samples).t if self.runs else _arrays.floats([])
+        shared = all(np.array_equal(r.t, longest[: r.samples]) for r in self.runs)
+        time = "t" if shared else "sample"
+        dof = self.system.dof
+
+        def pad(values: FloatArray) -> FloatArray:
+            out = np.full((length,) + values.shape[1:], np.nan)
+            out[: values.shape[0]] = values
+            return out
+
+        def stack(pick: Any) -> Optional[FloatArray]:
+            arrays = [pick(r) for r in self.runs]
+            if all(a is None for a in arrays):
+                return None
+            template = next(a for a in arrays if a is not None)
+            return np.stack([pad(a if a is not None else np.full((0,) + template.shape[1:], np.nan))
+                             for a in arrays])
+
+        data: Dict[str, Any] = {
+            "q": (("run", time, "dof"), stack(lambda r: r.q)),
+            "p": (("run", time, "dof"), stack(lambda r: r.p)),
+            "energy": (("run", time), stack(lambda r: r.energy)),
+        }
+        energy_error = stack(lambda r: r.energy_error)
+        if energy_error is not None:
+            data["energy_error"] = (("run", time), energy_error)
+        if self.invariants:
+            values = np.stack(
+                [np.stack([pad(r.invariants[name]) for name in self.invariants], axis=-1) for r in self.runs]
+            )
+            data["invariants"] = (("run", time, "invariant"), values)
+        for name in ("cartesian_q", "cartesian_p"):
+            stacked = stack(lambda r, name=name: getattr(r, name))
+            if stacked is not None:
+                data[name] = (("run", time, "cartesian_dof"), stacked)
+        coords: Dict[str, Any] = {"run": self.methods, "dof": np.arange(dof)}
+        if shared:
+            coords["t"] = pad(longest)
+        else:
+            data["t"] = (("run", time), stack(lambda r: r.t))
+        if self.invariants:
+            coords["invariant"] = list(self.invariants)
+        attrs = {"system": self.system.id, "chart": self.system.chart, "h": self.schedule.h,
+                 "t_end": self.schedule.t_end, "every": self.schedule.every}
+        return xr.Dataset(data, coords=coords, attrs=attrs)
+
+
+class StreamAssembler:
+    """Builds a :class:`Simulation` from the lines of a simulation's NDJSON stream, in order."""
+
+    def __init__(self, request: Optional[SimulateRequest] = None) -> None:
+        self.request = request
+        self.header: Optional[HeaderLine] = None
+        self._columns: List[Dict[str, Any]] = []
+        self._summaries: Dict[int, SummaryLine] = {}
+
+    @property
+    def total_samples(self) -> int:
+        """Samples the header announces over all methods (0 before the header)."""
+        if self.header is None:
+            return 0
+        return self.header["schedule"]["samples_per_method"] * len(self.header["methods"])
+
+    def header_line(self, line: HeaderLine) -> None:
+        self.header = line
+        self._columns = [
+            {"t": [], "q": [], "p": [], "energy": [], "invariants": {k: [] for k in line["invariants"]}}
+            for _ in line["methods"]
+        ]
+
+    def samples_line(self, line: SamplesLine) -> int:
+        """Adds a chunk; returns its number of samples."""
+        columns = self._columns[line["method"]]
+        have = len(columns["t"])
+        if line["offset"] != have:
+            raise ServerError("stream_order", f"method {line['method']}: a chunk at sample "
+                              f"{line['offset']} after {have} samples")
+        for key in ("t", "q", "p", "energy", "energy_error", "cartesian_q", "cartesian_p",
+                    "bodies", "jacobian_defect"):
+            values = line.get(key)
+            if values is not None:
+                columns.setdefault(key, []).extend(values)
+        for name, values in line["invariants"].items():
+            columns["invariants"].setdefault(name, []).extend(values)
+        return len(line["t"])
+
+    def summary_line(self, line: SummaryLine) -> None:
+        self._summaries[line["method"]] = line
+
+    def simulation(self) -> Simulation:
+        """The simulation once the ``end`` line came."""
+        if self.header is None:
+            raise ServerError("stream_cut", "the stream had no header line")
+        system = SystemState.from_json(self.header["system"])
+        runs = []
+        for i, label in enumerate(self.header["methods"]):
+            summary = self._summaries.get(i)
+            if summary is None:
+                raise ServerError("stream_cut", f"the stream had no summary for {label}")
+            columns: Columns = self._columns[i]  # type: ignore[assignment]
+            runs.append(Run.from_outcome(summary["label"], columns, summary, system.dof))
+        return Simulation(system, Schedule.from_json(self.header["schedule"]),
+                          tuple(self.header["invariants"]), tuple(runs), self.request)

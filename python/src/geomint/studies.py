@@ -1,0 +1,653 @@
+"""The studies' answers as numpy arrays on their axes: sweeps, stability maps, energy-error maps,
+convergence and work–precision studies.
+
+Per-cell columns of a sweep and of an energy map come from the server in cell order, the first
+axis running fastest; here they are arrays indexed by the axes in their order
+(``run.energy_error_max[i, j]`` is the cell at ``axes[0].values[i]``, ``axes[1].values[j]``).
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from typing import Any, Dict, Iterator, List, Mapping, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+from . import _arrays, _optional
+from ._lookup import pick
+from ._arrays import BoolArray, FloatArray, IntArray, ObjectArray
+from ._wire import (
+    AxisSpec,
+    ConvergenceDocument,
+    ConvergenceRequest,
+    EnergyMapDocument,
+    EnergyMapRequest,
+    MapDocument,
+    PointDocument,
+    SpectrumDocument,
+    StabilityDocument,
+    StabilityRequest,
+    SweepDocument,
+    SweepRequest,
+    WorkPrecisionDocument,
+    WorkPrecisionRequest,
+)
+from .simulation import SystemState
+
+# --------------------------------------------------------------------------------------------
+# Sweeps
+
+
+def dimension_name(axis: str) -> str:
+    """The name of a sweep axis as a dimension: ``params.gamma`` → ``gamma``, ``q0[1]`` →
+    ``q0_1``, ``h`` → ``h``."""
+    if axis.startswith("params."):
+        return axis[len("params."):]
+    match = re.fullmatch(r"([qp]0)\[(\d+)\]", axis)
+    return f"{match.group(1)}_{match.group(2)}" if match else axis
+
+
+@dataclass(frozen=True, eq=False)
+class Axis:
+    """An axis of a sweep: ``name`` as in the request (``params.gamma``, ``h``, ``q0[0]``),
+    ``n`` points from ``min`` to ``max`` on a ``linear`` or ``log`` scale. In an answer,
+    ``values`` holds the points the server ran and ``dim`` the axis's dimension name."""
+
+    name: str
+    min: float
+    max: float
+    n: int
+    scale: str = "linear"
+    values: Optional[FloatArray] = field(default=None, compare=False)
+
+    @property
+    def dim(self) -> str:
+        """The dimension name (see :func:`dimension_name`)."""
+        return dimension_name(self.name)
+
+
+@dataclass(frozen=True, eq=False)
+class SweepRun:
+    """One method in one chart over a sweep's grid (arrays shaped like :attr:`Sweep.shape`)."""
+
+    method: str
+    chart: str
+    energy_error_final: FloatArray
+    energy_error_max: FloatArray
+    energy_error_l2: FloatArray
+    diverged_at: FloatArray
+    steps: IntArray
+    force_evaluations: IntArray
+    errors: ObjectArray
+    final_q: FloatArray
+    final_p: FloatArray
+    invariant_drift: Mapping[str, FloatArray]
+
+    @property
+    def label(self) -> str:
+        """``method [chart]``."""
+        return f"{self.method} [{self.chart}]"
+
+
+def _ragged(values: Sequence[Sequence[float]]) -> FloatArray:
+    """Rows of a common width, NaN where a row is empty (a run that could not start)."""
+    width = max((len(v) for v in values), default=0)
+    out = np.full((len(values), width), np.nan)
+    for i, v in enumerate(values):
+        if len(v):
+            out[i] = v
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class Sweep:
+    """A sweep's answer: its axes and one :class:`SweepRun` per method and chart.
+
+    ``unfinished_cells`` lists the cells (in the server's cell order) that a time limit left
+    unrun; their values are NaN.
+    """
+
+    system: str
+    axes: Tuple[Axis, ...]
+    runs: Tuple[SweepRun, ...]
+    invariants: Tuple[str, ...]
+    energy_reference: str
+    cells: int
+    steps: int
+    force_evaluations: int
+    digest: str
+    wall_ms: float
+    stop: str
+    unfinished_cells: IntArray
+    request: Optional[SweepRequest] = field(default=None, repr=False)
+
+    @property
+    def shape(self) -> Tuple[int, ...]:
+        """The grid's shape: one entry per axis, in the axes' order."""
+        return tuple(a.n for a in self.axes)
+
+    def __iter__(self) -> Iterator[SweepRun]:
+        return iter(self.runs)
+
+    def __getitem__(self, key: Union[int, str, Tuple[str, str]]) -> SweepRun:
+        """A run by position, by label, by method (the first chart), or by ``(method, chart)``."""
+        return pick(self.runs, key, lambda r: (r.label, r.method, (r.method, r.chart)), "run")
+
+    @classmethod
+    def from_json(cls, doc: SweepDocument, request: Optional[SweepRequest] = None) -> "Sweep":
+        axes = tuple(
+            Axis(a["name"], a["min"], a["max"], a["n"], a["scale"], _arrays.floats(a["values"]))
+            for a in doc["axes"]
+        )
+        shape = tuple(a.n for a in axes)
+
+        def on_grid(values: Sequence[Optional[float]]) -> FloatArray:
+            return _arrays.grid(values, shape)
+
+        def rows_on_grid(values: Sequence[Sequence[float]]) -> FloatArray:
+            flat = _ragged(values)
+            return np.reshape(flat, shape + (flat.shape[1],), order="F")
+
+        runs = tuple(
+            SweepRun(
+                method=r["method"],
+                chart=r["chart"],
+                energy_error_final=on_grid(r["energy_error_final"]),
+                energy_error_max=on_grid(r["energy_error_max"]),
+                energy_error_l2=on_grid(r["energy_error_l2"]),
+                diverged_at=on_grid(r["diverged_at"]),
+                steps=_arrays.grid_of(_arrays.ints(r["steps"]), shape),
+                force_evaluations=_arrays.grid_of(_arrays.ints(r["force_evaluations"]), shape),
+                errors=_arrays.grid_of(_arrays.objects(r["errors"]), shape),
+                final_q=rows_on_grid(r["final_q"]),
+                final_p=rows_on_grid(r["final_p"]),
+                invariant_drift={k: on_grid(v) for k, v in r["invariant_drift"].items()},
+            )
+            for r in doc["runs"]
+        )
+        return cls(
+            system=doc["system"],
+            axes=axes,
+            runs=runs,
+            invariants=tuple(doc["invariants"]),
+            energy_reference=doc["energy_reference"],
+            cells=doc["cells"],
+            steps=doc["steps"],
+            force_evaluations=doc["force_evaluations"],
+            digest=doc["digest"],
+            wall_ms=doc["wall_ms"],
+            stop=doc["stop"],
+            unfinished_cells=_arrays.ints(doc["unfinished_cells"]),
+            request=request,
+        )
+
+    def to_xarray(self) -> Any:
+        """The sweep as an xarray Dataset: dimensions ``run`` and one per axis, named as
+        :func:`dimension_name` says, with the axes' points as coordinates (the request's axis
+        name in each coordinate's ``axis`` attribute). ``run`` has the coordinates ``method``
+        and ``chart``. Variables: ``energy_error_final``, ``energy_error_max``,
+        ``energy_error_l2``, ``diverged_at``, ``steps``, ``force_evaluations``, ``errors``,
+        ``final_q`` and ``final_p`` (with a ``dof`` dimension) and ``invariant_drift`` (with an
+        ``invariant`` dimension) where the system has invariants. ``run`` is indexed by the
+        method's label, followed by `` [chart]`` when the sweep has several charts:
+        ``ds.sel(run="csv1")``."""
+        xr = _optional.xarray()
+        dims = tuple(a.dim for a in self.axes)
+        if len(set(dims)) != len(dims):
+            dims = tuple(a.name for a in self.axes)
+        cell = ("run",) + dims
+
+        def stacked(name: str) -> np.ndarray[Any, Any]:
+            return np.stack([getattr(r, name) for r in self.runs])
+
+        data: Dict[str, Any] = {
+            name: (cell, stacked(name))
+            for name in ("energy_error_final", "energy_error_max", "energy_error_l2", "diverged_at",
+                         "steps", "force_evaluations", "errors")
+        }
+        width = max((r.final_q.shape[-1] for r in self.runs), default=0)
+        if all(r.final_q.shape[-1] == width for r in self.runs):
+            data["final_q"] = (cell + ("dof",), stacked("final_q"))
+            data["final_p"] = (cell + ("dof",), stacked("final_p"))
+        if self.invariants:
+            drift = np.stack(
+                [np.stack([r.invariant_drift[name] for name in self.invariants], axis=-1) for r in self.runs]
+            )
+            data["invariant_drift"] = (cell + ("invariant",), drift)
+        several = len({r.chart for r in self.runs}) > 1
+        coords: Dict[str, Any] = {
+            "run": [r.label if several else r.method for r in self.runs],
+            "method": ("run", [r.method for r in self.runs]),
+            "chart": ("run", [r.chart for r in self.runs]),
+        }
+        for dim, axis in zip(dims, self.axes, strict=True):
+            coords[dim] = xr.Variable(dim, axis.values, attrs={"axis": axis.name, "scale": axis.scale})
+        if self.invariants:
+            coords["invariant"] = list(self.invariants)
+        attrs = {"system": self.system, "energy_reference": self.energy_reference, "digest": self.digest,
+                 "stop": self.stop, "steps": self.steps, "wall_ms": self.wall_ms}
+        return xr.Dataset(data, coords=coords, attrs=attrs)
+
+
+# --------------------------------------------------------------------------------------------
+# Stability maps
+
+
+def axis_points(axis: AxisSpec) -> FloatArray:
+    """The points of a stability map's axis, computed as the server computes them:
+    min + (max − min)·k/(n − 1), in that order of operations."""
+    lo, hi, n = axis["min"], axis["max"], axis["n"]
+    return _arrays.floats([lo + (hi - lo) * k / (n - 1) for k in range(n)])
+
+
+@dataclass(frozen=True, eq=False)
+class StabilityMap:
+    """One method's map: arrays of (h points) × (γ points). ``analytic`` and ``printed`` are the
+    corrected and the thesis's analytic verdicts (cimp, csv1 and csv2 only; else ``None``)."""
+
+    method: str
+    spectral_radius: FloatArray
+    stable: BoolArray
+    analytic: Optional[BoolArray]
+    printed: Optional[BoolArray]
+    disagreements: Optional[int]
+    printed_disagreements: Optional[int]
+
+    @classmethod
+    def from_json(cls, doc: MapDocument) -> "StabilityMap":
+        analytic, printed = doc.get("analytic"), doc.get("printed")
+        return cls(
+            method=doc["method"],
+            spectral_radius=_arrays.floats(doc["spectral_radius"]),
+            stable=_arrays.bools(doc["stable"]),
+            analytic=None if analytic is None else _arrays.bools(analytic),
+            printed=None if printed is None else _arrays.bools(printed),
+            disagreements=doc.get("disagreements"),
+            printed_disagreements=doc.get("printed_disagreements"),
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class StabilityMaps:
+    """Stability maps of the damped oscillator q'' + 2γq' + ω²q = 0 over (γ, h), one per method.
+
+    ``gamma`` and ``h`` are the grid's points (the document gives only min, max and n; they are
+    computed here as the server computes them)."""
+
+    omega: float
+    gamma: FloatArray
+    h: FloatArray
+    maps: Tuple[StabilityMap, ...]
+    stop: str
+    request: Optional[StabilityRequest] = field(default=None, repr=False)
+
+    @classmethod
+    def from_json(cls, doc: StabilityDocument, request: Optional[StabilityRequest] = None) -> "StabilityMaps":
+        return cls(doc["omega"], axis_points(doc["gamma"]), axis_points(doc["h"]),
+                   tuple(StabilityMap.from_json(m) for m in doc["maps"]), doc["stop"], request)
+
+    def __iter__(self) -> Iterator[StabilityMap]:
+        return iter(self.maps)
+
+    def __getitem__(self, key: Union[int, str]) -> StabilityMap:
+        return pick(self.maps, key, lambda m: (m.method,), "map")
+
+    def to_xarray(self) -> Any:
+        """A Dataset with dimensions ``run`` (the methods), ``h`` and ``gamma``:
+        ``spectral_radius`` (NaN where not finite or undefined), ``stable``, and
+        ``analytic``/``printed`` (False for a method without them; ``has_analytic`` along ``run``
+        says which have them). ``ds.sel(run="csv1")`` picks a method."""
+        xr = _optional.xarray()
+        shape = (len(self.h), len(self.gamma))
+
+        def verdicts(pick: str) -> BoolArray:
+            return np.stack([getattr(m, pick) if getattr(m, pick) is not None
+                             else np.zeros(shape, dtype=bool) for m in self.maps])
+
+        dims = ("run", "h", "gamma")
+        data = {
+            "spectral_radius": (dims, np.stack([m.spectral_radius for m in self.maps])),
+            "stable": (dims, np.stack([m.stable for m in self.maps])),
+            "analytic": (dims, verdicts("analytic")),
+            "printed": (dims, verdicts("printed")),
+        }
+        coords = {
+            "run": [m.method for m in self.maps],
+            "h": self.h,
+            "gamma": self.gamma,
+            "has_analytic": ("run", [m.analytic is not None for m in self.maps]),
+        }
+        return xr.Dataset(data, coords=coords, attrs={"omega": self.omega, "stop": self.stop})
+
+
+@dataclass(frozen=True, eq=False)
+class Spectrum:
+    """A 2×2 one-step matrix with its trace, determinant, eigenvalues and spectral radius
+    (NaN where not finite)."""
+
+    matrix: FloatArray
+    eigenvalues: Tuple[complex, ...]
+    trace: float
+    det: float
+    spectral_radius: float
+
+    @classmethod
+    def from_json(cls, doc: SpectrumDocument) -> "Spectrum":
+        def number(value: Optional[float]) -> float:
+            return float("nan") if value is None else value
+
+        return cls(
+            matrix=_arrays.floats(doc["matrix"]),
+            eigenvalues=tuple(complex(number(e.get("re")), number(e.get("im"))) for e in doc["eigenvalues"]),
+            trace=number(doc.get("trace")),
+            det=number(doc.get("det")),
+            spectral_radius=number(doc.get("spectral_radius")),
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class StabilityPoint:
+    """The linear stability analysis of one method at one (ω, γ, h)."""
+
+    method: str
+    omega: float
+    gamma: float
+    h: float
+    stable: bool
+    spectrum: Spectrum
+    exact: Spectrum
+    half_trace_error: Optional[float]
+    analytic: Optional[bool]
+    printed: Optional[bool]
+
+    @classmethod
+    def from_json(cls, doc: PointDocument) -> "StabilityPoint":
+        analysis, analytic = doc["analysis"], doc.get("analytic")
+        return cls(
+            method=doc["method"],
+            omega=doc["omega"],
+            gamma=doc["gamma"],
+            h=doc["h"],
+            stable=analysis["stable"],
+            spectrum=Spectrum.from_json(analysis["method"]),
+            exact=Spectrum.from_json(analysis["exact"]),
+            half_trace_error=analysis.get("half_trace_error"),
+            analytic=None if analytic is None else analytic["corrected"],
+            printed=None if analytic is None else analytic["printed"],
+        )
+
+
+# --------------------------------------------------------------------------------------------
+# Energy-error maps
+
+
+@dataclass(frozen=True, eq=False)
+class EnergyMap:
+    """The energy-error map of paper 001 Fig. 6: symplectic Euler (or its adjoint) on the planar
+    elastic pendulum released at rest from (x₀, y₀), in Cartesian and polar coordinates.
+
+    Per-cell arrays are indexed ``[i, j]`` for (x[i], y[j]): ``energy`` (H₀),
+    ``epsilon_cartesian`` and ``epsilon_polar`` (the ℓ² energy errors of eq. 50, NaN where the run
+    diverged), ``difference`` (cartesian − polar), ``cartesian_diverged_at``,
+    ``polar_diverged_at`` (NaN: never) and ``predicted_divergent`` (the region
+    r₀ ≥ 2l + 2mg/k·cos θ₀). ``boundary`` is that region's edge as (x, y) points.
+    """
+
+    method: str
+    params: Mapping[str, float]
+    h: float
+    t_max: float
+    steps_per_run: int
+    x: FloatArray
+    y: FloatArray
+    energy: FloatArray
+    epsilon_cartesian: FloatArray
+    epsilon_polar: FloatArray
+    difference: FloatArray
+    cartesian_diverged_at: FloatArray
+    polar_diverged_at: FloatArray
+    predicted_divergent: BoolArray
+    boundary: FloatArray
+    summary: Mapping[str, int]
+    steps: int
+    wall_ms: float
+    stop: str
+    unfinished_cells: IntArray
+    request: Optional[EnergyMapRequest] = field(default=None, repr=False)
+
+    @classmethod
+    def from_json(cls, doc: EnergyMapDocument, request: Optional[EnergyMapRequest] = None) -> "EnergyMap":
+        shape = (len(doc["xs"]), len(doc["ys"]))
+        summary = doc["summary"]
+        return cls(
+            method=doc["method"],
+            params={"m": doc["params"]["m"], "k": doc["params"]["k"], "l": doc["params"]["l"],
+                    "g": doc["params"]["g"]},
+            h=doc["h"],
+            t_max=doc["t_max"],
+            steps_per_run=doc["steps_per_run"],
+            x=_arrays.floats(doc["xs"]),
+            y=_arrays.floats(doc["ys"]),
+            energy=_arrays.grid(doc["energy"], shape),
+            epsilon_cartesian=_arrays.grid(doc["epsilon_cartesian"], shape),
+            epsilon_polar=_arrays.grid(doc["epsilon_polar"], shape),
+            difference=_arrays.grid(doc["difference"], shape),
+            cartesian_diverged_at=_arrays.grid(doc["cartesian_diverged_at"], shape),
+            polar_diverged_at=_arrays.grid(doc["polar_diverged_at"], shape),
+            predicted_divergent=_arrays.grid_of(_arrays.bools(doc["predicted_divergent"]), shape),
+            boundary=_arrays.rows(doc["boundary"], 2),
+            summary={
+                "cells": summary["cells"],
+                "cartesian_better": summary["cartesian_better"],
+                "polar_better": summary["polar_better"],
+                "cartesian_diverged": summary["cartesian_diverged"],
+                "polar_diverged": summary["polar_diverged"],
+                "predicted_divergent": summary["predicted_divergent"],
+                "diverged_outside_prediction": summary["diverged_outside_prediction"],
+            },
+            steps=doc["steps"],
+            wall_ms=doc["wall_ms"],
+            stop=doc["stop"],
+            unfinished_cells=_arrays.ints(doc["unfinished_cells"]),
+            request=request,
+        )
+
+    def to_xarray(self) -> Any:
+        """A Dataset with dimensions ``x`` and ``y`` (the initial position) holding the per-cell
+        arrays; the boundary along ``boundary_point``; the summary counts as attributes."""
+        xr = _optional.xarray()
+        names = ("energy", "epsilon_cartesian", "epsilon_polar", "difference", "cartesian_diverged_at",
+                 "polar_diverged_at", "predicted_divergent")
+        data: Dict[str, Any] = {name: (("x", "y"), getattr(self, name)) for name in names}
+        data["boundary_x"] = (("boundary_point",), self.boundary[:, 0])
+        data["boundary_y"] = (("boundary_point",), self.boundary[:, 1])
+        attrs: Dict[str, Any] = {"method": self.method, "h": self.h, "t_max": self.t_max,
+                                 "stop": self.stop, **{f"param_{k}": v for k, v in self.params.items()}}
+        attrs.update(self.summary)
+        return xr.Dataset(data, coords={"x": self.x, "y": self.y}, attrs=attrs)
+
+
+# --------------------------------------------------------------------------------------------
+# Convergence and work–precision
+
+
+@dataclass(frozen=True)
+class OrderFit:
+    """log₁₀ error ≈ intercept + order·log₁₀ h over ``points`` settings (``None``: too few)."""
+
+    order: Optional[float]
+    intercept: Optional[float]
+    points: int
+
+
+@dataclass(frozen=True, eq=False)
+class ConvergenceSeries:
+    """One method in one chart over the study's step sizes, with its fitted orders."""
+
+    method: str
+    chart: str
+    label: str
+    h: FloatArray
+    steps: IntArray
+    state_error: FloatArray
+    energy_error: FloatArray
+    max_energy_error: FloatArray
+    stop: Tuple[str, ...]
+    state: OrderFit
+    energy: OrderFit
+    max_energy: OrderFit
+
+
+@dataclass(frozen=True, eq=False)
+class Convergence:
+    """A convergence study: errors at t_end per method, chart and step size (NaN: not measured,
+    or the run did not finish), against ``reference`` (the exact solution or an adaptive run)."""
+
+    system: SystemState
+    charts: Tuple[str, ...]
+    t_end: float
+    samples: int
+    reference: str
+    reference_ms: float
+    series: Tuple[ConvergenceSeries, ...]
+    request: Optional[ConvergenceRequest] = field(default=None, repr=False)
+
+    @classmethod
+    def from_json(cls, doc: ConvergenceDocument, request: Optional[ConvergenceRequest] = None) -> "Convergence":
+        def fit(f: Any) -> OrderFit:
+            return OrderFit(f.get("order"), f.get("intercept"), f["points"])
+
+        series = []
+        for index, s in enumerate(doc["series"]):
+            points = [p for p in doc["points"] if p["series"] == index]
+            series.append(ConvergenceSeries(
+                method=s["method"],
+                chart=s["chart"],
+                label=s["label"],
+                h=_arrays.floats([p["h"] for p in points]),
+                steps=_arrays.ints([p["steps"] for p in points]),
+                state_error=_arrays.floats([p.get("state_error") for p in points]),
+                energy_error=_arrays.floats([p.get("energy_error") for p in points]),
+                max_energy_error=_arrays.floats([p.get("max_energy_error") for p in points]),
+                stop=tuple(p["stop"] for p in points),
+                state=fit(s["state"]),
+                energy=fit(s["energy"]),
+                max_energy=fit(s["max_energy"]),
+            ))
+        return cls(SystemState.from_json(doc["system"]), tuple(doc["charts"]), doc["t_end"], doc["samples"],
+                   doc["reference"], doc["reference_ms"], tuple(series), request)
+
+    def __iter__(self) -> Iterator[ConvergenceSeries]:
+        return iter(self.series)
+
+    def __getitem__(self, key: Union[int, str]) -> ConvergenceSeries:
+        """A series by position, or by label (``method [chart]``) or method."""
+        return pick(self.series, key, lambda s: (s.label, s.method), "series")
+
+    def to_pandas(self) -> Any:
+        """One row per setting: method, chart, h, steps, the three errors and the stop reason."""
+        pd = _optional.pandas()
+        rows: List[Dict[str, Any]] = []
+        for s in self.series:
+            for i in range(len(s.h)):
+                rows.append({"method": s.method, "chart": s.chart, "h": s.h[i], "steps": s.steps[i],
+                             "state_error": s.state_error[i], "energy_error": s.energy_error[i],
+                             "max_energy_error": s.max_energy_error[i], "stop": s.stop[i]})
+        return pd.DataFrame(rows)
+
+    def to_xarray(self) -> Any:
+        """A Dataset with dimensions ``series`` (coordinates ``method``, ``chart``) and ``h``:
+        the three errors and the steps, and the fitted orders along ``series``."""
+        xr = _optional.xarray()
+        h = self.series[0].h if self.series else _arrays.floats([])
+        same = all(np.array_equal(s.h, h) for s in self.series)
+        if not same:
+            raise ValueError("the series have different step sizes; use to_pandas()")
+        dims = ("series", "h")
+        data: Dict[str, Any] = {name: (dims, np.stack([getattr(s, name) for s in self.series]))
+                for name in ("state_error", "energy_error", "max_energy_error", "steps")}
+        for name in ("state", "energy", "max_energy"):
+            data[f"{name}_order"] = (("series",), _arrays.floats([getattr(s, name).order for s in self.series]))
+        coords = {"h": h, "method": ("series", [s.method for s in self.series]),
+                  "chart": ("series", [s.chart for s in self.series]),
+                  "label": ("series", [s.label for s in self.series])}
+        return xr.Dataset(data, coords=coords, attrs={"reference": self.reference, "t_end": self.t_end})
+
+
+@dataclass(frozen=True, eq=False)
+class WorkPrecisionRun:
+    """One method's settings in a work–precision study (``h`` or ``tolerance``, NaN for the
+    other) and its fitted cost line log₁₀(ms) ≈ intercept + slope·log₁₀(max energy error)."""
+
+    method: str
+    run: int
+    h: FloatArray
+    tolerance: FloatArray
+    wall_ms: FloatArray
+    steps: IntArray
+    force_evaluations: IntArray
+    max_energy_error: FloatArray
+    final_state_error: FloatArray
+    invariant_drift: Mapping[str, FloatArray]
+    stop: Tuple[str, ...]
+    slope: Optional[float]
+    intercept: Optional[float]
+
+
+@dataclass(frozen=True, eq=False)
+class WorkPrecision:
+    """A work–precision study: wall time against error for every setting of every method."""
+
+    system: SystemState
+    t_end: float
+    samples: int
+    reference: str
+    reference_ms: float
+    runs: Tuple[WorkPrecisionRun, ...]
+    request: Optional[WorkPrecisionRequest] = field(default=None, repr=False)
+
+    @classmethod
+    def from_json(cls, doc: WorkPrecisionDocument, request: Optional[WorkPrecisionRequest] = None) -> "WorkPrecision":
+        runs = []
+        for fit in doc["fits"]:
+            points = [p for p in doc["points"] if p["run"] == fit["run"]]
+            names = sorted({k for p in points for k in p["invariant_drift"]})
+            runs.append(WorkPrecisionRun(
+                method=fit["method"],
+                run=fit["run"],
+                h=_arrays.floats([p.get("h") for p in points]),
+                tolerance=_arrays.floats([p.get("tolerance") for p in points]),
+                wall_ms=_arrays.floats([p["wall_ms"] for p in points]),
+                steps=_arrays.ints([p["steps"] for p in points]),
+                force_evaluations=_arrays.ints([p["force_evaluations"] for p in points]),
+                max_energy_error=_arrays.floats([p.get("max_energy_error") for p in points]),
+                final_state_error=_arrays.floats([p.get("final_state_error") for p in points]),
+                invariant_drift={n: _arrays.floats([p["invariant_drift"].get(n) for p in points]) for n in names},
+                stop=tuple(p["stop"] for p in points),
+                slope=fit.get("slope"),
+                intercept=fit.get("intercept"),
+            ))
+        return cls(SystemState.from_json(doc["system"]), doc["t_end"], doc["samples"], doc["reference"],
+                   doc["reference_ms"], tuple(runs), request)
+
+    def __iter__(self) -> Iterator[WorkPrecisionRun]:
+        return iter(self.runs)
+
+    def __getitem__(self, key: Union[int, str]) -> WorkPrecisionRun:
+        return pick(self.runs, key, lambda r: (r.method,), "run")
+
+    def to_pandas(self) -> Any:
+        """One row per setting: method, h, tolerance, wall_ms, steps, force evaluations, the
+        errors, each invariant's drift and the stop reason."""
+        pd = _optional.pandas()
+        rows: List[Dict[str, Any]] = []
+        for r in self.runs:
+            for i in range(len(r.h)):
+                row = {"method": r.method, "run": r.run, "h": r.h[i], "tolerance": r.tolerance[i],
+                       "wall_ms": r.wall_ms[i], "steps": r.steps[i], "force_evaluations": r.force_evaluations[i],
+                       "max_energy_error": r.max_energy_error[i], "final_state_error": r.final_state_error[i],
+                       "stop": r.stop[i]}
+                row.update({f"drift_{n}": v[i] for n, v in r.invariant_drift.items()})
+                rows.append(row)
+        return pd.DataFrame(rows)
