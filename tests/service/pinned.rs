@@ -302,6 +302,50 @@ async fn studies_are_pinned() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn sweeps_are_pinned() {
+    let s = start(config()).await;
+    // Over a parameter and the step, against the exact solution (csv1's divergence map).
+    assert_json_snapshot!(
+        "sweep_gamma_h",
+        pin(
+            &s,
+            "/api/v1/studies/sweep",
+            json!({"system": "harmonic_oscillator", "methods": ["csv1", "rk4"], "t_end": 20,
+            "every": 10, "axes": [{"name": "params.gamma", "min": 0.0, "max": 2.0, "n": 4},
+            {"name": "h", "min": 0.1, "max": 3.0, "n": 3}]})
+        )
+        .await
+    );
+    // Over the initial state in two charts, against H₀: the energy map's kind, run in lanes,
+    // with the pivot outside the polar chart.
+    assert_json_snapshot!(
+        "sweep_energy_map_kind",
+        pin(
+            &s,
+            "/api/v1/studies/sweep",
+            json!({"system": "elastic_pendulum_2d", "params": {"g": 0.02},
+            "charts": ["cartesian", "polar"], "initial_coordinates": "cartesian", "p0": [0, 0],
+            "methods": ["symplectic_euler"], "h": 0.2, "t_end": 40, "energy_reference": "initial",
+            "axes": [{"name": "q0[0]", "min": -1.3, "max": 1.1, "n": 5},
+            {"name": "q0[1]", "min": 0.0, "max": 1.7, "n": 3}]})
+        )
+        .await
+    );
+    // Damped without an exact solution: against a reference run; a log axis.
+    assert_json_snapshot!(
+        "sweep_against_reference",
+        pin(
+            &s,
+            "/api/v1/studies/sweep",
+            json!({"system": "pendulum", "params": {"epsilon": 0.05},
+            "methods": ["modin_3s", "heun"], "h": 0.1, "t_end": 5, "every": 5,
+            "axes": [{"name": "params.epsilon", "min": 0.01, "max": 0.3, "n": 3, "scale": "log"}]})
+        )
+        .await
+    );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn catalogues_are_pinned() {
     let s = start(config()).await;
     assert_json_snapshot!("systems", get(&s, "/api/v1/systems").await);
