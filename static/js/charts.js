@@ -9,7 +9,7 @@
 // per series.
 
 import uPlot from '../vendor/uPlot.esm.js';
-import { el } from './form.js';
+import { el } from './common.js';
 
 /** One colour per method (Okabe–Ito, then Tol's muted set), readable on white. */
 export const COLOURS = [

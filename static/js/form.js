@@ -8,6 +8,7 @@
 // method checkboxes are a MethodPicker, which the Your-system section (system.js) uses too.
 
 import { simulateJson } from './api.js';
+import { el, numberText, parseNumber, parseList } from './common.js';
 
 /** Display groups of the method catalogue, in order. */
 const GROUPS = [
@@ -31,45 +32,9 @@ const REQUIREMENT_TEXT = {
   conservative: 'no damping (γ = 0, ε = 0)',
 };
 
-/** Creates an element with attributes and children. */
-export function el(tag, attrs = {}, ...children) {
-  const node = document.createElement(tag);
-  for (const [key, value] of Object.entries(attrs)) {
-    if (value === undefined || value === null || value === false) continue;
-    if (key === 'class') node.className = value;
-    else if (key === 'text') node.textContent = value;
-    else if (key.startsWith('on')) node.addEventListener(key.slice(2), value);
-    else node.setAttribute(key, value === true ? '' : String(value));
-  }
-  for (const child of children.flat()) {
-    if (child === null || child === undefined || child === false) continue;
-    node.append(child instanceof Node ? child : document.createTextNode(String(child)));
-  }
-  return node;
-}
-
 /** Text with `backtick` spans as <code> elements, for catalogue descriptions. */
 function richText(text) {
   return String(text).split('`').map((part, i) => (i % 2 ? el('code', { text: part }) : part));
-}
-
-/** A number as an input shows it (shortest round-trip form). */
-export function numberText(x) {
-  return Number.isFinite(x) ? String(x) : '';
-}
-
-/** Parses an input's text: a finite number, or null (the API then names the field). */
-export function parseNumber(text) {
-  const t = String(text).trim();
-  if (t === '') return null;
-  const x = Number(t);
-  return Number.isFinite(x) ? x : null;
-}
-
-/** Parses a comma- or space-separated list of numbers; bad entries become null. */
-export function parseList(text) {
-  const parts = String(text).split(/[\s,;]+/).filter((s) => s !== '');
-  return parts.map(parseNumber);
 }
 
 /** A chart's name in text: `Cartesian` for the Cartesian chart, else its id. */

@@ -6,7 +6,7 @@
 // undefined — with the analytic stability boundaries drawn along the cell edges where a
 // relation's verdict changes. The energy-error map (energymap.js) is a GridMap too.
 
-import { el } from './form.js';
+import { el, fmt } from './common.js';
 
 /** Margins of the plot area inside the canvas, in CSS pixels. */
 const MARGIN = { left: 48, right: 10, top: 8, bottom: 38 };
@@ -76,13 +76,6 @@ export function niceTicks(a, b, count = 5) {
     out.push(Math.abs(v) < step * 1e-9 ? 0 : +v.toPrecision(12));
   }
   return out;
-}
-
-/** A number for labels and the readout. */
-export function fmt(x, digits = 4) {
-  if (x == null || !Number.isFinite(x)) return '—';
-  if (x !== 0 && (Math.abs(x) < 1e-3 || Math.abs(x) >= 1e5)) return x.toExponential(digits - 1);
-  return String(+x.toPrecision(digits));
 }
 
 /** The k-th of `n` evenly spaced values from `min` to `max` (the API's axis definition). */

@@ -12,8 +12,7 @@
 import {
   listRecordings, getRecording, recordingSamples, deleteRecording, uploadRecording, ApiError,
 } from './api.js';
-import { el } from './form.js';
-import { sizeText } from './rerun.js';
+import { el, fmt, sizeText } from './common.js';
 import { EmbeddedViewer, notAnRrd } from './viewer.js';
 
 /** Recordings per page of the list. */
@@ -47,10 +46,6 @@ export function describe(entry) {
   const spec = entry.spec;
   if (!spec) return `an uploaded recording of ${entry.application_id || 'another application'}`;
   return `${spec.system}: ${spec.methods.join(', ')}`;
-}
-
-function number(x) {
-  return Number.isFinite(x) ? String(+x.toPrecision(6)) : '—';
 }
 
 /** When a recording was stored, in the reader's time zone. */
@@ -114,8 +109,8 @@ export class RecordingsPanel {
       confirm: $('rec-confirm'), confirmText: $('rec-confirm-text'),
     };
     this.viewer = new EmbeddedViewer({
-      section: $('rec-viewer-section'), box: $('rec-viewer'), fallback: $('rec-viewer-fallback'),
-      close: $('rec-viewer-close'),
+      section: $('rec-rerun'), box: $('rec-rerun-viewer'), fallback: $('rec-rerun-fallback'),
+      close: $('rec-rerun-close'),
     }, () => this.afterClose());
     /** Every stored recording, newest first, as last listed. */
     this.entries = [];
@@ -256,8 +251,8 @@ export class RecordingsPanel {
       el('th', { scope: 'row', 'data-label': 'System' }, spec ? spec.system : '—',
         entry.origin === 'upload' ? el('span', { class: 'tag', text: 'uploaded' }) : null),
       el('td', { 'data-label': 'Methods' }, spec ? spec.methods.join(', ') : entry.application_id || '—'),
-      el('td', { 'data-label': 'h' }, spec ? number(spec.h) : '—'),
-      el('td', { 'data-label': 't_end' }, spec ? number(spec.t_end) : '—'),
+      el('td', { 'data-label': 'h' }, spec ? fmt(spec.h, 6) : '—'),
+      el('td', { 'data-label': 't_end' }, spec ? fmt(spec.t_end, 6) : '—'),
       el('td', { 'data-label': 'Stored' }, el('time', { datetime: entry.created, text: when(entry.created) })),
       el('td', { 'data-label': 'Size' }, sizeText(entry.bytes)),
       el('td', { class: 'row-actions-cell', 'data-label': 'Actions' }, el('div', { class: 'row-actions' },

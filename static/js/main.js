@@ -2,7 +2,7 @@
 // simulations into the results beside the form (simulation.js: streamed NDJSON in the plots with
 // a progress bar, cancellable with the Cancel button or Esc, the finished run as JSON or a Rerun
 // recording); sets up the Your-system section (system.js), the stability section (stability.js),
-// the work–precision section (studies.js), the convergence section (convergence.js), the
+// the work–precision section (workprecision.js), the convergence section (convergence.js), the
 // energy-error map section (energymap.js) and the recordings library (library.js), whose
 // recordings it plots with the same charts. For tests it exposes `window.geomint` (the uPlot
 // instances and their point counts, and the sections) and the run's state as `data-run-state` on
@@ -10,14 +10,14 @@
 // they show (`run`, or `recording:<id>`).
 
 import { catalogues } from './api.js';
-import { SimForm, el, chartName } from './form.js';
+import { el, expandTemplates } from './common.js';
+import { SimForm, chartName } from './form.js';
 import { RunStore } from './results.js';
 import { PRESETS, presetRequest } from './presets.js';
-import { RerunPanel } from './rerun.js';
 import { SimulationView } from './simulation.js';
 import { SystemPanel } from './system.js';
 import { StabilityPanel } from './stability.js';
-import { WorkPrecisionPanel } from './studies.js';
+import { WorkPrecisionPanel } from './workprecision.js';
 import { ConvergencePanel } from './convergence.js';
 import { EnergyMapPanel } from './energymap.js';
 import { SweepPanel } from './sweep.js';
@@ -122,6 +122,7 @@ function start() {
 
 async function init() {
   document.querySelector('#boot')?.remove();
+  expandTemplates();
   buildPresets();
   for (const button of ui.presets.querySelectorAll('button')) button.disabled = true;
   let cats;
@@ -136,34 +137,11 @@ async function init() {
   // Stored definitions are the Your-system section's; the form offers the built-in systems.
   const builtIn = cats.systems.filter((s) => !s.definition);
   form = new SimForm(ui.form, { systems: builtIn, methods: cats.methods });
-  const rerun = new RerunPanel({
-    download: $('#download-rrd'),
-    view: $('#view-rerun'),
-    status: $('#rrd-status'),
-    error: $('#err-rrd'),
-    section: $('#rerun'),
-    box: $('#rerun-viewer'),
-    fallback: $('#rerun-fallback'),
-    close: $('#rerun-close'),
-  }, (error) => {
-    const input = form.showError(error);
-    if (input) input.focus({ preventScroll: false });
-    return Boolean(input);
-  });
-  view = new SimulationView({
-    results: ui.results,
-    plots: $('#plots'),
-    legend: $('#legend'),
-    stats: $('#stats-body'),
-    progress: $('#progress'),
-    status: $('#status'),
-    download: $('#download-json'),
-    cancel: $('#cancel'),
-  }, rerun, {
+  view = new SimulationView(ui.results, {
     chartOptions: plotOptions,
     showError: (error) => form.showError(error),
     setState,
-  });
+  }, $('#cancel'));
   const system = new SystemPanel($('#your-system'), cats);
   const stability = new StabilityPanel($('#stability'), cats.methods);
   const workPrecision = new WorkPrecisionPanel($('#work-precision'));

@@ -4,7 +4,7 @@
 // the stats table, and the downloadable JSON document (the same shape as the JSON answer of
 // POST /api/v1/simulate, plus the request).
 
-import { el } from './form.js';
+import { el, fmt, saveBlob } from './common.js';
 import { colour } from './charts.js';
 
 /** One method's samples and summary. */
@@ -150,11 +150,6 @@ const STOP_TEXT = {
   failed: 'failed',
 };
 
-function formatNumber(x, digits = 4) {
-  if (x == null || !Number.isFinite(x)) return '—';
-  return String(+x.toPrecision(digits));
-}
-
 /** Fills the stats table body with one row per method. */
 export function renderStats(tbody, store) {
   tbody.replaceChildren(...store.runs.map((run, i) => {
@@ -162,12 +157,12 @@ export function renderStats(tbody, store) {
     const stop = s ? (STOP_TEXT[s.stop.reason] || s.stop.reason)
       : store.outcome === 'cancelled' ? 'cancelled' : store.outcome === 'error' ? 'no summary' : 'running…';
     const stopTitle = s?.stop.message || null;
-    const diverged = s?.diverged_at ? `t = ${formatNumber(s.diverged_at.t)} (step ${s.diverged_at.step})` : '—';
+    const diverged = s?.diverged_at ? `t = ${fmt(s.diverged_at.t)} (step ${s.diverged_at.step})` : '—';
     return el('tr', {},
       el('th', { scope: 'row' }, el('span', { class: 'swatch', style: `background:${colour(i)}`, 'aria-hidden': 'true' }), ' ', run.label),
       el('td', { text: s ? String(s.stats.steps) : '…' }),
       el('td', { text: s ? String(s.stats.force_evaluations) : '…' }),
-      el('td', { text: s ? formatNumber(s.stats.wall_time_ms, 3) : '…' }),
+      el('td', { text: s ? fmt(s.stats.wall_time_ms, 3) : '…' }),
       el('td', { text: String(run.t.length) }),
       el('td', { text: diverged }),
       el('td', { text: stop, title: stopTitle }));
@@ -176,13 +171,7 @@ export function renderStats(tbody, store) {
 
 /** Offers the store's document as a file download. */
 export function downloadJson(store) {
-  const text = JSON.stringify(store.document());
-  const blob = new Blob([text], { type: 'application/json' });
-  const url = URL.createObjectURL(blob);
+  const blob = new Blob([JSON.stringify(store.document())], { type: 'application/json' });
   const stamp = new Date().toISOString().replace(/[:.]/g, '-').slice(0, 19);
-  const link = el('a', { href: url, download: `geomint-${store.header.system.id}-${stamp}.json` });
-  document.body.append(link);
-  link.click();
-  link.remove();
-  setTimeout(() => URL.revokeObjectURL(url), 10_000);
+  saveBlob(blob, `geomint-${store.header.system.id}-${stamp}.json`);
 }

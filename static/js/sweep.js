@@ -9,9 +9,9 @@
 // error), for tests.
 
 import { ApiError, sweepPresets, sweepRrd, sweepStream } from './api.js';
-import { el } from './form.js';
-import { GridMap, bindCursor, drawScaleBar, fmt } from './heatmap.js';
-import { saveBlob, sizeText } from './rerun.js';
+import { StudyStream, OUTCOME } from './study-stream.js';
+import { downloadRecording, el, fmt, plural, saveBlob } from './common.js';
+import { GridMap, bindCursor, drawScaleBar } from './heatmap.js';
 
 /** Where a cell has no value. */
 const EMPTY = [0, 0, 0];
@@ -96,17 +96,17 @@ export class SweepPanel {
     this.rrdError = root.querySelector('#err-sw-rrd');
     this.presets = [];
     this.last = null;
-    this.lastProgress = null;
     this.map = null;
     this.cursor = null;
-    this.controller = null;
+    this.runner = new StudyStream({
+      root, stateKey: 'sweepState', progress: this.progress, status: this.status, cancel: this.cancelButton,
+    });
 
     root.querySelector('#sw-form').addEventListener('submit', (event) => {
       event.preventDefault();
       this.run();
     });
     this.presetSelect.addEventListener('change', () => this.loadPreset(this.presetSelect.value));
-    this.cancelButton.addEventListener('click', () => this.controller?.abort());
     for (const select of [this.runSelect, this.metricSelect, this.compareSelect]) {
       select.addEventListener('change', () => this.redraw());
     }
@@ -128,75 +128,48 @@ export class SweepPanel {
     if (preset) this.spec.value = JSON.stringify(preset.request, null, 2);
   }
 
-  setState(state) {
-    this.root.dataset.sweepState = state;
-  }
-
+  /** Runs the request in the text box (a new run supersedes a running one). */
   async run() {
-    this.controller?.abort();
-    const controller = new AbortController();
-    this.controller = controller;
     this.error.textContent = '';
     this.spec.removeAttribute('aria-invalid');
     let body;
     try {
       body = JSON.parse(this.spec.value);
     } catch (e) {
+      this.runner.abort();
       this.error.textContent = `The request is not JSON: ${e.message}`;
       this.spec.setAttribute('aria-invalid', 'true');
-      this.setState('error');
+      this.runner.setState('error');
       return;
     }
-    let doc = null;
-    this.setState('running');
-    this.cancelButton.disabled = false;
-    this.progress.removeAttribute('value');
-    this.lastProgress = null;
-    this.status.textContent = 'Starting…';
-    try {
-      await sweepStream(body, (line) => {
-        if (controller !== this.controller) return;
-        if (line.type === 'progress') {
-          this.lastProgress = line;
-          this.progress.max = line.total;
-          this.progress.value = line.done;
-          this.status.textContent = `Running: ${line.done} of ${line.total} cells.`;
-        } else if (line.type === 'result') {
-          const { type, ...rest } = line;
-          doc = rest;
-        } else if (line.type === 'error') {
-          throw new ApiError(line.error);
-        }
-      }, controller.signal);
-    } catch (error) {
-      if (controller !== this.controller) return;
-      this.cancelButton.disabled = true;
-      if (!this.lastProgress) this.progress.value = 0;
-      if (error?.name === 'AbortError') {
-        this.status.textContent = 'Cancelled.';
-        this.setState('cancelled');
-        return;
-      }
+    const { outcome, result: doc, error } = await this.runner.stream(sweepStream, body);
+    if (outcome === OUTCOME.superseded) return;
+    if (outcome === OUTCOME.cancelled) {
+      this.status.textContent = 'Cancelled.';
+      return;
+    }
+    if (outcome === OUTCOME.error) {
       const where = error instanceof ApiError && error.field ? ` (at \`${error.field}\`)` : '';
       this.error.textContent = `${error?.message || error}${where}`;
       this.spec.setAttribute('aria-invalid', 'true');
       this.status.textContent = 'The server refused the sweep.';
-      this.setState('error');
       this.spec.focus();
       return;
     }
-    if (controller !== this.controller) return;
-    this.cancelButton.disabled = true;
     this.last = { body, doc };
-    this.progress.max = Math.max(1, doc.cells);
-    this.progress.value = doc.cells;
+    this.runner.showProgress(doc.cells, doc.cells);
     this.showViews(doc);
-    this.status.textContent = `Done: ${doc.cells} cells × ${doc.runs.length} runs of ${doc.system}, ` +
+    this.status.textContent = `Done: ${plural(doc.cells, 'cell')} × ${plural(doc.runs.length, 'run')} of ${doc.system}, ` +
       `${doc.steps.toLocaleString('en')} steps in ${fmt(doc.wall_ms / 1000, 3)} s.` +
       (doc.stop === 'time_limit'
         ? ` The server's time limit stopped ${doc.unfinished_cells.length} cells (left blank).`
         : '');
-    this.setState('done');
+    this.runner.setState('done');
+  }
+
+  /** The last progress line of the last run (for tests). */
+  get lastProgress() {
+    return this.runner.lastProgress;
   }
 
   /** Fills the run, metric and comparison choices for `doc` and draws the first view. */
@@ -296,18 +269,13 @@ export class SweepPanel {
     saveBlob(new Blob([text], { type: 'application/json' }), 'geomint-sweep.json');
   }
 
-  async downloadRrd() {
-    if (!this.last) return;
-    this.rrdError.textContent = '';
-    this.rrdButton.disabled = true;
-    try {
-      const blob = await sweepRrd(this.last.body);
-      saveBlob(blob, 'geomint-sweep.rrd');
-      this.status.textContent = `Saved geomint-sweep.rrd (${sizeText(blob.size)}).`;
-    } catch (error) {
-      this.rrdError.textContent = `The recording could not be made: ${error?.message || error}`;
-    } finally {
-      this.rrdButton.disabled = false;
-    }
+  /** Saves the sweep as geomint-sweep.rrd (the server runs and records it again). */
+  downloadRrd() {
+    if (!this.last) return null;
+    const { body } = this.last;
+    return downloadRecording({
+      button: this.rrdButton, status: this.status, error: this.rrdError,
+      name: 'geomint-sweep.rrd', fetchBlob: () => sweepRrd(body),
+    });
   }
 }

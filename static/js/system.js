@@ -15,8 +15,8 @@
 // was refused or the text could not be read), running, done, cancelled, error.
 
 import { storeSystem, ApiError } from './api.js';
-import { el, MethodPicker, numberText, parseNumber, parseList } from './form.js';
-import { RerunPanel } from './rerun.js';
+import { el, numberText, parseNumber, parseList } from './common.js';
+import { MethodPicker } from './form.js';
 import { SimulationView } from './simulation.js';
 import { EXAMPLES } from './examples.js';
 
@@ -192,24 +192,11 @@ export class SystemPanel {
     /** The definition of the run on show (its bodies are placed from it). */
     this.runDefinition = null;
 
-    const rerun = new RerunPanel({
-      download: $('sys-download-rrd'), view: $('sys-view-rerun'), status: $('sys-rrd-status'),
-      error: $('err-sys-rrd'), section: $('sys-rerun'), box: $('sys-rerun-viewer'),
-      fallback: $('sys-rerun-fallback'), close: $('sys-rerun-close'),
-    }, (error) => {
-      const input = this.showError(error);
-      input?.focus({ preventScroll: false });
-      return Boolean(input);
-    });
-    this.view = new SimulationView({
-      results: $('sys-results'), plots: $('sys-plots'), legend: $('sys-legend'),
-      stats: $('sys-stats-body'), progress: $('sys-progress'), status: $('sys-status'),
-      download: $('sys-download-json'), cancel: $('sys-cancel'),
-    }, rerun, {
+    this.view = new SimulationView($('sys-results'), {
       chartOptions: (header) => this.plotOptions(header),
       showError: (error) => this.showError(error),
       setState: (state) => this.setState(state),
-    });
+    }, $('sys-cancel'));
 
     this.ui.examples.replaceChildren(...EXAMPLES.map((x) => el('option', { value: `example:${x.id}`, text: x.label })));
     this.storedEntries = catalogues.systems.filter((s) => s.definition);

@@ -9,7 +9,7 @@
 // For tests the section carries `data-viewer-state` (closed, loading, ready, unavailable, failed)
 // and, once the viewer has read the recording's header, `data-recording-open="true"`.
 
-import { el } from './form.js';
+import { el } from './common.js';
 
 /** The viewer's ES module, relative to this file (copied there by scripts/vendor.mjs). */
 const VIEWER_MODULE = '../vendor/rerun/index.js';

@@ -66,8 +66,8 @@ function rowIds(p = page) {
 /** Waits for the library's viewer to settle; returns its state. */
 async function viewerSettled(p, timeout = 60_000) {
   await p.waitForFunction(() => ['ready', 'failed', 'unavailable']
-    .includes(document.querySelector('#rec-viewer-section').dataset.viewerState), null, { timeout });
-  return p.getAttribute('#rec-viewer-section', 'data-viewer-state');
+    .includes(document.querySelector('#rec-rerun').dataset.viewerState), null, { timeout });
+  return p.getAttribute('#rec-rerun', 'data-viewer-state');
 }
 
 /** Opens a new tab of the same browser, collecting its console errors. */
@@ -143,35 +143,35 @@ test('a recording opens in the embedded viewer, from the keyboard', async () => 
   await page.focus(`#rec-list tr[data-id="${id}"] button:text-is("View")`);
   await page.keyboard.press('Enter');
   const state = await viewerSettled(page);
-  assert.equal(await page.getAttribute('#rec-viewer-section', 'data-recording-id'), id);
+  assert.equal(await page.getAttribute('#rec-rerun', 'data-recording-id'), id);
   const url = `${base}/api/v1/recordings/${id}.rrd`;
-  assert.equal(await page.getAttribute('#rec-viewer-section', 'data-recording-url'), url);
+  assert.equal(await page.getAttribute('#rec-rerun', 'data-recording-url'), url);
   assert.equal(await page.getAttribute(`#rec-list tr[data-id="${id}"]`, 'aria-current'), 'true');
   if (state === 'ready') {
     // The viewer read the recording from the server's URL: its step timeline ends at the last
     // step of the run (200 steps of h = 0.1 to t = 20).
-    await page.waitForSelector('#rec-viewer-section[data-recording-open="true"]', { state: 'attached', timeout: 60_000 });
+    await page.waitForSelector('#rec-rerun[data-recording-open="true"]', { state: 'attached', timeout: 60_000 });
     await page.waitForFunction(() => window.geomint.library.viewer.stepRange()?.max === 200, null, { timeout: 60_000 });
     assert.deepEqual(await page.evaluate(() => window.geomint.library.viewer.stepRange()), { min: 0, max: 200 });
     assert.equal(requests.slice(fetched).filter((r) => r === `GET /api/v1/recordings/${id}.rrd`).length, 1);
     // Esc hands the focus back from the viewer's canvas to its Close button.
-    await page.focus('#rec-viewer canvas');
+    await page.focus('#rec-rerun-viewer canvas');
     await page.keyboard.press('Escape');
-    assert.equal(await page.evaluate(() => document.activeElement?.id), 'rec-viewer-close');
+    assert.equal(await page.evaluate(() => document.activeElement?.id), 'rec-rerun-close');
   } else {
     assert.equal(state, 'failed');
-    const fallback = await page.textContent('#rec-viewer-fallback');
+    const fallback = await page.textContent('#rec-rerun-fallback');
     assert.match(fallback, /pip install "rerun-sdk==0\.33\.\*"/);
-    assert.equal(await page.getAttribute('#rec-viewer-fallback a[download]', 'href'), url);
+    assert.equal(await page.getAttribute('#rec-rerun-fallback a[download]', 'href'), url);
   }
   const fresh = consoleErrors.slice(before);
   if (fresh.some((t) => HEADLESS_GPU_ERROR.test(t))) assert.equal(state, 'failed');
   assert.deepEqual(fresh.filter((t) => !HEADLESS_GPU_ERROR.test(t)), [], 'console errors with the viewer');
-  await page.locator('#rec-viewer-section').screenshot({ path: join(artifacts, 'recordings-viewer.png') });
-  await page.click('#rec-viewer-close');
-  assert.equal(await page.isHidden('#rec-viewer-section'), true);
-  assert.equal(await page.getAttribute('#rec-viewer-section', 'data-viewer-state'), 'closed');
-  assert.equal(await page.locator('#rec-viewer canvas').count(), 0);
+  await page.locator('#rec-rerun').screenshot({ path: join(artifacts, 'recordings-viewer.png') });
+  await page.click('#rec-rerun-close');
+  assert.equal(await page.isHidden('#rec-rerun'), true);
+  assert.equal(await page.getAttribute('#rec-rerun', 'data-viewer-state'), 'closed');
+  assert.equal(await page.locator('#rec-rerun-viewer canvas').count(), 0);
   // The focus returns to the View button it came from.
   assert.equal(await page.evaluate(() => document.activeElement?.textContent), 'View');
 });
@@ -237,7 +237,7 @@ test('a copied link opens the page on the recording; a deleted or unknown one sa
   const errors = [];
   const other = await newTab(link, errors);
   try {
-    await other.waitForSelector(`#rec-viewer-section[data-recording-id="${id}"]`, { state: 'attached', timeout: 60_000 });
+    await other.waitForSelector(`#rec-rerun[data-recording-id="${id}"]`, { state: 'attached', timeout: 60_000 });
     const state = await viewerSettled(other);
     if (state === 'ready') {
       await other.waitForFunction(() => window.geomint.library.viewer.stepRange()?.max === 200, null, { timeout: 60_000 });
@@ -251,7 +251,7 @@ test('a copied link opens the page on the recording; a deleted or unknown one sa
     await other.reload();
     await other.waitForSelector('#rec-error:not([hidden])', { timeout: 15_000 });
     assert.match(await other.textContent('#rec-error'), new RegExp(`^There is no recording ${missing} on this server: it was deleted`));
-    assert.equal(await other.getAttribute('#rec-viewer-section', 'data-viewer-state'), 'closed');
+    assert.equal(await other.getAttribute('#rec-rerun', 'data-viewer-state'), 'closed');
     await other.evaluate(() => { window.location.hash = '#recording=../etc'; });
     await other.waitForFunction(() => document.querySelector('#rec-error').textContent.includes('../etc'));
     assert.match(await other.textContent('#rec-error'), /names “\.\.\/etc”, which is not a recording id/);
@@ -297,7 +297,7 @@ test('a local .rrd opens in the viewer without an upload, by picker and by drop,
   const sent = requests.length;
   await page.setInputFiles('#rec-file', file);
   const state = await viewerSettled(page);
-  assert.equal(await page.getAttribute('#rec-viewer-section', 'data-source'), 'file:local-run.rrd');
+  assert.equal(await page.getAttribute('#rec-rerun', 'data-source'), 'file:local-run.rrd');
   if (state === 'ready') {
     // The viewer read the file's bytes: 200 steps of h = 0.05 to t = 10.
     await page.waitForFunction(() => window.geomint.library.viewer.stepRange()?.max === 200, null, { timeout: 60_000 });
@@ -315,7 +315,7 @@ test('a local .rrd opens in the viewer without an upload, by picker and by drop,
     box.dispatchEvent(new DragEvent('dragover', { dataTransfer: transfer, bubbles: true, cancelable: true }));
     box.dispatchEvent(new DragEvent('drop', { dataTransfer: transfer, bubbles: true, cancelable: true }));
   }, `${base}/api/v1/recordings/${made.pendulum}.rrd`);
-  await page.waitForSelector('#rec-viewer-section[data-source="file:dropped.rrd"]');
+  await page.waitForSelector('#rec-rerun[data-source="file:dropped.rrd"]');
   if ((await viewerSettled(page)) === 'ready') {
     await page.waitForFunction(() => window.geomint.library.viewer.stepRange()?.max === 200, null, { timeout: 60_000 });
   }
@@ -336,7 +336,7 @@ test('a local .rrd opens in the viewer without an upload, by picker and by drop,
   const fresh = consoleErrors.slice(before);
   assert.deepEqual(fresh.filter((t) => !HEADLESS_GPU_ERROR.test(t)), [], 'console errors with local files');
   await page.locator('#rec-drop').screenshot({ path: join(artifacts, 'recordings-upload.png') });
-  await page.click('#rec-viewer-close');
+  await page.click('#rec-rerun-close');
 });
 
 test('a file that is not a recording is refused with a clear error, here and by the server', async () => {
@@ -347,7 +347,7 @@ test('a file that is not a recording is refused with a clear error, here and by 
   assert.equal(await page.textContent('#rec-file-error'),
     'notes.txt is not a Rerun recording (.rrd): it starts with “hell”, not the RRD header “RRF2”.');
   assert.equal(await page.isDisabled('#rec-upload'), true);
-  assert.equal(await page.getAttribute('#rec-viewer-section', 'data-viewer-state'), 'closed');
+  assert.equal(await page.getAttribute('#rec-rerun', 'data-viewer-state'), 'closed');
 
   // A recording cut in half starts like one; the server's check finds the missing end.
   const { body: bytes } = await api(`/api/v1/recordings/${made.oscillator}.rrd`);
