@@ -11,6 +11,7 @@
 
 import { catalogues } from './api.js';
 import { el, expandTemplates } from './common.js';
+import { Sections } from './sections.js';
 import { SimForm, chartName } from './form.js';
 import { RunStore } from './results.js';
 import { PRESETS, presetRequest } from './presets.js';
@@ -36,6 +37,8 @@ const ui = {
 /** The simulation form and the results beside it; set up once the catalogues are in. */
 let form = null;
 let view = null;
+/** Which section of the page is on show. */
+let sections = null;
 
 function setState(state) {
   document.body.dataset.runState = state;
@@ -123,6 +126,7 @@ function start() {
 async function init() {
   document.querySelector('#boot')?.remove();
   expandTemplates();
+  sections = new Sections($('nav.sections'), 'simulation');
   buildPresets();
   for (const button of ui.presets.querySelectorAll('button')) button.disabled = true;
   let cats;
@@ -161,6 +165,7 @@ async function init() {
     system.cancel();
   });
   window.geomint = {
+    sections,
     charts: view.charts.plots,
     pointCounts: () => view.charts.pointCounts(),
     runPreset,

@@ -28,9 +28,6 @@ const DAMPING_TEXT = {
   rayleigh: 'Rayleigh with a general D(q)',
 };
 
-/** Methods chosen after a check when none are: the first of these that applies, and rk4. */
-const PREFERRED = ['modin_3s', 'csv2', 'velocity_verlet', 'implicit_midpoint'];
-
 /** The fields of a definition (the paths of errors about it start with one of these). */
 const DEFINITION_FIELDS = new Set(['name', 'coordinates', 'momenta', 'mass', 'potential', 'hamiltonian',
   'damping', 'parameters', 'invariants', 'positions', 'q0', 'p0']);
@@ -509,10 +506,7 @@ export class SystemPanel {
       this.picker.fill(this.pendingMethods);
       this.pendingMethods = null;
     }
-    if (!this.picker.order.length) {
-      const geometric = PREFERRED.find((id) => facts.methods.includes(id));
-      this.picker.fill([geometric, 'rk4'].filter((id) => id && facts.methods.includes(id)));
-    }
+    this.picker.chooseDefaults();
     this.ui.methodsHelp.textContent = facts.methods.length
       ? `The ${facts.methods.length} methods that apply to this system; each is drawn in its own colour.`
       : 'No method applies to this system.';
@@ -657,6 +651,7 @@ export class SystemPanel {
     const slot = target?.error ?? (DEFINITION_FIELDS.has(top) ? this.ui.definitionError : this.ui.formError);
     slot.textContent = error.message;
     slot.closest('.field, .method, fieldset')?.classList.add('has-error');
+    this.picker.reveal(slot);
     const input = target?.input ?? null;
     if (input) input.setAttribute('aria-invalid', 'true');
     const source = target?.source;

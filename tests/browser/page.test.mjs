@@ -15,7 +15,7 @@ import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
 import { readFile, rm } from 'node:fs/promises';
 import { join } from 'node:path';
-import { artifacts, base, HEADLESS_GPU_ERROR, launch, waitForServer } from './harness.mjs';
+import { artifacts, base, HEADLESS_GPU_ERROR, launch, openSection, waitForServer } from './harness.mjs';
 import { presetRequest } from '../../static/js/presets.js';
 
 /** The preset the test runs: paper 000's pendulum, modin_3s against heun at h = 0.2. */
@@ -310,6 +310,7 @@ test('Cancel stops a long run, on the page and on the server', async () => {
 test('the stability section maps the methods and reads a cell under the pointer', async () => {
   const before = consoleErrors.length;
   const failedBefore = failedRequests.length;
+  await openSection(page, 'stability');
   await page.locator('#stab-run').scrollIntoViewIfNeeded();
   await page.focus('#stab-run');
   await page.keyboard.press('Enter');
@@ -422,6 +423,7 @@ test('a work–precision study streams into a log–log diagram with a readout, 
       { method: 'reference', tolerance: [1e-8, 1e-10] },
     ],
   };
+  await openSection(page, 'work-precision');
   await page.locator('#wp-run').scrollIntoViewIfNeeded();
   // The preset is there; a shorter study replaces it.
   assert.equal(JSON.parse(await page.inputValue('#wp-spec')).system, 'elastic_pendulum_3d');
@@ -472,6 +474,7 @@ test('a work–precision study streams into a log–log diagram with a readout, 
 test('a convergence study streams into a log–log plot of error against h with the fitted orders', async () => {
   const before = consoleErrors.length;
   const failedBefore = failedRequests.length;
+  await openSection(page, 'convergence');
   await page.locator('#cv-run').scrollIntoViewIfNeeded();
   // The paper 001 Fig. 9 preset fills the spec and the error choice, and runs.
   await page.click('[data-cv-preset="fig9"]');
@@ -552,6 +555,7 @@ const LOGGED_422 = /Failed to load resource: the server responded with a status 
 test('a run in the polar chart plots the Cartesian trajectory, and a splitting there is refused beside it', async () => {
   const before = consoleErrors.length;
   const failedBefore = failedRequests.length;
+  await openSection(page, 'simulation');
   await page.locator('#sim-form').scrollIntoViewIfNeeded();
   await page.selectOption('#system', 'elastic_pendulum_2d');
   assert.equal(await page.isVisible('#chart'), true, 'a system with two charts offers the select');
@@ -574,7 +578,8 @@ test('a run in the polar chart plots the Cartesian trajectory, and a splitting t
   const back = [Number(await page.inputValue('#q0-0')), Number(await page.inputValue('#q0-1'))];
   assert.ok(Math.abs(back[0] - 0.6) < 1e-12 && Math.abs(back[1] - 1.2) < 1e-12, `x, y = ${back}`);
 
-  // Symplectic Euler alone, from the Cartesian start.
+  // Symplectic Euler alone, from the Cartesian start (the method groups fold; open them first).
+  for (const group of await page.$$('#methods details.method-group:not([open]) > summary')) await group.click();
   for (const box of await page.$$('#methods input[type=checkbox]:checked')) await box.uncheck();
   await page.check('#m-symplectic_euler');
   await page.fill('#h', '0.1');
@@ -630,6 +635,7 @@ test('an energy-error map streams its progress, draws the map and reads a cell',
   const before = consoleErrors.length;
   const failedBefore = failedRequests.length;
   const body = { method: 'symplectic_euler', params: { g: 0.02 }, h: 0.2, t_max: 200, nx: 9, ny: 9 };
+  await openSection(page, 'energy-map');
   await page.locator('#em-run').scrollIntoViewIfNeeded();
   assert.deepEqual(await page.$$eval('#em-method option', (os) => os.map((o) => o.value).sort()),
     ['explicit_euler', 'heun', 'implicit_midpoint', 'rk3', 'rk4', 'symplectic_euler', 'symplectic_euler_adjoint']);
@@ -761,6 +767,7 @@ test('an energy map can be cancelled, and a bad grid size is shown beside its fi
 
 test('the page fits a phone screen', async () => {
   await page.setViewportSize({ width: 390, height: 844 });
+  await openSection(page, 'simulation');
   await page.fill('#h', '0.2');
   await page.click('[data-preset="p000-pendulum/3s-heun"]');
   await page.waitForSelector('body[data-run-state="done"]', { timeout: 30_000 });
@@ -772,6 +779,7 @@ test('the page fits a phone screen', async () => {
   await page.screenshot({ path: join(artifacts, 'page-phone.png'), fullPage: true });
 
   // The stability section's heatmaps and ½tr plot shrink to the screen too.
+  await openSection(page, 'stability');
   await page.locator('#stability').scrollIntoViewIfNeeded();
   await page.waitForFunction(() => [...document.querySelectorAll('canvas.heatmap')]
     .every((c) => c.getBoundingClientRect().right <= window.innerWidth));
@@ -781,6 +789,7 @@ test('the page fits a phone screen', async () => {
   await page.locator('#stability').screenshot({ path: join(artifacts, 'page-stability-phone.png') });
 
   // So does the energy map.
+  await openSection(page, 'energy-map');
   await page.locator('#energy-map').scrollIntoViewIfNeeded();
   await page.waitForFunction(() => document.querySelector('#em-canvas').getBoundingClientRect().right <= window.innerWidth);
   const mapOverflow = await page.evaluate(() => document.documentElement.scrollWidth - window.innerWidth);

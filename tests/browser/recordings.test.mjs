@@ -15,7 +15,7 @@ import assert from 'node:assert/strict';
 import { mkdtemp, rm, writeFile } from 'node:fs/promises';
 import { tmpdir } from 'node:os';
 import { join } from 'node:path';
-import { artifacts, base, HEADLESS_GPU_ERROR, launch, waitForServer } from './harness.mjs';
+import { artifacts, base, HEADLESS_GPU_ERROR, launch, openSection, waitForServer } from './harness.mjs';
 
 /** The browser's log line for an answer the test asks for on purpose (404, 422). */
 const EXPECTED_REFUSAL = /Failed to load resource: the server responded with a status of (404|422)/;
@@ -95,6 +95,7 @@ before(async () => {
   context.setDefaultTimeout(60_000);
   page.on('request', (r) => requests.push(`${r.method()} ${new URL(r.url()).pathname}`));
   await page.goto(`${base}/`);
+  await openSection(page, 'recordings');
   await page.waitForSelector('#recordings[data-library-state="ready"]', { timeout: 15_000 });
 });
 

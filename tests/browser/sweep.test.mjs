@@ -10,7 +10,7 @@ import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
 import { rm } from 'node:fs/promises';
 import { join } from 'node:path';
-import { artifacts, base, launch, waitForServer } from './harness.mjs';
+import { artifacts, base, launch, openSection, waitForServer } from './harness.mjs';
 
 /** The browser's log line for the refusal the test provokes on purpose. */
 const LOGGED_422 = /Failed to load resource: the server responded with a status of 422/;
@@ -56,6 +56,7 @@ before(async () => {
   await page.goto(`${base}/`);
   await page.waitForSelector('body[data-run-state="idle"]', { timeout: 15_000 });
   await page.waitForFunction(() => !document.querySelector('#sw-run').disabled, null, { timeout: 15_000 });
+  await openSection(page, 'sweep');
 });
 
 after(async () => {

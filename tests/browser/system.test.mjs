@@ -14,7 +14,7 @@ import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
 import { readFile, rm } from 'node:fs/promises';
 import { join } from 'node:path';
-import { artifacts, base, HEADLESS_GPU_ERROR, launch, waitForServer } from './harness.mjs';
+import { artifacts, base, HEADLESS_GPU_ERROR, launch, openSection, waitForServer } from './harness.mjs';
 import { EXAMPLES } from '../../static/js/examples.js';
 
 /** The browser's log line for a refusal the test provokes on purpose. */
@@ -88,6 +88,7 @@ before(async () => {
   await page.goto(`${base}/`);
   await page.waitForSelector('body[data-run-state="idle"]', { timeout: 15_000 });
   await settled(page, ['idle'], 5_000);
+  await openSection(page, 'your-system');
 });
 
 after(async () => {
