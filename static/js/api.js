@@ -69,6 +69,11 @@ export async function storeSystem(definition, signal) {
   return { ...(await response.json()), created: response.status === 201 };
 }
 
+/** A stored system definition's entry (GET /api/v1/systems/{id}): its catalogue fields, `definition`, `facts`. */
+export async function getSystem(id) {
+  return getJson(`api/v1/systems/${encodeURIComponent(id)}`);
+}
+
 /**
  * Runs a simulation as an NDJSON stream, calling `onLine` with every parsed line in order.
  * Resolves once the `end` line arrived; rejects with an ApiError for error answers, with an

@@ -1,19 +1,19 @@
-// The page's entry point: loads the catalogues, builds the form and the preset buttons, and runs
+// The page's entry point: fills the page's templates, shows one section at a time
+// (sections.js), loads the catalogues, builds the form and the preset buttons, and runs
 // simulations into the results beside the form (simulation.js: streamed NDJSON in the plots with
 // a progress bar, cancellable with the Cancel button or Esc, the finished run as JSON or a Rerun
 // recording); sets up the Your-system section (system.js), the stability section (stability.js),
 // the work–precision section (workprecision.js), the convergence section (convergence.js), the
-// energy-error map section (energymap.js) and the recordings library (library.js), whose
-// recordings it plots with the same charts. For tests it exposes `window.geomint` (the uPlot
-// instances and their point counts, and the sections) and the run's state as `data-run-state` on
-// <body> (loading, idle, running, done, cancelled, error); `data-source` on the results says what
-// they show (`run`, or `recording:<id>`).
+// energy-error map section (energymap.js), the sweeps (sweep.js) and the recordings library
+// (library.js), which plots recordings with the same charts. For tests it exposes
+// `window.geomint` (the uPlot instances and their point counts, and the sections) and the run's
+// state as `data-run-state` on <body> (loading, idle, running, done, cancelled, error).
 
 import { catalogues } from './api.js';
 import { el, expandTemplates } from './common.js';
 import { Sections } from './sections.js';
-import { SimForm, chartName } from './form.js';
-import { RunStore } from './results.js';
+import { SimForm } from './form.js';
+import { builtInPlotOptions } from './plot-options.js';
 import { PRESETS, presetRequest } from './presets.js';
 import { SimulationView } from './simulation.js';
 import { SystemPanel } from './system.js';
@@ -22,7 +22,7 @@ import { WorkPrecisionPanel } from './workprecision.js';
 import { ConvergencePanel } from './convergence.js';
 import { EnergyMapPanel } from './energymap.js';
 import { SweepPanel } from './sweep.js';
-import { RecordingsPanel, streamLines, describe, when } from './library.js';
+import { RecordingsPanel } from './library.js';
 
 const $ = (selector) => document.querySelector(selector);
 
@@ -70,53 +70,6 @@ function runPreset(groupId, variantId) {
   start();
 }
 
-/** Systems whose y axis points down, along gravity. */
-const Y_DOWN = new Set(['elastic_pendulum_2d']);
-
-/** The plots' coordinate names and captions for a run of `system` in chart `chartId`. */
-function chartOptions(system, chartId) {
-  const charts = system?.charts ?? [];
-  const [first] = charts;
-  const chart = charts.find((c) => c.id === chartId) ?? first;
-  const other = chart && first && chart.id !== first.id;
-  return {
-    chartNames: chart?.coordinates,
-    cartesianNames: first?.coordinates,
-    chartNote: other ? `${chartName(chart.id)} chart coordinates (${chart.coordinates.join(', ')})` : null,
-    cartesianNote: other ? `${chartName(first.id)} coordinates (${first.coordinates.join(', ')}) of the run in the ${chartName(chart.id)} chart` : null,
-    yDown: Y_DOWN.has(system?.id),
-  };
-}
-
-/** The options of the plots for a stream `header` of a built-in system. */
-function plotOptions(header) {
-  const system = form.systems.find((s) => s.id === header.system.id);
-  const source = system?.exact_solution ? 'exact' : header.energy_error ? 'ref' : null;
-  return {
-    energyErrorSource: header.energy_error ? source || 'ref' : null,
-    drift: Boolean(system?.conformal_damping) && header.system.q0.length === 1,
-    ...chartOptions(system, header.system.chart),
-  };
-}
-
-/**
- * Draws a stored recording's samples (read back from its .rrd by the server) with the page's
- * charts, in place of the results; a running simulation is cancelled first.
- */
-async function showRecording(doc, entry) {
-  form.clearErrors();
-  const { header, samples, summaries } = streamLines(doc);
-  const store = new RunStore(doc.request, header);
-  for (const chunk of samples) store.add(chunk);
-  for (const summary of summaries) store.summarize(summary);
-  store.outcome = 'done';
-  await view.present(store, `recording:${entry.id}`,
-    `Recording ${describe(entry)}, stored ${when(entry.created)}: ${store.received} samples read back ` +
-    'from the .rrd file (positions and momenta as recorded, in single precision).');
-  ui.results.scrollIntoView({ behavior: 'smooth', block: 'start' });
-  ui.results.focus({ preventScroll: true });
-}
-
 /** Starts a simulation from the form, cancelling one that still runs. */
 function start() {
   form.clearErrors();
@@ -142,7 +95,8 @@ async function init() {
   const builtIn = cats.systems.filter((s) => !s.definition);
   form = new SimForm(ui.form, { systems: builtIn, methods: cats.methods });
   view = new SimulationView(ui.results, {
-    chartOptions: plotOptions,
+    chartOptions: (header, request) =>
+      builtInPlotOptions(form.systems.find((s) => s.id === header.system.id), header, request),
     showError: (error) => form.showError(error),
     setState,
   }, $('#cancel'));
@@ -152,7 +106,7 @@ async function init() {
   const convergence = new ConvergencePanel($('#convergence'));
   const energyMap = new EnergyMapPanel($('#energy-map'), cats.methods);
   const sweep = new SweepPanel($('#sweep'));
-  const library = new RecordingsPanel($('#recordings'), showRecording);
+  const library = new RecordingsPanel($('#recordings'), cats.systems);
   for (const button of ui.presets.querySelectorAll('button')) button.disabled = false;
   ui.run.disabled = false;
   ui.form.addEventListener('submit', (event) => {

@@ -49,11 +49,16 @@ export class RunStore {
    * @param {((q: number[]) => number[]) | null} [embed] the bodies' coordinates at the
    *   configuration q, body after body, for a system whose bodies are its first coordinates
    *   (samples that carry `bodies` are plotted from those)
+   * @param {object} [options]
+   * @param {boolean} [options.energyFromInitial] plot |H − H₀| as the energy error of samples
+   *   that carry none (an undamped run, whose H₀ is an exact reference, from a server that does
+   *   not send it)
    */
-  constructor(request, header, embed = null) {
+  constructor(request, header, embed = null, { energyFromInitial = false } = {}) {
     this.request = request;
     this.header = header;
     this.embed = embed;
+    this.energyFromInitial = energyFromInitial;
     this.runs = header.methods.map((label) => emptyRun(label, header.invariants, header.energy_error));
     /** How the stream ended: running, done, cancelled or error. */
     this.outcome = 'running';
@@ -90,11 +95,14 @@ export class RunStore {
       appendColumns(run.xColumns ??= [], chunk.cartesian_q);
     }
     run.energy.push(...chunk.energy);
+    const magnitude = (e) => (e == null || e === 0 || !Number.isFinite(e) ? null : Math.abs(e));
     if (chunk.energy_error) {
       (run.energy_error ??= []).push(...chunk.energy_error);
-      for (const e of chunk.energy_error) {
-        run.errorMagnitude.push(e == null || e === 0 || !Number.isFinite(e) ? null : Math.abs(e));
-      }
+      for (const e of chunk.energy_error) run.errorMagnitude.push(magnitude(e));
+    } else if (this.energyFromInitial) {
+      // The same difference the server takes against H₀; the download keeps only what it sent.
+      const initial = run.energy[0];
+      for (const e of chunk.energy) run.errorMagnitude.push(magnitude(e - initial));
     }
     for (const [name, values] of Object.entries(chunk.invariants || {})) {
       (run.invariants[name] ??= []).push(...values);

@@ -24,8 +24,9 @@ export class SimulationView {
    * @param {HTMLElement} results the results section (`data-source` says what it shows), filled
    *   from the results template (expandTemplates); its `data-status` is the first status line
    * @param {object} hooks
-   * @param {(header: object) => object} hooks.chartOptions the options of Charts.build for a
-   *   stream header; their `bodies.embed`, if any, places the bodies for the run store
+   * @param {(header: object, request: object) => object} hooks.chartOptions the options of
+   *   Charts.build for a stream header and the request; their `bodies.embed`, if any, places the
+   *   bodies for the run store, and `deriveEnergyError` has it take the energy error from H₀
    * @param {(error: ApiError) => HTMLElement|null} hooks.showError shows an error of the API beside
    *   the field it names; returns the input to focus, if any
    * @param {(state: string) => void} hooks.setState running, done, cancelled or error
@@ -93,18 +94,29 @@ export class SimulationView {
     this.renderLegend(header.methods);
   }
 
+  /** A run store for `request` and its stream `header`, with the plots' `options`. */
+  newStore(request, header, options) {
+    return new RunStore(request, header, options.bodies?.embed ?? null, { energyFromInitial: options.deriveEnergyError });
+  }
+
   /**
-   * Shows `store` (complete: a recording read back, say) in place of the results, as `source`
-   * (`data-source` of the results), with `status` as the status line. A running simulation is
-   * cancelled first. The .rrd buttons stay off: they would run the request again.
+   * Shows the lines of a whole stream ({header, samples, summaries}: a recording read back, say)
+   * of `request` in place of the results, as `source` (`data-source` of the results), with
+   * `status` as the status line. A running simulation is cancelled first. The .rrd buttons stay
+   * off: they would run the request again.
    */
-  async present(store, source, status) {
+  async present({ header, samples, summaries }, request, source, status) {
     await this.stop();
     this.current = null;
     this.rerun.close();
     this.rerun.clearMessages();
+    const options = this.chartOptions(header, request);
+    const store = this.newStore(request, header, options);
+    for (const chunk of samples) store.add(chunk);
+    for (const summary of summaries) store.summarize(summary);
+    store.outcome = 'done';
     this.shown = { store };
-    this.buildCharts(store.header, this.chartOptions(store.header));
+    this.buildCharts(header, options);
     this.charts.update(store);
     renderStats(this.ui.stats, store);
     this.ui.progress.max = Math.max(1, store.received);
@@ -114,6 +126,7 @@ export class SimulationView {
     this.ui.results.dataset.source = source;
     this.setStatus(status);
     this.setState('done');
+    return store;
   }
 
   /** Updates the plots, the stats table and the progress bar (at most every REDRAW_INTERVAL ms). */
@@ -151,8 +164,8 @@ export class SimulationView {
     switch (line.type) {
       case 'header': {
         // The previous results stay until the new run has started.
-        const options = this.chartOptions(line);
-        run.store = new RunStore(run.request, line, options.bodies?.embed ?? null);
+        const options = this.chartOptions(line, run.request);
+        run.store = this.newStore(run.request, line, options);
         this.shown = run;
         this.ui.download.disabled = true;
         this.rerun.setRun(null);

@@ -19,6 +19,7 @@ import { el, numberText, parseNumber, parseList } from './common.js';
 import { MethodPicker } from './form.js';
 import { SimulationView } from './simulation.js';
 import { EXAMPLES } from './examples.js';
+import { definitionPlotOptions } from './plot-options.js';
 
 /** The damping kinds of `facts.damping`, in words. */
 const DAMPING_TEXT = {
@@ -137,22 +138,6 @@ export function linkedSystem(hash) {
   }
 }
 
-/**
- * How the bodies of `definition` are plotted: {dims, count, names, embed}, or null where there is
- * nothing to place beyond the one coordinate. With `positions` the server sends each sample's
- * bodies (`bodies` in the samples) and `embed` is null; without, the body is the first two or
- * three coordinates, as the server draws it.
- */
-export function placeBodies(definition) {
-  const { coordinates, positions } = definition;
-  if (!positions?.length) {
-    if (coordinates.length < 2) return null;
-    const dims = Math.min(3, coordinates.length);
-    return { dims, count: 1, names: coordinates.slice(0, dims), embed: (q) => q.slice(0, dims) };
-  }
-  return { dims: positions[0].length, count: positions.length, names: ['x', 'y', 'z'], embed: null };
-}
-
 export class SystemPanel {
   /**
    * @param {HTMLElement} root the section
@@ -190,7 +175,7 @@ export class SystemPanel {
     this.runDefinition = null;
 
     this.view = new SimulationView($('sys-results'), {
-      chartOptions: (header) => this.plotOptions(header),
+      chartOptions: (header, request) => definitionPlotOptions(this.runDefinition, header, request),
       showError: (error) => this.showError(error),
       setState: (state) => this.setState(state),
     }, $('sys-cancel'));
@@ -540,19 +525,6 @@ export class SystemPanel {
     if (!definition) return;
     this.runDefinition = definition;
     await this.view.start(this.request(definition));
-  }
-
-  /** The plots' options for a run of the section's definition. */
-  plotOptions(header) {
-    const { coordinates, momenta } = this.runDefinition;
-    return {
-      energyErrorSource: header.energy_error ? 'ref' : null,
-      drift: false,
-      chartNames: coordinates,
-      cartesianNames: coordinates,
-      momentumNames: momenta ?? coordinates.map((c) => `p_${c}`),
-      bodies: placeBodies(this.runDefinition),
-    };
   }
 
   /** The definition and run settings as a link's state. */

@@ -16,6 +16,7 @@ import { mkdtemp, rm, writeFile } from 'node:fs/promises';
 import { tmpdir } from 'node:os';
 import { join } from 'node:path';
 import { artifacts, base, HEADLESS_GPU_ERROR, launch, openSection, waitForServer } from './harness.mjs';
+import { EXAMPLES } from '../../static/js/examples.js';
 
 /** The browser's log line for an answer the test asks for on purpose (404, 422). */
 const EXPECTED_REFUSAL = /Failed to load resource: the server responded with a status of (404|422)/;
@@ -181,7 +182,8 @@ test('a recording plots with the page’s charts, one point per recorded row', a
   const id = made.pendulum;
   const before = requests.length;
   await page.click(`#rec-list tr[data-id="${id}"] button:text-is("Plot")`);
-  await page.waitForSelector(`#results[data-source="recording:${id}"]`, { timeout: 15_000 });
+  // The plots are drawn below the list, in the Recordings section.
+  await page.waitForSelector(`#recordings:not([hidden]) #rec-plot[data-source="recording:${id}"]`, { timeout: 15_000 });
   // Nothing was run again: the samples came from the stored recording.
   const asked = requests.slice(before);
   assert.deepEqual(asked, [`GET /api/v1/recordings/${id}/samples`]);
@@ -201,17 +203,17 @@ test('a recording plots with the page’s charts, one point per recorded row', a
     drift: samples.runs.map((r) => r.dissipation_drift.length),
   };
   assert.deepEqual(expected['phase:0'], rows);
-  const plotted = await page.evaluate(() => window.geomint.pointCounts());
+  const plotted = await page.evaluate(() => window.geomint.library.plots.charts.pointCounts());
   assert.deepEqual(Object.keys(plotted).sort(), Object.keys(expected).sort());
   for (const [key, counts] of Object.entries(expected)) {
     assert.deepEqual(plotted[key].map((s) => s.label), ['modin_3s', 'heun'], key);
     assert.deepEqual(plotted[key].map((s) => s.points), counts, key);
   }
   // The energies drawn are the recording's, which are the JSON answer's.
-  const energy = await page.evaluate(() => window.geomint.charts.get('energy').plot.data.slice(1));
+  const energy = await page.evaluate(() => window.geomint.library.plots.charts.plots.get('energy').plot.data.slice(1));
   assert.deepEqual(energy, answer.runs.map((r) => r.energy));
   // The statistics: the recorded steps and force evaluations; no wall time in a recording.
-  const stats = await page.$$eval('#stats-body tr', (trs) => trs.map((tr) => [...tr.children].map((c) => c.textContent.trim())));
+  const stats = await page.$$eval('#rec-plot-stats-body tr', (trs) => trs.map((tr) => [...tr.children].map((c) => c.textContent.trim())));
   stats.forEach((cells, i) => {
     assert.equal(cells[1], String(answer.runs[i].stats.steps));
     assert.equal(cells[2], String(answer.runs[i].stats.force_evaluations));
@@ -219,9 +221,70 @@ test('a recording plots with the page’s charts, one point per recorded row', a
     assert.equal(cells[4], '101');
     assert.equal(cells[6], 'finished');
   });
-  assert.match(await page.textContent('#status'), /202 samples read back from the \.rrd file/);
-  assert.equal(await page.isDisabled('#view-rerun'), true, 'the results do not offer to run it again');
-  await page.locator('#results').screenshot({ path: join(artifacts, 'recordings-plot.png') });
+  assert.match(await page.textContent('#rec-plot-status'), /202 samples read back from the \.rrd file/);
+  assert.equal(await page.isHidden('#rec-plot-view-rerun'), true, 'the results do not offer to run it again');
+  assert.equal(await page.textContent('#rec-plot-results-title'), 'Recording: pendulum: modin_3s, heun');
+  await page.locator('#rec-plot').screenshot({ path: join(artifacts, 'recordings-plot.png') });
+});
+
+test('a typed-in system’s recording keeps its name, its coordinates’ names, its bodies and its energy error', async () => {
+  const before = consoleErrors.length;
+  // The double pendulum, stored on the server, recorded by its id: the recorded request names the
+  // system only by that id, so the page takes its definition from the server (the catalogue it
+  // loaded, or GET /api/v1/systems/{id} for one stored since).
+  const { definition } = EXAMPLES.find((x) => x.id === 'double-pendulum');
+  const stored = await api('/api/v1/systems', {
+    method: 'POST', headers: { 'content-type': 'application/json' }, body: JSON.stringify(definition),
+  });
+  assert.ok([200, 201].includes(stored.status), JSON.stringify(stored.body));
+  const systemId = stored.body.id;
+  const request = { system: systemId, methods: ['implicit_midpoint', 'rk4'], h: 0.01, t_end: 2 };
+  const { status, body: created } = await createRecording(request);
+  assert.equal(status, 201, JSON.stringify(created));
+  made.doublePendulum = created.id;
+
+  await page.click('#rec-refresh');
+  await page.waitForSelector(`#rec-list tr[data-id="${created.id}"]`);
+  const row = `#rec-list tr[data-id="${created.id}"]`;
+  // The row and the System filter name the system, not its id.
+  assert.equal((await page.textContent(`${row} > th`)).trim(), 'Double pendulum');
+  assert.equal(await page.getAttribute(`${row} > th`, 'title'), systemId);
+  const option = await page.$eval(`#rec-system option[value="${systemId}"]`, (o) => o.textContent);
+  assert.equal(option, 'Double pendulum');
+
+  await page.click(`${row} button:text-is("Plot")`);
+  await page.waitForSelector(`#rec-plot[data-source="recording:${created.id}"]`, { timeout: 15_000 });
+  // The plots are in the Recordings section, titled with the recording; the Simulation section,
+  // whose form shows another system, stays as it was.
+  assert.equal(await page.isHidden('#simulation'), true);
+  assert.equal(await page.textContent('#rec-plot-results-title'), 'Recording: Double pendulum: implicit_midpoint, rk4');
+  const titles = await page.$$eval('#rec-plot figcaption .plot-title', (t) => t.map((n) => n.textContent));
+  assert.deepEqual(titles.slice(0, 5), ['Energy H(t)', 'Energy error |H − H₀|', 'Phase portrait (a, p1)',
+    'Phase portrait (b, p2)', 'Bodies in the x–y plane']);
+  assert.ok(!titles.some((t) => /q_1|q_2/.test(t)), `titles: ${titles}`);
+
+  // The bobs are where the definition's positions put the recorded angles: the simulate answer's
+  // bodies, to the single precision of the recording.
+  const { body: answer } = await api('/api/v1/simulate', {
+    method: 'POST', headers: { 'content-type': 'application/json' }, body: JSON.stringify(request),
+  });
+  const bobs = await page.evaluate(() => window.geomint.library.plots.charts.plots.get('trajectory:xy').plot.data.slice(1));
+  assert.equal(bobs.length, 4, 'two bobs for each of two methods');
+  answer.runs.forEach((run, m) => {
+    run.bodies.forEach((place, i) => {
+      for (let body = 0; body < 2; body++) {
+        const [x, y] = [bobs[2 * m + body][0][i], bobs[2 * m + body][1][i]];
+        assert.ok(Math.abs(x - place[2 * body]) < 1e-5 && Math.abs(y - place[2 * body + 1]) < 1e-5,
+          `bob ${body + 1} of ${run.method} at sample ${i}: (${x}, ${y}) against (${place.slice(2 * body, 2 * body + 2)})`);
+      }
+    });
+  });
+  // Undamped: the energy error against H₀ is drawn, as the caption says.
+  assert.equal(await page.getAttribute('#rec-plot [data-plot="energy_error"]', 'data-against'), 'initial');
+  assert.match(await page.textContent('#rec-plot [data-plot="energy_error"] figcaption small'), /initial energy H₀/);
+  assert.equal(await page.locator('#rec-plot [data-note="energy"]').count(), 0);
+  assert.deepEqual(consoleErrors.slice(before), [], 'console errors');
+  await page.locator('#rec-plot').screenshot({ path: join(artifacts, 'recordings-plot-typed-in.png') });
 });
 
 test('a copied link opens the page on the recording; a deleted or unknown one says so', async () => {
