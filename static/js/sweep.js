@@ -13,8 +13,21 @@ import { StudyStream, OUTCOME } from './study-stream.js';
 import { downloadRecording, el, fmt, plural, saveBlob } from './common.js';
 import { GridMap, bindCursor, drawScaleBar } from './heatmap.js';
 
-/** Where a cell has no value. */
-const EMPTY = [0, 0, 0];
+/**
+ * The colours of cells without a value on the scale, and what the legend says of them. On an
+ * error map a cell whose run diverged has no error (black); on the divergence map a run that
+ * never diverged has no time (white, the opposite end from "diverged early"); anywhere, a cell
+ * that did not run (refused, or stopped by the server's time limit) or whose value a log scale
+ * cannot show (0) is grey.
+ */
+export const NO_VALUE = {
+  diverged: { rgb: [0, 0, 0], text: 'diverged: no error to show' },
+  never: { rgb: [255, 255, 255], text: 'did not diverge before t_end' },
+  none: { rgb: [143, 143, 143], text: 'no value: the cell did not run, the time limit stopped it, or its value is 0 (no logarithm)' },
+  noRatio: { rgb: [143, 143, 143], text: 'no ratio: a run has no value there, or a value is 0' },
+};
+/** The readout before a cell is chosen. */
+const READOUT_PROMPT = 'Point at the map, or focus it and use the arrow keys, to read a cell.';
 /** The ratio view saturates at a factor 10^RATIO_RANGE. */
 const RATIO_RANGE = 2;
 /** Anchors of the value scale, least to most (the recording's ramp). */
@@ -48,6 +61,17 @@ export function metricsOf(run) {
   return out;
 }
 
+/** Decade ticks of a log₁₀ scale from `lo` to `hi`, at most about six, labelled as values. */
+function decadeTicks(lo, hi) {
+  const first = Math.ceil(lo);
+  const last = Math.floor(hi);
+  const step = Math.max(1, Math.ceil((last - first + 1) / 6));
+  const ticks = [];
+  for (let e = first; e <= last; e += step) ticks.push([e, `1e${e}`]);
+  if (!ticks.length) ticks.push([lo, fmt(10 ** lo, 3)], [hi, fmt(10 ** hi, 3)]);
+  return ticks;
+}
+
 /** What a cell shows: a value on the scale, or null. */
 function shown(v, log) {
   if (v == null || !Number.isFinite(v)) return null;
@@ -63,8 +87,9 @@ class SweepMap extends GridMap {
       : { min: a.min, max: a.max, n: a.n, label });
     const second = doc.axes[1] || { name: '', min: 0, max: 0, n: 1, scale: 'linear' };
     const colour = (c, r) => {
-      const e = view.cellValue(r * doc.axes[0].n + c);
-      if (e == null) return EMPTY;
+      const k = r * doc.axes[0].n + c;
+      const e = view.cellValue(k);
+      if (e == null) return NO_VALUE[view.cellKind(k)].rgb;
       return view.compare ? ratioColour(e) : rampColour(view.hi > view.lo ? (e - view.lo) / (view.hi - view.lo) : 0.5);
     };
     super(canvas, { x: axis(doc.axes[0], doc.axes[0].name), y: axis(second, second.name), colour });
@@ -88,6 +113,8 @@ export class SweepPanel {
     this.metricSelect = $('metric');
     this.compareSelect = $('compare');
     this.scaleBar = $('scale-bar');
+    this.scaleCaption = $('scale-caption');
+    this.scaleLegend = $('scale-legend');
     this.figure = $('figure');
     this.canvas = $('canvas');
     this.readout = $('readout');
@@ -183,6 +210,10 @@ export class SweepPanel {
     this.figure.hidden = false;
     this.jsonButton.disabled = false;
     this.rrdButton.disabled = false;
+    // The cursor and the readout belonged to the last sweep's grid.
+    this.cursor = null;
+    this.readout.textContent = READOUT_PROMPT;
+    for (const key of Object.keys(this.readout.dataset)) delete this.readout.dataset[key];
     this.redraw();
   }
 
@@ -193,6 +224,7 @@ export class SweepPanel {
     const a = metricsOf(doc.runs[Number(this.runSelect.value)])[metric];
     const compare = this.compareSelect.value === '' ? null : Number(this.compareSelect.value);
     const b = compare == null ? null : metricsOf(doc.runs[compare])[metric];
+    const run = doc.runs[Number(this.runSelect.value)];
     const view = { metric, a, b, compare: b != null };
     view.cellValue = (k) => {
       if (!b) return shown(a.values[k], a.log);
@@ -200,9 +232,25 @@ export class SweepPanel {
       const y = b.values[k];
       return x > 0 && y > 0 && Number.isFinite(x) && Number.isFinite(y) ? Math.log10(x / y) : null;
     };
+    const unfinished = new Set(doc.unfinished_cells ?? []);
+    /** Why cell k has no value on the scale: a key of NO_VALUE. */
+    view.cellKind = (k) => {
+      if (b) return 'noRatio';
+      if (run.errors[k] || unfinished.has(k)) return 'none';
+      if (metric === 'diverged_at') return 'never';
+      return run.diverged_at[k] != null ? 'diverged' : 'none';
+    };
     const values = a.values.map((_, k) => view.cellValue(k)).filter((v) => v != null);
-    view.lo = values.length ? Math.min(...values) : 0;
-    view.hi = values.length ? Math.max(...values) : 1;
+    if (metric === 'diverged_at' && !b) {
+      // Times of divergence on the sweep's whole time span: runs found diverged at nearly the
+      // same (sampled) time look alike instead of stretching the colours over a few steps.
+      view.lo = 0;
+      view.hi = Math.max(this.last.body.t_end ?? 0, ...values, 1e-300);
+    } else {
+      view.lo = values.length ? Math.min(...values) : 0;
+      view.hi = values.length ? Math.max(...values) : 1;
+    }
+    view.kinds = new Set(a.values.map((_, k) => k).filter((k) => view.cellValue(k) == null).map(view.cellKind));
     return view;
   }
 
@@ -233,7 +281,8 @@ export class SweepPanel {
     const where = doc.axes.map((a, i) => `${a.name} = ${fmt(a.values[i === 0 ? cell.col : cell.row])}`).join(', ');
     const run = doc.runs[Number(this.runSelect.value)];
     const a = view.a.values[k];
-    let text = `${where}: ${view.a.label} ${fmt(a, 3)}`;
+    const value = a == null && view.cellValue(k) == null ? `— (${NO_VALUE[view.cellKind(k)].text})` : fmt(a, 3);
+    let text = `${where}: ${view.a.label} ${value}`;
     if (view.b) text += ` against ${fmt(view.b.values[k], 3)}, ratio ${fmt(view.cellValue(k) == null ? null : 10 ** view.cellValue(k), 3)}`;
     if (run.diverged_at[k] != null) text += `; diverged at t = ${fmt(run.diverged_at[k])}`;
     if (run.errors[k]) text += `; could not run: ${run.errors[k]}`;
@@ -251,16 +300,43 @@ export class SweepPanel {
       this.pending = false;
       this.map.resize();
       const view = this.currentViewState;
-      const what = view.compare ? `log₁₀ of the ratio of ${view.a.label}` : `${view.a.log ? 'log₁₀ ' : ''}${view.a.label}`;
-      drawScaleBar(this.scaleBar, view.compare
-        ? { lo: -RATIO_RANGE, hi: RATIO_RANGE, colourAt: ratioColour,
-          ticks: [[-2, '1/100'], [-1, '1/10'], [0, '1'], [1, '10'], [2, '100']],
-          label: `Colour scale: ${what}, blue where the first run's value is smaller, red where it is larger; black: no value.` }
-        : { lo: view.lo, hi: view.hi > view.lo ? view.hi : view.lo + 1,
-          colourAt: (e) => rampColour(view.hi > view.lo ? (e - view.lo) / (view.hi - view.lo) : 0.5),
-          ticks: [[view.lo, fmt(view.lo, 3)], [view.hi, fmt(view.hi, 3)]],
-          label: `Colour scale: ${what} from ${fmt(view.lo, 3)} (dark blue) to ${fmt(view.hi, 3)} (yellow); black: no value.` });
+      drawScaleBar(this.scaleBar, this.scale(view));
+      this.scaleCaption.textContent = this.scaleBar.getAttribute('aria-label').replace(/^Colour scale: /, '');
+      this.scaleLegend.replaceChildren(...[...view.kinds].map((kind) => el('li', { 'data-kind': kind },
+        el('span', { class: 'swatch block', style: `background:rgb(${NO_VALUE[kind].rgb.join(',')})`, 'aria-hidden': 'true' }),
+        NO_VALUE[kind].text)));
     });
+  }
+
+  /** The colour bar of `view`: its colours, ticks and what it says (its accessible name and caption). */
+  scale(view) {
+    const { a } = view;
+    if (view.compare) {
+      return {
+        lo: -RATIO_RANGE, hi: RATIO_RANGE, colourAt: ratioColour,
+        ticks: [[-2, '1/100'], [-1, '1/10'], [0, '1'], [1, '10'], [2, '100']],
+        label: `Colour scale: the ratio of ${a.label} of the two runs, on a log scale from 1/100 to 100: ` +
+          'blue where the first run\'s value is smaller, white where they agree, red where it is larger.',
+      };
+    }
+    const hi = view.hi > view.lo ? view.hi : view.lo + 1;
+    const colourAt = (e) => rampColour((e - view.lo) / (hi - view.lo));
+    if (a.log) {
+      return {
+        lo: view.lo, hi, colourAt, ticks: decadeTicks(view.lo, hi),
+        label: `Colour scale: ${a.label}, on a log scale from ${fmt(10 ** view.lo, 3)} (dark blue) ` +
+          `to ${fmt(10 ** view.hi, 3)} (yellow).`,
+      };
+    }
+    const every = this.last.body.every;
+    return {
+      lo: view.lo, hi, colourAt,
+      ticks: [[view.lo, fmt(view.lo, 3)], [(view.lo + hi) / 2, fmt((view.lo + hi) / 2, 3)], [hi, fmt(hi, 3)]],
+      label: `Colour scale: ${a.label}, from ${fmt(view.lo, 3)} (dark blue) to ${fmt(hi, 3)} (yellow)` +
+        (view.metric === 'diverged_at'
+          ? `; a divergence is found at the first sampled step after it${every ? ` (every ${every} steps)` : ''}, so times are upper bounds.`
+          : '.'),
+    };
   }
 
   downloadJson() {
