@@ -52,6 +52,19 @@ async function getJson(path) {
   return response.json();
 }
 
+/** The server's OpenAPI document, fetched once (a promise; null when it cannot be had). */
+let openApi = null;
+
+/**
+ * Whether the server's request schema `schema` has the property `field` (a server older than
+ * the page refuses fields it does not know).
+ */
+export async function serverOffers(schema, field) {
+  openApi ??= getJson('api/v1/openapi.json').catch(() => null);
+  const doc = await openApi;
+  return Boolean(doc?.components?.schemas?.[schema]?.properties?.[field]);
+}
+
 /** The system and method catalogues. */
 export async function catalogues() {
   const [systems, methods] = await Promise.all([getJson('api/v1/systems'), getJson('api/v1/methods')]);

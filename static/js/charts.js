@@ -435,8 +435,11 @@ export function logAxis(label) {
   };
 }
 
-/** A faceted series drawn as a polyline through its points with a dot at each. */
-function dotted(u, seriesIdx) {
+/**
+ * A faceted series drawn as a polyline through its points with a dot at each, and, where `spread`
+ * gives each point's `lows` and `highs` (of y), a bar with end ticks from one to the other.
+ */
+function dotted(u, seriesIdx, spread = null) {
   const path = polyline(u, seriesIdx);
   const [xs, ys] = u.data[seriesIdx];
   const r = 3 * (window.devicePixelRatio || 1);
@@ -445,6 +448,16 @@ function dotted(u, seriesIdx) {
     const py = u.valToPos(ys[i], 'y', true);
     path.stroke.moveTo(px + r, py);
     path.stroke.arc(px, py, r, 0, 2 * Math.PI);
+    const [low, high] = [spread?.lows?.[i], spread?.highs?.[i]];
+    if (low > 0 && high > low) {
+      const [top, bottom] = [u.valToPos(high, 'y', true), u.valToPos(low, 'y', true)];
+      path.stroke.moveTo(px, top);
+      path.stroke.lineTo(px, bottom);
+      path.stroke.moveTo(px - r, top);
+      path.stroke.lineTo(px + r, top);
+      path.stroke.moveTo(px - r, bottom);
+      path.stroke.lineTo(px + r, bottom);
+    }
   }
   return path;
 }
@@ -472,7 +485,10 @@ export class LogLogPlot {
     this.resize.observe(area);
   }
 
-  /** Shows `series` ({label, colour, xs, ys} with positive values). */
+  /**
+   * Shows `series` ({label, colour, xs, ys} with positive values, and optionally `lows` and
+   * `highs`: each point's spread in y, drawn as a bar).
+   */
   show(series) {
     this.series = series;
     const data = [null, ...series.map((s) => [s.xs, s.ys])];
@@ -494,14 +510,29 @@ export class LogLogPlot {
       width, height, mode: 2,
       legend: { show: false },
       cursor: { points: { show: false }, drag: { x: false, y: false } },
-      scales: { x: { time: false, distr: 3, auto: true }, y: { distr: 3, auto: true } },
+      scales: {
+        x: { time: false, distr: 3, auto: true },
+        // The bars of the spreads stay inside the plot.
+        y: { distr: 3, auto: true, range: (u, min, max) => this.yRange(min, max) },
+      },
       axes: [logAxis(this.xLabel), logAxis(this.yLabel)],
       series: [{}, ...series.map((s) => ({
-        label: s.label, stroke: s.colour, width: 1.5, paths: dotted, points: { show: false },
+        label: s.label, stroke: s.colour, width: 1.5, points: { show: false },
+        paths: (u, i) => dotted(u, i, this.series[i - 1]),
         facets: [{ scale: 'x', auto: true }, { scale: 'y', auto: true }],
       }))],
     }, data, this.area);
     this.plot.over.addEventListener('pointermove', (event) => this.onHover(event.offsetX, event.offsetY));
+  }
+
+  /** The y range of the plot: the dots' `min` to `max`, widened to the spreads, in whole decades. */
+  yRange(min, max) {
+    const lows = this.series.flatMap((s) => s.lows ?? []).filter((v) => v > 0);
+    const highs = this.series.flatMap((s) => s.highs ?? []).filter((v) => v > 0);
+    const lo = Math.min(min ?? Infinity, ...lows);
+    const hi = Math.max(max ?? -Infinity, ...highs);
+    if (!(lo > 0 && hi >= lo)) return [min ?? 1, max ?? 10];
+    return uPlot.rangeLog(lo, hi, 10, true);
   }
 
   /** The dot nearest to (x, y) in CSS pixels of the plot area, within 24 px: {series, index}. */

@@ -132,7 +132,7 @@ async function init() {
     library,
   };
   setState('idle');
-  await Promise.all([system.followLink(), sweep.init(), (async () => {
+  await Promise.all([system.followLink(), sweep.init(), workPrecision.init(), (async () => {
     await library.refresh();
     await library.followLink();
   })()]);

@@ -51,6 +51,9 @@ export class StudyPanel {
     }
     const points = [];
     this.last = { body, points, result: null };
+    // The readout described a dot of the last study.
+    this.readout.textContent = 'Point at a dot to read its setting.';
+    for (const key of Object.keys(this.readout.dataset)) delete this.readout.dataset[key];
     this.draw(points, null);
     const { outcome, result, error } = await this.runner.stream((b, onLine, signal) => this.stream(b, onLine, signal), body, (line) => {
       if (line.type === 'reference') {

@@ -25,7 +25,7 @@ const STABILITY = {
   methods: ['cimp', 'csv1', 'csv2'],
   omega: 3.51,
   gamma: { min: 0, max: 3.5, n: 141 },
-  h: { min: 0, max: 1, n: 41 },
+  h: { min: 0.025, max: 1, n: 40 },
 };
 
 
@@ -317,6 +317,12 @@ test('the stability section maps the methods and reads a cell under the pointer'
   await page.waitForSelector('#stability[data-stab-state="done"]', { timeout: 20_000 });
   const { status, body: api } = await postJson('/api/v1/stability', STABILITY);
   assert.equal(status, 200);
+  // The page sent its defaults: the h axis starts above 0, where every method is the identity and
+  // the printed relations' disagreements were nothing but that row (cimp's 141 of 141 columns).
+  assert.deepEqual(await page.evaluate(() => window.geomint.stability.shownBody), STABILITY);
+  const atZero = await postJson('/api/v1/stability', { ...STABILITY, h: { min: 0, max: 1, n: 41 } });
+  assert.equal(atZero.body.maps[0].printed_disagreements - api.maps[0].printed_disagreements, STABILITY.gamma.n,
+    'the h = 0 row alone made cimp’s printed count');
 
   // One heatmap per method with one cell per (γ, h) grid point, drawn at a real size.
   const maps = await page.$$eval('canvas.heatmap', (canvases) => canvases.map((c) => ({
@@ -357,7 +363,7 @@ test('the stability section maps the methods and reads a cell under the pointer'
     assert.equal(Number(shown.rho), rho);
     assert.equal(shown.stable, String(api.maps[1].stable[row][col]));
     assert.ok(Math.abs(Number(shown.gamma) - (3.5 * col) / 140) < 1e-12);
-    assert.ok(Math.abs(Number(shown.h) - row / 40) < 1e-12);
+    assert.ok(Math.abs(Number(shown.h) - (row + 1) / 40) < 1e-12);
     assert.match(shown.text, new RegExp(`^γ = ${Number(shown.gamma).toPrecision(4).replace(/\.?0+$/, '')}, `));
   }
   // … and from the keyboard: the focused map's cursor moves with the arrow keys.
@@ -469,6 +475,115 @@ test('a work–precision study streams into a log–log diagram with a readout, 
   await page.waitForSelector('#work-precision[data-wp-state="error"]', { timeout: 10_000 });
   assert.match(await page.textContent('#err-wp'), /^runs\[0\]\.h\[0\]: must divide/);
   assert.equal(await page.getAttribute('#wp-spec', 'aria-invalid'), 'true');
+});
+
+/** A short work–precision study: three runs of a few settings each. */
+const QUICK_STUDY = {
+  system: 'pendulum', t_end: 50, samples: 10,
+  runs: [{ method: 'rk4', h: [0.1, 0.05, 0.025] }, { method: 'modin_3s', h: [0.1, 0.05] }],
+};
+
+/** What the page draws for a work–precision point: the dot's time and its bar's ends. */
+function drawnTimings() {
+  return page.evaluate(() => {
+    const { chart, last } = window.geomint.workPrecision;
+    return {
+      series: chart.series.map((s) => ({ ys: s.ys, lows: s.lows, highs: s.highs })),
+      points: last.result.points,
+      note: document.querySelector('#wp-timing').textContent,
+      runs: document.querySelector('#wp-timing').dataset.runs,
+      table: [...document.querySelectorAll('#wp-table tr td:nth-child(3)')].map((td) => td.textContent),
+    };
+  });
+}
+
+test('work–precision: the spec shows its samples, and the panel says what each dot’s time is', async () => {
+  // The preset (in a fresh tab) names `samples`, the field the server's "must divide
+  // t_end/samples" is about; it asks for repeated timings only where the server's OpenAPI
+  // document offers them.
+  const offers = Boolean((await (await fetch(`${base}/api/v1/openapi.json`)).json())
+    .components.schemas.WorkPrecisionRequest.properties.repeats);
+  const fresh = await context.newPage();
+  try {
+    await fresh.goto(`${base}/#work-precision`);
+    await fresh.waitForSelector('body[data-run-state="idle"]', { timeout: 15_000 });
+    // The preset is settled once the page has asked the OpenAPI document.
+    await fresh.waitForFunction(() => window.geomint && document.querySelector('#wp-spec').value !== '');
+    await fresh.waitForLoadState('networkidle');
+    const preset = JSON.parse(await fresh.inputValue('#wp-spec'));
+    assert.equal(preset.samples, 50);
+    assert.equal(preset.repeats, offers ? 5 : undefined);
+  } finally {
+    await fresh.close();
+  }
+
+  await openSection(page, 'work-precision');
+  await page.fill('#wp-spec', JSON.stringify(QUICK_STUDY));
+  await page.click('#wp-run');
+  await page.waitForSelector('#work-precision[data-wp-state="done"]', { timeout: 30_000 });
+  const shown = await drawnTimings();
+  const repeated = shown.points.some((p) => p.timings_ms?.length > 1);
+  for (const p of shown.points) {
+    if (!p.timings_ms) continue;
+    // Fastest first, the median in wall_ms.
+    const sorted = [...p.timings_ms].sort((a, b) => a - b);
+    assert.deepEqual(p.timings_ms, sorted);
+    const mid = sorted.length >> 1;
+    const median = sorted.length % 2 ? sorted[mid] : (sorted[mid - 1] + sorted[mid]) / 2;
+    assert.ok(Math.abs(p.wall_ms - median) <= 1e-9 * median, `wall_ms ${p.wall_ms} is the median of ${sorted}`);
+  }
+  if (repeated) {
+    assert.match(shown.note, /^Each dot is the median wall time of \d+/);
+  } else {
+    // A server that times each setting once: single runs, and the panel says so; no bars.
+    assert.equal(shown.runs, '1');
+    assert.match(shown.note, /^Each dot is one timed run of its setting/);
+    for (const s of shown.series) assert.deepEqual(s.lows, s.ys);
+  }
+});
+
+test('work–precision: repeated timings are drawn as their median with a bar from fastest to slowest', async () => {
+  // The server's answer with five timings per point put in (a server that repeats sends them so):
+  // what the page makes of them does not depend on which server answered.
+  const factors = [0.7, 0.9, 1, 1.5, 3];
+  await page.route('**/api/v1/studies/work-precision', async (route) => {
+    const response = await route.fetch();
+    const lines = (await response.text()).split('\n').filter(Boolean).map((line) => JSON.parse(line));
+    const repeat = (p) => ({ ...p, timings_ms: factors.map((f) => f * p.wall_ms) });
+    const body = lines.map((line) => {
+      if (line.type === 'point') return { ...line, point: repeat(line.point) };
+      if (line.type === 'result') return { ...line, points: line.points.map(repeat) };
+      return line;
+    }).map((line) => JSON.stringify(line)).join('\n') + '\n';
+    await route.fulfill({ response, body });
+  });
+  try {
+    await page.fill('#wp-spec', JSON.stringify(QUICK_STUDY));
+    await page.click('#wp-run');
+    await page.waitForSelector('#work-precision[data-wp-state="done"]', { timeout: 30_000 });
+  } finally {
+    await page.unroute('**/api/v1/studies/work-precision');
+  }
+  const shown = await drawnTimings();
+  assert.equal(shown.runs, '5');
+  assert.match(shown.note, /^Each dot is the median wall time of 5 timed runs of its setting; its bar spans the fastest to the slowest/);
+  // Per series, sorted by error as drawn: the dot at the median, the bar from 0.7 to 3 times it.
+  for (const s of shown.series) {
+    s.ys.forEach((median, i) => {
+      assert.ok(Math.abs(s.lows[i] - 0.7 * median) < 1e-12 * median && Math.abs(s.highs[i] - 3 * median) < 1e-12 * median,
+        `bar ${s.lows[i]}–${s.highs[i]} around ${median}`);
+    });
+  }
+  // The plot's time axis holds every bar.
+  const [min, max] = await page.evaluate(() => {
+    const { scales } = window.geomint.workPrecision.plot;
+    return [scales.y.min, scales.y.max];
+  });
+  const lows = shown.series.flatMap((s) => s.lows);
+  const highs = shown.series.flatMap((s) => s.highs);
+  assert.ok(min <= Math.min(...lows) && max >= Math.max(...highs), `axis ${min}–${max}`);
+  assert.ok(shown.table.every((text) => /^\d+\.\d{3} \(\d+\.\d{3}–\d+\.\d{3}, 5 runs\)$/.test(text)), shown.table.join(' | '));
+  await page.locator('#wp-results').screenshot({ path: join(artifacts, 'work-precision-repeats.png') });
 });
 
 test('a convergence study streams into a log–log plot of error against h with the fitted orders', async () => {
