@@ -16,7 +16,7 @@ import { el, fmt, sizeText } from './common.js';
 import { getSystem } from './api.js';
 import { builtInPlotOptions, definitionPlotOptions } from './plot-options.js';
 import { SimulationView } from './simulation.js';
-import { EmbeddedViewer, notAnRrd } from './viewer.js';
+import { EmbeddedViewer, cutShort, notAnRrd } from './viewer.js';
 
 /** Recordings per page of the list. */
 export const PAGE_SIZE = 10;
@@ -120,7 +120,7 @@ export class RecordingsPanel {
       prev: $('rec-prev'), next: $('rec-next'), page: $('rec-page'),
       linkBox: $('rec-link-box'), link: $('rec-link'),
       drop: $('rec-drop'), file: $('rec-file'), upload: $('rec-upload'),
-      fileStatus: $('rec-file-status'), fileError: $('rec-file-error'),
+      fileStatus: $('rec-file-status'), fileError: $('rec-file-error'), fileWarning: $('rec-file-warning'),
       confirm: $('rec-confirm'), confirmText: $('rec-confirm-text'),
     };
     this.viewer = new EmbeddedViewer({
@@ -454,6 +454,7 @@ export class RecordingsPanel {
   async openLocal(file) {
     this.ui.fileError.textContent = '';
     this.ui.fileStatus.textContent = '';
+    this.ui.fileWarning.hidden = true;
     this.localFile = null;
     this.ui.upload.disabled = true;
     this.setUploadState('idle');
@@ -462,6 +463,10 @@ export class RecordingsPanel {
       this.ui.fileError.textContent = wrong;
       return;
     }
+    // Opened all the same (the viewer shows what it can), with a warning.
+    const partial = await cutShort(file);
+    this.ui.fileWarning.textContent = partial ?? '';
+    this.ui.fileWarning.hidden = !partial;
     this.localFile = file;
     this.ui.upload.disabled = false;
     this.showing = { file: file.name };
@@ -469,7 +474,8 @@ export class RecordingsPanel {
     this.viewer.ui.section.scrollIntoView({ behavior: 'smooth', block: 'start' });
     const state = await this.viewer.openFile(file);
     this.ui.fileStatus.textContent = state === 'ready'
-      ? `Opened ${file.name} (${sizeText(file.size)}) from this computer in the viewer below; it was not uploaded.`
+      ? `Opened ${file.name} (${sizeText(file.size)}) from this computer in the viewer below` +
+        `${partial ? ', as far as it goes' : ''}; it was not uploaded.`
       : `${file.name} could not be shown here; the viewer section says how to open it in the Rerun app.`;
   }
 

@@ -7,8 +7,15 @@
 // refused).
 
 import { simulateRrd, createRecording, ApiError } from './api.js';
-import { saveBlob, sizeText } from './common.js';
+import { el, saveBlob, sizeText } from './common.js';
 import { EmbeddedViewer } from './viewer.js';
+
+/** What the status line says of a recording the view stored, where it is and who sees it, then `after`. */
+function storedMessage(created, after) {
+  return [`Stored the recording (${sizeText(created.bytes)}) on this server, in the `,
+    el('a', { href: `#recording=${created.id}`, text: 'Recordings section' }),
+    ` for everyone who uses the server; ${after}`];
+}
 
 /** The .rrd download and the view of the run in the embedded viewer. */
 export class RerunPanel {
@@ -94,7 +101,11 @@ export class RerunPanel {
     }
   }
 
-  /** Stores the run's recording on the server and opens it in the embedded viewer. */
+  /**
+   * Stores the run's recording on the server and opens it in the embedded viewer. The help beside
+   * the button says beforehand that the recording is stored on the shared server; the status
+   * line says where it went.
+   */
   async view() {
     if (!this.store) return;
     this.close();
@@ -121,13 +132,12 @@ export class RerunPanel {
     }
     if (stale()) return;
     const url = new URL(created.url, window.location.origin).href;
-    this.ui.status.textContent = `Recording stored (${sizeText(created.bytes)}); starting the Rerun viewer…`;
+    this.ui.status.replaceChildren(...storedMessage(created, 'starting the Rerun viewer…'));
     section.scrollIntoView({ behavior: 'smooth', block: 'start' });
     const state = await this.viewer.openUrl(url, { href: url, name });
     if (stale()) return;
-    this.ui.status.textContent = state === 'ready'
-      ? `The recording is open in the Rerun viewer below (${sizeText(created.bytes)}).`
-      : 'Recording stored; open it in the Rerun app (see below).';
+    this.ui.status.replaceChildren(...storedMessage(created, state === 'ready'
+      ? 'it is open in the Rerun viewer below.' : 'open it in the Rerun app (see below).'));
   }
 
   /** Stops a view in progress (a recording still being stored) and clears its message. */

@@ -159,6 +159,11 @@ test('the run downloads as .rrd and opens in the Rerun viewer', async () => {
   assert.equal(rrd.subarray(0, 4).toString('latin1'), 'RRF2', 'Rerun 0.33 files start with RRF2');
   await page.waitForSelector('#rrd-status:has-text("Saved geomint-pendulum.rrd")');
 
+  // Before it is clicked, the page says that "View in Rerun" stores the recording on this server,
+  // where everyone who uses it sees it.
+  assert.match(await page.textContent('#help-rrd'), /“View in Rerun”, which stores the\s+recording on this server: it joins the Recordings section, where everyone/);
+  assert.match(await page.getAttribute('#view-rerun', 'aria-describedby'), /\bhelp-rrd\b/);
+
   // View in Rerun: the recording is stored (201) and the viewer opens its absolute URL.
   const posted = page.waitForResponse((r) =>
     new URL(r.url()).pathname === '/api/v1/recordings' && r.request().method() === 'POST');
@@ -181,6 +186,9 @@ test('the run downloads as .rrd and opens in the Rerun viewer', async () => {
   await page.waitForFunction(() => ['ready', 'failed', 'unavailable']
     .includes(document.querySelector('#rerun').dataset.viewerState), null, { timeout: 30_000 });
   const state = await page.getAttribute('#rerun', 'data-viewer-state');
+  // … and once it has, where it went, with a link to it in the Recordings section.
+  assert.match(await page.textContent('#rrd-status'), /^Stored the recording \(\d+ KiB\) on this server, in the Recordings section for everyone who uses the server;/);
+  assert.equal(await page.getAttribute('#rrd-status a', 'href'), `#recording=${created.id}`);
   if (state === 'ready') {
     assert.equal(await page.isVisible('#rerun-viewer'), true);
     assert.equal(await page.locator('#rerun-viewer canvas').count(), 1);

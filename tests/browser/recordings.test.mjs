@@ -367,6 +367,8 @@ test('a local .rrd opens in the viewer without an upload, by picker and by drop,
     await page.waitForFunction(() => window.geomint.library.viewer.stepRange()?.max === 200, null, { timeout: 60_000 });
     assert.match(await page.textContent('#rec-file-status'), /^Opened local-run\.rrd \(\d+ KiB\) from this computer .* it was not uploaded\.$/);
   }
+  // A whole recording opens without a warning.
+  assert.equal(await page.isHidden('#rec-file-warning'), true);
   // Opening sent nothing to the server.
   assert.deepEqual(requests.slice(sent).filter((r) => r.includes('/api/')), []);
 
@@ -418,6 +420,12 @@ test('a file that is not a recording is refused with a clear error, here and by 
   const half = Buffer.from(bytes).subarray(0, Math.floor(bytes.byteLength / 2));
   await page.setInputFiles('#rec-file', { name: 'cut.rrd', mimeType: 'application/octet-stream', buffer: half });
   await page.waitForSelector('#rec-upload:enabled', { state: 'attached' });
+  // The page opens it (the viewer shows what it can read) but says it is cut short, before any
+  // upload.
+  await page.waitForSelector('#rec-file-warning:not([hidden])');
+  assert.match(await page.textContent('#rec-file-warning'),
+    new RegExp(`^cut\\.rrd looks cut short: its ${half.length} bytes do not end with the RRD stream footer`));
+  await page.locator('#rec-drop').screenshot({ path: join(artifacts, 'recordings-cut-short.png') });
   // The upload needs no viewer: closing it spares the page's thread the software rendering.
   await page.evaluate(() => window.geomint.library.viewer.close());
   await page.click('#rec-upload');
