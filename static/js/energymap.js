@@ -11,22 +11,13 @@
 import { energyMapStream, energyMapRrd, ApiError } from './api.js';
 import { StudyStream, OUTCOME } from './study-stream.js';
 import { downloadRecording, el, fmt, parseCount, parseNumber, saveBlob } from './common.js';
-import { GridMap, bindCursor, drawScaleBar } from './heatmap.js';
+import { GridMap, RATIO_RANGE, bindCursor, drawScaleBar, ratioColour } from './heatmap.js';
 
-/** The colour scale spans log10(ε(x,y)/ε(r,θ)) ∈ [−RATIO_RANGE, RATIO_RANGE] (the recording's). */
-export const RATIO_RANGE = 2;
 /** Where a run diverged (or the pivot, where the polar chart does not exist). */
 export const DIVERGED_COLOUR = [0, 0, 0];
 const DIVERGED_CSS = `rgb(${DIVERGED_COLOUR.join(',')})`;
 /** The method selected first. */
 const DEFAULT_METHOD = 'symplectic_euler';
-
-/** The colour of log10 of the error ratio `e`, clamped to the scale. */
-function ratioColour(e) {
-  const ratio = Math.min(1, Math.max(-1, e / RATIO_RANGE));
-  const fade = Math.round(255 * (1 - Math.abs(ratio)));
-  return ratio < 0 ? [fade, fade, 255] : [255, fade, fade];
-}
 
 /**
  * The RGB colour of a cell from its two errors, as `difference_color` of the recording: white at

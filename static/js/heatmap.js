@@ -4,7 +4,8 @@
 // (γ, h) grid point, γ across and h upwards, coloured on a log scale of the spectral radius ρ —
 // blues where the method is stable (ρ ≤ 1), oranges to reds where it is not, grey where it is
 // undefined — with the analytic stability boundaries drawn along the cell edges where a
-// relation's verdict changes. The energy-error map (energymap.js) is a GridMap too.
+// relation's verdict changes; and the colours of ratio maps (`ratioColour`). The energy-error map
+// (energymap.js) and the sweeps (sweep.js) are GridMaps too.
 
 import { el, fmt } from './common.js';
 
@@ -56,6 +57,19 @@ export function colourScale(maps) {
     lo: Math.min(-0.1, Number.isFinite(lo) ? Math.log10(lo) : -1),
     hi: Math.max(0.1, Number.isFinite(hi) ? Math.log10(hi) : 1),
   };
+}
+
+/** Ratio maps (energy map, sweep comparisons) saturate at a factor 10^RATIO_RANGE either way. */
+export const RATIO_RANGE = 2;
+
+/**
+ * The colour of `e`, the log₁₀ of a ratio of two errors: white at 1, blue below, red above,
+ * saturated at ±RATIO_RANGE.
+ */
+export function ratioColour(e) {
+  const ratio = Math.min(1, Math.max(-1, e / RATIO_RANGE));
+  const fade = Math.round(255 * (1 - Math.abs(ratio)));
+  return ratio < 0 ? [fade, fade, 255] : [255, fade, fade];
 }
 
 /** The RGB colour of a cell: its spectral radius and the numerical verdict. */

@@ -1,17 +1,18 @@
 // The sweep section: a sweep request edited as JSON (or loaded from the server's presets), run
 // through POST /api/v1/studies/sweep as an NDJSON stream with a progress bar and Cancel; the
 // answer drawn as a heatmap of any metric of any run (a method in a chart) over the sweep's one or
-// two axes — log10 of the magnitude for errors and drifts, linear for divergence times, black
-// where a run diverged or could not start — or as the difference between two runs (log10 of the
-// ratio of their values: blue where the first is smaller, red where it is larger). A readout
-// gives the cell under the pointer (or the keyboard cursor); the sweep downloads as JSON and as a
+// two axes — log10 of the magnitude for errors and drifts, linear over 0 to t_end for divergence
+// times — or as the difference between two runs (log10 of the ratio of their values: blue where
+// the first is smaller, red where it is larger). A caption says what the colour bar shows and on
+// which scale; a legend names the cells without a value (NO_VALUE). A readout gives the cell
+// under the pointer (or the keyboard cursor); the sweep downloads as JSON and as a
 // Rerun recording. The section's state is `data-sweep-state` (idle, running, done, cancelled,
 // error), for tests.
 
 import { ApiError, sweepPresets, sweepRrd, sweepStream } from './api.js';
 import { StudyStream, OUTCOME } from './study-stream.js';
 import { downloadRecording, el, fmt, plural, saveBlob } from './common.js';
-import { GridMap, bindCursor, drawScaleBar } from './heatmap.js';
+import { GridMap, RATIO_RANGE, bindCursor, drawScaleBar, ratioColour } from './heatmap.js';
 
 /**
  * The colours of cells without a value on the scale, and what the legend says of them. On an
@@ -28,8 +29,6 @@ export const NO_VALUE = {
 };
 /** The readout before a cell is chosen. */
 const READOUT_PROMPT = 'Point at the map, or focus it and use the arrow keys, to read a cell.';
-/** The ratio view saturates at a factor 10^RATIO_RANGE. */
-const RATIO_RANGE = 2;
 /** Anchors of the value scale, least to most (the recording's ramp). */
 const RAMP = [[68, 1, 84], [59, 82, 139], [33, 145, 140], [94, 201, 98], [253, 231, 37]];
 
@@ -39,12 +38,6 @@ export function rampColour(t) {
   const i = Math.min(RAMP.length - 2, Math.floor(x));
   const f = x - i;
   return [0, 1, 2].map((k) => Math.round(RAMP[i][k] + (RAMP[i + 1][k] - RAMP[i][k]) * f));
-}
-
-function ratioColour(e) {
-  const r = Math.min(1, Math.max(-1, e / RATIO_RANGE));
-  const fade = Math.round(255 * (1 - Math.abs(r)));
-  return r < 0 ? [fade, fade, 255] : [255, fade, fade];
 }
 
 /** The metrics of a run: key → {label, values, log}. */
