@@ -143,7 +143,9 @@ test('a refused sweep shows the server’s message and field', async () => {
 });
 
 /** The colour of cell (col, row) of the sweep's map, as drawn. */
-function cellPixel(col, row) {
+async function cellPixel(col, row) {
+  // A redraw lays the new map out in the next animation frame.
+  await page.waitForFunction(() => window.geomint.sweep.map?.cssWidth > 0 && !window.geomint.sweep.pending);
   return page.evaluate(([c, r]) => {
     const { map } = window.geomint.sweep;
     const ctx = map.canvas.getContext('2d');
