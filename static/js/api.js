@@ -52,6 +52,19 @@ async function getJson(path) {
   return response.json();
 }
 
+/** The server's OpenAPI document, fetched once (a promise; null when it cannot be had). */
+let openApi = null;
+
+/**
+ * Whether the server's request schema `schema` has the property `field` (a server older than
+ * the page refuses fields it does not know).
+ */
+export async function serverOffers(schema, field) {
+  openApi ??= getJson('api/v1/openapi.json').catch(() => null);
+  const doc = await openApi;
+  return Boolean(doc?.components?.schemas?.[schema]?.properties?.[field]);
+}
+
 /** The system and method catalogues. */
 export async function catalogues() {
   const [systems, methods] = await Promise.all([getJson('api/v1/systems'), getJson('api/v1/methods')]);
@@ -67,6 +80,11 @@ export async function catalogues() {
 export async function storeSystem(definition, signal) {
   const response = await post('api/v1/systems', definition, { signal });
   return { ...(await response.json()), created: response.status === 201 };
+}
+
+/** A stored system definition's entry (GET /api/v1/systems/{id}): its catalogue fields, `definition`, `facts`. */
+export async function getSystem(id) {
+  return getJson(`api/v1/systems/${encodeURIComponent(id)}`);
 }
 
 /**

@@ -9,7 +9,18 @@
 // per series.
 
 import uPlot from '../vendor/uPlot.esm.js';
-import { el } from './form.js';
+import { el } from './common.js';
+
+/** What the energy error is measured against (plot-options.js): its symbol and caption. */
+export const ENERGY_ERROR = {
+  exact: { symbol: 'H_exact', caption: 'against the exact solution' },
+  ref: { symbol: 'H_ref', caption: 'against the adaptive DOP853 reference run' },
+  initial: { symbol: 'H₀', caption: 'against the initial energy H₀: nothing damps this run, so H is conserved' },
+};
+
+/** Where a run has no energy error, what to do for one. */
+const NO_ENERGY_ERROR = 'No energy error: this system is damped and has no exact solution. Tick “Compare to the ' +
+  'reference” and run again to measure it against an adaptive DOP853 run.';
 
 /** One colour per method (Okabe–Ito, then Tol's muted set), readable on white. */
 export const COLOURS = [
@@ -129,8 +140,8 @@ function padded(y, n) {
  * 2: x–y pairs), `log` for a log y axis, and `series(store)` giving per method (and body) the
  * label, colour and values.
  */
-function timePlot(key, title, yLabel, pick, { log = false, caption = '' } = {}) {
-  return { key, title, caption, xLabel: 't', yLabel, mode: 1, log, pick };
+function timePlot(key, title, yLabel, pick, { log = false, caption = '', against = null } = {}) {
+  return { key, title, caption, xLabel: 't', yLabel, mode: 1, log, pick, against };
 }
 
 /** `perMethod`: how many x–y series each method has (one per body in projections); `yDown`
@@ -202,7 +213,9 @@ export class Charts {
    * Creates the plots for a stream `header` (system, methods, invariants, schedule).
    * @param {object} header
    * @param {object} options
-   * @param {string|null} options.energyErrorSource `exact`, `ref` or null (no error plot)
+   * @param {string|null} options.energyErrorSource `exact`, `ref`, `initial` (a key of
+   *   ENERGY_ERROR) or null (no error plot)
+   * @param {string} [options.noEnergyErrorNote] what the energy section says without one
    * @param {boolean} options.drift whether to plot the dissipation drift
    * @param {string[]} [options.chartNames] the run's chart's coordinate names
    * @param {string|null} [options.chartNote] a caption for plots in chart coordinates (null in
@@ -224,12 +237,13 @@ export class Charts {
     const sections = [];
 
     const energy = [timePlot('energy', 'Energy H(t)', 'H', (r) => r.energy)];
-    if (options.energyErrorSource) {
-      energy.push(timePlot('energy_error', `Energy error |H − H_${options.energyErrorSource}|`, '|ΔH|',
-        (r) => r.errorMagnitude, { log: true, caption: `against the ${options.energyErrorSource === 'exact' ? 'exact solution' : 'DOP853 reference'}; log axis` }));
+    const against = ENERGY_ERROR[options.energyErrorSource];
+    if (against) {
+      energy.push(timePlot('energy_error', `Energy error |H − ${against.symbol}|`, '|ΔH|',
+        (r) => r.errorMagnitude, { log: true, caption: `${against.caption}; log axis`, against: options.energyErrorSource }));
     }
     sections.push({ id: 'energy', title: 'Energy', plots: energy,
-      note: options.energyErrorSource ? null : 'No energy error: this system has no exact solution. Tick “compare to the reference” to measure it against the DOP853 reference.' });
+      note: against ? null : options.noEnergyErrorNote ?? NO_ENERGY_ERROR });
 
     const names = dof === 1 ? [''] : dof % 3 === 0 ? ['x', 'y', 'z'] : null;
     const coordinate = (i) => {
@@ -311,7 +325,7 @@ export class Charts {
   add(grid, def, labels) {
     const titleId = `plot-${def.key.replace(/[^\w-]/g, '-')}`;
     const area = el('div', { class: 'plot-area' });
-    const figure = el('figure', { class: 'plot', 'data-plot': def.key, 'aria-labelledby': titleId },
+    const figure = el('figure', { class: 'plot', 'data-plot': def.key, 'data-against': def.against, 'aria-labelledby': titleId },
       el('figcaption', { id: titleId }, el('span', { class: 'plot-title', text: def.title }),
         def.caption ? el('small', { text: def.caption }) : null),
       def.log ? el('p', { class: 'plot-empty', hidden: true, text: 'Nothing to draw on a log axis: every error so far is zero.' }) : null,
@@ -421,8 +435,11 @@ export function logAxis(label) {
   };
 }
 
-/** A faceted series drawn as a polyline through its points with a dot at each. */
-function dotted(u, seriesIdx) {
+/**
+ * A faceted series drawn as a polyline through its points with a dot at each, and, where `spread`
+ * gives each point's `lows` and `highs` (of y), a bar with end ticks from one to the other.
+ */
+function dotted(u, seriesIdx, spread = null) {
   const path = polyline(u, seriesIdx);
   const [xs, ys] = u.data[seriesIdx];
   const r = 3 * (window.devicePixelRatio || 1);
@@ -431,6 +448,16 @@ function dotted(u, seriesIdx) {
     const py = u.valToPos(ys[i], 'y', true);
     path.stroke.moveTo(px + r, py);
     path.stroke.arc(px, py, r, 0, 2 * Math.PI);
+    const [low, high] = [spread?.lows?.[i], spread?.highs?.[i]];
+    if (low > 0 && high > low) {
+      const [top, bottom] = [u.valToPos(high, 'y', true), u.valToPos(low, 'y', true)];
+      path.stroke.moveTo(px, top);
+      path.stroke.lineTo(px, bottom);
+      path.stroke.moveTo(px - r, top);
+      path.stroke.lineTo(px + r, top);
+      path.stroke.moveTo(px - r, bottom);
+      path.stroke.lineTo(px + r, bottom);
+    }
   }
   return path;
 }
@@ -458,7 +485,10 @@ export class LogLogPlot {
     this.resize.observe(area);
   }
 
-  /** Shows `series` ({label, colour, xs, ys} with positive values). */
+  /**
+   * Shows `series` ({label, colour, xs, ys} with positive values, and optionally `lows` and
+   * `highs`: each point's spread in y, drawn as a bar).
+   */
   show(series) {
     this.series = series;
     const data = [null, ...series.map((s) => [s.xs, s.ys])];
@@ -480,14 +510,29 @@ export class LogLogPlot {
       width, height, mode: 2,
       legend: { show: false },
       cursor: { points: { show: false }, drag: { x: false, y: false } },
-      scales: { x: { time: false, distr: 3, auto: true }, y: { distr: 3, auto: true } },
+      scales: {
+        x: { time: false, distr: 3, auto: true },
+        // The bars of the spreads stay inside the plot.
+        y: { distr: 3, auto: true, range: (u, min, max) => this.yRange(min, max) },
+      },
       axes: [logAxis(this.xLabel), logAxis(this.yLabel)],
       series: [{}, ...series.map((s) => ({
-        label: s.label, stroke: s.colour, width: 1.5, paths: dotted, points: { show: false },
+        label: s.label, stroke: s.colour, width: 1.5, points: { show: false },
+        paths: (u, i) => dotted(u, i, this.series[i - 1]),
         facets: [{ scale: 'x', auto: true }, { scale: 'y', auto: true }],
       }))],
     }, data, this.area);
     this.plot.over.addEventListener('pointermove', (event) => this.onHover(event.offsetX, event.offsetY));
+  }
+
+  /** The y range of the plot: the dots' `min` to `max`, widened to the spreads, in whole decades. */
+  yRange(min, max) {
+    const lows = this.series.flatMap((s) => s.lows ?? []).filter((v) => v > 0);
+    const highs = this.series.flatMap((s) => s.highs ?? []).filter((v) => v > 0);
+    const lo = Math.min(min ?? Infinity, ...lows);
+    const hi = Math.max(max ?? -Infinity, ...highs);
+    if (!(lo > 0 && hi >= lo)) return [min ?? 1, max ?? 10];
+    return uPlot.rangeLog(lo, hi, 10, true);
   }
 
   /** The dot nearest to (x, y) in CSS pixels of the plot area, within 24 px: {series, index}. */

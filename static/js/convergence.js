@@ -7,10 +7,9 @@
 // section's state is `data-cv-state` (idle, running, done, error).
 
 import { convergenceStream } from './api.js';
-import { el } from './form.js';
 import { colour, LogLogPlot } from './charts.js';
-import { StudyPanel, fmtError } from './studies.js';
-import { saveBlob, sizeText } from './rerun.js';
+import { StudyPanel } from './study-panel.js';
+import { el, fmtError, saveBlob, sizeText } from './common.js';
 
 /** The errors a study measures: the point's field, the series' fit, the axis label. */
 export const ERRORS = {

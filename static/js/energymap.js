@@ -9,24 +9,15 @@
 // `data-map-state` (idle, running, done, cancelled, error), for tests.
 
 import { energyMapStream, energyMapRrd, ApiError } from './api.js';
-import { el } from './form.js';
-import { GridMap, bindCursor, drawScaleBar, fmt } from './heatmap.js';
-import { saveBlob, sizeText } from './rerun.js';
+import { StudyStream, OUTCOME } from './study-stream.js';
+import { downloadRecording, el, fmt, parseCount, parseNumber, saveBlob } from './common.js';
+import { GridMap, RATIO_RANGE, bindCursor, drawScaleBar, ratioColour } from './heatmap.js';
 
-/** The colour scale spans log10(ε(x,y)/ε(r,θ)) ∈ [−RATIO_RANGE, RATIO_RANGE] (the recording's). */
-export const RATIO_RANGE = 2;
 /** Where a run diverged (or the pivot, where the polar chart does not exist). */
 export const DIVERGED_COLOUR = [0, 0, 0];
 const DIVERGED_CSS = `rgb(${DIVERGED_COLOUR.join(',')})`;
 /** The method selected first. */
 const DEFAULT_METHOD = 'symplectic_euler';
-
-/** The colour of log10 of the error ratio `e`, clamped to the scale. */
-function ratioColour(e) {
-  const ratio = Math.min(1, Math.max(-1, e / RATIO_RANGE));
-  const fade = Math.round(255 * (1 - Math.abs(ratio)));
-  return ratio < 0 ? [fade, fade, 255] : [255, fade, fade];
-}
 
 /**
  * The RGB colour of a cell from its two errors, as `difference_color` of the recording: white at
@@ -41,19 +32,6 @@ export function differenceColour(cartesian, polar) {
 /** Whether a method runs on the polar chart's non-separable Hamiltonian with fixed steps. */
 function runsInPolar(method) {
   return method.requirements.length === 0 && method.kind !== 'adaptive' && method.options.length === 0;
-}
-
-function parseNumber(text) {
-  const t = String(text).trim();
-  if (t === '') return null;
-  const x = Number(t);
-  return Number.isFinite(x) ? x : null;
-}
-
-/** A grid size: a whole number as a number; anything else as typed (the API names the field). */
-function parseCount(text) {
-  const x = parseNumber(text);
-  return x !== null && Number.isInteger(x) ? x : String(text).trim() || null;
 }
 
 /** The map of one answer on a canvas: cells coloured by the error ratio, the boundary dashed. */
@@ -170,11 +148,11 @@ export class EnergyMapPanel {
     /** @type {EnergyMap|null} */
     this.map = null;
     this.cursor = null;
-    this.controller = null;
+    this.runner = new StudyStream({
+      root, stateKey: 'mapState', progress: this.progress, status: this.status, cancel: this.cancelButton,
+    });
     /** The last map: {body, doc} (for tests and the downloads). */
     this.last = null;
-    /** The last progress line of the last run (for tests). */
-    this.lastProgress = null;
     this.scaleBox.append(el('ul', { class: 'legend scale-legend' },
       el('li', {}, el('span', { class: 'swatch block', style: `background:${DIVERGED_CSS}`, 'aria-hidden': 'true' }),
         'a run diverged (or the pivot, where polar coordinates do not exist)'),
@@ -185,17 +163,12 @@ export class EnergyMapPanel {
       event.preventDefault();
       this.run();
     });
-    this.cancelButton.addEventListener('click', () => this.cancel());
     this.jsonButton.addEventListener('click', () => this.downloadJson());
     this.rrdButton.addEventListener('click', () => this.downloadRrd());
     this.pending = false;
     this.resize = new ResizeObserver(() => this.layout());
     this.resize.observe(this.root.querySelector('#em-results'));
     this.runButton.disabled = false;
-  }
-
-  setState(state) {
-    this.root.dataset.mapState = state;
   }
 
   /** The request body the form describes (bad numbers as null: the API names them). */
@@ -227,68 +200,40 @@ export class EnergyMapPanel {
 
   /** Computes the map of the form (a new run supersedes a running one). */
   async run() {
-    this.controller?.abort();
-    const controller = new AbortController();
-    this.controller = controller;
     this.clearErrors();
     const body = this.read();
-    let doc = null;
-    this.setState('running');
-    this.cancelButton.disabled = false;
-    this.progress.max = 1;
-    this.progress.removeAttribute('value');
-    this.lastProgress = null;
-    this.status.textContent = 'Starting…';
-    try {
-      await energyMapStream(body, (line) => {
-        if (controller !== this.controller) return;
-        if (line.type === 'progress') {
-          this.lastProgress = line;
-          this.progress.max = line.total;
-          this.progress.value = line.done;
-          this.status.textContent = `Running: ${line.done} of ${line.total} cells ` +
-            `(${Math.floor((100 * line.done) / Math.max(1, line.total))} %).`;
-        } else if (line.type === 'result') {
-          const { type, ...rest } = line;
-          doc = rest;
-        } else if (line.type === 'error') {
-          throw new ApiError(line.error);
-        }
-      }, controller.signal);
-    } catch (error) {
-      if (controller !== this.controller) return;
-      this.cancelButton.disabled = true;
-      // A bar that never saw a progress line stays empty rather than indeterminate.
-      if (!this.lastProgress) this.progress.value = 0;
-      if (error?.name === 'AbortError') {
-        this.status.textContent = 'Cancelled; the map shown (if any) is the last one.';
-        this.setState('cancelled');
-        return;
-      }
+    const { outcome, result: doc, error } = await this.runner.stream(energyMapStream, body);
+    if (outcome === OUTCOME.superseded) return;
+    if (outcome === OUTCOME.cancelled) {
+      this.status.textContent = 'Cancelled; the map shown (if any) is the last one.';
+      return;
+    }
+    if (outcome === OUTCOME.error) {
       const focus = this.showError(error);
       this.status.textContent = error instanceof ApiError
         ? `The server refused the map: ${error.message}`
         : `The map failed: ${error?.message || error}`;
-      this.setState('error');
       focus?.focus();
       return;
     }
-    if (controller !== this.controller) return;
-    this.cancelButton.disabled = true;
     this.last = { body, doc };
-    this.progress.max = Math.max(1, doc.summary.cells);
-    this.progress.value = doc.summary.cells;
+    this.runner.showProgress(doc.summary.cells, doc.summary.cells);
     this.render(doc);
     this.status.textContent = `Done: ${doc.xs.length} × ${doc.ys.length} cells of ${doc.method}, h = ${fmt(doc.h)}, ` +
       `t_max = ${fmt(doc.t_max)}: ${doc.steps.toLocaleString('en')} steps in ${fmt(doc.wall_ms / 1000, 3)} s.` +
       (doc.stop === 'time_limit'
         ? ` The server's time limit stopped ${doc.unfinished_cells.length} cells (left blank).`
         : '');
-    this.setState('done');
+    this.runner.setState('done');
   }
 
   cancel() {
-    this.controller?.abort();
+    this.runner.abort();
+  }
+
+  /** The last progress line of the last run (for tests). */
+  get lastProgress() {
+    return this.runner.lastProgress;
   }
 
   /** Draws the map of `doc` with its scale, readout and summary. */
@@ -372,20 +317,12 @@ export class EnergyMapPanel {
   }
 
   /** Saves the shown map as geomint-energy-map.rrd (the server computes and records it again). */
-  async downloadRrd() {
-    if (!this.last) return;
-    this.rrdError.textContent = '';
-    this.rrdButton.disabled = true;
-    this.status.textContent = 'Recording the map (the server computes it again)…';
-    try {
-      const blob = await energyMapRrd(this.last.body);
-      saveBlob(blob, 'geomint-energy-map.rrd');
-      this.status.textContent = `Saved geomint-energy-map.rrd (${sizeText(blob.size)}).`;
-    } catch (error) {
-      this.rrdError.textContent = `The recording could not be made: ${error?.message || error}`;
-      this.status.textContent = 'The recording could not be made.';
-    } finally {
-      this.rrdButton.disabled = !this.last;
-    }
+  downloadRrd() {
+    if (!this.last) return null;
+    const { body } = this.last;
+    return downloadRecording({
+      button: this.rrdButton, status: this.status, error: this.rrdError,
+      name: 'geomint-energy-map.rrd', fetchBlob: () => energyMapRrd(body),
+    });
   }
 }

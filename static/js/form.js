@@ -8,6 +8,7 @@
 // method checkboxes are a MethodPicker, which the Your-system section (system.js) uses too.
 
 import { simulateJson } from './api.js';
+import { el, numberText, parseNumber, parseList } from './common.js';
 
 /** Display groups of the method catalogue, in order. */
 const GROUPS = [
@@ -22,6 +23,9 @@ const RKS_INNER = ['heun', 'rk3', 'rk4', 'implicit_midpoint'];
 /** Processors `rowlands` accepts, the default first (paper 001 eqs. 32–37). */
 const ROWLANDS_PROCESSORS = ['cheap', 'original', 'none'];
 
+/** Chosen when nothing is: the first of these geometric methods that applies, beside rk4. */
+const DEFAULT_GEOMETRIC = ['modin_3s', 'csv2', 'velocity_verlet', 'implicit_midpoint'];
+
 /** Up to this many degrees of freedom the initial state gets one input per component. */
 const MAX_COMPONENT_INPUTS = 6;
 
@@ -31,45 +35,9 @@ const REQUIREMENT_TEXT = {
   conservative: 'no damping (γ = 0, ε = 0)',
 };
 
-/** Creates an element with attributes and children. */
-export function el(tag, attrs = {}, ...children) {
-  const node = document.createElement(tag);
-  for (const [key, value] of Object.entries(attrs)) {
-    if (value === undefined || value === null || value === false) continue;
-    if (key === 'class') node.className = value;
-    else if (key === 'text') node.textContent = value;
-    else if (key.startsWith('on')) node.addEventListener(key.slice(2), value);
-    else node.setAttribute(key, value === true ? '' : String(value));
-  }
-  for (const child of children.flat()) {
-    if (child === null || child === undefined || child === false) continue;
-    node.append(child instanceof Node ? child : document.createTextNode(String(child)));
-  }
-  return node;
-}
-
 /** Text with `backtick` spans as <code> elements, for catalogue descriptions. */
 function richText(text) {
   return String(text).split('`').map((part, i) => (i % 2 ? el('code', { text: part }) : part));
-}
-
-/** A number as an input shows it (shortest round-trip form). */
-export function numberText(x) {
-  return Number.isFinite(x) ? String(x) : '';
-}
-
-/** Parses an input's text: a finite number, or null (the API then names the field). */
-export function parseNumber(text) {
-  const t = String(text).trim();
-  if (t === '') return null;
-  const x = Number(t);
-  return Number.isFinite(x) ? x : null;
-}
-
-/** Parses a comma- or space-separated list of numbers; bad entries become null. */
-export function parseList(text) {
-  const parts = String(text).split(/[\s,;]+/).filter((s) => s !== '');
-  return parts.map(parseNumber);
 }
 
 /** A chart's name in text: `Cartesian` for the Cartesian chart, else its id. */
@@ -116,15 +84,49 @@ export class MethodPicker {
     const keep = this.order.filter((id) => offered.some((m) => m.id === id));
     const specs = this.read().filter((spec) => keep.includes(spec.id ?? spec));
     this.bases = this.methods.filter((x) => x.symmetric && x.order === 2 && (!ids || ids.includes(x.id))).map((x) => x.id);
+    // Each group folds away behind a summary that names the methods chosen in it, so that the
+    // form stays short and Run is a few Tab presses from the top.
     const group = (title, note, members) => (members.length === 0 ? null
-      : el('fieldset', { class: 'method-group' },
-        el('legend', {}, title, note ? ' ' : null, note ? el('small', { text: note }) : null),
+      : el('details', { class: 'method-group' },
+        el('summary', {}, el('span', { class: 'group-title', text: title }), ' ',
+          el('span', { class: 'group-chosen' }), note ? el('small', { class: 'group-note', text: note }) : null),
         members.map((m) => this.methodRow(m))));
     const groups = GROUPS.map((g) => group(g.title, g.note, offered.filter((m) => m.group === g.id)));
     groups.push(group('Other', null, offered.filter((m) => !GROUPS.some((g) => g.id === m.group))));
     this.box.replaceChildren(...groups.filter(Boolean));
     this.order = [];
     this.fill(specs);
+  }
+
+  /** Each group's summary: how many of its methods are chosen, and which. */
+  showChosen() {
+    for (const group of this.box.querySelectorAll('details.method-group')) {
+      const boxes = [...group.querySelectorAll('input[type=checkbox]')];
+      const chosen = boxes.filter((b) => b.checked).map((b) => b.value);
+      group.querySelector('.group-chosen').textContent = chosen.length
+        ? `— ${chosen.length} of ${boxes.length} chosen: ${chosen.join(', ')}`
+        : `— none of ${boxes.length} chosen`;
+      group.dataset.chosen = String(chosen.length);
+    }
+  }
+
+  /**
+   * When no method is chosen, chooses a geometric method that applies and rk4, so that a fresh
+   * form runs as it is.
+   */
+  chooseDefaults() {
+    if (this.order.length) return;
+    const available = (id) => {
+      const box = this.row(id)?.querySelector('input[type=checkbox]');
+      return Boolean(box && !box.disabled);
+    };
+    this.fill([DEFAULT_GEOMETRIC.find(available), 'rk4'].filter((id) => id && available(id)));
+  }
+
+  /** Opens the group that holds `input` (to show an error there). */
+  reveal(input) {
+    const group = input?.closest('details.method-group');
+    if (group) group.open = true;
   }
 
   /** Every method's row. */
@@ -145,6 +147,7 @@ export class MethodPicker {
     box.addEventListener('change', () => {
       this.order = this.order.filter((x) => x !== m.id);
       if (box.checked) this.order.push(m.id);
+      this.showChosen();
     });
     const kind = m.kind.replace('_', ' ');
     const label = el('label', { for: id },
@@ -191,6 +194,7 @@ export class MethodPicker {
     const box = this.row(id)?.querySelector('input[type=checkbox]');
     if (box) box.checked = false;
     this.order = this.order.filter((x) => x !== id);
+    this.showChosen();
   }
 
   /** Chooses the methods of `specs` (ids, or objects with `id` and options), in that order. */
@@ -210,6 +214,7 @@ export class MethodPicker {
         }
       }
     }
+    this.showChosen();
   }
 
   /** The chosen methods as the request lists them: an id, or {id, option} where one is set. */
@@ -595,6 +600,7 @@ export class SimForm {
         why.remove();
       }
     }
+    this.picker.chooseDefaults();
   }
 
   /** Fills the form with a request (a preset). */
@@ -666,6 +672,7 @@ export class SimForm {
     slot.textContent = error.message;
     if (target?.input) target.input.setAttribute('aria-invalid', 'true');
     slot.closest('.field, .method, fieldset')?.classList.add('has-error');
+    this.picker.reveal(slot);
     return target?.input || null;
   }
 

@@ -4,9 +4,10 @@
 // (γ, h) grid point, γ across and h upwards, coloured on a log scale of the spectral radius ρ —
 // blues where the method is stable (ρ ≤ 1), oranges to reds where it is not, grey where it is
 // undefined — with the analytic stability boundaries drawn along the cell edges where a
-// relation's verdict changes. The energy-error map (energymap.js) is a GridMap too.
+// relation's verdict changes; and the colours of ratio maps (`ratioColour`). The energy-error map
+// (energymap.js) and the sweeps (sweep.js) are GridMaps too.
 
-import { el } from './form.js';
+import { el, fmt } from './common.js';
 
 /** Margins of the plot area inside the canvas, in CSS pixels. */
 const MARGIN = { left: 48, right: 10, top: 8, bottom: 38 };
@@ -58,6 +59,19 @@ export function colourScale(maps) {
   };
 }
 
+/** Ratio maps (energy map, sweep comparisons) saturate at a factor 10^RATIO_RANGE either way. */
+export const RATIO_RANGE = 2;
+
+/**
+ * The colour of `e`, the log₁₀ of a ratio of two errors: white at 1, blue below, red above,
+ * saturated at ±RATIO_RANGE.
+ */
+export function ratioColour(e) {
+  const ratio = Math.min(1, Math.max(-1, e / RATIO_RANGE));
+  const fade = Math.round(255 * (1 - Math.abs(ratio)));
+  return ratio < 0 ? [fade, fade, 255] : [255, fade, fade];
+}
+
 /** The RGB colour of a cell: its spectral radius and the numerical verdict. */
 export function cellColour(rho, stable, scale) {
   if (rho == null || !Number.isFinite(rho)) return hexRgb(UNDEFINED_COLOUR);
@@ -76,13 +90,6 @@ export function niceTicks(a, b, count = 5) {
     out.push(Math.abs(v) < step * 1e-9 ? 0 : +v.toPrecision(12));
   }
   return out;
-}
-
-/** A number for labels and the readout. */
-export function fmt(x, digits = 4) {
-  if (x == null || !Number.isFinite(x)) return '—';
-  if (x !== 0 && (Math.abs(x) < 1e-3 || Math.abs(x) >= 1e5)) return x.toExponential(digits - 1);
-  return String(+x.toPrecision(digits));
 }
 
 /** The k-th of `n` evenly spaced values from `min` to `max` (the API's axis definition). */

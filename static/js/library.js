@@ -12,9 +12,11 @@
 import {
   listRecordings, getRecording, recordingSamples, deleteRecording, uploadRecording, ApiError,
 } from './api.js';
-import { el } from './form.js';
-import { sizeText } from './rerun.js';
-import { EmbeddedViewer, notAnRrd } from './viewer.js';
+import { el, fmt, sizeText } from './common.js';
+import { getSystem } from './api.js';
+import { builtInPlotOptions, definitionPlotOptions } from './plot-options.js';
+import { SimulationView } from './simulation.js';
+import { EmbeddedViewer, cutShort, notAnRrd } from './viewer.js';
 
 /** Recordings per page of the list. */
 export const PAGE_SIZE = 10;
@@ -42,15 +44,14 @@ export function linkedRecording(hash) {
   return ID.test(id) ? { id } : { invalid: id };
 }
 
-/** A short description of a recording, for labels and messages. */
-export function describe(entry) {
+/**
+ * A short description of a recording, for labels and messages; `name` is its system's (a typed-in
+ * system's own name rather than its `sys-…` id).
+ */
+export function describe(entry, name = entry.spec?.system) {
   const spec = entry.spec;
   if (!spec) return `an uploaded recording of ${entry.application_id || 'another application'}`;
-  return `${spec.system}: ${spec.methods.join(', ')}`;
-}
-
-function number(x) {
-  return Number.isFinite(x) ? String(+x.toPrecision(6)) : '—';
+  return `${name}: ${spec.methods.join(', ')}`;
 }
 
 /** When a recording was stored, in the reader's time zone. */
@@ -97,25 +98,34 @@ export function streamLines(doc) {
 export class RecordingsPanel {
   /**
    * @param {HTMLElement} root the Recordings section
-   * @param {(doc: object, entry: object) => void} plot draws a recording's samples document
-   *   with the page's charts
+   * @param {object[]} systems the system catalogue: the built-in systems and the definitions
+   *   stored when the page loaded
    */
-  constructor(root, plot) {
+  constructor(root, systems) {
     const $ = (id) => root.querySelector(`#${id}`);
     this.root = root;
-    this.plotDocument = plot;
+    this.systems = systems;
+    /** Stored systems' entries by id (their names and definitions), as fetched. */
+    this.storedSystems = new Map(systems.filter((s) => s.definition).map((s) => [s.id, s]));
+    /** How the recording on show in the plots is drawn (set before each plot). */
+    this.plotOptions = null;
+    this.plots = new SimulationView($('rec-plot'), {
+      chartOptions: (header, request) => this.plotOptions(header, request),
+      showError: () => null,
+      setState: (state) => { $('rec-plot').dataset.plotState = state; },
+    });
     this.ui = {
       system: $('rec-system'), method: $('rec-method'), refresh: $('rec-refresh'),
       status: $('rec-status'), error: $('rec-error'), list: $('rec-list'), empty: $('rec-empty'),
       prev: $('rec-prev'), next: $('rec-next'), page: $('rec-page'),
       linkBox: $('rec-link-box'), link: $('rec-link'),
       drop: $('rec-drop'), file: $('rec-file'), upload: $('rec-upload'),
-      fileStatus: $('rec-file-status'), fileError: $('rec-file-error'),
+      fileStatus: $('rec-file-status'), fileError: $('rec-file-error'), fileWarning: $('rec-file-warning'),
       confirm: $('rec-confirm'), confirmText: $('rec-confirm-text'),
     };
     this.viewer = new EmbeddedViewer({
-      section: $('rec-viewer-section'), box: $('rec-viewer'), fallback: $('rec-viewer-fallback'),
-      close: $('rec-viewer-close'),
+      section: $('rec-rerun'), box: $('rec-rerun-viewer'), fallback: $('rec-rerun-fallback'),
+      close: $('rec-rerun-close'),
     }, () => this.afterClose());
     /** Every stored recording, newest first, as last listed. */
     this.entries = [];
@@ -175,11 +185,38 @@ export class RecordingsPanel {
     this.ui.error.hidden = !text;
   }
 
+  /** The name of system `id`: a typed-in system's own name where it has one, else its id. */
+  systemName(id) {
+    return this.storedSystems.get(id)?.name || id;
+  }
+
+  describe(entry) {
+    return describe(entry, this.systemName(entry.spec?.system));
+  }
+
+  /**
+   * The stored system `id` (`sys-…`): its entry from GET /api/v1/systems/{id}, fetched once; null
+   * for a built-in system, or one the server no longer has.
+   */
+  async storedSystem(id) {
+    if (!id?.startsWith('sys-')) return null;
+    if (!this.storedSystems.has(id)) {
+      try {
+        this.storedSystems.set(id, await getSystem(id));
+      } catch {
+        return null;
+      }
+    }
+    return this.storedSystems.get(id);
+  }
+
   /** Lists the recordings again; keeps the page when it still exists. */
   async refresh() {
     this.setState('loading');
     try {
       this.entries = await listRecordings();
+      // The names of systems stored since the page loaded (by this page or another).
+      await Promise.all([...new Set(this.entries.map((e) => e.spec?.system))].map((id) => this.storedSystem(id)));
     } catch (error) {
       this.setState('error');
       this.alert(`The recordings could not be listed: ${error.message}`);
@@ -192,15 +229,15 @@ export class RecordingsPanel {
 
   /** The filter options: the systems and method ids the stored recordings hold. */
   fillFilters() {
-    const fill = (select, values, all) => {
+    const fill = (select, values, all, text = (v) => v) => {
       const chosen = select.value;
-      const options = [...new Set(values)].sort();
+      const options = [...new Set(values)].sort((a, b) => text(a).localeCompare(text(b)));
       select.replaceChildren(el('option', { value: '', text: all }),
-        ...options.map((v) => el('option', { value: v, text: v })));
+        ...options.map((v) => el('option', { value: v, text: text(v) })));
       select.value = options.includes(chosen) ? chosen : '';
     };
     const specs = this.entries.map((e) => e.spec).filter(Boolean);
-    fill(this.ui.system, specs.map((s) => s.system), 'all systems');
+    fill(this.ui.system, specs.map((s) => s.system), 'all systems', (id) => this.systemName(id));
     fill(this.ui.method, specs.flatMap((s) => s.methods.map(methodId)), 'all methods');
   }
 
@@ -246,18 +283,19 @@ export class RecordingsPanel {
   /** One row of the list: what the recording holds and its actions. */
   row(entry) {
     const spec = entry.spec;
-    const what = describe(entry);
+    const what = this.describe(entry);
     const action = (text, label, onclick, extra = {}) => el('button', {
       type: 'button', class: 'secondary small', 'aria-label': `${label} ${what}`, onclick, ...extra,
     }, text);
     const url = `api/v1/recordings/${entry.id}.rrd`;
     const current = this.showing?.id === entry.id;
     return el('tr', { 'data-id': entry.id, 'aria-current': current ? 'true' : null },
-      el('th', { scope: 'row', 'data-label': 'System' }, spec ? spec.system : '—',
+      el('th', { scope: 'row', 'data-label': 'System', title: spec ? spec.system : null },
+        spec ? this.systemName(spec.system) : '—',
         entry.origin === 'upload' ? el('span', { class: 'tag', text: 'uploaded' }) : null),
       el('td', { 'data-label': 'Methods' }, spec ? spec.methods.join(', ') : entry.application_id || '—'),
-      el('td', { 'data-label': 'h' }, spec ? number(spec.h) : '—'),
-      el('td', { 'data-label': 't_end' }, spec ? number(spec.t_end) : '—'),
+      el('td', { 'data-label': 'h' }, spec ? fmt(spec.h, 6) : '—'),
+      el('td', { 'data-label': 't_end' }, spec ? fmt(spec.t_end, 6) : '—'),
       el('td', { 'data-label': 'Stored' }, el('time', { datetime: entry.created, text: when(entry.created) })),
       el('td', { 'data-label': 'Size' }, sizeText(entry.bytes)),
       el('td', { class: 'row-actions-cell', 'data-label': 'Actions' }, el('div', { class: 'row-actions' },
@@ -306,8 +344,8 @@ export class RecordingsPanel {
     const state = await opening;
     if (this.showing?.id !== entry.id) return;
     this.say(state === 'ready'
-      ? `Viewing ${describe(entry)} (${sizeText(entry.bytes)}) in the Rerun viewer below.`
-      : `${describe(entry)} could not be shown here; the viewer section says how to open it in the Rerun app.`);
+      ? `Viewing ${this.describe(entry)} (${sizeText(entry.bytes)}) in the Rerun viewer below.`
+      : `${this.describe(entry)} could not be shown here; the viewer section says how to open it in the Rerun app.`);
   }
 
   afterClose() {
@@ -319,23 +357,49 @@ export class RecordingsPanel {
     (back?.isConnected ? back : this.ui.file).focus();
   }
 
-  /** Plots a stored simulation recording with the page's charts. */
+  /**
+   * Plots a stored simulation recording with the page's charts, below the list: a typed-in
+   * system's with its definition (GET /api/v1/systems/{id}, or the one in the recorded request),
+   * so that its plots keep the definition's names and bodies.
+   */
   async plot(entry) {
     this.alert('');
-    this.say(`Reading the samples of ${describe(entry)} back from its recording…`);
+    this.say(`Reading the samples of ${this.describe(entry)} back from its recording…`);
     let doc;
     try {
       doc = await recordingSamples(entry.id);
     } catch (error) {
       this.say('');
       this.alert(error instanceof ApiError && error.status === 404
-        ? `${describe(entry)} is no longer stored (deleted, or evicted to stay under the size cap).`
-        : `${describe(entry)} cannot be plotted: ${error.message}`);
+        ? `${this.describe(entry)} is no longer stored (deleted, or evicted to stay under the size cap).`
+        : `${this.describe(entry)} cannot be plotted: ${error.message}`);
       return;
     }
-    this.plotDocument(doc, entry);
-    const samples = doc.runs.reduce((n, r) => n + r.t.length, 0);
-    this.say(`Plotted ${describe(entry)}: ${samples} samples read back from the recording.`);
+    const id = doc.system.id;
+    const stored = await this.storedSystem(id);
+    const inline = typeof doc.request?.system === 'object' ? doc.request.system : null;
+    const definition = stored?.definition ?? inline;
+    const builtIn = this.systems.find((s) => s.id === id);
+    const noEnergyErrorNote = 'No energy error: this recording holds none (its system is damped, has no exact ' +
+      'solution, and the run was not compared to the reference).';
+    this.plotOptions = (header, request) => ({
+      ...(definition
+        ? definitionPlotOptions(definition, header, request, { evaluate: true })
+        : builtInPlotOptions(builtIn, header, request)),
+      noEnergyErrorNote,
+    });
+    const section = this.root.querySelector('#rec-plot');
+    section.hidden = false;
+    const lines = streamLines(doc);
+    const samples = lines.samples.reduce((n, chunk) => n + chunk.t.length, 0);
+    await this.plots.present(lines, doc.request, `recording:${entry.id}`,
+      `Recording ${this.describe(entry)}, stored ${when(entry.created)}: ${samples} samples read back from the ` +
+      '.rrd file (positions and momenta as recorded, in single precision).');
+    section.querySelector('#rec-plot-results-title').textContent = `Recording: ${this.describe(entry)}`;
+    section.dataset.recordingId = entry.id;
+    section.scrollIntoView({ behavior: 'smooth', block: 'start' });
+    section.focus({ preventScroll: true });
+    this.say(`Plotted ${this.describe(entry)} below: ${samples} samples read back from the recording.`);
   }
 
   /** Copies the recording's link (and shows it, for browsers that do not allow copying). */
@@ -345,7 +409,7 @@ export class RecordingsPanel {
     this.ui.linkBox.hidden = false;
     try {
       await navigator.clipboard.writeText(link);
-      this.say(`Copied the link to ${describe(entry)}.`);
+      this.say(`Copied the link to ${this.describe(entry)}.`);
     } catch {
       this.ui.link.focus();
       this.ui.link.select();
@@ -357,7 +421,7 @@ export class RecordingsPanel {
   confirmDelete(entry) {
     const { confirm, confirmText } = this.ui;
     const opener = document.activeElement;
-    confirmText.textContent = `${describe(entry)}, stored ${when(entry.created)} (${sizeText(entry.bytes)}), ` +
+    confirmText.textContent = `${this.describe(entry)}, stored ${when(entry.created)} (${sizeText(entry.bytes)}), ` +
       'will be deleted from the server. Its links stop working.';
     confirm.returnValue = '';
     confirm.addEventListener('close', async () => {
@@ -371,9 +435,9 @@ export class RecordingsPanel {
     this.alert('');
     try {
       const deleted = await deleteRecording(entry.id);
-      this.say(deleted ? `Deleted ${describe(entry)}.` : `${describe(entry)} was already gone.`);
+      this.say(deleted ? `Deleted ${this.describe(entry)}.` : `${this.describe(entry)} was already gone.`);
     } catch (error) {
-      this.alert(`${describe(entry)} could not be deleted: ${error.message}`);
+      this.alert(`${this.describe(entry)} could not be deleted: ${error.message}`);
       return;
     }
     if (this.showing?.id === entry.id) {
@@ -390,6 +454,7 @@ export class RecordingsPanel {
   async openLocal(file) {
     this.ui.fileError.textContent = '';
     this.ui.fileStatus.textContent = '';
+    this.ui.fileWarning.hidden = true;
     this.localFile = null;
     this.ui.upload.disabled = true;
     this.setUploadState('idle');
@@ -398,6 +463,10 @@ export class RecordingsPanel {
       this.ui.fileError.textContent = wrong;
       return;
     }
+    // Opened all the same (the viewer shows what it can), with a warning.
+    const partial = await cutShort(file);
+    this.ui.fileWarning.textContent = partial ?? '';
+    this.ui.fileWarning.hidden = !partial;
     this.localFile = file;
     this.ui.upload.disabled = false;
     this.showing = { file: file.name };
@@ -405,7 +474,8 @@ export class RecordingsPanel {
     this.viewer.ui.section.scrollIntoView({ behavior: 'smooth', block: 'start' });
     const state = await this.viewer.openFile(file);
     this.ui.fileStatus.textContent = state === 'ready'
-      ? `Opened ${file.name} (${sizeText(file.size)}) from this computer in the viewer below; it was not uploaded.`
+      ? `Opened ${file.name} (${sizeText(file.size)}) from this computer in the viewer below` +
+        `${partial ? ', as far as it goes' : ''}; it was not uploaded.`
       : `${file.name} could not be shown here; the viewer section says how to open it in the Rerun app.`;
   }
 

@@ -1,27 +1,28 @@
-// The page's entry point: loads the catalogues, builds the form and the preset buttons, and runs
+// The page's entry point: fills the page's templates, shows one section at a time
+// (sections.js), loads the catalogues, builds the form and the preset buttons, and runs
 // simulations into the results beside the form (simulation.js: streamed NDJSON in the plots with
 // a progress bar, cancellable with the Cancel button or Esc, the finished run as JSON or a Rerun
 // recording); sets up the Your-system section (system.js), the stability section (stability.js),
-// the work–precision section (studies.js), the convergence section (convergence.js), the
-// energy-error map section (energymap.js) and the recordings library (library.js), whose
-// recordings it plots with the same charts. For tests it exposes `window.geomint` (the uPlot
-// instances and their point counts, and the sections) and the run's state as `data-run-state` on
-// <body> (loading, idle, running, done, cancelled, error); `data-source` on the results says what
-// they show (`run`, or `recording:<id>`).
+// the work–precision section (workprecision.js), the convergence section (convergence.js), the
+// energy-error map section (energymap.js), the sweeps (sweep.js) and the recordings library
+// (library.js), which plots recordings with the same charts. For tests it exposes
+// `window.geomint` (the uPlot instances and their point counts, and the sections) and the run's
+// state as `data-run-state` on <body> (loading, idle, running, done, cancelled, error).
 
 import { catalogues } from './api.js';
-import { SimForm, el, chartName } from './form.js';
-import { RunStore } from './results.js';
+import { el, expandTemplates } from './common.js';
+import { Sections } from './sections.js';
+import { SimForm } from './form.js';
+import { builtInPlotOptions } from './plot-options.js';
 import { PRESETS, presetRequest } from './presets.js';
-import { RerunPanel } from './rerun.js';
 import { SimulationView } from './simulation.js';
 import { SystemPanel } from './system.js';
 import { StabilityPanel } from './stability.js';
-import { WorkPrecisionPanel } from './studies.js';
+import { WorkPrecisionPanel } from './workprecision.js';
 import { ConvergencePanel } from './convergence.js';
 import { EnergyMapPanel } from './energymap.js';
 import { SweepPanel } from './sweep.js';
-import { RecordingsPanel, streamLines, describe, when } from './library.js';
+import { RecordingsPanel } from './library.js';
 
 const $ = (selector) => document.querySelector(selector);
 
@@ -36,6 +37,8 @@ const ui = {
 /** The simulation form and the results beside it; set up once the catalogues are in. */
 let form = null;
 let view = null;
+/** Which section of the page is on show. */
+let sections = null;
 
 function setState(state) {
   document.body.dataset.runState = state;
@@ -67,53 +70,6 @@ function runPreset(groupId, variantId) {
   start();
 }
 
-/** Systems whose y axis points down, along gravity. */
-const Y_DOWN = new Set(['elastic_pendulum_2d']);
-
-/** The plots' coordinate names and captions for a run of `system` in chart `chartId`. */
-function chartOptions(system, chartId) {
-  const charts = system?.charts ?? [];
-  const [first] = charts;
-  const chart = charts.find((c) => c.id === chartId) ?? first;
-  const other = chart && first && chart.id !== first.id;
-  return {
-    chartNames: chart?.coordinates,
-    cartesianNames: first?.coordinates,
-    chartNote: other ? `${chartName(chart.id)} chart coordinates (${chart.coordinates.join(', ')})` : null,
-    cartesianNote: other ? `${chartName(first.id)} coordinates (${first.coordinates.join(', ')}) of the run in the ${chartName(chart.id)} chart` : null,
-    yDown: Y_DOWN.has(system?.id),
-  };
-}
-
-/** The options of the plots for a stream `header` of a built-in system. */
-function plotOptions(header) {
-  const system = form.systems.find((s) => s.id === header.system.id);
-  const source = system?.exact_solution ? 'exact' : header.energy_error ? 'ref' : null;
-  return {
-    energyErrorSource: header.energy_error ? source || 'ref' : null,
-    drift: Boolean(system?.conformal_damping) && header.system.q0.length === 1,
-    ...chartOptions(system, header.system.chart),
-  };
-}
-
-/**
- * Draws a stored recording's samples (read back from its .rrd by the server) with the page's
- * charts, in place of the results; a running simulation is cancelled first.
- */
-async function showRecording(doc, entry) {
-  form.clearErrors();
-  const { header, samples, summaries } = streamLines(doc);
-  const store = new RunStore(doc.request, header);
-  for (const chunk of samples) store.add(chunk);
-  for (const summary of summaries) store.summarize(summary);
-  store.outcome = 'done';
-  await view.present(store, `recording:${entry.id}`,
-    `Recording ${describe(entry)}, stored ${when(entry.created)}: ${store.received} samples read back ` +
-    'from the .rrd file (positions and momenta as recorded, in single precision).');
-  ui.results.scrollIntoView({ behavior: 'smooth', block: 'start' });
-  ui.results.focus({ preventScroll: true });
-}
-
 /** Starts a simulation from the form, cancelling one that still runs. */
 function start() {
   form.clearErrors();
@@ -122,6 +78,8 @@ function start() {
 
 async function init() {
   document.querySelector('#boot')?.remove();
+  expandTemplates();
+  sections = new Sections($('nav.sections'), 'simulation');
   buildPresets();
   for (const button of ui.presets.querySelectorAll('button')) button.disabled = true;
   let cats;
@@ -136,41 +94,19 @@ async function init() {
   // Stored definitions are the Your-system section's; the form offers the built-in systems.
   const builtIn = cats.systems.filter((s) => !s.definition);
   form = new SimForm(ui.form, { systems: builtIn, methods: cats.methods });
-  const rerun = new RerunPanel({
-    download: $('#download-rrd'),
-    view: $('#view-rerun'),
-    status: $('#rrd-status'),
-    error: $('#err-rrd'),
-    section: $('#rerun'),
-    box: $('#rerun-viewer'),
-    fallback: $('#rerun-fallback'),
-    close: $('#rerun-close'),
-  }, (error) => {
-    const input = form.showError(error);
-    if (input) input.focus({ preventScroll: false });
-    return Boolean(input);
-  });
-  view = new SimulationView({
-    results: ui.results,
-    plots: $('#plots'),
-    legend: $('#legend'),
-    stats: $('#stats-body'),
-    progress: $('#progress'),
-    status: $('#status'),
-    download: $('#download-json'),
-    cancel: $('#cancel'),
-  }, rerun, {
-    chartOptions: plotOptions,
+  view = new SimulationView(ui.results, {
+    chartOptions: (header, request) =>
+      builtInPlotOptions(form.systems.find((s) => s.id === header.system.id), header, request),
     showError: (error) => form.showError(error),
     setState,
-  });
+  }, $('#cancel'));
   const system = new SystemPanel($('#your-system'), cats);
   const stability = new StabilityPanel($('#stability'), cats.methods);
   const workPrecision = new WorkPrecisionPanel($('#work-precision'));
   const convergence = new ConvergencePanel($('#convergence'));
   const energyMap = new EnergyMapPanel($('#energy-map'), cats.methods);
   const sweep = new SweepPanel($('#sweep'));
-  const library = new RecordingsPanel($('#recordings'), showRecording);
+  const library = new RecordingsPanel($('#recordings'), cats.systems);
   for (const button of ui.presets.querySelectorAll('button')) button.disabled = false;
   ui.run.disabled = false;
   ui.form.addEventListener('submit', (event) => {
@@ -183,6 +119,7 @@ async function init() {
     system.cancel();
   });
   window.geomint = {
+    sections,
     charts: view.charts.plots,
     pointCounts: () => view.charts.pointCounts(),
     runPreset,
@@ -195,7 +132,7 @@ async function init() {
     library,
   };
   setState('idle');
-  await Promise.all([system.followLink(), sweep.init(), (async () => {
+  await Promise.all([system.followLink(), sweep.init(), workPrecision.init(), (async () => {
     await library.refresh();
     await library.followLink();
   })()]);

@@ -1,37 +1,23 @@
 // The run as a Rerun recording. "Download the run as .rrd" posts the shown run's request to
 // POST /api/v1/simulate?format=rrd and saves the bytes; "View in Rerun" stores the recording
-// (POST /api/v1/recordings) and opens its URL in the Rerun web viewer embedded in the page
-// (@rerun-io/web-viewer 0.33, served from vendor/rerun/ like uPlot). Where the viewer is not
-// installed or cannot start (it needs WebGL 2 or WebGPU), the page says how to open the file in
-// the Rerun app instead. The panel's state is `data-viewer-state` on its section (for tests):
-// closed, creating, loading, ready, unavailable (viewer files missing), failed (could not start),
-// error (the API refused).
+// (POST /api/v1/recordings) and opens its URL in the section's embedded viewer (viewer.js), which
+// falls back to instructions for the Rerun app where the viewer is missing or cannot start. The
+// viewer section's `data-viewer-state` (for tests) is the embedded viewer's (closed, loading,
+// ready, unavailable, failed) plus creating (the recording is being stored) and error (the API
+// refused).
 
 import { simulateRrd, createRecording, ApiError } from './api.js';
-import { el } from './form.js';
+import { el, saveBlob, sizeText } from './common.js';
+import { EmbeddedViewer } from './viewer.js';
 
-/** The viewer's ES module, relative to this file (copied there by scripts/vendor.mjs). */
-const VIEWER_MODULE = '../vendor/rerun/index.js';
-
-/** The Rerun release the server writes and the viewer reads. */
-const RERUN_VERSION = '0.33';
-
-/** Offers `blob` as a file download named `name`. */
-export function saveBlob(blob, name) {
-  const url = URL.createObjectURL(blob);
-  const link = el('a', { href: url, download: name });
-  document.body.append(link);
-  link.click();
-  link.remove();
-  setTimeout(() => URL.revokeObjectURL(url), 10_000);
+/** What the status line says of a recording the view stored, where it is and who sees it, then `after`. */
+function storedMessage(created, after) {
+  return [`Stored the recording (${sizeText(created.bytes)}) on this server, in the `,
+    el('a', { href: `#recording=${created.id}`, text: 'Recordings section' }),
+    ` for everyone who uses the server; ${after}`];
 }
 
-export function sizeText(bytes) {
-  if (bytes >= 1024 * 1024) return `${(bytes / (1024 * 1024)).toFixed(1)} MiB`;
-  return `${Math.max(1, Math.round(bytes / 1024))} KiB`;
-}
-
-/** The .rrd download, the embedded viewer and its fallback. */
+/** The .rrd download and the view of the run in the embedded viewer. */
 export class RerunPanel {
   /**
    * @param {object} ui
@@ -51,29 +37,18 @@ export class RerunPanel {
     this.showFieldError = showFieldError;
     /** The run store whose request the buttons use (a finished run), or null. */
     this.store = null;
-    this.viewer = null;
+    // Closing from its button also stops a recording still being stored, and hands the focus
+    // back to "View in Rerun".
+    this.viewer = new EmbeddedViewer(ui, () => {
+      this.supersede();
+      ui.view.focus();
+    });
     /** Bumped by every view() and close(), so that a superseded one stops where it is. */
     this.generation = 0;
     this.controller = null;
     this.busy = false;
     ui.download.addEventListener('click', () => this.download());
     ui.view.addEventListener('click', () => this.view());
-    ui.close.addEventListener('click', () => {
-      this.close();
-      ui.view.focus();
-    });
-    // The viewer's canvas keeps Tab for its own widgets; Esc leaves it for the Close button.
-    ui.box.addEventListener('keydown', (event) => {
-      if (event.key !== 'Escape') return;
-      event.preventDefault();
-      event.stopPropagation();
-      ui.close.focus();
-    }, { capture: true });
-    this.setState('closed');
-  }
-
-  setState(state) {
-    this.ui.section.dataset.viewerState = state;
   }
 
   /** Uses `store` (a finished run) for the buttons; null disables them. */
@@ -126,7 +101,11 @@ export class RerunPanel {
     }
   }
 
-  /** Stores the run's recording on the server and opens it in the embedded viewer. */
+  /**
+   * Stores the run's recording on the server and opens it in the embedded viewer. The help beside
+   * the button says beforehand that the recording is stored on the shared server; the status
+   * line says where it went.
+   */
   async view() {
     if (!this.store) return;
     this.close();
@@ -134,12 +113,9 @@ export class RerunPanel {
     const stale = () => generation !== this.generation;
     const name = this.fileName();
     this.clearMessages();
-    const { section, box, fallback } = this.ui;
+    const { section } = this.ui;
     section.hidden = false;
-    box.hidden = false;
-    fallback.hidden = true;
-    fallback.replaceChildren();
-    this.setState('creating');
+    this.viewer.setState('creating');
     this.ui.status.textContent = 'Storing the recording…';
     this.controller = new AbortController();
 
@@ -150,87 +126,32 @@ export class RerunPanel {
       if (stale()) return;
       section.hidden = true;
       this.ui.status.textContent = '';
-      this.setState('error');
+      this.viewer.setState('error');
       this.showError(error, 'The recording could not be stored');
       return;
     }
     if (stale()) return;
     const url = new URL(created.url, window.location.origin).href;
-    section.dataset.recordingUrl = url;
-    this.ui.status.textContent = `Recording stored (${sizeText(created.bytes)}); starting the Rerun viewer…`;
+    this.ui.status.replaceChildren(...storedMessage(created, 'starting the Rerun viewer…'));
     section.scrollIntoView({ behavior: 'smooth', block: 'start' });
-
-    this.setState('loading');
-    let WebViewer;
-    try {
-      ({ WebViewer } = await import(VIEWER_MODULE));
-    } catch {
-      if (stale()) return;
-      this.showFallback(url, name, [
-        'The Rerun web viewer is not installed on this server (',
-        el('code', { text: 'static/vendor/rerun/' }), ' is missing; ', el('code', { text: 'npm ci' }),
-        ' installs it).',
-      ]);
-      this.setState('unavailable');
-      this.ui.status.textContent = 'Recording stored; open it in the Rerun app (see below).';
-      return;
-    }
+    const state = await this.viewer.openUrl(url, { href: url, name });
     if (stale()) return;
-    const viewer = new WebViewer();
-    this.viewer = viewer;
-    try {
-      await viewer.start(url, box, {
-        width: '100%', height: '100%', hide_welcome_screen: true, theme: 'light',
-      });
-    } catch (error) {
-      if (stale()) return;
-      this.viewer = null;
-      this.showFallback(url, name, [
-        `The Rerun web viewer could not start in this browser (it needs WebGL 2 or WebGPU): ${error?.message || error}`,
-      ]);
-      this.setState('failed');
-      this.ui.status.textContent = 'Recording stored; open it in the Rerun app (see below).';
-      return;
-    }
-    if (stale()) return;
-    this.setState('ready');
-    this.ui.status.textContent = `The recording is open in the Rerun viewer below (${sizeText(created.bytes)}).`;
+    this.ui.status.replaceChildren(...storedMessage(created, state === 'ready'
+      ? 'it is open in the Rerun viewer below.' : 'open it in the Rerun app (see below).'));
   }
 
-  /** Replaces the viewer with instructions for the Rerun app. */
-  showFallback(url, name, reason) {
-    const { box, fallback } = this.ui;
-    box.replaceChildren();
-    box.hidden = true;
-    fallback.replaceChildren(
-      el('p', {}, ...reason),
-      el('p', { text: `Open the recording in the Rerun app (version ${RERUN_VERSION}) instead:` }),
-      el('ol', {},
-        el('li', {}, el('a', { href: url, download: name, text: `Download ${name}` }),
-          ' (or use “Download the run as .rrd”).'),
-        el('li', {}, 'Install the viewer: ', el('code', { text: `pip install "rerun-sdk==${RERUN_VERSION}.*"` })),
-        el('li', {}, 'Open the file: ', el('code', { text: `rerun ${name}` }))));
-    fallback.hidden = false;
+  /** Stops a view in progress (a recording still being stored) and clears its message. */
+  supersede() {
+    this.generation += 1;
+    this.controller?.abort();
+    this.controller = null;
+    this.ui.status.textContent = '';
   }
 
   /** Stops the viewer (freeing its memory) and hides its section. */
   close() {
-    this.generation += 1;
-    this.controller?.abort();
-    this.controller = null;
-    if (this.viewer) {
-      try {
-        this.viewer.stop();
-      } catch (error) {
-        console.warn('The Rerun viewer did not stop cleanly:', error);
-      }
-      this.viewer = null;
-    }
-    this.ui.box.replaceChildren();
-    this.ui.fallback.replaceChildren();
-    this.ui.section.hidden = true;
-    delete this.ui.section.dataset.recordingUrl;
-    if (this.ui.section.dataset.viewerState !== 'closed') this.ui.status.textContent = '';
-    this.setState('closed');
+    if (this.viewer.state === 'closed') return;
+    this.supersede();
+    this.viewer.close();
   }
 }

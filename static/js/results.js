@@ -4,7 +4,7 @@
 // the stats table, and the downloadable JSON document (the same shape as the JSON answer of
 // POST /api/v1/simulate, plus the request).
 
-import { el } from './form.js';
+import { el, fmt, saveBlob } from './common.js';
 import { colour } from './charts.js';
 
 /** One method's samples and summary. */
@@ -49,11 +49,16 @@ export class RunStore {
    * @param {((q: number[]) => number[]) | null} [embed] the bodies' coordinates at the
    *   configuration q, body after body, for a system whose bodies are its first coordinates
    *   (samples that carry `bodies` are plotted from those)
+   * @param {object} [options]
+   * @param {boolean} [options.energyFromInitial] plot |H − H₀| as the energy error of samples
+   *   that carry none (an undamped run, whose H₀ is an exact reference, from a server that does
+   *   not send it)
    */
-  constructor(request, header, embed = null) {
+  constructor(request, header, embed = null, { energyFromInitial = false } = {}) {
     this.request = request;
     this.header = header;
     this.embed = embed;
+    this.energyFromInitial = energyFromInitial;
     this.runs = header.methods.map((label) => emptyRun(label, header.invariants, header.energy_error));
     /** How the stream ended: running, done, cancelled or error. */
     this.outcome = 'running';
@@ -90,11 +95,14 @@ export class RunStore {
       appendColumns(run.xColumns ??= [], chunk.cartesian_q);
     }
     run.energy.push(...chunk.energy);
+    const magnitude = (e) => (e == null || e === 0 || !Number.isFinite(e) ? null : Math.abs(e));
     if (chunk.energy_error) {
       (run.energy_error ??= []).push(...chunk.energy_error);
-      for (const e of chunk.energy_error) {
-        run.errorMagnitude.push(e == null || e === 0 || !Number.isFinite(e) ? null : Math.abs(e));
-      }
+      for (const e of chunk.energy_error) run.errorMagnitude.push(magnitude(e));
+    } else if (this.energyFromInitial) {
+      // The same difference the server takes against H₀; the download keeps only what it sent.
+      const initial = run.energy[0];
+      for (const e of chunk.energy) run.errorMagnitude.push(magnitude(e - initial));
     }
     for (const [name, values] of Object.entries(chunk.invariants || {})) {
       (run.invariants[name] ??= []).push(...values);
@@ -150,11 +158,6 @@ const STOP_TEXT = {
   failed: 'failed',
 };
 
-function formatNumber(x, digits = 4) {
-  if (x == null || !Number.isFinite(x)) return '—';
-  return String(+x.toPrecision(digits));
-}
-
 /** Fills the stats table body with one row per method. */
 export function renderStats(tbody, store) {
   tbody.replaceChildren(...store.runs.map((run, i) => {
@@ -162,12 +165,12 @@ export function renderStats(tbody, store) {
     const stop = s ? (STOP_TEXT[s.stop.reason] || s.stop.reason)
       : store.outcome === 'cancelled' ? 'cancelled' : store.outcome === 'error' ? 'no summary' : 'running…';
     const stopTitle = s?.stop.message || null;
-    const diverged = s?.diverged_at ? `t = ${formatNumber(s.diverged_at.t)} (step ${s.diverged_at.step})` : '—';
+    const diverged = s?.diverged_at ? `t = ${fmt(s.diverged_at.t)} (step ${s.diverged_at.step})` : '—';
     return el('tr', {},
       el('th', { scope: 'row' }, el('span', { class: 'swatch', style: `background:${colour(i)}`, 'aria-hidden': 'true' }), ' ', run.label),
       el('td', { text: s ? String(s.stats.steps) : '…' }),
       el('td', { text: s ? String(s.stats.force_evaluations) : '…' }),
-      el('td', { text: s ? formatNumber(s.stats.wall_time_ms, 3) : '…' }),
+      el('td', { text: s ? fmt(s.stats.wall_time_ms, 3) : '…' }),
       el('td', { text: String(run.t.length) }),
       el('td', { text: diverged }),
       el('td', { text: stop, title: stopTitle }));
@@ -176,13 +179,7 @@ export function renderStats(tbody, store) {
 
 /** Offers the store's document as a file download. */
 export function downloadJson(store) {
-  const text = JSON.stringify(store.document());
-  const blob = new Blob([text], { type: 'application/json' });
-  const url = URL.createObjectURL(blob);
+  const blob = new Blob([JSON.stringify(store.document())], { type: 'application/json' });
   const stamp = new Date().toISOString().replace(/[:.]/g, '-').slice(0, 19);
-  const link = el('a', { href: url, download: `geomint-${store.header.system.id}-${stamp}.json` });
-  document.body.append(link);
-  link.click();
-  link.remove();
-  setTimeout(() => URL.revokeObjectURL(url), 10_000);
+  saveBlob(blob, `geomint-${store.header.system.id}-${stamp}.json`);
 }

@@ -1,14 +1,17 @@
 // A results area that runs simulations: streams POST /api/v1/simulate (NDJSON) into a run store
 // and draws it — plots, legend, stats table, progress bar and status line, redrawn at most every
 // REDRAW_INTERVAL ms while lines arrive — cancellable, and offers the finished run as JSON and as a
-// Rerun recording (rerun.js). The Simulation section and the Your-system section each have one;
-// what differs between them (which plots a run gets, where a refused request's error goes, where
-// the state is shown) comes in as hooks.
+// Rerun recording (rerun.js). Its elements are a copy of the page's results template (index.html),
+// their ids prefixed with the results section's `data-prefix`: the Simulation section and the
+// Your-system section each have one. What differs between them (which
+// plots a run gets, where a refused request's error goes, where the state is shown) comes in as
+// hooks.
 
 import { simulateStream, ApiError } from './api.js';
-import { el } from './form.js';
+import { el } from './common.js';
 import { Charts, colour } from './charts.js';
 import { RunStore, renderStats, downloadJson } from './results.js';
+import { RerunPanel } from './rerun.js';
 
 /** Shortest time between two redraws while samples stream in, in milliseconds. Redraws of long
  * runs take longer; the pause after one is at least REDRAW_SHARE times its duration, so drawing
@@ -18,32 +21,42 @@ const REDRAW_SHARE = 4;
 
 export class SimulationView {
   /**
-   * @param {object} ui
-   * @param {HTMLElement} ui.results the results section (`data-source` says what it shows)
-   * @param {HTMLElement} ui.plots where the plots go
-   * @param {HTMLElement} ui.legend the legend list
-   * @param {HTMLElement} ui.stats the stats table's body
-   * @param {HTMLProgressElement} ui.progress
-   * @param {HTMLElement} ui.status the status line
-   * @param {HTMLButtonElement} ui.download "Download the run as JSON"
-   * @param {HTMLButtonElement} ui.cancel "Cancel"
-   * @param {import('./rerun.js').RerunPanel} rerun the .rrd download and viewer of the runs
+   * @param {HTMLElement} results the results section (`data-source` says what it shows), filled
+   *   from the results template (expandTemplates); its `data-status` is the first status line
    * @param {object} hooks
-   * @param {(header: object) => object} hooks.chartOptions the options of Charts.build for a
-   *   stream header; their `bodies.embed`, if any, places the bodies for the run store
+   * @param {(header: object, request: object) => object} hooks.chartOptions the options of
+   *   Charts.build for a stream header and the request; their `bodies.embed`, if any, places the
+   *   bodies for the run store, and `deriveEnergyError` has it take the energy error from H₀
    * @param {(error: ApiError) => HTMLElement|null} hooks.showError shows an error of the API beside
    *   the field it names; returns the input to focus, if any
    * @param {(state: string) => void} hooks.setState running, done, cancelled or error
+   * @param {HTMLButtonElement} [cancel] "Cancel" (the form's)
    */
-  constructor(ui, rerun, { chartOptions, showError, setState }) {
-    Object.assign(this, { ui, rerun, chartOptions, showFieldError: showError, setState });
-    this.charts = new Charts(ui.plots);
+  constructor(results, { chartOptions, showError, setState }, cancel = null) {
+    const prefix = results.dataset.prefix ?? '';
+    const $ = (name) => results.querySelector(`#${CSS.escape(prefix + name)}`);
+    this.ui = {
+      results, plots: $('plots'), legend: $('legend'), stats: $('stats-body'), progress: $('progress'),
+      status: $('status'), download: $('download-json'), cancel,
+    };
+    Object.assign(this, { chartOptions, showFieldError: showError, setState });
+    this.rerun = new RerunPanel({
+      download: $('download-rrd'), view: $('view-rerun'), status: $('rrd-status'),
+      error: results.querySelector(`#err-${CSS.escape(prefix)}rrd`), section: $('rerun'), box: $('rerun-viewer'),
+      fallback: $('rerun-fallback'), close: $('rerun-close'),
+    }, (error) => {
+      const input = showError(error);
+      input?.focus({ preventScroll: false });
+      return Boolean(input);
+    });
+    this.ui.status.textContent = results.dataset.status ?? '';
+    this.charts = new Charts(this.ui.plots);
     /** The current or last simulation. */
     this.current = null;
     /** The simulation whose results are on show (a refused request leaves the last one). */
     this.shown = null;
-    ui.cancel.addEventListener('click', () => this.cancel());
-    ui.download.addEventListener('click', () => {
+    cancel?.addEventListener('click', () => this.cancel());
+    this.ui.download.addEventListener('click', () => {
       if (this.shown?.store) downloadJson(this.shown.store);
     });
   }
@@ -81,18 +94,29 @@ export class SimulationView {
     this.renderLegend(header.methods);
   }
 
+  /** A run store for `request` and its stream `header`, with the plots' `options`. */
+  newStore(request, header, options) {
+    return new RunStore(request, header, options.bodies?.embed ?? null, { energyFromInitial: options.deriveEnergyError });
+  }
+
   /**
-   * Shows `store` (complete: a recording read back, say) in place of the results, as `source`
-   * (`data-source` of the results), with `status` as the status line. A running simulation is
-   * cancelled first. The .rrd buttons stay off: they would run the request again.
+   * Shows the lines of a whole stream ({header, samples, summaries}: a recording read back, say)
+   * of `request` in place of the results, as `source` (`data-source` of the results), with
+   * `status` as the status line. A running simulation is cancelled first. The .rrd buttons stay
+   * off: they would run the request again.
    */
-  async present(store, source, status) {
+  async present({ header, samples, summaries }, request, source, status) {
     await this.stop();
     this.current = null;
     this.rerun.close();
     this.rerun.clearMessages();
+    const options = this.chartOptions(header, request);
+    const store = this.newStore(request, header, options);
+    for (const chunk of samples) store.add(chunk);
+    for (const summary of summaries) store.summarize(summary);
+    store.outcome = 'done';
     this.shown = { store };
-    this.buildCharts(store.header, this.chartOptions(store.header));
+    this.buildCharts(header, options);
     this.charts.update(store);
     renderStats(this.ui.stats, store);
     this.ui.progress.max = Math.max(1, store.received);
@@ -102,6 +126,7 @@ export class SimulationView {
     this.ui.results.dataset.source = source;
     this.setStatus(status);
     this.setState('done');
+    return store;
   }
 
   /** Updates the plots, the stats table and the progress bar (at most every REDRAW_INTERVAL ms). */
@@ -139,8 +164,8 @@ export class SimulationView {
     switch (line.type) {
       case 'header': {
         // The previous results stay until the new run has started.
-        const options = this.chartOptions(line);
-        run.store = new RunStore(run.request, line, options.bodies?.embed ?? null);
+        const options = this.chartOptions(line, run.request);
+        run.store = this.newStore(run.request, line, options);
         this.shown = run;
         this.ui.download.disabled = true;
         this.rerun.setRun(null);
@@ -195,7 +220,7 @@ export class SimulationView {
     };
     this.current = run;
     this.ui.progress.removeAttribute('value');
-    this.ui.cancel.disabled = false;
+    if (this.ui.cancel) this.ui.cancel.disabled = false;
     this.setState('running');
     this.setStatus('Starting…');
 
@@ -233,7 +258,7 @@ export class SimulationView {
       }
       if (this.current === run) {
         const { store } = this.shown ?? {};
-        this.ui.cancel.disabled = true;
+        if (this.ui.cancel) this.ui.cancel.disabled = true;
         this.ui.download.disabled = !(store && store.received > 0);
         this.rerun.setRun(store ?? null);
         if (run.store) this.ui.progress.value = outcome === 'done' ? this.ui.progress.max : this.ui.progress.value || 0;

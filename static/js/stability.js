@@ -7,10 +7,10 @@
 
 import uPlot from '../vendor/uPlot.esm.js';
 import { stabilityMaps, stabilityPoint, stabilityRrd, ApiError } from './api.js';
-import { saveBlob, sizeText } from './rerun.js';
-import { el } from './form.js';
+import { downloadRecording, el, fmt, parseCount, parseNumber } from './common.js';
+import { StudyStream } from './study-stream.js';
 import { colour, logSplits, logTicks } from './charts.js';
-import { Heatmap, bindCursor, colourScale, drawColourScale, scaleLegend, fmt } from './heatmap.js';
+import { Heatmap, bindCursor, colourScale, drawColourScale, scaleLegend } from './heatmap.js';
 
 /** Methods mapped by default, in this order (paper 003's three schemes). */
 const DEFAULT_METHODS = ['cimp', 'csv1', 'csv2'];
@@ -22,19 +22,6 @@ const HALF_TRACE_H = { from: 0.005, to: 0.5, n: 12 };
 /** The step sizes of the ½tr error plot. */
 export function halfTraceSteps({ from, to, n } = HALF_TRACE_H) {
   return Array.from({ length: n }, (_, k) => +(from * (to / from) ** (k / (n - 1))).toPrecision(12));
-}
-
-function parseNumber(text) {
-  const t = String(text).trim();
-  if (t === '') return null;
-  const x = Number(t);
-  return Number.isFinite(x) ? x : null;
-}
-
-/** A point count: an integer as a number; anything else as typed (the API names the field). */
-function parseCount(text) {
-  const x = parseNumber(text);
-  return x !== null && Number.isInteger(x) ? x : String(text).trim() || null;
 }
 
 /** Least-squares slope of log10 y against log10 x over the positive pairs; null with < 2. */
@@ -79,7 +66,7 @@ export class StabilityPanel {
     this.heatmaps = [];
     this.cursor = null;
     this.plot = null;
-    this.controller = null;
+    this.runner = new StudyStream({ root, stateKey: 'stabState', status: this.status });
     /** The last answers, for tests: {document, halfTrace}. */
     this.last = null;
 
@@ -176,27 +163,20 @@ export class StabilityPanel {
     return target?.input || null;
   }
 
-  setState(state) {
-    this.root.dataset.stabState = state;
-  }
-
   /** Computes the maps and the ½tr errors (a new computation supersedes a running one). */
   async compute() {
-    this.controller?.abort();
-    const controller = new AbortController();
-    this.controller = controller;
+    const run = this.runner.begin();
     this.clearErrors();
     const { map, pointGamma } = this.read();
     this.shownBody = null;
     this.downloadButton.disabled = true;
-    this.setState('running');
     this.status.textContent = 'Computing…';
 
     const [maps, points] = await Promise.allSettled([
-      stabilityMaps(map, controller.signal),
-      this.halfTraceErrors(map.methods, map.omega, pointGamma, controller.signal),
+      stabilityMaps(map, run.signal),
+      this.halfTraceErrors(map.methods, map.omega, pointGamma, run.signal),
     ]);
-    if (controller !== this.controller) return;
+    if (!run.current()) return;
 
     const errors = [];
     let focus = null;
@@ -224,7 +204,7 @@ export class StabilityPanel {
     };
     if (errors.length) {
       this.status.textContent = `The server refused the request: ${errors.map((e) => e?.message || e).join('; ')}`;
-      this.setState('error');
+      this.runner.setState('error');
       focus?.focus();
     } else {
       const doc = maps.value;
@@ -233,24 +213,18 @@ export class StabilityPanel {
         (doc.stop === 'time_limit'
           ? ` The server's time limit stopped ${map.methods.length - doc.maps.length} of ${map.methods.length} maps.`
           : '');
-      this.setState('done');
+      this.runner.setState('done');
     }
   }
 
   /** Saves the shown maps as geomint-stability.rrd (the server computes and records them). */
-  async download() {
-    if (!this.shownBody) return;
-    this.downloadError.textContent = '';
-    this.downloadButton.disabled = true;
-    try {
-      const blob = await stabilityRrd(this.shownBody);
-      saveBlob(blob, 'geomint-stability.rrd');
-      this.status.textContent = `Saved geomint-stability.rrd (${sizeText(blob.size)}).`;
-    } catch (error) {
-      this.downloadError.textContent = `The recording could not be made: ${error?.message || error}`;
-    } finally {
-      this.downloadButton.disabled = !this.shownBody;
-    }
+  download() {
+    if (!this.shownBody) return null;
+    const body = this.shownBody;
+    return downloadRecording({
+      button: this.downloadButton, status: this.status, error: this.downloadError,
+      name: 'geomint-stability.rrd', fetchBlob: () => stabilityRrd(body),
+    });
   }
 
   /**

@@ -1,22 +1,34 @@
 // The sweep section: a sweep request edited as JSON (or loaded from the server's presets), run
 // through POST /api/v1/studies/sweep as an NDJSON stream with a progress bar and Cancel; the
 // answer drawn as a heatmap of any metric of any run (a method in a chart) over the sweep's one or
-// two axes — log10 of the magnitude for errors and drifts, linear for divergence times, black
-// where a run diverged or could not start — or as the difference between two runs (log10 of the
-// ratio of their values: blue where the first is smaller, red where it is larger). A readout
-// gives the cell under the pointer (or the keyboard cursor); the sweep downloads as JSON and as a
+// two axes — log10 of the magnitude for errors and drifts, linear over 0 to t_end for divergence
+// times — or as the difference between two runs (log10 of the ratio of their values: blue where
+// the first is smaller, red where it is larger). A caption says what the colour bar shows and on
+// which scale; a legend names the cells without a value (NO_VALUE). A readout gives the cell
+// under the pointer (or the keyboard cursor); the sweep downloads as JSON and as a
 // Rerun recording. The section's state is `data-sweep-state` (idle, running, done, cancelled,
 // error), for tests.
 
 import { ApiError, sweepPresets, sweepRrd, sweepStream } from './api.js';
-import { el } from './form.js';
-import { GridMap, bindCursor, drawScaleBar, fmt } from './heatmap.js';
-import { saveBlob, sizeText } from './rerun.js';
+import { StudyStream, OUTCOME } from './study-stream.js';
+import { downloadRecording, el, fmt, plural, saveBlob } from './common.js';
+import { GridMap, RATIO_RANGE, bindCursor, drawScaleBar, ratioColour } from './heatmap.js';
 
-/** Where a cell has no value. */
-const EMPTY = [0, 0, 0];
-/** The ratio view saturates at a factor 10^RATIO_RANGE. */
-const RATIO_RANGE = 2;
+/**
+ * The colours of cells without a value on the scale, and what the legend says of them. On an
+ * error map a cell whose run diverged has no error (black); on the divergence map a run that
+ * never diverged has no time (white, the opposite end from "diverged early"); anywhere, a cell
+ * that did not run (refused, or stopped by the server's time limit) or whose value a log scale
+ * cannot show (0) is grey.
+ */
+export const NO_VALUE = {
+  diverged: { rgb: [0, 0, 0], text: 'diverged: no error to show' },
+  never: { rgb: [255, 255, 255], text: 'did not diverge before t_end' },
+  none: { rgb: [143, 143, 143], text: 'no value: the cell did not run, the time limit stopped it, or its value is 0 (no logarithm)' },
+  noRatio: { rgb: [143, 143, 143], text: 'no ratio: a run has no value there, or a value is 0' },
+};
+/** The readout before a cell is chosen. */
+const READOUT_PROMPT = 'Point at the map, or focus it and use the arrow keys, to read a cell.';
 /** Anchors of the value scale, least to most (the recording's ramp). */
 const RAMP = [[68, 1, 84], [59, 82, 139], [33, 145, 140], [94, 201, 98], [253, 231, 37]];
 
@@ -26,12 +38,6 @@ export function rampColour(t) {
   const i = Math.min(RAMP.length - 2, Math.floor(x));
   const f = x - i;
   return [0, 1, 2].map((k) => Math.round(RAMP[i][k] + (RAMP[i + 1][k] - RAMP[i][k]) * f));
-}
-
-function ratioColour(e) {
-  const r = Math.min(1, Math.max(-1, e / RATIO_RANGE));
-  const fade = Math.round(255 * (1 - Math.abs(r)));
-  return r < 0 ? [fade, fade, 255] : [255, fade, fade];
 }
 
 /** The metrics of a run: key → {label, values, log}. */
@@ -46,6 +52,17 @@ export function metricsOf(run) {
     out[`drift_${name}`] = { label: `drift of ${name}`, values, log: true };
   }
   return out;
+}
+
+/** Decade ticks of a log₁₀ scale from `lo` to `hi`, at most about six, labelled as values. */
+function decadeTicks(lo, hi) {
+  const first = Math.ceil(lo);
+  const last = Math.floor(hi);
+  const step = Math.max(1, Math.ceil((last - first + 1) / 6));
+  const ticks = [];
+  for (let e = first; e <= last; e += step) ticks.push([e, `1e${e}`]);
+  if (!ticks.length) ticks.push([lo, fmt(10 ** lo, 3)], [hi, fmt(10 ** hi, 3)]);
+  return ticks;
 }
 
 /** What a cell shows: a value on the scale, or null. */
@@ -63,8 +80,9 @@ class SweepMap extends GridMap {
       : { min: a.min, max: a.max, n: a.n, label });
     const second = doc.axes[1] || { name: '', min: 0, max: 0, n: 1, scale: 'linear' };
     const colour = (c, r) => {
-      const e = view.cellValue(r * doc.axes[0].n + c);
-      if (e == null) return EMPTY;
+      const k = r * doc.axes[0].n + c;
+      const e = view.cellValue(k);
+      if (e == null) return NO_VALUE[view.cellKind(k)].rgb;
       return view.compare ? ratioColour(e) : rampColour(view.hi > view.lo ? (e - view.lo) / (view.hi - view.lo) : 0.5);
     };
     super(canvas, { x: axis(doc.axes[0], doc.axes[0].name), y: axis(second, second.name), colour });
@@ -88,6 +106,8 @@ export class SweepPanel {
     this.metricSelect = $('metric');
     this.compareSelect = $('compare');
     this.scaleBar = $('scale-bar');
+    this.scaleCaption = $('scale-caption');
+    this.scaleLegend = $('scale-legend');
     this.figure = $('figure');
     this.canvas = $('canvas');
     this.readout = $('readout');
@@ -96,17 +116,17 @@ export class SweepPanel {
     this.rrdError = root.querySelector('#err-sw-rrd');
     this.presets = [];
     this.last = null;
-    this.lastProgress = null;
     this.map = null;
     this.cursor = null;
-    this.controller = null;
+    this.runner = new StudyStream({
+      root, stateKey: 'sweepState', progress: this.progress, status: this.status, cancel: this.cancelButton,
+    });
 
     root.querySelector('#sw-form').addEventListener('submit', (event) => {
       event.preventDefault();
       this.run();
     });
     this.presetSelect.addEventListener('change', () => this.loadPreset(this.presetSelect.value));
-    this.cancelButton.addEventListener('click', () => this.controller?.abort());
     for (const select of [this.runSelect, this.metricSelect, this.compareSelect]) {
       select.addEventListener('change', () => this.redraw());
     }
@@ -128,75 +148,48 @@ export class SweepPanel {
     if (preset) this.spec.value = JSON.stringify(preset.request, null, 2);
   }
 
-  setState(state) {
-    this.root.dataset.sweepState = state;
-  }
-
+  /** Runs the request in the text box (a new run supersedes a running one). */
   async run() {
-    this.controller?.abort();
-    const controller = new AbortController();
-    this.controller = controller;
     this.error.textContent = '';
     this.spec.removeAttribute('aria-invalid');
     let body;
     try {
       body = JSON.parse(this.spec.value);
     } catch (e) {
+      this.runner.abort();
       this.error.textContent = `The request is not JSON: ${e.message}`;
       this.spec.setAttribute('aria-invalid', 'true');
-      this.setState('error');
+      this.runner.setState('error');
       return;
     }
-    let doc = null;
-    this.setState('running');
-    this.cancelButton.disabled = false;
-    this.progress.removeAttribute('value');
-    this.lastProgress = null;
-    this.status.textContent = 'Starting…';
-    try {
-      await sweepStream(body, (line) => {
-        if (controller !== this.controller) return;
-        if (line.type === 'progress') {
-          this.lastProgress = line;
-          this.progress.max = line.total;
-          this.progress.value = line.done;
-          this.status.textContent = `Running: ${line.done} of ${line.total} cells.`;
-        } else if (line.type === 'result') {
-          const { type, ...rest } = line;
-          doc = rest;
-        } else if (line.type === 'error') {
-          throw new ApiError(line.error);
-        }
-      }, controller.signal);
-    } catch (error) {
-      if (controller !== this.controller) return;
-      this.cancelButton.disabled = true;
-      if (!this.lastProgress) this.progress.value = 0;
-      if (error?.name === 'AbortError') {
-        this.status.textContent = 'Cancelled.';
-        this.setState('cancelled');
-        return;
-      }
+    const { outcome, result: doc, error } = await this.runner.stream(sweepStream, body);
+    if (outcome === OUTCOME.superseded) return;
+    if (outcome === OUTCOME.cancelled) {
+      this.status.textContent = 'Cancelled.';
+      return;
+    }
+    if (outcome === OUTCOME.error) {
       const where = error instanceof ApiError && error.field ? ` (at \`${error.field}\`)` : '';
       this.error.textContent = `${error?.message || error}${where}`;
       this.spec.setAttribute('aria-invalid', 'true');
       this.status.textContent = 'The server refused the sweep.';
-      this.setState('error');
       this.spec.focus();
       return;
     }
-    if (controller !== this.controller) return;
-    this.cancelButton.disabled = true;
     this.last = { body, doc };
-    this.progress.max = Math.max(1, doc.cells);
-    this.progress.value = doc.cells;
+    this.runner.showProgress(doc.cells, doc.cells);
     this.showViews(doc);
-    this.status.textContent = `Done: ${doc.cells} cells × ${doc.runs.length} runs of ${doc.system}, ` +
+    this.status.textContent = `Done: ${plural(doc.cells, 'cell')} × ${plural(doc.runs.length, 'run')} of ${doc.system}, ` +
       `${doc.steps.toLocaleString('en')} steps in ${fmt(doc.wall_ms / 1000, 3)} s.` +
       (doc.stop === 'time_limit'
         ? ` The server's time limit stopped ${doc.unfinished_cells.length} cells (left blank).`
         : '');
-    this.setState('done');
+    this.runner.setState('done');
+  }
+
+  /** The last progress line of the last run (for tests). */
+  get lastProgress() {
+    return this.runner.lastProgress;
   }
 
   /** Fills the run, metric and comparison choices for `doc` and draws the first view. */
@@ -210,6 +203,10 @@ export class SweepPanel {
     this.figure.hidden = false;
     this.jsonButton.disabled = false;
     this.rrdButton.disabled = false;
+    // The cursor and the readout belonged to the last sweep's grid.
+    this.cursor = null;
+    this.readout.textContent = READOUT_PROMPT;
+    for (const key of Object.keys(this.readout.dataset)) delete this.readout.dataset[key];
     this.redraw();
   }
 
@@ -220,6 +217,7 @@ export class SweepPanel {
     const a = metricsOf(doc.runs[Number(this.runSelect.value)])[metric];
     const compare = this.compareSelect.value === '' ? null : Number(this.compareSelect.value);
     const b = compare == null ? null : metricsOf(doc.runs[compare])[metric];
+    const run = doc.runs[Number(this.runSelect.value)];
     const view = { metric, a, b, compare: b != null };
     view.cellValue = (k) => {
       if (!b) return shown(a.values[k], a.log);
@@ -227,9 +225,25 @@ export class SweepPanel {
       const y = b.values[k];
       return x > 0 && y > 0 && Number.isFinite(x) && Number.isFinite(y) ? Math.log10(x / y) : null;
     };
+    const unfinished = new Set(doc.unfinished_cells ?? []);
+    /** Why cell k has no value on the scale: a key of NO_VALUE. */
+    view.cellKind = (k) => {
+      if (b) return 'noRatio';
+      if (run.errors[k] || unfinished.has(k)) return 'none';
+      if (metric === 'diverged_at') return 'never';
+      return run.diverged_at[k] != null ? 'diverged' : 'none';
+    };
     const values = a.values.map((_, k) => view.cellValue(k)).filter((v) => v != null);
-    view.lo = values.length ? Math.min(...values) : 0;
-    view.hi = values.length ? Math.max(...values) : 1;
+    if (metric === 'diverged_at' && !b) {
+      // Times of divergence on the sweep's whole time span: runs found diverged at nearly the
+      // same (sampled) time look alike instead of stretching the colours over a few steps.
+      view.lo = 0;
+      view.hi = Math.max(this.last.body.t_end ?? 0, ...values, 1e-300);
+    } else {
+      view.lo = values.length ? Math.min(...values) : 0;
+      view.hi = values.length ? Math.max(...values) : 1;
+    }
+    view.kinds = new Set(a.values.map((_, k) => k).filter((k) => view.cellValue(k) == null).map(view.cellKind));
     return view;
   }
 
@@ -260,7 +274,8 @@ export class SweepPanel {
     const where = doc.axes.map((a, i) => `${a.name} = ${fmt(a.values[i === 0 ? cell.col : cell.row])}`).join(', ');
     const run = doc.runs[Number(this.runSelect.value)];
     const a = view.a.values[k];
-    let text = `${where}: ${view.a.label} ${fmt(a, 3)}`;
+    const value = a == null && view.cellValue(k) == null ? `— (${NO_VALUE[view.cellKind(k)].text})` : fmt(a, 3);
+    let text = `${where}: ${view.a.label} ${value}`;
     if (view.b) text += ` against ${fmt(view.b.values[k], 3)}, ratio ${fmt(view.cellValue(k) == null ? null : 10 ** view.cellValue(k), 3)}`;
     if (run.diverged_at[k] != null) text += `; diverged at t = ${fmt(run.diverged_at[k])}`;
     if (run.errors[k]) text += `; could not run: ${run.errors[k]}`;
@@ -278,16 +293,43 @@ export class SweepPanel {
       this.pending = false;
       this.map.resize();
       const view = this.currentViewState;
-      const what = view.compare ? `log₁₀ of the ratio of ${view.a.label}` : `${view.a.log ? 'log₁₀ ' : ''}${view.a.label}`;
-      drawScaleBar(this.scaleBar, view.compare
-        ? { lo: -RATIO_RANGE, hi: RATIO_RANGE, colourAt: ratioColour,
-          ticks: [[-2, '1/100'], [-1, '1/10'], [0, '1'], [1, '10'], [2, '100']],
-          label: `Colour scale: ${what}, blue where the first run's value is smaller, red where it is larger; black: no value.` }
-        : { lo: view.lo, hi: view.hi > view.lo ? view.hi : view.lo + 1,
-          colourAt: (e) => rampColour(view.hi > view.lo ? (e - view.lo) / (view.hi - view.lo) : 0.5),
-          ticks: [[view.lo, fmt(view.lo, 3)], [view.hi, fmt(view.hi, 3)]],
-          label: `Colour scale: ${what} from ${fmt(view.lo, 3)} (dark blue) to ${fmt(view.hi, 3)} (yellow); black: no value.` });
+      drawScaleBar(this.scaleBar, this.scale(view));
+      this.scaleCaption.textContent = this.scaleBar.getAttribute('aria-label').replace(/^Colour scale: /, '');
+      this.scaleLegend.replaceChildren(...[...view.kinds].map((kind) => el('li', { 'data-kind': kind },
+        el('span', { class: 'swatch block', style: `background:rgb(${NO_VALUE[kind].rgb.join(',')})`, 'aria-hidden': 'true' }),
+        NO_VALUE[kind].text)));
     });
+  }
+
+  /** The colour bar of `view`: its colours, ticks and what it says (its accessible name and caption). */
+  scale(view) {
+    const { a } = view;
+    if (view.compare) {
+      return {
+        lo: -RATIO_RANGE, hi: RATIO_RANGE, colourAt: ratioColour,
+        ticks: [[-2, '1/100'], [-1, '1/10'], [0, '1'], [1, '10'], [2, '100']],
+        label: `Colour scale: the ratio of ${a.label} of the two runs, on a log scale from 1/100 to 100: ` +
+          'blue where the first run\'s value is smaller, white where they agree, red where it is larger.',
+      };
+    }
+    const hi = view.hi > view.lo ? view.hi : view.lo + 1;
+    const colourAt = (e) => rampColour((e - view.lo) / (hi - view.lo));
+    if (a.log) {
+      return {
+        lo: view.lo, hi, colourAt, ticks: decadeTicks(view.lo, hi),
+        label: `Colour scale: ${a.label}, on a log scale from ${fmt(10 ** view.lo, 3)} (dark blue) ` +
+          `to ${fmt(10 ** view.hi, 3)} (yellow).`,
+      };
+    }
+    const every = this.last.body.every;
+    return {
+      lo: view.lo, hi, colourAt,
+      ticks: [[view.lo, fmt(view.lo, 3)], [(view.lo + hi) / 2, fmt((view.lo + hi) / 2, 3)], [hi, fmt(hi, 3)]],
+      label: `Colour scale: ${a.label}, from ${fmt(view.lo, 3)} (dark blue) to ${fmt(hi, 3)} (yellow)` +
+        (view.metric === 'diverged_at'
+          ? `; a divergence is found at the first sampled step after it${every ? ` (every ${every} steps)` : ''}, so times are upper bounds.`
+          : '.'),
+    };
   }
 
   downloadJson() {
@@ -296,18 +338,13 @@ export class SweepPanel {
     saveBlob(new Blob([text], { type: 'application/json' }), 'geomint-sweep.json');
   }
 
-  async downloadRrd() {
-    if (!this.last) return;
-    this.rrdError.textContent = '';
-    this.rrdButton.disabled = true;
-    try {
-      const blob = await sweepRrd(this.last.body);
-      saveBlob(blob, 'geomint-sweep.rrd');
-      this.status.textContent = `Saved geomint-sweep.rrd (${sizeText(blob.size)}).`;
-    } catch (error) {
-      this.rrdError.textContent = `The recording could not be made: ${error?.message || error}`;
-    } finally {
-      this.rrdButton.disabled = false;
-    }
+  /** Saves the sweep as geomint-sweep.rrd (the server runs and records it again). */
+  downloadRrd() {
+    if (!this.last) return null;
+    const { body } = this.last;
+    return downloadRecording({
+      button: this.rrdButton, status: this.status, error: this.rrdError,
+      name: 'geomint-sweep.rrd', fetchBlob: () => sweepRrd(body),
+    });
   }
 }

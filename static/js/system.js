@@ -15,10 +15,11 @@
 // was refused or the text could not be read), running, done, cancelled, error.
 
 import { storeSystem, ApiError } from './api.js';
-import { el, MethodPicker, numberText, parseNumber, parseList } from './form.js';
-import { RerunPanel } from './rerun.js';
+import { el, numberText, parseNumber, parseList } from './common.js';
+import { MethodPicker } from './form.js';
 import { SimulationView } from './simulation.js';
 import { EXAMPLES } from './examples.js';
+import { definitionPlotOptions } from './plot-options.js';
 
 /** The damping kinds of `facts.damping`, in words. */
 const DAMPING_TEXT = {
@@ -27,9 +28,6 @@ const DAMPING_TEXT = {
   rayleigh_projector: 'Rayleigh, D(q) an orthogonal projector with M = m·I (exact damping sub-flow)',
   rayleigh: 'Rayleigh with a general D(q)',
 };
-
-/** Methods chosen after a check when none are: the first of these that applies, and rk4. */
-const PREFERRED = ['modin_3s', 'csv2', 'velocity_verlet', 'implicit_midpoint'];
 
 /** The fields of a definition (the paths of errors about it start with one of these). */
 const DEFINITION_FIELDS = new Set(['name', 'coordinates', 'momenta', 'mass', 'potential', 'hamiltonian',
@@ -140,22 +138,6 @@ export function linkedSystem(hash) {
   }
 }
 
-/**
- * How the bodies of `definition` are plotted: {dims, count, names, embed}, or null where there is
- * nothing to place beyond the one coordinate. With `positions` the server sends each sample's
- * bodies (`bodies` in the samples) and `embed` is null; without, the body is the first two or
- * three coordinates, as the server draws it.
- */
-export function placeBodies(definition) {
-  const { coordinates, positions } = definition;
-  if (!positions?.length) {
-    if (coordinates.length < 2) return null;
-    const dims = Math.min(3, coordinates.length);
-    return { dims, count: 1, names: coordinates.slice(0, dims), embed: (q) => q.slice(0, dims) };
-  }
-  return { dims: positions[0].length, count: positions.length, names: ['x', 'y', 'z'], embed: null };
-}
-
 export class SystemPanel {
   /**
    * @param {HTMLElement} root the section
@@ -192,24 +174,11 @@ export class SystemPanel {
     /** The definition of the run on show (its bodies are placed from it). */
     this.runDefinition = null;
 
-    const rerun = new RerunPanel({
-      download: $('sys-download-rrd'), view: $('sys-view-rerun'), status: $('sys-rrd-status'),
-      error: $('err-sys-rrd'), section: $('sys-rerun'), box: $('sys-rerun-viewer'),
-      fallback: $('sys-rerun-fallback'), close: $('sys-rerun-close'),
-    }, (error) => {
-      const input = this.showError(error);
-      input?.focus({ preventScroll: false });
-      return Boolean(input);
-    });
-    this.view = new SimulationView({
-      results: $('sys-results'), plots: $('sys-plots'), legend: $('sys-legend'),
-      stats: $('sys-stats-body'), progress: $('sys-progress'), status: $('sys-status'),
-      download: $('sys-download-json'), cancel: $('sys-cancel'),
-    }, rerun, {
-      chartOptions: (header) => this.plotOptions(header),
+    this.view = new SimulationView($('sys-results'), {
+      chartOptions: (header, request) => definitionPlotOptions(this.runDefinition, header, request),
       showError: (error) => this.showError(error),
       setState: (state) => this.setState(state),
-    });
+    }, $('sys-cancel'));
 
     this.ui.examples.replaceChildren(...EXAMPLES.map((x) => el('option', { value: `example:${x.id}`, text: x.label })));
     this.storedEntries = catalogues.systems.filter((s) => s.definition);
@@ -522,10 +491,7 @@ export class SystemPanel {
       this.picker.fill(this.pendingMethods);
       this.pendingMethods = null;
     }
-    if (!this.picker.order.length) {
-      const geometric = PREFERRED.find((id) => facts.methods.includes(id));
-      this.picker.fill([geometric, 'rk4'].filter((id) => id && facts.methods.includes(id)));
-    }
+    this.picker.chooseDefaults();
     this.ui.methodsHelp.textContent = facts.methods.length
       ? `The ${facts.methods.length} methods that apply to this system; each is drawn in its own colour.`
       : 'No method applies to this system.';
@@ -559,19 +525,6 @@ export class SystemPanel {
     if (!definition) return;
     this.runDefinition = definition;
     await this.view.start(this.request(definition));
-  }
-
-  /** The plots' options for a run of the section's definition. */
-  plotOptions(header) {
-    const { coordinates, momenta } = this.runDefinition;
-    return {
-      energyErrorSource: header.energy_error ? 'ref' : null,
-      drift: false,
-      chartNames: coordinates,
-      cartesianNames: coordinates,
-      momentumNames: momenta ?? coordinates.map((c) => `p_${c}`),
-      bodies: placeBodies(this.runDefinition),
-    };
   }
 
   /** The definition and run settings as a link's state. */
@@ -670,6 +623,7 @@ export class SystemPanel {
     const slot = target?.error ?? (DEFINITION_FIELDS.has(top) ? this.ui.definitionError : this.ui.formError);
     slot.textContent = error.message;
     slot.closest('.field, .method, fieldset')?.classList.add('has-error');
+    this.picker.reveal(slot);
     const input = target?.input ?? null;
     if (input) input.setAttribute('aria-invalid', 'true');
     const source = target?.source;

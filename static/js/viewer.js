@@ -9,7 +9,7 @@
 // For tests the section carries `data-viewer-state` (closed, loading, ready, unavailable, failed)
 // and, once the viewer has read the recording's header, `data-recording-open="true"`.
 
-import { el } from './form.js';
+import { el } from './common.js';
 
 /** The viewer's ES module, relative to this file (copied there by scripts/vendor.mjs). */
 const VIEWER_MODULE = '../vendor/rerun/index.js';
@@ -36,6 +36,22 @@ export async function notAnRrd(file) {
     ? `“${text}”`
     : `0x${[...head].map((b) => b.toString(16).padStart(2, '0').toUpperCase()).join('')}`;
   return `${file.name} is not a Rerun recording (.rrd): it starts with ${shown}, not the RRD header “RRF2”.`;
+}
+
+/** The tag in the last 12 bytes of a complete RRD stream (its footer). */
+const RRD_FOOTER = 'RRF2FOOT';
+
+/**
+ * Why `file` (an .rrd, by its first bytes) may not be whole, or null: a complete stream ends with
+ * its footer, and one cut short (an interrupted download or write) does not. The viewer shows
+ * what it can read of such a file without a word; the library refuses to store it.
+ */
+export async function cutShort(file) {
+  const tail = new Uint8Array(await file.slice(Math.max(0, file.size - 12)).arrayBuffer());
+  if (file.size >= 24 && String.fromCharCode(...tail.slice(0, 8)) === RRD_FOOTER) return null;
+  return `${file.name} looks cut short: its ${file.size} bytes do not end with the RRD stream footer ` +
+    '(an interrupted download or write, say). The viewer shows only the part it can read, and the ' +
+    'library refuses to store it.';
 }
 
 export class EmbeddedViewer {

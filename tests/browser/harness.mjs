@@ -67,3 +67,12 @@ export async function launch(viewport, errors) {
   page.on('pageerror', (error) => errors.push(`uncaught: ${error.message}`));
   return { context, page, profile };
 }
+
+/**
+ * Shows section `id` of the page the way a reader does, with its link in the header (the page
+ * shows one section at a time), and waits until it is on show.
+ */
+export async function openSection(page, id) {
+  await page.click(`nav.sections a[href="#${id}"]`);
+  await page.waitForSelector(`#${id}[data-view]:not([hidden])`, { timeout: 5_000 });
+}

@@ -15,7 +15,7 @@ import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
 import { readFile, rm } from 'node:fs/promises';
 import { join } from 'node:path';
-import { artifacts, base, HEADLESS_GPU_ERROR, launch, waitForServer } from './harness.mjs';
+import { artifacts, base, HEADLESS_GPU_ERROR, launch, openSection, waitForServer } from './harness.mjs';
 import { presetRequest } from '../../static/js/presets.js';
 
 /** The preset the test runs: paper 000's pendulum, modin_3s against heun at h = 0.2. */
@@ -25,7 +25,7 @@ const STABILITY = {
   methods: ['cimp', 'csv1', 'csv2'],
   omega: 3.51,
   gamma: { min: 0, max: 3.5, n: 141 },
-  h: { min: 0, max: 1, n: 41 },
+  h: { min: 0.025, max: 1, n: 40 },
 };
 
 
@@ -159,6 +159,11 @@ test('the run downloads as .rrd and opens in the Rerun viewer', async () => {
   assert.equal(rrd.subarray(0, 4).toString('latin1'), 'RRF2', 'Rerun 0.33 files start with RRF2');
   await page.waitForSelector('#rrd-status:has-text("Saved geomint-pendulum.rrd")');
 
+  // Before it is clicked, the page says that "View in Rerun" stores the recording on this server,
+  // where everyone who uses it sees it.
+  assert.match(await page.textContent('#help-rrd'), /“View in Rerun”, which stores the\s+recording on this server: it joins the Recordings section, where everyone/);
+  assert.match(await page.getAttribute('#view-rerun', 'aria-describedby'), /\bhelp-rrd\b/);
+
   // View in Rerun: the recording is stored (201) and the viewer opens its absolute URL.
   const posted = page.waitForResponse((r) =>
     new URL(r.url()).pathname === '/api/v1/recordings' && r.request().method() === 'POST');
@@ -181,6 +186,9 @@ test('the run downloads as .rrd and opens in the Rerun viewer', async () => {
   await page.waitForFunction(() => ['ready', 'failed', 'unavailable']
     .includes(document.querySelector('#rerun').dataset.viewerState), null, { timeout: 30_000 });
   const state = await page.getAttribute('#rerun', 'data-viewer-state');
+  // … and once it has, where it went, with a link to it in the Recordings section.
+  assert.match(await page.textContent('#rrd-status'), /^Stored the recording \(\d+ KiB\) on this server, in the Recordings section for everyone who uses the server;/);
+  assert.equal(await page.getAttribute('#rrd-status a', 'href'), `#recording=${created.id}`);
   if (state === 'ready') {
     assert.equal(await page.isVisible('#rerun-viewer'), true);
     assert.equal(await page.locator('#rerun-viewer canvas').count(), 1);
@@ -310,12 +318,19 @@ test('Cancel stops a long run, on the page and on the server', async () => {
 test('the stability section maps the methods and reads a cell under the pointer', async () => {
   const before = consoleErrors.length;
   const failedBefore = failedRequests.length;
+  await openSection(page, 'stability');
   await page.locator('#stab-run').scrollIntoViewIfNeeded();
   await page.focus('#stab-run');
   await page.keyboard.press('Enter');
   await page.waitForSelector('#stability[data-stab-state="done"]', { timeout: 20_000 });
   const { status, body: api } = await postJson('/api/v1/stability', STABILITY);
   assert.equal(status, 200);
+  // The page sent its defaults: the h axis starts above 0, where every method is the identity and
+  // the printed relations' disagreements were nothing but that row (cimp's 141 of 141 columns).
+  assert.deepEqual(await page.evaluate(() => window.geomint.stability.shownBody), STABILITY);
+  const atZero = await postJson('/api/v1/stability', { ...STABILITY, h: { min: 0, max: 1, n: 41 } });
+  assert.equal(atZero.body.maps[0].printed_disagreements - api.maps[0].printed_disagreements, STABILITY.gamma.n,
+    'the h = 0 row alone made cimp’s printed count');
 
   // One heatmap per method with one cell per (γ, h) grid point, drawn at a real size.
   const maps = await page.$$eval('canvas.heatmap', (canvases) => canvases.map((c) => ({
@@ -356,7 +371,7 @@ test('the stability section maps the methods and reads a cell under the pointer'
     assert.equal(Number(shown.rho), rho);
     assert.equal(shown.stable, String(api.maps[1].stable[row][col]));
     assert.ok(Math.abs(Number(shown.gamma) - (3.5 * col) / 140) < 1e-12);
-    assert.ok(Math.abs(Number(shown.h) - row / 40) < 1e-12);
+    assert.ok(Math.abs(Number(shown.h) - (row + 1) / 40) < 1e-12);
     assert.match(shown.text, new RegExp(`^γ = ${Number(shown.gamma).toPrecision(4).replace(/\.?0+$/, '')}, `));
   }
   // … and from the keyboard: the focused map's cursor moves with the arrow keys.
@@ -422,6 +437,7 @@ test('a work–precision study streams into a log–log diagram with a readout, 
       { method: 'reference', tolerance: [1e-8, 1e-10] },
     ],
   };
+  await openSection(page, 'work-precision');
   await page.locator('#wp-run').scrollIntoViewIfNeeded();
   // The preset is there; a shorter study replaces it.
   assert.equal(JSON.parse(await page.inputValue('#wp-spec')).system, 'elastic_pendulum_3d');
@@ -469,9 +485,119 @@ test('a work–precision study streams into a log–log diagram with a readout, 
   assert.equal(await page.getAttribute('#wp-spec', 'aria-invalid'), 'true');
 });
 
+/** A short work–precision study: three runs of a few settings each. */
+const QUICK_STUDY = {
+  system: 'pendulum', t_end: 50, samples: 10,
+  runs: [{ method: 'rk4', h: [0.1, 0.05, 0.025] }, { method: 'modin_3s', h: [0.1, 0.05] }],
+};
+
+/** What the page draws for a work–precision point: the dot's time and its bar's ends. */
+function drawnTimings() {
+  return page.evaluate(() => {
+    const { chart, last } = window.geomint.workPrecision;
+    return {
+      series: chart.series.map((s) => ({ ys: s.ys, lows: s.lows, highs: s.highs })),
+      points: last.result.points,
+      note: document.querySelector('#wp-timing').textContent,
+      runs: document.querySelector('#wp-timing').dataset.runs,
+      table: [...document.querySelectorAll('#wp-table tr td:nth-child(3)')].map((td) => td.textContent),
+    };
+  });
+}
+
+test('work–precision: the spec shows its samples, and the panel says what each dot’s time is', async () => {
+  // The preset (in a fresh tab) names `samples`, the field the server's "must divide
+  // t_end/samples" is about; it asks for repeated timings only where the server's OpenAPI
+  // document offers them.
+  const offers = Boolean((await (await fetch(`${base}/api/v1/openapi.json`)).json())
+    .components.schemas.WorkPrecisionRequest.properties.repeats);
+  const fresh = await context.newPage();
+  try {
+    await fresh.goto(`${base}/#work-precision`);
+    await fresh.waitForSelector('body[data-run-state="idle"]', { timeout: 15_000 });
+    // The preset is settled once the page has asked the OpenAPI document.
+    await fresh.waitForFunction(() => window.geomint && document.querySelector('#wp-spec').value !== '');
+    await fresh.waitForLoadState('networkidle');
+    const preset = JSON.parse(await fresh.inputValue('#wp-spec'));
+    assert.equal(preset.samples, 50);
+    assert.equal(preset.repeats, offers ? 5 : undefined);
+  } finally {
+    await fresh.close();
+  }
+
+  await openSection(page, 'work-precision');
+  await page.fill('#wp-spec', JSON.stringify(QUICK_STUDY));
+  await page.click('#wp-run');
+  await page.waitForSelector('#work-precision[data-wp-state="done"]', { timeout: 30_000 });
+  const shown = await drawnTimings();
+  const repeated = shown.points.some((p) => p.timings_ms?.length > 1);
+  for (const p of shown.points) {
+    if (!p.timings_ms) continue;
+    // Fastest first, the median in wall_ms.
+    const sorted = [...p.timings_ms].sort((a, b) => a - b);
+    assert.deepEqual(p.timings_ms, sorted);
+    const mid = sorted.length >> 1;
+    const median = sorted.length % 2 ? sorted[mid] : (sorted[mid - 1] + sorted[mid]) / 2;
+    assert.ok(Math.abs(p.wall_ms - median) <= 1e-9 * median, `wall_ms ${p.wall_ms} is the median of ${sorted}`);
+  }
+  if (repeated) {
+    assert.match(shown.note, /^Each dot is the median wall time of \d+/);
+  } else {
+    // A server that times each setting once: single runs, and the panel says so; no bars.
+    assert.equal(shown.runs, '1');
+    assert.match(shown.note, /^Each dot is one timed run of its setting/);
+    for (const s of shown.series) assert.deepEqual(s.lows, s.ys);
+  }
+});
+
+test('work–precision: repeated timings are drawn as their median with a bar from fastest to slowest', async () => {
+  // The server's answer with five timings per point put in (a server that repeats sends them so):
+  // what the page makes of them does not depend on which server answered.
+  const factors = [0.7, 0.9, 1, 1.5, 3];
+  await page.route('**/api/v1/studies/work-precision', async (route) => {
+    const response = await route.fetch();
+    const lines = (await response.text()).split('\n').filter(Boolean).map((line) => JSON.parse(line));
+    const repeat = (p) => ({ ...p, timings_ms: factors.map((f) => f * p.wall_ms) });
+    const body = lines.map((line) => {
+      if (line.type === 'point') return { ...line, point: repeat(line.point) };
+      if (line.type === 'result') return { ...line, points: line.points.map(repeat) };
+      return line;
+    }).map((line) => JSON.stringify(line)).join('\n') + '\n';
+    await route.fulfill({ response, body });
+  });
+  try {
+    await page.fill('#wp-spec', JSON.stringify(QUICK_STUDY));
+    await page.click('#wp-run');
+    await page.waitForSelector('#work-precision[data-wp-state="done"]', { timeout: 30_000 });
+  } finally {
+    await page.unroute('**/api/v1/studies/work-precision');
+  }
+  const shown = await drawnTimings();
+  assert.equal(shown.runs, '5');
+  assert.match(shown.note, /^Each dot is the median wall time of 5 timed runs of its setting; its bar spans the fastest to the slowest/);
+  // Per series, sorted by error as drawn: the dot at the median, the bar from 0.7 to 3 times it.
+  for (const s of shown.series) {
+    s.ys.forEach((median, i) => {
+      assert.ok(Math.abs(s.lows[i] - 0.7 * median) < 1e-12 * median && Math.abs(s.highs[i] - 3 * median) < 1e-12 * median,
+        `bar ${s.lows[i]}–${s.highs[i]} around ${median}`);
+    });
+  }
+  // The plot's time axis holds every bar.
+  const [min, max] = await page.evaluate(() => {
+    const { scales } = window.geomint.workPrecision.plot;
+    return [scales.y.min, scales.y.max];
+  });
+  const lows = shown.series.flatMap((s) => s.lows);
+  const highs = shown.series.flatMap((s) => s.highs);
+  assert.ok(min <= Math.min(...lows) && max >= Math.max(...highs), `axis ${min}–${max}`);
+  assert.ok(shown.table.every((text) => /^\d+\.\d{3} \(\d+\.\d{3}–\d+\.\d{3}, 5 runs\)$/.test(text)), shown.table.join(' | '));
+  await page.locator('#wp-results').screenshot({ path: join(artifacts, 'work-precision-repeats.png') });
+});
+
 test('a convergence study streams into a log–log plot of error against h with the fitted orders', async () => {
   const before = consoleErrors.length;
   const failedBefore = failedRequests.length;
+  await openSection(page, 'convergence');
   await page.locator('#cv-run').scrollIntoViewIfNeeded();
   // The paper 001 Fig. 9 preset fills the spec and the error choice, and runs.
   await page.click('[data-cv-preset="fig9"]');
@@ -552,6 +678,7 @@ const LOGGED_422 = /Failed to load resource: the server responded with a status 
 test('a run in the polar chart plots the Cartesian trajectory, and a splitting there is refused beside it', async () => {
   const before = consoleErrors.length;
   const failedBefore = failedRequests.length;
+  await openSection(page, 'simulation');
   await page.locator('#sim-form').scrollIntoViewIfNeeded();
   await page.selectOption('#system', 'elastic_pendulum_2d');
   assert.equal(await page.isVisible('#chart'), true, 'a system with two charts offers the select');
@@ -574,7 +701,8 @@ test('a run in the polar chart plots the Cartesian trajectory, and a splitting t
   const back = [Number(await page.inputValue('#q0-0')), Number(await page.inputValue('#q0-1'))];
   assert.ok(Math.abs(back[0] - 0.6) < 1e-12 && Math.abs(back[1] - 1.2) < 1e-12, `x, y = ${back}`);
 
-  // Symplectic Euler alone, from the Cartesian start.
+  // Symplectic Euler alone, from the Cartesian start (the method groups fold; open them first).
+  for (const group of await page.$$('#methods details.method-group:not([open]) > summary')) await group.click();
   for (const box of await page.$$('#methods input[type=checkbox]:checked')) await box.uncheck();
   await page.check('#m-symplectic_euler');
   await page.fill('#h', '0.1');
@@ -630,6 +758,7 @@ test('an energy-error map streams its progress, draws the map and reads a cell',
   const before = consoleErrors.length;
   const failedBefore = failedRequests.length;
   const body = { method: 'symplectic_euler', params: { g: 0.02 }, h: 0.2, t_max: 200, nx: 9, ny: 9 };
+  await openSection(page, 'energy-map');
   await page.locator('#em-run').scrollIntoViewIfNeeded();
   assert.deepEqual(await page.$$eval('#em-method option', (os) => os.map((o) => o.value).sort()),
     ['explicit_euler', 'heun', 'implicit_midpoint', 'rk3', 'rk4', 'symplectic_euler', 'symplectic_euler_adjoint']);
@@ -761,6 +890,7 @@ test('an energy map can be cancelled, and a bad grid size is shown beside its fi
 
 test('the page fits a phone screen', async () => {
   await page.setViewportSize({ width: 390, height: 844 });
+  await openSection(page, 'simulation');
   await page.fill('#h', '0.2');
   await page.click('[data-preset="p000-pendulum/3s-heun"]');
   await page.waitForSelector('body[data-run-state="done"]', { timeout: 30_000 });
@@ -772,6 +902,7 @@ test('the page fits a phone screen', async () => {
   await page.screenshot({ path: join(artifacts, 'page-phone.png'), fullPage: true });
 
   // The stability section's heatmaps and ½tr plot shrink to the screen too.
+  await openSection(page, 'stability');
   await page.locator('#stability').scrollIntoViewIfNeeded();
   await page.waitForFunction(() => [...document.querySelectorAll('canvas.heatmap')]
     .every((c) => c.getBoundingClientRect().right <= window.innerWidth));
@@ -781,6 +912,7 @@ test('the page fits a phone screen', async () => {
   await page.locator('#stability').screenshot({ path: join(artifacts, 'page-stability-phone.png') });
 
   // So does the energy map.
+  await openSection(page, 'energy-map');
   await page.locator('#energy-map').scrollIntoViewIfNeeded();
   await page.waitForFunction(() => document.querySelector('#em-canvas').getBoundingClientRect().right <= window.innerWidth);
   const mapOverflow = await page.evaluate(() => document.documentElement.scrollWidth - window.innerWidth);

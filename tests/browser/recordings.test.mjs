@@ -15,7 +15,8 @@ import assert from 'node:assert/strict';
 import { mkdtemp, rm, writeFile } from 'node:fs/promises';
 import { tmpdir } from 'node:os';
 import { join } from 'node:path';
-import { artifacts, base, HEADLESS_GPU_ERROR, launch, waitForServer } from './harness.mjs';
+import { artifacts, base, HEADLESS_GPU_ERROR, launch, openSection, waitForServer } from './harness.mjs';
+import { EXAMPLES } from '../../static/js/examples.js';
 
 /** The browser's log line for an answer the test asks for on purpose (404, 422). */
 const EXPECTED_REFUSAL = /Failed to load resource: the server responded with a status of (404|422)/;
@@ -66,8 +67,8 @@ function rowIds(p = page) {
 /** Waits for the library's viewer to settle; returns its state. */
 async function viewerSettled(p, timeout = 60_000) {
   await p.waitForFunction(() => ['ready', 'failed', 'unavailable']
-    .includes(document.querySelector('#rec-viewer-section').dataset.viewerState), null, { timeout });
-  return p.getAttribute('#rec-viewer-section', 'data-viewer-state');
+    .includes(document.querySelector('#rec-rerun').dataset.viewerState), null, { timeout });
+  return p.getAttribute('#rec-rerun', 'data-viewer-state');
 }
 
 /** Opens a new tab of the same browser, collecting its console errors. */
@@ -95,6 +96,7 @@ before(async () => {
   context.setDefaultTimeout(60_000);
   page.on('request', (r) => requests.push(`${r.method()} ${new URL(r.url()).pathname}`));
   await page.goto(`${base}/`);
+  await openSection(page, 'recordings');
   await page.waitForSelector('#recordings[data-library-state="ready"]', { timeout: 15_000 });
 });
 
@@ -143,35 +145,35 @@ test('a recording opens in the embedded viewer, from the keyboard', async () => 
   await page.focus(`#rec-list tr[data-id="${id}"] button:text-is("View")`);
   await page.keyboard.press('Enter');
   const state = await viewerSettled(page);
-  assert.equal(await page.getAttribute('#rec-viewer-section', 'data-recording-id'), id);
+  assert.equal(await page.getAttribute('#rec-rerun', 'data-recording-id'), id);
   const url = `${base}/api/v1/recordings/${id}.rrd`;
-  assert.equal(await page.getAttribute('#rec-viewer-section', 'data-recording-url'), url);
+  assert.equal(await page.getAttribute('#rec-rerun', 'data-recording-url'), url);
   assert.equal(await page.getAttribute(`#rec-list tr[data-id="${id}"]`, 'aria-current'), 'true');
   if (state === 'ready') {
     // The viewer read the recording from the server's URL: its step timeline ends at the last
     // step of the run (200 steps of h = 0.1 to t = 20).
-    await page.waitForSelector('#rec-viewer-section[data-recording-open="true"]', { state: 'attached', timeout: 60_000 });
+    await page.waitForSelector('#rec-rerun[data-recording-open="true"]', { state: 'attached', timeout: 60_000 });
     await page.waitForFunction(() => window.geomint.library.viewer.stepRange()?.max === 200, null, { timeout: 60_000 });
     assert.deepEqual(await page.evaluate(() => window.geomint.library.viewer.stepRange()), { min: 0, max: 200 });
     assert.equal(requests.slice(fetched).filter((r) => r === `GET /api/v1/recordings/${id}.rrd`).length, 1);
     // Esc hands the focus back from the viewer's canvas to its Close button.
-    await page.focus('#rec-viewer canvas');
+    await page.focus('#rec-rerun-viewer canvas');
     await page.keyboard.press('Escape');
-    assert.equal(await page.evaluate(() => document.activeElement?.id), 'rec-viewer-close');
+    assert.equal(await page.evaluate(() => document.activeElement?.id), 'rec-rerun-close');
   } else {
     assert.equal(state, 'failed');
-    const fallback = await page.textContent('#rec-viewer-fallback');
+    const fallback = await page.textContent('#rec-rerun-fallback');
     assert.match(fallback, /pip install "rerun-sdk==0\.33\.\*"/);
-    assert.equal(await page.getAttribute('#rec-viewer-fallback a[download]', 'href'), url);
+    assert.equal(await page.getAttribute('#rec-rerun-fallback a[download]', 'href'), url);
   }
   const fresh = consoleErrors.slice(before);
   if (fresh.some((t) => HEADLESS_GPU_ERROR.test(t))) assert.equal(state, 'failed');
   assert.deepEqual(fresh.filter((t) => !HEADLESS_GPU_ERROR.test(t)), [], 'console errors with the viewer');
-  await page.locator('#rec-viewer-section').screenshot({ path: join(artifacts, 'recordings-viewer.png') });
-  await page.click('#rec-viewer-close');
-  assert.equal(await page.isHidden('#rec-viewer-section'), true);
-  assert.equal(await page.getAttribute('#rec-viewer-section', 'data-viewer-state'), 'closed');
-  assert.equal(await page.locator('#rec-viewer canvas').count(), 0);
+  await page.locator('#rec-rerun').screenshot({ path: join(artifacts, 'recordings-viewer.png') });
+  await page.click('#rec-rerun-close');
+  assert.equal(await page.isHidden('#rec-rerun'), true);
+  assert.equal(await page.getAttribute('#rec-rerun', 'data-viewer-state'), 'closed');
+  assert.equal(await page.locator('#rec-rerun-viewer canvas').count(), 0);
   // The focus returns to the View button it came from.
   assert.equal(await page.evaluate(() => document.activeElement?.textContent), 'View');
 });
@@ -180,7 +182,8 @@ test('a recording plots with the page’s charts, one point per recorded row', a
   const id = made.pendulum;
   const before = requests.length;
   await page.click(`#rec-list tr[data-id="${id}"] button:text-is("Plot")`);
-  await page.waitForSelector(`#results[data-source="recording:${id}"]`, { timeout: 15_000 });
+  // The plots are drawn below the list, in the Recordings section.
+  await page.waitForSelector(`#recordings:not([hidden]) #rec-plot[data-source="recording:${id}"]`, { timeout: 15_000 });
   // Nothing was run again: the samples came from the stored recording.
   const asked = requests.slice(before);
   assert.deepEqual(asked, [`GET /api/v1/recordings/${id}/samples`]);
@@ -200,17 +203,17 @@ test('a recording plots with the page’s charts, one point per recorded row', a
     drift: samples.runs.map((r) => r.dissipation_drift.length),
   };
   assert.deepEqual(expected['phase:0'], rows);
-  const plotted = await page.evaluate(() => window.geomint.pointCounts());
+  const plotted = await page.evaluate(() => window.geomint.library.plots.charts.pointCounts());
   assert.deepEqual(Object.keys(plotted).sort(), Object.keys(expected).sort());
   for (const [key, counts] of Object.entries(expected)) {
     assert.deepEqual(plotted[key].map((s) => s.label), ['modin_3s', 'heun'], key);
     assert.deepEqual(plotted[key].map((s) => s.points), counts, key);
   }
   // The energies drawn are the recording's, which are the JSON answer's.
-  const energy = await page.evaluate(() => window.geomint.charts.get('energy').plot.data.slice(1));
+  const energy = await page.evaluate(() => window.geomint.library.plots.charts.plots.get('energy').plot.data.slice(1));
   assert.deepEqual(energy, answer.runs.map((r) => r.energy));
   // The statistics: the recorded steps and force evaluations; no wall time in a recording.
-  const stats = await page.$$eval('#stats-body tr', (trs) => trs.map((tr) => [...tr.children].map((c) => c.textContent.trim())));
+  const stats = await page.$$eval('#rec-plot-stats-body tr', (trs) => trs.map((tr) => [...tr.children].map((c) => c.textContent.trim())));
   stats.forEach((cells, i) => {
     assert.equal(cells[1], String(answer.runs[i].stats.steps));
     assert.equal(cells[2], String(answer.runs[i].stats.force_evaluations));
@@ -218,9 +221,70 @@ test('a recording plots with the page’s charts, one point per recorded row', a
     assert.equal(cells[4], '101');
     assert.equal(cells[6], 'finished');
   });
-  assert.match(await page.textContent('#status'), /202 samples read back from the \.rrd file/);
-  assert.equal(await page.isDisabled('#view-rerun'), true, 'the results do not offer to run it again');
-  await page.locator('#results').screenshot({ path: join(artifacts, 'recordings-plot.png') });
+  assert.match(await page.textContent('#rec-plot-status'), /202 samples read back from the \.rrd file/);
+  assert.equal(await page.isHidden('#rec-plot-view-rerun'), true, 'the results do not offer to run it again');
+  assert.equal(await page.textContent('#rec-plot-results-title'), 'Recording: pendulum: modin_3s, heun');
+  await page.locator('#rec-plot').screenshot({ path: join(artifacts, 'recordings-plot.png') });
+});
+
+test('a typed-in system’s recording keeps its name, its coordinates’ names, its bodies and its energy error', async () => {
+  const before = consoleErrors.length;
+  // The double pendulum, stored on the server, recorded by its id: the recorded request names the
+  // system only by that id, so the page takes its definition from the server (the catalogue it
+  // loaded, or GET /api/v1/systems/{id} for one stored since).
+  const { definition } = EXAMPLES.find((x) => x.id === 'double-pendulum');
+  const stored = await api('/api/v1/systems', {
+    method: 'POST', headers: { 'content-type': 'application/json' }, body: JSON.stringify(definition),
+  });
+  assert.ok([200, 201].includes(stored.status), JSON.stringify(stored.body));
+  const systemId = stored.body.id;
+  const request = { system: systemId, methods: ['implicit_midpoint', 'rk4'], h: 0.01, t_end: 2 };
+  const { status, body: created } = await createRecording(request);
+  assert.equal(status, 201, JSON.stringify(created));
+  made.doublePendulum = created.id;
+
+  await page.click('#rec-refresh');
+  await page.waitForSelector(`#rec-list tr[data-id="${created.id}"]`);
+  const row = `#rec-list tr[data-id="${created.id}"]`;
+  // The row and the System filter name the system, not its id.
+  assert.equal((await page.textContent(`${row} > th`)).trim(), 'Double pendulum');
+  assert.equal(await page.getAttribute(`${row} > th`, 'title'), systemId);
+  const option = await page.$eval(`#rec-system option[value="${systemId}"]`, (o) => o.textContent);
+  assert.equal(option, 'Double pendulum');
+
+  await page.click(`${row} button:text-is("Plot")`);
+  await page.waitForSelector(`#rec-plot[data-source="recording:${created.id}"]`, { timeout: 15_000 });
+  // The plots are in the Recordings section, titled with the recording; the Simulation section,
+  // whose form shows another system, stays as it was.
+  assert.equal(await page.isHidden('#simulation'), true);
+  assert.equal(await page.textContent('#rec-plot-results-title'), 'Recording: Double pendulum: implicit_midpoint, rk4');
+  const titles = await page.$$eval('#rec-plot figcaption .plot-title', (t) => t.map((n) => n.textContent));
+  assert.deepEqual(titles.slice(0, 5), ['Energy H(t)', 'Energy error |H − H₀|', 'Phase portrait (a, p1)',
+    'Phase portrait (b, p2)', 'Bodies in the x–y plane']);
+  assert.ok(!titles.some((t) => /q_1|q_2/.test(t)), `titles: ${titles}`);
+
+  // The bobs are where the definition's positions put the recorded angles: the simulate answer's
+  // bodies, to the single precision of the recording.
+  const { body: answer } = await api('/api/v1/simulate', {
+    method: 'POST', headers: { 'content-type': 'application/json' }, body: JSON.stringify(request),
+  });
+  const bobs = await page.evaluate(() => window.geomint.library.plots.charts.plots.get('trajectory:xy').plot.data.slice(1));
+  assert.equal(bobs.length, 4, 'two bobs for each of two methods');
+  answer.runs.forEach((run, m) => {
+    run.bodies.forEach((place, i) => {
+      for (let body = 0; body < 2; body++) {
+        const [x, y] = [bobs[2 * m + body][0][i], bobs[2 * m + body][1][i]];
+        assert.ok(Math.abs(x - place[2 * body]) < 1e-5 && Math.abs(y - place[2 * body + 1]) < 1e-5,
+          `bob ${body + 1} of ${run.method} at sample ${i}: (${x}, ${y}) against (${place.slice(2 * body, 2 * body + 2)})`);
+      }
+    });
+  });
+  // Undamped: the energy error against H₀ is drawn, as the caption says.
+  assert.equal(await page.getAttribute('#rec-plot [data-plot="energy_error"]', 'data-against'), 'initial');
+  assert.match(await page.textContent('#rec-plot [data-plot="energy_error"] figcaption small'), /initial energy H₀/);
+  assert.equal(await page.locator('#rec-plot [data-note="energy"]').count(), 0);
+  assert.deepEqual(consoleErrors.slice(before), [], 'console errors');
+  await page.locator('#rec-plot').screenshot({ path: join(artifacts, 'recordings-plot-typed-in.png') });
 });
 
 test('a copied link opens the page on the recording; a deleted or unknown one says so', async () => {
@@ -237,7 +301,7 @@ test('a copied link opens the page on the recording; a deleted or unknown one sa
   const errors = [];
   const other = await newTab(link, errors);
   try {
-    await other.waitForSelector(`#rec-viewer-section[data-recording-id="${id}"]`, { state: 'attached', timeout: 60_000 });
+    await other.waitForSelector(`#rec-rerun[data-recording-id="${id}"]`, { state: 'attached', timeout: 60_000 });
     const state = await viewerSettled(other);
     if (state === 'ready') {
       await other.waitForFunction(() => window.geomint.library.viewer.stepRange()?.max === 200, null, { timeout: 60_000 });
@@ -251,7 +315,7 @@ test('a copied link opens the page on the recording; a deleted or unknown one sa
     await other.reload();
     await other.waitForSelector('#rec-error:not([hidden])', { timeout: 15_000 });
     assert.match(await other.textContent('#rec-error'), new RegExp(`^There is no recording ${missing} on this server: it was deleted`));
-    assert.equal(await other.getAttribute('#rec-viewer-section', 'data-viewer-state'), 'closed');
+    assert.equal(await other.getAttribute('#rec-rerun', 'data-viewer-state'), 'closed');
     await other.evaluate(() => { window.location.hash = '#recording=../etc'; });
     await other.waitForFunction(() => document.querySelector('#rec-error').textContent.includes('../etc'));
     assert.match(await other.textContent('#rec-error'), /names “\.\.\/etc”, which is not a recording id/);
@@ -297,12 +361,14 @@ test('a local .rrd opens in the viewer without an upload, by picker and by drop,
   const sent = requests.length;
   await page.setInputFiles('#rec-file', file);
   const state = await viewerSettled(page);
-  assert.equal(await page.getAttribute('#rec-viewer-section', 'data-source'), 'file:local-run.rrd');
+  assert.equal(await page.getAttribute('#rec-rerun', 'data-source'), 'file:local-run.rrd');
   if (state === 'ready') {
     // The viewer read the file's bytes: 200 steps of h = 0.05 to t = 10.
     await page.waitForFunction(() => window.geomint.library.viewer.stepRange()?.max === 200, null, { timeout: 60_000 });
     assert.match(await page.textContent('#rec-file-status'), /^Opened local-run\.rrd \(\d+ KiB\) from this computer .* it was not uploaded\.$/);
   }
+  // A whole recording opens without a warning.
+  assert.equal(await page.isHidden('#rec-file-warning'), true);
   // Opening sent nothing to the server.
   assert.deepEqual(requests.slice(sent).filter((r) => r.includes('/api/')), []);
 
@@ -315,7 +381,7 @@ test('a local .rrd opens in the viewer without an upload, by picker and by drop,
     box.dispatchEvent(new DragEvent('dragover', { dataTransfer: transfer, bubbles: true, cancelable: true }));
     box.dispatchEvent(new DragEvent('drop', { dataTransfer: transfer, bubbles: true, cancelable: true }));
   }, `${base}/api/v1/recordings/${made.pendulum}.rrd`);
-  await page.waitForSelector('#rec-viewer-section[data-source="file:dropped.rrd"]');
+  await page.waitForSelector('#rec-rerun[data-source="file:dropped.rrd"]');
   if ((await viewerSettled(page)) === 'ready') {
     await page.waitForFunction(() => window.geomint.library.viewer.stepRange()?.max === 200, null, { timeout: 60_000 });
   }
@@ -336,7 +402,7 @@ test('a local .rrd opens in the viewer without an upload, by picker and by drop,
   const fresh = consoleErrors.slice(before);
   assert.deepEqual(fresh.filter((t) => !HEADLESS_GPU_ERROR.test(t)), [], 'console errors with local files');
   await page.locator('#rec-drop').screenshot({ path: join(artifacts, 'recordings-upload.png') });
-  await page.click('#rec-viewer-close');
+  await page.click('#rec-rerun-close');
 });
 
 test('a file that is not a recording is refused with a clear error, here and by the server', async () => {
@@ -347,13 +413,19 @@ test('a file that is not a recording is refused with a clear error, here and by 
   assert.equal(await page.textContent('#rec-file-error'),
     'notes.txt is not a Rerun recording (.rrd): it starts with “hell”, not the RRD header “RRF2”.');
   assert.equal(await page.isDisabled('#rec-upload'), true);
-  assert.equal(await page.getAttribute('#rec-viewer-section', 'data-viewer-state'), 'closed');
+  assert.equal(await page.getAttribute('#rec-rerun', 'data-viewer-state'), 'closed');
 
   // A recording cut in half starts like one; the server's check finds the missing end.
   const { body: bytes } = await api(`/api/v1/recordings/${made.oscillator}.rrd`);
   const half = Buffer.from(bytes).subarray(0, Math.floor(bytes.byteLength / 2));
   await page.setInputFiles('#rec-file', { name: 'cut.rrd', mimeType: 'application/octet-stream', buffer: half });
   await page.waitForSelector('#rec-upload:enabled', { state: 'attached' });
+  // The page opens it (the viewer shows what it can read) but says it is cut short, before any
+  // upload.
+  await page.waitForSelector('#rec-file-warning:not([hidden])');
+  assert.match(await page.textContent('#rec-file-warning'),
+    new RegExp(`^cut\\.rrd looks cut short: its ${half.length} bytes do not end with the RRD stream footer`));
+  await page.locator('#rec-drop').screenshot({ path: join(artifacts, 'recordings-cut-short.png') });
   // The upload needs no viewer: closing it spares the page's thread the software rendering.
   await page.evaluate(() => window.geomint.library.viewer.close());
   await page.click('#rec-upload');

@@ -10,7 +10,7 @@ import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
 import { rm } from 'node:fs/promises';
 import { join } from 'node:path';
-import { artifacts, base, launch, waitForServer } from './harness.mjs';
+import { artifacts, base, launch, openSection, waitForServer } from './harness.mjs';
 
 /** The browser's log line for the refusal the test provokes on purpose. */
 const LOGGED_422 = /Failed to load resource: the server responded with a status of 422/;
@@ -56,6 +56,7 @@ before(async () => {
   await page.goto(`${base}/`);
   await page.waitForSelector('body[data-run-state="idle"]', { timeout: 15_000 });
   await page.waitForFunction(() => !document.querySelector('#sw-run').disabled, null, { timeout: 15_000 });
+  await openSection(page, 'sweep');
 });
 
 after(async () => {
@@ -138,5 +139,74 @@ test('a refused sweep shows the server’s message and field', async () => {
   await page.click('#sw-run');
   assert.equal(await settled(['error']), 'error');
   assert.match(await page.textContent('#err-sw-spec'), /not JSON/);
+  assert.deepEqual(consoleErrors.filter((e) => !LOGGED_422.test(e)), []);
+});
+
+/** The colour of cell (col, row) of the sweep's map, as drawn. */
+async function cellPixel(col, row) {
+  // A redraw lays the new map out in the next animation frame.
+  await page.waitForFunction(() => window.geomint.sweep.map?.cssWidth > 0 && !window.geomint.sweep.pending);
+  return page.evaluate(([c, r]) => {
+    const { map } = window.geomint.sweep;
+    const ctx = map.canvas.getContext('2d');
+    const dpr = map.canvas.width / map.cssWidth;
+    const [x, y] = map.cellCentre(c, r);
+    return [...ctx.getImageData(Math.round(x * dpr), Math.round(y * dpr), 1, 1).data].slice(0, 3);
+  }, [col, row]);
+}
+
+test('the heatmap says its scale and what its colourless cells mean; a new sweep clears the readout', async () => {
+  await page.selectOption('#sw-preset', 'csv1_stability');
+  const request = JSON.parse(await page.inputValue('#sw-spec'));
+  assert.equal(request.every, 100, 'the preset samples every 100 steps');
+  await page.click('#sw-run');
+  assert.equal(await settled(['done', 'error']), 'done');
+  const doc = await page.evaluate(() => window.geomint.sweep.last.doc);
+  assert.equal(doc.runs.length, 1);
+  assert.match(await page.textContent('#sw-status'), / × 1 run of /);
+  const [nx] = [doc.axes[0].n];
+  const run = doc.runs[0];
+  const diverged = run.diverged_at.findIndex((t) => t != null);
+  const stable = run.diverged_at.findIndex((t, k) => t == null && !run.errors[k] && run.energy_error_max[k] > 0);
+  assert.ok(diverged >= 0 && stable >= 0, 'the preset has cells that diverge and cells that do not');
+
+  // The error map: a log scale, said in words under the bar; a diverged cell is black, and the
+  // legend says so.
+  await page.selectOption('#sw-metric', 'energy_error_max');
+  await page.waitForFunction(() => document.querySelector('#sw-scale-caption').textContent.includes('largest'));
+  assert.match(await page.textContent('#sw-scale-caption'), /^largest \|energy error\|, on a log scale from .+ \(dark blue\) to .+ \(yellow\)\.$/);
+  const errorLegend = await page.$$eval('#sw-scale-legend li', (lis) => lis.map((li) => [li.dataset.kind, li.textContent]));
+  assert.ok(errorLegend.some(([kind, text]) => kind === 'diverged' && /diverged/.test(text)), JSON.stringify(errorLegend));
+  assert.deepEqual(await cellPixel(diverged % nx, Math.floor(diverged / nx)), [0, 0, 0]);
+  // The ticks are values (powers of ten), not their logarithms.
+  const ticks = await page.evaluate(() => window.geomint.sweep.scale(window.geomint.sweep.currentViewState).ticks.map(([, t]) => t));
+  assert.ok(ticks.every((t) => /^1e-?\d+$/.test(t)), `ticks ${ticks}`);
+
+  // The divergence map: a run that never diverged is white, the opposite end of the legend from
+  // a diverged cell on the error map; the scale runs over the whole time span, so times found at
+  // the sampled steps 200 to 203 are one colour band, not stripes.
+  await page.selectOption('#sw-metric', 'diverged_at');
+  await page.waitForFunction(() => document.querySelector('#sw-scale-caption').textContent.startsWith('time of divergence'));
+  assert.match(await page.textContent('#sw-scale-caption'), /from 0 \(dark blue\).*every 100 steps.*upper bounds/);
+  const legend = await page.$$eval('#sw-scale-legend li', (lis) => lis.map((li) => li.dataset.kind));
+  assert.ok(legend.includes('never'), `legend ${legend}`);
+  assert.match(await page.textContent('#sw-scale-legend [data-kind="never"]'), /did not diverge/);
+  assert.deepEqual(await cellPixel(stable % nx, Math.floor(stable / nx)), [255, 255, 255]);
+  const view = await page.evaluate(() => ({ lo: window.geomint.sweep.currentViewState.lo, hi: window.geomint.sweep.currentViewState.hi }));
+  assert.equal(view.lo, 0);
+  assert.ok(view.hi >= request.t_end, `the time scale ends at ${view.hi}`);
+  const readout = await readAt(stable % nx, Math.floor(stable / nx));
+  assert.match(readout.text, /did not diverge before t_end/);
+  await page.locator('#sw-results').screenshot({ path: join(artifacts, 'sweep-divergence.png') });
+
+  // A new sweep: the readout no longer describes a cell of the last one.
+  await readAt(1, 1);
+  assert.equal(await page.getAttribute('#sw-readout', 'data-cell'), String(nx + 1));
+  const smaller = { ...request, axes: [{ ...request.axes[0], n: 3 }, { ...request.axes[1], n: 2 }] };
+  await page.fill('#sw-spec', JSON.stringify(smaller));
+  await page.click('#sw-run');
+  assert.equal(await settled(['done', 'error']), 'done');
+  assert.equal(await page.getAttribute('#sw-readout', 'data-cell'), null);
+  assert.match(await page.textContent('#sw-readout'), /^Point at the map/);
   assert.deepEqual(consoleErrors.filter((e) => !LOGGED_422.test(e)), []);
 });

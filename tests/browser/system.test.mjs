@@ -14,7 +14,7 @@ import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
 import { readFile, rm } from 'node:fs/promises';
 import { join } from 'node:path';
-import { artifacts, base, HEADLESS_GPU_ERROR, launch, waitForServer } from './harness.mjs';
+import { artifacts, base, HEADLESS_GPU_ERROR, launch, openSection, waitForServer } from './harness.mjs';
 import { EXAMPLES } from '../../static/js/examples.js';
 
 /** The browser's log line for a refusal the test provokes on purpose. */
@@ -88,6 +88,7 @@ before(async () => {
   await page.goto(`${base}/`);
   await page.waitForSelector('body[data-run-state="idle"]', { timeout: 15_000 });
   await settled(page, ['idle'], 5_000);
+  await openSection(page, 'your-system');
 });
 
 after(async () => {
@@ -372,9 +373,23 @@ test('a general H(q, p) runs with the methods that apply, its bobs where its pos
         && Math.abs(second[1][i] + Math.cos(a) + Math.cos(b)) < 1e-12, `bob 2 of ${run.method} at ${i}`);
     });
   });
+  // Undamped, no exact solution, not compared to the reference: the energy error is measured
+  // against H₀ (sent by the server, or taken by the page from the same energies), and said so.
+  assert.equal(await page.getAttribute('#sys-plots [data-plot="energy_error"]', 'data-against'), 'initial');
+  assert.match(await page.textContent('#sys-plots [data-plot="energy_error"] figcaption'), /\|H − H₀\|.*initial energy H₀/);
+  assert.equal(await page.locator('#sys-plots [data-note="energy"]').count(), 0);
+  const errors = await page.evaluate(() => window.geomint.system.view.charts.plots.get('energy_error').plot.data.slice(1));
+  body.runs.forEach((run, m) => {
+    const expected = run.energy_error ?? run.energy.map((e) => e - run.energy[0]);
+    expected.forEach((e, i) => {
+      const drawn = errors[m][i];
+      if (e === 0) assert.equal(drawn, null, `${run.method} at ${i}: a zero error is a gap on the log axis`);
+      else assert.ok(Math.abs(drawn - Math.abs(e)) <= 1e-12 * Math.max(1, Math.abs(e)), `${run.method} at ${i}: ${drawn} against ${e}`);
+    });
+  });
   // The phase portraits are labelled with the definition's own names.
-  assert.deepEqual(await page.$$eval('#sys-plots figcaption .plot-title', (t) => t.map((n) => n.textContent).slice(0, 4)),
-    ['Energy H(t)', 'Phase portrait (a, p1)', 'Phase portrait (b, p2)', 'Bodies in the x–y plane']);
+  assert.deepEqual(await page.$$eval('#sys-plots figcaption .plot-title', (t) => t.map((n) => n.textContent).slice(0, 5)),
+    ['Energy H(t)', 'Energy error |H − H₀|', 'Phase portrait (a, p1)', 'Phase portrait (b, p2)', 'Bodies in the x–y plane']);
 
   assert.deepEqual(consoleErrors.slice(before), [], 'console errors during the run');
   await page.locator('#sys-results').screenshot({ path: join(artifacts, 'system-pendulum.png') });
@@ -396,4 +411,31 @@ test('a refused run setting is shown beside its input', async () => {
   assert.ok((await pointCounts(page)).energy.every((n) => n > 0));
   assert.deepEqual(consoleErrors.slice(before).filter((t) => !LOGGED_422.test(t)), [], 'console errors');
   await page.fill('#sys-h', String(pendulum.run.h));
+});
+
+test('a damped system without exact solution says how to get an energy error, and gets one against the reference', async () => {
+  const before = consoleErrors.length;
+  await page.selectOption('#sys-example', 'example:duffing');
+  await page.uncheck('#sys-compare');
+  await page.click('#sys-run');
+  assert.equal(await settled(page, ['done', 'error']), 'done');
+  assert.equal(await page.locator('#sys-plots [data-plot="energy_error"]').count(), 0);
+  const note = await page.textContent('#sys-plots [data-note="energy"]');
+  assert.match(note, /damped and has no exact solution/);
+  assert.match(note, /Tick “Compare to the reference”/);
+
+  await page.check('#sys-compare');
+  const [request] = await Promise.all([
+    page.waitForRequest((r) => new URL(r.url()).pathname === '/api/v1/simulate' && r.method() === 'POST'),
+    page.click('#sys-run'),
+  ]);
+  assert.equal(await settled(page, ['done', 'error']), 'done');
+  assert.equal(request.postDataJSON().compare_to_reference, true);
+  assert.equal(await page.getAttribute('#sys-plots [data-plot="energy_error"]', 'data-against'), 'ref');
+  assert.match(await page.textContent('#sys-plots [data-plot="energy_error"] figcaption'), /\|H − H_ref\|.*DOP853 reference/);
+  assert.equal(await page.locator('#sys-plots [data-note="energy"]').count(), 0);
+  assert.ok((await pointCounts(page)).energy_error.every((n) => n > 0), 'the errors are drawn');
+  assert.deepEqual(consoleErrors.slice(before), [], 'console errors');
+  await page.locator('#sys-results').screenshot({ path: join(artifacts, 'system-duffing-reference.png') });
+  await page.uncheck('#sys-compare');
 });
