@@ -11,7 +11,9 @@
 //! - [`api`]: the wire layer — requests read strictly into the core's specs, the NDJSON
 //!   encoding of the lines the core streams.
 //! - [`recording`]: Rerun recordings (`.rrd`) of the core's results.
-//! - [`http`]: the axum service: routes, answer forms, limits, the recording store.
+//! - [`store`]: what the service keeps on disk: recordings and stored system definitions.
+//! - [`http`]: the axum service: routes, answer forms, limits.
+//! - [`nats`]: studies on NATS JetStream workers.
 //! - [`cli`]: the command line.
 #![warn(missing_docs)]
 
@@ -22,3 +24,4 @@ pub use geomint_core as core;
 pub mod http;
 pub mod nats;
 pub mod recording;
+pub mod store;

@@ -27,6 +27,8 @@ use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
 use crate::api::sweep::SweepRequest;
+// Tasks carry stored systems inlined: a worker needs no store of its own.
+use crate::api::system::NoStoredSystems;
 use crate::core::error::CoreError;
 use crate::core::run::Budget;
 use crate::core::simulation::Limits;
@@ -383,7 +385,7 @@ fn run_task(payload: &[u8], limits: &Limits, max_payload: usize) -> (Option<Stri
     };
     let started = Instant::now();
     let job = match SweepRequest::from_value(&task.request)
-        .and_then(|r| Ok(r.to_spec()?.prepare(limits)?))
+        .and_then(|r| Ok(r.to_spec(&NoStoredSystems)?.prepare(limits)?))
     {
         Ok(job) => job,
         Err(e) => return (Some(task.study.clone()), failed(e.to_string())),

@@ -8,6 +8,7 @@ use serde::Serialize;
 use serde_json::Value;
 use utoipa::ToSchema;
 
+use super::system::StoredSystems;
 use super::json::{self, boolean, count, numbers, string, Obj};
 use super::method::{read_method, read_methods, MethodSpec};
 use super::system::{read_system, SystemRequest};
@@ -192,8 +193,17 @@ impl SimulateRequest {
         }
     }
 
+    /// The request with a stored system's id replaced by its definition, as recordings keep it
+    /// (so that a recording reads back wherever it goes).
+    pub fn inlined(&self, stored: &dyn StoredSystems) -> SimulateRequest {
+        SimulateRequest {
+            system: self.system.inlined(stored),
+            ..self.clone()
+        }
+    }
+
     /// The request in core terms.
-    pub fn to_spec(&self) -> Result<SimulationSpec, CoreError> {
+    pub fn to_spec(&self, stored: &dyn StoredSystems) -> Result<SimulationSpec, CoreError> {
         let methods = self
             .methods_at()
             .into_iter()
@@ -208,7 +218,7 @@ impl SimulateRequest {
             ..InputFields::default()
         };
         Ok(SimulationSpec {
-            system: self.system.to_ref(&Field::new("system"))?,
+            system: self.system.to_ref(&Field::new("system"), stored)?,
             params: self.params.clone(),
             chart: self.chart.clone(),
             initial_cartesian: self.initial_coordinates == Some(InitialCoordinates::Cartesian),
@@ -225,8 +235,12 @@ impl SimulateRequest {
     }
 
     /// Validates the request against the catalogues and `limits` (cheap: no integration).
-    pub fn prepare(&self, limits: &Limits) -> Result<Simulation, ErrorDetail> {
-        let spec = self.to_spec()?;
+    pub fn prepare(
+        &self,
+        limits: &Limits,
+        stored: &dyn StoredSystems,
+    ) -> Result<Simulation, ErrorDetail> {
+        let spec = self.to_spec(stored)?;
         Ok(Simulation::prepare(&spec, limits)?)
     }
 }
@@ -234,11 +248,12 @@ impl SimulateRequest {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::api::system::NoStoredSystems;
     use serde_json::json;
 
     fn field_of(text: &str) -> Option<String> {
         SimulateRequest::from_slice(text.as_bytes())
-            .and_then(|r| r.prepare(&Limits::default()).map(|_| r))
+            .and_then(|r| r.prepare(&Limits::default(), &NoStoredSystems).map(|_| r))
             .unwrap_err()
             .field
     }
@@ -279,7 +294,7 @@ mod tests {
         .unwrap();
         assert_eq!(req.methods.len(), 2);
         assert_eq!(req.p0, None);
-        let spec = req.to_spec().unwrap();
+        let spec = req.to_spec(&NoStoredSystems).unwrap();
         assert_eq!(spec.every, Some(10));
         assert!(spec.compare_to_reference);
         assert_eq!(spec.methods[1].method.label(), "triple_jump(csv1)");

@@ -9,6 +9,7 @@ use serde::Serialize;
 use serde_json::Value;
 use utoipa::ToSchema;
 
+use super::system::StoredSystems;
 use super::json::{self, count, list, numbers, string, wrong_type, Obj};
 use super::method::{read_method, read_methods, MethodSpec};
 use super::simulate::initial_coordinates;
@@ -237,10 +238,10 @@ impl ConvergenceRequest {
     }
 
     /// The study in core terms.
-    pub fn to_spec(&self) -> Result<ConvergenceSpec, ErrorDetail> {
+    pub fn to_spec(&self, stored: &dyn StoredSystems) -> Result<ConvergenceSpec, ErrorDetail> {
         let methods = Field::new("methods");
         Ok(ConvergenceSpec {
-            system: self.system.to_ref(&Field::new("system"))?,
+            system: self.system.to_ref(&Field::new("system"), stored)?,
             params: self.params.clone(),
             chart: self.chart.clone(),
             charts: self.charts.clone(),
@@ -348,11 +349,19 @@ impl WorkPrecisionRequest {
         })
     }
 
+    /// The request with a stored system's id replaced by its definition, as recordings keep it.
+    pub fn inlined(&self, stored: &dyn StoredSystems) -> WorkPrecisionRequest {
+        WorkPrecisionRequest {
+            system: self.system.inlined(stored),
+            ..self.clone()
+        }
+    }
+
     /// The study in core terms.
-    pub fn to_spec(&self) -> Result<WorkPrecisionSpec, ErrorDetail> {
+    pub fn to_spec(&self, stored: &dyn StoredSystems) -> Result<WorkPrecisionSpec, ErrorDetail> {
         let runs = Field::new("runs");
         Ok(WorkPrecisionSpec {
-            system: self.system.to_ref(&Field::new("system"))?,
+            system: self.system.to_ref(&Field::new("system"), stored)?,
             params: self.params.clone(),
             q0: self.q0.clone(),
             p0: self.p0.clone(),
@@ -474,12 +483,13 @@ impl EnergyMapRequest {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::api::system::NoStoredSystems;
     use crate::core::simulation::Limits;
     use serde_json::json;
 
     fn field_of(body: Value) -> Option<String> {
         ConvergenceRequest::from_value(&body)
-            .and_then(|r| Ok(r.to_spec()?.prepare(&Limits::default())?))
+            .and_then(|r| Ok(r.to_spec(&NoStoredSystems)?.prepare(&Limits::default())?))
             .unwrap_err()
             .field
     }
@@ -489,7 +499,7 @@ mod tests {
         let req = ConvergenceRequest::from_value(&json!({
             "system": "harmonic_oscillator", "t_end": 9, "methods": ["rk4"], "h": [0.3, 0.45]}))
         .unwrap();
-        let job = req.to_spec().unwrap().prepare(&Limits::default()).unwrap();
+        let job = req.to_spec(&NoStoredSystems).unwrap().prepare(&Limits::default()).unwrap();
         assert_eq!(job.samples, 10);
     }
 

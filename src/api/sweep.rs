@@ -12,6 +12,7 @@ use serde_json::{json, Value};
 use sha2::{Digest, Sha256};
 use utoipa::ToSchema;
 
+use super::system::StoredSystems;
 use super::json::{self, count, list, numbers, string, Obj};
 use super::method::{read_methods, MethodSpec};
 use super::simulate::initial_coordinates;
@@ -217,16 +218,25 @@ impl SweepRequest {
         })
     }
 
-    /// The request as canonical JSON (what parts of the sweep carry, and what NATS workers
-    /// receive).
-    pub fn canonical(&self) -> Value {
-        serde_json::to_value(self).unwrap_or(Value::Null)
+    /// The request with a stored system's id replaced by its definition: what identifies the
+    /// sweep, whether the definition was named or sent.
+    fn inlined(&self, stored: &dyn StoredSystems) -> SweepRequest {
+        SweepRequest {
+            system: self.system.inlined(stored),
+            ..self.clone()
+        }
+    }
+
+    /// The request as canonical JSON, a stored system inlined (what parts of the sweep carry,
+    /// and what NATS workers receive).
+    pub fn canonical(&self, stored: &dyn StoredSystems) -> Value {
+        serde_json::to_value(self.inlined(stored)).unwrap_or(Value::Null)
     }
 
     /// The request's identity: the SHA-256 of its canonical JSON (keys in a fixed order, numbers
-    /// as they read back), in hex. Parts of a sweep carry it.
-    pub fn digest(&self) -> String {
-        let canonical = serde_json::to_vec(self).unwrap_or_default();
+    /// as they read back, a stored system inlined), in hex. Parts of a sweep carry it.
+    pub fn digest(&self, stored: &dyn StoredSystems) -> String {
+        let canonical = serde_json::to_vec(&self.inlined(stored)).unwrap_or_default();
         let mut hex = String::with_capacity(64);
         for byte in Sha256::digest(&canonical) {
             let _ = write!(hex, "{byte:02x}");
@@ -235,12 +245,12 @@ impl SweepRequest {
     }
 
     /// The sweep in core terms.
-    pub fn to_spec(&self) -> Result<SweepSpec, ErrorDetail> {
+    pub fn to_spec(&self, stored: &dyn StoredSystems) -> Result<SweepSpec, ErrorDetail> {
         let methods = Field::new("methods");
         let charts = Field::new("charts");
         let axes = Field::new("axes");
         Ok(SweepSpec {
-            system: self.system.to_ref(&Field::new("system"))?,
+            system: self.system.to_ref(&Field::new("system"), stored)?,
             params: self.params.clone(),
             charts: self
                 .charts
@@ -288,7 +298,7 @@ impl SweepRequest {
                     })
                 })
                 .collect::<Result<_, ErrorDetail>>()?,
-            digest: self.digest(),
+            digest: self.digest(stored),
         })
     }
 }

@@ -425,12 +425,45 @@ impl SystemDefinition {
     }
 }
 
+/// Stored definitions by id (the server's, the command line's `--systems-dir`): a request that
+/// names one runs it as if it had sent the definition inline.
+pub trait StoredSystems: Send + Sync {
+    /// The stored definition `id` with its checked entry, if there is one.
+    fn stored(&self, id: &str) -> Option<(SystemDefinition, Arc<SystemInfo>)>;
+}
+
+/// No stored definitions: built-in ids and inline definitions only.
+pub struct NoStoredSystems;
+
+impl StoredSystems for NoStoredSystems {
+    fn stored(&self, _id: &str) -> Option<(SystemDefinition, Arc<SystemInfo>)> {
+        None
+    }
+}
+
 impl SystemRequest {
-    /// The system in core terms: an id as it is, a definition checked; errors name `field`.
-    pub fn to_ref(&self, field: &Field) -> Result<SystemRef, CoreError> {
+    /// The system in core terms: a stored definition's id as its checked entry, a built-in id
+    /// as it is, a definition checked; errors name `field`.
+    pub fn to_ref(&self, field: &Field, stored: &dyn StoredSystems) -> Result<SystemRef, CoreError> {
         match self {
-            SystemRequest::Id(id) => Ok(SystemRef::Id(id.clone())),
+            SystemRequest::Id(id) => Ok(match stored.stored(id) {
+                Some((_, info)) => SystemRef::Defined(info),
+                None => SystemRef::Id(id.clone()),
+            }),
             SystemRequest::Definition(d) => d.define(field),
+        }
+    }
+
+    /// The system with a stored definition's id replaced by the definition, as requests are
+    /// identified (a sweep's digest) and sent to workers: the same whether the definition was
+    /// named or sent.
+    pub fn inlined(&self, stored: &dyn StoredSystems) -> SystemRequest {
+        match self {
+            SystemRequest::Id(id) => match stored.stored(id) {
+                Some((definition, _)) => SystemRequest::Definition(Box::new(definition)),
+                None => self.clone(),
+            },
+            SystemRequest::Definition(_) => self.clone(),
         }
     }
 }

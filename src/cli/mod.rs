@@ -16,10 +16,11 @@ pub mod sweep;
 use std::io::{self, Read, Write};
 use std::process::ExitCode;
 
-use clap::{Parser, Subcommand};
+use clap::{Args, Parser, Subcommand};
 
 use crate::core::methods::MethodId;
 use crate::core::systems;
+use crate::store::systems::{SystemStore, DEFAULT_SYSTEMS_DIR};
 pub use run::RunArgs;
 pub use serve::{ServeArgs, WorkerArgs};
 pub use study::StudyArgs;
@@ -73,6 +74,22 @@ pub fn run(cli: Cli) -> ExitCode {
             let methods: Vec<_> = MethodId::ALL.iter().map(|m| m.info()).collect();
             print_json(&methods)
         }
+    }
+}
+
+/// Where the command line reads stored system definitions, so that a spec can name one by id.
+#[derive(Clone, Debug, Args)]
+pub struct SystemsDir {
+    /// The directory of stored system definitions (the one `geomint serve` keeps), so that a spec
+    /// can name a stored system by its `sys-…` id as requests to the server do.
+    #[arg(long, env = "GEOMINT_SYSTEMS_DIR", default_value = DEFAULT_SYSTEMS_DIR)]
+    pub systems_dir: std::path::PathBuf,
+}
+
+impl SystemsDir {
+    /// The definitions found there (none when the directory does not exist).
+    pub fn open(&self) -> SystemStore {
+        SystemStore::open(&self.systems_dir, usize::MAX)
     }
 }
 

@@ -12,7 +12,7 @@ use std::sync::Mutex;
 use clap::{Args, ValueEnum};
 use rerun::sink::GrpcSink;
 
-use super::{finish_output, parse_count, read_spec, BAD_INPUT};
+use super::{finish_output, parse_count, read_spec, SystemsDir, BAD_INPUT};
 use crate::api::{ndjson_line, SimulateRequest};
 use crate::core::run::Budget;
 use crate::core::simulation::{
@@ -58,6 +58,9 @@ pub struct RunArgs {
     /// Most samples over all methods.
     #[arg(long, env = "GEOMINT_MAX_SAMPLES", default_value = "1000000", value_parser = parse_count)]
     pub max_samples: u64,
+    /// Stored system definitions.
+    #[command(flatten)]
+    pub systems: SystemsDir,
 }
 
 pub(crate) fn run_spec(args: &RunArgs) -> ExitCode {
@@ -69,8 +72,11 @@ pub(crate) fn run_spec(args: &RunArgs) -> ExitCode {
         max_steps: args.max_steps,
         max_samples: args.max_samples,
     };
-    let (spec, sim) = match SimulateRequest::from_slice(&text)
-        .and_then(|req| req.prepare(&limits).map(|sim| (req, sim)))
+    let stored = args.systems.open();
+    let (spec, sim) = match SimulateRequest::from_slice(&text).and_then(|req| {
+        let sim = req.prepare(&limits, &stored)?;
+        Ok((req.inlined(&stored), sim))
+    })
     {
         Ok(parsed) => parsed,
         Err(e) => {

@@ -76,10 +76,10 @@ pub struct ServeArgs {
     #[arg(long, env = "GEOMINT_RECORDINGS_MAX_BYTES", default_value = "1073741824", value_parser = parse_count)]
     pub recordings_max_bytes: u64,
     /// Directory of the stored system definitions (created when the first one is stored).
-    #[arg(long, env = "GEOMINT_SYSTEMS_DIR", default_value = http::systems::DEFAULT_SYSTEMS_DIR)]
+    #[arg(long, env = "GEOMINT_SYSTEMS_DIR", default_value = crate::store::systems::DEFAULT_SYSTEMS_DIR)]
     pub systems_dir: PathBuf,
     /// Most stored system definitions.
-    #[arg(long, env = "GEOMINT_MAX_SYSTEMS", default_value_t = http::systems::DEFAULT_MAX_SYSTEMS)]
+    #[arg(long, env = "GEOMINT_MAX_SYSTEMS", default_value_t = crate::store::systems::DEFAULT_MAX_SYSTEMS)]
     pub max_systems: usize,
     /// Log filter (tracing's EnvFilter syntax).
     #[arg(long, env = "GEOMINT_LOG", default_value = "info")]

@@ -9,7 +9,7 @@ use std::process::ExitCode;
 
 use clap::{Args, ValueEnum};
 
-use super::{parse_count, print_json, read_spec, BAD_INPUT};
+use super::{parse_count, print_json, read_spec, SystemsDir, BAD_INPUT};
 use crate::core::error::ErrorDetail;
 use crate::core::run::Budget;
 use crate::core::simulation::Limits;
@@ -55,6 +55,9 @@ pub struct StudyArgs {
     /// Most steps per setting.
     #[arg(long, env = "GEOMINT_MAX_STEPS", default_value = "10000000", value_parser = parse_count)]
     pub max_steps: u64,
+    /// Stored system definitions.
+    #[command(flatten)]
+    pub systems: SystemsDir,
 }
 
 pub(crate) fn run_study(args: &StudyArgs) -> ExitCode {
@@ -82,6 +85,7 @@ pub(crate) fn run_study(args: &StudyArgs) -> ExitCode {
         eprintln!("error: --shard is for `sweep` only");
         return ExitCode::from(BAD_INPUT);
     }
+    let stored = args.systems.open();
     let reference = |reference: &str, ms: f64, total: usize| {
         eprintln!("errors against the {reference} ({ms:.0} ms); {total} settings")
     };
@@ -89,8 +93,8 @@ pub(crate) fn run_study(args: &StudyArgs) -> ExitCode {
     match args.kind {
         StudyKind::WorkPrecision => {
             let parsed = WorkPrecisionRequest::from_slice(&text).and_then(|req| {
-                let job = req.to_spec()?.prepare(&limits)?;
-                Ok((req, job))
+                let job = req.to_spec(&stored)?.prepare(&limits)?;
+                Ok((req.inlined(&stored), job))
             });
             let progress = |line: &StudyLine| match line {
                 StudyLine::Reference {
@@ -127,7 +131,7 @@ pub(crate) fn run_study(args: &StudyArgs) -> ExitCode {
         }
         StudyKind::Convergence => {
             let parsed = ConvergenceRequest::from_slice(&text).and_then(|req| {
-                let job = req.to_spec()?.prepare(&limits)?;
+                let job = req.to_spec(&stored)?.prepare(&limits)?;
                 Ok((req, job))
             });
             let progress = |line: &ConvergenceLine| match line {

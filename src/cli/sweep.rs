@@ -11,6 +11,7 @@ use std::time::Instant;
 use super::study::{wants_rrd, write_document, StudyArgs};
 use super::{read_spec, BAD_INPUT};
 use crate::api::sweep::SweepRequest;
+use crate::api::system::{NoStoredSystems, StoredSystems};
 use crate::core::error::ErrorDetail;
 use crate::core::run::Budget;
 use crate::core::simulation::Limits;
@@ -21,10 +22,11 @@ use crate::core::studies::sweep::{self, Shard, SweepJob, SweepLine, SweepPart};
 pub fn prepare(
     value: &serde_json::Value,
     limits: &Limits,
+    stored: &dyn StoredSystems,
 ) -> Result<(serde_json::Value, SweepJob), ErrorDetail> {
     let request = SweepRequest::from_value(value)?;
-    let job = request.to_spec()?.prepare(limits)?;
-    Ok((request.canonical(), job))
+    let job = request.to_spec(stored)?.prepare(limits)?;
+    Ok((request.canonical(stored), job))
 }
 
 /// The shard an array task runs: `i/n` as given, or for `auto` the index from
@@ -72,7 +74,7 @@ pub(crate) fn run_sweep(args: &StudyArgs, limits: &Limits) -> ExitCode {
         Ok(spec) => spec,
         Err(code) => return code,
     };
-    let parsed = crate::api::json::parse_json(&text).and_then(|v| prepare(&v, limits));
+    let parsed = crate::api::json::parse_json(&text).and_then(|v| prepare(&v, limits, &args.systems.open()));
     let (request, job) = match parsed {
         Ok(parsed) => parsed,
         Err(e) => {
@@ -160,7 +162,7 @@ pub(crate) fn run_merge(args: &StudyArgs, limits: &Limits) -> ExitCode {
         }
     }
     let (first, part) = &parts[0];
-    let job = match prepare(&part.request, limits) {
+    let job = match prepare(&part.request, limits, &NoStoredSystems) {
         Ok((_, job)) => job,
         Err(e) => {
             eprintln!("error: {first}: its request: {e}");

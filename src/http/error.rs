@@ -17,6 +17,34 @@ pub struct ErrorBody {
     pub error: ErrorDetail,
 }
 
+/// The refusals every route that reads a JSON body shares, documented once: a malformed or
+/// oversized body, one not declared as JSON, and a server fault. Routes list them beside their
+/// own answers (`responses((status = 200, …), JsonRefusals, SlotsBusy)`).
+#[derive(utoipa::IntoResponses)]
+pub enum JsonRefusals {
+    /// Malformed JSON.
+    #[response(status = 400, description = "Malformed JSON (code `malformed_json`)")]
+    Malformed(ErrorBody),
+    /// Too large a body.
+    #[response(status = 413, description = "The body exceeds 1 MiB")]
+    TooLarge(ErrorBody),
+    /// Not JSON.
+    #[response(status = 415, description = "The body is not declared as JSON")]
+    NotJson(ErrorBody),
+    /// A fault.
+    #[response(status = 500, description = "A server fault (details are logged)")]
+    Fault(ErrorBody),
+}
+
+/// The refusal of work when every slot is taken, with its hint, documented once.
+#[derive(utoipa::IntoResponses)]
+pub enum SlotsBusy {
+    /// Every slot is busy.
+    #[response(status = 503, description = "Every simulation slot is busy",
+        headers(("Retry-After" = u64, description = "Seconds to wait before retrying")))]
+    Busy(ErrorBody),
+}
+
 /// An error answer: status, error detail and, for 503, a `Retry-After` hint.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ApiError {

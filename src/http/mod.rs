@@ -1,22 +1,8 @@
 //! The HTTP service: routes, errors, limits, and the server loop.
 //!
-//! | route | |
-//! |---|---|
-//! | `GET /healthz` | liveness and load |
-//! | `GET /api/v1/systems`, `GET /api/v1/systems/{id}` | the built-in systems and the stored definitions |
-//! | `POST /api/v1/systems`, `DELETE /api/v1/systems/{id}` | store a system definition, or remove one |
-//! | `GET /api/v1/methods`, `GET /api/v1/methods/{id}` | the method catalogue |
-//! | `POST /api/v1/simulate` | run a simulation (JSON, NDJSON with `Accept: application/x-ndjson`, a Rerun recording with `?format=rrd`) |
-//! | `POST /api/v1/stability` | linear stability maps over a (γ, h) grid |
-//! | `POST /api/v1/stability/point` | linear stability analysis at one (ω, γ, h) |
-//! | `POST /api/v1/studies/work-precision` | a work–precision study (JSON, NDJSON progress, or `?format=rrd`) |
-//! | `POST /api/v1/studies/convergence` | a convergence study: errors at t_end against h, fitted orders (JSON or NDJSON progress) |
-//! | `POST /api/v1/studies/energy-map` | an energy-error map, Cartesian against polar coordinates (JSON, NDJSON progress, or `?format=rrd`) |
-//! | `POST /api/v1/recordings`, `GET /api/v1/recordings` | store a run's Rerun recording, or an uploaded `.rrd`; list them |
-//! | `GET /api/v1/recordings/{id}.rrd`, `DELETE /api/v1/recordings/{id}` | download or delete one |
-//! | `GET /api/v1/recordings/{id}/samples` | a stored simulation recording's samples, read back as JSON |
-//! | `GET /api/v1/openapi.json` | the OpenAPI 3 document |
-//! | `/` | the static directory, when there is one |
+//! Every route is registered once, with its OpenAPI operation ([`routes`]): the document at
+//! `GET /api/v1/openapi.json` lists them all with their requests, answers and errors, and the
+//! README's "Using it" walks through them.
 //!
 //! Every error answers `{"error": {"code", "message", "field"}}` ([`ApiError`]), including those
 //! of the middleware (body limit 413; 504 from a backstop past the time limit, which only a
@@ -33,17 +19,16 @@ pub mod server;
 pub mod simulate;
 pub mod stability;
 pub mod state;
-pub mod store;
+
 pub mod studies;
 pub mod systems;
-mod tempfile;
+
 
 use axum::body::Body;
 use axum::extract::DefaultBodyLimit;
 use axum::http::{header, HeaderValue, Method, StatusCode};
 use axum::middleware::{from_fn_with_state, map_response};
 use axum::response::{IntoResponse, Response};
-use axum::routing::{get, post};
 use axum::Router;
 use tower::util::option_layer;
 use tower_http::compression::predicate::{DefaultPredicate, NotForContentType, Predicate};
@@ -53,6 +38,9 @@ use tower_http::limit::RequestBodyLimitLayer;
 use tower_http::request_id::{MakeRequestUuid, PropagateRequestIdLayer, SetRequestIdLayer};
 use tower_http::timeout::TimeoutLayer;
 use tower_http::trace::{DefaultOnFailure, DefaultOnResponse, TraceLayer};
+use utoipa_axum::router::OpenApiRouter;
+use utoipa::OpenApi;
+use utoipa_axum::routes;
 
 pub use error::ApiError;
 pub use error::ErrorBody;
@@ -100,61 +88,28 @@ pub mod paths {
     pub const RECORDING_SAMPLES: &str = "/api/v1/recordings/{id}/samples";
 }
 
-/// Every route as (method, path), as the router registers them.
-pub const ROUTES: &[(&str, &str)] = &[
-    ("get", paths::HEALTHZ),
-    ("get", paths::SYSTEMS),
-    ("post", paths::SYSTEMS),
-    ("get", paths::SYSTEM),
-    ("delete", paths::SYSTEM),
-    ("get", paths::METHODS),
-    ("get", paths::METHOD),
-    ("post", paths::SIMULATE),
-    ("post", paths::STABILITY),
-    ("post", paths::STABILITY_POINT),
-    ("post", paths::WORK_PRECISION),
-    ("post", paths::ENERGY_MAP),
-    ("post", paths::CONVERGENCE),
-    ("post", paths::SWEEP),
-    ("get", paths::SWEEP_PRESETS),
-    ("get", paths::OPENAPI),
-    ("post", paths::RECORDINGS),
-    ("get", paths::RECORDINGS),
-    ("get", paths::RECORDING),
-    ("delete", paths::RECORDING),
-    ("get", paths::RECORDING_SAMPLES),
-];
-
-/// The service: routes and middleware, shared by the server and the tests.
-pub fn app(state: AppState) -> Router {
-    let config = state.config.clone();
-    let api = Router::new()
-        .route(paths::HEALTHZ, get(handlers::healthz))
-        .route(
-            paths::SYSTEMS,
-            get(systems::list_systems).post(systems::create_system),
-        )
-        .route(
-            paths::SYSTEM,
-            get(systems::get_system).delete(systems::delete_system),
-        )
-        .route(paths::METHODS, get(handlers::list_methods))
-        .route(paths::METHOD, get(handlers::get_method))
-        .route(paths::SIMULATE, post(simulate::simulate))
-        .route(paths::STABILITY, post(stability::stability_map))
-        .route(paths::STABILITY_POINT, post(stability::stability_point))
-        .route(paths::WORK_PRECISION, post(studies::work_precision))
-        .route(paths::ENERGY_MAP, post(studies::energy_map))
-        .route(paths::CONVERGENCE, post(studies::convergence))
-        .route(paths::SWEEP, post(studies::sweep))
-        .route(paths::SWEEP_PRESETS, get(studies::sweep_presets))
-        .route(paths::OPENAPI, get(handlers::openapi_json))
-        .route(paths::RECORDINGS, get(recordings::list_recordings))
-        .route(
-            paths::RECORDING,
-            get(recordings::get_recording).delete(recordings::delete_recording),
-        )
-        .route(paths::RECORDING_SAMPLES, get(recordings::recording_samples))
+/// Every route with its OpenAPI operation, registered once: the router serves them and the
+/// document ([`openapi::document`]) describes them. Layers are the routes' own (body limits);
+/// [`app`] adds the service's.
+pub fn routes(config: &Config) -> OpenApiRouter<AppState> {
+    let api = OpenApiRouter::with_openapi(openapi::ApiDoc::openapi())
+        .routes(routes!(handlers::healthz))
+        .routes(routes!(systems::list_systems, systems::create_system))
+        .routes(routes!(systems::get_system, systems::delete_system))
+        .routes(routes!(handlers::list_methods))
+        .routes(routes!(handlers::get_method))
+        .routes(routes!(simulate::simulate))
+        .routes(routes!(stability::stability_map))
+        .routes(routes!(stability::stability_point))
+        .routes(routes!(studies::work_precision))
+        .routes(routes!(studies::energy_map))
+        .routes(routes!(studies::convergence))
+        .routes(routes!(studies::sweep))
+        .routes(routes!(studies::sweep_presets))
+        .routes(routes!(handlers::openapi_json))
+        .routes(routes!(recordings::list_recordings))
+        .routes(routes!(recordings::get_recording, recordings::delete_recording))
+        .routes(routes!(recordings::recording_samples))
         .layer(DefaultBodyLimit::max(config.body_limit))
         .layer(RequestBodyLimitLayer::new(config.body_limit))
         .layer(from_fn_with_state(
@@ -164,15 +119,21 @@ pub fn app(state: AppState) -> Router {
     // Storing a recording takes a JSON body under the body limit or an .rrd upload under the
     // store's size cap; the handler enforces both (an upload is counted as it arrives), so this
     // route has no limit layer of its own beyond the JSON extractor's.
-    let store = Router::new()
-        .route(paths::RECORDINGS, post(recordings::create_recording))
+    let store = OpenApiRouter::new()
+        .routes(routes!(recordings::create_recording))
         .layer(DefaultBodyLimit::max(config.body_limit))
         .layer(from_fn_with_state(
             config.body_timeout,
             server::body_deadline,
         ));
+    api.merge(store)
+}
+
+/// The service: routes and middleware, shared by the server and the tests.
+pub fn app(state: AppState) -> Router {
+    let config = state.config.clone();
+    let (api, _) = routes(&config).split_for_parts();
     let api = api
-        .merge(store)
         .method_not_allowed_fallback(handlers::method_not_allowed)
         .with_state(state);
     let static_dir = config.static_dir.as_ref().filter(|dir| dir.is_dir());

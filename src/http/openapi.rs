@@ -8,10 +8,8 @@ use utoipa::OpenApi;
 
 use super::answer::{AnyFormat, RecordFormat, StreamFormat};
 use super::error::ErrorBody;
-use super::recordings::{self, RecordingCreated};
-use super::store::{Origin, RecordingEntry};
-use super::systems::{self, StoredSystem, SystemEntry};
-use super::{handlers, simulate, stability, studies};
+use super::handlers;
+use super::recordings::RecordingCreated;
 use crate::api::stability::{PointRequest, StabilityRequest};
 use crate::api::studies::{ConvergenceRequest, EnergyMapRequest, WorkPrecisionRequest};
 use crate::api::sweep::{Preset, SweepRequest};
@@ -26,8 +24,11 @@ use crate::core::studies::sweep::{SweepDocument, SweepLine};
 use crate::core::studies::work_precision::{StudyLine, WorkPrecisionDocument};
 use crate::core::systems::SystemInfo;
 use crate::recording::read::{RecordedDocument, RecordedRun};
+use crate::store::recordings::{Origin, RecordingEntry};
+use crate::store::systems::{StoredSystem, SystemEntry};
 
-/// The OpenAPI document: `ApiDoc::openapi()`.
+/// The document's info, shared schemas and tags; the paths come from the routes as
+/// [`super::routes`] registers them.
 #[derive(OpenApi)]
 #[openapi(
     info(
@@ -35,29 +36,6 @@ use crate::recording::read::{RecordedDocument, RecordedRun};
         description = "Geometric numerical integration of damped Hamiltonian systems: structure-preserving \
             splittings and conformal symplectic methods beside Runge–Kutta baselines. Every error answers \
             `{\"error\": {\"code\", \"message\", \"field\"}}`."
-    ),
-    paths(
-        handlers::healthz,
-        systems::list_systems,
-        systems::get_system,
-        systems::create_system,
-        systems::delete_system,
-        handlers::list_methods,
-        handlers::get_method,
-        simulate::simulate,
-        stability::stability_map,
-        stability::stability_point,
-        studies::work_precision,
-        studies::energy_map,
-        studies::convergence,
-        studies::sweep,
-        studies::sweep_presets,
-        handlers::openapi_json,
-        recordings::create_recording,
-        recordings::list_recordings,
-        recordings::get_recording,
-        recordings::delete_recording,
-        recordings::recording_samples,
     ),
     components(schemas(
         SimulateRequest,
@@ -109,8 +87,8 @@ pub struct ApiDoc;
 
 /// The document as served.
 pub fn document() -> Value {
-    let mut doc =
-        serde_json::to_value(ApiDoc::openapi()).unwrap_or_else(|e| json!({"error": e.to_string()}));
+    let (_, api) = super::routes(&super::Config::default()).split_for_parts();
+    let mut doc = serde_json::to_value(api).unwrap_or_else(|e| json!({"error": e.to_string()}));
     // The readers take an explicit `null` for an optional member as its absence.
     null_as_absent(&mut doc);
     unsigned_ranges(&mut doc);

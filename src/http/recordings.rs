@@ -38,7 +38,7 @@ use super::error::ErrorBody;
 use super::extract::ApiJson;
 use super::paths;
 use super::state::{run_blocking, AppState, Cost};
-use super::store::{is_valid_id, Contents, Origin, RecordingEntry, SpecSummary, StoreError};
+use crate::store::recordings::{is_valid_id, Contents, Origin, RecordingEntry, SpecSummary, StoreError};
 use crate::api::SimulateRequest;
 use crate::core::error::{ErrorCode, ErrorDetail};
 use crate::recording::read::{self as recorded, ReadError, RecordedDocument};
@@ -271,9 +271,9 @@ async fn record_simulation(
     client: Client,
     body: Value,
 ) -> Result<Response, ApiError> {
-    let mut request = SimulateRequest::from_value(&body)?;
-    state.systems.substitute(&mut request.system);
-    let sim = request.prepare(&state.config.limits)?;
+    let request = SimulateRequest::from_value(&body)?;
+    let sim = request.prepare(&state.config.limits, &*state.systems)?;
+    let request = request.inlined(&*state.systems);
     let work = Work::admit(&state, sim.methods.len(), Cost::Steps(sim.cost()), client).await?;
     let workers = work.workers();
     let store = state.recordings.clone();

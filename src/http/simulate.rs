@@ -15,8 +15,7 @@ use axum::http::HeaderMap;
 use axum::response::Response;
 
 use super::answer::{AnyFormat, Client, Format, Work};
-use super::error::ApiError;
-use super::error::ErrorBody;
+use super::error::{ApiError, ErrorBody, JsonRefusals, SlotsBusy};
 use super::extract::ApiJson;
 use super::paths;
 use super::recordings::RrdFile;
@@ -44,15 +43,10 @@ use crate::recording;
         (status = 200, description = "The runs, in the order asked",
             content((SimulationDocument = "application/json"), (StreamLine = "application/x-ndjson"),
                 (RrdFile = "application/octet-stream"))),
-        (status = 400, description = "Malformed JSON (code `malformed_json`)", body = ErrorBody),
-        (status = 413, description = "The body exceeds 1 MiB", body = ErrorBody),
-        (status = 415, description = "The body is not declared as JSON", body = ErrorBody),
         (status = 422, description = "A field is unknown, missing, of the wrong type or out of range; \
             an unknown system or method; a method the system does not qualify for; more steps or \
             samples than the limits", body = ErrorBody),
-        (status = 503, description = "Every simulation slot is busy", body = ErrorBody,
-            headers(("Retry-After" = u64, description = "Seconds to wait before retrying"))),
-        (status = 500, description = "A server fault (details are logged)", body = ErrorBody),
+        JsonRefusals, SlotsBusy,
     ))]
 pub async fn simulate(
     State(state): State<AppState>,
@@ -62,9 +56,9 @@ pub async fn simulate(
     ApiJson(body): ApiJson,
 ) -> Result<Response, ApiError> {
     let format = Format::requested(&query, &headers, Format::ALL)?;
-    let mut request = SimulateRequest::from_value(&body)?;
-    state.systems.substitute(&mut request.system);
-    let sim = request.prepare(&state.config.limits)?;
+    let request = SimulateRequest::from_value(&body)?;
+    let sim = request.prepare(&state.config.limits, &*state.systems)?;
+    let request = request.inlined(&*state.systems);
     let work = Work::admit(&state, sim.methods.len(), Cost::Steps(sim.cost()), client).await?;
     let workers = work.workers();
     tracing::info!(

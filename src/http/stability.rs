@@ -23,7 +23,7 @@ use axum::response::Response;
 use axum::Json;
 
 use super::answer::{Client, Format, RecordFormat, Work};
-use super::error::{ApiError, ErrorBody};
+use super::error::{ApiError, ErrorBody, JsonRefusals, SlotsBusy};
 use super::extract::ApiJson;
 use super::paths;
 use super::recordings::RrdFile;
@@ -51,15 +51,10 @@ use crate::recording;
     responses(
         (status = 200, description = "One map per method, in the order asked",
             content((StabilityDocument = "application/json"), (RrdFile = "application/octet-stream"))),
-        (status = 400, description = "Malformed JSON (code `malformed_json`)", body = ErrorBody),
-        (status = 413, description = "The body exceeds 1 MiB", body = ErrorBody),
-        (status = 415, description = "The body is not declared as JSON", body = ErrorBody),
         (status = 422, description = "A field is unknown, missing, of the wrong type or out of range; \
             an unknown method or `reference`; more than 16 methods, an axis of more than 1000 points, \
             or more than 10⁶ cells in all (code `too_many_cells`)", body = ErrorBody),
-        (status = 503, description = "Every simulation slot is busy", body = ErrorBody,
-            headers(("Retry-After" = u64, description = "Seconds to wait before retrying"))),
-        (status = 500, description = "A server fault (details are logged)", body = ErrorBody),
+        JsonRefusals, SlotsBusy,
     ))]
 pub async fn stability_map(
     State(state): State<AppState>,
@@ -98,13 +93,10 @@ pub async fn stability_map(
     request_body(content = PointRequest, content_type = "application/json"),
     responses(
         (status = 200, description = "The analysis", body = PointDocument),
-        (status = 400, description = "Malformed JSON (code `malformed_json`)", body = ErrorBody),
-        (status = 413, description = "The body exceeds 1 MiB", body = ErrorBody),
-        (status = 415, description = "The body is not declared as JSON", body = ErrorBody),
         (status = 422, description = "A field is unknown, missing, of the wrong type or out of range; \
             an unknown method or `reference`; a method undefined at this point (csv2 at γh = 2); \
             a step that failed (code `step_failed`)", body = ErrorBody),
-        (status = 500, description = "A server fault (details are logged)", body = ErrorBody),
+        JsonRefusals,
     ))]
 pub async fn stability_point(ApiJson(body): ApiJson) -> Result<Json<PointDocument>, ApiError> {
     let spec = PointRequest::from_value(&body)?.to_spec()?.prepare()?;

@@ -12,8 +12,8 @@ use std::time::Duration;
 use tokio::sync::{watch, OwnedSemaphorePermit, Semaphore};
 
 use super::error::ApiError;
-use super::store::RecordingStore;
-use super::systems::{SystemStore, DEFAULT_MAX_SYSTEMS, DEFAULT_SYSTEMS_DIR};
+use crate::store::recordings::RecordingStore;
+use crate::store::systems::{SystemStore, DEFAULT_MAX_SYSTEMS, DEFAULT_SYSTEMS_DIR};
 use crate::core::simulation::Limits;
 
 /// Settings of the service.

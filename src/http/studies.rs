@@ -18,7 +18,7 @@ use axum::response::Response;
 use serde::Serialize;
 
 use super::answer::{AnyFormat, Client, Format, StreamFormat, Work};
-use super::error::{ApiError, ErrorBody};
+use super::error::{ApiError, ErrorBody, JsonRefusals, SlotsBusy};
 use super::extract::ApiJson;
 use super::paths;
 use super::recordings::RrdFile;
@@ -106,15 +106,10 @@ async fn answer_settings<L: ProgressLine>(
         (status = 200, description = "The study",
             content((WorkPrecisionDocument = "application/json"), (StudyLine = "application/x-ndjson"),
                 (RrdFile = "application/octet-stream"))),
-        (status = 400, description = "Malformed JSON (code `malformed_json`)", body = ErrorBody),
-        (status = 413, description = "The body exceeds 1 MiB", body = ErrorBody),
-        (status = 415, description = "The body is not declared as JSON", body = ErrorBody),
         (status = 422, description = "A field is unknown, missing, of the wrong type or out of range \
             (e.g. `runs[1].h[2]` does not divide t_end/samples); an unknown system or method; more than \
             64 settings or 2·10⁸ steps in all", body = ErrorBody),
-        (status = 503, description = "Every simulation slot is busy", body = ErrorBody,
-            headers(("Retry-After" = u64, description = "Seconds to wait before retrying"))),
-        (status = 500, description = "A server fault (details are logged)", body = ErrorBody),
+        JsonRefusals, SlotsBusy,
     ))]
 pub async fn work_precision(
     State(state): State<AppState>,
@@ -124,9 +119,9 @@ pub async fn work_precision(
     ApiJson(body): ApiJson,
 ) -> Result<Response, ApiError> {
     let format = Format::requested(&query, &headers, Format::ALL)?;
-    let mut request = WorkPrecisionRequest::from_value(&body)?;
-    state.systems.substitute(&mut request.system);
-    let job = request.to_spec()?.prepare(&state.config.limits)?;
+    let request = WorkPrecisionRequest::from_value(&body)?;
+    let job = request.to_spec(&*state.systems)?.prepare(&state.config.limits)?;
+    let request = request.inlined(&*state.systems);
     let encode = move |doc: &WorkPrecisionDocument| {
         format.encode(doc, |d| recording::work_precision::rrd_bytes(&request, d))
     };
@@ -156,16 +151,11 @@ pub async fn work_precision(
     responses(
         (status = 200, description = "The study",
             content((ConvergenceDocument = "application/json"), (ConvergenceLine = "application/x-ndjson"))),
-        (status = 400, description = "Malformed JSON (code `malformed_json`)", body = ErrorBody),
-        (status = 413, description = "The body exceeds 1 MiB", body = ErrorBody),
-        (status = 415, description = "The body is not declared as JSON", body = ErrorBody),
         (status = 422, description = "A field is unknown, missing, of the wrong type or out of range \
             (e.g. `h[2]` does not divide t_end into whole steps, `charts[1]` is not a chart of the system); \
             an unknown system or method, or a method the chart does not allow; more than 64 settings \
             (methods × charts × step sizes) or 2·10⁸ steps in all", body = ErrorBody),
-        (status = 503, description = "Every simulation slot is busy", body = ErrorBody,
-            headers(("Retry-After" = u64, description = "Seconds to wait before retrying"))),
-        (status = 500, description = "A server fault (details are logged)", body = ErrorBody),
+        JsonRefusals, SlotsBusy,
     ))]
 pub async fn convergence(
     State(state): State<AppState>,
@@ -175,9 +165,8 @@ pub async fn convergence(
     ApiJson(body): ApiJson,
 ) -> Result<Response, ApiError> {
     let format = Format::requested(&query, &headers, &[Format::Json, Format::Ndjson])?;
-    let mut request = ConvergenceRequest::from_value(&body)?;
-    state.systems.substitute(&mut request.system);
-    let job = request.to_spec()?.prepare(&state.config.limits)?;
+    let request = ConvergenceRequest::from_value(&body)?;
+    let job = request.to_spec(&*state.systems)?.prepare(&state.config.limits)?;
     let encode = |doc: &ConvergenceDocument| serde_json::to_vec(doc).map_err(ApiError::internal);
     answer_settings::<ConvergenceLine>(state, client, format, job, convergence::run, encode, "")
         .await
@@ -198,15 +187,10 @@ pub async fn convergence(
         (status = 200, description = "The map",
             content((EnergyMapDocument = "application/json"), (MapLine = "application/x-ndjson"),
                 (RrdFile = "application/octet-stream"))),
-        (status = 400, description = "Malformed JSON (code `malformed_json`)", body = ErrorBody),
-        (status = 413, description = "The body exceeds 1 MiB", body = ErrorBody),
-        (status = 415, description = "The body is not declared as JSON", body = ErrorBody),
         (status = 422, description = "A field is unknown, missing, of the wrong type or out of range; \
             a method that cannot run in polar coordinates (code `unmet_requirement`, field `method`); \
             more than 401 points per axis or 2·10¹⁰ steps in all", body = ErrorBody),
-        (status = 503, description = "Every simulation slot is busy", body = ErrorBody,
-            headers(("Retry-After" = u64, description = "Seconds to wait before retrying"))),
-        (status = 500, description = "A server fault (details are logged)", body = ErrorBody),
+        JsonRefusals, SlotsBusy,
     ))]
 pub async fn energy_map(
     State(state): State<AppState>,
@@ -255,16 +239,11 @@ pub async fn energy_map(
         (status = 200, description = "The sweep",
             content((SweepDocument = "application/json"), (SweepLine = "application/x-ndjson"),
                 (RrdFile = "application/octet-stream"))),
-        (status = 400, description = "Malformed JSON (code `malformed_json`)", body = ErrorBody),
-        (status = 413, description = "The body exceeds 1 MiB", body = ErrorBody),
-        (status = 415, description = "The body is not declared as JSON", body = ErrorBody),
         (status = 422, description = "A field is unknown, missing, of the wrong type or out of range \
             (e.g. `axes[0].min` puts a parameter outside its range, `axes[1].name` is not an axis); an \
             unknown system, chart or method; more than 401 points per axis, 16 runs per cell or 2·10¹⁰ \
             steps in all", body = ErrorBody),
-        (status = 503, description = "Every simulation slot is busy", body = ErrorBody,
-            headers(("Retry-After" = u64, description = "Seconds to wait before retrying"))),
-        (status = 500, description = "A server fault (details are logged)", body = ErrorBody),
+        JsonRefusals, SlotsBusy,
     ))]
 pub async fn sweep(
     State(state): State<AppState>,
@@ -274,9 +253,8 @@ pub async fn sweep(
     ApiJson(body): ApiJson,
 ) -> Result<Response, ApiError> {
     let format = Format::requested(&query, &headers, Format::ALL)?;
-    let mut request = SweepRequest::from_value(&body)?;
-    state.systems.substitute(&mut request.system);
-    let job = request.to_spec()?.prepare(&state.config.limits)?;
+    let request = SweepRequest::from_value(&body)?;
+    let job = request.to_spec(&*state.systems)?.prepare(&state.config.limits)?;
     // On NATS workers a sweep holds one slot here (it only waits); locally, every free one.
     let slots = match state.queue {
         Some(_) => 1,
@@ -291,7 +269,7 @@ pub async fn sweep(
         "sweep started"
     );
     let queue = state.queue.clone();
-    let canonical = request.canonical();
+    let canonical = request.canonical(&*state.systems);
     let runtime = tokio::runtime::Handle::current();
     answer(
         work,

@@ -33,6 +33,7 @@ use utoipa::ToSchema;
 use super::{
     entity_names, entity_part, APPLICATION_ID, MAX_PHASE_DOFS, STEP_TIMELINE, TIME_TIMELINE,
 };
+use crate::api::system::NoStoredSystems;
 use crate::api::SimulateRequest;
 use crate::core::diagnostics::DriftPoint;
 use crate::core::simulation::{Columns, Limits, ScheduleSummary, Simulation, SystemSummary};
@@ -249,7 +250,7 @@ fn recorded_simulation(
         max_samples: u64::MAX,
     };
     let sim = request
-        .prepare(&unlimited)
+        .prepare(&unlimited, &NoStoredSystems)
         .map_err(|e| not_ours(&format!("its `/spec` does not prepare ({e})")))?;
     Ok((value, request, sim))
 }

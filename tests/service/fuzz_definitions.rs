@@ -5,6 +5,7 @@
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
+use geomint::api::system::NoStoredSystems;
 use geomint::api::SimulateRequest;
 use geomint::core::run::Budget;
 use geomint::core::simulation::Limits;
@@ -197,7 +198,7 @@ fn exercise(system: Value, methods: &[&str]) -> Result<(), TestCaseError> {
     let outcome = catch_unwind(AssertUnwindSafe(
         || -> Result<(), geomint::api::ErrorDetail> {
             let request = SimulateRequest::from_value(&body)?;
-            let sim = request.prepare(&Limits::default())?;
+            let sim = request.prepare(&Limits::default(), &NoStoredSystems)?;
             for i in 0..sim.methods.len() {
                 let mut sink = geomint::core::simulation::ColumnSink::new(sim.invariant_names());
                 sim.run_method(i, None, Budget::default(), &mut sink)?;

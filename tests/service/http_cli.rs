@@ -4,6 +4,7 @@ use std::io::Write;
 use std::path::PathBuf;
 use std::process::{Command, Output, Stdio};
 
+use geomint::api::system::NoStoredSystems;
 use geomint::core::run::Budget;
 use geomint::core::simulation::{ColumnSink, Limits, Simulation};
 use serde_json::{json, Value};
@@ -82,7 +83,7 @@ fn run_writes_json_and_ndjson_equal_to_the_core() {
     // Bit for bit the core's numbers.
     let req = geomint::api::SimulateRequest::from_value(&spec())
         .unwrap()
-        .to_spec()
+        .to_spec(&NoStoredSystems)
         .unwrap();
     let sim = Simulation::prepare(&req, &Limits::default()).unwrap();
     for i in 0..2 {
@@ -238,7 +239,7 @@ fn study_convergence_writes_the_document_of_the_library() {
     let written = geomint::api::json::parse_json(&std::fs::read(&out_path).unwrap()).unwrap();
     let job = ConvergenceRequest::from_value(&study)
         .unwrap()
-        .to_spec()
+        .to_spec(&NoStoredSystems)
         .unwrap()
         .prepare(&Limits::default())
         .unwrap();

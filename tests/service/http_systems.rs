@@ -12,7 +12,7 @@ use std::time::Duration;
 use crate::server;
 
 use geomint::api::system::SystemDefinition;
-use geomint::http::systems::{StoredSystem, SystemStore};
+use geomint::store::systems::{StoredSystem, SystemStore};
 use geomint::http::Config;
 use serde_json::{json, Value};
 use server::{client, post_json, start, Server};
@@ -452,4 +452,58 @@ async fn a_definition_is_recorded_and_its_samples_read_back() {
         }
     }
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Runs the `geomint` command line with `args`, its stored systems read from `dir`.
+fn geomint_with_systems(dir: &std::path::Path, args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_geomint"))
+        .args(args)
+        .env("GEOMINT_SYSTEMS_DIR", dir)
+        .env_remove("GEOMINT_MAX_STEPS")
+        .output()
+        .unwrap()
+}
+
+#[tokio::test]
+async fn the_command_line_names_stored_systems_like_the_server() {
+    let dir = systems_dir("cli");
+    let server = start(config(&dir)).await;
+    let (status, stored) = post_json(&server, "/api/v1/systems", &elastic()).await;
+    assert_eq!(status, 201, "{stored}");
+    let id = stored["id"].as_str().unwrap().to_string();
+    let scratch = server::scratch_dir("systems-cli-specs");
+    std::fs::create_dir_all(&scratch).unwrap();
+
+    // A run: the same numbers as the server's for the stored id.
+    let request = run_of(json!(id));
+    let (status, served) = post_json(&server, "/api/v1/simulate", &request).await;
+    assert_eq!(status, 200, "{served}");
+    let spec = scratch.join("run.json");
+    std::fs::write(&spec, serde_json::to_vec(&request).unwrap()).unwrap();
+    let out = geomint_with_systems(&dir, &["run", spec.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let ran = geomint::api::json::parse_json(&out.stdout).unwrap();
+    assert_eq!(numbers(&ran), numbers(&served));
+
+    // A sweep: the same document, digest included (the stored definition inlined), as the
+    // server's; without the directory the id is unknown, named at `system`.
+    let sweep = json!({"system": id, "methods": ["modin_3s"], "h": 0.1, "t_end": 5,
+        "axes": [{"name": "params.g", "min": 0.1, "max": 0.5, "n": 3}]});
+    let (status, served) = post_json(&server, "/api/v1/studies/sweep", &sweep).await;
+    assert_eq!(status, 200, "{served}");
+    let spec = scratch.join("sweep.json");
+    std::fs::write(&spec, serde_json::to_vec(&sweep).unwrap()).unwrap();
+    let out = geomint_with_systems(&dir, &["study", "sweep", spec.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let mut swept = geomint::api::json::parse_json(&out.stdout).unwrap();
+    let mut served = served;
+    for doc in [&mut swept, &mut served] {
+        doc.as_object_mut().unwrap().remove("wall_ms");
+    }
+    assert_eq!(swept, served);
+    let nowhere = scratch.join("no-systems-here");
+    let out = geomint_with_systems(&nowhere, &["study", "sweep", spec.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    let message = String::from_utf8_lossy(&out.stderr);
+    assert!(message.contains("system") && message.contains(&id), "{message}");
 }

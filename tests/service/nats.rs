@@ -12,6 +12,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
+use geomint::api::system::NoStoredSystems;
 use geomint::api::sweep::SweepRequest;
 use geomint::core::run::Budget;
 use geomint::core::simulation::Limits;
@@ -120,7 +121,7 @@ fn request() -> Value {
 fn local() -> Value {
     let job = SweepRequest::from_value(&request())
         .unwrap()
-        .to_spec()
+        .to_spec(&NoStoredSystems)
         .unwrap()
         .prepare(&Limits::default())
         .unwrap();

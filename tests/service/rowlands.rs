@@ -7,6 +7,7 @@
 
 use crate::common;
 
+use geomint::api::system::NoStoredSystems;
 use geomint::api::method::{MethodOptions, MethodSpec};
 use geomint::api::{ErrorCode, ErrorDetail, SimulateRequest};
 use geomint::core::diagnostics::log_log_slope;
@@ -596,7 +597,7 @@ fn the_processor_option_parses_defaults_to_cheap_and_is_checked() {
              "methods": [{"id": "rowlands", "processor": "original"}]}"#,
     )
     .unwrap();
-    let sim = req.prepare(&Limits::default()).unwrap();
+    let sim = req.prepare(&Limits::default(), &NoStoredSystems).unwrap();
     assert_eq!(
         sim.methods[0],
         Method::Rowlands {

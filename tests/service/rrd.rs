@@ -5,6 +5,7 @@
 
 use std::collections::BTreeSet;
 
+use geomint::api::system::NoStoredSystems;
 use geomint::api::SimulateRequest;
 use geomint::core::run::Budget;
 use geomint::core::simulation::Limits;
@@ -27,7 +28,7 @@ impl Run {
     /// Runs a request like the service does.
     fn of(body: Value, limits: &Limits) -> Run {
         let spec = SimulateRequest::from_value(&body).expect("valid request");
-        let sim = spec.prepare(limits).expect("valid simulation");
+        let sim = spec.prepare(limits, &NoStoredSystems).expect("valid simulation");
         let doc = sim.simulate(2, Budget::default()).expect("runs");
         let json = serde_json::to_string(&doc).unwrap();
         let rrd = recording::rrd_bytes(&spec, &doc).expect("recording");
@@ -224,7 +225,7 @@ fn a_million_samples_make_a_complete_recording() {
     let spec = SimulateRequest::from_value(&json!({"system": "pendulum", "method": "modin_3s",
         "h": 0.001, "t_end": 1000, "output": {"every": 1}}))
     .unwrap();
-    let sim = spec.prepare(&limits).unwrap();
+    let sim = spec.prepare(&limits, &NoStoredSystems).unwrap();
     let doc = sim.simulate(1, Budget::default()).unwrap();
     assert_eq!(doc.runs[0].columns.energy.len(), 1_000_001);
     let bytes = recording::rrd_bytes(&spec, &doc).unwrap();

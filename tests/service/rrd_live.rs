@@ -13,6 +13,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
+use geomint::api::system::NoStoredSystems;
 use geomint::api::SimulateRequest;
 use geomint::core::run::Budget;
 use geomint::core::simulation::stream::CHUNK_SAMPLES;
@@ -150,7 +151,7 @@ fn run_streams_live_to_a_rerun_viewer() {
         "h": 0.01, "t_end": 80000, "q0": [2.5], "p0": [0.0], "output": {"every": 4000}});
     let answer: SimulationDocument = {
         let spec = SimulateRequest::from_value(&body).unwrap();
-        let sim = spec.prepare(&Limits::default()).unwrap();
+        let sim = spec.prepare(&Limits::default(), &NoStoredSystems).unwrap();
         sim.simulate(2, Budget::default()).unwrap()
     };
     let schedule = answer.schedule;

@@ -6,6 +6,7 @@
 //! the map's kind run in SIMD lanes with the one-cell path's numbers bit for bit, and leave the
 //! same partial document at the time limit.
 
+use geomint::api::system::NoStoredSystems;
 use geomint::api::studies::EnergyMapRequest;
 use geomint::api::sweep::{energy_map_preset, SweepRequest};
 use geomint::core::methods::{Method, MethodId};
@@ -22,7 +23,7 @@ use serde_json::{json, Value};
 fn job(request: &Value) -> SweepJob {
     SweepRequest::from_value(request)
         .unwrap()
-        .to_spec()
+        .to_spec(&NoStoredSystems)
         .unwrap()
         .prepare(&Limits::default())
         .unwrap()
@@ -139,7 +140,7 @@ fn another_spec_has_another_digest() {
     let a = energy_map_preset(&map_request());
     let mut b = a.clone();
     b["t_end"] = json!(401.0);
-    let digest = |v: &Value| SweepRequest::from_value(v).unwrap().digest();
+    let digest = |v: &Value| SweepRequest::from_value(v).unwrap().digest(&NoStoredSystems);
     assert_eq!(digest(&a), digest(&a.clone()));
     assert_ne!(digest(&a), digest(&b));
     // Key order in the text does not matter: the digest is of the canonical form.
@@ -257,7 +258,7 @@ fn j3_stays_at_round_off_over_an_epsilon_axis() {
 fn refusals_name_the_axis() {
     let refused = |request: Value| -> (String, String) {
         let e = SweepRequest::from_value(&request)
-            .and_then(|r| Ok(r.to_spec()?.prepare(&Limits::default())?))
+            .and_then(|r| Ok(r.to_spec(&NoStoredSystems)?.prepare(&Limits::default())?))
             .unwrap_err();
         (e.field.unwrap_or_default(), e.message)
     };

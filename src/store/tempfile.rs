@@ -10,7 +10,7 @@ use std::fs::{self, File};
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 
-use super::store::{new_id, StoreError};
+use super::recordings::{new_id, StoreError};
 
 /// Prefix of temporary files in the data directory.
 pub(crate) const TMP_PREFIX: &str = ".tmp-";

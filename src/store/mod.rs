@@ -1,0 +1,11 @@
+//! What the service keeps on disk, each store a directory written atomically (a locked
+//! temporary file renamed into place) and read back at start-up:
+//!
+//! - [`recordings`]: Rerun recordings (`.rrd`) with their summaries, under a size cap;
+//! - [`systems`]: users' system definitions by id, the registry that requests, the command line
+//!   and the workers resolve stored ids through;
+//! - [`tempfile`]: the locked temporary files both write through.
+
+pub mod recordings;
+pub mod systems;
+pub mod tempfile;
