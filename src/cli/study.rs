@@ -10,10 +10,11 @@ use std::process::ExitCode;
 use clap::{Args, ValueEnum};
 
 use super::{parse_count, print_json, read_spec, SystemsDir, BAD_INPUT};
-use crate::core::error::ErrorDetail;
+use crate::core::error::{CoreError, ErrorDetail};
 use crate::core::run::Budget;
 use crate::core::simulation::Limits;
-use crate::core::studies::settings::{ProgressLine, Runner, StudyJob};
+use crate::core::studies::engine::Local;
+use crate::core::studies::settings::{ProgressLine, StudyJob};
 use crate::recording;
 
 /// The kinds of study.
@@ -199,7 +200,7 @@ fn run_energy_map(args: &StudyArgs, source: &str, text: &[u8]) -> ExitCode {
         }
         true
     };
-    let doc = match energy_map::run(&spec, Budget::default(), &progress) {
+    let doc = match energy_map::run(&spec, &Local, Budget::default(), &progress) {
         Ok(doc) => doc,
         Err(e) => {
             eprintln!("error: {source}: {e}");
@@ -244,8 +245,8 @@ fn finish_study<S, L: ProgressLine>(
     args: &StudyArgs,
     source: &str,
     parsed: Result<(S, StudyJob), ErrorDetail>,
-    run: Runner<L>,
-    progress: impl Fn(&L),
+    run: fn(&StudyJob, &Local, Budget<'_>, &(dyn Fn(L) -> bool + Sync)) -> Result<L::Document, CoreError>,
+    progress: impl Fn(&L) + Sync,
     rrd: Option<impl FnOnce(File, &S, &L::Document) -> Result<(), String>>,
 ) -> ExitCode {
     let (spec, job) = match parsed {
@@ -264,7 +265,7 @@ fn finish_study<S, L: ProgressLine>(
         progress(&line);
         true
     };
-    let doc = match run(&job, Budget::default(), &emit) {
+    let doc = match run(&job, &Local, Budget::default(), &emit) {
         Ok(doc) => doc,
         Err(e) => {
             eprintln!("error: {source}: {e}");

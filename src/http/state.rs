@@ -12,6 +12,7 @@ use std::time::Duration;
 use tokio::sync::{watch, OwnedSemaphorePermit, Semaphore};
 
 use super::error::ApiError;
+use crate::executor::StudyExecutor;
 use crate::store::recordings::RecordingStore;
 use crate::store::systems::{SystemStore, DEFAULT_MAX_SYSTEMS, DEFAULT_SYSTEMS_DIR};
 use crate::core::simulation::Limits;
@@ -132,8 +133,8 @@ pub struct AppState {
     pub recordings: Arc<RecordingStore>,
     /// The stored system definitions.
     pub systems: Arc<SystemStore>,
-    /// The NATS work queue that runs sweeps, when the server has one (else they run here).
-    pub queue: Option<Arc<crate::nats::Queue>>,
+    /// Where studies run: here, or on NATS workers.
+    pub executor: StudyExecutor,
     permits: Arc<Semaphore>,
     short_lane: Arc<Semaphore>,
     waiting_long: Arc<Mutex<HashMap<IpAddr, usize>>>,
@@ -150,7 +151,7 @@ impl AppState {
         Self {
             recordings: Arc::new(recordings),
             systems: Arc::new(systems),
-            queue: None,
+            executor: StudyExecutor::Local,
             config: Arc::new(Config {
                 max_concurrent: max,
                 ..config
@@ -162,9 +163,9 @@ impl AppState {
         }
     }
 
-    /// The same state, running sweeps on the workers of `queue`.
+    /// The same state, running studies on the workers of `queue` (here without one).
     pub fn with_queue(mut self, queue: Option<crate::nats::Queue>) -> Self {
-        self.queue = queue.map(Arc::new);
+        self.executor = queue.map_or(StudyExecutor::Local, |q| StudyExecutor::Nats(Arc::new(q)));
         self
     }
 

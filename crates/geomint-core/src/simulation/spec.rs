@@ -35,7 +35,7 @@ impl Default for Limits {
 }
 
 /// The coordinates an initial state is given in.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 #[serde(rename_all = "snake_case")]
 pub enum InitialCoordinates {
@@ -50,7 +50,7 @@ pub const MAX_METHODS: usize = 16;
 
 /// A method of a simulation and the field that gave it (`methods[1]`, `method`,
 /// `runs[0].method`).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct MethodAt {
     /// The method.
     pub method: Method,

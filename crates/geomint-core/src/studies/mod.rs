@@ -18,6 +18,8 @@
 
 pub mod convergence;
 pub mod energy_map;
+pub mod engine;
+pub mod parts;
 pub mod settings;
 pub mod stability;
 pub mod sweep;
@@ -32,4 +34,19 @@ pub enum StudyStop {
     Finished,
     /// The time limit passed first: what was not finished is marked so in the document.
     TimeLimit,
+}
+
+/// A study's spec as it travels: to NATS workers, and inside part files, so that a worker or a
+/// merge prepares exactly the study the server or the first array task prepared.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum StudySpec {
+    /// A sweep (energy maps run as sweeps too).
+    Sweep(sweep::SweepSpec),
+    /// Linear stability maps.
+    Stability(stability::StabilitySpec),
+    /// A convergence study.
+    Convergence(convergence::ConvergenceSpec),
+    /// A work–precision study.
+    WorkPrecision(work_precision::WorkPrecisionSpec),
 }
