@@ -277,7 +277,7 @@ impl StudyJob {
             })?;
         let stopped_early = match outcome.stop {
             StopReason::Finished => false,
-            StopReason::TimeLimit { .. } => true,
+            StopReason::TimeLimit { .. } | StopReason::Event { .. } => true,
             StopReason::Cancelled { .. } => {
                 return Err(CoreError::Cancelled {
                     what: "study",
@@ -452,6 +452,7 @@ pub fn stop_name(stop: &StopReason) -> &'static str {
         StopReason::Diverged { .. } => "diverged",
         StopReason::Cancelled { .. } => "cancelled",
         StopReason::TimeLimit { .. } => "time_limit",
+        StopReason::Event { .. } => "event",
     }
 }
 

@@ -451,7 +451,10 @@ impl EnergyMapJob {
                 epsilon: None,
                 diverged_at: Some(t),
             }),
-            StopReason::Cancelled { .. } | StopReason::TimeLimit { .. } => None,
+            // A map's runs watch no surface: no event ends them.
+            StopReason::Cancelled { .. } | StopReason::TimeLimit { .. } | StopReason::Event { .. } => {
+                None
+            }
         })
     }
 }
