@@ -37,6 +37,8 @@ pub struct Crossing<'a> {
     pub p: &'a [f64],
     /// H there.
     pub energy: f64,
+    /// The positions in Cartesian coordinates, when the chart is not Cartesian.
+    pub cartesian_q: Option<&'a [f64]>,
 }
 
 /// How a run's section went.
@@ -91,6 +93,8 @@ where
     last: State<S::Dim>,
     last_t: f64,
     point: State<S::Dim>,
+    /// The located point in Cartesian coordinates, for a chart that is not.
+    cartesian: Option<(Vec<f64>, Vec<f64>)>,
 }
 
 impl<'a, S: MechanicalSystem> Watch<'a, S>
@@ -125,6 +129,7 @@ where
             last: start.clone(),
             last_t: 0.0,
             point: start.clone(),
+            cartesian: (!sys.is_cartesian()).then(|| (vec![0.0; n], vec![0.0; n])),
         };
         watch.restart(sys, start, 0.0);
         watch
@@ -178,7 +183,10 @@ where
                 loop {
                     let tracker = &self.trackers[i];
                     let level = phase + tracker.next as f64 * period;
-                    if level > t_now || tracker.truncated || flow.is_break() {
+                    // A level the step reaches to within round-off of its length counts (as
+                    // the run's last step reaches t_end): t_end = kT gives its k-th point.
+                    let reach = t_now + 1e-9 * (t_now - self.last_t).abs();
+                    if level > reach || tracker.truncated || flow.is_break() {
                         break;
                     }
                     self.trackers[i].next += 1;
@@ -250,12 +258,16 @@ where
         };
         tracker.count += 1;
         let n = self.crossings.names.coordinates.len();
+        if let Some((x, px)) = self.cartesian.as_mut() {
+            sys.to_cartesian(&self.point.q, &self.point.p, x, px);
+        }
         emit(&Crossing {
             kind: tracker.kind,
             t,
             q: &self.point.q.as_slice()[..n],
             p: &self.point.p.as_slice()[..n],
             energy: sys.energy(&self.point.q, &self.point.p),
+            cartesian_q: self.cartesian.as_ref().map(|(x, _)| x.as_slice()),
         });
         if tracker.count >= tracker.limit {
             match tracker.kind {

@@ -28,6 +28,9 @@ pub struct CrossingColumns {
     pub p: Vec<Vec<f64>>,
     /// H at each crossing.
     pub energy: Vec<f64>,
+    /// Cartesian positions at each crossing, when the chart is not Cartesian.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cartesian_q: Option<Vec<Vec<f64>>>,
 }
 
 impl CrossingColumns {
@@ -37,6 +40,9 @@ impl CrossingColumns {
         self.q.push(c.q.to_vec());
         self.p.push(c.p.to_vec());
         self.energy.push(c.energy);
+        if let Some(x) = c.cartesian_q {
+            self.cartesian_q.get_or_insert_with(Vec::new).push(x.to_vec());
+        }
     }
 
     /// Appends the points of `more` after these.
@@ -45,6 +51,9 @@ impl CrossingColumns {
         self.q.extend(more.q);
         self.p.extend(more.p);
         self.energy.extend(more.energy);
+        if let Some(more) = more.cartesian_q {
+            self.cartesian_q.get_or_insert_with(Vec::new).extend(more);
+        }
     }
 
     /// Points held.
