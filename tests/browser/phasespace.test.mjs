@@ -106,11 +106,14 @@ test('a click launches an orbit whose points are the API’s, on the energy chos
   // The link reproduces the picture: the same orbits, the same points.
   const link = await page.getAttribute('#ps-link', 'href');
   assert.match(link, /^#orbits=/);
+  // A fresh load of the page at that address (not a hash change in the open page).
+  await page.goto('about:blank');
   await page.goto(`${base}/${link}`);
   await page.waitForSelector('#phase-space:not([hidden])');
   await page.waitForFunction(() => window.geomint?.phaseSpace?.orbits.length === 2, null, { timeout: 15_000 });
   assert.equal(await settled(), 'done');
   const again = await orbits();
+  assert.deepEqual(again.map((o) => o.request), shown.map((o) => o.request));
   assert.deepEqual(again.map((o) => o.points), shown.map((o) => o.points));
 
   // Downloads: the orbits as JSON, the last as a recording.
