@@ -23,6 +23,7 @@ use super::layout::{send_blueprint, Layout};
 use super::simulation::SimulationLogger;
 use super::{RecordingError, APPLICATION_ID};
 use crate::api::SimulateRequest;
+use crate::core::simulation::crossings::SurfaceName;
 use crate::core::simulation::StreamLine;
 
 /// Longest wait for the viewer's connection before anything runs.
@@ -117,6 +118,13 @@ impl StreamRecorder {
             StreamLine::Summary(summary) => self
                 .logger()?
                 .finish(summary.method, summary.outcome.stats.force_evaluations),
+            StreamLine::Crossings(chunk) => match chunk.surface {
+                SurfaceName::Section => {
+                    self.logger()?
+                        .section(chunk.method, chunk.offset, &chunk.columns)
+                }
+                SurfaceName::StopWhen => Ok(()),
+            },
             StreamLine::Error(_) | StreamLine::End => Ok(()),
         }
     }

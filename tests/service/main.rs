@@ -21,6 +21,7 @@ mod http_convergence;
 mod http_faults;
 mod http_recordings;
 mod http_recordings_upload;
+mod http_sections;
 mod http_reliability;
 mod http_stability;
 mod http_studies;

@@ -287,7 +287,7 @@ impl StudyJob {
             })?;
         let stopped_early = match outcome.stop {
             StopReason::Finished => false,
-            StopReason::TimeLimit { .. } => true,
+            StopReason::TimeLimit { .. } | StopReason::Event { .. } => true,
             StopReason::Cancelled { .. } => {
                 return Err(CoreError::Cancelled {
                     what: "study",
@@ -462,6 +462,7 @@ pub fn stop_name(stop: &StopReason) -> &'static str {
         StopReason::Diverged { .. } => "diverged",
         StopReason::Cancelled { .. } => "cancelled",
         StopReason::TimeLimit { .. } => "time_limit",
+        StopReason::Event { .. } => "event",
     }
 }
 

@@ -284,6 +284,12 @@ impl<'de> serde::Deserialize<'de> for SystemRef {
     }
 }
 
+impl From<Arc<SystemInfo>> for SystemRef {
+    fn from(info: Arc<SystemInfo>) -> Self {
+        SystemRef::Defined(info)
+    }
+}
+
 impl From<&str> for SystemRef {
     fn from(id: &str) -> Self {
         SystemRef::Id(id.to_string())
@@ -410,9 +416,15 @@ macro_rules! with_system {
 }
 
 impl AnySystem {
-    /// The configuration-space dimension.
+    /// The configuration-space dimension (of extended phase space for a driven system).
     pub fn dimension(&self) -> usize {
         use crate::system::MechanicalSystem;
         with_system!(self, s => nalgebra::Dim::value(&s.dim()))
+    }
+
+    /// The degrees of freedom: the dimension without a driven system's clock.
+    pub fn degrees_of_freedom(&self) -> usize {
+        use crate::system::MechanicalSystem;
+        with_system!(self, s => s.clock().unwrap_or_else(|| nalgebra::Dim::value(&s.dim())))
     }
 }

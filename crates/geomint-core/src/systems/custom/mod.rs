@@ -146,6 +146,10 @@ pub struct Facts {
     /// The methods whose requirements the system meets (compositions with any base that does).
     #[cfg_attr(feature = "openapi", schema(value_type = Vec<String>))]
     pub methods: Vec<&'static str>,
+    /// Whether the energy or the damping depends on the time `t` (a driven system, run in
+    /// extended phase space); absent when not.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub time_dependent: bool,
 }
 
 /// The chart of a user-defined separable system: its own coordinates.
