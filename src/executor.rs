@@ -11,6 +11,13 @@ use crate::core::run::Budget;
 use crate::core::studies::engine::{Executor, Local, Order, Study};
 use crate::nats::Queue;
 
+/// The number of cores: how many runs at once by default, on the server and the command line.
+pub fn cores() -> usize {
+    std::thread::available_parallelism()
+        .map(|n| n.get())
+        .unwrap_or(1)
+}
+
 /// The service's executor.
 #[derive(Clone, Debug, Default)]
 pub enum StudyExecutor {

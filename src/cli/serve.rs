@@ -126,7 +126,7 @@ impl ServeArgs {
             },
             max_concurrent: self
                 .max_concurrent
-                .map_or_else(http::state::default_concurrency, |n| n as usize),
+                .map_or_else(crate::executor::cores, |n| n as usize),
             request_timeout: Duration::from_secs(self.request_timeout_secs),
             queue_timeout: Duration::from_millis(self.queue_timeout_ms),
             long_queue_timeout: Duration::from_secs(self.long_queue_timeout_secs),

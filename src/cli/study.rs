@@ -1,6 +1,7 @@
-//! `geomint study KIND spec.json`: a work–precision or convergence study, an energy-error map or
-//! a sweep (see [`super::sweep`]), without a server, with progress on standard error; the document as JSON, or as a Rerun
-//! recording for an output file ending in `.rrd` (work–precision studies and maps).
+//! `geomint study KIND spec.json`: a work–precision or convergence study or an energy-error map
+//! (sweeps and merges: [`super::sweep`]), without a server, with progress on standard error; the
+//! document as JSON, or as a Rerun recording for an output file ending in `.rrd` (work–precision
+//! studies and maps).
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -61,19 +62,21 @@ pub struct StudyArgs {
     pub systems: SystemsDir,
 }
 
+impl StudyArgs {
+    /// The limits the settings give.
+    pub fn limits(&self) -> Limits {
+        Limits {
+            max_steps: self.max_steps,
+            ..Limits::default()
+        }
+    }
+}
+
 pub(crate) fn run_study(args: &StudyArgs) -> ExitCode {
     use crate::api::studies::{ConvergenceRequest, WorkPrecisionRequest};
     use crate::core::studies::convergence::{self, ConvergenceLine};
     use crate::core::studies::work_precision::{self, StudyLine};
-    let limits = Limits {
-        max_steps: args.max_steps,
-        ..Limits::default()
-    };
-    match args.kind {
-        StudyKind::Sweep => return super::sweep::run_sweep(args, &limits),
-        StudyKind::Merge => return super::sweep::run_merge(args, &limits),
-        _ => {}
-    }
+    let limits = args.limits();
     let (source, text) = match read_spec(&args.spec) {
         Ok(spec) => spec,
         Err(code) => return code,
@@ -117,7 +120,7 @@ pub(crate) fn run_study(args: &StudyArgs) -> ExitCode {
                 _ => {}
             };
             let rrd = |f: File, spec: &WorkPrecisionRequest, doc: &_| {
-                recording::work_precision::write_rrd(BufWriter::new(f), spec, doc)
+                recording::work_precision::write_rrd(BufWriter::new(f), &recording::Spec::of(spec), doc)
                     .map_err(|e| e.to_string())
                     .and_then(|mut w| w.flush().map_err(|e| e.to_string()))
             };
@@ -167,7 +170,7 @@ pub(crate) fn run_study(args: &StudyArgs) -> ExitCode {
             )
         }
         StudyKind::EnergyMap => run_energy_map(args, &source, &text),
-        StudyKind::Sweep | StudyKind::Merge => unreachable!("handled before the spec is read"),
+        StudyKind::Sweep | StudyKind::Merge => unreachable!("`geomint study sweep|merge` runs in cli::sweep"),
     }
 }
 

@@ -70,7 +70,8 @@ pub fn shard_of(given: &str, env: impl Fn(&str) -> Option<String>) -> Result<Sha
 }
 
 /// `geomint study sweep`: the whole sweep, or with `--shard` one part of it.
-pub(crate) fn run_sweep(args: &StudyArgs, limits: &Limits) -> ExitCode {
+pub(crate) fn run_sweep(args: &StudyArgs) -> ExitCode {
+    let limits = &args.limits();
     let (source, text) = match read_spec(&args.spec) {
         Ok(spec) => spec,
         Err(code) => return code,
@@ -155,7 +156,8 @@ fn read_part(path: &Path) -> Result<Part<Vec<RunMetrics>>, String> {
 }
 
 /// `geomint study merge`: the parts of a sweep (every shard exactly once) into its document.
-pub(crate) fn run_merge(args: &StudyArgs, limits: &Limits) -> ExitCode {
+pub(crate) fn run_merge(args: &StudyArgs) -> ExitCode {
+    let limits = &args.limits();
     let mut parts = Vec::new();
     for path in std::iter::once(&args.spec).chain(&args.parts) {
         let name = path.display().to_string();

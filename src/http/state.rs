@@ -12,7 +12,7 @@ use std::time::Duration;
 use tokio::sync::{watch, OwnedSemaphorePermit, Semaphore};
 
 use super::error::ApiError;
-use crate::executor::StudyExecutor;
+use crate::executor::{cores, StudyExecutor};
 use crate::store::recordings::RecordingStore;
 use crate::store::systems::{SystemStore, DEFAULT_MAX_SYSTEMS, DEFAULT_SYSTEMS_DIR};
 use crate::core::simulation::Limits;
@@ -92,18 +92,11 @@ impl Cost {
     }
 }
 
-/// The number of cores, the default of [`Config::max_concurrent`].
-pub fn default_concurrency() -> usize {
-    std::thread::available_parallelism()
-        .map(|n| n.get())
-        .unwrap_or(1)
-}
-
 impl Default for Config {
     fn default() -> Self {
         Self {
             limits: Limits::default(),
-            max_concurrent: default_concurrency(),
+            max_concurrent: cores(),
             request_timeout: Duration::from_secs(60),
             queue_timeout: Duration::from_millis(250),
             long_queue_timeout: Duration::from_secs(5),

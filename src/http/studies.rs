@@ -151,7 +151,7 @@ pub async fn work_precision(
     let job = request.to_spec(&*state.systems)?.prepare(&state.config.limits)?;
     let request = request.inlined(&*state.systems);
     let encode = move |doc: &WorkPrecisionDocument| {
-        format.encode(doc, |d| recording::work_precision::rrd_bytes(&request, d))
+        format.encode(doc, |d| recording::work_precision::rrd_bytes(&recording::Spec::of(&request), d))
     };
     answer_settings::<StudyLine>(
         state,

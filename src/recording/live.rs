@@ -22,7 +22,7 @@ use super::encode::{self, EncoderThread, EncodingSink};
 use super::layout::{send_blueprint, Layout};
 use super::simulation::SimulationLogger;
 use super::{RecordingError, APPLICATION_ID};
-use crate::api::SimulateRequest;
+use super::Spec;
 use crate::core::simulation::crossings::SurfaceName;
 use crate::core::simulation::StreamLine;
 
@@ -78,13 +78,13 @@ pub fn connect_viewer(url: &str, timeout: Duration) -> Result<GrpcSink, Recordin
 /// to their method's run.
 pub struct StreamRecorder {
     rec: RecordingStream,
-    spec: SimulateRequest,
+    spec: Spec,
     logger: OnceLock<SimulationLogger>,
 }
 
 impl StreamRecorder {
     /// A recorder logging the simulation of `spec` into `rec`.
-    pub fn new(rec: RecordingStream, spec: SimulateRequest) -> Self {
+    pub fn new(rec: RecordingStream, spec: Spec) -> Self {
         StreamRecorder {
             rec,
             spec,
@@ -149,7 +149,7 @@ impl<W: Write + Send + 'static> LiveRecording<W> {
     pub fn start(
         viewer: GrpcSink,
         name: String,
-        spec: SimulateRequest,
+        spec: Spec,
         file: Option<W>,
     ) -> Result<Self, RecordingError> {
         let mut sinks: Vec<Box<dyn LogSink>> = vec![Box::new(viewer)];

@@ -45,7 +45,7 @@ use rerun::{
 
 use super::layout::{path_block_len, sample_step, send_blueprint, Layout};
 use super::{color, encode, method_color, RecordingError, STEP_TIMELINE, TIME_TIMELINE};
-use crate::api::SimulateRequest;
+use super::Spec;
 use crate::core::simulation::{Columns, CrossingColumns, ScheduleSummary, SimulationDocument};
 use crate::core::systems::World;
 
@@ -53,7 +53,7 @@ use crate::core::systems::World;
 /// samples as one chunk of columns.
 pub fn log_simulation(
     rec: &RecordingStream,
-    spec: &SimulateRequest,
+    spec: &Spec,
     doc: &SimulationDocument,
 ) -> Result<(), RecordingError> {
     let layout = Layout::of(doc);
@@ -85,12 +85,12 @@ impl SimulationLogger {
     /// (see [`path_blocks`](super::layout::path_blocks)).
     pub fn start(
         rec: &RecordingStream,
-        spec: &SimulateRequest,
+        spec: &Spec,
         layout: &Layout,
         schedule: &ScheduleSummary,
         expected: impl Fn(usize) -> usize,
     ) -> Result<Self, RecordingError> {
-        let spec_json = serde_json::to_string_pretty(spec).unwrap_or_default();
+        let spec_json = spec.json();
         rec.log_static(
             "/spec",
             &TextDocument::from_markdown(format!("```json\n{spec_json}\n```")),
@@ -518,7 +518,7 @@ pub fn recording_name<S: AsRef<str>>(system: &str, labels: &[S]) -> String {
 /// default blueprint. Returns the writer once the stream is complete (footer included).
 pub fn write_rrd<W: Write + Send + 'static>(
     writer: W,
-    spec: &SimulateRequest,
+    spec: &Spec,
     doc: &SimulationDocument,
 ) -> Result<W, RecordingError> {
     let labels: Vec<&str> = doc.runs.iter().map(|r| r.method.as_str()).collect();
@@ -530,7 +530,7 @@ pub fn write_rrd<W: Write + Send + 'static>(
 
 /// The `.rrd` file of a simulation in memory (see [`write_rrd`]).
 pub fn rrd_bytes(
-    spec: &SimulateRequest,
+    spec: &Spec,
     doc: &SimulationDocument,
 ) -> Result<Vec<u8>, RecordingError> {
     write_rrd(Vec::new(), spec, doc)
