@@ -207,7 +207,7 @@ fn a_recording_holds_the_section_per_orbit_in_the_chart_and_in_space() {
         .unwrap()
         .simulate(1, Budget::default())
         .unwrap();
-    let rrd = recording::rrd_bytes(&spec, &doc).unwrap();
+    let rrd = recording::rrd_bytes(&recording::Spec::of(&spec), &doc).unwrap();
     let d = Decoded::of(&rrd);
     let section = doc.runs[0].section.as_ref().unwrap();
     let m = "kahan_li_8_velocity_verlet";
