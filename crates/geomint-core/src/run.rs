@@ -13,9 +13,10 @@ use nalgebra::allocator::Allocator;
 use nalgebra::DefaultAllocator;
 use serde::Serialize;
 
+use super::chaos::{IndicatorValues, ThresholdStop, Tracker};
 use super::error::{CoreError, StepError};
-use super::flows::Tangent;
 use super::system::{MechanicalSystem, State};
+use super::tangent::Tangent;
 
 /// A one-step method for systems of type `S`. Explicit implementations keep their work buffers,
 /// so a step allocates nothing. A stepper may keep the last force evaluation for the next step
@@ -88,7 +89,7 @@ where
         _sys: &S,
         _z: &mut State<S::Dim>,
         _h: f64,
-        _tangent: &mut Tangent,
+        _tangent: &mut Tangent<S::Dim>,
     ) -> Result<(), StepError> {
         Err(StepError::TangentUnsupported {
             reason: "this method has no tangent map",
@@ -137,7 +138,7 @@ where
         sys: &S,
         z: &mut State<S::Dim>,
         h: f64,
-        tangent: &mut Tangent,
+        tangent: &mut Tangent<S::Dim>,
     ) -> Result<(), StepError> {
         (**self).step_tangent(sys, z, h, tangent)
     }
@@ -251,6 +252,8 @@ pub enum StopReason {
         /// Steps completed.
         step: u64,
     },
+    /// A chaos indicator reached the threshold the request set (`stop_when`).
+    Indicator(ThresholdStop),
 }
 
 /// Run statistics, shared by every output format.
@@ -276,18 +279,28 @@ where
 
     /// The Jacobian determinant of the step that ended at `step` (only when asked for).
     fn on_step_determinant(&mut self, _step: u64, _det: f64) {}
+
+    /// The chaos indicators at the sample that follows (only when asked for).
+    fn on_indicators(&mut self, _values: &IndicatorValues) {}
+}
+
+/// What a run propagates besides the state.
+pub enum Tracking<'a, D: nalgebra::Dim>
+where
+    DefaultAllocator: Allocator<D>,
+{
+    /// Nothing.
+    Off,
+    /// Each step's Jacobian, whose determinant goes to the observer.
+    Determinant,
+    /// Deviation vectors and the chaos indicators, which go to the observer before each sample.
+    Chaos(&'a mut Tracker<D>),
 }
 
 /// Runs `stepper` from `z` over `schedule`, reporting samples to `observer`.
 ///
 /// With `track_determinant`, each step also propagates its Jacobian (slower; for diagnostics)
-/// and reports det ∂Φ/∂z to the observer.
-///
-/// For a processing method (see [`Stepper::pre_process`]) the sample at step 0 is the caller's
-/// state as given, `z` is pre-processed once before the first step, the later samples are
-/// post-processed kernel states, and on return `z` holds the post-processed final state (the
-/// kernel state if the run diverged). Methods without processing see none of this: their loop is
-/// the same.
+/// and reports det ∂Φ/∂z to the observer. See [`integrate_tracked`].
 pub fn integrate<S, M, O>(
     sys: &S,
     stepper: &mut M,
@@ -303,19 +316,50 @@ where
     O: Observer<S::Dim>,
     DefaultAllocator: Allocator<S::Dim>,
 {
+    let tracking = if track_determinant {
+        Tracking::Determinant
+    } else {
+        Tracking::Off
+    };
+    integrate_tracked(sys, stepper, z, schedule, budget, tracking, observer)
+}
+
+/// Runs `stepper` from `z` over `schedule`, reporting samples to `observer`, with the tangent
+/// dynamics `tracking` asks for: none, each step's Jacobian (its determinant reported per
+/// step), or deviation vectors with their chaos indicators (reported before each sample; a
+/// threshold passed stops the run there, with a last sample).
+///
+/// For a processing method (see [`Stepper::pre_process`]) the sample at step 0 is the caller's
+/// state as given, `z` is pre-processed once before the first step, the later samples are
+/// post-processed kernel states, and on return `z` holds the post-processed final state (the
+/// kernel state if the run diverged). Methods without processing see none of this: their loop is
+/// the same. Tangent dynamics follow the kernel.
+pub fn integrate_tracked<S, M, O>(
+    sys: &S,
+    stepper: &mut M,
+    z: &mut State<S::Dim>,
+    schedule: Schedule,
+    budget: Budget<'_>,
+    mut tracking: Tracking<'_, S::Dim>,
+    observer: &mut O,
+) -> Result<(StopReason, RunStats), CoreError>
+where
+    S: MechanicalSystem,
+    M: Stepper<S> + ?Sized,
+    O: Observer<S::Dim>,
+    DefaultAllocator: Allocator<S::Dim>,
+{
     let started = Instant::now();
     let h = schedule.h;
     let every = schedule.every.max(1);
-    // Tangent propagation costs O(n³) per step: look at the budget every step then.
-    let check_every = if track_determinant {
-        1
-    } else {
-        stepper.check_interval().max(1)
+    // Jacobian propagation costs O(n³) per step: look at the budget every step then.
+    let check_every = match tracking {
+        Tracking::Determinant => 1,
+        _ => stepper.check_interval().max(1),
     };
-    let mut tangent = if track_determinant {
-        Some(Tangent::new(sys, z))
-    } else {
-        None
+    let mut jacobian = match tracking {
+        Tracking::Determinant => Some(Tangent::new(sys, z)),
+        _ => None,
     };
     // A step that fails, counted from 0; a failing processor is charged to the step it is
     // applied with (the first, or the one that ends at the output).
@@ -326,6 +370,9 @@ where
         t: step as f64 * h,
         source,
     };
+    if let Tracking::Chaos(tracker) = &mut tracking {
+        observer.on_indicators(&tracker.peek(0));
+    }
     observer.on_sample(0, 0.0, z);
     stepper.set_deadline(budget.deadline);
     // The post-processed state of the last sample, and that sample's step.
@@ -355,17 +402,8 @@ where
         let next_sample = ((step / every) + 1) * every;
         let next_check = ((step / check_every) + 1) * check_every;
         let until = next_sample.min(next_check).min(schedule.steps);
-        match tangent.as_mut() {
-            None => {
-                let (done, outcome) = stepper.advance(sys, z, h, until - step);
-                step += done;
-                match outcome {
-                    Ok(()) => {}
-                    Err(StepError::DeadlinePassed) => stop = StopReason::TimeLimit { step },
-                    Err(e) => return Err(fail(step, e)),
-                }
-            }
-            Some(tg) => {
+        match (&mut tracking, jacobian.as_mut()) {
+            (Tracking::Determinant, Some(tg)) => {
                 while step < until {
                     tg.reset();
                     stepper
@@ -376,6 +414,36 @@ where
                     if !z.is_finite() {
                         break;
                     }
+                }
+            }
+            (Tracking::Chaos(tracker), _) => {
+                while step < until {
+                    stepper
+                        .step_tangent(sys, z, h, &mut tracker.tangent)
+                        .map_err(|e| fail(step, e))?;
+                    step += 1;
+                    if !finite(z) {
+                        break;
+                    }
+                    if let Some((indicator, value, threshold)) = tracker.after_step(step) {
+                        stop = StopReason::Indicator(ThresholdStop {
+                            step,
+                            t: step as f64 * h,
+                            indicator,
+                            value,
+                            threshold,
+                        });
+                        break;
+                    }
+                }
+            }
+            _ => {
+                let (done, outcome) = stepper.advance(sys, z, h, until - step);
+                step += done;
+                match outcome {
+                    Ok(()) => {}
+                    Err(StepError::DeadlinePassed) => stop = StopReason::TimeLimit { step },
+                    Err(e) => return Err(fail(step, e)),
                 }
             }
         }
@@ -389,7 +457,11 @@ where
             };
             break;
         }
-        if step % every == 0 || step == schedule.steps {
+        let stopped = matches!(stop, StopReason::Indicator(_));
+        if step % every == 0 || step == schedule.steps || stopped {
+            if let Tracking::Chaos(tracker) = &mut tracking {
+                observer.on_indicators(&tracker.peek(step));
+            }
             if stepper
                 .post_process(sys, z, h, &mut processed)
                 .map_err(|e| fail(step.saturating_sub(1), e))?
@@ -399,6 +471,9 @@ where
             } else {
                 observer.on_sample(step, step as f64 * h, z);
             }
+        }
+        if stopped {
+            break;
         }
     }
     // Leave the output state, not the kernel's, to the caller.

@@ -10,9 +10,10 @@ use nalgebra::allocator::Allocator;
 use nalgebra::DefaultAllocator;
 
 use super::spec::Simulation;
+use crate::chaos::{IndicatorValues, Tracker};
 use crate::error::{CoreError, Field};
 use crate::methods::{self, Method, MethodId};
-use crate::run::{integrate, Budget, Observer, RunStats, StopReason};
+use crate::run::{integrate_tracked, Budget, Observer, RunStats, StopReason, Tracking};
 use crate::system::{MechanicalSystem, State};
 use crate::systems::world::Drawing;
 use crate::systems::World;
@@ -41,6 +42,8 @@ pub struct Sample<'a> {
     pub jacobian_defect: Option<f64>,
     /// The bodies' coordinates, for a system drawn by its definition's `positions`.
     pub bodies: Option<&'a [f64]>,
+    /// The chaos indicators, when asked for.
+    pub indicators: Option<&'a IndicatorValues>,
 }
 
 /// Receives samples of one method's run.
@@ -97,11 +100,22 @@ impl Simulation {
                 },
                 expected_det: (-sys.damping_rate() * self.schedule.h * n as f64).exp(),
                 last_det: None,
+                indicators: None,
                 sample_index: 0,
             };
-            let track = self.jacobian_defect && method.no_step_jacobian().is_none();
-            let (stop, stats) = with_stepper!(&mut stepper, st => integrate(
-                sys, st, &mut z, self.schedule, budget, track, &mut observer,
+            let mut tracker = self
+                .chaos
+                .as_ref()
+                .map(|plan| Tracker::new(sys, &z, plan, self.schedule.h));
+            let tracking = match tracker.as_mut() {
+                Some(tracker) => Tracking::Chaos(tracker),
+                None if self.jacobian_defect && method.no_step_jacobian().is_none() => {
+                    Tracking::Determinant
+                }
+                None => Tracking::Off,
+            };
+            let (stop, stats) = with_stepper!(&mut stepper, st => integrate_tracked(
+                sys, st, &mut z, self.schedule, budget, tracking, &mut observer,
             ))?;
             Ok(Outcome { stop, stats })
         })
@@ -169,6 +183,7 @@ where
     drawing: Option<(&'a Drawing, Vec<f64>)>,
     expected_det: f64,
     last_det: Option<f64>,
+    indicators: Option<IndicatorValues>,
     sample_index: usize,
 }
 
@@ -206,12 +221,17 @@ where
             invariants: &self.invariants,
             jacobian_defect: self.last_det.map(|d| (d - self.expected_det).abs()),
             bodies: self.drawing.as_ref().map(|(_, bodies)| bodies.as_slice()),
+            indicators: self.indicators.as_ref(),
         });
         self.sample_index += 1;
     }
 
     fn on_step_determinant(&mut self, _step: u64, det: f64) {
         self.last_det = Some(det);
+    }
+
+    fn on_indicators(&mut self, values: &IndicatorValues) {
+        self.indicators = Some(values.clone());
     }
 }
 

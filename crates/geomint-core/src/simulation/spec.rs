@@ -6,6 +6,7 @@
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
+use crate::chaos::{ChaosPlan, ChaosSpec};
 use crate::error::{CoreError, Field, Range, StepScope};
 use crate::methods::build::{self, Origin};
 use crate::methods::Method;
@@ -203,6 +204,10 @@ pub struct Simulation {
     pub compare_to_reference: bool,
     /// Whether to report the Jacobian determinant defect.
     pub jacobian_defect: bool,
+    /// The chaos indicators each run reports (see [`Simulation::with_chaos`]).
+    pub chaos: Option<ChaosPlan>,
+    /// Where each method was given (`methods[i]`), as errors name it.
+    pub method_fields: Vec<Field>,
 }
 
 /// A given list (or the default) with the system's dimension and finite entries.
@@ -339,7 +344,51 @@ impl Simulation {
             schedule,
             compare_to_reference: spec.compare_to_reference,
             jacobian_defect: spec.jacobian_defect,
+            chaos: None,
+            method_fields: spec.methods.iter().map(|m| m.field.clone()).collect(),
         })
+    }
+
+    /// The same simulation with its runs reporting the chaos indicators of `spec`: checked
+    /// against the system's dimension, each method (it needs a step Jacobian) and the system (a
+    /// state-dependent damping needs the derivative of its projector).
+    pub fn with_chaos(mut self, spec: &ChaosSpec) -> Result<Simulation, CoreError> {
+        let plan = spec.plan(self.q0.len())?;
+        if self.jacobian_defect {
+            return Err(CoreError::Either {
+                field: spec.fields.indicators.clone(),
+                first: "`jacobian_defect`",
+                second: "`indicators`",
+            });
+        }
+        for (method, field) in self.methods.iter().zip(&self.method_fields) {
+            if let Some(why) = method.no_step_jacobian() {
+                return Err(CoreError::NoTangentMap {
+                    field: field.clone(),
+                    method: method.label(),
+                    system: self.system_label.clone(),
+                    why: format!("{why} no step Jacobian"),
+                });
+            }
+        }
+        let damping_derivative = with_system!(&self.system, s => {
+            let z = State::from_slices(s.dim(), &self.q0, &self.p0);
+            let n = self.q0.len();
+            s.projector_derivative(&z.q, &z.p, &mut nalgebra::DMatrix::zeros(n, n))
+        });
+        if !damping_derivative {
+            return Err(CoreError::NoTangentMap {
+                field: spec.fields.indicators.clone(),
+                method: "any method".into(),
+                system: self.system_label.clone(),
+                why: "the tangent maps of its damping flows need ∂(D(q)M⁻¹p)/∂q, which a damping \
+                      matrix D(q) of a definition does not provide (conformal damping and the \
+                      built-in spring damping do)"
+                    .into(),
+            });
+        }
+        self.chaos = Some(plan);
+        Ok(self)
     }
 
     /// The system's id.

@@ -24,6 +24,7 @@ use super::document::{
 };
 use super::run::{for_each_method, Sample, SampleSink};
 use super::spec::Simulation;
+use crate::chaos::{Indicator, IndicatorValues};
 use crate::diagnostics::{self, DriftPoint};
 use crate::error::{CoreError, ErrorCode, ErrorDetail};
 use crate::run::{Budget, RunStats};
@@ -65,6 +66,9 @@ pub struct StreamHeader {
     pub energy_error: bool,
     /// Whether chunks carry `jacobian_defect`.
     pub jacobian_defect: bool,
+    /// The chaos indicators chunks carry (absent when none were asked for).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub indicators: Vec<Indicator>,
     /// The sampling.
     pub schedule: ScheduleSummary,
 }
@@ -121,6 +125,8 @@ struct ChunkSink<'a> {
     open: bool,
     /// Times and positions kept for the dissipation drift (1-DOF systems only).
     kept: Option<(Vec<f64>, Vec<f64>)>,
+    /// The indicators of the last sample.
+    indicators: Option<IndicatorValues>,
 }
 
 impl ChunkSink<'_> {
@@ -148,6 +154,9 @@ impl SampleSink for ChunkSink<'_> {
         if let Some((t, q)) = &mut self.kept {
             t.push(sample.t);
             q.push(sample.q[0]);
+        }
+        if let Some(values) = sample.indicators {
+            self.indicators = Some(values.clone());
         }
         self.buffer.on_sample(sample);
         if self.buffer.len() >= CHUNK_SAMPLES || self.last_flush.elapsed() >= CHUNK_INTERVAL {
@@ -179,6 +188,11 @@ impl Simulation {
                 .collect(),
             energy_error: self.has_energy_error(),
             jacobian_defect: self.jacobian_defect,
+            indicators: self
+                .chaos
+                .as_ref()
+                .map(|c| c.indicators.clone())
+                .unwrap_or_default(),
             schedule: ScheduleSummary::of(self),
         }
     }
@@ -200,6 +214,7 @@ impl Simulation {
             emit,
             open: true,
             kept: (self.q0.len() == 1).then(|| (Vec::new(), Vec::new())),
+            indicators: None,
         };
         let started = Instant::now();
         let result = self.run_method(index, reference, budget, &mut sink);
@@ -226,6 +241,7 @@ impl Simulation {
                         .kept
                         .as_ref()
                         .and_then(|(t, q)| self.dissipation_drift(t, q)),
+                    indicators: sink.indicators.take(),
                     diverged_at: stop.diverged_at(),
                     stop,
                     stats,
@@ -387,6 +403,7 @@ mod tests {
             invariants: [("J3".to_string(), vec![3.0 * t])].into(),
             jacobian_defect: None,
             bodies: Some(vec![vec![t, 2.0 * t]]),
+            ..Columns::default()
         };
         let mut all = Columns::with_invariants(&["J3"]);
         all.extend(chunk(1.0));

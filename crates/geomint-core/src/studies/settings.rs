@@ -284,7 +284,7 @@ impl StudyJob {
                     shutdown: false,
                 })
             }
-            StopReason::Diverged { .. } => {
+            StopReason::Diverged { .. } | StopReason::Indicator(_) => {
                 return Err(CoreError::ReferenceUnfinished {
                     field: Field::new("reference"),
                     stop: stop_name(&outcome.stop).into(),
@@ -452,6 +452,7 @@ pub fn stop_name(stop: &StopReason) -> &'static str {
         StopReason::Diverged { .. } => "diverged",
         StopReason::Cancelled { .. } => "cancelled",
         StopReason::TimeLimit { .. } => "time_limit",
+        StopReason::Indicator(_) => "indicator",
     }
 }
 

@@ -5,6 +5,7 @@
 #[allow(dead_code)]
 mod common;
 
+mod chaos;
 mod charts;
 mod compositions;
 mod energy_map;

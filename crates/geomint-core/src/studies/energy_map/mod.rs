@@ -451,7 +451,9 @@ impl EnergyMapJob {
                 epsilon: None,
                 diverged_at: Some(t),
             }),
-            StopReason::Cancelled { .. } | StopReason::TimeLimit { .. } => None,
+            StopReason::Cancelled { .. }
+            | StopReason::TimeLimit { .. }
+            | StopReason::Indicator(_) => None,
         })
     }
 }
