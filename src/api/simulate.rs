@@ -8,9 +8,11 @@ use serde::Serialize;
 use serde_json::Value;
 use utoipa::ToSchema;
 
+use super::chaos::{self, Thresholds};
 use super::json::{self, boolean, count, numbers, string, Obj};
 use super::method::{read_method, read_methods, MethodSpec};
 use super::system::{read_system, SystemRequest};
+use crate::core::chaos::{ChaosSpec, Indicator};
 use crate::core::error::{CoreError, ErrorCode, ErrorDetail, Field};
 use crate::core::simulation::{
     InitialCoordinates, InputFields, Limits, MethodAt, Simulation, SimulationSpec,
@@ -79,6 +81,26 @@ pub struct SimulateRequest {
     /// Report |det ∂Φ/∂z − e^{−2γ h n}| of each sampled step (conformally damped systems only).
     #[serde(default)]
     pub jacobian_defect: bool,
+    /// Chaos indicators each run reports, per sample and in its summary, from deviation vectors
+    /// advanced by the method's own tangent map: `lyapunov` (the finite-time spectrum, largest
+    /// first), `megno` (Y and its mean ⟨Y⟩ as `megno` and `megno_mean`), `fli`, `sali`, `gali`.
+    /// Every method needs a step Jacobian (not `reference`, `rowlands`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    #[schema(example = json!(["megno", "lyapunov"]))]
+    pub indicators: Vec<Indicator>,
+    /// Deviation vectors k, 1 to 2n (default: 2n with `lyapunov` or `gali`, else 2 with `sali`,
+    /// else 1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(minimum = 1)]
+    pub deviations: Option<u64>,
+    /// Steps between re-orthonormalisations of the deviation vectors, which are also the steps
+    /// the indicators are updated on (default 10).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(minimum = 1)]
+    pub qr_every: Option<u64>,
+    /// Stop a run when an indicator reaches a threshold (reported as its stop reason).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stop_when: Option<Thresholds>,
 }
 
 /// Sampling options.
@@ -107,6 +129,10 @@ pub const REQUEST_FIELDS: &[&str] = &[
     "output",
     "compare_to_reference",
     "jacobian_defect",
+    "indicators",
+    "deviations",
+    "qr_every",
+    "stop_when",
 ];
 const OUTPUT_FIELDS: &[&str] = &["every"];
 
@@ -176,6 +202,11 @@ impl SimulateRequest {
             .optional("compare_to_reference", boolean)?
             .unwrap_or(false);
         req.jacobian_defect = obj.optional("jacobian_defect", boolean)?.unwrap_or(false);
+        let chaos = chaos::read(&obj)?;
+        req.indicators = chaos.indicators;
+        req.deviations = chaos.deviations;
+        req.qr_every = chaos.qr_every;
+        req.stop_when = chaos.stop_when;
         Ok(req)
     }
 
@@ -224,10 +255,25 @@ impl SimulateRequest {
         })
     }
 
+    /// The chaos indicators asked for, in core terms (`None`: none).
+    pub fn chaos_spec(&self) -> Result<Option<ChaosSpec>, CoreError> {
+        chaos::chaos_spec(
+            &self.indicators,
+            self.deviations,
+            self.qr_every,
+            self.stop_when.as_ref(),
+        )
+    }
+
     /// Validates the request against the catalogues and `limits` (cheap: no integration).
     pub fn prepare(&self, limits: &Limits) -> Result<Simulation, ErrorDetail> {
         let spec = self.to_spec()?;
-        Ok(Simulation::prepare(&spec, limits)?)
+        let chaos = self.chaos_spec()?;
+        let sim = Simulation::prepare(&spec, limits)?;
+        Ok(match chaos {
+            Some(chaos) => sim.with_chaos(&chaos)?,
+            None => sim,
+        })
     }
 }
 

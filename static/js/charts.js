@@ -10,6 +10,7 @@
 
 import uPlot from '../vendor/uPlot.esm.js';
 import { el } from './form.js';
+import { chaosSection } from './chaos.js';
 
 /** One colour per method (Okabe–Ito, then Tol's muted set), readable on white. */
 export const COLOURS = [
@@ -230,6 +231,8 @@ export class Charts {
     }
     sections.push({ id: 'energy', title: 'Energy', plots: energy,
       note: options.energyErrorSource ? null : 'No energy error: this system has no exact solution. Tick “compare to the reference” to measure it against the DOP853 reference.' });
+    const chaos = chaosSection(header, timePlot);
+    if (chaos) sections.push(chaos);
 
     const names = dof === 1 ? [''] : dof % 3 === 0 ? ['x', 'y', 'z'] : null;
     const coordinate = (i) => {

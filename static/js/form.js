@@ -8,6 +8,7 @@
 // method checkboxes are a MethodPicker, which the Your-system section (system.js) uses too.
 
 import { simulateJson } from './api.js';
+import { askIndicators, asksIndicators } from './chaos.js';
 
 /** Display groups of the method catalogue, in order. */
 const GROUPS = [
@@ -274,6 +275,7 @@ export class SimForm {
     this.registerStatic('t_end');
     this.registerStatic('output.every', 'every');
     this.registerStatic('compare_to_reference', 'compare');
+    this.registerStatic('indicators', 'chaos');
     this.registerStatic('system');
     this.registerStatic('chart');
     this.registerStatic('methods', null, this.methodsBox.querySelector('#err-methods'));
@@ -608,6 +610,7 @@ export class SimForm {
     this.form.querySelector('#t_end').value = numberText(request.t_end);
     this.form.querySelector('#every').value = request.output?.every ? String(request.output.every) : '';
     this.form.querySelector('#compare').checked = Boolean(request.compare_to_reference);
+    this.form.querySelector('#chaos').checked = asksIndicators(request);
   }
 
   /** The request body the form describes. Bad numbers are sent as null so the API names them. */
@@ -645,7 +648,7 @@ export class SimForm {
       const n = Number(every);
       request.output = { every: Number.isInteger(n) ? n : every };
     }
-    return request;
+    return askIndicators(request, this.form.querySelector('#chaos').checked);
   }
 
   /** Removes every error message. */

@@ -6,6 +6,7 @@
 
 import { el } from './form.js';
 import { colour } from './charts.js';
+import { collectIndicators, indicatorColumns } from './chaos.js';
 
 /** One method's samples and summary. */
 function emptyRun(label, invariants, energyError) {
@@ -100,6 +101,7 @@ export class RunStore {
       (run.invariants[name] ??= []).push(...values);
     }
     if (chunk.jacobian_defect) (run.jacobian_defect ??= []).push(...chunk.jacobian_defect);
+    collectIndicators(run, chunk);
   }
 
   /** Records a method's `summary` line. */
@@ -133,6 +135,8 @@ export class RunStore {
         doc.invariants = run.invariants;
         if (run.jacobian_defect) doc.jacobian_defect = run.jacobian_defect;
         if (run.dissipation_drift) doc.dissipation_drift = run.dissipation_drift;
+        Object.assign(doc, indicatorColumns(run));
+        if (run.summary?.indicators) doc.indicators = run.summary.indicators;
         doc.diverged_at = run.summary?.diverged_at ?? null;
         doc.stop = run.summary?.stop ?? { reason: 'incomplete' };
         doc.stats = run.summary?.stats ?? null;
@@ -148,6 +152,7 @@ const STOP_TEXT = {
   cancelled: 'cancelled',
   time_limit: 'time limit',
   failed: 'failed',
+  indicator: 'threshold reached',
 };
 
 function formatNumber(x, digits = 4) {

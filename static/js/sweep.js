@@ -9,6 +9,7 @@
 // error), for tests.
 
 import { ApiError, sweepPresets, sweepRrd, sweepStream } from './api.js';
+import { chaosMetrics } from './chaos.js';
 import { el } from './form.js';
 import { GridMap, bindCursor, drawScaleBar, fmt } from './heatmap.js';
 import { saveBlob, sizeText } from './rerun.js';
@@ -45,7 +46,8 @@ export function metricsOf(run) {
   for (const [name, values] of Object.entries(run.invariant_drift)) {
     out[`drift_${name}`] = { label: `drift of ${name}`, values, log: true };
   }
-  return out;
+  // A chaos map shows its indicators first.
+  return { ...chaosMetrics(run), ...out };
 }
 
 /** What a cell shows: a value on the scale, or null. */

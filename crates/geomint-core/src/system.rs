@@ -167,6 +167,13 @@ where
         }
     }
 
+    /// Whether P(q) of the damping r P(q) is an orthogonal projector, which the closed-form
+    /// damping flows and their tangent maps rely on (a user's general D(q)M⁻¹ is not one: its
+    /// flows go through an eigendecomposition).
+    fn damping_is_projector(&self) -> bool {
+        true
+    }
+
     /// The second derivatives of H at (q, p): `hqq` = ∂²H/∂q², `hqp` with entries ∂²H/∂q_i∂p_j,
     /// `hpp` = ∂²H/∂p² (all n×n). Newton's method in a non-separable chart uses them. Returns
     /// false when the system does not provide them; methods then difference ∂H/∂q and ∂H/∂p.

@@ -348,6 +348,18 @@ pub enum CoreError {
         /// The indicator that reports it.
         indicator: &'static str,
     },
+    /// An initial state whose solved momentum cannot bring H down to the energy surface.
+    #[error("{field}: no state here has H = {energy}: whatever `{solve_for}` is, H ≥ {}", show(*lowest))]
+    AboveEnergySurface {
+        /// The field (`energy_surface.energy`).
+        field: Field,
+        /// E.
+        energy: f64,
+        /// The momentum solved for (`p0[0]`).
+        solve_for: String,
+        /// The least H over the solved momentum.
+        lowest: f64,
+    },
     /// An energy surface H = E that no cell of a sweep's grid reaches.
     #[error("{field}: no cell of the grid has a state with H = {energy}: at every cell H stays above it whatever `{solve_for}` is; its least value is {} (cell {cell})", show(*lowest))]
     NoEnergySolution {
@@ -592,6 +604,7 @@ macro_rules! match_field {
             | CoreError::NeedsDeviations { field: $field, .. }
             | CoreError::ThresholdWithoutIndicator { field: $field, .. }
             | CoreError::NoEnergySolution { field: $field, .. }
+            | CoreError::AboveEnergySurface { field: $field, .. }
             | CoreError::Unsupported { field: $field, .. }
             | CoreError::OutsideChart { field: $field, .. }
             | CoreError::StateDiffers { field: $field, .. }

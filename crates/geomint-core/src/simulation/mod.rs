@@ -8,11 +8,13 @@
 //! - [`stream`]: the one way a whole simulation runs — its methods in parallel, emitting typed
 //!   lines that the NDJSON stream, the JSON document and the recordings consume.
 //! - [`document`]: the JSON document's types and the column collector.
+//! - [`surface`]: an initial state on an energy surface, one momentum solved from H = E.
 
 pub mod document;
 pub mod run;
 pub mod spec;
 pub mod stream;
+pub mod surface;
 
 pub use document::{
     ColumnSink, Columns, DivergedAt, RunDocument, RunOutcome, ScheduleSummary, SimulationDocument,
@@ -23,3 +25,4 @@ pub use spec::{
     InitialCoordinates, InputFields, Limits, MethodAt, Simulation, SimulationSpec, MAX_METHODS,
 };
 pub use stream::{DocumentCollector, StreamLine};
+pub use surface::EnergySurface;

@@ -6,10 +6,12 @@
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
-use crate::chaos::{ChaosPlan, ChaosSpec};
-use crate::error::{CoreError, Field, Range, StepScope};
+use crate::chaos::{self, ChaosPlan, ChaosSpec};
+use crate::error::{CoreError, Field, Range, StepError, StepScope};
+use crate::run::Stepper;
+use crate::tangent::Tangent;
 use crate::methods::build::{self, Origin};
-use crate::methods::Method;
+use crate::methods::{self, Method};
 use crate::run::{step_count, Schedule};
 use crate::system::{MechanicalSystem, State};
 use crate::systems::{
@@ -235,10 +237,13 @@ fn state_vector(
 
 impl Simulation {
     /// The predicted work, for admission before it starts: steps × phase-space coordinates
-    /// summed over the runs (a reference run beside each method counts as one more).
+    /// summed over the runs (a reference run beside each method counts as one more, and each
+    /// deviation vector as one more state).
     pub fn cost(&self) -> u64 {
         let runs = self.methods.len() as u64 * if self.compare_to_reference { 2 } else { 1 };
-        let coordinates = 2 * self.q0.len() as u64;
+        // Deviation vectors cost about as much as the state each.
+        let vectors = self.chaos.as_ref().map_or(1, |c| 1 + c.deviations as u64);
+        let coordinates = 2 * self.q0.len() as u64 * vectors;
         self.schedule
             .steps
             .saturating_mul(coordinates)
@@ -371,21 +376,24 @@ impl Simulation {
                 });
             }
         }
-        let damping_derivative = with_system!(&self.system, s => {
-            let z = State::from_slices(s.dim(), &self.q0, &self.p0);
-            let n = self.q0.len();
-            s.projector_derivative(&z.q, &z.p, &mut nalgebra::DMatrix::zeros(n, n))
-        });
-        if !damping_derivative {
-            return Err(CoreError::NoTangentMap {
-                field: spec.fields.indicators.clone(),
-                method: "any method".into(),
-                system: self.system_label.clone(),
-                why: "the tangent maps of its damping flows need ∂(D(q)M⁻¹p)/∂q, which a damping \
-                      matrix D(q) of a definition does not provide (conformal damping and the \
-                      built-in spring damping do)"
-                    .into(),
+        // Each method's tangent map, tried at the start: a system whose damping it cannot
+        // differentiate is refused here, by the stepper itself, rather than at the first step.
+        for (method, field) in self.methods.iter().zip(&self.method_fields) {
+            let refused = with_system!(&self.system, s => {
+                let mut z = State::from_slices(s.dim(), &self.q0, &self.p0);
+                let mut tangent = Tangent::with_columns(s, &z, chaos::frame::start(z.q.len(), 1));
+                methods::build(method, s, &self.system_label, self.schedule.h)
+                    .ok()
+                    .and_then(|mut st| st.step_tangent(s, &mut z, self.schedule.h, &mut tangent).err())
             });
+            if let Some(StepError::TangentUnsupported { reason }) = refused {
+                return Err(CoreError::NoTangentMap {
+                    field: field.clone(),
+                    method: method.label(),
+                    system: self.system_label.clone(),
+                    why: reason.to_string(),
+                });
+            }
         }
         self.chaos = Some(plan);
         Ok(self)

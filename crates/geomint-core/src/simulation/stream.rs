@@ -69,6 +69,9 @@ pub struct StreamHeader {
     /// The chaos indicators chunks carry (absent when none were asked for).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub indicators: Vec<Indicator>,
+    /// Deviation vectors per run (with `indicators`): the length of each `lyapunov` entry.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub deviations: Option<usize>,
     /// The sampling.
     pub schedule: ScheduleSummary,
 }
@@ -193,6 +196,7 @@ impl Simulation {
                 .as_ref()
                 .map(|c| c.indicators.clone())
                 .unwrap_or_default(),
+            deviations: self.chaos.as_ref().map(|c| c.deviations),
             schedule: ScheduleSummary::of(self),
         }
     }

@@ -6,6 +6,7 @@
 mod common;
 
 mod chaos;
+mod chaos_map;
 mod charts;
 mod compositions;
 mod energy_map;

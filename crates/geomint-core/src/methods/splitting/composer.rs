@@ -318,6 +318,13 @@ where
     ) -> Result<(), StepError> {
         let r = sys.damping_rate();
         let unsupported = no_projector_derivative;
+        if !sys.damping_is_projector() {
+            return Err(StepError::TangentUnsupported {
+                reason: "the exact damping flow e^{−τεD(q)M⁻¹} of a damping matrix that is not a \
+                         projector has no tangent map here (rk4 and implicit_midpoint linearise \
+                         the whole field)",
+            });
+        }
         match flow {
             Damp => {
                 tangent.load_damping(sys, &z.q, &z.p)?;
