@@ -146,6 +146,29 @@ test('a preset with two methods plots every sample the API returns', async () =>
   await page.screenshot({ path: join(artifacts, 'page.png'), fullPage: true });
 });
 
+test('chaos indicators are plotted beside the energy when asked for', async () => {
+  const before = consoleErrors.length;
+  const request = { ...presetRequest(...PRESET), indicators: ['lyapunov', 'megno', 'fli', 'sali'] };
+  await page.check('#chaos');
+  await page.click('#run');
+  await page.waitForSelector('body[data-run-state="done"]', { timeout: 30_000 });
+  const { status, body } = await simulate(request);
+  assert.equal(status, 200);
+  const positive = (values) => values.filter((v) => v > 0 && Number.isFinite(v)).length;
+  const expected = {
+    'chaos:megno_mean': body.runs.map((r) => r.megno_mean.length),
+    'chaos:lyapunov': body.runs.map((r) => r.lyapunov.length),
+    'chaos:fli': body.runs.map((r) => r.fli.length),
+    'chaos:sali': body.runs.map((r) => positive(r.sali)),
+  };
+  const plotted = await page.evaluate(() => window.geomint.pointCounts());
+  for (const [key, counts] of Object.entries(expected)) {
+    assert.deepEqual(plotted[key].map((s) => s.points), counts, `${key}: points per series`);
+  }
+  await page.uncheck('#chaos');
+  assert.deepEqual(consoleErrors.slice(before), [], 'console errors during the run');
+});
+
 test('the run downloads as .rrd and opens in the Rerun viewer', async () => {
   const before = consoleErrors.length;
   const failedBefore = failedRequests.length;

@@ -199,11 +199,13 @@ async fn simulate_answers_carry_the_indicators_in_json_and_ndjson() {
         "system": "henon_heiles", "params": {"lambda": 1}, "q0": [0, -0.25], "p0": [0.5103, 0],
         "methods": [{"id": "triple_jump", "base": "velocity_verlet"}, "csv1"], "h": 0.05, "t_end": 400,
         "output": {"every": 100}, "indicators": ["megno", "lyapunov", "sali", "gali"],
-        "stop_when": {"megno_mean": 4}});
+        "stop_when": {"megno_mean": 4}, "compare_to_reference": true});
     let (status, doc) = post_json(&server, "/api/v1/simulate", &body).await;
     assert_eq!(status, 200);
+    // The reference run (for the energy errors) tracks nothing and stops at the end.
     for run in doc["runs"].as_array().unwrap() {
         let n = run["t"].as_array().unwrap().len();
+        assert_eq!(run["energy_error"].as_array().unwrap().len(), n);
         for name in ["megno", "megno_mean", "sali", "gali", "lyapunov"] {
             assert_eq!(run[name].as_array().unwrap().len(), n, "{name}");
         }

@@ -10,7 +10,7 @@ use nalgebra::allocator::Allocator;
 use nalgebra::DefaultAllocator;
 
 use super::spec::Simulation;
-use crate::chaos::{IndicatorValues, Tracker};
+use crate::chaos::{ChaosPlan, IndicatorValues, Tracker};
 use crate::error::{CoreError, Field};
 use crate::methods::{self, Method, MethodId};
 use crate::run::{integrate_tracked, Budget, Observer, RunStats, StopReason, Tracking};
@@ -74,13 +74,27 @@ impl Simulation {
         self.run(&self.methods[index], reference, budget, sink)
     }
 
-    /// Runs `method` from this simulation's initial state over its schedule.
+    /// Runs `method` from this simulation's initial state over its schedule, with the chaos
+    /// indicators the simulation asks for.
     pub fn run(
         &self,
         method: &Method,
         reference: Option<&[f64]>,
         budget: Budget<'_>,
         sink: &mut dyn SampleSink,
+    ) -> Result<Outcome, CoreError> {
+        self.run_tracking(method, reference, budget, sink, self.chaos.as_ref())
+    }
+
+    /// [`Simulation::run`] with the indicators `chaos` (none for the reference run, whose
+    /// energies are all it gives).
+    fn run_tracking(
+        &self,
+        method: &Method,
+        reference: Option<&[f64]>,
+        budget: Budget<'_>,
+        sink: &mut dyn SampleSink,
+        chaos: Option<&ChaosPlan>,
     ) -> Result<Outcome, CoreError> {
         with_system!(&self.system, sys => {
             let mut stepper = methods::build(method, sys, &self.system_label, self.schedule.h)?;
@@ -103,10 +117,7 @@ impl Simulation {
                 indicators: None,
                 sample_index: 0,
             };
-            let mut tracker = self
-                .chaos
-                .as_ref()
-                .map(|plan| Tracker::new(sys, &z, plan, self.schedule.h));
+            let mut tracker = chaos.map(|plan| Tracker::new(sys, &z, plan, self.schedule.h));
             let tracking = match tracker.as_mut() {
                 Some(tracker) => Tracking::Chaos(tracker),
                 None if self.jacobian_defect && method.no_step_jacobian().is_none() => {
@@ -129,7 +140,7 @@ impl Simulation {
         let mut log = EnergyLog(Vec::with_capacity(self.schedule.samples() as usize));
         let field = Field::new("compare_to_reference");
         let outcome = self
-            .run(&Method::new(MethodId::Reference), None, budget, &mut log)
+            .run_tracking(&Method::new(MethodId::Reference), None, budget, &mut log, None)
             .map_err(|e| match e {
                 CoreError::Step {
                     step, t, source, ..
