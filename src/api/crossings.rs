@@ -4,14 +4,15 @@
 //! from an energy level) — read strictly and turned into the core's [`Watching`].
 //!
 //! `stop_when` is one object for every kind of early stop: an event is its members `where`,
-//! `direction` and `count`; other kinds (indicator thresholds) are members of their own beside
-//! them.
+//! `direction` and `count`; the chaos indicators' thresholds are members of their own beside
+//! them (and go to the core's [`ChaosSpec`](crate::core::chaos::ChaosSpec)).
 
 use serde::Serialize;
 use serde_json::Value;
 use utoipa::ToSchema;
 
 use super::json::{count, number, string, Obj};
+use crate::core::chaos::Statistic;
 use crate::core::error::{CoreError, ErrorCode, ErrorDetail, Field};
 use crate::core::sections::{Direction, EnergyLevel, EventSpec, SectionSpec, SurfaceSpec};
 use crate::core::simulation::Watching;
@@ -48,23 +49,67 @@ pub struct SectionRequest {
     pub max_points: Option<u64>,
 }
 
-/// What ends each run before `t_end`: the `count`-th crossing of the surface `where` in
-/// `direction` (an event; the run's `stop` is then `event`, at the crossing's time).
-#[derive(Clone, Debug, PartialEq, Serialize, ToSchema)]
+/// What ends each run before `t_end`: an event, the `count`-th crossing of the surface `where`
+/// in `direction` (the run's `stop` is then `event`, at the crossing's time), or a chaos
+/// indicator reaching its threshold (`stop` is then `indicator`; the indicator must be among the
+/// request's `indicators`). Give a surface, thresholds, or both: whichever comes first ends the
+/// run.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 #[schema(example = json!({"where": "y", "direction": "up", "count": 3}))]
 pub struct StopWhenRequest {
     /// The event's surface S = 0, named as a section's.
-    #[serde(rename = "where")]
-    pub surface: String,
-    /// Which crossings count: `up`, `down`, `both` (default).
+    #[serde(rename = "where", default, skip_serializing_if = "Option::is_none")]
+    pub surface: Option<String>,
+    /// Which crossings count: `up`, `down`, `both` (default); with `where` only.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schema(value_type = Option<Direction>)]
     pub direction: Option<String>,
-    /// The crossing that ends the run (1 to 10⁶; default 1).
+    /// The crossing that ends the run (1 to 10⁶; default 1); with `where` only.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schema(minimum = 1, maximum = 1000000)]
     pub count: Option<u64>,
+    /// The largest finite-time Lyapunov exponent reaching this value from below.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lyapunov_max: Option<f64>,
+    /// MEGNO Y(t) reaching this value from below.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub megno: Option<f64>,
+    /// MEGNO's running mean ⟨Y⟩(t) reaching this value from below.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(example = 8.0)]
+    pub megno_mean: Option<f64>,
+    /// The fast Lyapunov indicator reaching this value from below.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fli: Option<f64>,
+    /// SALI falling to this value.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sali: Option<f64>,
+    /// GALI_k falling to this value.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gali: Option<f64>,
+}
+
+impl StopWhenRequest {
+    fn threshold(&mut self, statistic: Statistic) -> &mut Option<f64> {
+        match statistic {
+            Statistic::LyapunovMax => &mut self.lyapunov_max,
+            Statistic::Megno => &mut self.megno,
+            Statistic::MegnoMean => &mut self.megno_mean,
+            Statistic::Fli => &mut self.fli,
+            Statistic::Sali => &mut self.sali,
+            Statistic::Gali => &mut self.gali,
+        }
+    }
+
+    /// The indicator thresholds given, in [`Statistic::ALL`]'s order.
+    pub fn thresholds(&self) -> Vec<(Statistic, f64)> {
+        let mut copy = self.clone();
+        Statistic::ALL
+            .into_iter()
+            .filter_map(|s| copy.threshold(s).map(|v| (s, v)))
+            .collect()
+    }
 }
 
 /// An energy level for the initial state: `momentum` (one of the system's momenta) is replaced
@@ -80,8 +125,19 @@ pub struct EnergyRequest {
 }
 
 const SECTION_FIELDS: &[&str] = &["where", "direction", "period", "phase", "max_points"];
-/// The members of `stop_when`.
-pub const STOP_FIELDS: &[&str] = &["where", "direction", "count"];
+/// The members of `stop_when`: an event's, then the indicator thresholds (named as the
+/// statistics, [`Statistic::as_str`]).
+pub const STOP_FIELDS: &[&str] = &[
+    "where",
+    "direction",
+    "count",
+    "lyapunov_max",
+    "megno",
+    "megno_mean",
+    "fli",
+    "sali",
+    "gali",
+];
 const ENERGY_FIELDS: &[&str] = &["value", "momentum"];
 
 /// `up`, `down` or `both`.
@@ -126,18 +182,30 @@ pub fn read_section(v: &Value, field: &Field) -> Result<SectionRequest, ErrorDet
     }
 }
 
-/// Reads `stop_when`.
+/// Reads `stop_when`: a surface (`where`, with `direction` and `count`), thresholds, or both.
 pub fn read_stop_when(v: &Value, field: &Field) -> Result<StopWhenRequest, ErrorDetail> {
     let o = Obj::new(v, field.clone(), STOP_FIELDS)?;
-    Ok(StopWhenRequest {
-        surface: o.required(
-            "where",
-            "the surface whose crossing ends the run, e.g. \"y\"",
-            string,
-        )?,
+    let mut stop = StopWhenRequest {
+        surface: o.optional("where", string)?,
         direction: o.optional("direction", direction)?,
         count: o.optional("count", |v, at| count(v, at, "a whole number ≥ 1"))?,
-    })
+        ..StopWhenRequest::default()
+    };
+    for statistic in Statistic::ALL {
+        *stop.threshold(statistic) = o.optional(statistic.as_str(), number)?;
+    }
+    if stop.surface.is_none() {
+        let why = if stop.direction.is_some() || stop.count.is_some() {
+            "the surface that `direction` and `count` are of, e.g. \"y\""
+        } else if stop.thresholds().is_empty() {
+            "the surface whose crossing ends the run, e.g. \"y\", or an indicator's threshold \
+             such as `megno_mean`"
+        } else {
+            return Ok(stop);
+        };
+        return Err(super::json::missing(&o.field("where"), why));
+    }
+    Ok(stop)
 }
 
 /// Reads `energy`.
@@ -175,11 +243,13 @@ pub fn watching(
             max_points: s.max_points.unwrap_or(DEFAULT_MAX_POINTS),
             field: Field::new("section"),
         }),
-        stop_when: stop_when.map(|s| EventSpec {
-            text: s.surface.clone(),
-            direction: parse(&s.direction, Direction::Both),
-            count: s.count.unwrap_or(1),
-            field: Field::new("stop_when"),
+        stop_when: stop_when.and_then(|s| {
+            Some(EventSpec {
+                text: s.surface.clone()?,
+                direction: parse(&s.direction, Direction::Both),
+                count: s.count.unwrap_or(1),
+                field: Field::new("stop_when"),
+            })
         }),
         energy: energy.map(|e| EnergyLevel {
             energy: e.value,

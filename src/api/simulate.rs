@@ -8,6 +8,7 @@ use serde::Serialize;
 use serde_json::Value;
 use utoipa::ToSchema;
 
+use super::chaos;
 use super::system::StoredSystems;
 use super::json::{self, boolean, count, numbers, string, Obj};
 use super::crossings::{
@@ -16,6 +17,7 @@ use super::crossings::{
 };
 use super::method::{read_method, read_methods, MethodSpec};
 use super::system::{read_system, SystemRequest};
+use crate::core::chaos::{ChaosSpec, Indicator};
 use crate::core::error::{CoreError, ErrorCode, ErrorDetail, Field};
 use crate::core::simulation::{
     InitialCoordinates, InputFields, Limits, MethodAt, Simulation, SimulationSpec,
@@ -89,12 +91,30 @@ pub struct SimulateRequest {
     /// streamed).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub section: Option<SectionRequest>,
-    /// What ends each run before `t_end` (an event: the n-th crossing of a surface).
+    /// What ends each run before `t_end`: an event (the n-th crossing of a surface), an
+    /// indicator's threshold, or both.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stop_when: Option<StopWhenRequest>,
     /// An energy level: one initial momentum solved for so that H(q0, p0) is the energy.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub energy: Option<EnergyRequest>,
+    /// Chaos indicators each run reports, per sample and in its summary, from deviation vectors
+    /// advanced by the method's own tangent map: `lyapunov` (the finite-time spectrum, largest
+    /// first), `megno` (Y and its mean ⟨Y⟩ as `megno` and `megno_mean`), `fli`, `sali`, `gali`.
+    /// Every method needs a step Jacobian (not `reference`, `rowlands`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    #[schema(example = json!(["megno", "lyapunov"]))]
+    pub indicators: Vec<Indicator>,
+    /// Deviation vectors k, 1 to 2n (default: 2n with `lyapunov` or `gali`, else 2 with `sali`,
+    /// else 1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(minimum = 1)]
+    pub deviations: Option<u64>,
+    /// Steps between re-orthonormalisations of the deviation vectors, which are also the steps
+    /// the indicators are updated on (default 10).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(minimum = 1)]
+    pub qr_every: Option<u64>,
 }
 
 /// Sampling options.
@@ -126,6 +146,9 @@ pub const REQUEST_FIELDS: &[&str] = &[
     "section",
     "stop_when",
     "energy",
+    "indicators",
+    "deviations",
+    "qr_every",
 ];
 const OUTPUT_FIELDS: &[&str] = &["every"];
 
@@ -198,6 +221,10 @@ impl SimulateRequest {
         req.section = obj.optional("section", read_section)?;
         req.stop_when = obj.optional("stop_when", read_stop_when)?;
         req.energy = obj.optional("energy", read_energy)?;
+        let chaos = chaos::read(&obj)?;
+        req.indicators = chaos.indicators;
+        req.deviations = chaos.deviations;
+        req.qr_every = chaos.qr_every;
         Ok(req)
     }
 
@@ -255,15 +282,30 @@ impl SimulateRequest {
         })
     }
 
+    /// The chaos indicators asked for, in core terms (`None`: none).
+    pub fn chaos_spec(&self) -> Result<Option<ChaosSpec>, CoreError> {
+        chaos::chaos_spec(
+            &self.indicators,
+            self.deviations,
+            self.qr_every,
+            self.stop_when.as_ref(),
+        )
+    }
+
     /// Validates the request against the catalogues and `limits` (cheap: no integration): the
-    /// simulation, then what its runs watch (section points count against the samples).
+    /// simulation, its indicators, then what its runs watch (section points count against the
+    /// samples).
     pub fn prepare(
         &self,
         limits: &Limits,
         stored: &dyn StoredSystems,
     ) -> Result<Simulation, ErrorDetail> {
         let spec = self.to_spec(stored)?;
-        let sim = Simulation::prepare(&spec, limits)?;
+        let chaos = self.chaos_spec()?;
+        let mut sim = Simulation::prepare(&spec, limits)?;
+        if let Some(chaos) = chaos {
+            sim = sim.with_chaos(&chaos)?;
+        }
         if let Some(section) = &self.section {
             let points = section
                 .max_points

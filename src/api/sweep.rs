@@ -12,13 +12,16 @@ use serde_json::{json, Value};
 use sha2::{Digest, Sha256};
 use utoipa::ToSchema;
 
+use super::chaos::{self, EnergySurfaceRequest};
+use super::crossings::{read_stop_when, StopWhenRequest};
 use super::system::StoredSystems;
 use super::json::{self, count, list, numbers, string, Obj};
 use super::method::{read_methods, MethodSpec};
 use super::simulate::initial_coordinates;
 use super::studies::EnergyMapRequest;
 use super::system::{read_system, SystemRequest};
-use crate::core::error::{ErrorCode, ErrorDetail, Field};
+use crate::core::chaos::Indicator;
+use crate::core::error::{CoreError, ErrorCode, ErrorDetail, Field};
 use crate::core::simulation::InitialCoordinates;
 use crate::core::studies::energy_map::FIG6_G;
 use crate::core::studies::sweep::{Axis, EnergyReference, Scale, SweepSpec, Target};
@@ -39,6 +42,11 @@ pub const SWEEP_FIELDS: &[&str] = &[
     "every",
     "energy_reference",
     "axes",
+    "indicators",
+    "deviations",
+    "qr_every",
+    "stop_when",
+    "energy_surface",
 ];
 
 /// The fields of an axis.
@@ -115,6 +123,26 @@ pub struct SweepRequest {
     /// One or two axes; cells are row-major, the first axis running fastest.
     #[schema(min_items = 1, max_items = 2)]
     pub axes: Vec<AxisRequest>,
+    /// Chaos indicators each run reports, as in a simulation; their last values are the sweep's
+    /// chaos maps (`lyapunov_max`, `megno`, `megno_mean`, `fli`, `sali`, `gali`, and
+    /// `stopped_at` where a threshold stopped a cell).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub indicators: Vec<Indicator>,
+    /// Deviation vectors, as in a simulation.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(minimum = 1)]
+    pub deviations: Option<u64>,
+    /// Steps between re-orthonormalisations, as in a simulation.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(minimum = 1)]
+    pub qr_every: Option<u64>,
+    /// Thresholds that stop a cell's run, as in a simulation.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stop_when: Option<StopWhenRequest>,
+    /// Initial states on the energy surface H = E: per cell, one momentum solved from the
+    /// energy while the axes vary other components (a Poincaré section).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub energy_surface: Option<EnergySurfaceRequest>,
 }
 
 fn axis(v: &Value, at: &Field) -> Result<AxisRequest, ErrorDetail> {
@@ -190,6 +218,7 @@ impl SweepRequest {
             }
             .into());
         }
+        let chaos = chaos::read(&obj)?;
         Ok(SweepRequest {
             system: obj.required(
                 "system",
@@ -215,6 +244,11 @@ impl SweepRequest {
                 "one or two axes, e.g. [{\"name\": \"h\", \"min\": 0.01, \"max\": 1, \"n\": 20}]",
                 |v, at| list(v, at, "a list of axes", axis),
             )?,
+            indicators: chaos.indicators,
+            deviations: chaos.deviations,
+            qr_every: chaos.qr_every,
+            stop_when: obj.optional("stop_when", read_thresholds)?,
+            energy_surface: obj.optional("energy_surface", chaos::read_surface)?,
         })
     }
 
@@ -298,6 +332,17 @@ impl SweepRequest {
                     })
                 })
                 .collect::<Result<_, ErrorDetail>>()?,
+            chaos: chaos::chaos_spec(
+                &self.indicators,
+                self.deviations,
+                self.qr_every,
+                self.stop_when.as_ref(),
+            )?,
+            energy_surface: self
+                .energy_surface
+                .as_ref()
+                .map(EnergySurfaceRequest::to_core)
+                .transpose()?,
             digest: self.digest(stored),
         })
     }
@@ -351,6 +396,47 @@ pub fn presets() -> Vec<Preset> {
             request: fig6,
         },
         Preset {
+            id: "henon_heiles_megno",
+            title: "Hénon–Heiles at E = 1/8: MEGNO ⟨Y⟩ over the (y, p_y) section at x = 0, p_x ≥ 0 \
+                    from the energy (⟨Y⟩ ≈ 2 on tori, growing as λt/2 in the chaotic sea; cells \
+                    outside the energy surface are marked)",
+            request: json!({
+                "system": "henon_heiles",
+                "methods": [{"id": "triple_jump", "base": "velocity_verlet"}],
+                "q0": [0.0, 0.0],
+                "p0": [0.0, 0.0],
+                "h": 0.05,
+                "t_end": 1000,
+                "every": 20000,
+                "indicators": ["megno"],
+                "energy_surface": {"energy": 0.125, "solve_for": "p0[0]"},
+                "axes": [
+                    {"name": "q0[1]", "min": -0.45, "max": 0.65, "n": 51},
+                    {"name": "p0[1]", "min": -0.5, "max": 0.5, "n": 51}
+                ]
+            }),
+        },
+        Preset {
+            id: "elastic_pendulum_chaos",
+            title: "Paper 001's question asked of chaos: MEGNO ⟨Y⟩ of the planar elastic pendulum \
+                    released at rest, symplectic Euler in Cartesian against polar coordinates",
+            request: json!({
+                "system": "elastic_pendulum_2d",
+                "charts": ["cartesian", "polar"],
+                "initial_coordinates": "cartesian",
+                "p0": [0.0, 0.0],
+                "methods": ["symplectic_euler"],
+                "h": 0.01,
+                "t_end": 100,
+                "every": 10000,
+                "indicators": ["megno"],
+                "axes": [
+                    {"name": "q0[0]", "min": -1.5, "max": 1.5, "n": 21},
+                    {"name": "q0[1]", "min": -1.5, "max": 1.5, "n": 21}
+                ]
+            }),
+        },
+        Preset {
             id: "csv1_stability",
             title: "Paper 003 Ch. 3: where csv1 diverges on the damped oscillator, over γ and h \
                     (compare with the linear stability map)",
@@ -366,4 +452,17 @@ pub fn presets() -> Vec<Preset> {
             }),
         },
     ]
+}
+
+/// A sweep's `stop_when`: thresholds of its indicators only (a sweep's runs watch no surface).
+fn read_thresholds(v: &Value, at: &Field) -> Result<StopWhenRequest, ErrorDetail> {
+    let stop = read_stop_when(v, at)?;
+    if stop.surface.is_some() {
+        return Err(CoreError::Unsupported {
+            field: at.key("where"),
+            reason: "a sweep's runs stop at indicator thresholds only, not at events",
+        }
+        .into());
+    }
+    Ok(stop)
 }

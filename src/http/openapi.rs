@@ -101,12 +101,20 @@ pub fn document() -> Value {
         exactly_one_of(schemas, "SectionRequest", &["where", "period"]);
         not_both(schemas, "SectionRequest", ["where", "phase"]);
         not_both(schemas, "SectionRequest", ["period", "direction"]);
+        at_least_one_of(
+            schemas,
+            "StopWhenRequest",
+            &["where", "lyapunov_max", "megno", "megno_mean", "fli", "sali", "gali"],
+        );
+        only_with(schemas, "StopWhenRequest", "direction", "where");
+        only_with(schemas, "StopWhenRequest", "count", "where");
         exactly_one_of(schemas, "SystemDefinition", &["potential", "hamiltonian"]);
         not_both(schemas, "SystemDefinition", ["hamiltonian", "mass"]);
         not_both(schemas, "ConvergenceRequest", ["chart", "charts"]);
         exactly_one_of(schemas, "RunSpec", &["h", "tolerance"]);
         exactly_one_of(schemas, "ReferenceRun", &["h", "tolerance"]);
         step_given_or_swept(schemas, "SweepRequest");
+        optional_flattened(schemas, "RunColumns", "ChaosColumns");
     }
     let on_recording = ["get_recording", "recording_samples", "delete_recording"];
     link_created(&mut doc, super::paths::RECORDINGS, &["201"], &on_recording);
@@ -312,6 +320,56 @@ fn exactly_one_of(schemas: &mut Map<String, Value>, name: &str, members: &[&str]
             "oneOf".into(),
             Value::Array(members.iter().map(|m| given(m)).collect()),
         );
+    }
+}
+
+/// Schema `name` flattens an optional `part` (members all present or all absent): utoipa
+/// writes it as "null or the part", which no object is, so the part is referred to as it is
+/// with none of its members required.
+fn optional_flattened(schemas: &mut Map<String, Value>, name: &str, part: &str) {
+    let reference = json!({"$ref": format!("#/components/schemas/{part}")});
+    if let Some(clauses) = schemas
+        .get_mut(name)
+        .and_then(|s| s.get_mut("allOf"))
+        .and_then(Value::as_array_mut)
+    {
+        for clause in clauses.iter_mut() {
+            let refers = clause
+                .get("oneOf")
+                .and_then(Value::as_array)
+                .is_some_and(|options| options.iter().any(|o| o["$ref"] == reference["$ref"]));
+            if refers {
+                *clause = reference.clone();
+            }
+        }
+    }
+    if let Some(Value::Object(schema)) = schemas.get_mut(part) {
+        schema.remove("required");
+    }
+}
+
+/// Schema `name` takes at least one of `members`.
+fn at_least_one_of(schemas: &mut Map<String, Value>, name: &str, members: &[&str]) {
+    if let Some(Value::Object(schema)) = schemas.get_mut(name) {
+        let any = json!({"anyOf": members.iter().map(|m| given(m)).collect::<Vec<_>>()});
+        all_of(schema, any);
+    }
+}
+
+/// Schema `name` takes `member` only beside `needs`.
+fn only_with(schemas: &mut Map<String, Value>, name: &str, member: &str, needs: &str) {
+    if let Some(Value::Object(schema)) = schemas.get_mut(name) {
+        all_of(schema, json!({"anyOf": [{"not": given(member)}, given(needs)]}));
+    }
+}
+
+/// Adds `clause` to the schema's `allOf`.
+fn all_of(schema: &mut Map<String, Value>, clause: Value) {
+    match schema.get_mut("allOf").and_then(Value::as_array_mut) {
+        Some(clauses) => clauses.push(clause),
+        None => {
+            schema.insert("allOf".into(), json!([clause]));
+        }
     }
 }
 

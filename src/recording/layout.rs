@@ -1,13 +1,15 @@
 //! Where a simulation's recording puts everything: the entity names and colours of each method,
 //! the invariants' parts, the phase portraits and what the world view shows ([`Layout`]); the
 //! sample times on the `step` timeline; the pieces the growing paths are logged in
-//! ([`path_blocks`]); and the default blueprint that arranges the views ([`send_blueprint`]).
+//! ([`path_blocks`]); and the default blueprint that arranges the views ([`send_blueprint`]),
+//! with a tab per chaos indicator when the runs carry them.
 
 use rerun::external::re_sdk_types::blueprint::components::ContainerKind;
 use rerun::RecordingStream;
 
 use super::blueprint::{self, Node};
 use super::{entity_names, entity_part, RecordingError};
+use crate::core::chaos::Indicator;
 use crate::core::simulation::stream::StreamHeader;
 use crate::core::simulation::SimulationDocument;
 use crate::core::systems::World;
@@ -36,7 +38,20 @@ pub struct Layout {
     pub dof: usize,
     /// Whether the runs collect a Poincaré section.
     pub section: bool,
+    /// The chaos indicators the runs carry, and the exponents of a `lyapunov` spectrum.
+    pub indicators: Vec<Indicator>,
+    /// Exponents per spectrum (with `lyapunov`).
+    pub exponents: usize,
 }
+
+/// The entity part of each scalar indicator series, and the view title.
+pub const INDICATOR_SERIES: [(Indicator, &str, &str); 5] = [
+    (Indicator::Megno, "megno_mean", "MEGNO ⟨Y⟩"),
+    (Indicator::Megno, "megno", "MEGNO Y"),
+    (Indicator::Fli, "fli", "FLI"),
+    (Indicator::Sali, "sali", "SALI"),
+    (Indicator::Gali, "gali", "GALI"),
+];
 
 impl Layout {
     /// The layout of a simulation of system `system` with `dof` degrees of freedom, methods
@@ -60,6 +75,8 @@ impl Layout {
             world,
             dof,
             section: false,
+            indicators: Vec::new(),
+            exponents: 0,
         }
     }
 
@@ -69,8 +86,32 @@ impl Layout {
         self
     }
 
+    /// The same layout with the chaos indicators `indicators` (`exponents` per spectrum).
+    pub fn with_indicators(mut self, indicators: Vec<Indicator>, exponents: usize) -> Self {
+        self.indicators = indicators;
+        self.exponents = exponents;
+        self
+    }
+
     /// The layout of a simulation's document.
     pub fn of(doc: &SimulationDocument) -> Self {
+        let columns = doc.runs.first().map(|r| &r.columns);
+        let indicators = columns.map_or(Vec::new(), |c| {
+            Indicator::ALL
+                .into_iter()
+                .filter(|i| match i {
+                    Indicator::Lyapunov => c.lyapunov.is_some(),
+                    Indicator::Megno => c.megno.is_some(),
+                    Indicator::Fli => c.fli.is_some(),
+                    Indicator::Sali => c.sali.is_some(),
+                    Indicator::Gali => c.gali.is_some(),
+                })
+                .collect()
+        });
+        let exponents = columns
+            .and_then(|c| c.lyapunov.as_ref())
+            .and_then(|l| l.first())
+            .map_or(0, Vec::len);
         Layout::new(
             doc.system.world.clone(),
             doc.system.q0.len(),
@@ -79,6 +120,7 @@ impl Layout {
             doc.runs.iter().any(|r| r.columns.energy_error.is_some()),
         )
         .with_section(doc.section.is_some())
+        .with_indicators(indicators, exponents)
     }
 
     /// The layout of a simulation announced by a stream's header.
@@ -91,6 +133,22 @@ impl Layout {
             header.energy_error,
         )
         .with_section(header.section.is_some())
+        .with_indicators(header.indicators.clone(), header.deviations.unwrap_or(0))
+    }
+
+    /// The entity paths of method `index`'s chaos indicators.
+    pub fn indicator_entities(&self, index: usize) -> Vec<String> {
+        let m = &self.methods[index];
+        let mut paths = Vec::new();
+        if self.indicators.contains(&Indicator::Lyapunov) {
+            paths.extend((0..self.exponents).map(|i| format!("/{m}/indicators/lyapunov/{i}")));
+        }
+        for (indicator, part, _) in INDICATOR_SERIES {
+            if self.indicators.contains(&indicator) {
+                paths.push(format!("/{m}/indicators/{part}"));
+            }
+        }
+        paths
     }
 
     /// Every entity path of method `index` that holds data, in a fixed order.
@@ -116,6 +174,7 @@ impl Layout {
             }
             paths.push(format!("/{m}/world/section"));
         }
+        paths.extend(self.indicator_entities(index));
         paths
     }
 }
@@ -195,6 +254,22 @@ fn blueprint_tree(layout: &Layout) -> Node {
         "force evaluations",
         each(&|m| format!("/{m}/force_evaluations")),
     ));
+    if layout.indicators.contains(&Indicator::Lyapunov) {
+        plots.push(Node::view(
+            "TimeSeries",
+            "Lyapunov spectrum",
+            each(&|m| format!("/{m}/indicators/lyapunov/**")),
+        ));
+    }
+    for (indicator, part, title) in INDICATOR_SERIES {
+        if layout.indicators.contains(&indicator) {
+            plots.push(Node::view(
+                "TimeSeries",
+                title,
+                each(&|m| format!("/{m}/indicators/{part}")),
+            ));
+        }
+    }
     let left = Node::container(
         ContainerKind::Vertical,
         vec![

@@ -15,6 +15,8 @@
 //! | `/{m}/world/path` | `LineStrips3D`, each body's path since the previous row | see [`path_blocks`](super::layout::path_blocks) |
 //! | `/{m}/section/{dof}` | `Points2D` (q, p) of a Poincaré section's point (runs with a `section`) | one per point, at its time and the step past it |
 //! | `/{m}/world/section` | `Points3D`, the bodies at the section's point, in physical space | one per point |
+//! | `/{m}/indicators/{name}` | `Scalars` + static `SeriesLines`: `megno_mean`, `megno`, `fli`, `sali`, `gali` (those asked for) | one per sample |
+//! | `/{m}/indicators/lyapunov/{i}` | `Scalars` + static `SeriesLines`: the i-th largest finite-time exponent | one per sample |
 //!
 //! Timelines: `step` (sequence) and `t` (duration, seconds). Every entity of a method carries
 //! its colour; all series of one quantity share the series name pattern so that the methods
@@ -171,6 +173,29 @@ pub struct RunLogger {
     section_logged: u64,
 }
 
+/// The series of a run's chaos indicators in `c`: (entity part, values).
+fn indicator_series(c: &Columns) -> Vec<(String, Vec<f64>)> {
+    let mut series = Vec::new();
+    if let Some(spectra) = &c.lyapunov {
+        let k = spectra.first().map_or(0, Vec::len);
+        for i in 0..k {
+            series.push((format!("lyapunov/{i}"), spectra.iter().map(|s| s[i]).collect()));
+        }
+    }
+    for (part, column) in [
+        ("megno_mean", &c.megno_mean),
+        ("megno", &c.megno),
+        ("fli", &c.fli),
+        ("sali", &c.sali),
+        ("gali", &c.gali),
+    ] {
+        if let Some(values) = column {
+            series.push((part.to_string(), values.clone()));
+        }
+    }
+    series
+}
+
 impl RunLogger {
     /// Logs the static styles of method `index` of `layout`, whose run is expected to have
     /// `expected` samples.
@@ -194,6 +219,9 @@ impl RunLogger {
         }
         for (_, part) in &layout.invariants {
             rec.log_static(format!("/{m}/invariants/{part}"), &series)?;
+        }
+        for path in layout.indicator_entities(index) {
+            rec.log_static(path, &series)?;
         }
         rec.log_static(
             format!("/{m}/force_evaluations"),
@@ -344,6 +372,9 @@ impl RunLogger {
             if let Some(values) = c.invariants.get(name) {
                 send_scalars(rec, &format!("/{m}/invariants/{part}"), &times, values)?;
             }
+        }
+        for (part, values) in indicator_series(c) {
+            send_scalars(rec, &format!("/{m}/indicators/{part}"), &times, &values)?;
         }
 
         // Phase portraits: the current state.

@@ -78,6 +78,22 @@ fn metrics(run: &RunColumns) -> Vec<(String, Vec<f64>, bool)> {
             true,
         ));
     }
+    if let Some(chaos) = &run.chaos {
+        // SALI and GALI fall over many decades in chaos: logarithmic maps.
+        for (name, values, log) in [
+            ("lyapunov_max", &chaos.lyapunov_max, false),
+            ("megno", &chaos.megno, false),
+            ("megno_mean", &chaos.megno_mean, false),
+            ("fli", &chaos.fli, false),
+            ("sali", &chaos.sali, true),
+            ("gali", &chaos.gali, true),
+            ("stopped_at", &chaos.stopped_at, false),
+        ] {
+            if values.iter().any(Option::is_some) {
+                out.push((name.to_string(), column(values, false), log));
+            }
+        }
+    }
     out
 }
 

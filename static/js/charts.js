@@ -10,6 +10,7 @@
 
 import uPlot from '../vendor/uPlot.esm.js';
 import { el } from './common.js';
+import { chaosSection } from './chaos.js';
 
 /** What the energy error is measured against (plot-options.js): its symbol and caption. */
 export const ENERGY_ERROR = {
@@ -244,6 +245,8 @@ export class Charts {
     }
     sections.push({ id: 'energy', title: 'Energy', plots: energy,
       note: against ? null : options.noEnergyErrorNote ?? NO_ENERGY_ERROR });
+    const chaos = chaosSection(header, timePlot);
+    if (chaos) sections.push(chaos);
 
     const names = dof === 1 ? [''] : dof % 3 === 0 ? ['x', 'y', 'z'] : null;
     const coordinate = (i) => {

@@ -9,6 +9,7 @@
 
 import { simulateJson } from './api.js';
 import { el, numberText, parseNumber, parseList } from './common.js';
+import { askIndicators, asksIndicators } from './chaos.js';
 
 /** Display groups of the method catalogue, in order. */
 const GROUPS = [
@@ -279,6 +280,7 @@ export class SimForm {
     this.registerStatic('t_end');
     this.registerStatic('output.every', 'every');
     this.registerStatic('compare_to_reference', 'compare');
+    this.registerStatic('indicators', 'chaos');
     this.registerStatic('system');
     this.registerStatic('chart');
     this.registerStatic('methods', null, this.methodsBox.querySelector('#err-methods'));
@@ -614,6 +616,7 @@ export class SimForm {
     this.form.querySelector('#t_end').value = numberText(request.t_end);
     this.form.querySelector('#every').value = request.output?.every ? String(request.output.every) : '';
     this.form.querySelector('#compare').checked = Boolean(request.compare_to_reference);
+    this.form.querySelector('#chaos').checked = asksIndicators(request);
   }
 
   /** The request body the form describes. Bad numbers are sent as null so the API names them. */
@@ -651,7 +654,7 @@ export class SimForm {
       const n = Number(every);
       request.output = { every: Number.isInteger(n) ? n : every };
     }
-    return request;
+    return askIndicators(request, this.form.querySelector('#chaos').checked);
   }
 
   /** Removes every error message. */

@@ -6,6 +6,7 @@
 
 import { el, fmt, saveBlob } from './common.js';
 import { colour } from './charts.js';
+import { collectIndicators, indicatorColumns } from './chaos.js';
 
 /** One method's samples and summary. */
 function emptyRun(label, invariants, energyError) {
@@ -108,6 +109,7 @@ export class RunStore {
       (run.invariants[name] ??= []).push(...values);
     }
     if (chunk.jacobian_defect) (run.jacobian_defect ??= []).push(...chunk.jacobian_defect);
+    collectIndicators(run, chunk);
   }
 
   /** Records a method's `summary` line. */
@@ -141,6 +143,8 @@ export class RunStore {
         doc.invariants = run.invariants;
         if (run.jacobian_defect) doc.jacobian_defect = run.jacobian_defect;
         if (run.dissipation_drift) doc.dissipation_drift = run.dissipation_drift;
+        Object.assign(doc, indicatorColumns(run));
+        if (run.summary?.indicators) doc.indicators = run.summary.indicators;
         doc.diverged_at = run.summary?.diverged_at ?? null;
         doc.stop = run.summary?.stop ?? { reason: 'incomplete' };
         doc.stats = run.summary?.stats ?? null;
@@ -156,6 +160,7 @@ const STOP_TEXT = {
   cancelled: 'cancelled',
   time_limit: 'time limit',
   failed: 'failed',
+  indicator: 'threshold reached',
 };
 
 /** Fills the stats table body with one row per method. */

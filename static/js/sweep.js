@@ -13,6 +13,7 @@ import { ApiError, sweepPresets, sweepRrd, sweepStream } from './api.js';
 import { StudyStream, OUTCOME } from './study-stream.js';
 import { downloadRecording, el, fmt, plural, saveBlob } from './common.js';
 import { GridMap, RATIO_RANGE, bindCursor, drawScaleBar, ratioColour } from './heatmap.js';
+import { chaosMetrics } from './chaos.js';
 
 /**
  * The colours of cells without a value on the scale, and what the legend says of them. On an
@@ -51,7 +52,8 @@ export function metricsOf(run) {
   for (const [name, values] of Object.entries(run.invariant_drift)) {
     out[`drift_${name}`] = { label: `drift of ${name}`, values, log: true };
   }
-  return out;
+  // A chaos map shows its indicators first.
+  return { ...chaosMetrics(run), ...out };
 }
 
 /** Decade ticks of a log₁₀ scale from `lo` to `hi`, at most about six, labelled as values. */

@@ -15,6 +15,7 @@
 // was refused or the text could not be read), running, done, cancelled, error.
 
 import { storeSystem, ApiError } from './api.js';
+import { askIndicators } from './chaos.js';
 import { el, numberText, parseNumber, parseList } from './common.js';
 import { MethodPicker } from './form.js';
 import { SimulationView } from './simulation.js';
@@ -150,7 +151,7 @@ export class SystemPanel {
     this.form = $('sys-form');
     this.fields = Object.fromEntries(['example', 'name', 'coordinates', 'momenta', 'mass', 'potential',
       'hamiltonian', 'gamma', 'epsilon', 'matrix', 'parameters', 'invariants', 'positions', 'q0', 'p0',
-      'h', 't_end', 'every', 'compare'].map((name) => [name, $(`sys-${name}`)]));
+      'h', 't_end', 'every', 'compare', 'chaos'].map((name) => [name, $(`sys-${name}`)]));
     this.ui = {
       alert: $('sys-alert'), examples: $('sys-examples'), stored: $('sys-stored'),
       separable: $('sys-separable'), general: $('sys-general'),
@@ -266,7 +267,8 @@ export class SystemPanel {
 
   /**
    * Fills the definition's inputs from `definition` and, if given, the run settings from `run`
-   * ({methods, h, t_end, every, compare}); the methods are chosen once a check says which apply.
+   * ({methods, h, t_end, every, compare, chaos}); the methods are chosen once a check says which
+   * apply.
    */
   fill(definition, run = null) {
     const f = this.fields;
@@ -299,6 +301,7 @@ export class SystemPanel {
       f.t_end.value = numberText(run.t_end);
       f.every.value = run.every ? String(run.every) : '';
       f.compare.checked = Boolean(run.compare);
+      f.chaos.checked = Boolean(run.chaos);
     }
     this.checked = null;
     this.ui.linkBox.hidden = true;
@@ -513,7 +516,7 @@ export class SystemPanel {
       const n = Number(every);
       request.output = { every: Number.isInteger(n) ? n : every };
     }
-    return request;
+    return askIndicators(request, f.chaos.checked);
   }
 
   /** Runs the definition (checked first, when it changed since its last check). */
@@ -534,6 +537,7 @@ export class SystemPanel {
     const every = parseNumber(f.every.value);
     if (every) run.every = every;
     if (f.compare.checked) run.compare = true;
+    if (f.chaos.checked) run.chaos = true;
     return { definition: this.readDefinition().definition, run };
   }
 
@@ -593,7 +597,7 @@ export class SystemPanel {
     if (/^methods?\b/.test(field)) {
       return this.picker.locate(field) ?? { input: null, error: this.root.querySelector('#err-sys-methods') };
     }
-    const runFields = { h: 'h', t_end: 't_end', 'output.every': 'every', compare_to_reference: 'compare' };
+    const runFields = { h: 'h', t_end: 't_end', 'output.every': 'every', compare_to_reference: 'compare', indicators: 'chaos' };
     if (runFields[field]) {
       const input = this.fields[runFields[field]];
       return { input, error: this.root.querySelector(`#err-${input.id}`) };

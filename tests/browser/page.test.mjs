@@ -146,6 +146,35 @@ test('a preset with two methods plots every sample the API returns', async () =>
   await page.screenshot({ path: join(artifacts, 'page.png'), fullPage: true });
 });
 
+test('chaos indicators are plotted beside the energy when asked for', async () => {
+  const before = consoleErrors.length;
+  const request = { ...presetRequest(...PRESET), indicators: ['lyapunov', 'megno', 'fli', 'sali'] };
+  await page.check('#chaos');
+  await page.click('#run');
+  // Done, and drawn with the indicators (the state may read done before the new run starts).
+  await page.waitForFunction(() => document.body.dataset.runState === 'done'
+    && 'chaos:megno_mean' in window.geomint.pointCounts(), null, { timeout: 30_000 });
+  const { status, body } = await simulate(request);
+  assert.equal(status, 200);
+  const positive = (values) => values.filter((v) => v > 0 && Number.isFinite(v)).length;
+  const expected = {
+    'chaos:megno_mean': body.runs.map((r) => r.megno_mean.length),
+    'chaos:lyapunov': body.runs.map((r) => r.lyapunov.length),
+    'chaos:fli': body.runs.map((r) => r.fli.length),
+    'chaos:sali': body.runs.map((r) => positive(r.sali)),
+  };
+  const plotted = await page.evaluate(() => window.geomint.pointCounts());
+  for (const [key, counts] of Object.entries(expected)) {
+    assert.deepEqual(plotted[key].map((s) => s.points), counts, `${key}: points per series`);
+  }
+  // The preset's run again, without them, for the tests that follow.
+  await page.uncheck('#chaos');
+  await page.click('#run');
+  await page.waitForFunction(() => document.body.dataset.runState === 'done'
+    && !Object.keys(window.geomint.pointCounts()).some((k) => k.startsWith('chaos:')), null, { timeout: 30_000 });
+  assert.deepEqual(consoleErrors.slice(before), [], 'console errors during the runs');
+});
+
 test('the run downloads as .rrd and opens in the Rerun viewer', async () => {
   const before = consoleErrors.length;
   const failedBefore = failedRequests.length;

@@ -201,7 +201,8 @@ async fn catalogs_match_the_core() {
             "elastic_pendulum_2d",
             "free_particle_2d",
             "exponential_decay",
-            "gompertz"
+            "gompertz",
+            "henon_heiles",
         ]
     );
     let omega = &systems[0]["params"][0];

@@ -195,7 +195,15 @@ async fn the_fig6_preset_equals_the_energy_map_route() {
         .iter()
         .map(|p| p["id"].as_str().unwrap())
         .collect();
-    assert_eq!(ids, vec!["fig6_energy_map", "csv1_stability"]);
+    assert_eq!(
+        ids,
+        vec![
+            "fig6_energy_map",
+            "henon_heiles_megno",
+            "elastic_pendulum_chaos",
+            "csv1_stability"
+        ]
+    );
     let mut fig6 = presets[0]["request"].clone();
     assert_eq!(fig6["axes"][0]["n"], 21);
     // A smaller grid and horizon, the same on both routes.
@@ -217,7 +225,7 @@ async fn the_fig6_preset_equals_the_energy_map_route() {
 
     // The stability preset runs as given.
     let (status, stability) =
-        post_json(&server, "/api/v1/studies/sweep", &presets[1]["request"]).await;
+        post_json(&server, "/api/v1/studies/sweep", &presets[3]["request"]).await;
     assert_eq!(status, 200);
     let diverged = stability["runs"][0]["diverged_at"].as_array().unwrap();
     assert_eq!(diverged.len(), 21 * 30);

@@ -11,6 +11,7 @@ mod decoded;
 #[allow(dead_code)]
 mod server;
 
+mod chaos;
 mod definitions;
 mod fuzz_definitions;
 mod fuzz_routes;

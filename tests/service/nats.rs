@@ -383,6 +383,16 @@ async fn every_study_on_nats_workers_equals_the_local_executor() {
             "/api/v1/studies/energy-map",
             json!({"nx": 9, "ny": 7, "t_max": 200}),
         ),
+        // A chaos map on the energy surface, its cells stopped by a threshold.
+        (
+            "/api/v1/studies/sweep",
+            json!({"system": "henon_heiles", "methods": ["velocity_verlet"],
+                "q0": [0.0, 0.0], "p0": [0.0, 0.0], "h": 0.05, "t_end": 200, "every": 4000,
+                "indicators": ["megno", "lyapunov"], "stop_when": {"megno_mean": 4},
+                "energy_surface": {"energy": 0.125, "solve_for": "p0[0]"},
+                "axes": [{"name": "q0[1]", "min": -0.45, "max": 0.65, "n": 9},
+                         {"name": "p0[1]", "min": -0.5, "max": 0.5, "n": 7}]}),
+        ),
     ];
     for (path, request) in studies {
         let before = shards_published(&url).await;

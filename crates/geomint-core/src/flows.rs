@@ -1,5 +1,5 @@
-//! Exact sub-flows that splitting methods compose (paper 000 Sec. 3, paper 003 Sec. 2.2), and
-//! their tangent maps for the Jacobian diagnostics.
+//! Exact sub-flows that splitting methods compose (paper 000 Sec. 3, paper 003 Sec. 2.2); their
+//! tangent maps are in [`crate::tangent`].
 //!
 //! With q frozen, the momentum equation p' = −∇V(q) − r P(q) p is linear with a constant
 //! projector P, so every flow here is exact and explicit:
@@ -16,9 +16,10 @@
 //! compositions with negative coefficients rely on.
 
 use nalgebra::allocator::Allocator;
-use nalgebra::{DMatrix, DefaultAllocator};
+use nalgebra::DefaultAllocator;
 
 use super::system::{MechanicalSystem, State, Vector};
+pub use super::tangent::Tangent;
 
 /// 1 − e^{−x}, accurate for small |x|.
 #[inline]
@@ -168,89 +169,4 @@ pub fn kick_damp_with<S: MechanicalSystem>(
         return;
     }
     sys.kick_damp_flow(&z.q, &mut z.p, grad, tau, (c, d), w, pw);
-}
-
-/// Work space for propagating a step's Jacobian ∂Φ/∂z (2n×2n, q rows first) alongside the step.
-/// Only systems with constant M and conformal damping (P = I) are supported; that is what the
-/// conformal-symplecticity diagnostics need.
-#[derive(Clone, Debug)]
-pub struct Tangent {
-    /// The accumulated Jacobian.
-    pub jac: DMatrix<f64>,
-    /// ∇²V at the current q.
-    pub hess: DMatrix<f64>,
-    /// M⁻¹ as a matrix.
-    pub minv: DMatrix<f64>,
-    /// Work matrix (n × 2n).
-    pub work: DMatrix<f64>,
-}
-
-impl Tangent {
-    /// The identity Jacobian for a system of dimension n, with M⁻¹ read off `sys`.
-    pub fn new<S: MechanicalSystem>(sys: &S, z: &State<S::Dim>) -> Self
-    where
-        DefaultAllocator: Allocator<S::Dim>,
-    {
-        let n = z.q.len();
-        let mut minv = DMatrix::zeros(n, n);
-        let mut e = z.p.clone();
-        let mut v = z.p.clone();
-        for j in 0..n {
-            e.fill(0.0);
-            e[j] = 1.0;
-            sys.velocity(&z.q, &e, &mut v);
-            for i in 0..n {
-                minv[(i, j)] = v[i];
-            }
-        }
-        Self {
-            jac: DMatrix::identity(2 * n, 2 * n),
-            hess: DMatrix::zeros(n, n),
-            minv,
-            work: DMatrix::zeros(n, 2 * n),
-        }
-    }
-
-    fn n(&self) -> usize {
-        self.minv.nrows()
-    }
-
-    /// Resets the accumulated Jacobian to the identity.
-    pub fn reset(&mut self) {
-        self.jac.fill_with_identity();
-    }
-
-    /// δq ← δq + τ M⁻¹ δp.
-    pub fn drift(&mut self, tau: f64) {
-        let n = self.n();
-        self.work.gemm(tau, &self.minv, &self.jac.rows(n, n), 0.0);
-        let mut top = self.jac.rows_mut(0, n);
-        top += &self.work;
-    }
-
-    /// δp ← a δp − b ∇²V δq, with ∇²V evaluated at q into `hess` beforehand.
-    pub fn kick_scaled(&mut self, a: f64, b: f64) {
-        let n = self.n();
-        self.work.gemm(-b, &self.hess, &self.jac.rows(0, n), 0.0);
-        let mut bottom = self.jac.rows_mut(n, n);
-        bottom *= a;
-        bottom += &self.work;
-    }
-
-    /// Evaluates ∇²V at q into `hess`; returns the gradient evaluations it took.
-    pub fn load_hessian<S: MechanicalSystem>(&mut self, sys: &S, q: &Vector<S::Dim>) -> u64
-    where
-        DefaultAllocator: Allocator<S::Dim>,
-    {
-        sys.hess_potential(q, &mut self.hess)
-    }
-}
-
-impl Tangent {
-    /// δq ← c δq.
-    pub fn scale_q(&mut self, c: f64) {
-        let n = self.n();
-        let mut top = self.jac.rows_mut(0, n);
-        top *= c;
-    }
 }

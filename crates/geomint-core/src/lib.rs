@@ -8,12 +8,14 @@
 //!
 //! - [`system`] and [`systems`]: what a mechanical system is, and the catalogue of them
 //!   (with users' definitions, compiled from [`expr`]).
-//! - [`flows`] and [`methods`]: exact sub-flows, and the methods built from them.
+//! - [`flows`] and [`methods`]: exact sub-flows, and the methods built from them;
+//!   [`tangent`]: their tangent maps.
 //! - [`run`]: the driver loop.
 //! - [`simulation`]: a simulation from its spec to its stream of samples and its document.
 //! - [`sections`]: Poincaré sections and events, located by Hénon's trick.
 //! - [`studies`]: convergence, work–precision, energy maps, stability maps, sweeps.
 //! - [`stability`], [`diagnostics`]: linear stability analysis; drift and fits.
+//! - [`chaos`]: Lyapunov spectra, MEGNO, FLI, SALI and GALI from the methods' tangent maps.
 //! - [`error`]: typed errors with their fields, numbers and codes; with the `openapi` feature,
 //!   `schema`: OpenAPI schemas of the catalogue ids.
 //!
@@ -36,6 +38,7 @@
 //! ```
 #![warn(missing_docs)]
 
+pub mod chaos;
 pub mod diagnostics;
 pub mod error;
 pub mod expr;
@@ -50,3 +53,4 @@ pub mod stability;
 pub mod studies;
 pub mod system;
 pub mod systems;
+pub mod tangent;

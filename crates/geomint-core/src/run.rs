@@ -20,9 +20,10 @@ use nalgebra::allocator::Allocator;
 use nalgebra::DefaultAllocator;
 use serde::Serialize;
 
+use super::chaos::{IndicatorValues, ThresholdStop, Tracker};
 use super::error::{CoreError, StepError};
-use super::flows::Tangent;
 use super::system::{MechanicalSystem, State};
+use super::tangent::Tangent;
 
 /// A one-step method for systems of type `S`. Explicit implementations keep their work buffers,
 /// so a step allocates nothing. A stepper may keep the last force evaluation for the next step
@@ -95,7 +96,7 @@ where
         _sys: &S,
         _z: &mut State<S::Dim>,
         _h: f64,
-        _tangent: &mut Tangent,
+        _tangent: &mut Tangent<S::Dim>,
     ) -> Result<(), StepError> {
         Err(StepError::TangentUnsupported {
             reason: "this method has no tangent map",
@@ -144,7 +145,7 @@ where
         sys: &S,
         z: &mut State<S::Dim>,
         h: f64,
-        tangent: &mut Tangent,
+        tangent: &mut Tangent<S::Dim>,
     ) -> Result<(), StepError> {
         (**self).step_tangent(sys, z, h, tangent)
     }
@@ -277,6 +278,8 @@ pub enum StopReason {
         /// The time of the event itself, between that step's start and end.
         t: f64,
     },
+    /// A chaos indicator reached the threshold the request set (`stop_when`).
+    Indicator(ThresholdStop),
 }
 
 /// Run statistics, shared by every output format.
@@ -315,18 +318,28 @@ where
     fn on_step(&mut self, _step: u64, _t: f64, _z: &State<D>) -> ControlFlow<f64> {
         ControlFlow::Continue(())
     }
+
+    /// The chaos indicators at the sample that follows (only when asked for).
+    fn on_indicators(&mut self, _values: &IndicatorValues) {}
+}
+
+/// What a run propagates besides the state.
+pub enum Tracking<'a, D: nalgebra::Dim>
+where
+    DefaultAllocator: Allocator<D>,
+{
+    /// Nothing.
+    Off,
+    /// Each step's Jacobian, whose determinant goes to the observer.
+    Determinant,
+    /// Deviation vectors and the chaos indicators, which go to the observer before each sample.
+    Chaos(&'a mut Tracker<D>),
 }
 
 /// Runs `stepper` from `z` over `schedule`, reporting samples to `observer`.
 ///
 /// With `track_determinant`, each step also propagates its Jacobian (slower; for diagnostics)
-/// and reports det ∂Φ/∂z to the observer.
-///
-/// For a processing method (see [`Stepper::pre_process`]) the sample at step 0 is the caller's
-/// state as given, `z` is pre-processed once before the first step, the later samples are
-/// post-processed kernel states, and on return `z` holds the post-processed final state (the
-/// kernel state if the run diverged). Methods without processing see none of this: their loop is
-/// the same.
+/// and reports det ∂Φ/∂z to the observer. See [`integrate_tracked`].
 pub fn integrate<S, M, O>(
     sys: &S,
     stepper: &mut M,
@@ -342,20 +355,51 @@ where
     O: Observer<S::Dim>,
     DefaultAllocator: Allocator<S::Dim>,
 {
+    let tracking = if track_determinant {
+        Tracking::Determinant
+    } else {
+        Tracking::Off
+    };
+    integrate_tracked(sys, stepper, z, schedule, budget, tracking, observer)
+}
+
+/// Runs `stepper` from `z` over `schedule`, reporting samples to `observer`, with the tangent
+/// dynamics `tracking` asks for: none, each step's Jacobian (its determinant reported per
+/// step), or deviation vectors with their chaos indicators (reported before each sample; a
+/// threshold passed stops the run there, with a last sample).
+///
+/// For a processing method (see [`Stepper::pre_process`]) the sample at step 0 is the caller's
+/// state as given, `z` is pre-processed once before the first step, the later samples are
+/// post-processed kernel states, and on return `z` holds the post-processed final state (the
+/// kernel state if the run diverged). Methods without processing see none of this: their loop is
+/// the same. Tangent dynamics follow the kernel.
+pub fn integrate_tracked<S, M, O>(
+    sys: &S,
+    stepper: &mut M,
+    z: &mut State<S::Dim>,
+    schedule: Schedule,
+    budget: Budget<'_>,
+    mut tracking: Tracking<'_, S::Dim>,
+    observer: &mut O,
+) -> Result<(StopReason, RunStats), CoreError>
+where
+    S: MechanicalSystem,
+    M: Stepper<S> + ?Sized,
+    O: Observer<S::Dim>,
+    DefaultAllocator: Allocator<S::Dim>,
+{
     let started = Instant::now();
     let h = schedule.h;
     let every = schedule.every.max(1);
-    // Tangent propagation costs O(n³) per step: look at the budget every step then.
-    let check_every = if track_determinant {
-        1
-    } else {
-        stepper.check_interval().max(1)
+    // Jacobian propagation costs O(n³) per step: look at the budget every step then.
+    let check_every = match tracking {
+        Tracking::Determinant => 1,
+        _ => stepper.check_interval().max(1),
     };
     let watch = observer.watches_steps();
-    let mut tangent = if track_determinant {
-        Some(Tangent::new(sys, z))
-    } else {
-        None
+    let mut jacobian = match tracking {
+        Tracking::Determinant => Some(Tangent::new(sys, z)),
+        _ => None,
     };
     // A step that fails, counted from 0; a failing processor is charged to the step it is
     // applied with (the first, or the one that ends at the output).
@@ -366,6 +410,9 @@ where
         t: step as f64 * h,
         source,
     };
+    if let Tracking::Chaos(tracker) = &mut tracking {
+        observer.on_indicators(&tracker.peek(0));
+    }
     observer.on_sample(0, 0.0, z);
     stepper.set_deadline(budget.deadline);
     // The post-processed state of the last sample, and that sample's step.
@@ -399,17 +446,8 @@ where
         } else {
             next_sample.min(next_check).min(schedule.steps)
         };
-        match tangent.as_mut() {
-            None => {
-                let (done, outcome) = stepper.advance(sys, z, h, until - step);
-                step += done;
-                match outcome {
-                    Ok(()) => {}
-                    Err(StepError::DeadlinePassed) => stop = StopReason::TimeLimit { step },
-                    Err(e) => return Err(fail(step, e)),
-                }
-            }
-            Some(tg) => {
+        match (&mut tracking, jacobian.as_mut()) {
+            (Tracking::Determinant, Some(tg)) => {
                 while step < until {
                     tg.reset();
                     stepper
@@ -420,6 +458,36 @@ where
                     if !z.is_finite() {
                         break;
                     }
+                }
+            }
+            (Tracking::Chaos(tracker), _) => {
+                while step < until {
+                    stepper
+                        .step_tangent(sys, z, h, &mut tracker.tangent)
+                        .map_err(|e| fail(step, e))?;
+                    step += 1;
+                    if !finite(z) {
+                        break;
+                    }
+                    if let Some((indicator, value, threshold)) = tracker.after_step(step) {
+                        stop = StopReason::Indicator(ThresholdStop {
+                            step,
+                            t: step as f64 * h,
+                            indicator,
+                            value,
+                            threshold,
+                        });
+                        break;
+                    }
+                }
+            }
+            _ => {
+                let (done, outcome) = stepper.advance(sys, z, h, until - step);
+                step += done;
+                match outcome {
+                    Ok(()) => {}
+                    Err(StepError::DeadlinePassed) => stop = StopReason::TimeLimit { step },
+                    Err(e) => return Err(fail(step, e)),
                 }
             }
         }
@@ -433,7 +501,9 @@ where
             };
             break;
         }
-        let due = step % every == 0 || step == schedule.steps;
+        // A chaos indicator past its threshold ends the run with a last sample.
+        let indicator_stop = matches!(stop, StopReason::Indicator(_));
+        let due = step % every == 0 || step == schedule.steps || indicator_stop;
         let mut event = false;
         if watch || due {
             let is_processed = stepper
@@ -447,13 +517,16 @@ where
                 }
             }
             if due || event {
+                if let Tracking::Chaos(tracker) = &mut tracking {
+                    observer.on_indicators(&tracker.peek(step));
+                }
                 if is_processed {
                     processed_at = Some(step);
                 }
                 observer.on_sample(step, step as f64 * h, output);
             }
         }
-        if event {
+        if event || indicator_stop {
             break;
         }
     }

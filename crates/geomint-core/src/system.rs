@@ -180,6 +180,31 @@ where
         2 * n as u64
     }
 
+    /// ∂(P(q)v)/∂q (n×n, entry (i, j) = ∂(P(q)v)_i/∂q_j) for a damping r P(q), which the
+    /// tangent maps of the damping flows need; returns false when the system cannot give it.
+    /// The default answers for P = I (conformal damping) and for no damping, where it is zero,
+    /// and refuses a state-dependent damping: a system with one overrides this.
+    fn projector_derivative(
+        &self,
+        _q: &Vector<Self::Dim>,
+        _v: &Vector<Self::Dim>,
+        out: &mut DMatrix<f64>,
+    ) -> bool {
+        if self.damping_rate() == 0.0 || self.structure().conformal_damping {
+            out.fill(0.0);
+            true
+        } else {
+            false
+        }
+    }
+
+    /// Whether P(q) of the damping r P(q) is an orthogonal projector, which the closed-form
+    /// damping flows and their tangent maps rely on (a user's general D(q)M⁻¹ is not one: its
+    /// flows go through an eigendecomposition).
+    fn damping_is_projector(&self) -> bool {
+        true
+    }
+
     /// The second derivatives of H at (q, p): `hqq` = ∂²H/∂q², `hqp` with entries ∂²H/∂q_i∂p_j,
     /// `hpp` = ∂²H/∂p² (all n×n). Newton's method in a non-separable chart uses them. Returns
     /// false when the system does not provide them; methods then difference ∂H/∂q and ∂H/∂p.

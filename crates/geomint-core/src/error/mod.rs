@@ -322,6 +322,70 @@ pub enum CoreError {
         /// Why it has none, as the method's catalogue entry says.
         why: &'static str,
     },
+    /// A method with no tangent map on this system, where chaos indicators need one.
+    #[error(
+        "{field}: `{method}` has no tangent map on `{system}`: {why}; drop it or the indicators"
+    )]
+    NoTangentMap {
+        /// The method's field (`methods[1]`), or `indicators` when the system is the reason.
+        field: Field,
+        /// The method's label.
+        method: String,
+        /// The system (and chart).
+        system: String,
+        /// Why.
+        why: String,
+    },
+    /// Too few deviation vectors for an indicator.
+    #[error("{field}: `{indicator}` needs at least {needed} deviation vectors, got {got}")]
+    NeedsDeviations {
+        /// The field (`deviations`).
+        field: Field,
+        /// The indicator.
+        indicator: &'static str,
+        /// Vectors it needs.
+        needed: usize,
+        /// Vectors asked for.
+        got: usize,
+    },
+    /// A threshold on a statistic whose indicator is not asked for.
+    #[error(
+        "{field}: a threshold on `{statistic}` needs the indicator `{indicator}` in `indicators`"
+    )]
+    ThresholdWithoutIndicator {
+        /// The field (`stop_when.<statistic>`).
+        field: Field,
+        /// The statistic.
+        statistic: &'static str,
+        /// The indicator that reports it.
+        indicator: &'static str,
+    },
+    /// An initial state whose solved momentum cannot bring H down to the energy surface.
+    #[error("{field}: no state here has H = {energy}: whatever `{solve_for}` is, H ≥ {}", show(*lowest))]
+    AboveEnergySurface {
+        /// The field (`energy_surface.energy`).
+        field: Field,
+        /// E.
+        energy: f64,
+        /// The momentum solved for (`p0[0]`).
+        solve_for: String,
+        /// The least H over the solved momentum.
+        lowest: f64,
+    },
+    /// An energy surface H = E that no cell of a sweep's grid reaches.
+    #[error("{field}: no cell of the grid has a state with H = {energy}: at every cell H stays above it whatever `{solve_for}` is; its least value is {} (cell {cell})", show(*lowest))]
+    NoEnergySolution {
+        /// The field (`energy_surface.energy`).
+        field: Field,
+        /// E.
+        energy: f64,
+        /// The momentum solved for (`p0[0]`).
+        solve_for: String,
+        /// The least H over the solved momentum, at the best cell.
+        lowest: f64,
+        /// That cell.
+        cell: usize,
+    },
     /// A request the computation does not support, with the reason.
     #[error("{field}: {reason}")]
     Unsupported {
@@ -549,6 +613,11 @@ macro_rules! match_field {
             | CoreError::Unmet { field: $field, .. }
             | CoreError::TimeDependent { field: $field, .. }
             | CoreError::NoStepJacobian { field: $field, .. }
+            | CoreError::NoTangentMap { field: $field, .. }
+            | CoreError::NeedsDeviations { field: $field, .. }
+            | CoreError::ThresholdWithoutIndicator { field: $field, .. }
+            | CoreError::NoEnergySolution { field: $field, .. }
+            | CoreError::AboveEnergySurface { field: $field, .. }
             | CoreError::Unsupported { field: $field, .. }
             | CoreError::OutsideChart { field: $field, .. }
             | CoreError::StateDiffers { field: $field, .. }

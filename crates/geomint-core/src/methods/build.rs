@@ -163,7 +163,7 @@ where
         sys: &S,
         z: &mut State<S::Dim>,
         h: f64,
-        t: &mut Tangent,
+        t: &mut Tangent<S::Dim>,
     ) -> Result<(), StepError> {
         with_stepper!(self, st => st.step_tangent(sys, z, h, t))
     }

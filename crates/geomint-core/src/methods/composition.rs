@@ -269,7 +269,7 @@ where
         sys: &S,
         z: &mut State<S::Dim>,
         h: f64,
-        tangent: &mut Tangent,
+        tangent: &mut Tangent<S::Dim>,
     ) -> Result<(), StepError> {
         for &w in &self.weights {
             self.base.step_tangent(sys, z, w * h, tangent)?;
@@ -367,7 +367,7 @@ where
         sys: &S,
         z: &mut State<S::Dim>,
         h: f64,
-        tangent: &mut Tangent,
+        tangent: &mut Tangent<S::Dim>,
     ) -> Result<(), StepError> {
         self.kernel.step_tangent(sys, z, h, tangent)
     }

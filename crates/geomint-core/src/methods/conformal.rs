@@ -92,7 +92,7 @@ where
         sys: &S,
         z: &mut State<S::Dim>,
         h: f64,
-        tangent: &mut Tangent,
+        tangent: &mut Tangent<S::Dim>,
     ) -> Result<(), StepError> {
         let a = 0.25 * sys.damping_rate() * h;
         let e = (-a).exp();

@@ -18,9 +18,9 @@ use nalgebra::{DMatrix, DVector, DefaultAllocator};
 use super::sources::*;
 use super::{Citation, Group, Kind, MethodInfo, Requirement};
 use crate::error::StepError;
-use crate::flows::Tangent;
 use crate::run::Stepper;
 use crate::system::{MechanicalSystem, State, Vector};
+use crate::tangent::Tangent;
 
 /// Which vector field the midpoint rule discretizes.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -246,15 +246,27 @@ where
         1
     }
 
-    /// (I − h/2 J(m)) δz₁ = (I + h/2 J(m)) δz₀, times e^{−γh} for cimp.
+    /// (I − h/2 J(m)) δz₁ = (I + h/2 J(m)) δz₀, times e^{−γh} for cimp. J is the Jacobian Newton
+    /// used last where it is analytic (separable H, conformal damping: it differs from J at the
+    /// converged midpoint by the last correction); otherwise J at the midpoint from the system's
+    /// second derivatives (and its damping projector's derivative), which Newton's finite
+    /// differences only approximate. The linear solve allocates, as Newton's does.
     fn step_tangent(
         &mut self,
         sys: &S,
         z: &mut State<S::Dim>,
         h: f64,
-        tangent: &mut Tangent,
+        tangent: &mut Tangent<S::Dim>,
     ) -> Result<(), StepError> {
         self.advance(sys, z, h)?;
+        if !self.analytic_jacobian {
+            let mid = self.mid.clone();
+            self.load(&mid);
+            self.force_evaluations +=
+                tangent.load_second_derivatives(sys, &self.work.q, &self.work.p);
+            tangent.load_damping(sys, &self.work.q, &self.work.p)?;
+            tangent.field_jacobian(sys.damping_rate(), &mut self.jac);
+        }
         let n2 = 2 * self.n;
         let lhs = DMatrix::<f64>::identity(n2, n2) - (0.5 * h) * &self.jac;
         let rhs = DMatrix::<f64>::identity(n2, n2) + (0.5 * h) * &self.jac;

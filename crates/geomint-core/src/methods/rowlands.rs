@@ -335,7 +335,7 @@ where
         _sys: &S,
         _z: &mut State<S::Dim>,
         _h: f64,
-        _tangent: &mut Tangent,
+        _tangent: &mut Tangent<S::Dim>,
     ) -> Result<(), StepError> {
         Err(StepError::TangentUnsupported {
             reason: "rowlands has no tangent map: its kick's Jacobian needs third derivatives of V",

@@ -8,9 +8,10 @@ use nalgebra::{DMatrix, DefaultAllocator, Dim};
 use super::sources::*;
 use super::{unroll, Citation, Group, Kind, Known, MethodInfo};
 use crate::error::StepError;
-use crate::flows::{self, Tangent};
+use crate::flows;
 use crate::run::Stepper;
 use crate::system::{MechanicalSystem, State, Vector};
+use crate::tangent::{mul_into, Tangent};
 
 /// An explicit Butcher tableau: stage i uses `a[i][j]` for j < i.
 #[derive(Debug)]
@@ -142,7 +143,11 @@ where
     stage: State<D>,
     scratch: Vector<D>,
     force_evaluations: u64,
+    /// The stages of the variational equation (2n × k each), their argument and the field's
+    /// Jacobian (2n × 2n), allocated at the first tangent step.
     stage_tangents: Vec<DMatrix<f64>>,
+    tangent_arg: DMatrix<f64>,
+    field: DMatrix<f64>,
 }
 
 impl<D: Dim, T: TableauSource> RungeKutta<D, T>
@@ -164,6 +169,8 @@ where
             scratch: zero,
             force_evaluations: 0,
             stage_tangents: Vec::new(),
+            tangent_arg: DMatrix::zeros(0, 0),
+            field: DMatrix::zeros(0, 0),
         }
     }
 }
@@ -202,38 +209,50 @@ where
         self.force_evaluations
     }
 
-    /// The variational equation integrated by the same tableau: K_i = J(Z_i)(Y + h Σ a_ij K_j), with Y the Jacobian so far,
-    /// with J = [[0, M⁻¹], [−∇²V, −r I]] (constant M, conformal damping).
+    /// The variational equation integrated by the same tableau, which is the exact linearisation
+    /// of the step: K_i = J(Z_i)(Y + h Σ_j a_ij K_j), Y ← Y + h Σ_i b_i K_i, with J the Jacobian
+    /// of the full vector field at each stage ([`Tangent::field_jacobian`]: the second
+    /// derivatives of H and, for a projector damping, ∂(P(q)p)/∂q). No allocation after the
+    /// first call.
     fn step_tangent(
         &mut self,
         sys: &S,
         z: &mut State<S::Dim>,
         h: f64,
-        tangent: &mut Tangent,
+        tangent: &mut Tangent<S::Dim>,
     ) -> Result<(), StepError> {
         let t = self.tableau.tableau();
-        let n = z.q.len();
+        let stages = t.stages();
+        let (rows, k) = tangent.jac.shape();
         let r = sys.damping_rate();
-        if self.stage_tangents.len() != t.stages() {
-            self.stage_tangents = vec![DMatrix::zeros(2 * n, 2 * n); t.stages()];
+        if self.stage_tangents.len() != stages || self.tangent_arg.shape() != (rows, k) {
+            self.stage_tangents = vec![DMatrix::zeros(rows, k); stages];
+            self.tangent_arg = DMatrix::zeros(rows, k);
+            self.field = DMatrix::zeros(rows, rows);
         }
-        let mut jac = DMatrix::zeros(2 * n, 2 * n);
-        for i in 0..t.stages() {
+        for i in 0..stages {
             self.stage.q.copy_from(&z.q);
             self.stage.p.copy_from(&z.p);
-            let mut arg = tangent.jac.clone();
+            self.tangent_arg.copy_from(&tangent.jac);
             for (j, &a) in t.a[i].iter().enumerate() {
-                self.stage.q.axpy(h * a, &self.kq[j], 1.0);
-                self.stage.p.axpy(h * a, &self.kp[j], 1.0);
-                arg += h * a * &self.stage_tangents[j];
+                if a != 0.0 {
+                    self.stage.q.axpy(h * a, &self.kq[j], 1.0);
+                    self.stage.p.axpy(h * a, &self.kp[j], 1.0);
+                    let ha = h * a;
+                    for (x, &y) in self
+                        .tangent_arg
+                        .iter_mut()
+                        .zip(self.stage_tangents[j].iter())
+                    {
+                        *x += ha * y;
+                    }
+                }
             }
-            self.force_evaluations += tangent.load_hessian(sys, &self.stage.q);
-            jac.fill(0.0);
-            jac.view_mut((0, n), (n, n)).copy_from(&tangent.minv);
-            jac.view_mut((n, 0), (n, n)).copy_from(&(-&tangent.hess));
-            jac.view_mut((n, n), (n, n)).fill_with_identity();
-            jac.view_mut((n, n), (n, n)).scale_mut(-r);
-            self.stage_tangents[i] = &jac * arg;
+            self.force_evaluations +=
+                tangent.load_second_derivatives(sys, &self.stage.q, &self.stage.p);
+            tangent.load_damping(sys, &self.stage.q, &self.stage.p)?;
+            tangent.field_jacobian(r, &mut self.field);
+            mul_into(&self.field, &self.tangent_arg, &mut self.stage_tangents[i]);
             sys.vector_field(
                 &self.stage.q,
                 &self.stage.p,
@@ -245,9 +264,12 @@ where
         for (i, &b) in t.b.iter().enumerate() {
             z.q.axpy(h * b, &self.kq[i], 1.0);
             z.p.axpy(h * b, &self.kp[i], 1.0);
-            tangent.jac += h * b * &self.stage_tangents[i];
+            let hb = h * b;
+            for (x, &y) in tangent.jac.iter_mut().zip(self.stage_tangents[i].iter()) {
+                *x += hb * y;
+            }
         }
-        self.force_evaluations += t.stages() as u64;
+        self.force_evaluations += stages as u64;
         Ok(())
     }
 }

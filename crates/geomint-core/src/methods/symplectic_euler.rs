@@ -19,6 +19,7 @@ use nalgebra::{DMatrix, DefaultAllocator};
 use crate::error::StepError;
 use crate::run::Stepper;
 use crate::system::{MechanicalSystem, State, Vector};
+use crate::tangent::Tangent;
 
 const MAX_NEWTON: usize = 50;
 
@@ -50,6 +51,9 @@ where
     work2: Vector<S::Dim>,
     pivots: Vec<usize>,
     force_evaluations: u64,
+    /// The state before a tangent step, and a column of the tangent map's linear solve.
+    start: State<S::Dim>,
+    column: Vec<f64>,
 }
 
 impl<S: MechanicalSystem> GeneralSymplecticEuler<S>
@@ -70,9 +74,14 @@ where
             x: zero.clone(),
             fx: zero.clone(),
             work: zero.clone(),
-            work2: zero,
+            work2: zero.clone(),
             pivots: vec![0; n],
             force_evaluations: 0,
+            start: State {
+                q: zero.clone(),
+                p: zero.clone(),
+            },
+            column: vec![0.0; n],
         }
     }
 
@@ -273,7 +282,17 @@ where
 /// Solves A x = b in place by LU with partial pivoting (A is overwritten, b becomes x). Returns
 /// false for a singular A. No allocation.
 pub fn lu_solve_in_place(a: &mut DMatrix<f64>, b: &mut [f64], pivots: &mut [usize]) -> bool {
-    let n = b.len();
+    if !lu_factor_in_place(a, pivots) {
+        return false;
+    }
+    lu_solve_factored(a, pivots, b);
+    true
+}
+
+/// Factors A = P⁻¹LU in place (L's multipliers below the diagonal, U on and above it, the row
+/// swaps in `pivots`); false for a singular A.
+pub fn lu_factor_in_place(a: &mut DMatrix<f64>, pivots: &mut [usize]) -> bool {
+    let n = a.nrows();
     for k in 0..n {
         let (mut pivot, mut best) = (k, a[(k, k)].abs());
         for i in k + 1..n {
@@ -288,7 +307,6 @@ pub fn lu_solve_in_place(a: &mut DMatrix<f64>, b: &mut [f64], pivots: &mut [usiz
         pivots[k] = pivot;
         if pivot != k {
             a.swap_rows(pivot, k);
-            b.swap(pivot, k);
         }
         for i in k + 1..n {
             let factor = a[(i, k)] / a[(k, k)];
@@ -296,7 +314,20 @@ pub fn lu_solve_in_place(a: &mut DMatrix<f64>, b: &mut [f64], pivots: &mut [usiz
             for j in k + 1..n {
                 a[(i, j)] -= factor * a[(k, j)];
             }
-            b[i] -= factor * b[k];
+        }
+    }
+    true
+}
+
+/// Solves with the factors of [`lu_factor_in_place`]: b becomes x.
+pub fn lu_solve_factored(a: &DMatrix<f64>, pivots: &[usize], b: &mut [f64]) {
+    let n = b.len();
+    for k in 0..n {
+        if pivots[k] != k {
+            b.swap(pivots[k], k);
+        }
+        for i in k + 1..n {
+            b[i] -= a[(i, k)] * b[k];
         }
     }
     for k in (0..n).rev() {
@@ -306,7 +337,6 @@ pub fn lu_solve_in_place(a: &mut DMatrix<f64>, b: &mut [f64], pivots: &mut [usiz
         }
         b[k] = s / a[(k, k)];
     }
-    true
 }
 
 impl<S: MechanicalSystem> Stepper<S> for GeneralSymplecticEuler<S>
@@ -338,5 +368,117 @@ where
 
     fn force_evaluations(&self) -> u64 {
         self.force_evaluations
+    }
+
+    /// The stage equations differentiated (module docs for the stages), with the second
+    /// derivatives of H at the implicit stage's point and P = I unless the damping is a
+    /// projector:
+    /// - original, at (q, p₁): (I + h(H_qp + rP))δp₁ = δp − h(H_qq + rD_{p₁})δq, then
+    ///   δq₁ = δq + h(H_pq δq + H_pp δp₁);
+    /// - adjoint, at (q₁, p): (I − hH_pq)δq₁ = δq + hH_pp δp, then
+    ///   δp₁ = δp − h((H_qq + rD_p)δq₁ + (H_qp + rP)δp).
+    fn step_tangent(
+        &mut self,
+        sys: &S,
+        z: &mut State<S::Dim>,
+        h: f64,
+        tangent: &mut Tangent<S::Dim>,
+    ) -> Result<(), StepError> {
+        self.start.q.copy_from(&z.q);
+        self.start.p.copy_from(&z.p);
+        self.step(sys, z, h)?;
+        let n = z.q.len();
+        let r = sys.damping_rate();
+        let projector = tangent.projector_damping();
+        // The implicit stage's point: (q, p₁), or (q₁, p).
+        let (q, p) = match self.variant {
+            Variant::Original => (&self.start.q, &z.p),
+            Variant::Adjoint => (&z.q, &self.start.p),
+        };
+        self.force_evaluations += tangent.load_second_derivatives(sys, q, p);
+        tangent.load_damping(sys, q, p)?;
+        let pr = |i: usize, j: usize| {
+            if projector {
+                tangent.proj[(i, j)]
+            } else if i == j {
+                1.0
+            } else {
+                0.0
+            }
+        };
+        let dp = |i: usize, j: usize| {
+            if projector {
+                tangent.dproj[(i, j)]
+            } else {
+                0.0
+            }
+        };
+        for i in 0..n {
+            for j in 0..n {
+                let identity = if i == j { 1.0 } else { 0.0 };
+                self.jac[(i, j)] = match self.variant {
+                    Variant::Original => identity + h * (tangent.hqp[(i, j)] + r * pr(i, j)),
+                    Variant::Adjoint => identity - h * tangent.hqp[(j, i)],
+                };
+            }
+        }
+        if !lu_factor_in_place(&mut self.jac, &mut self.pivots) {
+            return Err(StepError::NewtonFailed {
+                iterations: 0,
+                residual: f64::NAN,
+            });
+        }
+        let w = &mut tangent.jac;
+        for c in 0..w.ncols() {
+            match self.variant {
+                Variant::Original => {
+                    for i in 0..n {
+                        let mut acc = w[(n + i, c)];
+                        for j in 0..n {
+                            acc -= h * (tangent.hess[(i, j)] + r * dp(i, j)) * w[(j, c)];
+                        }
+                        self.column[i] = acc;
+                    }
+                    lu_solve_factored(&self.jac, &self.pivots, &mut self.column);
+                    for i in 0..n {
+                        let mut acc = w[(i, c)];
+                        for j in 0..n {
+                            acc += h
+                                * (tangent.hqp[(j, i)] * w[(j, c)]
+                                    + tangent.hpp[(i, j)] * self.column[j]);
+                        }
+                        self.x[i] = acc;
+                    }
+                    for i in 0..n {
+                        w[(i, c)] = self.x[i];
+                        w[(n + i, c)] = self.column[i];
+                    }
+                }
+                Variant::Adjoint => {
+                    for i in 0..n {
+                        let mut acc = w[(i, c)];
+                        for j in 0..n {
+                            acc += h * tangent.hpp[(i, j)] * w[(n + j, c)];
+                        }
+                        self.column[i] = acc;
+                    }
+                    lu_solve_factored(&self.jac, &self.pivots, &mut self.column);
+                    for i in 0..n {
+                        let mut acc = w[(n + i, c)];
+                        for j in 0..n {
+                            acc -= h
+                                * ((tangent.hess[(i, j)] + r * dp(i, j)) * self.column[j]
+                                    + (tangent.hqp[(i, j)] + r * pr(i, j)) * w[(n + j, c)]);
+                        }
+                        self.x[i] = acc;
+                    }
+                    for i in 0..n {
+                        w[(i, c)] = self.column[i];
+                        w[(n + i, c)] = self.x[i];
+                    }
+                }
+            }
+        }
+        Ok(())
     }
 }

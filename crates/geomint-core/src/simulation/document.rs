@@ -12,6 +12,7 @@ use super::crossings::{CrossingColumns, SurfaceInfo};
 use super::spec::EnergyReference;
 use super::run::{Sample, SampleSink};
 use super::spec::Simulation;
+use crate::chaos::{IndicatorValues, ThresholdStop};
 use crate::diagnostics::DriftPoint;
 use crate::error::CoreError;
 use crate::run::{RunStats, StopReason};
@@ -90,6 +91,25 @@ pub struct Columns {
     /// `positions` write them (user-defined systems with `positions` only).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub bodies: Option<Vec<Vec<f64>>>,
+    /// The finite-time Lyapunov spectrum per sample, largest first (with the indicator
+    /// `lyapunov`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub lyapunov: Option<Vec<Vec<f64>>>,
+    /// MEGNO Y(t) per sample (with `megno`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub megno: Option<Vec<f64>>,
+    /// MEGNO's running mean ⟨Y⟩(t) per sample (with `megno`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub megno_mean: Option<Vec<f64>>,
+    /// The fast Lyapunov indicator per sample (with `fli`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fli: Option<Vec<f64>>,
+    /// SALI per sample (with `sali`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sali: Option<Vec<f64>>,
+    /// GALI_k per sample, k the deviation vectors (with `gali`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gali: Option<Vec<f64>>,
 }
 
 impl Columns {
@@ -139,6 +159,14 @@ impl Columns {
         if let Some(more) = more.bodies {
             self.bodies.get_or_insert_with(Vec::new).extend(more);
         }
+        if let Some(more) = more.lyapunov {
+            self.lyapunov.get_or_insert_with(Vec::new).extend(more);
+        }
+        append(&mut self.megno, more.megno);
+        append(&mut self.megno_mean, more.megno_mean);
+        append(&mut self.fli, more.fli);
+        append(&mut self.sali, more.sali);
+        append(&mut self.gali, more.gali);
     }
 }
 
@@ -206,6 +234,21 @@ impl SampleSink for ColumnSink {
         if let Some(b) = s.bodies {
             c.bodies.get_or_insert_with(Vec::new).push(b.to_vec());
         }
+        if let Some(v) = s.indicators {
+            let push = |column: &mut Option<Vec<f64>>, value: Option<f64>| {
+                if let Some(x) = value {
+                    column.get_or_insert_with(Vec::new).push(x);
+                }
+            };
+            if let Some(l) = &v.lyapunov {
+                c.lyapunov.get_or_insert_with(Vec::new).push(l.clone());
+            }
+            push(&mut c.megno, v.megno);
+            push(&mut c.megno_mean, v.megno_mean);
+            push(&mut c.fli, v.fli);
+            push(&mut c.sali, v.sali);
+            push(&mut c.gali, v.gali);
+        }
     }
 }
 
@@ -241,6 +284,8 @@ pub enum Stop {
         /// The time of the crossing.
         t: f64,
     },
+    /// A chaos indicator reached its threshold (`stop_when`); the last sample is at its step.
+    Indicator(ThresholdStop),
     /// A step failed (for example Newton's method did not converge); the samples end before it.
     Failed {
         /// The step that failed, counted from 1.
@@ -260,6 +305,7 @@ impl From<StopReason> for Stop {
             StopReason::Cancelled { step } => Stop::Cancelled { step },
             StopReason::TimeLimit { step } => Stop::TimeLimit { step },
             StopReason::Event { step, t } => Stop::Event { step, t },
+            StopReason::Indicator(at) => Stop::Indicator(at),
         }
     }
 }
@@ -319,6 +365,10 @@ pub struct RunOutcome {
     /// The dissipation drift (1-DOF systems with conformal damping only).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub dissipation_drift: Option<Vec<DriftPoint>>,
+    /// The chaos indicators at the run's last sample, under the names of the sample columns
+    /// (when asked for).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub indicators: Option<IndicatorValues>,
     /// Where the run diverged (null unless it did).
     pub diverged_at: Option<DivergedAt>,
     /// Why it stopped.

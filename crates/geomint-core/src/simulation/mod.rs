@@ -10,12 +10,14 @@
 //! - [`document`]: the JSON document's types and the column collector.
 //! - [`crossings`]: a run's Poincaré section, event and energy level, as the stream and the
 //!   document carry them.
+//! - [`surface`]: an initial state on an energy surface, one momentum solved from H = E.
 
 pub mod crossings;
 pub mod document;
 pub mod run;
 pub mod spec;
 pub mod stream;
+pub mod surface;
 
 pub use document::{
     ColumnSink, Columns, DivergedAt, RunDocument, RunOutcome, ScheduleSummary, SimulationDocument,
@@ -28,3 +30,4 @@ pub use spec::{
 };
 pub use crossings::{CrossingColumns, SurfaceInfo, Watching};
 pub use stream::{DocumentCollector, StreamLine};
+pub use surface::EnergySurface;

@@ -11,9 +11,10 @@ use nalgebra::allocator::Allocator;
 use nalgebra::DefaultAllocator;
 
 use super::spec::{EnergyReference, Simulation};
+use crate::chaos::{ChaosPlan, IndicatorValues, Tracker};
 use crate::error::{CoreError, Field};
 use crate::methods::{self, Method, MethodId};
-use crate::run::{integrate, Budget, Observer, RunStats, StopReason};
+use crate::run::{integrate_tracked, Budget, Observer, RunStats, StopReason, Tracking};
 use crate::sections::{Crossing, SectionSummary, Watch};
 use crate::system::{MechanicalSystem, State};
 use crate::systems::world::Drawing;
@@ -43,6 +44,8 @@ pub struct Sample<'a> {
     pub jacobian_defect: Option<f64>,
     /// The bodies' coordinates, for a system drawn by its definition's `positions`.
     pub bodies: Option<&'a [f64]>,
+    /// The chaos indicators, when asked for.
+    pub indicators: Option<&'a IndicatorValues>,
 }
 
 /// Receives samples of one method's run.
@@ -79,7 +82,8 @@ impl Simulation {
         self.run(&self.methods[index], reference, budget, sink)
     }
 
-    /// Runs `method` from this simulation's initial state over its schedule.
+    /// Runs `method` from this simulation's initial state over its schedule, with the chaos
+    /// indicators the simulation asks for.
     pub fn run(
         &self,
         method: &Method,
@@ -87,17 +91,20 @@ impl Simulation {
         budget: Budget<'_>,
         sink: &mut dyn SampleSink,
     ) -> Result<Outcome, CoreError> {
-        self.run_watching(method, reference, budget, sink, true)
+        self.run_with(method, reference, budget, sink, true, self.chaos.as_ref())
     }
 
-    /// [`run`](Self::run), watching the simulation's section and event when `watch` is set.
-    fn run_watching(
+    /// [`run`](Self::run), watching the simulation's section and event when `watch` is set and
+    /// tracking the indicators `chaos` (the reference run does neither: its energies are all
+    /// it gives).
+    fn run_with(
         &self,
         method: &Method,
         reference: Option<&[f64]>,
         budget: Budget<'_>,
         sink: &mut dyn SampleSink,
         watch: bool,
+        chaos: Option<&ChaosPlan>,
     ) -> Result<Outcome, CoreError> {
         with_system!(&self.system, sys => {
             let mut stepper = methods::build(method, sys, &self.system_label, self.schedule.h)?;
@@ -119,13 +126,21 @@ impl Simulation {
                 },
                 expected_det: (-sys.damping_rate() * self.schedule.h * n as f64).exp(),
                 last_det: None,
+                indicators: None,
                 sample_index: 0,
                 initial_energy: (self.energy_reference() == Some(EnergyReference::Initial))
                     .then(|| sys.energy(&start.q, &start.p)),
             };
-            let track = self.jacobian_defect && method.no_step_jacobian().is_none();
-            let (stop, stats) = with_stepper!(&mut stepper, st => integrate(
-                sys, st, &mut z, self.schedule, budget, track, &mut observer,
+            let mut tracker = chaos.map(|plan| Tracker::new(sys, &z, plan, self.schedule.h));
+            let tracking = match tracker.as_mut() {
+                Some(tracker) => Tracking::Chaos(tracker),
+                None if self.jacobian_defect && method.no_step_jacobian().is_none() => {
+                    Tracking::Determinant
+                }
+                None => Tracking::Off,
+            };
+            let (stop, stats) = with_stepper!(&mut stepper, st => integrate_tracked(
+                sys, st, &mut z, self.schedule, budget, tracking, &mut observer,
             ))?;
             if let Some(summary) = observer.watch.as_ref().and_then(Watch::summary) {
                 observer.sink.on_section_end(&summary);
@@ -143,7 +158,7 @@ impl Simulation {
         let field = Field::new("compare_to_reference");
         // The reference runs to the end, whatever the runs' events.
         let outcome = self
-            .run_watching(&Method::new(MethodId::Reference), None, budget, &mut log, false)
+            .run_with(&Method::new(MethodId::Reference), None, budget, &mut log, false, None)
             .map_err(|e| match e {
                 CoreError::Step {
                     step, t, source, ..
@@ -199,6 +214,7 @@ where
     drawing: Option<(&'a Drawing, Vec<f64>)>,
     expected_det: f64,
     last_det: Option<f64>,
+    indicators: Option<IndicatorValues>,
     sample_index: usize,
     /// H at the start, when energy errors are measured against it.
     initial_energy: Option<f64>,
@@ -240,6 +256,7 @@ where
             invariants: &self.invariants,
             jacobian_defect: self.last_det.map(|d| (d - self.expected_det).abs()),
             bodies: self.drawing.as_ref().map(|(_, bodies)| bodies.as_slice()),
+            indicators: self.indicators.as_ref(),
         });
         self.sample_index += 1;
     }
@@ -258,6 +275,10 @@ where
             Some(watch) => watch.step(self.sys, t, z, &mut |c| sink.on_crossing(c)),
             None => ControlFlow::Continue(()),
         }
+    }
+
+    fn on_indicators(&mut self, values: &IndicatorValues) {
+        self.indicators = Some(values.clone());
     }
 }
 

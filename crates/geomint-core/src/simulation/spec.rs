@@ -6,9 +6,12 @@
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
-use crate::error::{CoreError, Field, Range, StepScope};
+use crate::chaos::{self, ChaosPlan, ChaosSpec};
+use crate::error::{CoreError, Field, Range, StepError, StepScope};
+use crate::run::Stepper;
+use crate::tangent::Tangent;
 use crate::methods::build::{self, Origin};
-use crate::methods::Method;
+use crate::methods::{self, Method};
 use crate::run::{step_count, Schedule};
 use crate::system::{MechanicalSystem, State};
 use crate::systems::{
@@ -218,6 +221,10 @@ pub struct Simulation {
     pub jacobian_defect: bool,
     /// The section and event surfaces each run watches (see [`Simulation::watching`]).
     pub crossings: Option<Arc<crate::sections::Crossings>>,
+    /// The chaos indicators each run reports (see [`Simulation::with_chaos`]).
+    pub chaos: Option<ChaosPlan>,
+    /// Where each method was given (`methods[i]`), as errors name it.
+    pub method_fields: Vec<Field>,
 }
 
 /// A given list (or the default) with the system's dimension and finite entries.
@@ -245,10 +252,13 @@ fn state_vector(
 
 impl Simulation {
     /// The predicted work, for admission before it starts: steps × phase-space coordinates
-    /// summed over the runs (a reference run beside each method counts as one more).
+    /// summed over the runs (a reference run beside each method counts as one more, and each
+    /// deviation vector as one more state).
     pub fn cost(&self) -> u64 {
         let runs = self.methods.len() as u64 * if self.compare_to_reference { 2 } else { 1 };
-        let coordinates = 2 * self.q0.len() as u64;
+        // Deviation vectors cost about as much as the state each.
+        let vectors = self.chaos.as_ref().map_or(1, |c| 1 + c.deviations as u64);
+        let coordinates = 2 * self.q0.len() as u64 * vectors;
         self.schedule
             .steps
             .saturating_mul(coordinates)
@@ -362,7 +372,54 @@ impl Simulation {
             compare_to_reference: spec.compare_to_reference,
             jacobian_defect: spec.jacobian_defect,
             crossings: None,
+            chaos: None,
+            method_fields: spec.methods.iter().map(|m| m.field.clone()).collect(),
         })
+    }
+
+    /// The same simulation with its runs reporting the chaos indicators of `spec`: checked
+    /// against the system's dimension, each method (it needs a step Jacobian) and the system (a
+    /// state-dependent damping needs the derivative of its projector).
+    pub fn with_chaos(mut self, spec: &ChaosSpec) -> Result<Simulation, CoreError> {
+        let plan = spec.plan(self.q0.len())?;
+        if self.jacobian_defect {
+            return Err(CoreError::Either {
+                field: spec.fields.indicators.clone(),
+                first: "`jacobian_defect`",
+                second: "`indicators`",
+            });
+        }
+        for (method, field) in self.methods.iter().zip(&self.method_fields) {
+            if let Some(why) = method.no_step_jacobian() {
+                return Err(CoreError::NoTangentMap {
+                    field: field.clone(),
+                    method: method.label(),
+                    system: self.system_label.clone(),
+                    why: format!("{why} no step Jacobian"),
+                });
+            }
+        }
+        // Each method's tangent map, tried at the start: a system whose damping it cannot
+        // differentiate is refused here, by the stepper itself, rather than at the first step.
+        for (method, field) in self.methods.iter().zip(&self.method_fields) {
+            let refused = with_system!(&self.system, s => {
+                let mut z = State::from_slices(s.dim(), &self.q0, &self.p0);
+                let mut tangent = Tangent::with_columns(s, &z, chaos::frame::start(z.q.len(), 1));
+                methods::build(method, s, &self.system_label, self.schedule.h)
+                    .ok()
+                    .and_then(|mut st| st.step_tangent(s, &mut z, self.schedule.h, &mut tangent).err())
+            });
+            if let Some(StepError::TangentUnsupported { reason }) = refused {
+                return Err(CoreError::NoTangentMap {
+                    field: field.clone(),
+                    method: method.label(),
+                    system: self.system_label.clone(),
+                    why: reason.to_string(),
+                });
+            }
+        }
+        self.chaos = Some(plan);
+        Ok(self)
     }
 
     /// The system's id.

@@ -25,6 +25,7 @@ use super::document::{
 use super::crossings::{CrossingColumns, CrossingsChunk, SurfaceInfo, SurfaceName};
 use super::run::{for_each_method, Sample, SampleSink};
 use super::spec::{EnergyReference, Simulation};
+use crate::chaos::{Indicator, IndicatorValues};
 use crate::diagnostics::{self, DriftPoint};
 use crate::error::{CoreError, ErrorCode, ErrorDetail};
 use crate::run::{Budget, RunStats};
@@ -74,6 +75,12 @@ pub struct StreamHeader {
     pub energy_reference: Option<EnergyReference>,
     /// Whether chunks carry `jacobian_defect`.
     pub jacobian_defect: bool,
+    /// The chaos indicators chunks carry (absent when none were asked for).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub indicators: Vec<Indicator>,
+    /// Deviation vectors per run (with `indicators`): the length of each `lyapunov` entry.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub deviations: Option<usize>,
     /// The sampling.
     pub schedule: ScheduleSummary,
     /// The section each run collects (`crossings` chunks with `surface` = `section`).
@@ -139,6 +146,8 @@ struct ChunkSink<'a> {
     /// Located crossings not yet sent: the section's and the event's, with their offsets.
     crossings: [(CrossingColumns, u64); 2],
     section_summary: Option<SectionSummary>,
+    /// The indicators of the last sample.
+    indicators: Option<IndicatorValues>,
 }
 
 impl ChunkSink<'_> {
@@ -184,6 +193,9 @@ impl SampleSink for ChunkSink<'_> {
         if let Some((t, q)) = &mut self.kept {
             t.push(sample.t);
             q.push(sample.q[0]);
+        }
+        if let Some(values) = sample.indicators {
+            self.indicators = Some(values.clone());
         }
         self.buffer.on_sample(sample);
         if self.buffer.len() >= CHUNK_SAMPLES || self.last_flush.elapsed() >= CHUNK_INTERVAL {
@@ -235,6 +247,12 @@ impl Simulation {
             energy_error: self.has_energy_error(),
             energy_reference: self.energy_reference(),
             jacobian_defect: self.jacobian_defect,
+            indicators: self
+                .chaos
+                .as_ref()
+                .map(|c| c.indicators.clone())
+                .unwrap_or_default(),
+            deviations: self.chaos.as_ref().map(|c| c.deviations),
             schedule: ScheduleSummary::of(self),
             section: self.section_info(),
             stop_when: self.event_info(),
@@ -260,6 +278,7 @@ impl Simulation {
             kept: (self.q0.len() == 1).then(|| (Vec::new(), Vec::new())),
             crossings: Default::default(),
             section_summary: None,
+            indicators: None,
         };
         let started = Instant::now();
         let result = self.run_method(index, reference, budget, &mut sink);
@@ -286,6 +305,7 @@ impl Simulation {
                         .kept
                         .as_ref()
                         .and_then(|(t, q)| self.dissipation_drift(t, q)),
+                    indicators: sink.indicators.take(),
                     diverged_at: stop.diverged_at(),
                     stop,
                     stats,
@@ -476,6 +496,7 @@ mod tests {
             invariants: [("J3".to_string(), vec![3.0 * t])].into(),
             jacobian_defect: None,
             bodies: Some(vec![vec![t, 2.0 * t]]),
+            ..Columns::default()
         };
         let mut all = Columns::with_invariants(&["J3"]);
         all.extend(chunk(1.0));

@@ -294,7 +294,7 @@ impl StudyJob {
                     shutdown: false,
                 })
             }
-            StopReason::Diverged { .. } => {
+            StopReason::Diverged { .. } | StopReason::Indicator(_) => {
                 return Err(CoreError::ReferenceUnfinished {
                     field: Field::new("reference"),
                     stop: stop_name(&outcome.stop).into(),
@@ -463,6 +463,7 @@ pub fn stop_name(stop: &StopReason) -> &'static str {
         StopReason::Cancelled { .. } => "cancelled",
         StopReason::TimeLimit { .. } => "time_limit",
         StopReason::Event { .. } => "event",
+        StopReason::Indicator(_) => "indicator",
     }
 }
 

@@ -71,6 +71,10 @@ impl MechanicalSystem for ElasticPendulum3d {
         out[1] = c * q[1];
         out[2] = c * q[2];
     }
+    fn projector_derivative(&self, q: &Vector<U3>, v: &Vector<U3>, out: &mut DMatrix<f64>) -> bool {
+        spring_projector_derivative([q[0], q[1], q[2]], v, [true, true, true], out);
+        true
+    }
     fn hess_potential(&self, q: &Vector<U3>, out: &mut DMatrix<f64>) -> u64 {
         // ∇V = k(1 − l/r) q + m g e_z, so ∇²V = k(1 − l/r) I + k l q qᵀ / r³.
         let r = q.norm();
@@ -160,6 +164,11 @@ impl MechanicalSystem for ElasticPendulum3dCylindrical {
         out[0] = c * ur;
         out[1] = 0.0;
         out[2] = c * uz;
+    }
+    fn projector_derivative(&self, q: &Vector<U3>, v: &Vector<U3>, out: &mut DMatrix<f64>) -> bool {
+        // The projector onto w = (ρ, 0, z), which depends on ρ and z only.
+        spring_projector_derivative([q[0], 0.0, q[2]], v, [true, false, true], out);
+        true
     }
     fn hessian_h(
         &self,
@@ -266,6 +275,29 @@ impl MechanicalSystem for ElasticPendulum3dCylindrical {
         p[1] = x[0] * px[1] - x[1] * px[0];
         p[2] = px[2];
         Ok(())
+    }
+}
+
+/// ∂(P v)/∂q for the projector P = w wᵀ/|w|² onto w, with ∂w/∂q the identity on the
+/// components `moving` and zero elsewhere: with s = w·v, (v_j w_i + s δ_ij)/|w|² −
+/// 2 s w_i w_j/|w|⁴ in the columns j that move, zero in the others.
+fn spring_projector_derivative(
+    w: [f64; 3],
+    v: &Vector<U3>,
+    moving: [bool; 3],
+    out: &mut DMatrix<f64>,
+) {
+    let w2 = w[0] * w[0] + w[1] * w[1] + w[2] * w[2];
+    let s = w[0] * v[0] + w[1] * v[1] + w[2] * v[2];
+    for i in 0..3 {
+        for j in 0..3 {
+            out[(i, j)] = if moving[j] {
+                let diagonal = if i == j { s } else { 0.0 };
+                (v[j] * w[i] + diagonal - 2.0 * s * w[i] * w[j] / w2) / w2
+            } else {
+                0.0
+            };
+        }
     }
 }
 

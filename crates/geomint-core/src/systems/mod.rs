@@ -8,6 +8,7 @@
 pub mod custom;
 mod elastic_pendulum;
 mod first_order;
+mod henon_heiles;
 mod nbody;
 mod oscillator;
 pub mod params;
@@ -23,6 +24,7 @@ use serde::Serialize;
 pub use custom::system::CustomSystem;
 pub use elastic_pendulum::{ElasticPendulum3d, ElasticPendulum3dCylindrical};
 pub use first_order::{ExponentialDecay, Gompertz};
+pub use henon_heiles::HenonHeiles;
 pub use nbody::{NBody, PairPotential};
 pub use oscillator::{CompensatedOscillator, HarmonicOscillator};
 pub use params::{ParamKind, ParamSpec, ParamValue, ParamValues};
@@ -188,6 +190,7 @@ static CATALOG: LazyLock<Vec<Arc<SystemInfo>>> = LazyLock::new(|| {
         planar::free_particle_entry(),
         first_order::exponential_decay_entry(),
         first_order::gompertz_entry(),
+        henon_heiles::entry(),
     ]
     .into_iter()
     .map(Arc::new)
@@ -390,6 +393,8 @@ pub enum AnySystem {
     Custom3(CustomSystem<nalgebra::U3>),
     /// A user-defined system of more degrees of freedom.
     CustomN(CustomSystem<nalgebra::Dyn>),
+    /// See [`HenonHeiles`].
+    HenonHeiles(HenonHeiles),
 }
 
 /// Runs `$body` with `$s` bound to the concrete system inside an [`AnySystem`].
@@ -411,6 +416,7 @@ macro_rules! with_system {
             $crate::systems::AnySystem::Custom2($s) => $body,
             $crate::systems::AnySystem::Custom3($s) => $body,
             $crate::systems::AnySystem::CustomN($s) => $body,
+            $crate::systems::AnySystem::HenonHeiles($s) => $body,
         }
     };
 }

@@ -188,3 +188,57 @@ pub fn info(id: &str) -> std::sync::Arc<geomint_core::systems::SystemInfo> {
     geomint_core::systems::info(id, &geomint_core::error::Field::new("system"))
         .expect("a catalogue system")
 }
+
+/// The Jacobian of one step of `choice` at `z` by central differences, each evaluation from a
+/// fresh stepper.
+pub fn step_jacobian_by_differences<S: MechanicalSystem>(
+    sys: &S,
+    choice: &Method,
+    z: &State<S::Dim>,
+    h: f64,
+) -> nalgebra::DMatrix<f64>
+where
+    nalgebra::DefaultAllocator: nalgebra::allocator::Allocator<S::Dim>,
+{
+    let n = z.q.len();
+    let mut jac = nalgebra::DMatrix::zeros(2 * n, 2 * n);
+    let step = |z: &State<S::Dim>| {
+        let mut stepper = methods::build(choice, sys, "test", h).expect("builds");
+        let mut z = z.clone();
+        stepper.step(sys, &mut z, h).expect("a step");
+        z
+    };
+    // Central differences at d and d/2, extrapolated: an error of O(d⁴), and Newton's stopping
+    // tolerance (1e-12 of the state) enters as 1e-12/d only.
+    let central = |j: usize, d: f64| {
+        let (mut a, mut b) = (z.clone(), z.clone());
+        if j < n {
+            a.q[j] += d;
+            b.q[j] -= d;
+        } else {
+            a.p[j - n] += d;
+            b.p[j - n] -= d;
+        }
+        let (fa, fb) = (step(&a), step(&b));
+        let mut column = vec![0.0; 2 * n];
+        for i in 0..n {
+            column[i] = (fa.q[i] - fb.q[i]) / (2.0 * d);
+            column[n + i] = (fa.p[i] - fb.p[i]) / (2.0 * d);
+        }
+        column
+    };
+    for j in 0..2 * n {
+        let d = 1e-3
+            * (1.0
+                + if j < n {
+                    z.q[j].abs()
+                } else {
+                    z.p[j - n].abs()
+                });
+        let (coarse, fine) = (central(j, d), central(j, 0.5 * d));
+        for i in 0..2 * n {
+            jac[(i, j)] = (4.0 * fine[i] - coarse[i]) / 3.0;
+        }
+    }
+    jac
+}

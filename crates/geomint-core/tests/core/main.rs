@@ -6,6 +6,8 @@
 #[allow(dead_code)]
 mod common;
 
+mod chaos;
+mod chaos_map;
 mod charts;
 mod compositions;
 mod driven;

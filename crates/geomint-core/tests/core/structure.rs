@@ -431,38 +431,6 @@ fn force_evaluations_are_counted_and_reused_across_steps() {
     assert!(counts[9] > 2000 && counts[9] < 8000, "cimp: {}", counts[9]);
 }
 
-/// The step Jacobian by central differences of the step map.
-fn jacobian_by_differences<S: MechanicalSystem>(
-    sys: &S,
-    choice: &geomint_core::methods::Method,
-    z: &State<S::Dim>,
-    h: f64,
-) -> nalgebra::DMatrix<f64>
-where
-    nalgebra::DefaultAllocator: nalgebra::allocator::Allocator<S::Dim>,
-{
-    let n = z.q.len();
-    let mut jac = nalgebra::DMatrix::zeros(2 * n, 2 * n);
-    let step = |z: &State<S::Dim>| common::final_state(sys, choice, z, h, h);
-    for j in 0..2 * n {
-        let d = 1e-6;
-        let (mut a, mut b) = (z.clone(), z.clone());
-        if j < n {
-            a.q[j] += d;
-            b.q[j] -= d;
-        } else {
-            a.p[j - n] += d;
-            b.p[j - n] -= d;
-        }
-        let (fa, fb) = (step(&a), step(&b));
-        for i in 0..n {
-            jac[(i, j)] = (fa.q[i] - fb.q[i]) / (2.0 * d);
-            jac[(n + i, j)] = (fa.p[i] - fb.p[i]) / (2.0 * d);
-        }
-    }
-    jac
-}
-
 #[test]
 fn propagated_step_jacobians_equal_finite_differences_of_the_step() {
     use geomint_core::flows::Tangent;
@@ -497,7 +465,8 @@ fn propagated_step_jacobians_equal_finite_differences_of_the_step() {
         stepper
             .step_tangent(&pendulum, &mut z, h, &mut tangent)
             .unwrap();
-        let diff = (&tangent.jac - jacobian_by_differences(&pendulum, choice, &z1, h)).amax();
+        let diff =
+            (&tangent.jac - common::step_jacobian_by_differences(&pendulum, choice, &z1, h)).amax();
         assert!(
             diff < 1e-7,
             "{} pendulum: tangent differs from differences by {diff:e}",
@@ -510,7 +479,8 @@ fn propagated_step_jacobians_equal_finite_differences_of_the_step() {
         stepper
             .step_tangent(&bodies, &mut z, h, &mut tangent)
             .unwrap();
-        let diff = (&tangent.jac - jacobian_by_differences(&bodies, choice, &z9, h)).amax();
+        let diff =
+            (&tangent.jac - common::step_jacobian_by_differences(&bodies, choice, &z9, h)).amax();
         assert!(
             diff < 1e-5,
             "{} nbody: tangent differs from differences by {diff:e}",

@@ -7,11 +7,12 @@ use nalgebra::DefaultAllocator;
 use super::walk::{with_walk, Loop, Stages, Unrolled, Walk};
 use super::*;
 use crate::error::StepError;
-use crate::flows::{self, Tangent};
+use crate::flows;
 use crate::methods::runge_kutta::MomentumRk;
 use crate::methods::unroll;
 use crate::run::{finite, step_by_step, Advanced, Stepper};
 use crate::system::{MechanicalSystem, State, Vector};
+use crate::tangent::{no_projector_derivative, Tangent};
 
 /// Runs a splitting sequence; one instance per run, so its buffers are allocated once.
 pub struct Splitting<S: MechanicalSystem, Q: Flows = Composition>
@@ -265,13 +266,19 @@ where
         sys: &S,
         z: &mut State<S::Dim>,
         h: f64,
-        tangent: &mut Tangent,
+        tangent: &mut Tangent<S::Dim>,
     ) -> Result<(), StepError> {
         let r = sys.damping_rate();
         self.prepare(sys, h);
         let flows = self.sequence.flows();
+        let projector = tangent.projector_damping();
         for (&(flow, frac), &cd) in flows.iter().zip(&self.coefficients) {
             let tau = frac * h;
+            if projector && !matches!(flow, Drift | Kick) {
+                self.work
+                    .projector_flow_tangent(sys, z, (flow, tau, cd), tangent)?;
+                continue;
+            }
             // Each flow's Jacobian is taken at the state it acts on, before it moves it.
             match flow {
                 Drift => tangent.drift(tau),
@@ -292,6 +299,79 @@ where
             }
             self.work.apply(sys, z, flow, tau, cd);
         }
+        Ok(())
+    }
+}
+
+impl<S: MechanicalSystem> Work<S>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    /// A damping sub-flow and its tangent map when the damping is r P(q) with P a projector
+    /// that depends on q (the tangent maps of `tangent`'s module docs), the state moved too.
+    fn projector_flow_tangent(
+        &mut self,
+        sys: &S,
+        z: &mut State<S::Dim>,
+        (flow, tau, cd): (SubFlow, f64, (f64, f64)),
+        tangent: &mut Tangent<S::Dim>,
+    ) -> Result<(), StepError> {
+        let r = sys.damping_rate();
+        let unsupported = no_projector_derivative;
+        if !sys.damping_is_projector() {
+            return Err(StepError::TangentUnsupported {
+                reason: "the exact damping flow e^{−τεD(q)M⁻¹} of a damping matrix that is not a \
+                         projector has no tangent map here (rk4 and implicit_midpoint linearise \
+                         the whole field)",
+            });
+        }
+        match flow {
+            Damp => {
+                tangent.load_damping(sys, &z.q, &z.p)?;
+                tangent.decay_projector(cd.0);
+            }
+            KickDamp => {
+                self.ensure_grad(sys, &z.q);
+                self.force_evaluations += tangent.load_hessian(sys, &z.q);
+                let (c, d) = cd;
+                self.w2.copy_from(&z.p);
+                self.w2 *= -c;
+                self.w2.axpy(d, &self.grad, 1.0);
+                if !tangent.load_projector(sys, &z.q, &self.w2) {
+                    return Err(unsupported());
+                }
+                tangent.kick_damp_projector(tau, c, d);
+            }
+            DampedKick(theta) => {
+                let theta = theta.value();
+                self.force_evaluations += tangent.load_hessian(sys, &z.q);
+                tangent.load_damping(sys, &z.q, &z.p)?;
+                tangent.theta_kick_projector_before(tau, (1.0 - theta) * r * tau);
+                self.apply(sys, z, flow, tau, cd);
+                if !tangent.load_projector_derivative(sys, &z.q, &z.p) {
+                    return Err(unsupported());
+                }
+                tangent.theta_kick_projector_after(theta * r * tau);
+                return Ok(());
+            }
+            MomentumRk => {
+                self.ensure_grad(sys, &z.q);
+                self.force_evaluations += tangent.load_hessian(sys, &z.q);
+                let (a, b) = match self.inner.as_ref() {
+                    Some(inner) => inner.tangent_coefficients(r, tau),
+                    None => (1.0, tau),
+                };
+                self.w2.copy_from(&z.p);
+                self.w2 *= a - 1.0;
+                self.w2.axpy(-(b - tau), &self.grad, 1.0);
+                if !tangent.load_projector(sys, &z.q, &self.w2) {
+                    return Err(unsupported());
+                }
+                tangent.momentum_rk_projector(tau, (a, b));
+            }
+            Drift | Kick => unreachable!("drifts and kicks do not involve the damping"),
+        }
+        self.apply(sys, z, flow, tau, cd);
         Ok(())
     }
 }

@@ -405,6 +405,8 @@ impl EnergyMapSpec {
             every: None,
             energy_reference: Some(EnergyReference::Initial),
             axes: vec![axis(0, self.x, self.nx, "x"), axis(1, self.y, self.ny, "y")],
+            chaos: None,
+            energy_surface: None,
             digest: String::new(),
         }
     }

@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 use serde::Serialize;
 
 use super::axis::Scale;
-use super::metrics::{EnergyReference, RunMetrics};
+use super::metrics::{ChaosMetrics, EnergyReference, RunMetrics};
 use super::RunLabel;
 use crate::studies::StudyStop;
 
@@ -58,10 +58,35 @@ pub struct RunColumns {
     pub force_evaluations: Vec<u64>,
     /// Why a run could not start or was not run (`null` where it ran).
     pub errors: Vec<Option<String>>,
+    /// The chaos indicators' last values per cell, and the time a threshold stopped a cell's
+    /// run (with `indicators` only).
+    #[serde(flatten, skip_serializing_if = "Option::is_none")]
+    pub chaos: Option<ChaosColumns>,
+}
+
+/// A chaos map: each indicator's last value per cell (`null` where not asked for or the run did
+/// not start), and the time a threshold stopped a cell's run (`null`: it ran to the end).
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+pub struct ChaosColumns {
+    /// The largest finite-time Lyapunov exponent.
+    pub lyapunov_max: Vec<Option<f64>>,
+    /// MEGNO Y.
+    pub megno: Vec<Option<f64>>,
+    /// MEGNO's mean ⟨Y⟩.
+    pub megno_mean: Vec<Option<f64>>,
+    /// The fast Lyapunov indicator.
+    pub fli: Vec<Option<f64>>,
+    /// SALI.
+    pub sali: Vec<Option<f64>>,
+    /// GALI_k.
+    pub gali: Vec<Option<f64>>,
+    /// When a threshold (`stop_when`) stopped the run.
+    pub stopped_at: Vec<Option<f64>>,
 }
 
 impl RunColumns {
-    pub(super) fn new(label: RunLabel, invariants: &[String], cells: usize) -> Self {
+    pub(super) fn new(label: RunLabel, invariants: &[String], cells: usize, chaos: bool) -> Self {
         RunColumns {
             method: label.method,
             chart: label.chart,
@@ -78,6 +103,7 @@ impl RunColumns {
             steps: Vec::with_capacity(cells),
             force_evaluations: Vec::with_capacity(cells),
             errors: Vec::with_capacity(cells),
+            chaos: chaos.then(ChaosColumns::default),
         }
     }
 
@@ -96,6 +122,21 @@ impl RunColumns {
         self.steps.push(m.steps);
         self.force_evaluations.push(m.force_evaluations);
         self.errors.push(m.error);
+        if let Some(columns) = self.chaos.as_mut() {
+            columns.push(m.chaos.unwrap_or_default());
+        }
+    }
+}
+
+impl ChaosColumns {
+    fn push(&mut self, m: ChaosMetrics) {
+        self.lyapunov_max.push(m.lyapunov_max);
+        self.megno.push(m.megno);
+        self.megno_mean.push(m.megno_mean);
+        self.fli.push(m.fli);
+        self.sali.push(m.sali);
+        self.gali.push(m.gali);
+        self.stopped_at.push(m.stopped_at);
     }
 }
 

@@ -42,7 +42,7 @@ impl SweepJob {
             .axes
             .iter()
             .all(|a| matches!(a.target, Target::Q0(_) | Target::P0(_)));
-        if self.against != EnergyReference::Initial || !initial_state_only {
+        if self.against != EnergyReference::Initial || !initial_state_only || self.tracks_chaos() {
             return None;
         }
         let mut runs = Vec::with_capacity(self.templates.len());

@@ -1,9 +1,11 @@
 //! What a sweep measures in each run of each cell, from the run's samples: the energy error at
 //! the end, its largest value and its ℓ² mean (paper 001 eq. 50), each invariant's drift, the
-//! time of divergence and the final state.
+//! time of divergence and the final state; with chaos indicators asked for, each indicator's last
+//! value (a chaos map) and the time a threshold stopped the run.
 
 use serde::{Deserialize, Serialize};
 
+use crate::chaos::Statistic;
 use crate::run::StopReason;
 use crate::simulation::{Outcome, Sample, SampleSink};
 
@@ -42,6 +44,30 @@ pub struct RunMetrics {
     /// Why the run could not start.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub error: Option<String>,
+    /// The chaos indicators at the last sample, when asked for.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub chaos: Option<ChaosMetrics>,
+}
+
+/// A run's chaos indicators at its last sample, and when a threshold stopped it: the values a
+/// chaos map shows (`null`: not asked for).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+pub struct ChaosMetrics {
+    /// The largest finite-time Lyapunov exponent.
+    pub lyapunov_max: Option<f64>,
+    /// MEGNO Y.
+    pub megno: Option<f64>,
+    /// MEGNO's mean ⟨Y⟩.
+    pub megno_mean: Option<f64>,
+    /// The fast Lyapunov indicator.
+    pub fli: Option<f64>,
+    /// SALI.
+    pub sali: Option<f64>,
+    /// GALI_k.
+    pub gali: Option<f64>,
+    /// The time a threshold (`stop_when`) stopped the run, if one did.
+    pub stopped_at: Option<f64>,
 }
 
 impl RunMetrics {
@@ -68,6 +94,7 @@ pub struct Measure {
     drift: Vec<f64>,
     q: Vec<f64>,
     p: Vec<f64>,
+    chaos: Option<ChaosMetrics>,
 }
 
 impl Measure {
@@ -86,6 +113,7 @@ impl Measure {
             drift: Vec::new(),
             q: Vec::new(),
             p: Vec::new(),
+            chaos: None,
         }
     }
 
@@ -111,11 +139,14 @@ impl Measure {
     }
 
     /// The metrics of a run that ended with `outcome`.
-    pub fn finish(self, outcome: &Outcome) -> RunMetrics {
+    pub fn finish(mut self, outcome: &Outcome) -> RunMetrics {
         let stopped_at = match outcome.stop {
             StopReason::Diverged { t, .. } => Some(t),
             _ => None,
         };
+        if let (Some(chaos), StopReason::Indicator(at)) = (self.chaos.as_mut(), outcome.stop) {
+            chaos.stopped_at = Some(at.t);
+        }
         self.finish_at(
             stopped_at,
             outcome.stats.steps,
@@ -152,6 +183,7 @@ impl Measure {
             steps,
             force_evaluations,
             error: None,
+            chaos: self.chaos,
         }
     }
 }
@@ -192,6 +224,17 @@ impl SampleSink for Measure {
             } else {
                 *d
             };
+        }
+        if let Some(v) = sample.indicators {
+            self.chaos = Some(ChaosMetrics {
+                lyapunov_max: v.get(Statistic::LyapunovMax),
+                megno: v.megno,
+                megno_mean: v.megno_mean,
+                fli: v.fli,
+                sali: v.sali,
+                gali: v.gali,
+                stopped_at: None,
+            });
         }
         let (q, p) = sample.cartesian.unwrap_or((sample.q, sample.p));
         self.q.clear();

@@ -14,6 +14,7 @@ pub mod axis;
 pub mod document;
 mod lanes;
 pub mod metrics;
+mod surface;
 
 use std::collections::BTreeMap;
 use std::ops::Range as Cells;
@@ -22,13 +23,14 @@ use std::sync::Arc;
 use serde::{Deserialize, Serialize};
 
 pub use axis::{Axis, Grid, Scale, Target};
-pub use document::{AxisDocument, RunColumns, SweepDocument};
-pub use metrics::{EnergyReference, RunMetrics};
+pub use document::{AxisDocument, ChaosColumns, RunColumns, SweepDocument};
+pub use metrics::{ChaosMetrics, EnergyReference, RunMetrics};
 
 use crate::error::{CoreError, ErrorDetail, Field, StepScope};
 use crate::run::{step_count, Budget, StopReason};
+use crate::chaos::ChaosSpec;
 use crate::simulation::{
-    InitialCoordinates, InputFields, Limits, MethodAt, Simulation, SimulationSpec,
+    EnergySurface, InitialCoordinates, InputFields, Limits, MethodAt, Simulation, SimulationSpec,
 };
 use crate::studies::engine::{self, Executor, Finished, Progress, Study};
 use crate::studies::{StudySpec, StudyStop};
@@ -71,6 +73,10 @@ pub struct SweepSpec {
     pub energy_reference: Option<EnergyReference>,
     /// One or two axes.
     pub axes: Vec<Axis>,
+    /// The chaos indicators each run reports (a chaos map), if any.
+    pub chaos: Option<ChaosSpec>,
+    /// The energy surface the initial states lie on, one momentum solved per cell, if any.
+    pub energy_surface: Option<EnergySurface>,
     /// The identity of the request (a digest of its canonical form): parts of a sweep carry it,
     /// and merging refuses parts of another.
     pub digest: String,
@@ -108,6 +114,10 @@ pub struct SweepJob {
     lanes: Option<lanes::LanePlan>,
     /// The spec it was prepared from (what workers and parts carry).
     spec: SweepSpec,
+    /// The chaos indicators of every run.
+    chaos: Option<ChaosSpec>,
+    /// The energy surface of every cell's initial state.
+    surface: Option<EnergySurface>,
 }
 
 impl SweepSpec {
@@ -238,6 +248,9 @@ impl SweepSpec {
         let grid = Grid {
             axes: self.axes.clone(),
         };
+        if let Some(surface) = &self.energy_surface {
+            surface::check_axes(surface, &grid)?;
+        }
         let mut job = SweepJob {
             templates,
             runs: labels,
@@ -248,6 +261,8 @@ impl SweepSpec {
             digest: self.digest.clone(),
             lanes: None,
             spec: self.clone(),
+            chaos: self.chaos.clone(),
+            surface: self.energy_surface.clone(),
             // A run's samples go into its metrics as they come and are not kept, so the sample
             // limit (which bounds documents) does not apply — except to a reference run, whose
             // energies are kept for the whole run.
@@ -257,6 +272,7 @@ impl SweepSpec {
             },
         };
         let damped = job.check_corners()?;
+        job.check_surface()?;
         job.against = match self.energy_reference {
             Some(EnergyReference::Exact) if !job.info.exact_solution => {
                 return Err(CoreError::Unsupported {
@@ -307,6 +323,15 @@ impl SweepJob {
         self.info.invariants.iter().map(|n| n.to_string()).collect()
     }
 
+    /// The spec of run `run` at `cell`, on the energy surface when the sweep has one.
+    fn cell_spec_on_surface(&self, run: usize, point: &[f64]) -> Result<SimulationSpec, CoreError> {
+        let mut spec = self.cell_spec(run, point);
+        if let Some(surface) = &self.surface {
+            surface.apply(&mut spec, &self.info)?;
+        }
+        Ok(spec)
+    }
+
     /// The spec of run `run` at `cell`.
     fn cell_spec(&self, run: usize, point: &[f64]) -> SimulationSpec {
         let mut spec = self.templates[run].clone();
@@ -340,7 +365,12 @@ impl SweepJob {
         for run in 0..self.templates.len() {
             for corner in &corners {
                 let point: Vec<f64> = corner.iter().map(|(v, _)| *v).collect();
-                let mut spec = self.cell_spec(run, &point);
+                let mut spec = match self.cell_spec_on_surface(run, &point) {
+                    Ok(spec) => spec,
+                    // Checked over the whole grid by `check_surface`.
+                    Err(CoreError::AboveEnergySurface { .. }) => continue,
+                    Err(e) => return Err(e),
+                };
                 for (axis, (_, end)) in self.grid.axes.iter().zip(corner) {
                     if axis.target == Target::Step {
                         spec.fields.h = end.clone();
@@ -348,7 +378,12 @@ impl SweepJob {
                     }
                 }
                 match Simulation::prepare(&spec, &self.limits) {
-                    Ok(sim) => damped |= with_system!(&sim.system, s => s.damping_rate()) != 0.0,
+                    Ok(sim) => {
+                        damped |= with_system!(&sim.system, s => s.damping_rate()) != 0.0;
+                        if let Some(chaos) = &self.chaos {
+                            sim.with_chaos(chaos)?;
+                        }
+                    }
                     Err(CoreError::OutsideChart { .. }) => {}
                     Err(e) => {
                         let blamed = e.field().map(Field::as_str).and_then(|f| {
@@ -401,8 +436,14 @@ impl SweepJob {
         let point = self.grid.point(cell);
         let mut results = Vec::with_capacity(self.templates.len());
         for run in 0..self.templates.len() {
-            let spec = self.cell_spec(run, &point);
-            let mut sim = match Simulation::prepare(&spec, &self.limits) {
+            let prepared = self.cell_spec_on_surface(run, &point).and_then(|spec| {
+                let sim = Simulation::prepare(&spec, &self.limits)?;
+                match &self.chaos {
+                    Some(chaos) => sim.with_chaos(chaos),
+                    None => Ok(sim),
+                }
+            });
+            let mut sim = match prepared {
                 Ok(sim) => sim,
                 Err(e) => {
                     results.push(RunMetrics::failed(e.to_string()));
@@ -455,7 +496,7 @@ impl SweepJob {
         let mut runs: Vec<RunColumns> = self
             .runs
             .iter()
-            .map(|label| RunColumns::new(label.clone(), &names, cells.len()))
+            .map(|label| RunColumns::new(label.clone(), &names, cells.len(), self.chaos.is_some()))
             .collect();
         let (mut steps, mut force_evaluations) = (0u64, 0u64);
         for cell in cells {

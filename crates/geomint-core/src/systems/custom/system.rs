@@ -185,6 +185,9 @@ pub struct Compiled {
     pub damping: DampingModel,
     /// D(q), n² outputs row-major, for Rayleigh damping.
     pub damping_matrix: Option<CompiledFunction>,
+    /// ∂D_ab/∂q_c, n³ outputs at (a n + b) n + c, for the tangent maps (absent when it grew
+    /// past the compiler's limits).
+    pub damping_derivative: Option<CompiledFunction>,
     /// The invariants, functions of (q, p).
     pub invariants: Option<CompiledFunction>,
 }
@@ -528,6 +531,36 @@ where
         if let Some(invariants) = &self.model.invariants {
             with_phase(q.as_slice(), p.as_slice(), |x| invariants.eval(x, out));
         }
+    }
+
+    /// ∂(P(q)v)/∂q = Σ_b ∂D_ab/∂q_c u_b with u = v (a projector) or u = M⁻¹v (general D).
+    fn projector_derivative(&self, q: &Vector<D>, v: &Vector<D>, out: &mut DMatrix<f64>) -> bool {
+        let n = q.len();
+        match (&self.model.damping, &self.model.damping_derivative) {
+            (DampingModel::None | DampingModel::Conformal { .. }, _) => {
+                out.fill(0.0);
+                true
+            }
+            (_, None) => false,
+            (damping, Some(derivative)) => with_buffer(n * n * n + n, |buffer| {
+                let (d, u) = buffer.split_at_mut(n * n * n);
+                derivative.eval(q.as_slice(), d);
+                u.copy_from_slice(v.as_slice());
+                if let DampingModel::General { factor, .. } = damping {
+                    factor.solve(u);
+                }
+                for a in 0..n {
+                    for c in 0..n {
+                        out[(a, c)] = (0..n).map(|b| d[(a * n + b) * n + c] * u[b]).sum();
+                    }
+                }
+                true
+            }),
+        }
+    }
+
+    fn damping_is_projector(&self) -> bool {
+        !matches!(self.model.damping, DampingModel::General { .. })
     }
 
     #[inline]

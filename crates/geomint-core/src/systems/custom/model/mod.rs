@@ -61,6 +61,8 @@ pub struct CustomModel {
     graph: Graph,
     energy: EnergyNodes,
     damping: DampingNodes,
+    /// ∂D_ab/∂q_c at index (a n + b) n + c, for Rayleigh damping.
+    damping_derivative: Option<Vec<NodeId>>,
     invariants: Vec<NodeId>,
     /// The coordinates' own nodes (drawn when there are no `positions`).
     coordinate_nodes: Vec<NodeId>,
@@ -277,12 +279,22 @@ impl CustomModel {
                 parse(e, &in_q_only, &mut graph)
             })?),
         };
+        // ∂D_ab/∂q_c for the tangent maps of the damping flows, last so that every other
+        // function's nodes are as they were; a derivative past the graph's limits leaves the
+        // system without tangent dynamics rather than refusing it.
+        let damping_derivative = match &damping {
+            DampingNodes::Rayleigh { matrix, .. } => {
+                graph.jacobian(matrix, &q).ok().map(|rows| rows.concat())
+            }
+            _ => None,
+        };
         let mut model = CustomModel {
             definition,
             n,
             graph,
             energy,
             damping,
+            damping_derivative,
             invariants,
             coordinate_nodes,
             positions,
@@ -551,6 +563,10 @@ impl CustomModel {
             DampingNodes::Rayleigh { matrix, .. } => Some(self.compile(matrix, false, &values)?),
             _ => None,
         };
+        let damping_derivative = self
+            .damping_derivative
+            .as_ref()
+            .and_then(|nodes| self.compile(nodes, false, &values).ok());
         let invariants = if self.invariants.is_empty() {
             None
         } else {
@@ -563,6 +579,7 @@ impl CustomModel {
             energy,
             damping: numbers.damping,
             damping_matrix,
+            damping_derivative,
             invariants,
         });
         Ok(match compiled.n {

@@ -1,0 +1,72 @@
+//! The Hénon–Heiles MEGNO map: ⟨Y⟩ over the (y, p_y) section at x = 0, p_x ≥ 0 from H = 1/8,
+//! T = 1000, h = 0.05, the triple jump of velocity Verlet (fourth order), one deviation vector —
+//! the `henon_heiles_megno` preset's request on a grid of n × n cells, run as any sweep is
+//! (all cores). n is 101 by default and `GEOMINT_CHAOS_GRID` (401 for the full map). Reports the
+//! wall and CPU time, ns per cell-step, the cells on the energy surface and those with ⟨Y⟩ > 4,
+//! and writes the map (y, p_y, ⟨Y⟩ per line) to `target/chaos-map-<n>.tsv`, which
+//! `scripts/bench-chaos-peers` compares with the peers' maps.
+
+use std::io::Write;
+use std::time::Instant;
+
+use geomint::api::sweep::{presets, SweepRequest};
+use geomint::core::run::Budget;
+use geomint::core::studies::sweep::{self, SweepLine};
+use serde_json::json;
+
+/// CPU time of the process so far, user and system, in seconds.
+fn cpu_seconds() -> f64 {
+    // SAFETY: getrusage writes into the zeroed struct it is given and reads nothing else.
+    let usage = unsafe {
+        let mut usage: libc::rusage = std::mem::zeroed();
+        libc::getrusage(libc::RUSAGE_SELF, &mut usage);
+        usage
+    };
+    let seconds = |t: libc::timeval| t.tv_sec as f64 + t.tv_usec as f64 * 1e-6;
+    seconds(usage.ru_utime) + seconds(usage.ru_stime)
+}
+
+fn main() {
+    let n: usize = std::env::var("GEOMINT_CHAOS_GRID")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(101);
+    let mut request = presets()
+        .into_iter()
+        .find(|p| p.id == "henon_heiles_megno")
+        .expect("the preset")
+        .request;
+    request["axes"][0]["n"] = json!(n);
+    request["axes"][1]["n"] = json!(n);
+    let job = SweepRequest::from_value(&request)
+        .map_err(|e| e.message)
+        .and_then(|r| {
+            r.to_spec()
+                .map_err(|e| e.message)?
+                .prepare(&Default::default())
+                .map_err(|e| e.to_string())
+        })
+        .expect("a valid sweep");
+    let (cpu, wall) = (cpu_seconds(), Instant::now());
+    let doc = sweep::run(&job, Budget::default(), &|_: SweepLine| true).expect("the map runs");
+    let (wall, cpu) = (wall.elapsed().as_secs_f64(), cpu_seconds() - cpu);
+    let run = &doc.runs[0];
+    let megno = &run.chaos.as_ref().expect("indicators").megno_mean;
+    let on: usize = megno.iter().filter(|m| m.is_some()).count();
+    let chaotic = megno.iter().filter(|m| m.is_some_and(|m| m > 4.0)).count();
+    let steps: u64 = run.steps.iter().sum();
+    println!(
+        "Hénon–Heiles MEGNO map {n} × {n}: {wall:.2} s wall, {cpu:.2} s CPU on {} threads, \
+         {:.1} ns per cell-step (CPU), {on} cells on the surface, {chaotic} with ⟨Y⟩ > 4, {steps} steps",
+        rayon::current_num_threads(),
+        cpu * 1e9 / steps.max(1) as f64,
+    );
+    let path = format!("target/chaos-map-{n}.tsv");
+    let mut out = std::io::BufWriter::new(std::fs::File::create(&path).expect("target/ is writable"));
+    for (cell, m) in megno.iter().enumerate() {
+        let (y, py) = (doc.axes[0].values[cell % n], doc.axes[1].values[cell / n]);
+        let value = m.map_or("nan".to_string(), |m| m.to_string());
+        writeln!(out, "{y}\t{py}\t{value}").expect("written");
+    }
+    println!("map written to {path}");
+}

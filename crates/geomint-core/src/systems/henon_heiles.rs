@@ -1,0 +1,108 @@
+//! The Hénon–Heiles system (M. Hénon & C. Heiles, Astron. J. 69 (1964) 73), the classic test of
+//! regular and chaotic motion in two degrees of freedom, with optional linear damping:
+//! H = (p_x² + p_y²)/2 + (x² + y²)/2 + λ(x²y − y³/3), p' = −∇V − 2γp. With λ = 1 the motion is
+//! bounded for H < 1/6; at H = 1/8 regular and chaotic orbits share the (y, p_y) section, at
+//! H = 1/6 most of it is chaotic. The default orbit, (x, y, p_x, p_y) = (0, −0.25, 0.42, 0) at
+//! H ≈ 1/8, is a chaotic one of the SALI literature (Skokos, J. Phys. A 34 (2001) 10029).
+
+use nalgebra::{DMatrix, U2};
+
+use std::borrow::Cow;
+
+use super::{AnySystem, Builder, ChartInfo, ParamSpec, ParamValues, SystemInfo, World};
+use crate::system::{MechanicalSystem, Structure, Vector};
+
+/// The Hénon–Heiles system with unit masses and frequencies.
+#[derive(Clone, Debug, PartialEq)]
+pub struct HenonHeiles {
+    /// The strength λ of the cubic coupling.
+    pub lambda: f64,
+    /// Damping coefficient γ (p' = … − 2γp).
+    pub gamma: f64,
+}
+
+impl MechanicalSystem for HenonHeiles {
+    type Dim = U2;
+    fn dim(&self) -> U2 {
+        U2
+    }
+    fn structure(&self) -> Structure {
+        Structure {
+            separable_constant_mass: true,
+            conformal_damping: true,
+        }
+    }
+    fn kinetic(&self, _q: &Vector<U2>, p: &Vector<U2>) -> f64 {
+        0.5 * (p[0] * p[0] + p[1] * p[1])
+    }
+    fn potential(&self, q: &Vector<U2>) -> f64 {
+        let (x, y) = (q[0], q[1]);
+        0.5 * (x * x + y * y) + self.lambda * (x * x * y - y * y * y / 3.0)
+    }
+    #[inline]
+    fn grad_potential(&self, q: &Vector<U2>, out: &mut Vector<U2>) {
+        let (x, y) = (q[0], q[1]);
+        out[0] = x + 2.0 * self.lambda * x * y;
+        out[1] = y + self.lambda * (x * x - y * y);
+    }
+    #[inline]
+    fn velocity(&self, _q: &Vector<U2>, p: &Vector<U2>, out: &mut Vector<U2>) {
+        out[0] = p[0];
+        out[1] = p[1];
+    }
+    fn damping_rate(&self) -> f64 {
+        2.0 * self.gamma
+    }
+    fn hess_potential(&self, q: &Vector<U2>, out: &mut DMatrix<f64>) -> u64 {
+        let (x, y) = (q[0], q[1]);
+        let (cx, cy) = (2.0 * self.lambda * x, 2.0 * self.lambda * y);
+        out[(0, 0)] = 1.0 + cy;
+        out[(0, 1)] = cx;
+        out[(1, 0)] = cx;
+        out[(1, 1)] = 1.0 - cy;
+        0
+    }
+}
+
+const LAMBDA: ParamSpec = ParamSpec::number(
+    "lambda",
+    "Strength λ of the cubic coupling x²y − y³/3.",
+    1.0,
+    -1e3,
+    false,
+    1e3,
+);
+const GAMMA: ParamSpec = ParamSpec::gamma(0.0);
+const CARTESIAN: ChartInfo = ChartInfo::new(
+    "cartesian",
+    &["x", "y"],
+    true,
+    "H = (p_x² + p_y²)/2 + (x² + y²)/2 + λ(x²y − y³/3).",
+);
+
+/// The catalogue entry of `henon_heiles`.
+pub(super) fn entry() -> SystemInfo {
+    SystemInfo {
+        id: Cow::Borrowed("henon_heiles"),
+        name: Cow::Borrowed("Hénon–Heiles"),
+        description: Cow::Borrowed(
+            "H = (p_x² + p_y²)/2 + (x² + y²)/2 + λ(x²y − y³/3), p' = −∇V − 2γp (Hénon & Heiles 1964): \
+             regular and chaotic orbits side by side at H = 1/8, mostly chaos at H = 1/6.",
+        ),
+        degrees_of_freedom: 2,
+        charts: vec![CARTESIAN],
+        params: vec![LAMBDA, GAMMA],
+        q0: vec![0.0, -0.25],
+        p0: vec![0.42, 0.0],
+        invariants: Vec::new(),
+        exact_solution: false,
+        conformal_damping: true,
+        world: World::Plane,
+        build: Builder::Catalog(|p: &ParamValues, _: &ChartInfo, _: f64| {
+            AnySystem::HenonHeiles(HenonHeiles {
+                lambda: p.number(&LAMBDA),
+                gamma: p.number(&GAMMA),
+            })
+        }),
+    }
+}
