@@ -10,8 +10,11 @@
 //! - An uploaded recording ([`RecordingStore::begin_upload`]) arrives in a locked temporary file
 //!   too, is checked by the caller while it is there, and only then kept
 //!   ([`RecordingStore::keep_upload`]); an upload that is refused or cut short leaves nothing.
-//! - Past the size cap the oldest recordings are deleted; a recording larger than the whole cap
-//!   is refused.
+//! - Every recording belongs to the caller that stored it (its `owner`, in the sidecar; none for
+//!   those stored before owners were recorded). A new recording evicts only its owner's own
+//!   oldest recordings: past the owner's quota, and past the store's size cap, where recordings
+//!   without an owner go too. A recording larger than its owner's quota or the whole cap is
+//!   refused, and so is one for which only other owners' recordings could make room.
 //! - At start-up, files that are not complete recordings of this service (a torn `.rrd`, a
 //!   sidecar that does not match its file, anything foreign) are skipped with a log line, and
 //!   left alone; leftover temporary files of this service are removed. A temporary file is
@@ -117,6 +120,15 @@ impl Contents {
     }
 }
 
+/// Who stores a recording, and the bytes its recordings may take in all (`None`: the store's cap).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Owner {
+    /// The owner's name.
+    pub name: String,
+    /// Its quota of bytes.
+    pub quota: Option<u64>,
+}
+
 /// One stored recording.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct RecordingEntry {
@@ -141,6 +153,12 @@ pub struct RecordingEntry {
     /// Milliseconds since the Unix epoch at creation (orders eviction).
     #[serde(default)]
     pub created_unix_ms: u64,
+    /// Who stored it (a token's name, or `anonymous@ADDRESS`): only it or an `admin` token
+    /// deletes it, and only its own recordings make room for it. Null for a recording stored
+    /// before owners were recorded.
+    #[serde(default)]
+    #[schema(example = "alice")]
+    pub owner: Option<String>,
 }
 
 /// The sidecar file of a recording.
@@ -174,6 +192,25 @@ pub enum StoreError {
     /// An upload is no longer in its temporary file (it was kept or discarded before).
     #[error("the upload was already kept or discarded")]
     UploadGone,
+    /// The recording alone exceeds its owner's quota.
+    #[error("the recording has {bytes} bytes, more than `{owner}`'s quota of {quota} bytes")]
+    OverQuota {
+        /// The owner.
+        owner: String,
+        /// Size of the recording.
+        bytes: u64,
+        /// The owner's quota.
+        quota: u64,
+    },
+    /// Only other owners' recordings could make room under the store's cap.
+    #[error("the store's cap of {max} bytes is taken by other owners' recordings; it keeps \
+             {bytes} more bytes only once they delete some")]
+    FullOfOthers {
+        /// Size of the recording.
+        bytes: u64,
+        /// The cap.
+        max: u64,
+    },
 }
 
 #[derive(Debug, Default)]
@@ -182,11 +219,14 @@ struct Index {
     entries: BTreeMap<String, (u64, RecordingEntry)>,
     next_seq: u64,
     total: u64,
+    /// Bytes per owner (recordings without an owner under "").
+    by_owner: BTreeMap<String, u64>,
 }
 
 impl Index {
     fn insert(&mut self, entry: RecordingEntry) {
         self.total += entry.bytes;
+        *self.by_owner.entry(owner_key(&entry)).or_default() += entry.bytes;
         self.next_seq += 1;
         self.entries
             .insert(entry.id.clone(), (self.next_seq, entry));
@@ -195,17 +235,37 @@ impl Index {
     fn remove(&mut self, id: &str) -> Option<RecordingEntry> {
         let (_, entry) = self.entries.remove(id)?;
         self.total -= entry.bytes;
+        let key = owner_key(&entry);
+        if let Some(bytes) = self.by_owner.get_mut(&key) {
+            *bytes -= entry.bytes;
+            if *bytes == 0 {
+                self.by_owner.remove(&key);
+            }
+        }
         Some(entry)
     }
 
-    /// The id of the oldest entry other than `keep`.
-    fn oldest_except(&self, keep: &str) -> Option<String> {
+    /// Bytes of `owner`'s recordings.
+    fn owned(&self, owner: &str) -> u64 {
+        self.by_owner.get(owner).copied().unwrap_or(0)
+    }
+
+    /// The id of the oldest entry other than `keep` owned by `owner` ("" for no owner; any
+    /// owner for `None`).
+    fn oldest_except(&self, keep: &str, owner: Option<&str>) -> Option<String> {
         self.entries
             .iter()
-            .filter(|(id, _)| id.as_str() != keep)
+            .filter(|(id, (_, e))| {
+                id.as_str() != keep && owner.is_none_or(|o| owner_key(e) == o)
+            })
             .min_by_key(|(_, (seq, e))| (e.created_unix_ms, *seq))
             .map(|(id, _)| id.clone())
     }
+}
+
+/// The key of an entry's owner in the index ("" for none).
+fn owner_key(entry: &RecordingEntry) -> String {
+    entry.owner.clone().unwrap_or_default()
 }
 
 /// The recordings under one data directory.
@@ -279,10 +339,20 @@ impl RecordingStore {
                 "recordings found"
             );
         }
-        let evicted = store.evict(&mut index, "");
+        // A cap lowered since the last start: the oldest go, whoever owns them.
+        let mut evicted = Vec::new();
+        while index.total > store.max_bytes {
+            let Some(id) = index.oldest_except("", None) else { break };
+            evicted.extend(index.remove(&id));
+        }
         drop(index);
         store.delete_files(&evicted);
         store
+    }
+
+    /// Bytes of `owner`'s recordings now.
+    pub fn owned_bytes(&self, owner: &str) -> u64 {
+        self.lock().owned(owner)
     }
 
     /// The data directory.
@@ -374,6 +444,7 @@ impl RecordingStore {
     pub fn save(
         &self,
         spec: SpecSummary,
+        owner: &Owner,
         write: impl FnOnce(BufWriter<File>) -> Result<BufWriter<File>, RecordingError>,
     ) -> Result<RecordingEntry, StoreError> {
         fs::create_dir_all(&self.dir)?;
@@ -384,9 +455,10 @@ impl RecordingStore {
             .file
             .try_clone()
             .map_err(StoreError::from)
-            .and_then(|handle| self.write_checked(&tmp.path, handle, write));
+            .and_then(|handle| self.write_checked(&tmp.path, handle, write))
+            .and_then(|bytes| self.within_quota(owner, bytes));
         match written {
-            Ok(bytes) => self.keep(tmp, Contents::simulation(spec), bytes),
+            Ok(bytes) => self.keep(tmp, Contents::simulation(spec), owner, bytes),
             Err(e) => {
                 tmp.discard();
                 Err(e)
@@ -410,6 +482,7 @@ impl RecordingStore {
         &self,
         mut upload: Upload,
         contents: Contents,
+        owner: &Owner,
     ) -> Result<RecordingEntry, StoreError> {
         let tmp = upload.tmp.take().ok_or(StoreError::UploadGone)?;
         let checked = (|| {
@@ -424,10 +497,10 @@ impl RecordingStore {
             if !is_complete_rrd(&tmp.path, bytes)? {
                 return Err(StoreError::Incomplete);
             }
-            Ok(bytes)
+            self.within_quota(owner, bytes)
         })();
         match checked {
-            Ok(bytes) => self.keep(tmp, contents, bytes),
+            Ok(bytes) => self.keep(tmp, contents, owner, bytes),
             Err(e) => {
                 tmp.discard();
                 Err(e)
@@ -459,11 +532,25 @@ impl RecordingStore {
         Ok(bytes)
     }
 
-    /// Moves a checked recording into place under a new id, with its sidecar, and indexes it.
+    /// `bytes`, unless they alone exceed `owner`'s quota.
+    fn within_quota(&self, owner: &Owner, bytes: u64) -> Result<u64, StoreError> {
+        match owner.quota {
+            Some(quota) if bytes > quota => Err(StoreError::OverQuota {
+                owner: owner.name.clone(),
+                bytes,
+                quota,
+            }),
+            _ => Ok(bytes),
+        }
+    }
+
+    /// Moves a checked recording into place under a new id, with its sidecar, indexes it and
+    /// makes room for it ([`RecordingStore::evict`]); removes it again when there is none.
     fn keep(
         &self,
         tmp: TempFile,
         contents: Contents,
+        owner: &Owner,
         bytes: u64,
     ) -> Result<RecordingEntry, StoreError> {
         let id = new_id();
@@ -480,6 +567,7 @@ impl RecordingStore {
             origin: contents.origin,
             application_id: contents.application_id,
             created_unix_ms,
+            owner: Some(owner.name.clone()),
         };
         tmp.persist(&self.rrd_path(id))?;
         let sidecar = serde_json::to_vec_pretty(&Sidecar {
@@ -494,25 +582,70 @@ impl RecordingStore {
         let evicted = {
             let mut index = self.lock();
             index.insert(entry.clone());
-            self.evict(&mut index, id)
+            let room = self.evict(&mut index, id, owner);
+            if room.is_err() {
+                index.remove(id);
+            }
+            room
+        };
+        let evicted = match evicted {
+            Ok(evicted) => evicted,
+            Err(e) => {
+                self.delete_files(std::slice::from_ref(&entry));
+                return Err(e);
+            }
         };
         self.delete_files(&evicted);
         tracing::info!(id, bytes, origin = ?entry.origin, evicted = evicted.len(), "recording stored");
         Ok(entry)
     }
 
-    /// Removes the oldest entries (never `keep`) until the total fits the cap; returns them.
-    fn evict(&self, index: &mut Index, keep: &str) -> Vec<RecordingEntry> {
-        let mut evicted = Vec::new();
-        while index.total > self.max_bytes {
-            let Some(id) = index.oldest_except(keep) else {
+    /// Makes room for the new recording `keep` of `owner`: removes the owner's oldest other
+    /// recordings while the owner is past its quota or the store past its cap, and past the cap
+    /// then the oldest recordings without an owner; never another owner's. Returns those
+    /// removed, or [`StoreError::FullOfOthers`] (removing nothing) when that is not enough.
+    fn evict(
+        &self,
+        index: &mut Index,
+        keep: &str,
+        owner: &Owner,
+    ) -> Result<Vec<RecordingEntry>, StoreError> {
+        // Plan first, so that a refusal removes nothing.
+        let mut plan: Vec<String> = Vec::new();
+        let mut owned = index.owned(&owner.name);
+        let mut total = index.total;
+        let mut candidates = index
+            .entries
+            .iter()
+            .filter(|(id, (_, e))| {
+                id.as_str() != keep && e.owner.as_deref().is_none_or(|o| o == owner.name)
+            })
+            .map(|(id, (seq, e))| (e.owner.is_some(), e.created_unix_ms, *seq, id.clone(), e.bytes))
+            .collect::<Vec<_>>();
+        // The owner's own first (oldest first), then those without an owner.
+        candidates.sort_by(|a, b| (!a.0, a.1, a.2).cmp(&(!b.0, b.1, b.2)));
+        for (own, _, _, id, bytes) in candidates {
+            let past_quota = owner.quota.is_some_and(|q| owned > q);
+            if !past_quota && total <= self.max_bytes {
                 break;
-            };
-            if let Some(entry) = index.remove(&id) {
-                evicted.push(entry);
+            }
+            if !own && total <= self.max_bytes {
+                continue;
+            }
+            plan.push(id);
+            total -= bytes;
+            if own {
+                owned -= bytes;
             }
         }
-        evicted
+        if total > self.max_bytes || owner.quota.is_some_and(|q| owned > q) {
+            let bytes = index.entries.get(keep).map_or(0, |(_, e)| e.bytes);
+            return Err(StoreError::FullOfOthers {
+                bytes,
+                max: self.max_bytes,
+            });
+        }
+        Ok(plan.iter().filter_map(|id| index.remove(id)).collect())
     }
 
     fn delete_files(&self, entries: &[RecordingEntry]) {
@@ -526,8 +659,18 @@ impl RecordingStore {
 
     /// Every recording, newest first.
     pub fn list(&self) -> Vec<RecordingEntry> {
+        self.list_owned(None)
+    }
+
+    /// The recordings of `owner` (all for `None`), newest first.
+    pub fn list_owned(&self, owner: Option<&str>) -> Vec<RecordingEntry> {
         let index = self.lock();
-        let mut entries: Vec<(u64, RecordingEntry)> = index.entries.values().cloned().collect();
+        let mut entries: Vec<(u64, RecordingEntry)> = index
+            .entries
+            .values()
+            .filter(|(_, e)| owner.is_none_or(|o| e.owner.as_deref() == Some(o)))
+            .cloned()
+            .collect();
         entries.sort_by(|a, b| (b.1.created_unix_ms, b.0).cmp(&(a.1.created_unix_ms, a.0)));
         entries.into_iter().map(|(_, e)| e).collect()
     }
@@ -602,8 +745,12 @@ mod tests {
             t_end: 0.1,
             samples_per_method: 2,
         };
+        let owner = Owner {
+            name: "alice".into(),
+            quota: None,
+        };
         let entry = writer
-            .save(spec, |mut w| {
+            .save(spec, &owner, |mut w| {
                 // Mid-write, a second store scans the directory.
                 w.write_all(b"RRF2").unwrap();
                 w.flush().unwrap();
