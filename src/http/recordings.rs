@@ -342,13 +342,8 @@ pub async fn list_recordings(
     caller: Caller,
     Query(query): Query<OwnerQuery>,
 ) -> Json<Vec<ListedRecording>> {
-    let listed = state.recordings.list_owned(query.owner.as_deref()).into_iter().map(|entry| {
-        ListedRecording {
-            may_delete: caller.may_delete(entry.owner.iter().map(String::as_str)),
-            entry,
-        }
-    });
-    Json(listed.collect())
+    let listed = state.recordings.list_owned(query.owner.as_deref()).into_iter();
+    Json(listed.map(|entry| ListedRecording::for_caller(entry, &caller)).collect())
 }
 
 /// A recording as the list shows it to a caller.
@@ -361,6 +356,16 @@ pub struct ListedRecording {
     pub may_delete: bool,
 }
 
+impl ListedRecording {
+    /// `entry` as `caller` sees it.
+    pub fn for_caller(entry: RecordingEntry, caller: &Caller) -> Self {
+        ListedRecording {
+            may_delete: caller.may_delete(entry.owner.iter().map(String::as_str)),
+            entry,
+        }
+    }
+}
+
 /// `?owner=` of a listing.
 #[derive(Debug, Default, serde::Deserialize)]
 pub struct OwnerQuery {
@@ -369,14 +374,15 @@ pub struct OwnerQuery {
 }
 
 /// One recording: `{id}.rrd` downloads the file (`application/octet-stream`, as an
-/// attachment, with range requests); `{id}` alone gives its entry as JSON.
+/// attachment, with range requests); `{id}` alone gives its entry as JSON, as the list shows it
+/// to the caller.
 #[utoipa::path(get, path = paths::RECORDING, tag = "recordings",
     params(("id" = String, Path,
         description = "The recording id followed by `.rrd` for the file, or the id alone for its entry",
         example = "3f2a9c0d6b1e4f8a9d7c5b3a1e0f2d4c.rrd")),
     responses(
         (status = 200, description = "The recording file, or its entry",
-            content((RrdFile = "application/octet-stream"), (RecordingEntry = "application/json"))),
+            content((RrdFile = "application/octet-stream"), (ListedRecording = "application/json"))),
         (status = 206, description = "The requested byte range of the file (`Range: bytes=…`)",
             content((RrdFile = "application/octet-stream"))),
         (status = 404, description = "No such recording (also for anything that is not an id)", body = ErrorBody),
@@ -384,6 +390,7 @@ pub struct OwnerQuery {
     ))]
 pub async fn get_recording(
     State(state): State<AppState>,
+    caller: Caller,
     Path(name): Path<String>,
     request: Request,
 ) -> Result<Response, ApiError> {
@@ -396,7 +403,7 @@ pub async fn get_recording(
         .get(id)
         .ok_or_else(|| no_recording(&name))?;
     if !file {
-        return Ok(Json(entry).into_response());
+        return Ok(Json(ListedRecording::for_caller(entry, &caller)).into_response());
     }
     // ServeFile answers conditional and range requests and streams the file in chunks.
     let response = ServeFile::new(&path)

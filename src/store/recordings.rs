@@ -24,7 +24,6 @@
 //!
 //! Everything here is blocking file I/O: call it off the async runtime.
 
-use std::collections::BTreeMap;
 use std::fs::{self, File};
 use std::io::{self, BufWriter, Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
@@ -32,11 +31,12 @@ use std::sync::Mutex;
 use std::time::{SystemTime, UNIX_EPOCH};
 
 use serde::{Deserialize, Serialize};
-use utoipa::ToSchema;
 
+pub use super::entry::{Contents, Origin, Owner, RecordingEntry, SpecSummary};
 pub use super::tempfile::Upload;
+use super::dates::rfc3339;
+use super::index::Index;
 use super::tempfile::{remove_if_abandoned, write_atomically, TempFile, TMP_PREFIX};
-use crate::core::simulation::Simulation;
 use crate::recording::RecordingError;
 
 /// The sidecar's format tag.
@@ -50,115 +50,6 @@ pub fn is_valid_id(id: &str) -> bool {
 /// A new random recording id.
 pub fn new_id() -> String {
     uuid::Uuid::new_v4().simple().to_string()
-}
-
-/// What a recording holds, in brief.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
-pub struct SpecSummary {
-    /// System id.
-    #[schema(example = "pendulum")]
-    pub system: String,
-    /// Method labels, in the order asked.
-    pub methods: Vec<String>,
-    /// Step size.
-    pub h: f64,
-    /// Steps per method.
-    pub steps: u64,
-    /// Sampling interval in steps.
-    pub every: u64,
-    /// Time of the last step.
-    pub t_end: f64,
-    /// Samples of a run that finishes.
-    pub samples_per_method: u64,
-}
-
-impl SpecSummary {
-    /// The summary of a prepared simulation.
-    pub fn of(sim: &Simulation) -> Self {
-        SpecSummary {
-            system: sim.system_id().to_string(),
-            methods: sim.methods.iter().map(|m| m.label()).collect(),
-            h: sim.schedule.h,
-            steps: sim.schedule.steps,
-            every: sim.schedule.every,
-            t_end: sim.schedule.steps as f64 * sim.schedule.h,
-            samples_per_method: sim.schedule.samples(),
-        }
-    }
-}
-
-/// How a recording came into the store.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
-#[serde(rename_all = "snake_case")]
-pub enum Origin {
-    /// Recorded by the server from a simulation request (`POST /api/v1/recordings` with JSON).
-    #[default]
-    Simulation,
-    /// Uploaded as an `.rrd` file (`POST /api/v1/recordings` with `application/octet-stream`).
-    Upload,
-}
-
-/// What is known of a recording before it is stored: what it holds and where it came from.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Contents {
-    /// The simulation it records, when it records one of this service's simulations.
-    pub spec: Option<SpecSummary>,
-    /// How it came.
-    pub origin: Origin,
-    /// The application id written in the recording.
-    pub application_id: Option<String>,
-}
-
-impl Contents {
-    /// A recording this server made of `spec`.
-    pub fn simulation(spec: SpecSummary) -> Self {
-        Contents {
-            spec: Some(spec),
-            origin: Origin::Simulation,
-            application_id: Some(crate::recording::APPLICATION_ID.to_string()),
-        }
-    }
-}
-
-/// Who stores a recording, and the bytes its recordings may take in all (`None`: the store's cap).
-#[derive(Clone, Debug, PartialEq)]
-pub struct Owner {
-    /// The owner's name.
-    pub name: String,
-    /// Its quota of bytes.
-    pub quota: Option<u64>,
-}
-
-/// One stored recording.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
-pub struct RecordingEntry {
-    /// The id (32 lowercase hex digits).
-    #[schema(example = "3f2a9c0d6b1e4f8a9d7c5b3a1e0f2d4c")]
-    pub id: String,
-    /// When it was stored (RFC 3339, UTC).
-    #[schema(example = "2026-01-31T12:00:00.000Z")]
-    pub created: String,
-    /// Size of the `.rrd` file in bytes.
-    pub bytes: u64,
-    /// The simulation it records; null for an uploaded recording that is not one of this
-    /// service's simulations (another application's, or a study's).
-    pub spec: Option<SpecSummary>,
-    /// How it came into the store.
-    #[serde(default)]
-    pub origin: Origin,
-    /// The application id written in the recording (`geomint` for this service's own).
-    #[serde(default)]
-    #[schema(example = "geomint")]
-    pub application_id: Option<String>,
-    /// Milliseconds since the Unix epoch at creation (orders eviction).
-    #[serde(default)]
-    pub created_unix_ms: u64,
-    /// Who stored it (a token's name, or `anonymous@ADDRESS`): only it or an `admin` token
-    /// deletes it, and only its own recordings make room for it. Null for a recording stored
-    /// before owners were recorded.
-    #[serde(default)]
-    #[schema(example = "alice")]
-    pub owner: Option<String>,
 }
 
 /// The sidecar file of a recording.
@@ -213,61 +104,6 @@ pub enum StoreError {
     },
 }
 
-#[derive(Debug, Default)]
-struct Index {
-    /// Entries with their insertion order (which breaks ties in creation time).
-    entries: BTreeMap<String, (u64, RecordingEntry)>,
-    next_seq: u64,
-    total: u64,
-    /// Bytes per owner (recordings without an owner under "").
-    by_owner: BTreeMap<String, u64>,
-}
-
-impl Index {
-    fn insert(&mut self, entry: RecordingEntry) {
-        self.total += entry.bytes;
-        *self.by_owner.entry(owner_key(&entry)).or_default() += entry.bytes;
-        self.next_seq += 1;
-        self.entries
-            .insert(entry.id.clone(), (self.next_seq, entry));
-    }
-
-    fn remove(&mut self, id: &str) -> Option<RecordingEntry> {
-        let (_, entry) = self.entries.remove(id)?;
-        self.total -= entry.bytes;
-        let key = owner_key(&entry);
-        if let Some(bytes) = self.by_owner.get_mut(&key) {
-            *bytes -= entry.bytes;
-            if *bytes == 0 {
-                self.by_owner.remove(&key);
-            }
-        }
-        Some(entry)
-    }
-
-    /// Bytes of `owner`'s recordings.
-    fn owned(&self, owner: &str) -> u64 {
-        self.by_owner.get(owner).copied().unwrap_or(0)
-    }
-
-    /// The id of the oldest entry other than `keep` owned by `owner` ("" for no owner; any
-    /// owner for `None`).
-    fn oldest_except(&self, keep: &str, owner: Option<&str>) -> Option<String> {
-        self.entries
-            .iter()
-            .filter(|(id, (_, e))| {
-                id.as_str() != keep && owner.is_none_or(|o| owner_key(e) == o)
-            })
-            .min_by_key(|(_, (seq, e))| (e.created_unix_ms, *seq))
-            .map(|(id, _)| id.clone())
-    }
-}
-
-/// The key of an entry's owner in the index ("" for none).
-fn owner_key(entry: &RecordingEntry) -> String {
-    entry.owner.clone().unwrap_or_default()
-}
-
 /// The recordings under one data directory.
 #[derive(Debug)]
 pub struct RecordingStore {
@@ -289,30 +125,6 @@ fn is_complete_rrd(path: &Path, len: u64) -> io::Result<bool> {
     file.seek(SeekFrom::End(-12))?;
     file.read_exact(&mut tail)?;
     Ok(&head == b"RRF2" && &tail[..8] == b"RRF2FOOT")
-}
-
-/// RFC 3339 (UTC, milliseconds) of a time since the Unix epoch.
-fn rfc3339(unix_ms: u64) -> String {
-    let secs = unix_ms / 1000;
-    let days = (secs / 86_400) as i64;
-    let rem = secs % 86_400;
-    // Civil date from days since 1970-01-01 (proleptic Gregorian calendar).
-    let z = days + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z - era * 146_097;
-    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let day = doy - (153 * mp + 2) / 5 + 1;
-    let month = if mp < 10 { mp + 3 } else { mp - 9 };
-    let year = yoe + era * 400 + i64::from(month <= 2);
-    format!(
-        "{year:04}-{month:02}-{day:02}T{:02}:{:02}:{:02}.{:03}Z",
-        rem / 3600,
-        rem % 3600 / 60,
-        rem % 60,
-        unix_ms % 1000
-    )
 }
 
 impl RecordingStore {
@@ -582,7 +394,7 @@ impl RecordingStore {
         let evicted = {
             let mut index = self.lock();
             index.insert(entry.clone());
-            let room = self.evict(&mut index, id, owner);
+            let room = index.make_room(id, owner, self.max_bytes);
             if room.is_err() {
                 index.remove(id);
             }
@@ -598,54 +410,6 @@ impl RecordingStore {
         self.delete_files(&evicted);
         tracing::info!(id, bytes, origin = ?entry.origin, evicted = evicted.len(), "recording stored");
         Ok(entry)
-    }
-
-    /// Makes room for the new recording `keep` of `owner`: removes the owner's oldest other
-    /// recordings while the owner is past its quota or the store past its cap, and past the cap
-    /// then the oldest recordings without an owner; never another owner's. Returns those
-    /// removed, or [`StoreError::FullOfOthers`] (removing nothing) when that is not enough.
-    fn evict(
-        &self,
-        index: &mut Index,
-        keep: &str,
-        owner: &Owner,
-    ) -> Result<Vec<RecordingEntry>, StoreError> {
-        // Plan first, so that a refusal removes nothing.
-        let mut plan: Vec<String> = Vec::new();
-        let mut owned = index.owned(&owner.name);
-        let mut total = index.total;
-        let mut candidates = index
-            .entries
-            .iter()
-            .filter(|(id, (_, e))| {
-                id.as_str() != keep && e.owner.as_deref().is_none_or(|o| o == owner.name)
-            })
-            .map(|(id, (seq, e))| (e.owner.is_some(), e.created_unix_ms, *seq, id.clone(), e.bytes))
-            .collect::<Vec<_>>();
-        // The owner's own first (oldest first), then those without an owner.
-        candidates.sort_by(|a, b| (!a.0, a.1, a.2).cmp(&(!b.0, b.1, b.2)));
-        for (own, _, _, id, bytes) in candidates {
-            let past_quota = owner.quota.is_some_and(|q| owned > q);
-            if !past_quota && total <= self.max_bytes {
-                break;
-            }
-            if !own && total <= self.max_bytes {
-                continue;
-            }
-            plan.push(id);
-            total -= bytes;
-            if own {
-                owned -= bytes;
-            }
-        }
-        if total > self.max_bytes || owner.quota.is_some_and(|q| owned > q) {
-            let bytes = index.entries.get(keep).map_or(0, |(_, e)| e.bytes);
-            return Err(StoreError::FullOfOthers {
-                bytes,
-                max: self.max_bytes,
-            });
-        }
-        Ok(plan.iter().filter_map(|id| index.remove(id)).collect())
     }
 
     fn delete_files(&self, entries: &[RecordingEntry]) {
@@ -774,12 +538,5 @@ mod tests {
         let reopened = RecordingStore::open(&dir, 1 << 30);
         assert_eq!(reopened.list(), vec![entry]);
         fs::remove_dir_all(&dir).unwrap();
-    }
-
-    #[test]
-    fn dates_are_rfc3339() {
-        assert_eq!(rfc3339(0), "1970-01-01T00:00:00.000Z");
-        assert_eq!(rfc3339(951_782_400_123), "2000-02-29T00:00:00.123Z");
-        assert_eq!(rfc3339(1_767_225_599_999), "2025-12-31T23:59:59.999Z");
     }
 }
