@@ -292,9 +292,12 @@ pub async fn run(
             Ok(None) => return Err(lost("the subscription to the parts ended", &"closed")),
             Ok(Some(message)) => message,
         };
-        if let Some(error) = poison::exhausted(&message, &sequences) {
-            purge().await;
-            return Err(error);
+        // A shard whose part came after all (from a slow worker) is done, whatever its copies did.
+        if let Some((shard, error)) = poison::exhausted(&message, &sequences) {
+            if parts.get(shard).is_some_and(Option::is_none) {
+                purge().await;
+                return Err(error);
+            }
         }
         if message.subject.starts_with(poison::ADVISORY) {
             continue;

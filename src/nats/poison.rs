@@ -11,10 +11,10 @@
 //!   advisory ([`ADVISORY`]), which the server that queued the shard watches for its sequence
 //!   numbers: the study fails within `max_deliver` ack waits.
 //!
-//! Tests make a shard panic through [`test_fault`]: in builds with debug assertions only, a
-//! worker whose environment sets `GEOMINT_WORKER_PANIC_ON` panics on a task whose bytes contain
-//! that text. Release builds have no such hook, and no request reaches it without the worker's
-//! own environment.
+//! Tests make a shard panic, or kill its worker, through [`test_fault`]: in builds with debug
+//! assertions only, a worker whose environment sets `GEOMINT_WORKER_PANIC_ON` panics on a task
+//! whose bytes contain that text, and one that sets `GEOMINT_WORKER_ABORT_ON` aborts. Release
+//! builds have no such hook, and no request reaches it without the worker's own environment.
 
 use std::collections::HashMap;
 
@@ -43,21 +43,24 @@ struct MaxDeliveries {
     deliveries: u64,
 }
 
-/// The study's error if `message` is a max-deliveries advisory for one of the study's shards
-/// (`shards`: stream sequence → shard).
-pub fn exhausted(message: &async_nats::Message, shards: &HashMap<u64, usize>) -> Option<CoreError> {
+/// The shard and the study's error if `message` is a max-deliveries advisory for one of the
+/// study's shards (`shards`: stream sequence → shard).
+pub fn exhausted(
+    message: &async_nats::Message,
+    shards: &HashMap<u64, usize>,
+) -> Option<(usize, CoreError)> {
     if !message.subject.starts_with(ADVISORY) {
         return None;
     }
     let advisory: MaxDeliveries = serde_json::from_slice(&message.payload).ok()?;
-    let shard = shards.get(&advisory.stream_seq)?;
-    Some(CoreError::Executor {
+    let shard = *shards.get(&advisory.stream_seq)?;
+    Some((shard, CoreError::Executor {
         message: format!(
             "the sweep failed: shard {shard} was handed to workers {} times (max_deliver) and \
              never finished: each worker running it died or panicked",
             advisory.deliveries
         ),
-    })
+    }))
 }
 
 /// The message of a panic caught in a worker.
@@ -73,17 +76,25 @@ pub fn panic_message(error: tokio::task::JoinError) -> String {
         .unwrap_or_else(|| "a panic without a message".to_string())
 }
 
-/// Panics when the worker's environment asks it to for a task with these bytes (builds with
-/// debug assertions only; see the module's documentation).
+/// Panics, or aborts the worker, when its environment asks it to for a task with these bytes
+/// (builds with debug assertions only; see the module's documentation).
 pub fn test_fault(payload: &[u8]) {
     #[cfg(debug_assertions)]
     {
-        static MARKER: std::sync::OnceLock<Option<String>> = std::sync::OnceLock::new();
-        let marker = MARKER.get_or_init(|| std::env::var("GEOMINT_WORKER_PANIC_ON").ok());
-        if let Some(marker) = marker.as_deref().filter(|m| !m.is_empty()) {
-            if payload.windows(marker.len()).any(|w| w == marker.as_bytes()) {
-                panic!("GEOMINT_WORKER_PANIC_ON: a test's poison shard");
-            }
+        static MARKERS: std::sync::OnceLock<[Option<String>; 2]> = std::sync::OnceLock::new();
+        let [panic_on, abort_on] = MARKERS.get_or_init(|| {
+            ["GEOMINT_WORKER_PANIC_ON", "GEOMINT_WORKER_ABORT_ON"]
+                .map(|name| std::env::var(name).ok().filter(|m| !m.is_empty()))
+        });
+        let holds = |marker: &Option<String>| {
+            marker.as_deref().is_some_and(|m| payload.windows(m.len()).any(|w| w == m.as_bytes()))
+        };
+        if holds(abort_on) {
+            eprintln!("GEOMINT_WORKER_ABORT_ON: a test's poison shard kills its worker");
+            std::process::abort();
+        }
+        if holds(panic_on) {
+            panic!("GEOMINT_WORKER_PANIC_ON: a test's poison shard");
         }
     }
     #[cfg(not(debug_assertions))]
