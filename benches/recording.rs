@@ -16,7 +16,9 @@ fn main() {
     let body = serde_json::json!({"system": "pendulum", "method": "modin_3s",
         "h": 0.001, "t_end": 1000, "output": {"every": 1}});
     let spec = SimulateRequest::from_value(&body).expect("a valid spec");
-    let sim = spec.prepare(&limits).expect("within the limits");
+    let sim = spec
+        .prepare(&limits, &geomint::api::system::NoStoredSystems)
+        .expect("within the limits");
     let doc = sim.simulate(1, Budget::default()).expect("the run");
     let samples = doc.runs[0].columns.energy.len();
     let mut bytes = 0;

@@ -15,13 +15,14 @@
 //! - [`recording`]: Rerun recordings (`.rrd`) of the core's results.
 //! - [`store`]: what the service keeps on disk: recordings and stored system definitions.
 //! - [`http`]: the axum service: routes, answer forms, limits.
-//! - [`nats`]: studies on NATS JetStream workers.
+//! - [`executor`], [`nats`]: where studies run: this machine, or NATS JetStream workers.
 //! - [`cli`]: the command line.
 #![warn(missing_docs)]
 
 pub mod access;
 pub mod api;
 pub mod cli;
+pub mod executor;
 /// The integrator core ([`geomint_core`]), under the name the service's modules use.
 pub use geomint_core as core;
 pub mod http;

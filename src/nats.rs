@@ -1,11 +1,15 @@
-//! Sweeps on many machines through a NATS JetStream work queue.
+//! Studies on many machines through a NATS JetStream work queue: the executor
+//! ([`Executor`]) of `geomint serve --nats URL`.
 //!
-//! `geomint serve --nats URL` puts a sweep's shards ([`Task`]s) on the work-queue stream
-//! [`STREAM`] under `geomint.sweep.shards.<study>`; any number of `geomint worker --nats URL`
-//! processes pull them one at a time through the durable consumer [`CONSUMER`], run the shard
-//! on all their cores (the same [`SweepJob::run_cells`] as the local executor) and publish the
-//! part to `geomint.sweep.parts.<study>`, then acknowledge the task. The server merges the
-//! parts as they arrive ([`shard::merge`]), so the document equals the local one bit for bit.
+//! The server puts a study's shards ([`Task`]s: the study's spec and a shard of its cells) on
+//! the work-queue stream [`STREAM`] under `geomint.sweep.shards.<study>`; any number of
+//! `geomint worker --nats URL` processes pull them one at a time through the durable consumer
+//! [`CONSUMER`], run the shard on all their cores (the core's [`parts::run_part`], the same
+//! cells as the local executor's) and publish the part to `geomint.sweep.parts.<study>`, then
+//! acknowledge the task. The server merges the parts as they arrive ([`parts::merge`]), so the
+//! document equals the local one bit for bit. Sweeps and energy maps, stability maps and
+//! convergence studies run here; work–precision studies, whose timings compare only on one
+//! machine, run on the server.
 //!
 //! - A worker that dies mid-shard never acknowledges it: JetStream hands the shard out again
 //!   once the consumer's ack wait passes. While a shard runs, its worker reports progress every
@@ -23,25 +27,20 @@
 pub mod options;
 pub mod poison;
 
-use std::sync::atomic::Ordering;
+use std::collections::HashMap;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
-
-use std::collections::HashMap;
 
 use async_nats::jetstream::{self, consumer::pull, stream, AckKind};
 use futures_util::StreamExt;
 use serde::{Deserialize, Serialize};
-use serde_json::Value;
 
-use crate::api::sweep::SweepRequest;
-// Tasks carry stored systems inlined: a worker needs no store of its own.
-use crate::api::system::NoStoredSystems;
 use crate::core::error::CoreError;
 use crate::core::run::Budget;
 use crate::core::simulation::Limits;
-use crate::core::studies::sweep::shard::{self, Shard, SweepPart};
-use crate::core::studies::sweep::{RunMetrics, SweepJob};
+use crate::core::studies::engine::{Executor, Local, Order, Study};
+use crate::core::studies::parts::{self, AnyPart, Part, Shard};
+use crate::core::studies::StudySpec;
 
 /// The work-queue stream of shards.
 pub const STREAM: &str = "GEOMINT_SWEEP_SHARDS";
@@ -68,20 +67,21 @@ const PART_BYTES: usize = 512 * 1024;
 pub struct Task {
     /// The study's id (the subject its parts go to).
     pub study: String,
-    /// The sweep request, canonical JSON with any stored system inlined.
-    pub request: Value,
+    /// The study's spec (a stored system inlined: workers keep no store).
+    pub spec: StudySpec,
     /// Which shard.
     pub shard: usize,
     /// Of how many.
     pub shards: usize,
 }
 
-/// What a worker publishes for a task.
+/// What a worker publishes for a task; `P` is the part (read as the kind of study the server
+/// asked for).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case")]
-pub enum Reply {
+pub enum Reply<P> {
     /// The shard's part.
-    Part(Box<SweepPart>),
+    Part(Box<P>),
     /// The shard cannot be run (the worker says why).
     Failed {
         /// Which shard.
@@ -161,7 +161,10 @@ impl Queue {
                 .create_consumer(bounded)
                 .await
                 .map_err(|e| failed("cannot bound the workers' consumer's deliveries", url, e))?;
-            tracing::info!(max_deliver = options.max_deliver, "bounded the deliveries of the workers' consumer");
+            tracing::info!(
+                max_deliver = options.max_deliver,
+                "bounded the deliveries of the workers' consumer"
+            );
         }
         Ok(Queue {
             client,
@@ -178,39 +181,59 @@ impl Queue {
     }
 }
 
-/// How many shards the server splits `job` into: about `steps_per_shard` of work each, parts
-/// under [`PART_BYTES`], no more shards than cells.
-pub fn shard_count(job: &SweepJob, steps_per_shard: u64) -> usize {
-    let cells = job.cells().max(1);
-    let steps_per_cell = (job.total_steps / cells as u64).max(1);
+/// How many shards the server splits `study` into: about `steps_per_shard` of work each, parts
+/// under [`PART_BYTES`] (`cell_bytes`: about the size of one cell's result), no more shards than
+/// cells.
+pub fn shard_count<S: Study>(study: &S, steps_per_shard: u64, cell_bytes: usize) -> usize {
+    let cells = study.cells().max(1);
+    let steps_per_cell = (study.steps() / cells as u64).max(1);
     let by_work = (steps_per_shard / steps_per_cell).max(1) as usize;
-    let dimension = job.info.q0.len().max(1);
-    let bytes_per_cell = job.runs.len() * (400 + 2 * 25 * dimension);
-    let by_size = (PART_BYTES / bytes_per_cell.max(1)).max(1);
+    let by_size = (PART_BYTES / cell_bytes.max(1)).max(1);
     cells.div_ceil(by_work.min(by_size).min(cells))
 }
 
-/// Runs `job` (asked for by the canonical `request`) on the workers: publishes its shards,
-/// collects the parts, calls `progress(cells)` as each arrives, and returns every cell's
-/// results in order. Stops (purging what no worker has started) when the budget says so: at the
-/// deadline with the cells of the parts received so far (`None` for the others, see
-/// [`SweepJob::document_within`]), on cancellation with an error. Fails when the NATS server is
-/// gone for [`DISCONNECTED_GRACE`].
-pub async fn run(
+impl Executor for Queue {
+    /// Hands the cells to the workers when the study may run elsewhere (a spec, cells in any
+    /// order); a timed study runs here. Called on a blocking thread of the server's runtime.
+    fn run<S: Study>(
+        &self,
+        study: &S,
+        cells: std::ops::Range<usize>,
+        budget: Budget<'_>,
+        done: &(dyn Fn(usize, Option<&S::Cell>) + Sync),
+    ) -> Result<Vec<Option<S::Cell>>, CoreError> {
+        match study.spec() {
+            Some(spec) if study.order() == Order::Parallel && cells == (0..study.cells()) => {
+                let runtime = tokio::runtime::Handle::current();
+                runtime.block_on(run(self, spec, study, budget, done))
+            }
+            _ => Local.run(study, cells, budget, done),
+        }
+    }
+}
+
+/// Runs `study` (whose spec is `spec`) on the workers: publishes its shards, collects the
+/// parts, calls `done` for each cell of a part as it arrives, and returns every cell's result in
+/// order. Stops (purging what no worker has started) when the budget says so: at the deadline
+/// with the cells of the parts received so far (`None` for the others), on cancellation with an
+/// error. Fails when the NATS server is gone for [`DISCONNECTED_GRACE`], and when a shard was
+/// delivered `max_deliver` times without a part ([`poison`]).
+async fn run<S: Study>(
     queue: &Queue,
-    request: Value,
-    job: &SweepJob,
+    spec: StudySpec,
+    study: &S,
     budget: Budget<'_>,
-    progress: &(dyn Fn(usize) + Sync),
-) -> Result<Vec<Option<Vec<RunMetrics>>>, CoreError> {
+    done: &(dyn Fn(usize, Option<&S::Cell>) + Sync),
+) -> Result<Vec<Option<S::Cell>>, CoreError> {
+    let name = study.name();
     let lost = |what: &str, e: &dyn std::fmt::Display| CoreError::Executor {
-        message: format!("the sweep failed: {what} (NATS server {}): {e}", queue.url),
+        message: format!("the {name} failed: {what} (NATS server {}): {e}", queue.url),
     };
-    let study = uuid::Uuid::new_v4().simple().to_string();
-    let tasks = format!("{TASKS}.{study}");
+    let id = uuid::Uuid::new_v4().simple().to_string();
+    let tasks = format!("{TASKS}.{id}");
     let parts_only = queue
         .client
-        .subscribe(format!("{PARTS}.{study}"))
+        .subscribe(format!("{PARTS}.{id}"))
         .await
         .map_err(|e| lost("cannot subscribe to the parts", &e))?;
     // A shard delivered max_deliver times without an answer fails the study.
@@ -221,12 +244,16 @@ pub async fn run(
         .map_err(|e| lost("cannot subscribe to the advisories", &e))?;
     let mut parts_in = futures_util::stream::select(parts_only, advisories);
     let mut sequences: HashMap<u64, usize> = HashMap::new();
-    let count = shard_count(job, queue.steps_per_shard);
-    tracing::info!(study = %study, shards = count, cells = job.cells(), "sweep sent to the workers");
+    // A cell's size in a part, as the spec's size per cell, at least 400 bytes (a sweep's runs
+    // carry their final states).
+    let spec_bytes = serde_json::to_vec(&spec).map_or(0, |b| b.len());
+    let cell_bytes = spec_bytes / study.cells().max(1) + 400;
+    let count = shard_count(study, queue.steps_per_shard, cell_bytes);
+    tracing::info!(study = %id, kind = name, shards = count, cells = study.cells(), "study sent to the workers");
     for index in 0..count {
         let task = Task {
-            study: study.clone(),
-            request: request.clone(),
+            study: id.clone(),
+            spec: spec.clone(),
             shard: index,
             shards: count,
         };
@@ -243,23 +270,23 @@ pub async fn run(
 
     let purge = || async {
         if let Err(e) = queue.stream.purge().filter(tasks.clone()).await {
-            tracing::warn!(study = %study, error = %e, "cannot purge the study's shards");
+            tracing::warn!(study = %id, error = %e, "cannot purge the study's shards");
         }
     };
-    let mut parts: Vec<Option<SweepPart>> = vec![None; count];
+    let mut parts: Vec<Option<Part<S::Cell>>> = (0..count).map(|_| None).collect();
     let mut missing = count;
     let mut disconnected_since: Option<Instant> = None;
     while missing > 0 {
-        if budget.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+        if budget.cancelled() {
             purge().await;
             return Err(CoreError::Cancelled {
-                what: "sweep",
+                what: name,
                 shutdown: true,
             });
         }
-        if budget.deadline.is_some_and(|d| Instant::now() >= d) {
+        if budget.expired() {
             purge().await;
-            let mut cells = vec![None; job.cells()];
+            let mut cells: Vec<Option<S::Cell>> = (0..study.cells()).map(|_| None).collect();
             for part in parts.into_iter().flatten() {
                 let end = part.first_cell.saturating_add(part.cells.len());
                 if let Some(slots) = cells.get_mut(part.first_cell..end) {
@@ -277,7 +304,7 @@ pub async fn run(
                 if since.elapsed() >= DISCONNECTED_GRACE {
                     return Err(CoreError::Executor {
                         message: format!(
-                            "the sweep failed: lost the connection to the NATS server {} for {} s \
+                            "the {name} failed: lost the connection to the NATS server {} for {} s \
                              with {missing} of {count} shards still out",
                             queue.url,
                             DISCONNECTED_GRACE.as_secs()
@@ -293,7 +320,7 @@ pub async fn run(
             Ok(Some(message)) => message,
         };
         // A shard whose part came after all (from a slow worker) is done, whatever its copies did.
-        if let Some((shard, error)) = poison::exhausted(&message, &sequences) {
+        if let Some((shard, error)) = poison::exhausted(name, &message, &sequences) {
             if parts.get(shard).is_some_and(Option::is_none) {
                 purge().await;
                 return Err(error);
@@ -302,11 +329,13 @@ pub async fn run(
         if message.subject.starts_with(poison::ADVISORY) {
             continue;
         }
-        match serde_json::from_slice::<Reply>(&message.payload) {
+        match serde_json::from_slice::<Reply<Part<S::Cell>>>(&message.payload) {
             Ok(Reply::Part(part)) if part.shard < count && part.shards == count => {
                 // A redelivered shard may arrive twice: the first copy counts.
                 if parts[part.shard].is_none() {
-                    progress(part.cells.len());
+                    for (k, cell) in part.cells.iter().enumerate() {
+                        done(part.first_cell + k, Some(cell));
+                    }
                     let index = part.shard;
                     parts[index] = Some(*part);
                     missing -= 1;
@@ -321,7 +350,7 @@ pub async fn run(
                 purge().await;
                 return Err(CoreError::Executor {
                     message: format!(
-                        "the sweep failed: a worker cannot run shard {shard}: {message}"
+                        "the {name} failed: a worker cannot run shard {shard}: {message}"
                     ),
                 });
             }
@@ -333,10 +362,10 @@ pub async fn run(
         .flatten()
         .map(|p| (format!("shard {}", p.shard), p))
         .collect();
-    shard::merge(job, named)
+    parts::merge(study, &spec, named)
         .map(|(cells, _)| cells.into_iter().map(Some).collect())
         .map_err(|e| CoreError::Executor {
-            message: format!("the sweep's parts do not fit together: {e}"),
+            message: format!("the {name}'s parts do not fit together: {e}"),
         })
 }
 
@@ -396,7 +425,9 @@ async fn run_one(
     keepalive.abort();
     let (study, reply) = match reply {
         Ok(done) => done,
-        Err(panic) => return poisoned(queue, &message, consumer, poison::panic_message(panic)).await,
+        Err(panic) => {
+            return poisoned(queue, &message, consumer, poison::panic_message(panic)).await
+        }
     };
     if let Some(study) = study {
         let bytes = serde_json::to_vec(&reply).map_err(|e| e.to_string())?;
@@ -437,9 +468,11 @@ async fn poisoned(
             .map_err(|e| failed("cannot give back a shard", &queue.url, e));
     }
     if let Some(task) = task {
-        let reply = Reply::Failed {
+        let reply: Reply<AnyPart> = Reply::Failed {
             shard: task.shard,
-            message: format!("it panicked on each of its {delivered} deliveries (max_deliver): {panic}"),
+            message: format!(
+                "it panicked on each of its {delivered} deliveries (max_deliver): {panic}"
+            ),
         };
         let bytes = serde_json::to_vec(&reply).map_err(|e| e.to_string())?;
         queue
@@ -455,7 +488,11 @@ async fn poisoned(
 }
 
 /// Runs one task: its study (if the task could be read) and the reply.
-fn run_task(payload: &[u8], limits: &Limits, max_payload: usize) -> (Option<String>, Reply) {
+fn run_task(
+    payload: &[u8],
+    limits: &Limits,
+    max_payload: usize,
+) -> (Option<String>, Reply<AnyPart>) {
     poison::test_fault(payload);
     let task: Task = match serde_json::from_slice(payload) {
         Ok(task) => task,
@@ -474,29 +511,13 @@ fn run_task(payload: &[u8], limits: &Limits, max_payload: usize) -> (Option<Stri
         shard: task.shard,
         message,
     };
-    let started = Instant::now();
-    let job = match SweepRequest::from_value(&task.request)
-        .and_then(|r| Ok(r.to_spec(&NoStoredSystems)?.prepare(limits)?))
-    {
-        Ok(job) => job,
-        Err(e) => return (Some(task.study.clone()), failed(e.to_string())),
-    };
     let shard = Shard {
         index: task.shard,
         count: task.shards,
     };
-    let cells = match shard.cells(job.cells()) {
-        Ok(cells) => cells,
-        Err(e) => return (Some(task.study.clone()), failed(e.to_string())),
-    };
-    tracing::info!(study = %task.study, shard = task.shard, shards = task.shards, cells = cells.len(), "shard started");
-    let reply = match job.run_cells(cells, Budget::default(), &|| {}) {
-        Ok(Some(results)) => {
-            let wall_ms = started.elapsed().as_secs_f64() * 1e3;
-            let part = SweepPart::new(&job, task.request.clone(), shard, results, wall_ms);
-            Reply::Part(Box::new(part))
-        }
-        Ok(None) => failed("stopped".into()),
+    tracing::info!(study = %task.study, shard = task.shard, shards = task.shards, "shard started");
+    let reply = match parts::run_part(&task.spec, shard, limits, &|| {}) {
+        Ok(part) => Reply::Part(Box::new(part)),
         Err(e) => failed(e.to_string()),
     };
     let size = serde_json::to_vec(&reply).map(|b| b.len()).unwrap_or(0);

@@ -105,11 +105,11 @@ where
             let mut z = black_box(start.clone());
             let budget = Budget::default();
             if step_by_step {
-                geomint::with_stepper!(&mut stepper, st => integrate(
+                geomint::core::with_stepper!(&mut stepper, st => integrate(
                     sys, &mut StepByStep(st), &mut z, schedule, budget, false, &mut sum
                 ))
             } else {
-                geomint::with_stepper!(&mut stepper, st => integrate(
+                geomint::core::with_stepper!(&mut stepper, st => integrate(
                     sys, st, &mut z, schedule, budget, false, &mut sum
                 ))
             }

@@ -3,6 +3,7 @@
 //! floats exact — and turned into the core's specs; and the NDJSON encoding of the lines the
 //! core streams. The OpenAPI schemas of the requests are derived from the same types.
 //!
+//! - [`crossings`]: a simulation's section, `stop_when` and energy level.
 //! - [`json`]: JSON text into a value, and the field-by-field reader.
 //! - [`method`]: a method as an id or an object with options.
 //! - [`simulate`]: the simulation request.
@@ -12,6 +13,7 @@
 //!
 //! Results are the core's typed documents, serialized as they are.
 
+pub mod crossings;
 pub mod json;
 pub mod method;
 pub mod simulate;

@@ -10,6 +10,10 @@ use utoipa::ToSchema;
 
 use super::system::StoredSystems;
 use super::json::{self, boolean, count, numbers, string, Obj};
+use super::crossings::{
+    read_energy, read_section, read_stop_when, watching, EnergyRequest, SectionRequest,
+    StopWhenRequest, DEFAULT_MAX_POINTS,
+};
 use super::method::{read_method, read_methods, MethodSpec};
 use super::system::{read_system, SystemRequest};
 use crate::core::error::{CoreError, ErrorCode, ErrorDetail, Field};
@@ -80,6 +84,17 @@ pub struct SimulateRequest {
     /// Report |det ∂Φ/∂z − e^{−2γ h n}| of each sampled step (conformally damped systems only).
     #[serde(default)]
     pub jacobian_defect: bool,
+    /// A Poincaré section of each run: its crossings of a surface located to round-off by
+    /// Hénon's trick, each with its t, q, p and H (`section` per run; `crossings` lines when
+    /// streamed).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub section: Option<SectionRequest>,
+    /// What ends each run before `t_end` (an event: the n-th crossing of a surface).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stop_when: Option<StopWhenRequest>,
+    /// An energy level: one initial momentum solved for so that H(q0, p0) is the energy.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub energy: Option<EnergyRequest>,
 }
 
 /// Sampling options.
@@ -108,6 +123,9 @@ pub const REQUEST_FIELDS: &[&str] = &[
     "output",
     "compare_to_reference",
     "jacobian_defect",
+    "section",
+    "stop_when",
+    "energy",
 ];
 const OUTPUT_FIELDS: &[&str] = &["every"];
 
@@ -177,6 +195,9 @@ impl SimulateRequest {
             .optional("compare_to_reference", boolean)?
             .unwrap_or(false);
         req.jacobian_defect = obj.optional("jacobian_defect", boolean)?.unwrap_or(false);
+        req.section = obj.optional("section", read_section)?;
+        req.stop_when = obj.optional("stop_when", read_stop_when)?;
+        req.energy = obj.optional("energy", read_energy)?;
         Ok(req)
     }
 
@@ -234,14 +255,35 @@ impl SimulateRequest {
         })
     }
 
-    /// Validates the request against the catalogues and `limits` (cheap: no integration).
+    /// Validates the request against the catalogues and `limits` (cheap: no integration): the
+    /// simulation, then what its runs watch (section points count against the samples).
     pub fn prepare(
         &self,
         limits: &Limits,
         stored: &dyn StoredSystems,
     ) -> Result<Simulation, ErrorDetail> {
         let spec = self.to_spec(stored)?;
-        Ok(Simulation::prepare(&spec, limits)?)
+        let sim = Simulation::prepare(&spec, limits)?;
+        if let Some(section) = &self.section {
+            let points = section
+                .max_points
+                .unwrap_or(DEFAULT_MAX_POINTS)
+                .saturating_mul(sim.methods.len() as u64);
+            if points > limits.max_samples {
+                return Err(CoreError::TooManySamples {
+                    field: Field::new("section").key("max_points"),
+                    samples: points,
+                    limit: limits.max_samples,
+                }
+                .into());
+            }
+        }
+        let watching = watching(
+            self.section.as_ref(),
+            self.stop_when.as_ref(),
+            self.energy.as_ref(),
+        );
+        Ok(sim.watching(&watching)?)
     }
 }
 

@@ -182,6 +182,7 @@ mod tests {
     use super::*;
     use crate::core::error::ErrorCode;
     use crate::core::run::Budget;
+    use crate::core::studies::engine::Local;
     use crate::core::studies::stability::{maps, MAX_MAP_CELLS};
 
     fn field_of_map(text: &str) -> Option<String> {
@@ -252,7 +253,7 @@ mod tests {
             .unwrap()
             .prepare()
             .unwrap();
-        assert!(maps(&job, Budget::default()).is_ok());
+        assert!(maps(&job, &Local, Budget::default()).is_ok());
         let point = |gamma: f64| {
             PointRequest::from_value(&serde_json::json!({
                 "method": {"id": "rowlands", "processor": "none"}, "omega": 1, "gamma": gamma, "h": 0.1
@@ -281,7 +282,7 @@ mod tests {
             .unwrap()
             .prepare()
             .unwrap();
-        assert_eq!(job.cells(), MAX_MAP_CELLS);
+        assert_eq!(job.points(), MAX_MAP_CELLS);
         let two = one.replace("\"csv1\"", "\"csv1\", \"rk4\"");
         let error = ErrorDetail::from(
             StabilityRequest::from_slice(two.as_bytes())

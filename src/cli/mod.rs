@@ -25,7 +25,7 @@ use crate::core::systems;
 use crate::store::systems::{SystemStore, DEFAULT_SYSTEMS_DIR};
 pub use run::RunArgs;
 pub use serve::{ServeArgs, WorkerArgs};
-pub use study::StudyArgs;
+pub use study::{StudyArgs, StudyKind};
 pub use token::TokenArgs;
 
 /// Geometric numerical integration of damped Hamiltonian systems, as a web service.
@@ -73,7 +73,11 @@ pub fn run(cli: Cli) -> ExitCode {
     match cli.command.unwrap_or(Command::Serve(cli.serve)) {
         Command::Serve(args) => serve::serve(&args),
         Command::Run(args) => run::run_spec(&args),
-        Command::Study(args) => study::run_study(&args),
+        Command::Study(args) => match args.kind {
+            StudyKind::Sweep => sweep::run_sweep(&args),
+            StudyKind::Merge => sweep::run_merge(&args),
+            _ => study::run_study(&args),
+        },
         Command::Worker(args) => serve::work(&args),
         Command::Token(args) => token::make_token(&args),
         Command::Systems => print_json(&systems::catalog()),

@@ -18,7 +18,7 @@ use crate::core::run::Budget;
 use crate::core::simulation::{
     DocumentCollector, Limits, Simulation, SimulationDocument, StreamLine,
 };
-use crate::http;
+
 use crate::recording::{self, live};
 
 /// Output formats of `geomint run`.
@@ -100,7 +100,7 @@ pub(crate) fn run_spec(args: &RunArgs) -> ExitCode {
         eprintln!("error: a recording is binary; give `-o FILE.rrd` or redirect standard output");
         return ExitCode::from(BAD_INPUT);
     }
-    let workers = http::state::default_concurrency();
+    let workers = crate::executor::cores();
     // A viewer is found before anything runs or any file is created.
     let viewer = match &args.rerun_addr {
         Some(addr) => {
@@ -181,7 +181,7 @@ impl Job<'_> {
                     Err(e) => return self.bad_input(&e),
                 };
                 if format == Format::Rrd {
-                    return match recording::write_rrd(out, spec, &doc) {
+                    return match recording::write_rrd(out, &recording::Spec::of(spec), &doc) {
                         Ok(mut w) => finish_output(w.flush()),
                         Err(e) => {
                             eprintln!("error: cannot write the recording: {e}");
@@ -220,7 +220,7 @@ impl Job<'_> {
             Format::Rrd => (Some(out), None),
             Format::Json | Format::Ndjson => (None, Some(out)),
         };
-        let live = match recording::LiveRecording::start(sink, name, spec, file) {
+        let live = match recording::LiveRecording::start(sink, name, recording::Spec::of(&spec), file) {
             Ok(live) => live,
             Err(e) => {
                 eprintln!("error: cannot stream to the Rerun viewer at {url}: {e}");

@@ -137,7 +137,7 @@ pub struct NatsArgs {
     /// then requires TLS.
     #[arg(long, env = "GEOMINT_NATS_TLS_CA")]
     pub nats_tls_ca: Option<PathBuf>,
-    /// Deliveries of a sweep shard before its study fails (a shard that panics or kills its
+    /// Deliveries of a study's shard before the study fails (a shard that panics or kills its
     /// worker); applies when this process creates the workers' consumer, or bounds one that has
     /// no bound.
     #[arg(long, env = "GEOMINT_NATS_MAX_DELIVER", default_value_t = crate::nats::poison::DEFAULT_MAX_DELIVER, value_parser = clap::value_parser!(i64).range(1..=1000))]
@@ -197,7 +197,7 @@ impl ServeArgs {
             },
             max_concurrent: self
                 .max_concurrent
-                .map_or_else(http::state::default_concurrency, |n| n as usize),
+                .map_or_else(crate::executor::cores, |n| n as usize),
             request_timeout: Duration::from_secs(self.request_timeout_secs),
             queue_timeout: Duration::from_millis(self.queue_timeout_ms),
             long_queue_timeout: Duration::from_secs(self.long_queue_timeout_secs),

@@ -1,6 +1,7 @@
-//! `geomint study KIND spec.json`: a work–precision or convergence study, an energy-error map or
-//! a sweep (see [`super::sweep`]), without a server, with progress on standard error; the document as JSON, or as a Rerun
-//! recording for an output file ending in `.rrd` (work–precision studies and maps).
+//! `geomint study KIND spec.json`: a work–precision or convergence study or an energy-error map
+//! (sweeps and merges: [`super::sweep`]), without a server, with progress on standard error; the
+//! document as JSON, or as a Rerun recording for an output file ending in `.rrd` (work–precision
+//! studies and maps).
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -10,10 +11,11 @@ use std::process::ExitCode;
 use clap::{Args, ValueEnum};
 
 use super::{parse_count, print_json, read_spec, SystemsDir, BAD_INPUT};
-use crate::core::error::ErrorDetail;
+use crate::core::error::{CoreError, ErrorDetail};
 use crate::core::run::Budget;
 use crate::core::simulation::Limits;
-use crate::core::studies::settings::{ProgressLine, Runner, StudyJob};
+use crate::core::studies::engine::Local;
+use crate::core::studies::settings::{ProgressLine, StudyJob};
 use crate::recording;
 
 /// The kinds of study.
@@ -60,19 +62,21 @@ pub struct StudyArgs {
     pub systems: SystemsDir,
 }
 
+impl StudyArgs {
+    /// The limits the settings give.
+    pub fn limits(&self) -> Limits {
+        Limits {
+            max_steps: self.max_steps,
+            ..Limits::default()
+        }
+    }
+}
+
 pub(crate) fn run_study(args: &StudyArgs) -> ExitCode {
     use crate::api::studies::{ConvergenceRequest, WorkPrecisionRequest};
     use crate::core::studies::convergence::{self, ConvergenceLine};
     use crate::core::studies::work_precision::{self, StudyLine};
-    let limits = Limits {
-        max_steps: args.max_steps,
-        ..Limits::default()
-    };
-    match args.kind {
-        StudyKind::Sweep => return super::sweep::run_sweep(args, &limits),
-        StudyKind::Merge => return super::sweep::run_merge(args, &limits),
-        _ => {}
-    }
+    let limits = args.limits();
     let (source, text) = match read_spec(&args.spec) {
         Ok(spec) => spec,
         Err(code) => return code,
@@ -116,7 +120,7 @@ pub(crate) fn run_study(args: &StudyArgs) -> ExitCode {
                 _ => {}
             };
             let rrd = |f: File, spec: &WorkPrecisionRequest, doc: &_| {
-                recording::work_precision::write_rrd(BufWriter::new(f), spec, doc)
+                recording::work_precision::write_rrd(BufWriter::new(f), &recording::Spec::of(spec), doc)
                     .map_err(|e| e.to_string())
                     .and_then(|mut w| w.flush().map_err(|e| e.to_string()))
             };
@@ -166,7 +170,7 @@ pub(crate) fn run_study(args: &StudyArgs) -> ExitCode {
             )
         }
         StudyKind::EnergyMap => run_energy_map(args, &source, &text),
-        StudyKind::Sweep | StudyKind::Merge => unreachable!("handled before the spec is read"),
+        StudyKind::Sweep | StudyKind::Merge => unreachable!("`geomint study sweep|merge` runs in cli::sweep"),
     }
 }
 
@@ -199,7 +203,7 @@ fn run_energy_map(args: &StudyArgs, source: &str, text: &[u8]) -> ExitCode {
         }
         true
     };
-    let doc = match energy_map::run(&spec, Budget::default(), &progress) {
+    let doc = match energy_map::run(&spec, &Local, Budget::default(), &progress) {
         Ok(doc) => doc,
         Err(e) => {
             eprintln!("error: {source}: {e}");
@@ -244,8 +248,8 @@ fn finish_study<S, L: ProgressLine>(
     args: &StudyArgs,
     source: &str,
     parsed: Result<(S, StudyJob), ErrorDetail>,
-    run: Runner<L>,
-    progress: impl Fn(&L),
+    run: fn(&StudyJob, &Local, Budget<'_>, &(dyn Fn(L) -> bool + Sync)) -> Result<L::Document, CoreError>,
+    progress: impl Fn(&L) + Sync,
     rrd: Option<impl FnOnce(File, &S, &L::Document) -> Result<(), String>>,
 ) -> ExitCode {
     let (spec, job) = match parsed {
@@ -264,7 +268,7 @@ fn finish_study<S, L: ProgressLine>(
         progress(&line);
         true
     };
-    let doc = match run(&job, Budget::default(), &emit) {
+    let doc = match run(&job, &Local, Budget::default(), &emit) {
         Ok(doc) => doc,
         Err(e) => {
             eprintln!("error: {source}: {e}");

@@ -6,27 +6,28 @@
 
 use std::path::Path;
 use std::process::ExitCode;
-use std::time::Instant;
 
 use super::study::{wants_rrd, write_document, StudyArgs};
 use super::{read_spec, BAD_INPUT};
 use crate::api::sweep::SweepRequest;
-use crate::api::system::{NoStoredSystems, StoredSystems};
+use crate::api::system::StoredSystems;
 use crate::core::error::ErrorDetail;
 use crate::core::run::Budget;
 use crate::core::simulation::Limits;
-use crate::core::studies::sweep::shard::merge;
-use crate::core::studies::sweep::{self, Shard, SweepJob, SweepLine, SweepPart};
+use crate::core::studies::engine::{Local, Progress, Study};
+use crate::core::studies::parts::{self, Part, Shard};
+use crate::core::studies::sweep::{self, RunMetrics, SweepJob, SweepLine, SweepSpec};
+use crate::core::studies::StudySpec;
 
-/// Reads a sweep request and prepares it: the request's canonical JSON and the job.
+/// Reads a sweep request and prepares it: the spec and the job.
 pub fn prepare(
     value: &serde_json::Value,
     limits: &Limits,
     stored: &dyn StoredSystems,
-) -> Result<(serde_json::Value, SweepJob), ErrorDetail> {
-    let request = SweepRequest::from_value(value)?;
-    let job = request.to_spec(stored)?.prepare(limits)?;
-    Ok((request.canonical(stored), job))
+) -> Result<(SweepSpec, SweepJob), ErrorDetail> {
+    let spec = SweepRequest::from_value(value)?.to_spec(stored)?;
+    let job = spec.prepare(limits)?;
+    Ok((spec, job))
 }
 
 /// The shard an array task runs: `i/n` as given, or for `auto` the index from
@@ -69,13 +70,15 @@ pub fn shard_of(given: &str, env: impl Fn(&str) -> Option<String>) -> Result<Sha
 }
 
 /// `geomint study sweep`: the whole sweep, or with `--shard` one part of it.
-pub(crate) fn run_sweep(args: &StudyArgs, limits: &Limits) -> ExitCode {
+pub(crate) fn run_sweep(args: &StudyArgs) -> ExitCode {
+    let limits = &args.limits();
     let (source, text) = match read_spec(&args.spec) {
         Ok(spec) => spec,
         Err(code) => return code,
     };
-    let parsed = crate::api::json::parse_json(&text).and_then(|v| prepare(&v, limits, &args.systems.open()));
-    let (request, job) = match parsed {
+    let stored = args.systems.open();
+    let parsed = crate::api::json::parse_json(&text).and_then(|v| prepare(&v, limits, &stored));
+    let (spec, job) = match parsed {
         Ok(parsed) => parsed,
         Err(e) => {
             eprintln!("error: {source}: {e}");
@@ -110,46 +113,51 @@ pub(crate) fn run_sweep(args: &StudyArgs, limits: &Limits) -> ExitCode {
         job.total_steps,
         rayon::current_num_threads()
     );
-    let started = Instant::now();
-    let emit = |line: SweepLine| {
-        if let SweepLine::Progress { done, total } = line {
-            eprint!("\r{done}/{total} cells");
-            if done == total {
-                eprintln!();
-            }
-        }
-        true
-    };
-    let progress = sweep::Progress::new(cells.len(), &emit);
-    let results = match job.run_cells(cells, Budget::default(), &|| progress.add(1)) {
-        Ok(Some(results)) => results,
-        Ok(None) => unreachable!("a sweep without a budget runs to the end"),
-        Err(e) => {
-            eprintln!("error: {source}: {e}");
-            return ExitCode::FAILURE;
+    let report = |done: usize, total: usize| {
+        eprint!("\r{done}/{total} cells");
+        if done == total {
+            eprintln!();
         }
     };
-    let wall_ms = started.elapsed().as_secs_f64() * 1e3;
-    eprintln!("{:.1} s", wall_ms / 1e3);
-    match shard {
-        Some(shard) => {
-            let part = SweepPart::new(&job, request, shard, results, wall_ms);
-            write_document(args, false, &part, None::<NoRecording<SweepPart>>)
+    let progress = Progress::new(cells.len(), &report);
+    let written = match shard {
+        Some(shard) => parts::run_shard(&job, StudySpec::Sweep(spec), shard, &|_, _| {
+            progress.add(1)
+        })
+        .map(|part| {
+            eprintln!("{:.1} s", part.wall_ms / 1e3);
+            write_document(args, false, &part, None::<NoRecording<Part<Vec<RunMetrics>>>>)
+        }),
+        None => {
+            let emit = |line: SweepLine| {
+                if let SweepLine::Progress { done, total } = line {
+                    report(done, total);
+                }
+                true
+            };
+            sweep::run(&job, &Local, Budget::default(), &emit).map(|doc| {
+                eprintln!("{:.1} s", doc.wall_ms / 1e3);
+                whole(args, &doc)
+            })
         }
-        None => whole(args, &job.document(results, wall_ms)),
-    }
+    };
+    written.unwrap_or_else(|e| {
+        eprintln!("error: {source}: {e}");
+        ExitCode::FAILURE
+    })
 }
 
 type NoRecording<D> = fn(std::fs::File, &D) -> Result<(), String>;
 
 /// Reads a part file.
-fn read_part(path: &Path) -> Result<SweepPart, String> {
+fn read_part(path: &Path) -> Result<Part<Vec<RunMetrics>>, String> {
     let text = std::fs::read(path).map_err(|e| format!("cannot read it: {e}"))?;
     serde_json::from_slice(&text).map_err(|e| format!("not a part of a sweep: {e}"))
 }
 
 /// `geomint study merge`: the parts of a sweep (every shard exactly once) into its document.
-pub(crate) fn run_merge(args: &StudyArgs, limits: &Limits) -> ExitCode {
+pub(crate) fn run_merge(args: &StudyArgs) -> ExitCode {
+    let limits = &args.limits();
     let mut parts = Vec::new();
     for path in std::iter::once(&args.spec).chain(&args.parts) {
         let name = path.display().to_string();
@@ -162,14 +170,19 @@ pub(crate) fn run_merge(args: &StudyArgs, limits: &Limits) -> ExitCode {
         }
     }
     let (first, part) = &parts[0];
-    let job = match prepare(&part.request, limits, &NoStoredSystems) {
-        Ok((_, job)) => job,
+    let spec = part.spec.clone();
+    let prepared = match &spec {
+        StudySpec::Sweep(sweep) => sweep.prepare(limits).map_err(|e| e.to_string()),
+        _ => Err("not a sweep".into()),
+    };
+    let job = match prepared {
+        Ok(job) => job,
         Err(e) => {
-            eprintln!("error: {first}: its request: {e}");
+            eprintln!("error: {first}: its spec: {e}");
             return ExitCode::from(BAD_INPUT);
         }
     };
-    let (cells, wall_ms) = match merge(&job, parts) {
+    let (cells, wall_ms) = match parts::merge(&job, &spec, parts) {
         Ok(merged) => merged,
         Err(e) => {
             eprintln!("error: {e}");

@@ -104,6 +104,9 @@ pub fn document_for(anonymous: crate::access::Anonymous) -> Value {
         .and_then(Value::as_object_mut)
     {
         exactly_one_of(schemas, "SimulateRequest", &["methods", "method"]);
+        exactly_one_of(schemas, "SectionRequest", &["where", "period"]);
+        not_both(schemas, "SectionRequest", ["where", "phase"]);
+        not_both(schemas, "SectionRequest", ["period", "direction"]);
         exactly_one_of(schemas, "SystemDefinition", &["potential", "hamiltonian"]);
         not_both(schemas, "SystemDefinition", ["hamiltonian", "mass"]);
         not_both(schemas, "ConvergenceRequest", ["chart", "charts"]);
@@ -328,11 +331,17 @@ fn step_given_or_swept(schemas: &mut Map<String, Value>, name: &str) {
     }
 }
 
-/// Schema `name` does not take both `members`.
+/// Schema `name` does not take both `members` (nor both of any pair given before).
 fn not_both(schemas: &mut Map<String, Value>, name: &str, members: [&str; 2]) {
     if let Some(Value::Object(schema)) = schemas.get_mut(name) {
         let [a, b] = members;
-        schema.insert("not".into(), json!({"allOf": [given(a), given(b)]}));
+        let clause = json!({"allOf": [given(a), given(b)]});
+        match schema.get_mut("not") {
+            Some(before) => *before = json!({"anyOf": [before.take(), clause]}),
+            None => {
+                schema.insert("not".into(), clause);
+            }
+        }
     }
 }
 

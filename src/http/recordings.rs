@@ -323,7 +323,7 @@ async fn record_simulation(
             }
             store
                 .save(SpecSummary::of(&sim), &owner, |w| {
-                    recording::write_rrd(w, &request, &doc)
+                    recording::write_rrd(w, &recording::Spec::of(&request), &doc)
                 })
                 .map_err(store_error)
         })

@@ -3,11 +3,11 @@
 //!
 //! A map request is validated first (cheap, before any slot is taken), then takes the free
 //! simulation slots — one, waiting up to the queue timeout (else 503 with `Retry-After`), plus
-//! every other free one, since each map is computed in parallel over all cores — and computes
-//! off the async runtime. Its work is bounded by the request's size (at most
-//! [`MAX_MAP_CELLS`](crate::core::studies::stability::MAX_MAP_CELLS) cells); between methods it stops
-//! at the time limit (answering with the maps made, `stop: time_limit`) or when the client goes
-//! away.
+//! every other free one, since the maps' rows are computed in parallel over all cores (or one
+//! when they go to NATS workers) — and computes off the async runtime. Its work is bounded by the
+//! request's size (at most [`MAX_MAP_CELLS`](crate::core::studies::stability::MAX_MAP_CELLS)
+//! cells); between rows it stops at the time limit (answering with the maps made, `stop:
+//! time_limit`) or when the client goes away.
 //!
 //! With `?format=rrd` the maps come as a Rerun recording (each map a tensor of spectral radii and
 //! an image of verdicts, see [`recording::stability`]).
@@ -65,17 +65,22 @@ pub async fn stability_map(
     let format = Format::requested(&query, &HeaderMap::new(), &[Format::Json, Format::Rrd])?;
     let request = StabilityRequest::from_value(&body)?;
     let job = request.to_spec()?.prepare()?;
-    let work = Work::admit(&state, state.config.max_concurrent, Cost::Study, client).await?;
+    let slots = match state.executor.distributes(&job) {
+        true => 1,
+        false => state.config.max_concurrent,
+    };
+    let work = Work::admit(&state, slots, Cost::Study, client).await?;
     tracing::info!(
         methods = job.methods.len(),
-        cells = job.cells(),
+        cells = job.points(),
         slots = work.workers(),
         "stability maps started"
     );
+    let executor = state.executor.clone();
     let bytes = work
         .run(move |budget| {
-            let doc: StabilityDocument = stability::maps(&job, budget)?;
-            format.encode(&doc, |d| recording::stability::rrd_bytes(&request, d))
+            let doc: StabilityDocument = stability::maps(&job, &executor, budget)?;
+            format.encode(&doc, |d| recording::stability::rrd_bytes(&recording::Spec::of(&request), d))
         })
         .await?;
     Ok(format.respond(bytes, "geomint-stability.rrd"))

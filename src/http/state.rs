@@ -13,6 +13,7 @@ use tokio::sync::{watch, OwnedSemaphorePermit, Semaphore};
 
 use super::error::ApiError;
 use crate::access::{Access, AccessConfig};
+use crate::executor::{cores, StudyExecutor};
 use crate::store::recordings::RecordingStore;
 use crate::store::systems::{SystemStore, DEFAULT_MAX_SYSTEMS, DEFAULT_SYSTEMS_DIR};
 use crate::core::simulation::Limits;
@@ -94,18 +95,11 @@ impl Cost {
     }
 }
 
-/// The number of cores, the default of [`Config::max_concurrent`].
-pub fn default_concurrency() -> usize {
-    std::thread::available_parallelism()
-        .map(|n| n.get())
-        .unwrap_or(1)
-}
-
 impl Default for Config {
     fn default() -> Self {
         Self {
             limits: Limits::default(),
-            max_concurrent: default_concurrency(),
+            max_concurrent: cores(),
             request_timeout: Duration::from_secs(60),
             queue_timeout: Duration::from_millis(250),
             long_queue_timeout: Duration::from_secs(5),
@@ -138,8 +132,8 @@ pub struct AppState {
     pub systems: Arc<SystemStore>,
     /// Tokens in force, the anonymous policy, and what callers use.
     pub access: Arc<Access>,
-    /// The NATS work queue that runs sweeps, when the server has one (else they run here).
-    pub queue: Option<Arc<crate::nats::Queue>>,
+    /// Where studies run: here, or on NATS workers.
+    pub executor: StudyExecutor,
     permits: Arc<Semaphore>,
     short_lane: Arc<Semaphore>,
     waiting_long: Arc<Mutex<HashMap<IpAddr, usize>>>,
@@ -157,7 +151,7 @@ impl AppState {
             recordings: Arc::new(recordings),
             systems: Arc::new(systems),
             access: Arc::new(Access::new(config.access.clone(), config.short_work)),
-            queue: None,
+            executor: StudyExecutor::Local,
             config: Arc::new(Config {
                 max_concurrent: max,
                 ..config
@@ -169,9 +163,9 @@ impl AppState {
         }
     }
 
-    /// The same state, running sweeps on the workers of `queue`.
+    /// The same state, running studies on the workers of `queue` (here without one).
     pub fn with_queue(mut self, queue: Option<crate::nats::Queue>) -> Self {
-        self.queue = queue.map(Arc::new);
+        self.executor = queue.map_or(StudyExecutor::Local, |q| StudyExecutor::Nats(Arc::new(q)));
         self
     }
 

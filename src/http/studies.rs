@@ -1,10 +1,11 @@
 //! The study routes: `POST /api/v1/studies/work-precision`, `/convergence`, `/energy-map` and
 //! `/sweep`, and `GET /api/v1/studies/sweep/presets` (see [`crate::core::studies`]).
 //!
-//! A study is validated first (cheap), then takes its simulation slots — one for the settings
-//! studies, whose settings run one after another so that their wall times compare; every free
-//! one for an energy map or a sweep, whose cells run in parallel — and runs off the async
-//! runtime. With
+//! A study is validated first (cheap), then takes its simulation slots — one for a
+//! work–precision study, whose settings run one after another so that their wall times compare;
+//! every free one for the others, whose cells run in parallel; one when the cells go to NATS
+//! workers and the server only waits — and runs off the async runtime on the service's executor
+//! ([`crate::executor`]). With
 //! `Accept: application/x-ndjson` (or `?format=ndjson`) it streams its progress lines and the
 //! result; `?format=rrd` answers the study's Rerun recording (work–precision studies and maps);
 //! otherwise the result document. The request's time limit and a client that goes away stop it
@@ -29,9 +30,11 @@ use crate::core::error::{CoreError, ErrorDetail};
 use crate::core::run::Budget;
 use crate::core::studies::convergence::{self, ConvergenceDocument, ConvergenceLine};
 use crate::core::studies::energy_map::{self, EnergyMapDocument, MapLine};
-use crate::core::studies::settings::{ProgressLine, Runner, StudyJob};
+use crate::core::studies::engine::{Order, Study};
+use crate::core::studies::settings::{ProgressLine, StudyJob};
 use crate::core::studies::sweep::{self, SweepDocument, SweepLine};
 use crate::core::studies::work_precision::{self, StudyLine, WorkPrecisionDocument};
+use crate::executor::StudyExecutor;
 use crate::recording;
 
 /// Answers a study in `format` once `work` is admitted: NDJSON lines as it goes (`run` emits
@@ -65,26 +68,51 @@ async fn answer<D: Serialize + Send + 'static, L: Serialize + Send + 'static>(
     Ok(format.respond(bytes, file))
 }
 
-/// Answers a settings study (`job`, run by `run`) in one slot.
+/// How the service runs a settings study: the job on the executor, given a budget and where to
+/// report its lines, to its document.
+type SettingsRun<L> = fn(
+    &StudyJob,
+    &StudyExecutor,
+    Budget<'_>,
+    &(dyn Fn(L) -> bool + Sync),
+) -> Result<<L as ProgressLine>::Document, CoreError>;
+
+/// The slots a study takes: one when its cells go to workers or run one at a time, else every
+/// free one.
+fn slots<S: Study>(state: &AppState, study: &S) -> usize {
+    if state.executor.distributes(study) || study.order() == Order::Timed {
+        1
+    } else {
+        state.config.max_concurrent
+    }
+}
+
+/// Answers a settings study (`job`, run by `run` on the service's executor).
 async fn answer_settings<L: ProgressLine>(
     state: AppState,
     client: Client,
     format: Format,
-    job: StudyJob,
-    run: Runner<L>,
+    (job, order): (StudyJob, Order),
+    run: SettingsRun<L>,
     encode: impl FnOnce(&L::Document) -> Result<Vec<u8>, ApiError> + Send + 'static,
     file: &'static str,
 ) -> Result<Response, ApiError> {
-    let work = Work::admit(&state, 1, Cost::Study, client).await?;
+    let slots = match order {
+        Order::Timed => 1,
+        Order::Parallel if matches!(state.executor, StudyExecutor::Nats(_)) => 1,
+        Order::Parallel => state.config.max_concurrent,
+    };
+    let work = Work::admit(&state, slots, Cost::Study, client).await?;
     tracing::info!(
         settings = job.len(),
         format = format.name(),
         "study started"
     );
+    let executor = state.executor.clone();
     answer(
         work,
         format,
-        move |budget, emit: &(dyn Fn(L) -> bool + Sync)| run(&job, budget, &|l| emit(l)),
+        move |budget, emit: &(dyn Fn(L) -> bool + Sync)| run(&job, &executor, budget, emit),
         (L::result, L::error, L::end),
         encode,
         file,
@@ -123,13 +151,13 @@ pub async fn work_precision(
     let job = request.to_spec(&*state.systems)?.prepare(&state.config.limits)?;
     let request = request.inlined(&*state.systems);
     let encode = move |doc: &WorkPrecisionDocument| {
-        format.encode(doc, |d| recording::work_precision::rrd_bytes(&request, d))
+        format.encode(doc, |d| recording::work_precision::rrd_bytes(&recording::Spec::of(&request), d))
     };
     answer_settings::<StudyLine>(
         state,
         client,
         format,
-        job,
+        (job, Order::Timed),
         work_precision::run,
         encode,
         "geomint-work-precision.rrd",
@@ -168,8 +196,16 @@ pub async fn convergence(
     let request = ConvergenceRequest::from_value(&body)?;
     let job = request.to_spec(&*state.systems)?.prepare(&state.config.limits)?;
     let encode = |doc: &ConvergenceDocument| serde_json::to_vec(doc).map_err(ApiError::internal);
-    answer_settings::<ConvergenceLine>(state, client, format, job, convergence::run, encode, "")
-        .await
+    answer_settings::<ConvergenceLine>(
+        state,
+        client,
+        format,
+        (job, Order::Parallel),
+        convergence::run,
+        encode,
+        "",
+    )
+    .await
 }
 
 /// An energy-error map (paper 001 Fig. 6): the planar elastic pendulum released at rest from
@@ -201,16 +237,19 @@ pub async fn energy_map(
 ) -> Result<Response, ApiError> {
     let format = Format::requested(&query, &headers, Format::ALL)?;
     let job = EnergyMapRequest::from_value(&body)?.to_spec()?.prepare()?;
-    let work = Work::admit(&state, state.config.max_concurrent, Cost::Study, client).await?;
+    let work = Work::admit(&state, slots(&state, job.sweep()), Cost::Study, client).await?;
     tracing::info!(
         cells = job.nx * job.ny,
         steps = job.steps,
         "energy map started"
     );
+    let executor = state.executor.clone();
     answer(
         work,
         format,
-        move |budget, emit: &(dyn Fn(MapLine) -> bool + Sync)| energy_map::run(&job, budget, emit),
+        move |budget, emit: &(dyn Fn(MapLine) -> bool + Sync)| {
+            energy_map::run(&job, &executor, budget, emit)
+        },
         (
             |doc: EnergyMapDocument| MapLine::Result(Box::new(doc)),
             |error| MapLine::Error { error },
@@ -255,40 +294,20 @@ pub async fn sweep(
     let format = Format::requested(&query, &headers, Format::ALL)?;
     let request = SweepRequest::from_value(&body)?;
     let job = request.to_spec(&*state.systems)?.prepare(&state.config.limits)?;
-    // On NATS workers a sweep holds one slot here (it only waits); locally, every free one.
-    let slots = match state.queue {
-        Some(_) => 1,
-        None => state.config.max_concurrent,
-    };
-    let work = Work::admit(&state, slots, Cost::Study, client).await?;
+    let work = Work::admit(&state, slots(&state, &job), Cost::Study, client).await?;
     tracing::info!(
         cells = job.cells(),
         runs = job.runs.len(),
         steps = job.total_steps,
-        distributed = state.queue.is_some(),
+        distributed = state.executor.distributes(&job),
         "sweep started"
     );
-    let queue = state.queue.clone();
-    let canonical = request.canonical(&*state.systems);
-    let runtime = tokio::runtime::Handle::current();
+    let executor = state.executor.clone();
     answer(
         work,
         format,
-        move |budget, emit: &(dyn Fn(SweepLine) -> bool + Sync)| match queue {
-            None => sweep::run(&job, budget, emit),
-            Some(queue) => {
-                // A blocking thread of the runtime: it may wait on the queue's futures.
-                let started = std::time::Instant::now();
-                let progress = sweep::Progress::new(job.cells(), emit);
-                let cells = runtime.block_on(crate::nats::run(
-                    &queue,
-                    canonical,
-                    &job,
-                    budget,
-                    &|cells| progress.add(cells),
-                ))?;
-                job.document_within(cells, budget, started.elapsed().as_secs_f64() * 1e3)
-            }
+        move |budget, emit: &(dyn Fn(SweepLine) -> bool + Sync)| {
+            sweep::run(&job, &executor, budget, emit)
         },
         (
             |doc: SweepDocument| SweepLine::Result(Box::new(doc)),

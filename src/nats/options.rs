@@ -39,7 +39,10 @@ impl NatsOptions {
         };
         if let Some(ca) = &self.tls_ca {
             if !ca.is_file() {
-                return Err(format!("the NATS TLS CA file {} does not exist", ca.display()));
+                return Err(format!(
+                    "the NATS TLS CA file {} does not exist",
+                    ca.display()
+                ));
             }
             options = options.add_root_certificates(ca.clone()).require_tls(true);
         }

@@ -44,8 +44,9 @@ struct MaxDeliveries {
 }
 
 /// The shard and the study's error if `message` is a max-deliveries advisory for one of the
-/// study's shards (`shards`: stream sequence → shard).
+/// study's shards (`shards`: stream sequence → shard; `name`: the kind of study).
 pub fn exhausted(
+    name: &str,
     message: &async_nats::Message,
     shards: &HashMap<u64, usize>,
 ) -> Option<(usize, CoreError)> {
@@ -54,13 +55,16 @@ pub fn exhausted(
     }
     let advisory: MaxDeliveries = serde_json::from_slice(&message.payload).ok()?;
     let shard = *shards.get(&advisory.stream_seq)?;
-    Some((shard, CoreError::Executor {
-        message: format!(
-            "the sweep failed: shard {shard} was handed to workers {} times (max_deliver) and \
+    Some((
+        shard,
+        CoreError::Executor {
+            message: format!(
+            "the {name} failed: shard {shard} was handed to workers {} times (max_deliver) and \
              never finished: each worker running it died or panicked",
             advisory.deliveries
         ),
-    }))
+        },
+    ))
 }
 
 /// The message of a panic caught in a worker.
@@ -87,7 +91,9 @@ pub fn test_fault(payload: &[u8]) {
                 .map(|name| std::env::var(name).ok().filter(|m| !m.is_empty()))
         });
         let holds = |marker: &Option<String>| {
-            marker.as_deref().is_some_and(|m| payload.windows(m.len()).any(|w| w == m.as_bytes()))
+            marker
+                .as_deref()
+                .is_some_and(|m| payload.windows(m.len()).any(|w| w == m.as_bytes()))
         };
         if holds(abort_on) {
             eprintln!("GEOMINT_WORKER_ABORT_ON: a test's poison shard kills its worker");

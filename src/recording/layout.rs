@@ -34,6 +34,8 @@ pub struct Layout {
     pub world: World,
     /// Degrees of freedom of the system.
     pub dof: usize,
+    /// Whether the runs collect a Poincaré section.
+    pub section: bool,
 }
 
 impl Layout {
@@ -57,7 +59,14 @@ impl Layout {
             energy_error,
             world,
             dof,
+            section: false,
         }
+    }
+
+    /// This layout, with a Poincaré section when `section`.
+    pub fn with_section(mut self, section: bool) -> Self {
+        self.section = section;
+        self
     }
 
     /// The layout of a simulation's document.
@@ -69,6 +78,7 @@ impl Layout {
             &doc.invariants,
             doc.runs.iter().any(|r| r.columns.energy_error.is_some()),
         )
+        .with_section(doc.section.is_some())
     }
 
     /// The layout of a simulation announced by a stream's header.
@@ -80,6 +90,7 @@ impl Layout {
             &header.invariants,
             header.energy_error,
         )
+        .with_section(header.section.is_some())
     }
 
     /// Every entity path of method `index` that holds data, in a fixed order.
@@ -99,6 +110,12 @@ impl Layout {
         }
         paths.push(format!("/{m}/world/bodies"));
         paths.push(format!("/{m}/world/path"));
+        if self.section {
+            for dof in 0..self.phase_dofs {
+                paths.push(format!("/{m}/section/{dof}"));
+            }
+            paths.push(format!("/{m}/world/section"));
+        }
         paths
     }
 }
@@ -186,8 +203,11 @@ fn blueprint_tree(layout: &Layout) -> Node {
         ],
     );
 
-    let world = Node::view("3D", "world", each(&|m| format!("/{m}/world/**")))
-        .with_trails(each(&|m| format!("/{m}/world/path")));
+    let mut trails = each(&|m| format!("/{m}/world/path"));
+    if layout.section {
+        trails.extend(each(&|m| format!("/{m}/world/section")));
+    }
+    let world = Node::view("3D", "world", each(&|m| format!("/{m}/world/**"))).with_trails(trails);
     let spec = Node::view("TextDocument", "spec", vec!["/spec".to_string()]);
     let phases: Vec<Node> = (0..layout.phase_dofs)
         .map(|dof| {
@@ -199,13 +219,21 @@ fn blueprint_tree(layout: &Layout) -> Node {
             .with_trails(each(&|m| format!("/{m}/phase/{dof}/path")))
         })
         .collect();
-    let right = Node::container(
-        ContainerKind::Vertical,
-        vec![
-            Node::container(ContainerKind::Tabs, vec![world, spec]),
-            Node::container(ContainerKind::Grid, phases),
-        ],
-    );
+    // A section's points accumulate: every point up to the time cursor is shown.
+    let sections: Vec<Node> = (0..layout.phase_dofs)
+        .filter(|_| layout.section)
+        .map(|dof| {
+            let points = each(&|m| format!("/{m}/section/{dof}"));
+            Node::view("2D", format!("section (q{dof}, p{dof})"), points.clone())
+                .with_trails(points)
+        })
+        .collect();
+    let mut views = vec![Node::container(ContainerKind::Tabs, vec![world, spec])];
+    if !sections.is_empty() {
+        views.push(Node::container(ContainerKind::Grid, sections));
+    }
+    views.push(Node::container(ContainerKind::Grid, phases));
+    let right = Node::container(ContainerKind::Vertical, views);
     Node::container(ContainerKind::Horizontal, vec![left, right])
 }
 

@@ -22,7 +22,8 @@ use super::encode::{self, EncoderThread, EncodingSink};
 use super::layout::{send_blueprint, Layout};
 use super::simulation::SimulationLogger;
 use super::{RecordingError, APPLICATION_ID};
-use crate::api::SimulateRequest;
+use super::Spec;
+use crate::core::simulation::crossings::SurfaceName;
 use crate::core::simulation::StreamLine;
 
 /// Longest wait for the viewer's connection before anything runs.
@@ -77,13 +78,13 @@ pub fn connect_viewer(url: &str, timeout: Duration) -> Result<GrpcSink, Recordin
 /// to their method's run.
 pub struct StreamRecorder {
     rec: RecordingStream,
-    spec: SimulateRequest,
+    spec: Spec,
     logger: OnceLock<SimulationLogger>,
 }
 
 impl StreamRecorder {
     /// A recorder logging the simulation of `spec` into `rec`.
-    pub fn new(rec: RecordingStream, spec: SimulateRequest) -> Self {
+    pub fn new(rec: RecordingStream, spec: Spec) -> Self {
         StreamRecorder {
             rec,
             spec,
@@ -117,6 +118,13 @@ impl StreamRecorder {
             StreamLine::Summary(summary) => self
                 .logger()?
                 .finish(summary.method, summary.outcome.stats.force_evaluations),
+            StreamLine::Crossings(chunk) => match chunk.surface {
+                SurfaceName::Section => {
+                    self.logger()?
+                        .section(chunk.method, chunk.offset, &chunk.columns)
+                }
+                SurfaceName::StopWhen => Ok(()),
+            },
             StreamLine::Error(_) | StreamLine::End => Ok(()),
         }
     }
@@ -141,7 +149,7 @@ impl<W: Write + Send + 'static> LiveRecording<W> {
     pub fn start(
         viewer: GrpcSink,
         name: String,
-        spec: SimulateRequest,
+        spec: Spec,
         file: Option<W>,
     ) -> Result<Self, RecordingError> {
         let mut sinks: Vec<Box<dyn LogSink>> = vec![Box::new(viewer)];

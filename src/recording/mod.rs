@@ -41,6 +41,23 @@ pub use simulation::{
     log_simulation, recording_name, rrd_bytes, write_rrd, RunLogger, SimulationLogger,
 };
 
+/// The request a recording keeps in `/spec`, as pretty JSON: whatever request the recording was
+/// made from (recordings need nothing else of the wire layer's types).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Spec(String);
+
+impl Spec {
+    /// The spec of `request`.
+    pub fn of(request: &impl serde::Serialize) -> Spec {
+        Spec(serde_json::to_string_pretty(request).unwrap_or_default())
+    }
+
+    /// The JSON text.
+    pub fn json(&self) -> &str {
+        &self.0
+    }
+}
+
 /// The application id of every recording.
 pub const APPLICATION_ID: &str = "geomint";
 /// The sequence timeline: the step index of each sample.

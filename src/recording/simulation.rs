@@ -13,6 +13,8 @@
 //! | `/{m}/phase/{dof}/path` | `LineStrips2D`, the path since the previous row | see [`path_blocks`](super::layout::path_blocks) |
 //! | `/{m}/world/bodies` | `Points3D`, the bodies in physical space (Cartesian coordinates whatever the chart; the planar pendulum at (x, 0, −y)); for the pendulums also `LineStrips3D`, the rod or spring from the origin | one per sample |
 //! | `/{m}/world/path` | `LineStrips3D`, each body's path since the previous row | see [`path_blocks`](super::layout::path_blocks) |
+//! | `/{m}/section/{dof}` | `Points2D` (q, p) of a Poincaré section's point (runs with a `section`) | one per point, at its time and the step past it |
+//! | `/{m}/world/section` | `Points3D`, the bodies at the section's point, in physical space | one per point |
 //!
 //! Timelines: `step` (sequence) and `t` (duration, seconds). Every entity of a method carries
 //! its colour; all series of one quantity share the series name pattern so that the methods
@@ -43,15 +45,15 @@ use rerun::{
 
 use super::layout::{path_block_len, sample_step, send_blueprint, Layout};
 use super::{color, encode, method_color, RecordingError, STEP_TIMELINE, TIME_TIMELINE};
-use crate::api::SimulateRequest;
-use crate::core::simulation::{Columns, ScheduleSummary, SimulationDocument};
+use super::Spec;
+use crate::core::simulation::{Columns, CrossingColumns, ScheduleSummary, SimulationDocument};
 use crate::core::systems::World;
 
 /// Logs every run of `doc` (and the spec) to `rec`: static styles first, then each run's
 /// samples as one chunk of columns.
 pub fn log_simulation(
     rec: &RecordingStream,
-    spec: &SimulateRequest,
+    spec: &Spec,
     doc: &SimulationDocument,
 ) -> Result<(), RecordingError> {
     let layout = Layout::of(doc);
@@ -61,6 +63,9 @@ pub fn log_simulation(
     })?;
     for (i, run) in doc.runs.iter().enumerate() {
         logger.samples(i, 0, &run.columns)?;
+        if let Some(points) = &run.section {
+            logger.section(i, 0, points)?;
+        }
         logger.finish(i, run.outcome.stats.force_evaluations)?;
     }
     Ok(())
@@ -80,12 +85,12 @@ impl SimulationLogger {
     /// (see [`path_blocks`](super::layout::path_blocks)).
     pub fn start(
         rec: &RecordingStream,
-        spec: &SimulateRequest,
+        spec: &Spec,
         layout: &Layout,
         schedule: &ScheduleSummary,
         expected: impl Fn(usize) -> usize,
     ) -> Result<Self, RecordingError> {
-        let spec_json = serde_json::to_string_pretty(spec).unwrap_or_default();
+        let spec_json = spec.json();
         rec.log_static(
             "/spec",
             &TextDocument::from_markdown(format!("```json\n{spec_json}\n```")),
@@ -115,6 +120,16 @@ impl SimulationLogger {
         columns: &Columns,
     ) -> Result<(), RecordingError> {
         self.run(method)?.samples(offset, columns)
+    }
+
+    /// Logs the section points `offset..offset + n` of method `method`.
+    pub fn section(
+        &self,
+        method: usize,
+        offset: u64,
+        points: &CrossingColumns,
+    ) -> Result<(), RecordingError> {
+        self.run(method)?.section(offset, points)
     }
 
     /// Ends the run of method `method` (see [`RunLogger::finish`]).
@@ -150,6 +165,10 @@ pub struct RunLogger {
     phase_path: Vec<Vec<[f32; 2]>>,
     /// The bodies' positions since the last path row (`per_row` per sample), likewise.
     world_path: Vec<[f32; 3]>,
+    /// The step size (a section point's step is the first after its time).
+    h: f64,
+    /// Section points logged so far.
+    section_logged: u64,
 }
 
 impl RunLogger {
@@ -217,6 +236,23 @@ impl RunLogger {
                 .with_colors([color(rgb)])
                 .with_radii([line_radius]),
         )?;
+        if layout.section {
+            let dot = Radius::new_ui_points(1.5);
+            for dof in 0..layout.phase_dofs {
+                rec.log_static(
+                    format!("/{m}/section/{dof}"),
+                    &Points2D::update_fields()
+                        .with_colors([color(rgb)])
+                        .with_radii([dot]),
+                )?;
+            }
+            rec.log_static(
+                format!("/{m}/world/section"),
+                &Points3D::update_fields()
+                    .with_colors([color(rgb)])
+                    .with_radii([dot]),
+            )?;
+        }
         Ok(RunLogger {
             rec: rec.clone(),
             entity: m.clone(),
@@ -231,7 +267,51 @@ impl RunLogger {
             last: None,
             phase_path: vec![Vec::new(); layout.phase_dofs],
             world_path: Vec::new(),
+            h: schedule.h,
+            section_logged: 0,
         })
+    }
+
+    /// Logs the next points of the run's section (points `offset..offset + n`; `offset` must be
+    /// the number logged before): each at its own time, as (q, p) per degree of freedom and as
+    /// the bodies in physical space.
+    pub fn section(&mut self, offset: u64, c: &CrossingColumns) -> Result<(), RecordingError> {
+        let n = c.t.len();
+        if n == 0 {
+            return Ok(());
+        }
+        if offset != self.section_logged {
+            return Err(RecordingError::Unexpected(format!(
+                "section points of {} from {offset}, but {} were logged before",
+                self.entity, self.section_logged
+            )));
+        }
+        let m = &self.entity;
+        let steps = c.t.iter().map(|t| (t / self.h).ceil().max(0.0) as i64);
+        let times = [
+            TimeColumn::new_sequence(STEP_TIMELINE, steps),
+            TimeColumn::new_duration_secs(TIME_TIMELINE, c.t.iter().copied()),
+        ];
+        for dof in 0..self.phase_dofs {
+            let points = c.q.iter().zip(&c.p).map(|(q, p)| [q[dof] as f32, p[dof] as f32]);
+            self.rec.send_columns(
+                format!("/{m}/section/{dof}"),
+                times.iter().cloned(),
+                Points2D::new(points).columns_of_unit_batches()?,
+            )?;
+        }
+        let mut exact: Vec<[f64; 3]> = Vec::with_capacity(n * self.per_row);
+        for q in c.cartesian_q.as_ref().unwrap_or(&c.q) {
+            self.world.positions(q, &mut exact);
+        }
+        let positions = exact.iter().map(|p| [p[0] as f32, p[1] as f32, p[2] as f32]);
+        self.rec.send_columns(
+            format!("/{m}/world/section"),
+            times.iter().cloned(),
+            Points3D::new(positions).columns(std::iter::repeat_n(self.per_row, n))?,
+        )?;
+        self.section_logged += n as u64;
+        Ok(())
     }
 
     /// Logs the next samples of the run: `columns` holds samples `offset..offset + n`, and
@@ -438,7 +518,7 @@ pub fn recording_name<S: AsRef<str>>(system: &str, labels: &[S]) -> String {
 /// default blueprint. Returns the writer once the stream is complete (footer included).
 pub fn write_rrd<W: Write + Send + 'static>(
     writer: W,
-    spec: &SimulateRequest,
+    spec: &Spec,
     doc: &SimulationDocument,
 ) -> Result<W, RecordingError> {
     let labels: Vec<&str> = doc.runs.iter().map(|r| r.method.as_str()).collect();
@@ -450,7 +530,7 @@ pub fn write_rrd<W: Write + Send + 'static>(
 
 /// The `.rrd` file of a simulation in memory (see [`write_rrd`]).
 pub fn rrd_bytes(
-    spec: &SimulateRequest,
+    spec: &Spec,
     doc: &SimulationDocument,
 ) -> Result<Vec<u8>, RecordingError> {
     write_rrd(Vec::new(), spec, doc)

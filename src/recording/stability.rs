@@ -27,7 +27,7 @@ use rerun::{
 
 use super::blueprint::{self, Node};
 use super::{encode, entity_names, RecordingError};
-use crate::api::stability::StabilityRequest;
+use super::Spec;
 use crate::core::studies::stability::{MapDocument, StabilityDocument};
 
 /// The class of a cell in a `verdict` image. Class 0 is left unused: segmentation images draw
@@ -102,14 +102,14 @@ pub fn verdicts(map: &MapDocument) -> Vec<u8> {
 /// summary.
 pub fn log_study(
     rec: &RecordingStream,
-    spec: &StabilityRequest,
+    spec: &Spec,
     doc: &StabilityDocument,
 ) -> Result<(), RecordingError> {
     rec.log_static(
         "/",
         &AnnotationContext::new(Verdict::ALL.map(|v| (v as u16, v.label(), v.color()))),
     )?;
-    let spec_json = serde_json::to_string_pretty(spec).unwrap_or_default();
+    let spec_json = spec.json();
     rec.log_static(
         "/spec",
         &TextDocument::from_markdown(format!("```json\n{spec_json}\n```")),
@@ -220,7 +220,7 @@ fn blueprint_tree(doc: &StabilityDocument) -> Node {
 /// `spec`) and the default blueprint. Returns the writer once the stream is complete.
 pub fn write_rrd<W: Write + Send + 'static>(
     writer: W,
-    spec: &StabilityRequest,
+    spec: &Spec,
     doc: &StabilityDocument,
 ) -> Result<W, RecordingError> {
     let labels: Vec<&str> = doc.maps.iter().map(|m| m.method.as_str()).collect();
@@ -233,7 +233,7 @@ pub fn write_rrd<W: Write + Send + 'static>(
 
 /// The `.rrd` file of a stability study in memory (see [`write_rrd`]).
 pub fn rrd_bytes(
-    spec: &StabilityRequest,
+    spec: &Spec,
     doc: &StabilityDocument,
 ) -> Result<Vec<u8>, RecordingError> {
     write_rrd(Vec::new(), spec, doc)

@@ -18,7 +18,7 @@ use rerun::{LineStrips2D, Points2D, Radius, RecordingStream, TextDocument};
 
 use super::blueprint::{self, Node};
 use super::{color, encode, entity_names, method_color, RecordingError};
-use crate::api::studies::WorkPrecisionRequest;
+use super::Spec;
 use crate::core::studies::work_precision::WorkPrecisionDocument;
 
 /// The per-run labels of a study (`runs[i]`'s method).
@@ -37,10 +37,10 @@ fn run_labels(doc: &WorkPrecisionDocument) -> Vec<String> {
 /// Logs the study: spec, table, and per run its points, curve and fitted line.
 pub fn log_study(
     rec: &RecordingStream,
-    spec: &WorkPrecisionRequest,
+    spec: &Spec,
     doc: &WorkPrecisionDocument,
 ) -> Result<(), RecordingError> {
-    let spec_json = serde_json::to_string_pretty(spec).unwrap_or_default();
+    let spec_json = spec.json();
     rec.log_static(
         "/spec",
         &TextDocument::from_markdown(format!("```json\n{spec_json}\n```")),
@@ -150,7 +150,7 @@ fn blueprint_tree() -> Node {
 /// Writes the `.rrd` file of a study to `writer`.
 pub fn write_rrd<W: Write + Send + 'static>(
     writer: W,
-    spec: &WorkPrecisionRequest,
+    spec: &Spec,
     doc: &WorkPrecisionDocument,
 ) -> Result<W, RecordingError> {
     let name = format!("work–precision: {}", doc.system.id);
@@ -162,7 +162,7 @@ pub fn write_rrd<W: Write + Send + 'static>(
 
 /// The `.rrd` file of a study in memory (see [`write_rrd`]).
 pub fn rrd_bytes(
-    spec: &WorkPrecisionRequest,
+    spec: &Spec,
     doc: &WorkPrecisionDocument,
 ) -> Result<Vec<u8>, RecordingError> {
     write_rrd(Vec::new(), spec, doc)

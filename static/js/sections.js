@@ -1,14 +1,15 @@
-// One section of the page at a time. The page has eight sections (the elements with `data-view`:
+// One section of the page at a time. The page has nine sections (the elements with `data-view`:
 // Simulation, Your system, Recordings, Stability, …); a reader who comes for one of them should not
-// scroll past the seven others, so only the one the address names is shown. The address keeps
+// scroll past the eight others, so only the one the address names is shown. The address keeps
 // working as it did when the page was one long column: `#stability` (or the id of anything inside
 // a section, such as `#results` or `#sim-form`) shows that section, `#system=…` the Your-system
-// section and `#recording=…` the Recordings section; no hash shows the Simulation section. The
-// header's section links are ordinary links to those hashes, the one shown marked
-// `aria-current="page"`; Back and Forward move between the sections a reader opened.
+// section, `#recording=…` the Recordings section and `#orbits=…` the Phase-space section; no hash
+// shows the Simulation section. The header's section links are ordinary links to those hashes,
+// the one shown marked `aria-current="page"`; Back and Forward move between the sections a reader
+// opened.
 
 /** The section a hash like `#system=…` or `#recording=…` opens. */
-const LINK_SECTIONS = { system: 'your-system', recording: 'recordings' };
+const LINK_SECTIONS = { system: 'your-system', recording: 'recordings', orbits: 'phase-space' };
 
 export class Sections {
   /**

@@ -12,7 +12,8 @@ import { join } from 'node:path';
 import { artifacts, base, launch, openSection, waitForServer } from './harness.mjs';
 
 /** The page's sections, in the order of the header's links. */
-const SECTIONS = ['simulation', 'your-system', 'recordings', 'stability', 'work-precision', 'convergence', 'energy-map', 'sweep'];
+const SECTIONS = ['simulation', 'your-system', 'recordings', 'stability', 'work-precision', 'convergence', 'energy-map', 'sweep',
+  'phase-space'];
 
 let context;
 let page;
@@ -97,7 +98,7 @@ test('the header shows one section at a time; old links still lead to theirs', a
   console.log(`# page height per section: ${JSON.stringify(heights)}`);
   // Back returns to the section before.
   await page.goBack();
-  await page.waitForSelector('#energy-map:not([hidden])');
+  await page.waitForSelector('#sweep:not([hidden])');
   // Hashes of elements inside a section, as the page's older links wrote them.
   for (const [hash, id] of [['#results', 'simulation'], ['#sim-form', 'simulation'], ['#stab-results', 'stability']]) {
     await page.evaluate((h) => { window.location.hash = h; }, hash);

@@ -450,7 +450,7 @@ fn array_tasks_merge_to_the_local_sweep_bit_for_bit() {
     assert!(out.status.success());
     refused(
         &[&slurm[0], &foreign, &slurm[2], &slurm[3]],
-        "belongs to another sweep",
+        "belongs to another study",
     );
 
     // Bad shard designations.

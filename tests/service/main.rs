@@ -24,6 +24,7 @@ mod http_faults;
 mod http_ownership;
 mod http_recordings;
 mod http_recordings_upload;
+mod http_sections;
 mod http_reliability;
 mod http_stability;
 mod http_studies;

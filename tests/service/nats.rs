@@ -136,7 +136,7 @@ fn local() -> Value {
         .unwrap()
         .prepare(&Limits::default())
         .unwrap();
-    numbers(serde_json::to_value(sweep::run(&job, Budget::default(), &|_| true).unwrap()).unwrap())
+    numbers(serde_json::to_value(sweep::run(&job, &geomint::core::studies::engine::Local, Budget::default(), &|_| true).unwrap()).unwrap())
 }
 
 fn numbers(mut doc: Value) -> Value {
@@ -342,4 +342,80 @@ fn serve_without_a_nats_server_says_so_and_exits_non_zero() {
         .output()
         .unwrap();
     assert_eq!(out.status.code(), Some(1));
+}
+
+/// Messages the shard stream has taken so far (its last sequence number).
+async fn shards_published(url: &str) -> u64 {
+    let client = async_nats::connect(url).await.unwrap();
+    let js = async_nats::jetstream::new(client);
+    let mut stream = js.get_stream(geomint::nats::STREAM).await.unwrap();
+    stream.info().await.unwrap().state.last_sequence
+}
+
+/// `value` without the members that hold wall times, at any depth.
+fn untimed(mut value: Value) -> Value {
+    fn walk(v: &mut Value) {
+        match v {
+            Value::Object(map) => {
+                map.retain(|k, _| !["wall_ms", "reference_ms"].contains(&k.as_str()));
+                map.values_mut().for_each(walk);
+            }
+            Value::Array(items) => items.iter_mut().for_each(walk),
+            _ => {}
+        }
+    }
+    walk(&mut value);
+    value
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn every_study_on_nats_workers_equals_the_local_executor() {
+    let dir = scratch("studies");
+    let (_nats, url) = nats_server(&dir);
+    let _worker = worker(&url);
+    let (_server, base) = server(&url, &dir, 60);
+    let local = server::start(geomint::http::Config::default()).await;
+    let studies = [
+        // Stability maps: rows of three methods' maps.
+        (
+            "/api/v1/stability",
+            json!({"methods": ["csv1", "cimp", "rk4"], "omega": 3.51,
+                "gamma": {"min": 0, "max": 3.5, "n": 41}, "h": {"min": 0.01, "max": 1, "n": 37}}),
+        ),
+        // A convergence study against a reference run, in two charts.
+        (
+            "/api/v1/studies/convergence",
+            json!({"system": "elastic_pendulum_2d", "charts": ["cartesian", "polar"],
+                "initial_coordinates": "cartesian", "q0": [0.3, 1.2], "p0": [0.1, 0.0],
+                "t_end": 4, "methods": ["symplectic_euler", "rk4"], "h": [0.1, 0.05, 0.025]}),
+        ),
+        // An energy map: a sweep of both charts.
+        (
+            "/api/v1/studies/energy-map",
+            json!({"nx": 9, "ny": 7, "t_max": 200}),
+        ),
+    ];
+    for (path, request) in studies {
+        let before = shards_published(&url).await;
+        let (status, on_workers) = server::post_json_to(&base, path, &request).await;
+        assert_eq!(status, 200, "{path}: {on_workers}");
+        assert!(
+            shards_published(&url).await > before,
+            "{path}: no shard went to the workers"
+        );
+        let (status, here) = server::post_json(&local, path, &request).await;
+        assert_eq!(status, 200, "{path}: {here}");
+        assert!(
+            untimed(on_workers) == untimed(here),
+            "{path}: the workers' document differs from the local one"
+        );
+    }
+    // A work–precision study times its settings on one machine: none goes to the workers.
+    let before = shards_published(&url).await;
+    let request = json!({"system": "harmonic_oscillator", "t_end": 10,
+        "runs": [{"method": "csv1", "h": [0.1, 0.05]}]});
+    let (status, doc) =
+        server::post_json_to(&base, "/api/v1/studies/work-precision", &request).await;
+    assert_eq!(status, 200, "{doc}");
+    assert_eq!(shards_published(&url).await, before);
 }

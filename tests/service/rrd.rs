@@ -31,7 +31,7 @@ impl Run {
         let sim = spec.prepare(limits, &NoStoredSystems).expect("valid simulation");
         let doc = sim.simulate(2, Budget::default()).expect("runs");
         let json = serde_json::to_string(&doc).unwrap();
-        let rrd = recording::rrd_bytes(&spec, &doc).expect("recording");
+        let rrd = recording::rrd_bytes(&recording::Spec::of(&spec), &doc).expect("recording");
         Run { doc, json, rrd }
     }
 
@@ -228,7 +228,7 @@ fn a_million_samples_make_a_complete_recording() {
     let sim = spec.prepare(&limits, &NoStoredSystems).unwrap();
     let doc = sim.simulate(1, Budget::default()).unwrap();
     assert_eq!(doc.runs[0].columns.energy.len(), 1_000_001);
-    let bytes = recording::rrd_bytes(&spec, &doc).unwrap();
+    let bytes = recording::rrd_bytes(&recording::Spec::of(&spec), &doc).unwrap();
     let d = Decoded::of(&bytes);
     assert_eq!(d.rows("/modin_3s/energy"), 1_000_001);
     assert_eq!(d.rows("/modin_3s/world/bodies"), 1_000_001);

@@ -194,8 +194,18 @@ pub async fn post_json(
     path: &str,
     body: &serde_json::Value,
 ) -> (u16, serde_json::Value) {
+    post_json_to(&server.base, path, body).await
+}
+
+/// [`post_json`] to the server at `base` (`http://HOST:PORT`), one this test did not start in
+/// its own runtime (a `geomint serve` process).
+pub async fn post_json_to(
+    base: &str,
+    path: &str,
+    body: &serde_json::Value,
+) -> (u16, serde_json::Value) {
     let response = client()
-        .post(server.url(path))
+        .post(format!("{base}{path}"))
         .json(body)
         .send()
         .await

@@ -15,9 +15,10 @@ use geomint::core::simulation::Limits;
 use geomint::core::stability::propagation_matrix;
 use geomint::core::stability::Spectrum;
 use geomint::core::studies::energy_map;
-use geomint::core::studies::sweep::shard::{merge, ShardError};
-use geomint::core::studies::sweep::{self, Shard, SweepDocument, SweepJob, SweepPart};
-use geomint::core::studies::StudyStop;
+use geomint::core::studies::engine::{Local, Study};
+use geomint::core::studies::parts::{merge, run_shard, Part, Shard, ShardError};
+use geomint::core::studies::sweep::{self, RunMetrics, SweepDocument, SweepJob};
+use geomint::core::studies::{StudySpec, StudyStop};
 use serde_json::{json, Value};
 
 fn job(request: &Value) -> SweepJob {
@@ -30,7 +31,7 @@ fn job(request: &Value) -> SweepJob {
 }
 
 fn run(job: &SweepJob) -> SweepDocument {
-    sweep::run(job, Budget::default(), &|_| true).unwrap()
+    sweep::run(job, &Local, Budget::default(), &|_| true).unwrap()
 }
 
 /// The document without its wall time, for comparing runs bit for bit.
@@ -48,7 +49,7 @@ fn map_request() -> EnergyMapRequest {
 fn the_fig6_preset_reproduces_the_energy_map_bit_for_bit() {
     let request = map_request();
     let map_job = request.to_spec().unwrap().prepare().unwrap();
-    let map = energy_map::run(&map_job, Budget::default(), &|_| true).unwrap();
+    let map = energy_map::run(&map_job, &Local, Budget::default(), &|_| true).unwrap();
     let doc = run(&job(&energy_map_preset(&request)));
 
     assert_eq!(doc.cells, 63);
@@ -82,22 +83,32 @@ fn the_fig6_preset_reproduces_the_energy_map_bit_for_bit() {
     // The map has divergences to compare at all, and cells where each chart is the better one.
     assert!(map.summary.polar_diverged > 0);
     assert!(map.summary.cartesian_better > 0 && map.summary.polar_better > 0);
+
+    // On Fig. 6's 21-point axes over [−1.5, 1.5], (max − min)·(k/(n − 1)) and
+    // (max − min)·k/(n − 1) differ by an ulp at 10 points of 21: the sweep spaces its points as
+    // the map always did, so the preset's grid is the map's on any axis.
+    let fig6 = EnergyMapRequest::from_value(&json!({"nx": 21, "ny": 21, "t_max": 1})).unwrap();
+    let map_job = fig6.to_spec().unwrap().prepare().unwrap();
+    let map = energy_map::run(&map_job, &Local, Budget::default(), &|_| true).unwrap();
+    let preset = job(&energy_map_preset(&fig6));
+    let values = |k: usize| preset.grid.axes[k].values();
+    assert_eq!((values(0), values(1)), (map.xs.clone(), map.ys.clone()));
+    let quotient_last: Vec<f64> = (0..21).map(|k| -1.5 + 3.0 * (k as f64 / 20.0)).collect();
+    let differ = (0..21).filter(|&k| quotient_last[k] != map.xs[k]).count();
+    assert_eq!(differ, 10, "{quotient_last:?} {:?}", map.xs);
 }
 
 #[test]
 fn shards_merged_in_any_order_equal_the_local_run() {
     let job = job(&energy_map_preset(&map_request()));
     let local = numbers(&run(&job));
+    let spec = job.spec().unwrap();
     for count in [1, 2, 5, 63] {
-        let mut parts: Vec<(String, SweepPart)> = (0..count)
+        let mut parts: Vec<(String, Part<Vec<RunMetrics>>)> = (0..count)
             .map(|index| {
                 let shard = Shard { index, count };
-                let cells = job
-                    .run_cells(shard.cells(job.cells()).unwrap(), Budget::default(), &|| {})
-                    .unwrap()
-                    .unwrap();
+                let part = run_shard(&job, spec.clone(), shard, &|_, _| {}).unwrap();
                 // Through JSON, as a part travels between machines.
-                let part = SweepPart::new(&job, Value::Null, shard, cells, 1.0);
                 let text = serde_json::to_string(&part).unwrap();
                 (
                     format!("part-{index}"),
@@ -106,32 +117,34 @@ fn shards_merged_in_any_order_equal_the_local_run() {
             })
             .collect();
         parts.reverse();
-        let (cells, _) = merge(&job, parts.clone()).unwrap();
+        let (cells, _) = merge(&job, &spec, parts.clone()).unwrap();
         assert_eq!(numbers(&job.document(cells, 0.0)), local, "{count} shards");
 
         if count > 1 {
             let mut missing = parts.clone();
             missing.remove(1);
             assert!(matches!(
-                merge(&job, missing),
+                merge(&job, &spec, missing),
                 Err(ShardError::Missing { .. })
             ));
             let mut twice = parts.clone();
             twice.push(("again".into(), parts[0].1.clone()));
             assert!(matches!(
-                merge(&job, twice),
+                merge(&job, &spec, twice),
                 Err(ShardError::Duplicate { .. })
             ));
         }
         let mut foreign = parts.clone();
-        foreign[0].1.digest = "0".repeat(64);
-        let refused = merge(&job, foreign).unwrap_err();
+        if let StudySpec::Sweep(sweep) = &mut foreign[0].1.spec {
+            sweep.t_end += 1.0;
+        }
+        let refused = merge(&job, &spec, foreign).unwrap_err();
         assert!(matches!(refused, ShardError::Foreign { .. }));
         assert!(refused.to_string().starts_with(&foreign_name(&parts)));
     }
 }
 
-fn foreign_name(parts: &[(String, SweepPart)]) -> String {
+fn foreign_name(parts: &[(String, Part<Vec<RunMetrics>>)]) -> String {
     parts[0].0.clone()
 }
 
@@ -389,8 +402,14 @@ fn sweeps_of_the_maps_kind_run_in_lanes_with_the_numbers_of_cell_by_cell() {
         );
         let shard = 1..job.cells().min(7);
         let part = |job: &SweepJob| {
-            let cells = job.run_cells(shard.clone(), Budget::default(), &|| {});
-            serde_json::to_string(&cells.unwrap().unwrap()).unwrap()
+            let cells = geomint::core::studies::engine::Executor::run(
+                &Local,
+                job,
+                shard.clone(),
+                Budget::default(),
+                &|_, _| {},
+            );
+            serde_json::to_string(&cells.unwrap()).unwrap()
         };
         assert_eq!(part(&job), part(&one_by_one), "{request}: cells {shard:?}");
         let doc = run(&job);
@@ -435,7 +454,7 @@ fn a_sweep_in_lanes_stopped_by_its_budget_leaves_its_cells_unfinished_or_fails()
         cancel: None,
         deadline: Some(std::time::Instant::now()),
     };
-    let doc = sweep::run(&job, past, &|_| true).unwrap();
+    let doc = sweep::run(&job, &Local, past, &|_| true).unwrap();
     assert_eq!(doc.stop, StudyStop::TimeLimit);
     assert_eq!(doc.unfinished_cells, (0..job.cells()).collect::<Vec<_>>());
     let cancelled = std::sync::atomic::AtomicBool::new(true);
@@ -443,7 +462,7 @@ fn a_sweep_in_lanes_stopped_by_its_budget_leaves_its_cells_unfinished_or_fails()
         cancel: Some(&cancelled),
         deadline: None,
     };
-    let refused = sweep::run(&job, budget, &|_| true).unwrap_err();
+    let refused = sweep::run(&job, &Local, budget, &|_| true).unwrap_err();
     assert!(refused.to_string().contains("cancelled"), "{refused}");
 }
 
@@ -464,7 +483,7 @@ fn a_cell_outside_the_chart_keeps_its_failure_when_the_lanes_reach_the_time_limi
                  {"name": "q0[1]", "min": -1, "max": 1, "n": 3}]}),
     );
     assert!(polar.runs_in_lanes());
-    let stopped = |job: &SweepJob| numbers(&sweep::run(job, past, &|_| true).unwrap());
+    let stopped = |job: &SweepJob| numbers(&sweep::run(job, &Local, past, &|_| true).unwrap());
     let in_lanes = stopped(&polar);
     assert_eq!(in_lanes, stopped(&polar.clone().cell_by_cell()));
     assert_eq!(

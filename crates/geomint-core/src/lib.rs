@@ -11,6 +11,7 @@
 //! - [`flows`] and [`methods`]: exact sub-flows, and the methods built from them.
 //! - [`run`]: the driver loop.
 //! - [`simulation`]: a simulation from its spec to its stream of samples and its document.
+//! - [`sections`]: Poincaré sections and events, located by Hénon's trick.
 //! - [`studies`]: convergence, work–precision, energy maps, stability maps, sweeps.
 //! - [`stability`], [`diagnostics`]: linear stability analysis; drift and fits.
 //! - [`error`]: typed errors with their fields, numbers and codes; with the `openapi` feature,
@@ -43,6 +44,7 @@ pub mod methods;
 pub mod run;
 #[cfg(feature = "openapi")]
 pub mod schema;
+pub mod sections;
 pub mod simulation;
 pub mod stability;
 pub mod studies;

@@ -5,7 +5,14 @@
 //! A run of step h to t_end has n = ceil(t_end/h − 1e-9) steps, all of size h; sample times are
 //! t_k = k·h computed from the step index (never accumulated), so the same inputs give
 //! bit-identical output. Samples are taken at step 0, every `every`-th step and the last step.
+//!
+//! An observer that watches every step ([`Observer::watches_steps`]: Poincaré sections, events)
+//! is shown the state after each step, and may end the run there ([`StopReason::Event`]); the
+//! steps are then taken one at a time instead of in stretches, which changes nothing but the
+//! fusion of a splitting's last flow with the next step's first (round-off, as sampling more
+//! often does).
 
+use std::ops::ControlFlow;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
@@ -228,6 +235,18 @@ pub struct Budget<'a> {
     pub deadline: Option<Instant>,
 }
 
+impl Budget<'_> {
+    /// Whether the cancellation flag is set.
+    pub fn cancelled(&self) -> bool {
+        self.cancel.is_some_and(|c| c.load(std::sync::atomic::Ordering::Relaxed))
+    }
+
+    /// Whether the deadline has passed.
+    pub fn expired(&self) -> bool {
+        self.deadline.is_some_and(|d| Instant::now() >= d)
+    }
+}
+
 /// Why a run stopped.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 #[serde(rename_all = "snake_case", tag = "reason")]
@@ -250,6 +269,13 @@ pub enum StopReason {
     TimeLimit {
         /// Steps completed.
         step: u64,
+    },
+    /// An observer of every step ended the run (an event: the n-th crossing of a surface).
+    Event {
+        /// The step after which it ended (the first step past the event).
+        step: u64,
+        /// The time of the event itself, between that step's start and end.
+        t: f64,
     },
 }
 
@@ -276,6 +302,19 @@ where
 
     /// The Jacobian determinant of the step that ended at `step` (only when asked for).
     fn on_step_determinant(&mut self, _step: u64, _det: f64) {}
+
+    /// Whether [`on_step`](Self::on_step) is to see every step (the driver then steps one at a
+    /// time). The default sees only samples.
+    fn watches_steps(&self) -> bool {
+        false
+    }
+
+    /// The state after `step`, at time `t` (for a processing method, its output state), when
+    /// the observer [watches steps](Self::watches_steps). `Break(t_event)` ends the run after
+    /// this step with [`StopReason::Event`]; the step is then sampled.
+    fn on_step(&mut self, _step: u64, _t: f64, _z: &State<D>) -> ControlFlow<f64> {
+        ControlFlow::Continue(())
+    }
 }
 
 /// Runs `stepper` from `z` over `schedule`, reporting samples to `observer`.
@@ -312,6 +351,7 @@ where
     } else {
         stepper.check_interval().max(1)
     };
+    let watch = observer.watches_steps();
     let mut tangent = if track_determinant {
         Some(Tangent::new(sys, z))
     } else {
@@ -354,7 +394,11 @@ where
         // Steps up to the next sample, the next budget check or the end.
         let next_sample = ((step / every) + 1) * every;
         let next_check = ((step / check_every) + 1) * check_every;
-        let until = next_sample.min(next_check).min(schedule.steps);
+        let until = if watch {
+            step + 1
+        } else {
+            next_sample.min(next_check).min(schedule.steps)
+        };
         match tangent.as_mut() {
             None => {
                 let (done, outcome) = stepper.advance(sys, z, h, until - step);
@@ -389,16 +433,28 @@ where
             };
             break;
         }
-        if step % every == 0 || step == schedule.steps {
-            if stepper
+        let due = step % every == 0 || step == schedule.steps;
+        let mut event = false;
+        if watch || due {
+            let is_processed = stepper
                 .post_process(sys, z, h, &mut processed)
-                .map_err(|e| fail(step.saturating_sub(1), e))?
-            {
-                processed_at = Some(step);
-                observer.on_sample(step, step as f64 * h, &processed);
-            } else {
-                observer.on_sample(step, step as f64 * h, z);
+                .map_err(|e| fail(step.saturating_sub(1), e))?;
+            let output = if is_processed { &processed } else { &*z };
+            if watch {
+                if let ControlFlow::Break(t) = observer.on_step(step, step as f64 * h, output) {
+                    stop = StopReason::Event { step, t };
+                    event = true;
+                }
             }
+            if due || event {
+                if is_processed {
+                    processed_at = Some(step);
+                }
+                observer.on_sample(step, step as f64 * h, output);
+            }
+        }
+        if event {
+            break;
         }
     }
     // Leave the output state, not the kernel's, to the caller.

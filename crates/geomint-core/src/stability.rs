@@ -298,6 +298,16 @@ pub const MAX_AXIS_POINTS: usize = 1000;
 
 /// The stability map of `choice` over the grid, computed in parallel over rows.
 pub fn map(choice: &Method, omega: f64, gamma: Axis, h: Axis) -> Result<StabilityMap, CoreError> {
+    check_map(choice, omega, gamma, h)?;
+    let radius: Vec<f64> = (0..h.n)
+        .into_par_iter()
+        .flat_map_iter(|row| map_row(choice, omega, gamma, h.at(row)))
+        .collect();
+    Ok(map_of_rows(choice, omega, gamma, h, radius))
+}
+
+/// Checks a map's axes, ω, and the method against the most damped oscillator of the map.
+pub fn check_map(choice: &Method, omega: f64, gamma: Axis, h: Axis) -> Result<(), CoreError> {
     gamma.check(&Field::new("gamma"), MAX_AXIS_POINTS)?;
     h.check(&Field::new("h"), MAX_AXIS_POINTS)?;
     check_point(omega, 0.0, 1.0)?;
@@ -311,22 +321,33 @@ pub fn map(choice: &Method, omega: f64, gamma: Axis, h: Axis) -> Result<Stabilit
         "harmonic_oscillator",
         widest.structure(),
         widest.damping_rate(),
-    )?;
-    // A zero step is the identity: treat it as stable without stepping.
-    let radius: Vec<f64> = (0..h.n)
-        .into_par_iter()
-        .flat_map_iter(|row| {
-            let hv = h.at(row);
-            (0..gamma.n).map(move |col| {
-                if hv == 0.0 {
-                    return 1.0;
-                }
-                propagation_matrix(choice, omega, gamma.at(col), hv)
-                    .map(|m| Spectrum::of(&m).spectral_radius)
-                    .unwrap_or(f64::NAN)
-            })
+    )
+}
+
+/// One row of a map: the spectral radius at each γ of the axis for the step `hv`; NaN where the
+/// step fails. A zero step is the identity: stable, without stepping.
+pub fn map_row(choice: &Method, omega: f64, gamma: Axis, hv: f64) -> Vec<f64> {
+    (0..gamma.n)
+        .map(|col| {
+            if hv == 0.0 {
+                return 1.0;
+            }
+            propagation_matrix(choice, omega, gamma.at(col), hv)
+                .map(|m| Spectrum::of(&m).spectral_radius)
+                .unwrap_or(f64::NAN)
         })
-        .collect();
+        .collect()
+}
+
+/// The map from its spectral radii (rows of [`map_row`], in order): the verdicts, analytic and
+/// numerical, and their disagreements.
+pub fn map_of_rows(
+    choice: &Method,
+    omega: f64,
+    gamma: Axis,
+    h: Axis,
+    radius: Vec<f64>,
+) -> StabilityMap {
     let stable: Vec<bool> = radius.iter().map(|&r| r <= 1.0 + 1e-12).collect();
     let verdicts = |relation| -> Option<Vec<bool>> {
         (0..h.n * gamma.n)
@@ -348,7 +369,7 @@ pub fn map(choice: &Method, omega: f64, gamma: Axis, h: Axis) -> Result<Stabilit
             .as_ref()
             .map_or(0, |o| disagreements_off_boundary(&stable, o, h.n, gamma.n))
     };
-    Ok(StabilityMap {
+    StabilityMap {
         method: choice.label(),
         omega,
         gamma,
@@ -359,7 +380,7 @@ pub fn map(choice: &Method, omega: f64, gamma: Axis, h: Axis) -> Result<Stabilit
         stable,
         analytic,
         printed,
-    })
+    }
 }
 
 /// Cells where `a` and `b` disagree, not counting cells that have a neighbour (8-connected) on the

@@ -49,6 +49,37 @@ where
     pub fn is_finite(&self) -> bool {
         self.q.iter().chain(self.p.iter()).all(|x| x.is_finite())
     }
+
+    /// The state of `sys` at time `t` with positions `q` and momenta `p` (the system's degrees of
+    /// freedom): for a system in extended phase space (see [`MechanicalSystem::clock`]) the clock
+    /// coordinate is `t` and its momentum 0, else the state is `q`, `p` as they are.
+    pub fn at_time<S>(sys: &S, t: f64, q: &[f64], p: &[f64]) -> Self
+    where
+        S: MechanicalSystem<Dim = D> + ?Sized,
+    {
+        match sys.clock() {
+            None => Self::from_slices(sys.dim(), q, p),
+            Some(k) => {
+                let mut z = Self::from_slices(
+                    sys.dim(),
+                    &[q, &[t][..]].concat(),
+                    &[p, &[0.0][..]].concat(),
+                );
+                z.q[k] = t;
+                z
+            }
+        }
+    }
+
+    /// The positions and momenta of the system's degrees of freedom, without the clock
+    /// coordinate of an extended phase space.
+    pub fn physical<S>(&self, sys: &S) -> (&[f64], &[f64])
+    where
+        S: MechanicalSystem<Dim = D> + ?Sized,
+    {
+        let n = sys.clock().unwrap_or(self.q.len());
+        (&self.q.as_slice()[..n], &self.p.as_slice()[..n])
+    }
 }
 
 /// Structural facts about a system that methods may require.
@@ -221,6 +252,18 @@ where
     /// Whether this is the identity chart (the state is already Cartesian).
     fn is_cartesian(&self) -> bool {
         true
+    }
+
+    /// For a system whose H or damping depends on the time t: the index of the coordinate that
+    /// is t. Such a system lives in extended phase space, H̃(q, t, p, p_t) = H(q, p, t) + p_t
+    /// (Hairer–Lubich–Wanner, *Geometric Numerical Integration*, Sec. VI.10; Arnold, *Mathematical
+    /// Methods of Classical Mechanics*, Sec. 45): the clock is the last coordinate, its
+    /// velocity ∂H̃/∂p_t = 1, its momentum p_t' = −∂H/∂t does not act back on the motion, and
+    /// every method that treats coordinates alike integrates t exactly with the rest (a drift
+    /// advances it, a kick holds it). `None` (the default) for autonomous systems, whose state
+    /// is (q, p) alone.
+    fn clock(&self) -> Option<usize> {
+        None
     }
 
     /// How many invariants (or conformal invariants) [`invariants`](Self::invariants) writes;

@@ -199,7 +199,7 @@ impl CoreError {
             UnknownMethod { .. } => ErrorCode::UnknownMethod,
             UnknownParameter { .. } => ErrorCode::UnknownField,
             Missing { .. } => ErrorCode::MissingField,
-            Unmet { .. } => ErrorCode::UnmetRequirement,
+            Unmet { .. } | TimeDependent { .. } => ErrorCode::UnmetRequirement,
             TooManySteps { .. } => ErrorCode::TooManySteps,
             TooManySamples { .. } => ErrorCode::TooManySamples,
             TooManyCells { .. } => ErrorCode::TooManyCells,

@@ -7,7 +7,10 @@ use super::CoreError;
 /// The path of an input field as errors name it: `h`, `params.omega`, `methods[1].inner`,
 /// `runs[0].h[2]`. Callers build it from the names their input uses, so an error raised deep in
 /// the core names the field the user wrote.
-#[derive(Clone, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[derive(
+    Clone, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
+)]
+#[serde(transparent)]
 pub struct Field(String);
 
 impl Field {

@@ -300,6 +300,18 @@ pub enum CoreError {
         /// The first unmet requirement.
         requirement: Requirement,
     },
+    /// A method that cannot take a system depending on the time t.
+    #[error("method `{method}` cannot run on `{system}`, whose energy or damping depends on the time t: {why}")]
+    TimeDependent {
+        /// The method's field.
+        field: Field,
+        /// The method's label.
+        method: String,
+        /// The system.
+        system: String,
+        /// Why not.
+        why: &'static str,
+    },
     /// A method without a step Jacobian where one is needed.
     #[error("{field}: {why} no step Jacobian; drop it or jacobian_defect")]
     NoStepJacobian {
@@ -535,6 +547,7 @@ macro_rules! match_field {
             | CoreError::TooManyCells { field: $field, .. }
             | CoreError::MapTooLarge { field: $field, .. }
             | CoreError::Unmet { field: $field, .. }
+            | CoreError::TimeDependent { field: $field, .. }
             | CoreError::NoStepJacobian { field: $field, .. }
             | CoreError::Unsupported { field: $field, .. }
             | CoreError::OutsideChart { field: $field, .. }
@@ -570,36 +583,4 @@ impl CoreError {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn ranges_check_and_show_their_bounds() {
-        let h = Field::new("h");
-        assert!(Range::POSITIVE.check(0.1, &h).is_ok());
-        for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
-            assert!(Range::POSITIVE.check(bad, &h).is_err());
-        }
-        assert_eq!(
-            Range::POSITIVE.check(-0.1, &h).unwrap_err().to_string(),
-            "h: must be finite and > 0, got -0.1"
-        );
-        let tolerance = Range::closed(1e-14, false, 1e-2);
-        assert_eq!(
-            tolerance
-                .check(1.0, &Field::new("methods").index(0).key("tolerance"))
-                .unwrap_err()
-                .to_string(),
-            "methods[0].tolerance: 1 is outside the valid range [1e-14, 0.01]"
-        );
-        assert_eq!(show(1e6), "1000000");
-        assert_eq!(show(2.5e-7), "2.5e-7");
-    }
-
-    #[test]
-    fn fields_build_paths() {
-        let runs = Field::new("runs");
-        assert_eq!(runs.index(1).key("h").index(2).as_str(), "runs[1].h[2]");
-        assert_eq!(Field::default().key("h").as_str(), "h");
-    }
-}
+mod tests;

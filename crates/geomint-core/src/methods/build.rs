@@ -215,7 +215,44 @@ where
         sys.structure(),
         sys.damping_rate(),
     )?;
+    if sys.clock().is_some() {
+        if let Some(why) = no_time(method, sys.damping_rate()) {
+            return Err(CoreError::TimeDependent {
+                field: origin.method.clone(),
+                method: method.label(),
+                system: origin.system.to_string(),
+                why,
+            });
+        }
+    }
     check_divisors(method, sys.damping_rate(), h, origin.h)
+}
+
+/// Why `method` cannot integrate a system that depends on the time t, if it cannot (a
+/// composition as its base). Every other method treats the clock of extended phase space (see
+/// [`MechanicalSystem::clock`]) as one more coordinate and so integrates t exactly:
+/// - splittings and their compositions: the drift flow q ← q + τ ∂H̃/∂p moves t by τ, the kick
+///   and damping flows hold q, and with it t, fixed, so each sub-flow stays exact and the
+///   sequence keeps its order (the potential is evaluated at the time the drifts have reached);
+/// - Runge–Kutta methods and the adaptive reference: stage i sees t + cᵢh, since t' = 1 and
+///   cᵢ = Σⱼ aᵢⱼ;
+/// - implicit midpoint and symplectic Euler in Newton form: t is solved for with the rest, and
+///   comes out as t + h (resp. t + h at the stage that moves it).
+///
+/// csv2 and cimp with damping scale the positions by the conformal factor e^{−γh} (csv2's
+/// (1 + γh/2)e^{−γh}/(1 − γh/2), cimp's decays of the whole state z), which would scale t too;
+/// rowlands' modified potential and processors are derived for an autonomous Hamiltonian.
+pub fn no_time(method: &Method, damping_rate: f64) -> Option<&'static str> {
+    let (base, _) = stages(method);
+    match base {
+        MethodId::Csv2 | MethodId::Cimp if damping_rate != 0.0 => Some(
+            "it scales the positions by the conformal factor, and would scale the time t with              them; use csv1 or modin_3s (or their compositions) for a driven damped system",
+        ),
+        MethodId::Rowlands => Some(
+            "its modified potential and processors are derived for an autonomous Hamiltonian",
+        ),
+        _ => None,
+    }
 }
 
 /// Builds the stepper for `method` on `sys` with step `h`, after [`check`]ing it (errors name

@@ -9,6 +9,7 @@ pub mod composition;
 pub mod conformal;
 pub mod dop853;
 pub mod implicit;
+pub mod lanes;
 pub mod reference;
 pub mod rowlands;
 pub mod runge_kutta;
@@ -324,7 +325,6 @@ impl Serialize for MethodId {
 }
 
 #[cfg(feature = "openapi")]
-
 impl utoipa::PartialSchema for MethodId {
     fn schema() -> utoipa::openapi::RefOr<utoipa::openapi::schema::Schema> {
         crate::schema::string_enum(
@@ -335,7 +335,6 @@ impl utoipa::PartialSchema for MethodId {
 }
 
 #[cfg(feature = "openapi")]
-
 impl utoipa::ToSchema for MethodId {}
 
 fn names(ids: &[MethodId]) -> String {
@@ -379,7 +378,6 @@ macro_rules! method_subset {
         }
 
         #[cfg(feature = "openapi")]
-
         impl utoipa::PartialSchema for $name {
             fn schema() -> utoipa::openapi::RefOr<utoipa::openapi::schema::Schema> {
                 crate::schema::string_enum($rule, $name::ALL.iter().map(|m| m.id().as_str()))
@@ -387,7 +385,6 @@ macro_rules! method_subset {
         }
 
         #[cfg(feature = "openapi")]
-
         impl utoipa::ToSchema for $name {}
     };
 }
@@ -588,6 +585,67 @@ impl Serialize for Method {
                 map.serialize_entry("id", id)?;
                 map.serialize_entry(name, &value)?;
                 map.end()
+            }
+        }
+    }
+}
+
+/// Reads what [`Method`]'s `Serialize` writes (a study's spec carried to a worker or a part
+/// file): an id, or `{"id", <option>}` with the option named as the method's. Requests are read
+/// by the wire layer, which names fields in its errors; this reader only has to read back what
+/// the core wrote.
+impl<'de> serde::Deserialize<'de> for Method {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        use serde::de::Error;
+        #[derive(serde::Deserialize)]
+        #[serde(untagged)]
+        enum Form {
+            Id(String),
+            Options {
+                id: String,
+                inner: Option<String>,
+                base: Option<String>,
+                processor: Option<String>,
+                tolerance: Option<f64>,
+            },
+        }
+        let id_of = |s: &str| MethodId::parse(s).ok_or_else(|| D::Error::custom(format!("no method `{s}`")));
+        let subset = |name: &Option<String>, what: &str| -> Result<MethodId, D::Error> {
+            let name = name
+                .as_deref()
+                .ok_or_else(|| D::Error::custom(format!("a method without its {what}")))?;
+            id_of(name)
+        };
+        match Form::deserialize(d)? {
+            Form::Id(id) => Ok(Method::new(id_of(&id)?)),
+            Form::Options {
+                id,
+                inner,
+                base,
+                processor,
+                tolerance,
+            } => {
+                let id = id_of(&id)?;
+                let wrong = || D::Error::custom(format!("`{}` does not take that option", id.as_str()));
+                match Method::new(id) {
+                    Method::ModinRks { .. } => Ok(Method::ModinRks {
+                        inner: Inner::of(subset(&inner, "inner method")?).ok_or_else(wrong)?,
+                    }),
+                    Method::Composition { scheme, .. } => Ok(Method::Composition {
+                        scheme,
+                        base: Base::of(subset(&base, "base")?).ok_or_else(wrong)?,
+                    }),
+                    Method::Rowlands { .. } => Ok(Method::Rowlands {
+                        processor: processor
+                            .as_deref()
+                            .and_then(Processor::parse)
+                            .ok_or_else(wrong)?,
+                    }),
+                    Method::Reference { .. } => Ok(Method::Reference {
+                        tolerance: tolerance.ok_or_else(wrong)?,
+                    }),
+                    Method::Plain(_) => Err(wrong()),
+                }
             }
         }
     }

@@ -97,7 +97,6 @@ impl Processor {
 }
 
 #[cfg(feature = "openapi")]
-
 impl utoipa::PartialSchema for Processor {
     fn schema() -> utoipa::openapi::RefOr<utoipa::openapi::schema::Schema> {
         crate::schema::string_enum(
@@ -108,7 +107,6 @@ impl utoipa::PartialSchema for Processor {
 }
 
 #[cfg(feature = "openapi")]
-
 impl utoipa::ToSchema for Processor {}
 
 /// The coefficient c of the original processor: h²/12 (the paper prints h²/24; module docs).

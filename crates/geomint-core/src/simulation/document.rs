@@ -8,11 +8,13 @@ use std::collections::BTreeMap;
 
 use serde::Serialize;
 
+use super::crossings::{CrossingColumns, SurfaceInfo};
 use super::run::{Sample, SampleSink};
 use super::spec::Simulation;
 use crate::diagnostics::DriftPoint;
 use crate::error::CoreError;
 use crate::run::{RunStats, StopReason};
+use crate::sections::SectionSummary;
 #[cfg(feature = "openapi")]
 use crate::systems::SystemId;
 use crate::systems::{ParamValues, World};
@@ -230,6 +232,14 @@ pub enum Stop {
         /// Steps completed.
         step: u64,
     },
+    /// The run's event ended it: the `stop_when` surface's `count`-th crossing, at `t`; the
+    /// last sample is the step past it.
+    Event {
+        /// The step after which the run ended.
+        step: u64,
+        /// The time of the crossing.
+        t: f64,
+    },
     /// A step failed (for example Newton's method did not converge); the samples end before it.
     Failed {
         /// The step that failed, counted from 1.
@@ -248,6 +258,7 @@ impl From<StopReason> for Stop {
             StopReason::Diverged { step, t } => Stop::Diverged { step, t },
             StopReason::Cancelled { step } => Stop::Cancelled { step },
             StopReason::TimeLimit { step } => Stop::TimeLimit { step },
+            StopReason::Event { step, t } => Stop::Event { step, t },
         }
     }
 }
@@ -313,6 +324,9 @@ pub struct RunOutcome {
     pub stop: Stop,
     /// Statistics.
     pub stats: RunStats,
+    /// How the section went (runs with a `section` only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub section_summary: Option<SectionSummary>,
 }
 
 /// One method's run.
@@ -328,6 +342,12 @@ pub struct RunDocument {
     /// How it ended.
     #[serde(flatten)]
     pub outcome: RunOutcome,
+    /// The section's points (runs with a `section` only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub section: Option<CrossingColumns>,
+    /// The crossings of the `stop_when` surface, the last of which ended the run.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub events: Option<CrossingColumns>,
 }
 
 /// The answer to a simulation request.
@@ -342,6 +362,12 @@ pub struct SimulationDocument {
     pub invariants: Vec<String>,
     /// One run per method, in the order asked.
     pub runs: Vec<RunDocument>,
+    /// The section, as the header announced it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub section: Option<SurfaceInfo>,
+    /// The event, as the header announced it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stop_when: Option<SurfaceInfo>,
 }
 
 impl SystemSummary {

@@ -8,7 +8,10 @@
 //! - [`stream`]: the one way a whole simulation runs — its methods in parallel, emitting typed
 //!   lines that the NDJSON stream, the JSON document and the recordings consume.
 //! - [`document`]: the JSON document's types and the column collector.
+//! - [`crossings`]: a run's Poincaré section, event and energy level, as the stream and the
+//!   document carry them.
 
+pub mod crossings;
 pub mod document;
 pub mod run;
 pub mod spec;
@@ -22,4 +25,5 @@ pub use run::{for_each_method, Outcome, Sample, SampleSink};
 pub use spec::{
     InitialCoordinates, InputFields, Limits, MethodAt, Simulation, SimulationSpec, MAX_METHODS,
 };
+pub use crossings::{CrossingColumns, SurfaceInfo, Watching};
 pub use stream::{DocumentCollector, StreamLine};

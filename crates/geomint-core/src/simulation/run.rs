@@ -4,6 +4,7 @@
 //! a study's measurements. Also the reference run whose energies give the errors when the system
 //! has no exact solution, and the parallel execution of a simulation's methods.
 
+use std::ops::ControlFlow;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use nalgebra::allocator::Allocator;
@@ -13,6 +14,7 @@ use super::spec::Simulation;
 use crate::error::{CoreError, Field};
 use crate::methods::{self, Method, MethodId};
 use crate::run::{integrate, Budget, Observer, RunStats, StopReason};
+use crate::sections::{Crossing, SectionSummary, Watch};
 use crate::system::{MechanicalSystem, State};
 use crate::systems::world::Drawing;
 use crate::systems::World;
@@ -47,6 +49,12 @@ pub struct Sample<'a> {
 pub trait SampleSink {
     /// One sample.
     fn on_sample(&mut self, sample: &Sample<'_>);
+
+    /// A located crossing of the run's section or event surface (runs that watch one only).
+    fn on_crossing(&mut self, _crossing: &Crossing<'_>) {}
+
+    /// How the run's section went, once the run has ended (runs with a section only).
+    fn on_section_end(&mut self, _summary: &SectionSummary) {}
 }
 
 /// How one method's run ended.
@@ -79,12 +87,26 @@ impl Simulation {
         budget: Budget<'_>,
         sink: &mut dyn SampleSink,
     ) -> Result<Outcome, CoreError> {
+        self.run_watching(method, reference, budget, sink, true)
+    }
+
+    /// [`run`](Self::run), watching the simulation's section and event when `watch` is set.
+    fn run_watching(
+        &self,
+        method: &Method,
+        reference: Option<&[f64]>,
+        budget: Budget<'_>,
+        sink: &mut dyn SampleSink,
+        watch: bool,
+    ) -> Result<Outcome, CoreError> {
         with_system!(&self.system, sys => {
             let mut stepper = methods::build(method, sys, &self.system_label, self.schedule.h)?;
-            let start = State::from_slices(sys.dim(), &self.q0, &self.p0);
+            let start = State::at_time(sys, 0.0, &self.q0, &self.p0);
             let mut z = start.clone();
             let n = self.q0.len();
+            let crossings = self.crossings.as_deref().filter(|_| watch);
             let mut observer = Diagnose {
+                watch: crossings.map(|c| Watch::new(sys, c, &start)),
                 sys,
                 start: &start,
                 reference,
@@ -103,6 +125,9 @@ impl Simulation {
             let (stop, stats) = with_stepper!(&mut stepper, st => integrate(
                 sys, st, &mut z, self.schedule, budget, track, &mut observer,
             ))?;
+            if let Some(summary) = observer.watch.as_ref().and_then(Watch::summary) {
+                observer.sink.on_section_end(&summary);
+            }
             Ok(Outcome { stop, stats })
         })
     }
@@ -114,8 +139,9 @@ impl Simulation {
         }
         let mut log = EnergyLog(Vec::with_capacity(self.schedule.samples() as usize));
         let field = Field::new("compare_to_reference");
+        // The reference runs to the end, whatever the runs' events.
         let outcome = self
-            .run(&Method::new(MethodId::Reference), None, budget, &mut log)
+            .run_watching(&Method::new(MethodId::Reference), None, budget, &mut log, false)
             .map_err(|e| match e {
                 CoreError::Step {
                     step, t, source, ..
@@ -153,11 +179,13 @@ impl SampleSink for EnergyLog {
     }
 }
 
-/// The observer that turns raw states into [`Sample`]s.
+/// The observer that turns raw states into [`Sample`]s, and watches every step for the
+/// crossings of a section or an event.
 struct Diagnose<'a, S: MechanicalSystem>
 where
     DefaultAllocator: Allocator<S::Dim>,
 {
+    watch: Option<Watch<'a, S>>,
     sys: &'a S,
     start: &'a State<S::Dim>,
     reference: Option<&'a [f64]>,
@@ -189,14 +217,15 @@ where
         if let Some((x, px)) = self.cartesian.as_mut() {
             self.sys.to_cartesian(&z.q, &z.p, x, px);
         }
+        let (q, p) = z.physical(self.sys);
         if let Some((drawing, bodies)) = self.drawing.as_mut() {
-            drawing.coordinates(z.q.as_slice(), bodies);
+            drawing.coordinates(q, bodies);
         }
         self.sink.on_sample(&Sample {
             step,
             t,
-            q: z.q.as_slice(),
-            p: z.p.as_slice(),
+            q,
+            p,
             cartesian: self
                 .cartesian
                 .as_ref()
@@ -212,6 +241,18 @@ where
 
     fn on_step_determinant(&mut self, _step: u64, det: f64) {
         self.last_det = Some(det);
+    }
+
+    fn watches_steps(&self) -> bool {
+        self.watch.is_some()
+    }
+
+    fn on_step(&mut self, _step: u64, t: f64, z: &State<S::Dim>) -> ControlFlow<f64> {
+        let sink = &mut self.sink;
+        match self.watch.as_mut() {
+            Some(watch) => watch.step(self.sys, t, z, &mut |c| sink.on_crossing(c)),
+            None => ControlFlow::Continue(()),
+        }
     }
 }
 

@@ -35,7 +35,7 @@ impl Default for Limits {
 }
 
 /// The coordinates an initial state is given in.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 #[serde(rename_all = "snake_case")]
 pub enum InitialCoordinates {
@@ -50,7 +50,7 @@ pub const MAX_METHODS: usize = 16;
 
 /// A method of a simulation and the field that gave it (`methods[1]`, `method`,
 /// `runs[0].method`).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct MethodAt {
     /// The method.
     pub method: Method,
@@ -203,6 +203,8 @@ pub struct Simulation {
     pub compare_to_reference: bool,
     /// Whether to report the Jacobian determinant defect.
     pub jacobian_defect: bool,
+    /// The section and event surfaces each run watches (see [`Simulation::watching`]).
+    pub crossings: Option<Arc<crate::sections::Crossings>>,
 }
 
 /// A given list (or the default) with the system's dimension and finite entries.
@@ -318,7 +320,14 @@ impl Simulation {
             }
         }
         if spec.jacobian_defect {
-            let st = with_system!(&system, s => s.structure());
+            let (st, driven) = with_system!(&system, s => (s.structure(), s.clock().is_some()));
+            if driven {
+                return Err(CoreError::Unsupported {
+                    field: f.jacobian_defect.clone(),
+                    reason: "the determinant defect is defined for autonomous systems only (this \
+                             one depends on the time t)",
+                });
+            }
             if !(st.conformal_damping && st.separable_constant_mass) {
                 return Err(CoreError::Unsupported {
                     field: f.jacobian_defect.clone(),
@@ -339,6 +348,7 @@ impl Simulation {
             schedule,
             compare_to_reference: spec.compare_to_reference,
             jacobian_defect: spec.jacobian_defect,
+            crossings: None,
         })
     }
 
@@ -367,9 +377,11 @@ impl Simulation {
     pub fn exact_final_state(&self) -> Option<(Vec<f64>, Vec<f64>)> {
         let t_end = self.schedule.h * self.schedule.steps as f64;
         with_system!(&self.system, sys => {
-            let start = State::from_slices(sys.dim(), &self.q0, &self.p0);
-            sys.exact(t_end, &start)
-                .map(|z| (z.q.as_slice().to_vec(), z.p.as_slice().to_vec()))
+            let start = State::at_time(sys, 0.0, &self.q0, &self.p0);
+            sys.exact(t_end, &start).map(|z| {
+                let (q, p) = z.physical(sys);
+                (q.to_vec(), p.to_vec())
+            })
         })
     }
 
@@ -377,6 +389,10 @@ impl Simulation {
     /// chart).
     pub fn cartesian_state(&self, q: &[f64], p: &[f64]) -> (Vec<f64>, Vec<f64>) {
         with_system!(&self.system, sys => {
+            if sys.clock().is_some() {
+                // Typed-in systems are in their own (Cartesian) coordinates.
+                return (q.to_vec(), p.to_vec());
+            }
             let z = State::from_slices(sys.dim(), q, p);
             let (mut x, mut px) = (q.to_vec(), p.to_vec());
             sys.to_cartesian(&z.q, &z.p, &mut x, &mut px);
@@ -401,7 +417,7 @@ fn initial_state(
     system: &AnySystem,
 ) -> Result<(Vec<f64>, Vec<f64>), CoreError> {
     let f = &spec.fields;
-    let n = system.dimension();
+    let n = system.degrees_of_freedom();
     // For N bodies the default state belongs to the default masses.
     let default_fits = n == info.q0.len();
     let (dq, dp) = if default_fits {

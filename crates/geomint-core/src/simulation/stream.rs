@@ -22,11 +22,13 @@ use super::document::{
     ColumnSink, Columns, RunDocument, RunOutcome, ScheduleSummary, SimulationDocument, Stop,
     SystemSummary,
 };
+use super::crossings::{CrossingColumns, CrossingsChunk, SurfaceInfo, SurfaceName};
 use super::run::{for_each_method, Sample, SampleSink};
 use super::spec::Simulation;
 use crate::diagnostics::{self, DriftPoint};
 use crate::error::{CoreError, ErrorCode, ErrorDetail};
 use crate::run::{Budget, RunStats};
+use crate::sections::{Crossing, CrossingKind, SectionSummary};
 
 /// Most samples per `samples` line.
 pub const CHUNK_SAMPLES: usize = 256;
@@ -44,6 +46,8 @@ pub enum StreamLine {
     Samples(SamplesChunk),
     /// One method's run has ended.
     Summary(RunSummary),
+    /// A chunk of one method's located crossings (of its section, or its event's surface).
+    Crossings(CrossingsChunk),
     /// A failure outside any one run's outcome (the reference run, a server fault).
     Error(StreamError),
     /// The last line of a complete stream.
@@ -67,6 +71,12 @@ pub struct StreamHeader {
     pub jacobian_defect: bool,
     /// The sampling.
     pub schedule: ScheduleSummary,
+    /// The section each run collects (`crossings` chunks with `surface` = `section`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub section: Option<SurfaceInfo>,
+    /// The event that ends each run (`crossings` chunks with `surface` = `stop_when`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stop_when: Option<SurfaceInfo>,
 }
 
 /// A chunk of one method's samples.
@@ -121,10 +131,31 @@ struct ChunkSink<'a> {
     open: bool,
     /// Times and positions kept for the dissipation drift (1-DOF systems only).
     kept: Option<(Vec<f64>, Vec<f64>)>,
+    /// Located crossings not yet sent: the section's and the event's, with their offsets.
+    crossings: [(CrossingColumns, u64); 2],
+    section_summary: Option<SectionSummary>,
 }
 
 impl ChunkSink<'_> {
     fn flush(&mut self) {
+        for (i, surface) in [SurfaceName::Section, SurfaceName::StopWhen]
+            .into_iter()
+            .enumerate()
+        {
+            let (columns, offset) = &mut self.crossings[i];
+            if columns.is_empty() || !self.open {
+                continue;
+            }
+            let n = columns.len() as u64;
+            let line = StreamLine::Crossings(CrossingsChunk {
+                method: self.method,
+                surface,
+                offset: *offset,
+                columns: std::mem::take(columns),
+            });
+            *offset += n;
+            self.open = (self.emit)(line);
+        }
         if self.buffer.is_empty() || !self.open {
             return;
         }
@@ -154,6 +185,25 @@ impl SampleSink for ChunkSink<'_> {
             self.flush();
         }
     }
+
+    fn on_crossing(&mut self, crossing: &Crossing<'_>) {
+        let i = match crossing.kind {
+            CrossingKind::Section => 0,
+            CrossingKind::Event => 1,
+        };
+        self.crossings[i].0.push(crossing);
+        // Points come far apart in steps: they go out with the next flush, at the latest
+        // CHUNK_INTERVAL after the last.
+        if self.crossings[i].0.len() >= CHUNK_SAMPLES
+            || self.last_flush.elapsed() >= CHUNK_INTERVAL
+        {
+            self.flush();
+        }
+    }
+
+    fn on_section_end(&mut self, summary: &SectionSummary) {
+        self.section_summary = Some(summary.clone());
+    }
 }
 
 impl Simulation {
@@ -180,6 +230,8 @@ impl Simulation {
             energy_error: self.has_energy_error(),
             jacobian_defect: self.jacobian_defect,
             schedule: ScheduleSummary::of(self),
+            section: self.section_info(),
+            stop_when: self.event_info(),
         }
     }
 
@@ -200,6 +252,8 @@ impl Simulation {
             emit,
             open: true,
             kept: (self.q0.len() == 1).then(|| (Vec::new(), Vec::new())),
+            crossings: Default::default(),
+            section_summary: None,
         };
         let started = Instant::now();
         let result = self.run_method(index, reference, budget, &mut sink);
@@ -229,6 +283,7 @@ impl Simulation {
                     diverged_at: stop.diverged_at(),
                     stop,
                     stats,
+                    section_summary: sink.section_summary.take(),
                 },
             }));
         }
@@ -289,6 +344,8 @@ impl Simulation {
 pub struct DocumentCollector {
     header: Option<StreamHeader>,
     columns: Vec<Columns>,
+    /// Per method, the section's and the event's points.
+    crossings: Vec<[Option<CrossingColumns>; 2]>,
     summaries: Vec<Option<RunSummary>>,
     error: Option<ErrorDetail>,
     ended: bool,
@@ -307,7 +364,27 @@ impl DocumentCollector {
                 self.columns =
                     vec![Columns::with_invariants(&header.invariants); header.methods.len()];
                 self.summaries = vec![None; header.methods.len()];
+                let empty = |on: bool| on.then(CrossingColumns::default);
+                self.crossings = vec![
+                    [empty(header.section.is_some()), empty(header.stop_when.is_some())];
+                    header.methods.len()
+                ];
                 self.header = Some(header);
+            }
+            StreamLine::Crossings(chunk) => {
+                let i = match chunk.surface {
+                    SurfaceName::Section => 0,
+                    SurfaceName::StopWhen => 1,
+                };
+                match self.crossings.get_mut(chunk.method).and_then(|c| c[i].as_mut()) {
+                    Some(points) if points.len() as u64 == chunk.offset => {
+                        points.extend(chunk.columns)
+                    }
+                    _ => self.fail(format!(
+                        "crossings of method {} from {} do not continue its run",
+                        chunk.method, chunk.offset
+                    )),
+                }
             }
             StreamLine::Samples(chunk) => match self.columns.get_mut(chunk.method) {
                 Some(columns) if columns.len() as u64 == chunk.offset => {
@@ -348,12 +425,15 @@ impl DocumentCollector {
             .columns
             .into_iter()
             .zip(self.summaries)
-            .map(|(columns, summary)| {
+            .zip(self.crossings)
+            .map(|((columns, summary), [section, events])| {
                 let s = summary.ok_or_else(|| cut("lacks a summary"))?;
                 Ok(RunDocument {
                     method: s.label,
                     columns,
                     outcome: s.outcome,
+                    section,
+                    events,
                 })
             })
             .collect::<Result<_, ErrorDetail>>()?;
@@ -362,6 +442,8 @@ impl DocumentCollector {
             schedule: header.schedule,
             invariants: header.invariants,
             runs,
+            section: header.section,
+            stop_when: header.stop_when,
         })
     }
 }

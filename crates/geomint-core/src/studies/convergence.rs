@@ -17,13 +17,15 @@ use serde::Serialize;
 
 use super::settings::{
     self, check_samples, check_t_end, measure_once, prepare_reference, prepare_setting,
-    progress_lines, stop_name, whole_steps, RunSpec, Setting, StudyJob, MAX_SAMPLES, MAX_SETTINGS,
+    progress_lines, stop_name, whole_steps, RunSpec, Setting, SettingsStudy, StudyJob, Truth, MAX_SAMPLES, MAX_SETTINGS,
 };
+use super::engine::{Executor, Order};
+use super::StudySpec;
 use crate::diagnostics::fit_log_log;
 use crate::error::{CoreError, Field, Range};
 use crate::run::{Budget, StopReason};
 use crate::simulation::{
-    InitialCoordinates, InputFields, Limits, MethodAt, SimulationSpec, SystemSummary,
+    InitialCoordinates, InputFields, Limits, MethodAt, Simulation, SimulationSpec, SystemSummary,
 };
 use crate::systems::{ParamValue, SystemRef};
 
@@ -31,7 +33,7 @@ use crate::systems::{ParamValue, SystemRef};
 pub const ROUND_OFF: f64 = 1e-14;
 
 /// A convergence study as asked for.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ConvergenceSpec {
     /// System id.
     pub system: SystemRef,
@@ -61,7 +63,7 @@ pub struct ConvergenceSpec {
 }
 
 /// One setting: a method in a chart at one step size, and its errors at t_end.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 #[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct ConvergencePoint {
     /// Index of the series (method and chart) in the document's `series`.
@@ -327,7 +329,8 @@ impl ConvergenceSpec {
             p0: px0,
             ..SystemSummary::of(first)
         };
-        StudyJob::new(settings, reference, system, self.t_end, samples, "h")
+        let spec = StudySpec::Convergence(self.clone());
+        StudyJob::new(spec, settings, reference, system, self.t_end, samples, "h")
     }
 }
 
@@ -347,36 +350,49 @@ fn order_of(data: impl Iterator<Item = (f64, Option<f64>)>) -> OrderFit {
     }
 }
 
-/// Runs a study, reporting each line to `emit` (which returns false once nobody listens) and
-/// returning the document.
-pub fn run(
-    job: &StudyJob,
+/// Measures one setting: its errors at t_end against the truth.
+fn point(
+    series: usize,
+    sim: &Simulation,
+    truth: &Truth,
     budget: Budget<'_>,
-    emit: &dyn Fn(ConvergenceLine) -> bool,
+) -> Result<ConvergencePoint, CoreError> {
+    let (outcome, sink, _) = measure_once(sim, truth.energies.as_deref(), budget)?;
+    let finished = outcome.stop == StopReason::Finished;
+    Ok(ConvergencePoint {
+        series,
+        method: sim.methods[0].label(),
+        chart: sim.chart.id.to_string(),
+        h: sim.schedule.h,
+        steps: outcome.stats.steps,
+        state_error: sink
+            .last
+            .as_ref()
+            .filter(|_| finished)
+            .and_then(|last| truth.state_error(sim, last)),
+        energy_error: sink.last_energy_error.filter(|_| finished).map(f64::abs),
+        max_energy_error: sink
+            .last_energy_error
+            .filter(|_| finished)
+            .map(|_| sink.max_energy_error),
+        stop: stop_name(&outcome.stop).to_string(),
+    })
+}
+
+/// The settings of `job` as the engine runs them, measured against `truth`.
+pub fn study(job: &StudyJob, truth: Truth) -> SettingsStudy<'_, ConvergencePoint> {
+    SettingsStudy::new(job, truth, point, Order::Parallel)
+}
+
+/// Runs a study on `executor` (its settings in parallel: errors do not depend on timing),
+/// reporting each line to `emit`, and returns the document.
+pub fn run<E: Executor>(
+    job: &StudyJob,
+    executor: &E,
+    budget: Budget<'_>,
+    emit: &(dyn Fn(ConvergenceLine) -> bool + Sync),
 ) -> Result<ConvergenceDocument, CoreError> {
-    let (truth, points) = settings::run_settings(job, budget, emit, |series, sim, truth| {
-        let (outcome, sink, _) = measure_once(sim, truth.energies.as_deref(), budget)?;
-        let finished = outcome.stop == StopReason::Finished;
-        let point = ConvergencePoint {
-            series,
-            method: sim.methods[0].label(),
-            chart: sim.chart.id.to_string(),
-            h: sim.schedule.h,
-            steps: outcome.stats.steps,
-            state_error: sink
-                .last
-                .as_ref()
-                .filter(|_| finished)
-                .and_then(|last| truth.state_error(sim, last)),
-            energy_error: sink.last_energy_error.filter(|_| finished).map(f64::abs),
-            max_energy_error: sink
-                .last_energy_error
-                .filter(|_| finished)
-                .map(|_| sink.max_energy_error),
-            stop: stop_name(&outcome.stop).to_string(),
-        };
-        Ok((point, outcome.stop))
-    })?;
+    let (truth, points) = settings::run_settings(job, executor, budget, emit, |truth| study(job, truth))?;
 
     let mut charts: Vec<String> = Vec::new();
     for p in &points {

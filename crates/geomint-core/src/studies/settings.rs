@@ -2,16 +2,22 @@
 //! [convergence](super::convergence): a setting (a method at a step size, or the adaptive
 //! reference at a tolerance) prepared as a simulation sampled at the study's sample times, the
 //! run that errors are measured against (the exact solution or a reference run in the system's
-//! Cartesian chart), one setting's measurements from its samples, and the progress lines.
+//! Cartesian chart), one setting's measurements from its samples, and the progress lines. Each
+//! setting is a cell of the study engine ([`SettingsStudy`]), measured against the truth.
 //!
 //! A study runs one system from one initial state to `t_end`, sampled at the same `samples` times
 //! t_k = k·t_end/samples in every setting, so that errors over the samples compare between
 //! settings and a reference run supplies the energies at exactly those times.
 
+use std::ops::Range as Cells;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
+use serde::de::DeserializeOwned;
 use serde::Serialize;
 
+use super::engine::{self, Executor, Order, Study};
+use super::StudySpec;
 use crate::error::{CoreError, ErrorDetail, Field, Range, StepScope};
 use crate::methods::{Method, MethodId, TOLERANCE_RANGE};
 use crate::run::{Budget, StopReason};
@@ -34,7 +40,7 @@ const SHORT_RUN_MS: f64 = 20.0;
 const SHORT_RUN_REPEATS: usize = 5;
 
 /// A method with its settings, as a study lists it.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct RunSpec {
     /// The method and its field (`runs[1].method`).
     pub method: MethodAt,
@@ -194,6 +200,8 @@ pub fn prepare_reference(
 /// A validated study, ready to run.
 #[derive(Clone, Debug)]
 pub struct StudyJob {
+    /// The spec it was prepared from (what workers and parts carry).
+    pub spec: StudySpec,
     /// One prepared simulation per setting, with the index of its run (or series).
     pub settings: Vec<(usize, Simulation)>,
     /// The reference run, where the system has no exact solution.
@@ -210,6 +218,7 @@ impl StudyJob {
     /// The job of `settings` (at least one), refused at `field` when they take more than
     /// [`MAX_STUDY_STEPS`] steps in all.
     pub fn new(
+        spec: StudySpec,
         settings: Vec<(usize, Simulation)>,
         reference: Option<Simulation>,
         system: SystemSummary,
@@ -229,6 +238,7 @@ impl StudyJob {
             });
         }
         Ok(StudyJob {
+            spec,
             settings,
             reference,
             system,
@@ -250,7 +260,7 @@ impl StudyJob {
     /// Runs the reference (or takes the exact solution). A reference run stopped by the time limit
     /// is a truth all the same: the settings after it start past the deadline and stop at once,
     /// so the study answers with every setting `time_limit` rather than failing.
-    fn truth(&self, budget: Budget<'_>) -> Result<Truth, CoreError> {
+    pub fn truth(&self, budget: Budget<'_>) -> Result<Truth, CoreError> {
         let Some(sim) = &self.reference else {
             return Ok(Truth {
                 description: "exact solution".into(),
@@ -277,7 +287,7 @@ impl StudyJob {
             })?;
         let stopped_early = match outcome.stop {
             StopReason::Finished => false,
-            StopReason::TimeLimit { .. } => true,
+            StopReason::TimeLimit { .. } | StopReason::Event { .. } => true,
             StopReason::Cancelled { .. } => {
                 return Err(CoreError::Cancelled {
                     what: "study",
@@ -452,6 +462,7 @@ pub fn stop_name(stop: &StopReason) -> &'static str {
         StopReason::Diverged { .. } => "diverged",
         StopReason::Cancelled { .. } => "cancelled",
         StopReason::TimeLimit { .. } => "time_limit",
+        StopReason::Event { .. } => "event",
     }
 }
 
@@ -472,14 +483,6 @@ pub trait ProgressLine: Serialize + Send + 'static {
     /// The last line of a complete stream.
     fn end() -> Self;
 }
-
-/// A study's run function: the job, given a time budget and where to report its lines (see
-/// [`run_settings`]), to its document.
-pub type Runner<L> = fn(
-    &StudyJob,
-    Budget<'_>,
-    &dyn Fn(L) -> bool,
-) -> Result<<L as ProgressLine>::Document, CoreError>;
 
 /// Declares a study's progress line type, `$name`, carrying `$point` per setting and `$document`
 /// at the end, and implements [`ProgressLine`] for it.
@@ -542,32 +545,109 @@ macro_rules! progress_lines {
 }
 pub(crate) use progress_lines;
 
-/// Runs a study: the reference (or the exact solution), then every setting in order, measured by
-/// `measure` (given the setting's run index, its simulation and the truth; it returns the point
-/// and how the run stopped). Reports each line to `emit`, which returns false once nobody
-/// listens; a cancelled run or a missing listener ends the study.
-pub fn run_settings<L: ProgressLine>(
-    job: &StudyJob,
+/// How a study measures one setting: given the setting's run (or series) index, its simulation,
+/// the truth and the budget, its point.
+pub type Measurer<P> =
+    fn(usize, &Simulation, &Truth, Budget<'_>) -> Result<P, CoreError>;
+
+/// A settings study as the engine runs it: one cell per setting, measured against the truth.
+pub struct SettingsStudy<'a, P> {
+    job: &'a StudyJob,
+    truth: Truth,
+    measure: Measurer<P>,
+    order: Order,
+}
+
+impl<'a, P> SettingsStudy<'a, P> {
+    /// The settings of `job`, each measured by `measure` against `truth`, in `order`.
+    pub fn new(job: &'a StudyJob, truth: Truth, measure: Measurer<P>, order: Order) -> Self {
+        SettingsStudy {
+            job,
+            truth,
+            measure,
+            order,
+        }
+    }
+
+    /// One setting's point.
+    fn point(&self, setting: usize, budget: Budget<'_>) -> Result<P, CoreError> {
+        let (run, sim) = &self.job.settings[setting];
+        (self.measure)(*run, sim, &self.truth, budget)
+    }
+}
+
+impl<P: Clone + Send + Sync + Serialize + DeserializeOwned> Study for SettingsStudy<'_, P> {
+    type Cell = P;
+
+    fn name(&self) -> &'static str {
+        "study"
+    }
+
+    fn cells(&self) -> usize {
+        self.job.settings.len()
+    }
+
+    fn order(&self) -> Order {
+        self.order
+    }
+
+    /// A setting always has its point: one stopped by the time limit says so itself.
+    fn run_cells(&self, cells: Cells<usize>, budget: Budget<'_>) -> Result<Vec<Option<P>>, CoreError> {
+        cells.map(|cell| self.point(cell, budget).map(Some)).collect()
+    }
+
+    fn spec(&self) -> Option<StudySpec> {
+        Some(self.job.spec.clone())
+    }
+
+    fn steps(&self) -> u64 {
+        self.job
+            .settings
+            .iter()
+            .fold(0u64, |n, (_, sim)| n.saturating_add(sim.schedule.steps))
+    }
+}
+
+/// Runs a study on `executor`: the reference (or the exact solution) here, then every setting
+/// of the study `make` builds on the truth. Reports each line to `emit`: the reference, then
+/// each setting's point as it comes. Returns the truth and the points in setting order. A
+/// setting an executor could not finish before the deadline is measured here with the time
+/// already up, so that it says `time_limit` as one stopped mid-run does.
+pub fn run_settings<'a, L: ProgressLine, E: Executor>(
+    job: &'a StudyJob,
+    executor: &E,
     budget: Budget<'_>,
-    emit: &dyn Fn(L) -> bool,
-    measure: impl Fn(usize, &Simulation, &Truth) -> Result<(L::Point, StopReason), CoreError>,
-) -> Result<(Truth, Vec<L::Point>), CoreError> {
+    emit: &(dyn Fn(L) -> bool + Sync),
+    make: impl FnOnce(Truth) -> SettingsStudy<'a, L::Point>,
+) -> Result<(Truth, Vec<L::Point>), CoreError>
+where
+    L::Point: Send + Sync + Serialize + DeserializeOwned,
+{
     let total = job.settings.len();
     let truth = job.truth(budget)?;
     emit(L::reference(truth.description.clone(), truth.ms, total));
-    let mut points = Vec::with_capacity(total);
-    for (done, (run, sim)) in job.settings.iter().enumerate() {
-        let (point, stop) = measure(*run, sim, &truth)?;
-        let listening = emit(L::point(done + 1, total, point.clone()));
-        points.push(point);
-        if !listening || matches!(stop, StopReason::Cancelled { .. }) {
-            return Err(CoreError::Cancelled {
-                what: "study",
-                shutdown: false,
-            });
+    let study = make(truth);
+    let done = AtomicUsize::new(0);
+    let finished = engine::run(&study, executor, budget, &|_, point| {
+        if let Some(point) = point {
+            let n = done.fetch_add(1, Ordering::Relaxed) + 1;
+            emit(L::point(n, total, point.clone()));
         }
-    }
-    Ok((truth, points))
+    })?;
+    let expired = Budget {
+        cancel: None,
+        deadline: Some(Instant::now()),
+    };
+    let points = finished
+        .cells
+        .into_iter()
+        .enumerate()
+        .map(|(setting, point)| match point {
+            Some(point) => Ok(point),
+            None => study.point(setting, expired),
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok((study.truth, points))
 }
 
 #[cfg(test)]

@@ -7,9 +7,6 @@
 //! a spectral radius that is not finite (the method is undefined there, e.g. csv2 at γh = 2, or
 //! overflows) is `null`, since JSON has no NaN.
 
-use std::sync::atomic::Ordering;
-use std::time::Instant;
-
 use serde::Serialize;
 
 use crate::error::{CoreError, Field, Range};
@@ -19,7 +16,8 @@ use crate::simulation::MethodAt;
 use crate::stability::{
     self, Axis, Eigenvalue, PointAnalysis, Relation, Spectrum, StabilityMap, MAX_AXIS_POINTS,
 };
-use crate::studies::StudyStop;
+use crate::studies::engine::{self, Executor, Finished, Study};
+use crate::studies::{StudySpec, StudyStop};
 use crate::system::MechanicalSystem;
 use crate::systems::HarmonicOscillator;
 
@@ -30,7 +28,7 @@ pub const MAX_MAP_METHODS: usize = 16;
 pub const MAX_MAP_CELLS: usize = 1_000_000;
 
 /// Stability maps as asked for: methods, ω and the two axes.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct StabilitySpec {
     /// The methods, with their fields (`methods[i]`).
     pub methods: Vec<MethodAt>,
@@ -58,6 +56,8 @@ pub struct PointSpec {
 /// Validated stability maps, ready to compute.
 #[derive(Clone, Debug, PartialEq)]
 pub struct StabilityJob {
+    /// The spec it was prepared from (what workers and parts carry).
+    pub spec: StabilitySpec,
     /// The methods, in the order asked.
     pub methods: Vec<Method>,
     /// ω.
@@ -69,8 +69,8 @@ pub struct StabilityJob {
 }
 
 impl StabilityJob {
-    /// Cells over all maps.
-    pub fn cells(&self) -> usize {
+    /// Grid points over all maps.
+    pub fn points(&self) -> usize {
         self.methods.len() * self.gamma.n * self.h.n
     }
 }
@@ -132,12 +132,13 @@ impl StabilitySpec {
             check_damping(method, self.gamma.max, &at.field)?;
         }
         let job = StabilityJob {
+            spec: self.clone(),
             methods,
             omega: self.omega,
             gamma: self.gamma,
             h: self.h,
         };
-        let cells = job.cells();
+        let cells = job.points();
         if cells > MAX_MAP_CELLS {
             return Err(CoreError::TooManyCells {
                 field,
@@ -331,34 +332,88 @@ impl From<&StabilityMap> for MapDocument {
     }
 }
 
-/// Computes the maps of `job`, one method after another (each in parallel over its rows).
-/// Between methods it stops when `budget`'s deadline has passed (answering with the maps made so
-/// far) or gives up when its flag is set (the server is shutting down or the client went away).
-pub fn maps(job: &StabilityJob, budget: Budget) -> Result<StabilityDocument, CoreError> {
-    let mut maps = Vec::with_capacity(job.methods.len());
-    let mut stop = StudyStop::Finished;
-    for (i, method) in job.methods.iter().enumerate() {
-        if budget.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
-            return Err(CoreError::Cancelled {
-                what: "stability maps",
-                shutdown: true,
-            });
-        }
-        if budget.deadline.is_some_and(|d| Instant::now() >= d) {
-            stop = StudyStop::TimeLimit;
-            break;
-        }
-        let map = stability::map(method, job.omega, job.gamma, job.h)
-            .map_err(|e| e.at(Field::new("methods").index(i)))?;
-        maps.push(MapDocument::from(&map));
+impl Study for StabilityJob {
+    /// One row of one method's map: the spectral radius per γ (`None` where it is not finite).
+    type Cell = Vec<Option<f64>>;
+
+    fn name(&self) -> &'static str {
+        "stability maps"
     }
-    Ok(StabilityDocument {
-        omega: job.omega,
-        gamma: job.gamma,
-        h: job.h,
-        maps,
-        stop,
-    })
+
+    /// Method-major: the rows of the first method, then of the second…
+    fn cells(&self) -> usize {
+        self.methods.len() * self.h.n
+    }
+
+    fn run_cells(
+        &self,
+        cells: std::ops::Range<usize>,
+        budget: Budget<'_>,
+    ) -> Result<Vec<Option<Self::Cell>>, CoreError> {
+        Ok(cells
+            .map(|cell| {
+                // A row is quick: the budget is looked at between rows.
+                (!budget.expired() && !budget.cancelled()).then(|| {
+                    let method = &self.methods[cell / self.h.n];
+                    stability::map_row(method, self.omega, self.gamma, self.h.at(cell % self.h.n))
+                        .into_iter()
+                        .map(|r| r.is_finite().then_some(r))
+                        .collect()
+                })
+            })
+            .collect())
+    }
+
+    fn fits(&self, row: &Self::Cell) -> bool {
+        row.len() == self.gamma.n
+    }
+
+    fn spec(&self) -> Option<StudySpec> {
+        Some(StudySpec::Stability(self.spec.clone()))
+    }
+
+    /// A row costs about as much as a few steps per γ: propagation matrices of one step.
+    fn steps(&self) -> u64 {
+        (self.cells() * self.gamma.n) as u64 * 8
+    }
+}
+
+impl StabilityJob {
+    /// The document from what the rows came to: the maps of the methods whose rows all
+    /// finished, in order up to the first that did not (the maps made before the time limit).
+    pub fn document_of(&self, finished: Finished<Vec<Option<f64>>>) -> StabilityDocument {
+        let mut maps = Vec::with_capacity(self.methods.len());
+        for (method, rows) in self.methods.iter().zip(finished.cells.chunks(self.h.n)) {
+            let Some(rows) = rows.iter().cloned().collect::<Option<Vec<_>>>() else {
+                break;
+            };
+            let radius = rows
+                .into_iter()
+                .flatten()
+                .map(|r| r.unwrap_or(f64::NAN))
+                .collect();
+            let map = stability::map_of_rows(method, self.omega, self.gamma, self.h, radius);
+            maps.push(MapDocument::from(&map));
+        }
+        StabilityDocument {
+            omega: self.omega,
+            gamma: self.gamma,
+            h: self.h,
+            maps,
+            stop: finished.stop,
+        }
+    }
+}
+
+/// Computes the maps of `job` on `executor`. Past the deadline it answers with the maps made so
+/// far; it gives up when its flag is set (the server is shutting down or the client went away).
+pub fn maps<E: Executor>(
+    job: &StabilityJob,
+    executor: &E,
+    budget: Budget,
+) -> Result<StabilityDocument, CoreError> {
+    let finished = engine::run(job, executor, budget, &|_, _| {})?;
+    Ok(job.document_of(finished))
 }
 
 /// The analysis at one point: the core's [`PointAnalysis`] and, for cimp, csv1 and csv2, the

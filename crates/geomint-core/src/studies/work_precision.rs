@@ -17,20 +17,22 @@ use serde::Serialize;
 
 use super::settings::{
     self, check_samples, check_t_end, measure_timed, prepare_reference, prepare_setting,
-    progress_lines, stop_name, RunSpec, Setting, StudyJob, MAX_SETTINGS,
+    progress_lines, stop_name, RunSpec, Setting, SettingsStudy, StudyJob, Truth, MAX_SETTINGS,
 };
+use super::engine::{Executor, Order};
+use super::StudySpec;
 use crate::diagnostics::fit_log_log;
 use crate::error::{CoreError, Field};
 use crate::methods::Method;
 use crate::run::{Budget, StopReason};
-use crate::simulation::{Limits, SimulationSpec, SystemSummary};
+use crate::simulation::{Limits, Simulation, SimulationSpec, SystemSummary};
 use crate::systems::{ParamValue, SystemRef};
 
 /// Default number of sample times.
 pub const DEFAULT_SAMPLES: u64 = 50;
 
 /// A work–precision study as asked for.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct WorkPrecisionSpec {
     /// System id.
     pub system: SystemRef,
@@ -51,7 +53,7 @@ pub struct WorkPrecisionSpec {
 }
 
 /// One setting of a study: what ran and what it measured.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 #[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct WorkPrecisionPoint {
     /// Index of the run in the request's `runs`.
@@ -201,6 +203,7 @@ impl WorkPrecisionSpec {
         )?;
         let system = SystemSummary::of(first);
         StudyJob::new(
+            StudySpec::WorkPrecision(self.clone()),
             settings,
             reference,
             system,
@@ -211,49 +214,63 @@ impl WorkPrecisionSpec {
     }
 }
 
-/// Runs a study, reporting each line to `emit` (which returns false once nobody listens) and
-/// returning the document.
-pub fn run(
-    job: &StudyJob,
+/// Measures one setting: its wall time (timed again when short) and its errors against the
+/// truth.
+fn point(
+    run: usize,
+    sim: &Simulation,
+    truth: &Truth,
     budget: Budget<'_>,
-    emit: &dyn Fn(StudyLine) -> bool,
+) -> Result<WorkPrecisionPoint, CoreError> {
+    let method = &sim.methods[0];
+    let (outcome, sink, wall_ms) = measure_timed(sim, truth.energies.as_deref(), budget)?;
+    let finished = outcome.stop == StopReason::Finished;
+    let tolerance = match method {
+        Method::Reference { tolerance } => Some(*tolerance),
+        _ => None,
+    };
+    Ok(WorkPrecisionPoint {
+        run,
+        method: if tolerance.is_some() {
+            "reference".into()
+        } else {
+            method.label()
+        },
+        h: tolerance.is_none().then_some(sim.schedule.h),
+        tolerance,
+        wall_ms,
+        steps: outcome.stats.steps,
+        force_evaluations: outcome.stats.force_evaluations,
+        max_energy_error: finished.then_some(sink.max_energy_error),
+        final_state_error: sink
+            .last
+            .as_ref()
+            .filter(|_| finished)
+            .and_then(|last| truth.state_error(sim, last)),
+        invariant_drift: sink
+            .names
+            .iter()
+            .zip(&sink.drift)
+            .map(|(n, &d)| (n.to_string(), d))
+            .collect(),
+        stop: stop_name(&outcome.stop).to_string(),
+    })
+}
+
+/// The settings of `job` as the engine runs them, measured against `truth`.
+pub fn study(job: &StudyJob, truth: Truth) -> SettingsStudy<'_, WorkPrecisionPoint> {
+    SettingsStudy::new(job, truth, point, Order::Timed)
+}
+
+/// Runs a study on `executor`, its settings timed one at a time in order, reporting each line to
+/// `emit`, and returns the document.
+pub fn run<E: Executor>(
+    job: &StudyJob,
+    executor: &E,
+    budget: Budget<'_>,
+    emit: &(dyn Fn(StudyLine) -> bool + Sync),
 ) -> Result<WorkPrecisionDocument, CoreError> {
-    let (truth, points) = settings::run_settings(job, budget, emit, |run, sim, truth| {
-        let method = &sim.methods[0];
-        let (outcome, sink, wall_ms) = measure_timed(sim, truth.energies.as_deref(), budget)?;
-        let finished = outcome.stop == StopReason::Finished;
-        let tolerance = match method {
-            Method::Reference { tolerance } => Some(*tolerance),
-            _ => None,
-        };
-        let point = WorkPrecisionPoint {
-            run,
-            method: if tolerance.is_some() {
-                "reference".into()
-            } else {
-                method.label()
-            },
-            h: tolerance.is_none().then_some(sim.schedule.h),
-            tolerance,
-            wall_ms,
-            steps: outcome.stats.steps,
-            force_evaluations: outcome.stats.force_evaluations,
-            max_energy_error: finished.then_some(sink.max_energy_error),
-            final_state_error: sink
-                .last
-                .as_ref()
-                .filter(|_| finished)
-                .and_then(|last| truth.state_error(sim, last)),
-            invariant_drift: sink
-                .names
-                .iter()
-                .zip(&sink.drift)
-                .map(|(n, &d)| (n.to_string(), d))
-                .collect(),
-            stop: stop_name(&outcome.stop).to_string(),
-        };
-        Ok((point, outcome.stop))
-    })?;
+    let (truth, points) = settings::run_settings(job, executor, budget, emit, |truth| study(job, truth))?;
 
     let mut fits = Vec::new();
     for run in 0..job.settings.last().map_or(0, |s| s.0 + 1) {

@@ -244,6 +244,52 @@ impl PartialEq for SystemRef {
     }
 }
 
+/// A system reference as a study's spec carries it to workers and into part files: an id, or a
+/// user's definition with its id (checked and compiled again where it is read).
+#[derive(Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+enum SystemRefForm {
+    Id(String),
+    Defined {
+        id: String,
+        definition: custom::CustomDefinition,
+    },
+}
+
+impl Serialize for SystemRef {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let form = match self {
+            SystemRef::Id(id) => SystemRefForm::Id(id.clone()),
+            SystemRef::Defined(info) => SystemRefForm::Defined {
+                id: info.id.to_string(),
+                definition: info
+                    .custom_model()
+                    .ok_or_else(|| serde::ser::Error::custom("a defined system without its model"))?
+                    .definition()
+                    .clone(),
+            },
+        };
+        form.serialize(s)
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for SystemRef {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        Ok(match SystemRefForm::deserialize(d)? {
+            SystemRefForm::Id(id) => SystemRef::Id(id),
+            SystemRefForm::Defined { id, definition } => SystemRef::Defined(
+                custom::define(definition, &id).map_err(serde::de::Error::custom)?,
+            ),
+        })
+    }
+}
+
+impl From<Arc<SystemInfo>> for SystemRef {
+    fn from(info: Arc<SystemInfo>) -> Self {
+        SystemRef::Defined(info)
+    }
+}
+
 impl From<&str> for SystemRef {
     fn from(id: &str) -> Self {
         SystemRef::Id(id.to_string())
@@ -267,7 +313,6 @@ impl From<&String> for SystemRef {
 pub struct SystemId;
 
 #[cfg(feature = "openapi")]
-
 impl utoipa::PartialSchema for SystemId {
     fn schema() -> utoipa::openapi::RefOr<utoipa::openapi::schema::Schema> {
         use utoipa::openapi::schema::{AnyOfBuilder, ObjectBuilder, Type};
@@ -290,14 +335,12 @@ impl utoipa::PartialSchema for SystemId {
 }
 
 #[cfg(feature = "openapi")]
-
 impl utoipa::ToSchema for SystemId {}
 
 /// The schema of a chart id: one of the charts of the catalogue's systems.
 pub struct ChartId;
 
 #[cfg(feature = "openapi")]
-
 impl utoipa::PartialSchema for ChartId {
     fn schema() -> utoipa::openapi::RefOr<utoipa::openapi::schema::Schema> {
         let mut ids: Vec<&str> = catalog()
@@ -314,7 +357,6 @@ impl utoipa::PartialSchema for ChartId {
 }
 
 #[cfg(feature = "openapi")]
-
 impl utoipa::ToSchema for ChartId {}
 
 /// A concrete system, chosen at run time.
@@ -374,9 +416,15 @@ macro_rules! with_system {
 }
 
 impl AnySystem {
-    /// The configuration-space dimension.
+    /// The configuration-space dimension (of extended phase space for a driven system).
     pub fn dimension(&self) -> usize {
         use crate::system::MechanicalSystem;
         with_system!(self, s => nalgebra::Dim::value(&s.dim()))
+    }
+
+    /// The degrees of freedom: the dimension without a driven system's clock.
+    pub fn degrees_of_freedom(&self) -> usize {
+        use crate::system::MechanicalSystem;
+        with_system!(self, s => s.clock().unwrap_or_else(|| nalgebra::Dim::value(&s.dim())))
     }
 }

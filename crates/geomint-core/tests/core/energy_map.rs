@@ -3,32 +3,46 @@
 //! polar divergence inside the region Sec. 4.1's boundary predicts (up to one grid cell: with
 //! h = 0.2 the discrete motion need not turn back exactly where the exact one does).
 
+use geomint_core::error::Field;
 use geomint_core::methods::{Method, MethodId};
 use geomint_core::run::Budget;
-use geomint_core::studies::energy_map::{ChartRun, EnergyMap, EnergyMapJob, Engine};
-use geomint_core::systems::{PlanarKind, PlanarSpring};
+use geomint_core::simulation::MethodAt;
+use geomint_core::studies::energy_map::{ChartRun, EnergyMap, EnergyMapJob, EnergyMapSpec, Engine};
+use geomint_core::systems::ParamValue;
 
 const N: usize = 21;
 
-fn fig6(t_max: f64) -> EnergyMapJob {
-    let h = 0.2;
-    EnergyMapJob {
-        method: Method::new(MethodId::SymplecticEuler),
-        pendulum: PlanarSpring {
-            m: 1.0,
-            k: 1.0,
-            l: 1.0,
-            g: 0.02,
-            kind: PlanarKind::Pendulum,
+/// A map of `method` on the pendulum with `params` (m, k, l, g) over an nx × ny grid.
+fn map_of(
+    method: MethodId,
+    [m, k, l, g]: [f64; 4],
+    t_max: f64,
+    (nx, ny): (usize, usize),
+    (x, y): ([f64; 2], [f64; 2]),
+) -> EnergyMapJob {
+    let params = [("m", m), ("k", k), ("l", l), ("g", g)]
+        .map(|(name, v)| (name.to_string(), ParamValue::Number(v)))
+        .into();
+    EnergyMapSpec {
+        method: MethodAt {
+            method: Method::new(method),
+            field: Field::new("method"),
         },
-        h,
+        params,
+        h: 0.2,
         t_max,
-        steps: (t_max / h).round() as u64,
-        nx: N,
-        ny: N,
-        x: (-1.5, 1.5),
-        y: (-1.5, 1.5),
+        nx,
+        ny,
+        x,
+        y,
     }
+    .prepare()
+    .unwrap()
+}
+
+fn fig6(t_max: f64) -> EnergyMapJob {
+    let grid = ([-1.5, 1.5], [-1.5, 1.5]);
+    map_of(MethodId::SymplecticEuler, [1.0, 1.0, 1.0, 0.02], t_max, (N, N), grid)
 }
 
 #[test]
@@ -122,24 +136,14 @@ fn cells_run_side_by_side_give_the_bits_of_cells_run_one_by_one() {
     let mut jobs = Vec::new();
     for id in [MethodId::SymplecticEuler, MethodId::SymplecticEulerAdjoint] {
         // Fig. 6 (divergent polar cells, the pivot, 441 cells: a last group of one).
-        jobs.push(EnergyMapJob {
-            method: Method::new(id),
-            ..fig6(2000.0)
-        });
+        let fig6 = ([-1.5, 1.5], [-1.5, 1.5]);
+        jobs.push(map_of(id, [1.0, 1.0, 1.0, 0.02], 2000.0, (N, N), fig6));
         // Another pendulum (1/m inexact), a grid off the pivot and of 5 × 3 cells.
-        let mut other = fig6(300.0);
-        other.method = Method::new(id);
-        other.pendulum.m = 1.3;
-        other.pendulum.k = 0.7;
-        other.pendulum.g = 0.4;
-        (other.nx, other.ny, other.x, other.y) = (5, 3, (0.2, 2.9), (-2.0, 1.1));
-        jobs.push(other.clone());
-        // No spring (the force's k = 0 branch).
-        other.pendulum.k = 0.0;
-        jobs.push(other.clone());
+        let off = ([0.2, 2.9], [-2.0, 1.1]);
+        jobs.push(map_of(id, [1.3, 0.7, 1.0, 0.4], 300.0, (5, 3), off));
         // Starts so far out that H₀ overflows: blown up at t = 0.
-        (other.x, other.y) = ((1e200, 1e201), (-1e155, 1e160));
-        jobs.push(other);
+        let far = ([1e200, 1e201], [-1e155, 1e160]);
+        jobs.push(map_of(id, [1.3, 0.7, 1.0, 0.4], 300.0, (5, 3), far));
     }
     let mut steps = 0;
     for job in &jobs {

@@ -1,15 +1,18 @@
 //! The integrator core's integration tests, in one binary that links the core only: methods
 //! against exact solutions and the papers' experiments, the geometric properties they keep,
-//! charts, stability, the adaptive reference and the expression engine.
+//! charts, stability, the adaptive reference, the expression engine, Poincaré sections and
+//! events, and driven systems.
 
 #[allow(dead_code)]
 mod common;
 
 mod charts;
 mod compositions;
+mod driven;
 mod energy_map;
 mod expr;
 mod orders;
 mod reference;
+mod sections;
 mod stability;
 mod structure;

@@ -1,13 +1,12 @@
 //! The map as the service answers it: the document with its summary and boundary curve, the
 //! progress lines of its stream, and the run that reports them.
 
-use std::time::Instant;
-
 use serde::Serialize;
 
-use super::{EnergyMap, EnergyMapJob};
+use super::{run_on, EnergyMap, EnergyMapJob};
 use crate::error::{CoreError, ErrorDetail};
 use crate::run::Budget;
+use crate::studies::engine::Executor;
 use crate::studies::StudyStop;
 
 /// Points on the analytic boundary curve.
@@ -117,39 +116,19 @@ pub enum MapLine {
     End,
 }
 
-/// Runs the map, reporting progress about every 1 % of the cells; an error when the budget
-/// stopped it.
-pub fn run(
-    spec: &EnergyMapJob,
+/// Runs the map on `executor`, reporting progress about every 1 % of the cells; an error when
+/// the cancellation flag stopped it, the cells it finished when the time limit did.
+pub fn run<E: Executor>(
+    job: &EnergyMapJob,
+    executor: &E,
     budget: Budget<'_>,
     emit: &(dyn Fn(MapLine) -> bool + Sync),
 ) -> Result<EnergyMapDocument, CoreError> {
-    let started = Instant::now();
-    let total = spec.nx * spec.ny;
-    let every = (total / 100).max(1);
-    // Cells finish on several threads: emit under a lock, and only counts above the last one
-    // sent, so that the stream's `done` only grows.
-    let last_sent = std::sync::Mutex::new(0usize);
-    let progress = |done: usize, total: usize| {
-        let mut last = last_sent.lock().unwrap_or_else(|e| e.into_inner());
-        // Cells report one by one or four at a time (lanes): send when the count passed a
-        // multiple of `every` since the last line.
-        if done > *last && (done / every > *last / every || done == total) {
-            *last = done;
-            emit(MapLine::Progress { done, total });
-        }
+    let progress = |done, total| {
+        emit(MapLine::Progress { done, total });
     };
-    let map = spec.run(budget, &progress)?.ok_or_else(cancelled)?;
-    Ok(document(spec, map, started.elapsed().as_secs_f64() * 1e3))
-}
-
-/// The error for a map its cancellation flag stopped (the time limit gives a partial map
-/// instead).
-fn cancelled() -> CoreError {
-    CoreError::Cancelled {
-        what: "map",
-        shutdown: true,
-    }
+    let finished = run_on(job, executor, budget, &progress)?;
+    Ok(document(job, job.map_of(&finished), finished.wall_ms))
 }
 
 fn document(spec: &EnergyMapJob, map: EnergyMap, wall_ms: f64) -> EnergyMapDocument {

@@ -17,32 +17,28 @@
 //! 100·(1 + |H₀|): a polar run that passes next to the pivot takes a kick p_θ²/(m r³) that throws
 //! H off by many orders of magnitude (10⁶ to 10¹² on the default grid) while staying finite.
 //!
-//! Cells are independent and run in parallel (rayon, all cores), reporting to a progress
-//! callback as they finish. The run stops between steps when the budget says so. With symplectic
-//! Euler or its adjoint (Fig. 6's method), four cells run side by side in SIMD lanes (`lanes`),
-//! with the bits of the cell-by-cell path and about a third of its time (README, Speed).
+//! The map is a sweep ([`super::sweep`]) of two runs per cell, the method in each chart, over
+//! (x₀, y₀) with p₀ = 0, measured against H₀ at every step: its ε is the sweep's `energy_error_l2`
+//! and its divergence times the sweep's `diverged_at`, bit for bit. So it runs wherever the study
+//! engine runs sweeps — on all cores, four cells side by side in SIMD lanes with symplectic Euler
+//! or its adjoint (Fig. 6's method; [`crate::methods::lanes`]), on NATS workers — and this module
+//! only validates the map's request and adapts the sweep's document into the map's.
 
 use std::collections::BTreeMap;
-use std::sync::atomic::{AtomicUsize, Ordering};
 
-use nalgebra::U2;
-use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::error::{CoreError, Field, Range};
 use crate::methods::build::{self, Origin};
-use crate::methods::{self, Method};
-use crate::run::{integrate, step_count, Budget, Observer, Schedule, StopReason};
-use crate::simulation::MethodAt;
-use crate::system::{MechanicalSystem, State, Vector};
-use crate::systems::{
-    self, ParamValue, PlanarCartesian, PlanarKind, PlanarPolar, PlanarSpring,
-};
-use crate::with_stepper;
-use lanes::{Order, LANES};
+use crate::methods::Method;
+use crate::run::{step_count, Budget};
+use crate::simulation::{InitialCoordinates, Limits, MethodAt};
+use crate::studies::engine::{self, Executor, Finished, Local, Progress, Study};
+use crate::studies::sweep::{Axis, EnergyReference, RunMetrics, Scale, SweepJob, SweepSpec, Target};
+use crate::system::MechanicalSystem;
+use crate::systems::{self, ParamValue, PlanarCartesian, PlanarKind, PlanarPolar, PlanarSpring};
 
 mod document;
-pub(crate) mod lanes;
 
 pub use document::{run, EnergyMapDocument, MapLine, MapParams, MapSummary};
 
@@ -51,10 +47,7 @@ pub const MAX_AXIS: usize = 401;
 /// Most steps over all cells and both charts of one map.
 pub const MAX_TOTAL_STEPS: u64 = 20_000_000_000;
 
-/// One cell: its Cartesian and polar runs and its starting energy.
-type CellRuns = (ChartRun, ChartRun, f64);
-
-/// A validated map request.
+/// A validated map request, and the sweep that computes it.
 #[derive(Clone, Debug)]
 pub struct EnergyMapJob {
     /// The method, run in both charts.
@@ -75,6 +68,8 @@ pub struct EnergyMapJob {
     pub x: (f64, f64),
     /// Range of y₀ (y points down, along gravity).
     pub y: (f64, f64),
+    /// The sweep: runs 0 and 1 of each cell are the Cartesian and the polar one.
+    sweep: SweepJob,
 }
 
 /// How a map's cells are run. Both give the same bits for every cell they finish; a time limit
@@ -95,6 +90,16 @@ pub struct ChartRun {
     pub epsilon: Option<f64>,
     /// The time at which the run diverged (non-finite state, or |H − H₀| > 100·(1 + |H₀|)).
     pub diverged_at: Option<f64>,
+}
+
+impl ChartRun {
+    /// The run as the sweep measured it (`None`: not run).
+    fn of(metrics: Option<&RunMetrics>) -> ChartRun {
+        ChartRun {
+            epsilon: metrics.and_then(|m| m.energy_error_l2),
+            diverged_at: metrics.and_then(|m| m.diverged_at),
+        }
+    }
 }
 
 /// The map: per-cell columns in row-major order (row j is y₀ = ys[j], column i is x₀ = xs[i]).
@@ -134,57 +139,9 @@ impl EnergyMap {
 }
 
 impl EnergyMapJob {
-    /// Grid coordinate k of `n` points over `range`.
-    fn at(range: (f64, f64), n: usize, k: usize) -> f64 {
-        if n == 1 {
-            0.5 * (range.0 + range.1)
-        } else {
-            range.0 + (range.1 - range.0) * k as f64 / (n - 1) as f64
-        }
-    }
-
-    /// Checks the grid and the work against the limits, and the method against the polar
-    /// chart's Hamiltonian; errors name the request's fields (`nx`, `x`, `t_max`, `method`).
-    pub fn check(&self) -> Result<(), CoreError> {
-        for (name, n) in [("nx", self.nx), ("ny", self.ny)] {
-            if n == 0 || n > MAX_AXIS {
-                return Err(CoreError::Count {
-                    field: Field::new(name),
-                    got: n as u64,
-                    min: 1,
-                    max: MAX_AXIS as u64,
-                    what: "grid points",
-                });
-            }
-        }
-        for (name, (lo, hi)) in [("x", self.x), ("y", self.y)] {
-            if !(lo.is_finite() && hi.is_finite() && lo <= hi) {
-                return Err(CoreError::BadInterval {
-                    field: Field::new(name),
-                    min: lo,
-                    max: hi,
-                });
-            }
-        }
-        let cells = (self.nx * self.ny) as u64;
-        // Saturating: t_max/h can be as large as u64 holds, and a wrapped product would pass.
-        let total = cells.saturating_mul(2).saturating_mul(self.steps);
-        if total > MAX_TOTAL_STEPS {
-            return Err(CoreError::MapTooLarge {
-                field: Field::new("t_max"),
-                cells,
-                steps: self.steps,
-                total,
-                limit: MAX_TOTAL_STEPS,
-            });
-        }
-        let probe = PlanarPolar(self.pendulum.clone());
-        let origin = Origin {
-            method: &Field::new("method"),
-            h: &Field::new("h"),
-            system: "elastic_pendulum_2d (polar chart)",
-        };
-        build::check(&self.method, &probe, self.h, &origin)
+    /// The sweep that computes the map (what the engine runs).
+    pub fn sweep(&self) -> &SweepJob {
+        &self.sweep
     }
 
     /// The analytic prediction of Sec. 4.1 at (x₀, y₀).
@@ -208,9 +165,16 @@ impl EnergyMapJob {
             .collect()
     }
 
-    /// Runs every cell; `progress(done, total)` is called as cells finish (from worker threads;
-    /// in lanes, four at a time). Cells the deadline stopped are listed in `unfinished` (in
-    /// lanes, whole groups of four); `Ok(None)` when the cancellation flag stopped the map.
+    /// Whether [`Engine::Lanes`] runs this map side by side (its method is symplectic Euler or
+    /// its adjoint) rather than cell by cell.
+    pub fn runs_in_lanes(&self) -> bool {
+        self.sweep.runs_in_lanes()
+    }
+
+    /// Runs every cell on this machine; `progress(done, total)` is called as cells finish (from
+    /// worker threads; in lanes, four at a time). Cells the deadline stopped are listed in
+    /// `unfinished` (in lanes, whole groups of four); `Ok(None)` when the cancellation flag
+    /// stopped the map.
     pub fn run(
         &self,
         budget: Budget<'_>,
@@ -226,79 +190,55 @@ impl EnergyMapJob {
         budget: Budget<'_>,
         progress: &(dyn Fn(usize, usize) + Sync),
     ) -> Result<Option<EnergyMap>, CoreError> {
-        self.check()?;
-        let total = self.nx * self.ny;
-        let done = AtomicUsize::new(0);
-        let report =
-            |cells: usize| progress(done.fetch_add(cells, Ordering::Relaxed) + cells, total);
-        let cells: Vec<Result<Option<CellRuns>, CoreError>> = match Order::of(&self.method) {
-            Some(order) if engine == Engine::Lanes => (0..total.div_ceil(LANES))
-                .into_par_iter()
-                .map(|group| {
-                    let runs = self.lane_group(order, group * LANES, total, budget);
-                    report(runs.len());
-                    runs
-                })
-                .collect::<Vec<_>>()
-                .into_iter()
-                .flatten()
-                .collect(),
-            _ => (0..total)
-                .into_par_iter()
-                .map(|cell| {
-                    let (x0, y0) = self.start_of(cell);
-                    let result = self.cell(x0, y0, budget);
-                    report(1);
-                    result
-                })
-                .collect(),
+        let sweep = match engine {
+            Engine::Lanes => self.sweep.clone(),
+            Engine::CellByCell => self.sweep.clone().cell_by_cell(),
         };
+        let counter = Progress::new(sweep.cells(), progress);
+        match engine::run(&sweep, &Local, budget, &|_, _| counter.add(1)) {
+            Ok(finished) => Ok(Some(self.map_of(&finished))),
+            Err(CoreError::Cancelled { .. }) => Ok(None),
+            Err(e) => Err(e),
+        }
+    }
+
+    /// The map from what the sweep's cells came to.
+    pub fn map_of(&self, finished: &Finished<Vec<RunMetrics>>) -> EnergyMap {
+        let xs: Vec<f64> = self.sweep.grid.axes[0].values();
+        let ys: Vec<f64> = self.sweep.grid.axes[1].values();
+        let cartesian = self.cartesian();
+        let total = self.nx * self.ny;
         let mut map = EnergyMap {
             method: self.method.label(),
-            xs: (0..self.nx).map(|i| Self::at(self.x, self.nx, i)).collect(),
-            ys: (0..self.ny).map(|j| Self::at(self.y, self.ny, j)).collect(),
             energy: Vec::with_capacity(total),
             cartesian: Vec::with_capacity(total),
             polar: Vec::with_capacity(total),
             predicted_divergent: Vec::with_capacity(total),
             steps: 0,
-            unfinished: Vec::new(),
+            unfinished: finished.unfinished(),
+            xs,
+            ys,
         };
-        let not_run = ChartRun {
-            epsilon: None,
-            diverged_at: None,
-        };
-        for (cell, result) in cells.into_iter().enumerate() {
+        for (cell, runs) in finished.cells.iter().enumerate() {
             let (x0, y0) = (map.xs[cell % self.nx], map.ys[cell / self.nx]);
-            let Some((cartesian, polar, energy)) = result? else {
-                if budget.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
-                    return Ok(None);
-                }
-                map.unfinished.push(cell);
-                map.predicted_divergent
-                    .push(self.predicted_divergent(x0, y0));
-                map.energy.push(
-                    self.cartesian()
-                        .energy(&[x0, y0].into(), &[0.0, 0.0].into()),
-                );
-                map.cartesian.push(not_run);
-                map.polar.push(not_run);
-                continue;
-            };
+            map.energy
+                .push(cartesian.energy(&[x0, y0].into(), &[0.0, 0.0].into()));
             map.predicted_divergent
                 .push(self.predicted_divergent(x0, y0));
-            map.energy.push(energy);
-            for run in [&cartesian, &polar] {
+            let [in_cartesian, in_polar] =
+                [0, 1].map(|run| ChartRun::of(runs.as_ref().map(|r| &r[run])));
+            for run in [&in_cartesian, &in_polar] {
+                // As the map always counted: up to the divergence, or every step.
                 map.steps += match (run.epsilon, run.diverged_at) {
                     (_, Some(t)) => (t / self.h).round() as u64,
                     (Some(_), None) => self.steps,
                     (None, None) => 0,
                 };
             }
-            map.cartesian.push(cartesian);
-            map.polar.push(polar);
+            map.cartesian.push(in_cartesian);
+            map.polar.push(in_polar);
         }
-        Ok(Some(map))
+        map
     }
 
     /// The pendulum in Cartesian coordinates.
@@ -308,180 +248,23 @@ impl EnergyMapJob {
             ..self.pendulum.clone()
         })
     }
-
-    /// Whether [`Engine::Lanes`] runs this map side by side (its method is symplectic Euler or
-    /// its adjoint) rather than cell by cell.
-    pub fn runs_in_lanes(&self) -> bool {
-        Order::of(&self.method).is_some()
-    }
-
-    /// (x₀, y₀) of cell `cell`.
-    fn start_of(&self, cell: usize) -> (f64, f64) {
-        (
-            Self::at(self.x, self.nx, cell % self.nx),
-            Self::at(self.y, self.ny, cell / self.nx),
-        )
-    }
-
-    /// Cells `first..first + LANES` (those below `total`) in [`lanes`], both charts; the same
-    /// numbers as [`Self::cell`] for each.
-    fn lane_group(
-        &self,
-        order: Order,
-        first: usize,
-        total: usize,
-        budget: Budget<'_>,
-    ) -> Vec<Result<Option<CellRuns>, CoreError>> {
-        let cells = (total - first).min(LANES);
-        let cartesian = self.cartesian();
-        let polar = PlanarPolar(cartesian.0.clone());
-        let mut starts = [lanes::Start {
-            q: [[0.0; LANES]; 2],
-            p: [[0.0; LANES]; 2],
-            energy: [0.0; LANES],
-            idle: [true; LANES],
-        }; 2];
-        let (mut q, mut p) = (Vector::<U2>::zeros(), Vector::<U2>::zeros());
-        for i in 0..cells {
-            let (x0, y0) = self.start_of(first + i);
-            let [in_cartesian, in_polar] = &mut starts;
-            in_cartesian.q[0][i] = x0;
-            in_cartesian.q[1][i] = y0;
-            in_cartesian.energy[i] = cartesian.energy(&[x0, y0].into(), &[0.0, 0.0].into());
-            in_cartesian.idle[i] = false;
-            // The pivot, where the polar chart does not exist, stays idle.
-            if polar
-                .from_cartesian(&[x0, y0], &[0.0, 0.0], &mut q, &mut p)
-                .is_ok()
-            {
-                for k in 0..2 {
-                    in_polar.q[k][i] = q[k];
-                    in_polar.p[k][i] = p[k];
-                }
-                in_polar.energy[i] = polar.energy(&q, &p);
-                in_polar.idle[i] = false;
-            }
-        }
-        let run = |chart, start: &lanes::Start| {
-            lanes::run(
-                &self.pendulum,
-                chart,
-                order,
-                start,
-                self.h,
-                self.steps,
-                budget,
-            )
-        };
-        // As cell by cell: the polar runs only after the Cartesian ones finished.
-        let runs = run(lanes::Chart::Cartesian, &starts[0])
-            .and_then(|in_cartesian| Some((in_cartesian, run(lanes::Chart::Polar, &starts[1])?)));
-        (0..cells)
-            .map(|i| Ok(runs.map(|(c, p)| (c[i], p[i], starts[0].energy[i]))))
-            .collect()
-    }
-
-    /// Both charts' runs from (x₀, y₀) at rest, and the starting energy; `None` if the budget
-    /// stopped a run.
-    fn cell(&self, x0: f64, y0: f64, budget: Budget<'_>) -> Result<Option<CellRuns>, CoreError> {
-        let cartesian = self.cartesian();
-        let start = State::from_slices(U2, &[x0, y0], &[0.0, 0.0]);
-        let energy = cartesian.energy(&start.q, &start.p);
-        let Some(in_cartesian) = self.chart_run(&cartesian, start.clone(), budget)? else {
-            return Ok(None);
-        };
-        let polar = PlanarPolar(cartesian.0.clone());
-        let mut polar_start = start.clone();
-        let in_polar = if polar
-            .from_cartesian(
-                &[x0, y0],
-                &[0.0, 0.0],
-                &mut polar_start.q,
-                &mut polar_start.p,
-            )
-            .is_ok()
-        {
-            match self.chart_run(&polar, polar_start, budget)? {
-                Some(run) => run,
-                None => return Ok(None),
-            }
-        } else {
-            ChartRun {
-                epsilon: None,
-                diverged_at: None,
-            }
-        };
-        Ok(Some((in_cartesian, in_polar, energy)))
-    }
-
-    fn chart_run<S: MechanicalSystem<Dim = U2>>(
-        &self,
-        sys: &S,
-        mut z: State<U2>,
-        budget: Budget<'_>,
-    ) -> Result<Option<ChartRun>, CoreError> {
-        let mut stepper = methods::build(&self.method, sys, "elastic_pendulum_2d", self.h)?;
-        let start = sys.energy(&z.q, &z.p);
-        let mut observer = EnergyDeviation {
-            sys,
-            start,
-            limit: DIVERGENCE * (1.0 + start.abs()),
-            sum: 0.0,
-            count: 0,
-            blown_at: None,
-        };
-        let schedule = Schedule {
-            h: self.h,
-            steps: self.steps,
-            every: 1,
-        };
-        let (stop, _) = with_stepper!(&mut stepper, st => integrate(
-            sys, st, &mut z, schedule, budget, false, &mut observer
-        ))?;
-        Ok(match stop {
-            StopReason::Finished if observer.blown_at.is_some() => Some(ChartRun {
-                epsilon: None,
-                diverged_at: observer.blown_at,
-            }),
-            StopReason::Finished => Some(ChartRun {
-                epsilon: Some((observer.sum / observer.count as f64).sqrt()),
-                diverged_at: None,
-            }),
-            StopReason::Diverged { t, .. } => Some(ChartRun {
-                epsilon: None,
-                diverged_at: Some(t),
-            }),
-            StopReason::Cancelled { .. } | StopReason::TimeLimit { .. } => None,
-        })
-    }
 }
 
-/// A run whose energy error exceeds this many times 1 + |H₀| has diverged.
-const DIVERGENCE: f64 = 100.0;
-
-/// Accumulates Σ (H(z_j) − H(z_0))² over the samples, and notes when |H − H₀| first passes
-/// `limit`.
-struct EnergyDeviation<'a, S> {
-    sys: &'a S,
-    start: f64,
-    limit: f64,
-    sum: f64,
-    count: u64,
-    blown_at: Option<f64>,
-}
-
-impl<S: MechanicalSystem<Dim = U2>> Observer<U2> for EnergyDeviation<'_, S> {
-    #[inline]
-    fn on_sample(&mut self, _step: u64, t: f64, z: &State<U2>) {
-        let d = self.sys.energy(&z.q, &z.p) - self.start;
-        // NaN compares false: a non-finite energy counts as blown up too.
-        let within = d.abs() <= self.limit;
-        if self.blown_at.is_none() && !within {
-            self.blown_at = Some(t);
-        }
-        self.sum += d * d;
-        self.count += 1;
-    }
+/// Runs the map's sweep on `executor`, with progress as the map reports it.
+pub(super) fn run_on<E: Executor>(
+    job: &EnergyMapJob,
+    executor: &E,
+    budget: Budget<'_>,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<Finished<Vec<RunMetrics>>, CoreError> {
+    let counter = Progress::new(job.sweep.cells(), progress);
+    engine::run(&job.sweep, executor, budget, &|_, _| counter.add(1)).map_err(|e| match e {
+        CoreError::Cancelled { .. } => CoreError::Cancelled {
+            what: "map",
+            shutdown: true,
+        },
+        e => e,
+    })
 }
 
 /// Default parameters of 001 Fig. 6 (l = m = k = 1, g = 0.02).
@@ -509,7 +292,51 @@ pub struct EnergyMapSpec {
 }
 
 impl EnergyMapSpec {
-    /// Validates the map (cheap: no integration).
+    /// Checks the grid and the work against the limits, and the method against the polar
+    /// chart's Hamiltonian; errors name the request's fields (`nx`, `x`, `t_max`, `method`).
+    fn check(&self, method: &Method, pendulum: &PlanarSpring, h: f64, steps: u64) -> Result<(), CoreError> {
+        for (name, n) in [("nx", self.nx), ("ny", self.ny)] {
+            if n == 0 || n > MAX_AXIS {
+                return Err(CoreError::Count {
+                    field: Field::new(name),
+                    got: n as u64,
+                    min: 1,
+                    max: MAX_AXIS as u64,
+                    what: "grid points",
+                });
+            }
+        }
+        for (name, [lo, hi]) in [("x", self.x), ("y", self.y)] {
+            if !(lo.is_finite() && hi.is_finite() && lo <= hi) {
+                return Err(CoreError::BadInterval {
+                    field: Field::new(name),
+                    min: lo,
+                    max: hi,
+                });
+            }
+        }
+        let cells = (self.nx * self.ny) as u64;
+        // Saturating: t_max/h can be as large as u64 holds, and a wrapped product would pass.
+        let total = cells.saturating_mul(2).saturating_mul(steps);
+        if total > MAX_TOTAL_STEPS {
+            return Err(CoreError::MapTooLarge {
+                field: Field::new("t_max"),
+                cells,
+                steps,
+                total,
+                limit: MAX_TOTAL_STEPS,
+            });
+        }
+        let probe = PlanarPolar(pendulum.clone());
+        let origin = Origin {
+            method: &Field::new("method"),
+            h: &Field::new("h"),
+            system: "elastic_pendulum_2d (polar chart)",
+        };
+        build::check(method, &probe, h, &origin)
+    }
+
+    /// Validates the map (cheap: no integration) and prepares its sweep.
     pub fn prepare(&self) -> Result<EnergyMapJob, CoreError> {
         let info = systems::info("elastic_pendulum_2d", &Field::new("system"))?;
         let mut params = self.params.clone();
@@ -526,22 +353,59 @@ impl EnergyMapSpec {
             });
         }
         let pendulum = systems::planar_pendulum(&resolved);
-        let job = EnergyMapJob {
-            method: self.method.method,
-            pendulum,
-            h,
-            t_max,
-            steps: step_count(h, t_max),
-            nx: self.nx,
-            ny: self.ny,
-            x: (self.x[0], self.x[1]),
-            y: (self.y[0], self.y[1]),
-        };
-        job.check()
+        let steps = step_count(h, t_max);
+        self.check(&self.method.method, &pendulum, h, steps)
             .map_err(|e| match e.field().map(Field::as_str) {
                 Some("method") => e.at(self.method.field.clone()),
                 _ => e,
             })?;
-        Ok(job)
+        // The map's runs are bounded by its total only (as they always were), not by the
+        // per-run limit of simulations.
+        let unlimited = Limits {
+            max_steps: u64::MAX,
+            max_samples: u64::MAX,
+        };
+        Ok(EnergyMapJob {
+            method: self.method.method,
+            pendulum,
+            h,
+            t_max,
+            steps,
+            nx: self.nx,
+            ny: self.ny,
+            x: (self.x[0], self.x[1]),
+            y: (self.y[0], self.y[1]),
+            sweep: self.sweep(params).prepare(&unlimited)?,
+        })
+    }
+
+    /// The sweep of the map: both charts, at rest, from every (x₀, y₀), against H₀ at every
+    /// step.
+    fn sweep(&self, params: BTreeMap<String, ParamValue>) -> SweepSpec {
+        let axis = |i: usize, [min, max]: [f64; 2], n: usize, name: &str| Axis {
+            target: Target::Q0(i),
+            min,
+            max,
+            n,
+            scale: Scale::Linear,
+            field: Field::new(name),
+        };
+        SweepSpec {
+            system: "elastic_pendulum_2d".into(),
+            params,
+            charts: ["cartesian", "polar"]
+                .map(|c| (Some(c.to_string()), Field::new("chart")))
+                .into(),
+            initial_coordinates: Some(InitialCoordinates::Cartesian),
+            q0: None,
+            p0: Some(vec![0.0, 0.0]),
+            methods: vec![self.method.clone()],
+            h: Some(self.h),
+            t_end: self.t_max,
+            every: None,
+            energy_reference: Some(EnergyReference::Initial),
+            axes: vec![axis(0, self.x, self.nx, "x"), axis(1, self.y, self.ny, "y")],
+            digest: String::new(),
+        }
     }
 }

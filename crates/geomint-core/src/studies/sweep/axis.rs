@@ -1,7 +1,7 @@
 //! The axes of a sweep: what an axis varies (a system parameter, the step size, a component of
 //! the initial state) and the values it takes.
 
-use serde::Serialize;
+use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
 use crate::error::{CoreError, Field, Range};
 use crate::simulation::SimulationSpec;
@@ -56,8 +56,23 @@ impl Target {
     }
 }
 
+/// A target is written by its name (`params.gamma`, `h`, `q0[1]`).
+impl Serialize for Target {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(&self.name())
+    }
+}
+
+impl<'de> Deserialize<'de> for Target {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let name = String::deserialize(d)?;
+        Target::parse(&name)
+            .ok_or_else(|| serde::de::Error::custom(format!("`{name}` is not an axis")))
+    }
+}
+
 /// How the points of an axis are spaced.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 #[serde(rename_all = "snake_case")]
 pub enum Scale {
@@ -69,7 +84,7 @@ pub enum Scale {
 }
 
 /// One axis of a sweep.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Axis {
     /// What it varies.
     pub target: Target,
@@ -113,8 +128,8 @@ impl Axis {
         Ok(())
     }
 
-    /// Point `k` of the axis. The linear spacing is computed exactly as the energy-error map's
-    /// grid, so that its preset reproduces the map bit for bit.
+    /// Point `k` of the axis. The linear spacing is min + (max − min)·k/(n − 1), multiplied
+    /// before it is divided, as the energy-error map's grid always was (the map is a sweep).
     pub fn value(&self, k: usize) -> f64 {
         if self.n == 1 {
             return match self.scale {
@@ -122,11 +137,11 @@ impl Axis {
                 Scale::Log => (self.min * self.max).sqrt(),
             };
         }
-        let fraction = k as f64 / (self.n - 1) as f64;
+        let intervals = (self.n - 1) as f64;
         match self.scale {
-            Scale::Linear => self.min + (self.max - self.min) * fraction,
+            Scale::Linear => self.min + (self.max - self.min) * k as f64 / intervals,
             Scale::Log if k + 1 == self.n => self.max,
-            Scale::Log => self.min * (self.max / self.min).powf(fraction),
+            Scale::Log => self.min * (self.max / self.min).powf(k as f64 / intervals),
         }
     }
 

@@ -1,20 +1,21 @@
-//! Sweeps of the energy map's kind — symplectic Euler or its adjoint on the planar elastic
-//! pendulum, axes over the initial state only, the energy error against H₀ at every step (the
-//! Fig. 6 preset is one) — run their cells four at a time in the map's SIMD lanes
-//! ([`crate::studies::energy_map::lanes`]), with the numbers of the one-cell path bit for
-//! bit: the lanes do its arithmetic operation for operation, and each run's metrics come out of
-//! the same [`Measure`] the one-cell path fills sample by sample.
+//! Sweeps whose every run has a batched stepper ([`LaneKernel`]: today symplectic Euler or its
+//! adjoint on the planar elastic pendulum), with axes over the initial state only and the energy
+//! error against H₀ at every step (paper 001 Fig. 6's energy map is one), run their cells four at
+//! a time in SIMD lanes, with the numbers of the one-cell path bit for bit: the lanes do its
+//! arithmetic operation for operation, and each run's metrics come out of the same [`Measure`]
+//! the one-cell path fills sample by sample.
 
 use std::ops::Range as Cells;
 
 use super::metrics::{EnergyReference, Measure, RunMetrics};
 use super::{SweepJob, Target};
+pub(super) use crate::methods::lanes::LANES;
+use crate::methods::lanes::{LaneKernel, Start, Tally};
 use crate::run::Budget;
 use crate::simulation::Simulation;
-pub(super) use crate::studies::energy_map::lanes::LANES;
-use crate::studies::energy_map::lanes::{self, Chart, Order, Start, Tally};
+use crate::studies::engine::Study;
 use crate::system::{MechanicalSystem, State};
-use crate::systems::{AnySystem, PlanarCartesian, PlanarKind, PlanarPolar, PlanarSpring};
+use crate::systems::AnySystem;
 use crate::with_system;
 
 /// How the lanes run a sweep: one entry per run (method × chart), and the common schedule.
@@ -25,21 +26,16 @@ pub(super) struct LanePlan {
     steps: u64,
 }
 
-/// One run's system, chart and method.
+/// One run's system (in its chart, as the one-cell path builds it) and its kernel.
 #[derive(Clone, Debug)]
 struct LaneRun {
-    /// The system in its chart, as the one-cell path builds it.
     system: AnySystem,
-    pendulum: PlanarSpring,
-    chart: Chart,
-    order: Order,
+    kernel: LaneKernel,
 }
 
 impl SweepJob {
-    /// The plan, if every run of the sweep is one the lanes run: symplectic Euler or its adjoint
-    /// on the planar elastic pendulum (not the free particle, which has invariants and an exact
-    /// solution), sampled at every step and measured against H₀, with axes over q₀ and p₀ only
-    /// (the lanes share the parameters and the step).
+    /// The plan, if every run of the sweep has a kernel, is sampled at every step and measured
+    /// against H₀, with axes over q₀ and p₀ only (the lanes share the parameters and the step).
     pub(super) fn lane_plan(&self) -> Option<LanePlan> {
         let initial_state_only = self
             .grid
@@ -60,15 +56,7 @@ impl SweepJob {
             let sim = std::iter::once(template.clone())
                 .chain(cells.map(|c| self.cell_spec(k, &self.grid.point(c))))
                 .find_map(|spec| Simulation::prepare(&spec, &self.limits).ok())?;
-            let order = Order::of(&sim.methods[0])?;
-            let (pendulum, chart) = match &sim.system {
-                AnySystem::PlanarCartesian(PlanarCartesian(s)) => (s.clone(), Chart::Cartesian),
-                AnySystem::PlanarPolar(PlanarPolar(s)) => (s.clone(), Chart::Polar),
-                _ => return None,
-            };
-            if pendulum.kind != PlanarKind::Pendulum {
-                return None;
-            }
+            let kernel = LaneKernel::of(&sim.methods[0], &sim.system)?;
             let this = (sim.schedule.h, sim.schedule.steps);
             if schedule.is_some_and(|s| s != this) {
                 return None;
@@ -76,9 +64,7 @@ impl SweepJob {
             schedule = Some(this);
             runs.push(LaneRun {
                 system: sim.system,
-                pendulum,
-                chart,
-                order,
+                kernel,
             });
         }
         let (h, steps) = schedule?;
@@ -130,15 +116,7 @@ impl SweepJob {
             let tally = if stopped {
                 None
             } else {
-                let measured = lanes::tally::<true>(
-                    &run.pendulum,
-                    run.chart,
-                    run.order,
-                    &start,
-                    plan.h,
-                    plan.steps,
-                    budget,
-                );
+                let measured = run.kernel.tally(&start, plan.h, plan.steps, budget);
                 stopped = measured.is_none();
                 measured
             };

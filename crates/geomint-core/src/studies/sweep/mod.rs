@@ -3,39 +3,35 @@
 //! initial state — and per cell and run the metrics of [`metrics`]: energy errors (final,
 //! largest, ℓ² of paper 001 eq. 50), invariant drift, time of divergence, final state, work.
 //!
-//! A sweep is split into shards ([`shard`]): ranges of cells in a fixed order. A cell's result
-//! depends only on the spec and the cell, so the local executor (all cores), the batch arrays
-//! (`--shard i/n` then `merge`) and the NATS workers all give bit-identical merged documents.
-//! The energy-error map of Fig. 6 and the numerical stability map are presets of the sweep
-//! (requests in [`crate::api::sweep`]). Sweeps of the map's kind run four cells at a time in the
-//! map's SIMD lanes (`sweep/lanes.rs`), with the same numbers.
+//! A sweep is a study of the engine ([`super::engine`]): one cell per grid point, its runs'
+//! metrics the cell's result. A cell's result depends only on the spec and the cell, so the local
+//! executor (all cores), the batch arrays (`--shard i/n` then `merge`) and the NATS workers all
+//! give bit-identical documents. The energy-error map of Fig. 6 is a sweep
+//! ([`super::energy_map`]); sweeps whose runs have a batched stepper run four cells at a time in
+//! SIMD lanes (`sweep/lanes.rs`), with the same numbers.
 
 pub mod axis;
 pub mod document;
 mod lanes;
 pub mod metrics;
-pub mod shard;
 
 use std::collections::BTreeMap;
 use std::ops::Range as Cells;
-use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Arc;
-use std::time::Instant;
 
-use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 pub use axis::{Axis, Grid, Scale, Target};
 pub use document::{AxisDocument, RunColumns, SweepDocument};
 pub use metrics::{EnergyReference, RunMetrics};
-pub use shard::{Shard, SweepPart};
 
 use crate::error::{CoreError, ErrorDetail, Field, StepScope};
 use crate::run::{step_count, Budget, StopReason};
 use crate::simulation::{
     InitialCoordinates, InputFields, Limits, MethodAt, Simulation, SimulationSpec,
 };
-use crate::studies::StudyStop;
+use crate::studies::engine::{self, Executor, Finished, Progress, Study};
+use crate::studies::{StudySpec, StudyStop};
 use crate::system::MechanicalSystem;
 use crate::systems::{ParamValue, SystemInfo, SystemRef};
 use crate::with_system;
@@ -47,7 +43,7 @@ pub const MAX_RUNS: usize = 16;
 pub const MAX_TOTAL_STEPS: u64 = 20_000_000_000;
 
 /// A sweep as asked for, in core terms.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SweepSpec {
     /// The system.
     pub system: SystemRef,
@@ -110,6 +106,8 @@ pub struct SweepJob {
     limits: Limits,
     /// How the cells run four at a time, when the sweep is one the lanes run.
     lanes: Option<lanes::LanePlan>,
+    /// The spec it was prepared from (what workers and parts carry).
+    spec: SweepSpec,
 }
 
 impl SweepSpec {
@@ -249,6 +247,7 @@ impl SweepSpec {
             total_steps: 0,
             digest: self.digest.clone(),
             lanes: None,
+            spec: self.clone(),
             // A run's samples go into its metrics as they come and are not kept, so the sample
             // limit (which bounds documents) does not apply — except to a reference run, whose
             // energies are kept for the whole run.
@@ -289,11 +288,6 @@ impl SweepSpec {
 }
 
 impl SweepJob {
-    /// Cells in all.
-    pub fn cells(&self) -> usize {
-        self.grid.cells()
-    }
-
     /// Whether the cells run four at a time in SIMD lanes (the energy map's kind of sweep: see
     /// `sweep/lanes.rs`); the numbers are those of the one-cell path either way.
     pub fn runs_in_lanes(&self) -> bool {
@@ -436,88 +430,23 @@ impl SweepJob {
         Ok(Some(results))
     }
 
-    /// Runs `cells` (a shard, or all of them) on all cores; `progress()` is called as each cell
-    /// finishes (from worker threads). The results are in cell order, whatever the threads did;
-    /// `Ok(None)` when the budget stopped the sweep.
-    pub fn run_cells(
-        &self,
-        cells: Cells<usize>,
-        budget: Budget<'_>,
-        progress: &(dyn Fn() + Sync),
-    ) -> Result<Option<Vec<Vec<RunMetrics>>>, CoreError> {
-        Ok(self
-            .run_cells_within(cells, budget, progress)?
-            .into_iter()
-            .collect())
-    }
-
-    /// [`run_cells`](Self::run_cells), keeping the cells that finished when the budget stopped
-    /// the others (`None`).
-    pub fn run_cells_within(
-        &self,
-        cells: Cells<usize>,
-        budget: Budget<'_>,
-        progress: &(dyn Fn() + Sync),
-    ) -> Result<Vec<Option<Vec<RunMetrics>>>, CoreError> {
-        if let Some(plan) = &self.lanes {
-            // Groups of four from the start of the range, so that a shard runs as it would in
-            // the whole sweep's range up to the lane boundaries; a cell's numbers do not depend
-            // on its neighbours either way.
-            let groups: Vec<Cells<usize>> = cells
-                .clone()
-                .step_by(lanes::LANES)
-                .map(|first| first..(first + lanes::LANES).min(cells.end))
-                .collect();
-            let done: Vec<Vec<Option<Vec<RunMetrics>>>> = groups
-                .into_par_iter()
-                .map(|group| {
-                    let n = group.len();
-                    let results = self.lane_group(plan, group, budget);
-                    (0..n).for_each(|_| progress());
-                    results
-                })
-                .collect();
-            return Ok(done.into_iter().flatten().collect());
-        }
-        cells
-            .into_par_iter()
-            .map(|cell| {
-                let result = self.cell(cell, budget);
-                progress();
-                result
-            })
-            .collect()
-    }
-
-    /// The document of a sweep the budget may have stopped: cells that did not finish (`None`)
-    /// are marked unfinished, with `time_limit` as the document's stop; when the cancellation
-    /// flag stopped them, the error of a stopped sweep instead.
-    pub fn document_within(
-        &self,
-        cells: Vec<Option<Vec<RunMetrics>>>,
-        budget: Budget<'_>,
-        wall_ms: f64,
-    ) -> Result<SweepDocument, CoreError> {
-        let unfinished_cells: Vec<usize> =
-            (0..cells.len()).filter(|&i| cells[i].is_none()).collect();
-        if unfinished_cells.is_empty() {
-            return Ok(self.document(cells.into_iter().flatten().collect(), wall_ms));
-        }
-        if budget.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
-            return Err(cancelled());
-        }
+    /// The document of the sweep from what its cells came to: cells the time limit stopped
+    /// are marked unfinished, with `time_limit` as the document's stop.
+    pub fn document_of(&self, finished: Finished<Vec<RunMetrics>>) -> SweepDocument {
+        let unfinished_cells = finished.unfinished();
         let not_run = || {
             let metrics = RunMetrics::failed("not run: the sweep reached its time limit".into());
             vec![metrics; self.runs.len()]
         };
-        let cells = cells
+        let cells = finished
+            .cells
             .into_iter()
             .map(|cell| cell.unwrap_or_else(not_run))
             .collect();
-        let mut document = self.document(cells, wall_ms);
-        document.stop = StudyStop::TimeLimit;
+        let mut document = self.document(cells, finished.wall_ms);
+        document.stop = finished.stop;
         document.unfinished_cells = unfinished_cells;
-        Ok(document)
+        document
     }
 
     /// The document of the sweep from every cell's results, in cell order.
@@ -588,62 +517,59 @@ pub enum SweepLine {
     End,
 }
 
-/// Reports progress about every 1 % of `total` cells, never going backwards although cells
-/// finish on several threads.
-pub struct Progress<'a> {
-    total: usize,
-    every: usize,
-    done: AtomicUsize,
-    last_sent: std::sync::Mutex<usize>,
-    emit: &'a (dyn Fn(SweepLine) -> bool + Sync),
-}
+impl Study for SweepJob {
+    type Cell = Vec<RunMetrics>;
 
-impl<'a> Progress<'a> {
-    /// Progress over `total` cells, sent through `emit`.
-    pub fn new(total: usize, emit: &'a (dyn Fn(SweepLine) -> bool + Sync)) -> Self {
-        Progress {
-            total,
-            every: (total / 100).max(1),
-            done: AtomicUsize::new(0),
-            last_sent: std::sync::Mutex::new(0),
-            emit,
+    fn name(&self) -> &'static str {
+        "sweep"
+    }
+
+    fn cells(&self) -> usize {
+        self.grid.cells()
+    }
+
+    fn group(&self) -> usize {
+        match self.lanes {
+            Some(_) => lanes::LANES,
+            None => 1,
         }
     }
 
-    /// `cells` more cells are done.
-    pub fn add(&self, cells: usize) {
-        let before = self.done.fetch_add(cells, Ordering::Relaxed);
-        let done = before + cells;
-        if done / self.every != before / self.every || done == self.total {
-            let mut last = self.last_sent.lock().unwrap_or_else(|e| e.into_inner());
-            if done > *last {
-                *last = done;
-                (self.emit)(SweepLine::Progress {
-                    done,
-                    total: self.total,
-                });
-            }
+    fn run_cells(
+        &self,
+        cells: Cells<usize>,
+        budget: Budget<'_>,
+    ) -> Result<Vec<Option<Vec<RunMetrics>>>, CoreError> {
+        match &self.lanes {
+            Some(plan) => Ok(self.lane_group(plan, cells, budget)),
+            None => cells.map(|cell| self.cell(cell, budget)).collect(),
         }
+    }
+
+    fn fits(&self, cell: &Vec<RunMetrics>) -> bool {
+        cell.len() == self.runs.len()
+    }
+
+    fn spec(&self) -> Option<StudySpec> {
+        Some(StudySpec::Sweep(self.spec.clone()))
+    }
+
+    fn steps(&self) -> u64 {
+        self.total_steps
     }
 }
 
-/// Runs the whole sweep here, on all cores, reporting progress through `emit`.
-pub fn run(
+/// Runs the sweep on `executor`, reporting progress through `emit`.
+pub fn run<E: Executor + ?Sized>(
     job: &SweepJob,
+    executor: &E,
     budget: Budget<'_>,
     emit: &(dyn Fn(SweepLine) -> bool + Sync),
 ) -> Result<SweepDocument, CoreError> {
-    let started = Instant::now();
-    let progress = Progress::new(job.cells(), emit);
-    let cells = job.run_cells_within(0..job.cells(), budget, &|| progress.add(1))?;
-    job.document_within(cells, budget, started.elapsed().as_secs_f64() * 1e3)
-}
-
-/// The error for a sweep its cancellation flag stopped (the time limit gives a partial
-/// document instead, see [`SweepJob::document_within`]).
-fn cancelled() -> CoreError {
-    CoreError::Cancelled {
-        what: "sweep",
-        shutdown: true,
-    }
+    let report = |done, total| {
+        emit(SweepLine::Progress { done, total });
+    };
+    let progress = Progress::new(job.cells(), &report);
+    let finished = engine::run(job, executor, budget, &|_, _| progress.add(1))?;
+    Ok(job.document_of(finished))
 }

@@ -24,7 +24,7 @@ pub mod system;
 use std::borrow::Cow;
 use std::sync::Arc;
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use super::{Builder, ChartInfo, ParamSpec, SystemInfo};
 use crate::error::{CoreError, Field};
@@ -37,7 +37,7 @@ pub const MAX_COORDINATES: usize = 32;
 pub const MAX_NAMES: usize = 64;
 
 /// An expression as a definition gives it, with the field that holds it.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Expression {
     /// The text.
     pub text: String,
@@ -46,7 +46,7 @@ pub struct Expression {
 }
 
 /// A constant mass matrix, entries in the parameters.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub enum Mass {
     /// m·I.
     Scalar(Expression),
@@ -57,7 +57,7 @@ pub enum Mass {
 }
 
 /// The energy: separable with a constant mass, or a general Hamiltonian.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub enum Energy {
     /// H = ½ pᵀM⁻¹p + V(q).
     Separable {
@@ -74,7 +74,7 @@ pub enum Energy {
 }
 
 /// The damping.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub enum Damping {
     /// p' = … − 2γp.
     Conformal {
@@ -91,7 +91,7 @@ pub enum Damping {
 }
 
 /// A user's system, as a request or a stored definition gives it.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CustomDefinition {
     /// Where the definition is in the request (`system`).
     pub field: Field,
@@ -146,6 +146,10 @@ pub struct Facts {
     /// The methods whose requirements the system meets (compositions with any base that does).
     #[cfg_attr(feature = "openapi", schema(value_type = Vec<String>))]
     pub methods: Vec<&'static str>,
+    /// Whether the energy or the damping depends on the time `t` (a driven system, run in
+    /// extended phase space); absent when not.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub time_dependent: bool,
 }
 
 /// The chart of a user-defined separable system: its own coordinates.

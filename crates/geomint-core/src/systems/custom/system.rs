@@ -172,8 +172,11 @@ impl DampingModel {
 /// A user-defined system's functions, compiled for one run's parameters.
 #[derive(Debug)]
 pub struct Compiled {
-    /// Degrees of freedom.
+    /// The state's dimension: the degrees of freedom, and the clock of a driven system.
     pub n: usize,
+    /// For a driven system, the index of the clock coordinate t (= the degrees of freedom);
+    /// the functions then read the extended state (q, t) and (q, t, p, p_t).
+    pub clock: Option<usize>,
     /// What the methods may rely on.
     pub structure: Structure,
     /// The energy.
@@ -245,23 +248,30 @@ impl<D: Dim> CustomSystem<D> {
         &self.model
     }
 
-    /// out = D(q) v (no mass factor).
+    /// The degrees of freedom: the state's dimension without a driven system's clock.
+    #[inline]
+    fn dof(&self, len: usize) -> usize {
+        self.model.clock.unwrap_or(len)
+    }
+
+    /// out = D(q) v (no mass factor); a driven system's clock momentum is not damped.
     #[inline]
     fn damping_times(&self, q: &[f64], v: &[f64], out: &mut [f64]) {
-        let n = q.len();
+        let n = self.dof(q.len());
         let Some(matrix) = &self.model.damping_matrix else {
             out.fill(0.0);
             return;
         };
         with_buffer(n * n, |d| {
             matrix.eval(q, d);
-            for (i, o) in out.iter_mut().enumerate() {
+            for (i, o) in out[..n].iter_mut().enumerate() {
                 *o = d[i * n..(i + 1) * n]
                     .iter()
                     .zip(v)
                     .map(|(a, x)| a * x)
                     .sum();
             }
+            out[n..].fill(0.0);
         })
     }
 
@@ -270,8 +280,8 @@ impl<D: Dim> CustomSystem<D> {
     #[inline(never)]
     fn project_state_dependent(&self, q: &[f64], v: &[f64], out: &mut [f64]) {
         match &self.model.damping {
-            DampingModel::General { factor, .. } => with_buffer(q.len(), |u| {
-                u.copy_from_slice(v);
+            DampingModel::General { factor, .. } => with_buffer(self.dof(q.len()), |u| {
+                u.copy_from_slice(&v[..u.len()]);
                 factor.solve(u);
                 self.damping_times(q, u, out);
             }),
@@ -279,18 +289,19 @@ impl<D: Dim> CustomSystem<D> {
         }
     }
 
-    /// Applies a flow of the general damping: `f(flows, ε, D(q))`.
+    /// Applies a flow of the general damping: `f(flows, ε, D(q), n)` on the first n = degrees
+    /// of freedom momenta.
     #[inline]
-    fn general_flow(&self, q: &[f64], f: impl FnOnce(&Flows, f64, &[f64])) -> bool {
+    fn general_flow(&self, q: &[f64], f: impl FnOnce(&Flows, f64, &[f64], usize)) -> bool {
         let (DampingModel::General { epsilon, factor }, Some(matrix)) =
             (&self.model.damping, &self.model.damping_matrix)
         else {
             return false;
         };
-        let n = q.len();
+        let n = self.dof(q.len());
         with_buffer(n * n, |d| {
             matrix.eval(q, d);
-            f(&Flows::new(factor), *epsilon, d);
+            f(&Flows::new(factor), *epsilon, d, n);
         });
         true
     }
@@ -316,6 +327,7 @@ impl<D: Dim> std::fmt::Debug for CustomSystem<D> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("CustomSystem")
             .field("n", &self.model.n)
+            .field("clock", &self.model.clock)
             .field("structure", &self.model.structure)
             .field("damping", &self.model.damping)
             .finish_non_exhaustive()
@@ -339,7 +351,7 @@ where
     fn kinetic(&self, q: &Vector<D>, p: &Vector<D>) -> f64 {
         match &self.model.energy {
             EnergyModel::Separable { inverse_mass, .. } => {
-                inverse_mass.half_quadratic(p.as_slice())
+                inverse_mass.half_quadratic(&p.as_slice()[..self.dof(p.len())])
             }
             EnergyModel::General { .. } => self.energy(q, p) - self.potential(q),
         }
@@ -391,9 +403,14 @@ where
     #[inline]
     fn dh_dp(&self, q: &Vector<D>, p: &Vector<D>, out: &mut Vector<D>) {
         match &self.model.energy {
-            EnergyModel::Separable { inverse_mass, .. } => {
-                inverse_mass.apply(p.as_slice(), out.as_mut_slice())
-            }
+            EnergyModel::Separable { inverse_mass, .. } => match self.model.clock {
+                None => inverse_mass.apply(p.as_slice(), out.as_mut_slice()),
+                // ∂H̃/∂p_t = 1: the drift advances the clock.
+                Some(n) => {
+                    inverse_mass.apply(&p.as_slice()[..n], &mut out.as_mut_slice()[..n]);
+                    out[n] = 1.0;
+                }
+            },
             EnergyModel::General { dp, .. } => {
                 eval_on_phase(dp, q.as_slice(), p.as_slice(), out.as_mut_slice())
             }
@@ -461,6 +478,8 @@ where
                 hessian.eval(q.as_slice(), hqq.as_mut_slice());
                 hqp.fill(0.0);
                 hpp.fill(0.0);
+                // H̃ is linear in a driven system's p_t: its row and column stay zero.
+                let n = self.dof(n);
                 for i in 0..n {
                     match inverse_mass {
                         InverseMass::Scalar(m) => hpp[(i, i)] = 1.0 / m,
@@ -494,6 +513,10 @@ where
         true
     }
 
+    fn clock(&self) -> Option<usize> {
+        self.model.clock
+    }
+
     fn invariant_count(&self) -> usize {
         self.model
             .invariants
@@ -509,8 +532,8 @@ where
 
     #[inline]
     fn damp_flow(&self, q: &Vector<D>, p: &mut Vector<D>, tau: f64, c: f64, w: &mut Vector<D>) {
-        let general = self.general_flow(q.as_slice(), |flows, epsilon, d| {
-            flows.decay(epsilon, d, p.as_mut_slice(), tau)
+        let general = self.general_flow(q.as_slice(), |flows, epsilon, d, n| {
+            flows.decay(epsilon, d, &mut p.as_mut_slice()[..n], tau)
         });
         if !general {
             projector::damp_flow(self, q, p, c, w);
@@ -528,8 +551,13 @@ where
         w: &mut Vector<D>,
         pw: &mut Vector<D>,
     ) {
-        let general = self.general_flow(q.as_slice(), |flows, epsilon, matrix| {
-            flows.kick_decay(epsilon, matrix, p.as_mut_slice(), g.as_slice(), tau)
+        let general = self.general_flow(q.as_slice(), |flows, epsilon, matrix, n| {
+            let (p, g) = (p.as_mut_slice(), g.as_slice());
+            flows.kick_decay(epsilon, matrix, &mut p[..n], &g[..n], tau);
+            // A driven system's clock momentum is kicked, not damped.
+            for (p, g) in p[n..].iter_mut().zip(&g[n..]) {
+                *p -= tau * g;
+            }
         });
         if !general {
             projector::kick_damp_flow(self, q, p, g, tau, (c, d), w, pw);
@@ -545,8 +573,8 @@ where
         tau: f64,
         w: &mut Vector<D>,
     ) {
-        let general = self.general_flow(q.as_slice(), |flows, epsilon, d| {
-            flows.solve(epsilon, d, p.as_mut_slice(), theta * tau)
+        let general = self.general_flow(q.as_slice(), |flows, epsilon, d, n| {
+            flows.solve(epsilon, d, &mut p.as_mut_slice()[..n], theta * tau)
         });
         if !general {
             projector::damped_solve(self, q, p, theta, tau, w);

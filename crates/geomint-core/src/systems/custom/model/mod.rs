@@ -3,6 +3,8 @@
 //! once ([`CustomModel::new`]); and its compilation for a run's parameter values
 //! ([`CustomModel::instantiate`]).
 
+mod checks;
+
 use std::sync::Arc;
 
 use super::damping::MassFactor;
@@ -11,7 +13,9 @@ use super::system::{Compiled, CustomSystem, DampingModel, EnergyModel};
 use super::{applicable, CustomDefinition, Damping, DampingKind, Energy, Expression, Facts};
 use super::{MAX_COORDINATES, MAX_NAMES};
 use crate::error::{CoreError, Field, Range};
+use checks::uses;
 use crate::expr::{CompileOptions, CompiledFunction, ExprError, Graph, NodeId, Scope, Var};
+use crate::methods::{build, Method, MethodId};
 use crate::system::Structure;
 use crate::systems::world::Drawing;
 use crate::systems::{AnySystem, ParamValues, World};
@@ -62,7 +66,19 @@ pub struct CustomModel {
     coordinate_nodes: Vec<NodeId>,
     /// Bodies' positions, `dims` (2 or 3) values each.
     positions: Option<(usize, Vec<NodeId>)>,
+    /// For a definition whose energy or damping uses the time `t`: the slots of t and of its
+    /// momentum p_t in extended phase space (see [`Clock`]).
+    clock: Option<Clock>,
     facts: Facts,
+}
+
+/// The time of a driven definition as extended phase space sees it: t a coordinate after the
+/// definition's own (its slot `t`, the name `t` in expressions) and p_t a momentum after theirs
+/// (`p_t`, used by no expression: H̃ = H + p_t, so ∂H̃/∂p_t = 1 and ∂H̃/∂t = ∂H/∂t).
+#[derive(Clone, Copy, Debug)]
+struct Clock {
+    t: Var,
+    p_t: Var,
 }
 
 /// A parse or derivative error of the expression at `field`.
@@ -71,51 +87,6 @@ fn expression(field: &Field) -> impl Fn(ExprError) -> CoreError + '_ {
         field: field.clone(),
         error,
     }
-}
-
-/// Deterministic sample points of the configuration space: SplitMix64 in [−1.5, 1.5]ⁿ.
-fn sample_points(n: usize, count: usize) -> Vec<Vec<f64>> {
-    let mut state = 0x5eed_u64;
-    let mut next = move || {
-        state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = state;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        let unit = ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64;
-        -1.5 + 3.0 * unit
-    };
-    (0..count)
-        .map(|_| (0..n).map(|_| next()).collect())
-        .collect()
-}
-
-/// The largest |a_ij − b_ij| relative to the larger entries.
-fn relative_gap(a: &[f64], b: &[f64]) -> f64 {
-    let scale = a
-        .iter()
-        .chain(b)
-        .fold(0.0f64, |m, x| m.max(x.abs()))
-        .max(1e-300);
-    a.iter()
-        .zip(b)
-        .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()))
-        / scale
-}
-
-/// Whether the symmetric `m` (row-major n×n) is positive semidefinite, to round-off.
-fn positive_semidefinite(m: &[f64], n: usize) -> bool {
-    let scale = m.iter().fold(0.0f64, |a, x| a.max(x.abs()));
-    // M + δI positive definite for a δ at round-off of the entries.
-    let shifted: Vec<f64> = (0..n * n)
-        .map(|k| {
-            m[k] + if k / n == k % n {
-                1e-10 * scale + 1e-300
-            } else {
-                0.0
-            }
-        })
-        .collect();
-    MassFactor::new(&shifted, n).is_some()
 }
 
 impl CustomModel {
@@ -204,9 +175,26 @@ impl CustomModel {
         let q: Vec<Var> = (0..n as u32).map(Var).collect();
         let p: Vec<Var> = (n as u32..2 * n as u32).map(Var).collect();
         let params: Vec<Var> = (2 * n as u32..(2 * n + k) as u32).map(Var).collect();
-        let in_q = scope.restricted_to(&[q.as_slice(), &params].concat());
-        let in_qp = scope.restricted_to(&[q.as_slice(), &p, &params].concat());
+        // The time `t`, after every declared name (so the slots above are the same with or
+        // without it), unless the definition names something `t` itself.
+        let time = scope.declare("t").ok();
+        let clock = time
+            .filter(|&t| uses(&definition, &scope, t))
+            .map(|t| Clock {
+                t,
+                p_t: Var(t.0 + 1),
+            });
+        let with_t = |vars: &[&[Var]]| {
+            let mut all = vars.concat();
+            all.extend(clock.map(|c| c.t));
+            all
+        };
+        let in_q = scope.restricted_to(&with_t(&[&q, &params]));
+        let in_qp = scope.restricted_to(&with_t(&[&q, &p, &params]));
         let in_params = scope.restricted_to(&params);
+        // The coordinates and momenta methods see: with the clock and its momentum last.
+        let q_ext: Vec<Var> = q.iter().copied().chain(clock.map(|c| c.t)).collect();
+        let p_ext: Vec<Var> = p.iter().copied().chain(clock.map(|c| c.p_t)).collect();
 
         let mut graph = Graph::new();
         let coordinate_nodes: Vec<NodeId> = q.iter().map(|&v| graph.var(v)).collect();
@@ -217,10 +205,10 @@ impl CustomModel {
             Energy::Separable { mass, potential } => {
                 let v = parse(potential, &in_q, &mut graph)?;
                 let gradient = graph
-                    .gradient(v, &q)
+                    .gradient(v, &q_ext)
                     .map_err(expression(&potential.field))?;
                 let hessian = graph
-                    .hessian(v, &q)
+                    .hessian(v, &q_ext)
                     .map_err(expression(&potential.field))?
                     .concat();
                 let mass = mass_nodes(mass, n, &at.key("mass"), &mut |e| {
@@ -236,11 +224,19 @@ impl CustomModel {
             Energy::General { hamiltonian } => {
                 let h = parse(hamiltonian, &in_qp, &mut graph)?;
                 let err = expression(&hamiltonian.field);
-                let dq = graph.gradient(h, &q).map_err(&err)?;
-                let dp = graph.gradient(h, &p).map_err(&err)?;
-                let hqq = graph.jacobian(&dq, &q).map_err(&err)?.concat();
-                let hqp = graph.jacobian(&dq, &p).map_err(&err)?.concat();
-                let hpp = graph.jacobian(&dp, &p).map_err(&err)?.concat();
+                // H̃ = H + p_t in extended phase space; H itself otherwise.
+                let extended = match clock {
+                    Some(c) => {
+                        let p_t = graph.var(c.p_t);
+                        graph.add(h, p_t)
+                    }
+                    None => h,
+                };
+                let dq = graph.gradient(extended, &q_ext).map_err(&err)?;
+                let dp = graph.gradient(extended, &p_ext).map_err(&err)?;
+                let hqq = graph.jacobian(&dq, &q_ext).map_err(&err)?.concat();
+                let hqp = graph.jacobian(&dq, &p_ext).map_err(&err)?.concat();
+                let hpp = graph.jacobian(&dp, &p_ext).map_err(&err)?.concat();
                 EnergyNodes::General {
                     hamiltonian: h,
                     dq,
@@ -273,10 +269,12 @@ impl CustomModel {
         for (_, e) in &definition.invariants {
             invariants.push(parse(e, &in_qp, &mut graph)?);
         }
+        // Positions are drawn from the coordinates alone.
+        let in_q_only = scope.restricted_to(&[q.as_slice(), &params].concat());
         let positions = match &definition.positions {
             None => None,
             Some(bodies) => Some(position_nodes(bodies, &at.key("positions"), &mut |e| {
-                parse(e, &in_q, &mut graph)
+                parse(e, &in_q_only, &mut graph)
             })?),
         };
         let mut model = CustomModel {
@@ -288,11 +286,13 @@ impl CustomModel {
             invariants,
             coordinate_nodes,
             positions,
+            clock,
             facts: Facts {
                 dimension: n,
                 separable: false,
                 damping: DampingKind::None,
                 methods: Vec::new(),
+                time_dependent: false,
             },
         };
         model.check_states()?;
@@ -356,6 +356,13 @@ impl CustomModel {
 
     fn facts_of(&self, numbers: &Numbers) -> Facts {
         let structure = self.structure(numbers);
+        let rate = numbers.damping.rate();
+        let mut methods = applicable(structure, rate);
+        if self.clock.is_some() {
+            methods.retain(|id| {
+                MethodId::parse(id).is_some_and(|m| build::no_time(&Method::new(m), rate).is_none())
+            });
+        }
         Facts {
             dimension: self.n,
             separable: structure.separable_constant_mass,
@@ -365,14 +372,23 @@ impl CustomModel {
                 DampingModel::Projector { .. } => DampingKind::RayleighProjector,
                 DampingModel::General { .. } => DampingKind::Rayleigh,
             },
-            methods: applicable(structure, numbers.damping.rate()),
+            methods,
+            time_dependent: self.clock.is_some(),
         }
     }
 
-    /// The values of every slot for parameters `values`, with q and p at zero.
+    /// Whether the energy or the damping depends on the time `t`.
+    pub fn time_dependent(&self) -> bool {
+        self.clock.is_some()
+    }
+
+    /// The values of every slot for parameters `values`, with q and p (and t, p_t) at zero.
     fn slots(&self, values: &[f64]) -> Vec<f64> {
         let mut slots = vec![0.0; 2 * self.n];
         slots.extend_from_slice(values);
+        if self.clock.is_some() {
+            slots.extend([0.0, 0.0]);
+        }
         slots
     }
 
@@ -430,83 +446,6 @@ impl CustomModel {
         Ok(Numbers { mass, damping })
     }
 
-    /// Checks that D(q) is symmetric and positive semidefinite at the sample points.
-    fn check_damping_matrix(&self, matrix: &[NodeId], slots: &[f64]) -> Result<(), CoreError> {
-        let n = self.n;
-        let field = self.definition.field.key("damping").key("matrix");
-        let mut values = slots.to_vec();
-        for point in sample_points(n, 16) {
-            values[..n].copy_from_slice(&point);
-            let d = self.graph.eval(matrix, &values);
-            if d.iter().any(|x| !x.is_finite()) {
-                continue;
-            }
-            let scale = d.iter().fold(0.0f64, |m, x| m.max(x.abs())).max(1e-300);
-            for i in 0..n {
-                for j in 0..i {
-                    if matrix[i * n + j] != matrix[j * n + i]
-                        && (d[i * n + j] - d[j * n + i]).abs() > 1e-12 * scale
-                    {
-                        return Err(CoreError::NotSymmetric {
-                            field: field.index(i).index(j),
-                            other: field.index(j).index(i),
-                            at: point.clone(),
-                        });
-                    }
-                }
-            }
-            if !positive_semidefinite(&d, n) {
-                return Err(CoreError::NotDefinite {
-                    field,
-                    what: "the damping matrix D(q)",
-                    property: "positive semidefinite",
-                    detail: format!("at q = {point:?} it is {d:?}"),
-                });
-            }
-        }
-        Ok(())
-    }
-
-    /// The damping's model: a rate times a projector when M = mI and D(q) is idempotent at the
-    /// sample points (the closed-form flows of every built-in system apply), else general.
-    fn damping_model(
-        &self,
-        epsilon: f64,
-        matrix: &[NodeId],
-        m: &[f64],
-        factor: &MassFactor,
-        slots: &[f64],
-    ) -> DampingModel {
-        let n = self.n;
-        let isotropic = (0..n * n).all(|k| {
-            let (i, j) = (k / n, k % n);
-            if i == j {
-                m[k] == m[0]
-            } else {
-                m[k] == 0.0
-            }
-        });
-        let mut values = slots.to_vec();
-        let idempotent = sample_points(n, 16).into_iter().all(|point| {
-            values[..n].copy_from_slice(&point);
-            let d = self.graph.eval(matrix, &values);
-            let d2: Vec<f64> = (0..n * n)
-                .map(|k| (0..n).map(|l| d[(k / n) * n + l] * d[l * n + k % n]).sum())
-                .collect();
-            d.iter().any(|x| !x.is_finite()) || relative_gap(&d, &d2) <= 1e-12
-        });
-        if isotropic && idempotent {
-            DampingModel::Projector {
-                rate: epsilon / m[0],
-            }
-        } else {
-            DampingModel::General {
-                epsilon,
-                factor: factor.clone(),
-            }
-        }
-    }
-
     /// The parameter values of a run, in declaration order.
     fn values(&self, params: &ParamValues) -> Vec<f64> {
         self.definition
@@ -517,22 +456,55 @@ impl CustomModel {
     }
 
     /// Compiles `outputs` for a run: inputs q (and p with `with_momenta`), parameters folded.
+    /// For a driven definition the inputs are those of extended phase space, (q, t) and
+    /// (q, t, p, p_t), unless `positions` asks for the coordinates alone.
     fn compile(
         &self,
         outputs: &[NodeId],
         with_momenta: bool,
         values: &[f64],
     ) -> Result<CompiledFunction, CoreError> {
+        self.compile_with(outputs, with_momenta, self.clock.is_some(), values)
+    }
+
+    fn compile_with(
+        &self,
+        outputs: &[NodeId],
+        with_momenta: bool,
+        with_clock: bool,
+        values: &[f64],
+    ) -> Result<CompiledFunction, CoreError> {
         let n = self.n;
         let inputs = if with_momenta { 2 * n } else { n };
+        let mut layout: Vec<Var> = (0..n as u32).map(Var).collect();
+        let mut constants: Vec<(Var, f64)> = values
+            .iter()
+            .enumerate()
+            .map(|(i, &v)| (Var((2 * n + i) as u32), v))
+            .chain((inputs..2 * n).map(|i| (Var(i as u32), 0.0)))
+            .collect();
+        match self.clock {
+            Some(c) if with_clock => {
+                layout.push(c.t);
+                if with_momenta {
+                    layout.extend((n as u32..2 * n as u32).map(Var));
+                    layout.push(c.p_t);
+                } else {
+                    constants.push((c.p_t, 0.0));
+                }
+            }
+            _ => {
+                if with_momenta {
+                    layout.extend((n as u32..2 * n as u32).map(Var));
+                }
+                if let Some(c) = self.clock {
+                    constants.extend([(c.t, 0.0), (c.p_t, 0.0)]);
+                }
+            }
+        }
         let options = CompileOptions {
-            layout: (0..inputs as u32).map(Var).collect(),
-            constants: values
-                .iter()
-                .enumerate()
-                .map(|(i, &v)| (Var((2 * n + i) as u32), v))
-                .chain((inputs..2 * n).map(|i| (Var(i as u32), 0.0)))
-                .collect(),
+            layout,
+            constants,
             ..CompileOptions::default()
         };
         CompiledFunction::new(&self.graph, outputs, &options)
@@ -585,14 +557,15 @@ impl CustomModel {
             Some(self.compile(&self.invariants, true, &values)?)
         };
         let compiled = Arc::new(Compiled {
-            n: self.n,
+            n: self.n + usize::from(self.clock.is_some()),
+            clock: self.clock.map(|_| self.n),
             structure,
             energy,
             damping: numbers.damping,
             damping_matrix,
             invariants,
         });
-        Ok(match self.n {
+        Ok(match compiled.n {
             1 => AnySystem::Custom1(CustomSystem::new(nalgebra::U1, compiled)),
             2 => AnySystem::Custom2(CustomSystem::new(nalgebra::U2, compiled)),
             3 => AnySystem::Custom3(CustomSystem::new(nalgebra::U3, compiled)),
@@ -611,7 +584,7 @@ impl CustomModel {
                 (shown.len().max(2), shown.to_vec())
             }
         };
-        let function = self.compile(&nodes, false, &values)?;
+        let function = self.compile_with(&nodes, false, false, &values)?;
         Ok(World::Drawn(Arc::new(Drawing::new(function, dims))))
     }
 }

@@ -1,18 +1,19 @@
-//! The map's cells four at a time (and a sweep's, when it is the map's kind of sweep: see
-//! [`crate::studies::sweep`]): symplectic Euler and its adjoint on the planar elastic
-//! pendulum, in either chart, with the state of [`LANES`] cells side by side so that the
-//! compiler packs the lanes into SIMD registers (f64×2 on any x86-64, f64×4 where the CPU has
-//! AVX2, chosen when the map runs).
+//! A batched stepper: symplectic Euler and its adjoint on the planar elastic pendulum, in either
+//! chart, four runs side by side with the state of [`LANES`] runs in arrays the compiler packs
+//! into SIMD registers (f64×2 on any x86-64, f64×4 where the CPU has AVX2, chosen when the run
+//! starts). The study engine asks [`LaneKernel::of`] for a method on a system; a sweep whose
+//! runs all have a kernel runs its cells four at a time (paper 001 Fig. 6's energy map is such a
+//! sweep), measured against H₀ at every step.
 //!
-//! Every lane does exactly the arithmetic of the one-cell path, operation for operation and in
+//! Every lane does exactly the arithmetic of the one-run path, operation for operation and in
 //! the same order (the composer's kick and drift, the chart's closed-form stages, its energy),
 //! and IEEE addition, multiplication, division and square root round the same in a SIMD lane as
-//! in a scalar register, so a map run here is bit for bit the map run cell by cell
+//! in a scalar register, so runs here are bit for bit the runs of the generic stepper
 //! (`tests/core/energy_map.rs` compares every cell of both).
 //!
 //! Sine and cosine stay the C library's, one call per lane. The compiler turns the sine and
 //! cosine of one angle into one `sincos` call, and the energy reuses its cosine where the
-//! one-cell path calls `cos`: with glibc, whose `sincos` and `cos` share their code, the bits are
+//! one-run path calls `cos`: with glibc, whose `sincos` and `cos` share their code, the bits are
 //! the same (the test would catch a library where they differ). Besides the packing, the lanes
 //! save work twice: the energy that eq. (50) asks for after every step shares |q| (Cartesian) or
 //! sin θ, cos θ (polar) with the next step's force, and the per-step calls through the generic
@@ -27,9 +28,8 @@ use std::time::Instant;
 
 use crate::methods::{Method, MethodId};
 use crate::run::Budget;
-use crate::systems::PlanarSpring;
-
-use super::{ChartRun, DIVERGENCE};
+use crate::studies::sweep::metrics::DIVERGENCE;
+use crate::systems::{AnySystem, PlanarCartesian, PlanarKind, PlanarPolar, PlanarSpring};
 
 /// Cells integrated side by side.
 pub const LANES: usize = 4;
@@ -114,8 +114,8 @@ impl Constants {
 
 /// Per lane: the sum of eq. (50) and the first steps at which the lane left the energy band or
 /// the finite numbers (as f64, exact to 2⁵³, so that the lanes compare and select in SIMD
-/// registers; ∞: never). A sweep's run ([`tally`] with `MEASURED`) also keeps the largest and
-/// the last |H − H₀| and the state the one-cell path ends with; the map's run leaves them alone.
+/// registers; ∞: never), the largest and the last |H − H₀|, and the state the one-run path
+/// ends with.
 #[derive(Clone, Copy, Debug)]
 pub struct Tally {
     /// Σ (H − H₀)² over the samples, the first included.
@@ -135,70 +135,43 @@ pub struct Tally {
     pub p: [Lane; 2],
 }
 
-/// Runs `steps` steps of `order` in `chart` from `start`; returns, per lane, the [`ChartRun`]
-/// the one-cell path reports, or `None` when the budget stopped the run.
-pub fn run(
-    pendulum: &PlanarSpring,
+/// A method on a system that the lanes run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LaneKernel {
+    pendulum: PlanarSpring,
     chart: Chart,
     order: Order,
-    start: &Start,
-    h: f64,
-    steps: u64,
-    budget: Budget<'_>,
-) -> Option<[ChartRun; LANES]> {
-    let tally = tally::<false>(pendulum, chart, order, start, h, steps, budget)?;
-    Some(std::array::from_fn(|i| {
-        outcome(&tally, start.idle[i], i, h, steps)
-    }))
 }
 
-/// The tally of a run, `None` when the budget stopped it. The map's run ([`run`]) leaves
-/// `MEASURED` off; a sweep's run sets it, for the whole [`Tally`].
-pub fn tally<const MEASURED: bool>(
-    pendulum: &PlanarSpring,
-    chart: Chart,
-    order: Order,
-    start: &Start,
-    h: f64,
-    steps: u64,
-    budget: Budget<'_>,
-) -> Option<Tally> {
-    let limit = start.energy.map(|e| DIVERGENCE * (1.0 + e.abs()));
-    let c = Constants::new(pendulum, h);
-    dispatch::<MEASURED>(&c, chart, order, start, steps, &limit, budget)
-}
+impl LaneKernel {
+    /// The kernel of `method` on `system`, if the lanes run it: symplectic Euler or its adjoint
+    /// on the planar elastic pendulum (not the free particle, whose runs report invariants and
+    /// errors against its exact solution), in either chart.
+    pub fn of(method: &Method, system: &AnySystem) -> Option<LaneKernel> {
+        let order = Order::of(method)?;
+        let (pendulum, chart) = match system {
+            AnySystem::PlanarCartesian(PlanarCartesian(s)) => (s, Chart::Cartesian),
+            AnySystem::PlanarPolar(PlanarPolar(s)) => (s, Chart::Polar),
+            _ => return None,
+        };
+        (pendulum.kind == PlanarKind::Pendulum).then(|| LaneKernel {
+            pendulum: pendulum.clone(),
+            chart,
+            order,
+        })
+    }
 
-/// Lane `i`'s outcome as the one-cell path reports it: a state that stopped being finite ends
-/// the run there (whether or not the energy left its band before), a run that left the band
-/// reports the first sample that did, and a finished one its ε.
-fn outcome(tally: &Tally, idle: bool, i: usize, h: f64, steps: u64) -> ChartRun {
-    let never = ChartRun {
-        epsilon: None,
-        diverged_at: None,
-    };
-    if idle {
-        never
-    } else if tally.non_finite[i] != f64::INFINITY {
-        ChartRun {
-            diverged_at: Some(tally.non_finite[i] * h),
-            ..never
-        }
-    } else if tally.blown[i] != f64::INFINITY {
-        ChartRun {
-            diverged_at: Some(tally.blown[i] * h),
-            ..never
-        }
-    } else {
-        ChartRun {
-            epsilon: Some((tally.sum[i] / (steps + 1) as f64).sqrt()),
-            diverged_at: None,
-        }
+    /// `steps` steps of size `h` from the [`LANES`] starts, measured against H₀ at every step;
+    /// `None` when the budget stopped the run.
+    pub fn tally(&self, start: &Start, h: f64, steps: u64, budget: Budget<'_>) -> Option<Tally> {
+        let limit = start.energy.map(|e| DIVERGENCE * (1.0 + e.abs()));
+        let c = Constants::new(&self.pendulum, h);
+        dispatch(&c, self.chart, self.order, start, steps, &limit, budget)
     }
 }
 
-/// Picks the kernel, compiled for AVX2 when the CPU has it; `MEASURED`: keep the whole
-/// [`Tally`].
-fn dispatch<const MEASURED: bool>(
+/// Picks the kernel, compiled for AVX2 when the CPU has it.
+fn dispatch(
     c: &Constants,
     chart: Chart,
     order: Order,
@@ -210,9 +183,9 @@ fn dispatch<const MEASURED: bool>(
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU supports AVX2, checked just above.
-        return unsafe { integrate_avx2::<MEASURED>(c, chart, order, start, steps, limit, budget) };
+        return unsafe { integrate_avx2(c, chart, order, start, steps, limit, budget) };
     }
-    integrate::<MEASURED>(c, chart, order, start, steps, limit, budget)
+    integrate(c, chart, order, start, steps, limit, budget)
 }
 
 /// [`integrate`] compiled with AVX2 (f64×4 registers). Still no fused multiply-add, which would
@@ -220,7 +193,7 @@ fn dispatch<const MEASURED: bool>(
 /// (only `mul_add` does), whatever the target features.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn integrate_avx2<const MEASURED: bool>(
+fn integrate_avx2(
     c: &Constants,
     chart: Chart,
     order: Order,
@@ -229,12 +202,12 @@ fn integrate_avx2<const MEASURED: bool>(
     limit: &Lane,
     budget: Budget<'_>,
 ) -> Option<Tally> {
-    integrate::<MEASURED>(c, chart, order, start, steps, limit, budget)
+    integrate(c, chart, order, start, steps, limit, budget)
 }
 
 /// One kernel per (chart, order), each a loop the compiler specialises.
 #[inline(always)]
-fn integrate<const MEASURED: bool>(
+fn integrate(
     c: &Constants,
     chart: Chart,
     order: Order,
@@ -245,16 +218,16 @@ fn integrate<const MEASURED: bool>(
 ) -> Option<Tally> {
     match (chart, order) {
         (Chart::Cartesian, Order::MomentumFirst) => {
-            lanes::<_, MEASURED>(c, start, steps, limit, budget, Cartesian::<true>)
+            lanes(c, start, steps, limit, budget, Cartesian::<true>)
         }
         (Chart::Cartesian, Order::PositionFirst) => {
-            lanes::<_, MEASURED>(c, start, steps, limit, budget, Cartesian::<false>)
+            lanes(c, start, steps, limit, budget, Cartesian::<false>)
         }
         (Chart::Polar, Order::MomentumFirst) => {
-            lanes::<_, MEASURED>(c, start, steps, limit, budget, Polar::<true>)
+            lanes(c, start, steps, limit, budget, Polar::<true>)
         }
         (Chart::Polar, Order::PositionFirst) => {
-            lanes::<_, MEASURED>(c, start, steps, limit, budget, Polar::<false>)
+            lanes(c, start, steps, limit, budget, Polar::<false>)
         }
     }
 }
@@ -281,7 +254,7 @@ trait Kernel {
 /// budget looked at every [`CHECK_EVERY`] steps, and the run left early once every lane is
 /// non-finite (where the one-cell path stops).
 #[inline(always)]
-fn lanes<K: Kernel, const MEASURED: bool>(
+fn lanes<K: Kernel>(
     c: &Constants,
     start: &Start,
     steps: u64,
@@ -306,6 +279,7 @@ fn lanes<K: Kernel, const MEASURED: bool>(
     };
     for i in 0..LANES {
         // The first sample, H₀ − H₀: zero, or NaN where H₀ is not finite.
+        #[allow(clippy::eq_op)]
         let d = start.energy[i] - start.energy[i];
         tally.sum[i] += d * d;
         let within = d.abs() <= limit[i];
@@ -351,7 +325,7 @@ fn lanes<K: Kernel, const MEASURED: bool>(
                 let first = |seen: f64, fine: bool| if fine { seen } else { seen.min(at) };
                 tally.non_finite[i] = first(tally.non_finite[i], finite);
                 tally.blown[i] = first(tally.blown[i], within);
-                if MEASURED {
+                {
                     // As the sweep's measure: the largest magnitude (`f64::max`, written as the
                     // comparison it is here, where the running maximum is never NaN: one
                     // `maxpd`) and the last deviation.
@@ -365,7 +339,7 @@ fn lanes<K: Kernel, const MEASURED: bool>(
                 }
             }
         }
-        if MEASURED {
+        {
             // A lane whose state stopped being finite in this block ends, as the one-cell path
             // does, with the state of the step before: run again from the block's start up to
             // that step (the lanes do not touch each other, so its bits are the ones it had).
@@ -385,7 +359,7 @@ fn lanes<K: Kernel, const MEASURED: bool>(
             }
         }
     }
-    if MEASURED {
+    {
         // The others end where the run ends.
         for i in 0..LANES {
             if tally.non_finite[i] == f64::INFINITY {
@@ -527,7 +501,6 @@ impl<const MOMENTUM_FIRST: bool> Kernel for Polar<MOMENTUM_FIRST> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::systems::PlanarKind;
 
     /// The portable build of the kernels (what a CPU without AVX2 runs) and the one this CPU
     /// is dispatched to give the same bits, in every chart and order, through blow-ups; a lane
@@ -563,9 +536,9 @@ mod tests {
         for chart in [Chart::Cartesian, Chart::Polar] {
             for order in [Order::MomentumFirst, Order::PositionFirst] {
                 let portable =
-                    integrate::<true>(&c, chart, order, &start, 20_000, &limit, Budget::default());
+                    integrate(&c, chart, order, &start, 20_000, &limit, Budget::default());
                 let dispatched =
-                    dispatch::<true>(&c, chart, order, &start, 20_000, &limit, Budget::default());
+                    dispatch(&c, chart, order, &start, 20_000, &limit, Budget::default());
                 let (portable, dispatched) = (portable.unwrap(), dispatched.unwrap());
                 assert_eq!(bits(&portable), bits(&dispatched), "{chart:?} {order:?}");
                 assert!(
@@ -580,7 +553,7 @@ mod tests {
                     ..start
                 };
                 let with_idle =
-                    dispatch::<true>(&c, chart, order, &idle, 20_000, &limit, Budget::default())
+                    dispatch(&c, chart, order, &idle, 20_000, &limit, Budget::default())
                         .unwrap();
                 assert_eq!(with_idle.non_finite[1], 0.0);
                 for lane in [0, 2, 3] {
@@ -620,7 +593,12 @@ mod tests {
                     };
                     let run = |steps| {
                         let budget = Budget::default();
-                        tally::<true>(&pendulum, chart, order, &start, 0.2, steps, budget).unwrap()
+                        let kernel = LaneKernel {
+                            pendulum: pendulum.clone(),
+                            chart,
+                            order,
+                        };
+                        kernel.tally(&start, 0.2, steps, budget).unwrap()
                     };
                     let full = run(steps);
                     for i in 0..LANES {
@@ -641,37 +619,5 @@ mod tests {
         }
         println!("stops: {stops:?}");
         assert!(stops.iter().any(|&s| s > 1) && stops.iter().any(|&s| s > CHECK_EVERY));
-    }
-
-    /// A run whose state stops being finite reports that step, even after its energy left the
-    /// band (as the one-cell path, whose integration stops there); a run that only left the band
-    /// reports the first sample outside it; an idle lane nothing.
-    #[test]
-    fn a_non_finite_state_outranks_an_energy_blow_up() {
-        let tally = Tally {
-            sum: [8.0, f64::NAN, 8.0, 8.0],
-            blown: [f64::INFINITY, 5.0, 5.0, f64::INFINITY],
-            non_finite: [f64::INFINITY, 9.0, f64::INFINITY, 0.0],
-            max: [0.0; LANES],
-            last: [0.0; LANES],
-            q: [[0.0; LANES]; 2],
-            p: [[0.0; LANES]; 2],
-        };
-        let outcomes: Vec<_> = (0..LANES)
-            .map(|i| outcome(&tally, i == 3, i, 0.5, 7))
-            .collect();
-        let run = |epsilon, diverged_at| ChartRun {
-            epsilon,
-            diverged_at,
-        };
-        assert_eq!(
-            outcomes,
-            [
-                run(Some(1.0), None),
-                run(None, Some(4.5)),
-                run(None, Some(2.5)),
-                run(None, None)
-            ]
-        );
     }
 }

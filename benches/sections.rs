@@ -1,0 +1,202 @@
+//! 10⁶ Poincaré section points of Hénon–Heiles (y = 0, p_y > 0, E = 1/8) located by Hénon's
+//! trick, at the accuracy the tests assert: |y| ≤ 1e-13 and |H − E| ≤ 1e-12 at every point, the
+//! first 100 crossings of a regular orbit within 1e-10 of the adaptive reference; beside the peers
+//! (heyoka.py, exact event detection on its Taylor polynomials; pynamicalsys) run at the same
+//! accuracy by `benches/sections/peers.py`, each checked on the same bounds.
+//!
+//! geomint runs Kahan and Li's eighth-order composition of velocity Verlet at h = 0.08 (the
+//! largest step whose first 100 crossings stay within 1e-10 of the reference) from a chaotic start
+//! (x, y, p_x) = (−0.2, 0, 0.1), p_y solved from E, through the same path as a request: a typed-in
+//! definition compiled to machine code, a section and an event on the same surface that ends the
+//! run at its 10⁶-th crossing.
+//!
+//! `scripts/bench-sections` sets up the peers' venv under target/ and runs this with
+//! `GEOMINT_PEERS_PYTHON` pointing at it; `GEOMINT_SECTION_POINTS` (default 10⁶) sets the count.
+//! `cargo bench --bench sections` alone runs geomint only.
+
+use std::process::Command;
+use std::time::Instant;
+
+use geomint::core::error::Field;
+use geomint::core::methods::composition::Scheme;
+use geomint::core::methods::{Base, Method};
+use geomint::core::run::Budget;
+use geomint::core::sections::{
+    Crossing, Direction, EnergyLevel, EventSpec, SectionSpec, SectionSummary, SurfaceSpec,
+};
+use geomint::core::simulation::{Limits, Sample, SampleSink, Simulation, SimulationSpec, Watching};
+use geomint::core::systems::custom::{self, CustomDefinition, Energy, Expression, Mass};
+use geomint::core::systems::SystemRef;
+
+const E: f64 = 0.125;
+const H: f64 = 0.08;
+const CHAOTIC: ([f64; 2], [f64; 2]) = ([-0.2, 0.0], [0.1, 0.0]);
+const REGULAR: ([f64; 2], [f64; 2]) = ([0.1, 0.0], [0.05, 0.0]);
+
+fn henon_heiles() -> SystemRef {
+    let expr = |name: &str, text: &str| Expression {
+        text: text.into(),
+        field: Field::new("system").key(name),
+    };
+    let definition = CustomDefinition {
+        field: Field::new("system"),
+        name: Some("Hénon–Heiles".into()),
+        coordinates: vec!["x".into(), "y".into()],
+        momenta: None,
+        energy: Energy::Separable {
+            mass: Mass::Scalar(expr("mass", "1")),
+            potential: expr("potential", "(x^2 + y^2)/2 + x^2*y - y^3/3"),
+        },
+        damping: None,
+        parameters: Vec::new(),
+        invariants: Vec::new(),
+        positions: None,
+        q0: None,
+        p0: None,
+    };
+    SystemRef::Defined(custom::define(definition, "henon_heiles").expect("valid"))
+}
+
+/// The bounds of every point, and the first points kept.
+#[derive(Default)]
+struct Check {
+    points: u64,
+    max_y: f64,
+    max_dh: f64,
+    min_py: f64,
+    first: Vec<[f64; 5]>,
+    summary: Option<SectionSummary>,
+}
+
+impl SampleSink for Check {
+    fn on_sample(&mut self, _: &Sample<'_>) {}
+
+    fn on_crossing(&mut self, c: &Crossing<'_>) {
+        if c.kind != geomint::core::sections::CrossingKind::Section {
+            return;
+        }
+        if self.points == 0 {
+            self.min_py = f64::INFINITY;
+        }
+        self.points += 1;
+        self.max_y = self.max_y.max(c.q[1].abs());
+        self.max_dh = self.max_dh.max((c.energy - E).abs());
+        self.min_py = self.min_py.min(c.p[1]);
+        if self.first.len() < 100 {
+            self.first.push([c.t, c.q[0], c.q[1], c.p[0], c.p[1]]);
+        }
+    }
+
+    fn on_section_end(&mut self, summary: &SectionSummary) {
+        self.summary = Some(summary.clone());
+    }
+}
+
+/// `points` crossings from `start` with `method`; the check and the wall time in seconds.
+fn run(method: Method, h: f64, start: ([f64; 2], [f64; 2]), points: u64) -> (Check, f64) {
+    let mut spec = SimulationSpec::new(henon_heiles(), &[method], h, 10.0 * points as f64);
+    spec.q0 = Some(start.0.to_vec());
+    spec.p0 = Some(start.1.to_vec());
+    spec.every = Some(u64::MAX / 4);
+    let limits = Limits {
+        max_steps: u64::MAX,
+        max_samples: u64::MAX,
+    };
+    let surface = |field: &str| (Field::new(field), "y".to_string(), Direction::Up);
+    let (section_field, text, direction) = surface("section");
+    let watching = Watching {
+        section: Some(SectionSpec {
+            surface: SurfaceSpec::Where {
+                text: text.clone(),
+                direction,
+            },
+            max_points: points,
+            field: section_field,
+        }),
+        stop_when: Some(EventSpec {
+            text,
+            direction,
+            count: points,
+            field: Field::new("stop_when"),
+        }),
+        energy: Some(EnergyLevel {
+            energy: E,
+            momentum: "p_y".into(),
+            field: Field::new("energy"),
+        }),
+    };
+    let sim = Simulation::prepare(&spec, &limits)
+        .and_then(|s| s.watching(&watching))
+        .expect("a valid simulation");
+    let mut check = Check::default();
+    let started = Instant::now();
+    sim.run_method(0, None, Budget::default(), &mut check)
+        .expect("runs");
+    (check, started.elapsed().as_secs_f64())
+}
+
+fn main() {
+    let points: u64 = std::env::var("GEOMINT_SECTION_POINTS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(1_000_000);
+    let method = Method::composition(Scheme::KahanLi8, Base::VelocityVerlet);
+
+    // The first 100 crossings of a regular orbit against the adaptive reference.
+    let (ours, _) = run(method, H, REGULAR, 100);
+    let (reference, _) = run(Method::Reference { tolerance: 1e-14 }, H, REGULAR, 100);
+    let agreement = ours
+        .first
+        .iter()
+        .zip(&reference.first)
+        .map(|(a, b)| a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max))
+        .fold(0.0, f64::max);
+    println!("first 100 crossings (regular orbit) against the reference: {agreement:.1e}");
+
+    let (check, seconds) = run(method, H, CHAOTIC, points);
+    println!(
+        "geomint kahan_li_8(velocity_verlet), h = {H}: {} points in {seconds:.2} s \
+         ({:.0} ns per point); |y| ≤ {:.1e}, |H − E| ≤ {:.1e}, least p_y {:.1e}, unlocated {}",
+        check.points,
+        seconds * 1e9 / check.points as f64,
+        check.max_y,
+        check.max_dh,
+        check.min_py,
+        check.summary.as_ref().map_or(0, |s| s.unlocated),
+    );
+    assert_eq!(check.points, points);
+    assert!(check.max_y <= 1e-13 && check.max_dh <= 1e-12 && agreement <= 1e-10);
+
+    let Ok(python) = std::env::var("GEOMINT_PEERS_PYTHON") else {
+        println!("(set GEOMINT_PEERS_PYTHON, or run scripts/bench-sections, for the peers)");
+        return;
+    };
+    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/benches/sections/peers.py");
+    let output = Command::new(python)
+        .arg(script)
+        .arg(points.to_string())
+        .output()
+        .expect("the peers' script runs");
+    print!("{}", String::from_utf8_lossy(&output.stdout));
+    eprint!("{}", String::from_utf8_lossy(&output.stderr));
+    println!("| peer | points | seconds | ratio to geomint | max abs y | max abs H − E |");
+    println!("|---|---|---|---|---|---|");
+    println!(
+        "| geomint | {} | {seconds:.2} | 1.00 | {:.1e} | {:.1e} |",
+        check.points, check.max_y, check.max_dh
+    );
+    for line in String::from_utf8_lossy(&output.stdout).lines() {
+        let Ok(row) = serde_json::from_str::<serde_json::Value>(line) else {
+            continue;
+        };
+        let s = row["seconds"].as_f64().unwrap_or(f64::NAN);
+        println!(
+            "| {} | {} | {s:.2} | {:.2} | {:.1e} | {:.1e} |",
+            row["peer"].as_str().unwrap_or("?"),
+            row["points"],
+            s / seconds,
+            row["max_y"].as_f64().unwrap_or(f64::NAN),
+            row["max_dh"].as_f64().unwrap_or(f64::NAN),
+        );
+    }
+}

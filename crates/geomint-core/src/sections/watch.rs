@@ -1,0 +1,320 @@
+//! Watching a run step by step beside its observer: after each step the surfaces' values at the
+//! new state are compared with those at the last one, and a crossing is located by Hénon's step
+//! ([`super::henon`]) from the last state before it, on a copy: the run goes on from its own
+//! state. Located points go to the caller as [`Crossing`]s; an event's last crossing ends the
+//! run.
+
+use std::ops::ControlFlow;
+
+use nalgebra::allocator::Allocator;
+use nalgebra::DefaultAllocator;
+use serde::Serialize;
+
+use super::henon::{copy, Henon, Unlocated};
+use super::spec::Direction;
+use super::surface::{Crossings, Surface};
+use crate::system::{MechanicalSystem, State};
+
+/// Which surface a crossing is of.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CrossingKind {
+    /// The section's.
+    Section,
+    /// The event's (`stop_when`).
+    Event,
+}
+
+/// A located crossing, as sinks receive it.
+#[derive(Clone, Copy, Debug)]
+pub struct Crossing<'a> {
+    /// Whose surface.
+    pub kind: CrossingKind,
+    /// Its time.
+    pub t: f64,
+    /// Positions (the degrees of freedom; no clock).
+    pub q: &'a [f64],
+    /// Momenta.
+    pub p: &'a [f64],
+    /// H there.
+    pub energy: f64,
+    /// The positions in Cartesian coordinates, when the chart is not Cartesian.
+    pub cartesian_q: Option<&'a [f64]>,
+}
+
+/// How a run's section went.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+pub struct SectionSummary {
+    /// Points located.
+    pub points: u64,
+    /// Whether crossings after `max_points` went uncollected.
+    pub truncated: bool,
+    /// Crossings seen whose point could not be located (tangent to the surface within
+    /// round-off); none is reported.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub unlocated: u64,
+    /// The least and greatest value of the surface's S over the run's steps (expressions
+    /// only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub surface_range: Option<[f64; 2]>,
+    /// Why there are no points, when there are none.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub note: Option<String>,
+}
+
+fn is_zero(n: &u64) -> bool {
+    *n == 0
+}
+
+/// One surface's watch over a run.
+struct Tracker {
+    kind: CrossingKind,
+    direction: Direction,
+    /// Most points (section) or the crossing that ends the run (event).
+    limit: u64,
+    count: u64,
+    unlocated: u64,
+    truncated: bool,
+    /// S at the last state.
+    last: f64,
+    range: [f64; 2],
+    /// The next stroboscopic level's index.
+    next: u64,
+}
+
+/// The watch over one run: the surfaces, the last state, the locator's buffers.
+pub struct Watch<'a, S: MechanicalSystem>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    crossings: &'a Crossings,
+    trackers: Vec<Tracker>,
+    henon: Henon<S::Dim>,
+    last: State<S::Dim>,
+    last_t: f64,
+    point: State<S::Dim>,
+    /// The located point in Cartesian coordinates, for a chart that is not.
+    cartesian: Option<(Vec<f64>, Vec<f64>)>,
+}
+
+impl<'a, S: MechanicalSystem> Watch<'a, S>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    /// A watch of `crossings` over a run of `sys` from `start`.
+    pub fn new(sys: &S, crossings: &'a Crossings, start: &State<S::Dim>) -> Self {
+        let n = crossings.names.coordinates.len();
+        let tracker = |kind, &(_, direction, limit): &(Surface, Direction, u64)| Tracker {
+            kind,
+            direction,
+            limit,
+            count: 0,
+            unlocated: 0,
+            truncated: false,
+            last: f64::NAN,
+            range: [f64::INFINITY, f64::NEG_INFINITY],
+            next: 0,
+        };
+        let trackers = [
+            crossings.section.as_ref().map(|s| tracker(CrossingKind::Section, s)),
+            crossings.event.as_ref().map(|s| tracker(CrossingKind::Event, s)),
+        ]
+        .into_iter()
+        .flatten()
+        .collect();
+        let mut watch = Watch {
+            crossings,
+            trackers,
+            henon: Henon::new(sys.dim(), n),
+            last: start.clone(),
+            last_t: 0.0,
+            point: start.clone(),
+            cartesian: (!sys.is_cartesian()).then(|| (vec![0.0; n], vec![0.0; n])),
+        };
+        watch.restart(sys, start, 0.0);
+        watch
+    }
+
+    fn surface(&self, kind: CrossingKind) -> &'a Surface {
+        let crossings = self.crossings;
+        match kind {
+            CrossingKind::Section => &crossings.section.as_ref().expect("a section").0,
+            CrossingKind::Event => &crossings.event.as_ref().expect("an event").0,
+        }
+    }
+
+    /// Takes `z` at driver time `t` as the last state (the run's first).
+    pub fn restart(&mut self, sys: &S, z: &State<S::Dim>, t: f64) {
+        copy(&mut self.last, z);
+        self.last_t = state_time(sys, z, t);
+        for i in 0..self.trackers.len() {
+            let surface = self.surface(self.trackers[i].kind);
+            let s = self.henon.value(surface, z, self.last_t);
+            let tracker = &mut self.trackers[i];
+            tracker.last = s;
+            if let Surface::Clock { period, phase } = surface {
+                // The first level after the start: the start itself is not a crossing.
+                tracker.next = ((self.last_t - phase) / period).floor().max(0.0) as u64;
+                while phase + tracker.next as f64 * period <= self.last_t {
+                    tracker.next += 1;
+                }
+            } else {
+                tracker.range = [s.min(tracker.range[0]), s.max(tracker.range[1])];
+            }
+        }
+    }
+
+    /// After a step to `z` at driver time `t`: locates the crossings since the last state,
+    /// hands each to `emit`, and ends the run at the event's last one.
+    pub fn step(
+        &mut self,
+        sys: &S,
+        t: f64,
+        z: &State<S::Dim>,
+        emit: &mut dyn FnMut(&Crossing<'_>),
+    ) -> ControlFlow<f64> {
+        let t_now = state_time(sys, z, t);
+        let mut flow = ControlFlow::Continue(());
+        for i in 0..self.trackers.len() {
+            let kind = self.trackers[i].kind;
+            let surface = self.surface(kind);
+            let s = self.henon.value(surface, z, t_now);
+            if let Surface::Clock { period, phase } = *surface {
+                loop {
+                    let tracker = &self.trackers[i];
+                    let level = phase + tracker.next as f64 * period;
+                    // A level the step reaches to within round-off of its length counts (as
+                    // the run's last step reaches t_end): t_end = kT gives its k-th point.
+                    let reach = t_now + 1e-9 * (t_now - self.last_t).abs();
+                    if level > reach || tracker.truncated || flow.is_break() {
+                        break;
+                    }
+                    self.trackers[i].next += 1;
+                    let located = self.henon.locate(
+                        sys,
+                        surface,
+                        (&self.last, self.last_t, self.last_t),
+                        level,
+                        &mut self.point,
+                    );
+                    // A stroboscopic point's time is its level, not the step's sum.
+                    flow = self.found(sys, i, located.map(|_| level), emit);
+                }
+            } else {
+                let tracker = &mut self.trackers[i];
+                tracker.range = [s.min(tracker.range[0]), s.max(tracker.range[1])];
+                let before = tracker.last;
+                tracker.last = s;
+                if tracker.direction.crossed(before, s) && !tracker.truncated && flow.is_continue()
+                {
+                    let located = self.locate(sys, surface, (before, s), z, t_now);
+                    flow = self.found(sys, i, located, emit);
+                }
+            }
+        }
+        copy(&mut self.last, z);
+        self.last_t = t_now;
+        flow
+    }
+
+    /// Locates the crossing of S = 0 between the last state (S = `before`) and `z` (S =
+    /// `after`): from the last state when S moves there in the direction it crossed in, else
+    /// back from `z`; from the other end when the first attempt fails.
+    fn locate(
+        &mut self,
+        sys: &S,
+        surface: &Surface,
+        (before, after): (f64, f64),
+        z: &State<S::Dim>,
+        t_now: f64,
+    ) -> Result<f64, Unlocated> {
+        let rising = after > before;
+        let sigma = self.henon.rate(sys, surface, &self.last, self.last_t);
+        let from_last = (sigma > 0.0) == rising && sigma != 0.0;
+        let ends = [
+            (&self.last, self.last_t, before),
+            (z, t_now, after),
+        ];
+        let order = if from_last { [0, 1] } else { [1, 0] };
+        let first = self.henon.locate(sys, surface, ends[order[0]], 0.0, &mut self.point);
+        first.or_else(|_| {
+            self.henon
+                .locate(sys, surface, ends[order[1]], 0.0, &mut self.point)
+        })
+    }
+
+    /// Reports a located crossing (or counts an unlocated one); the event's last ends the run.
+    fn found(
+        &mut self,
+        sys: &S,
+        i: usize,
+        located: Result<f64, Unlocated>,
+        emit: &mut dyn FnMut(&Crossing<'_>),
+    ) -> ControlFlow<f64> {
+        let tracker = &mut self.trackers[i];
+        let Ok(t) = located else {
+            tracker.unlocated += 1;
+            return ControlFlow::Continue(());
+        };
+        tracker.count += 1;
+        let n = self.crossings.names.coordinates.len();
+        if let Some((x, px)) = self.cartesian.as_mut() {
+            sys.to_cartesian(&self.point.q, &self.point.p, x, px);
+        }
+        emit(&Crossing {
+            kind: tracker.kind,
+            t,
+            q: &self.point.q.as_slice()[..n],
+            p: &self.point.p.as_slice()[..n],
+            energy: sys.energy(&self.point.q, &self.point.p),
+            cartesian_q: self.cartesian.as_ref().map(|(x, _)| x.as_slice()),
+        });
+        if tracker.count >= tracker.limit {
+            match tracker.kind {
+                CrossingKind::Section => tracker.truncated = true,
+                CrossingKind::Event => return ControlFlow::Break(t),
+            }
+        }
+        ControlFlow::Continue(())
+    }
+
+    /// The section's summary, when the run has a section.
+    pub fn summary(&self) -> Option<SectionSummary> {
+        let tracker = self
+            .trackers
+            .iter()
+            .find(|t| t.kind == CrossingKind::Section)?;
+        let expression = matches!(self.surface(CrossingKind::Section), Surface::Expression { .. });
+        let range = (expression && tracker.range[0] <= tracker.range[1]).then_some(tracker.range);
+        let note = (tracker.count == 0).then(|| match (range, tracker.unlocated) {
+            (_, u) if u > 0 => format!(
+                "the surface was crossed {u} times, each time too close to tangent to locate"
+            ),
+            (Some([lo, hi]), _) => format!(
+                "the surface was never crossed{}: S stayed in [{lo:e}, {hi:e}]",
+                match tracker.direction {
+                    Direction::Up => " upwards",
+                    Direction::Down => " downwards",
+                    Direction::Both => "",
+                }
+            ),
+            (None, _) => "the run ended before the first stroboscopic time".to_string(),
+        });
+        Some(SectionSummary {
+            points: tracker.count,
+            truncated: tracker.truncated,
+            unlocated: tracker.unlocated,
+            surface_range: range,
+            note,
+        })
+    }
+}
+
+/// The time of the state `z` at driver time `t`: a driven system's own clock, else `t`.
+#[inline]
+fn state_time<S: MechanicalSystem>(sys: &S, z: &State<S::Dim>, t: f64) -> f64
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    sys.clock().map_or(t, |k| z.q[k])
+}
