@@ -50,13 +50,13 @@ pub struct SectionRequest {
 
 /// What ends each run before `t_end`: the `count`-th crossing of the surface `where` in
 /// `direction` (an event; the run's `stop` is then `event`, at the crossing's time).
-#[derive(Clone, Debug, Default, PartialEq, Serialize, ToSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 #[schema(example = json!({"where": "y", "direction": "up", "count": 3}))]
 pub struct StopWhenRequest {
     /// The event's surface S = 0, named as a section's.
-    #[serde(rename = "where", default, skip_serializing_if = "Option::is_none")]
-    pub surface: Option<String>,
+    #[serde(rename = "where")]
+    pub surface: String,
     /// Which crossings count: `up`, `down`, `both` (default).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schema(value_type = Option<Direction>)]
@@ -130,11 +130,11 @@ pub fn read_section(v: &Value, field: &Field) -> Result<SectionRequest, ErrorDet
 pub fn read_stop_when(v: &Value, field: &Field) -> Result<StopWhenRequest, ErrorDetail> {
     let o = Obj::new(v, field.clone(), STOP_FIELDS)?;
     Ok(StopWhenRequest {
-        surface: Some(o.required(
+        surface: o.required(
             "where",
             "the surface whose crossing ends the run, e.g. \"y\"",
             string,
-        )?),
+        )?,
         direction: o.optional("direction", direction)?,
         count: o.optional("count", |v, at| count(v, at, "a whole number ≥ 1"))?,
     })
@@ -175,13 +175,11 @@ pub fn watching(
             max_points: s.max_points.unwrap_or(DEFAULT_MAX_POINTS),
             field: Field::new("section"),
         }),
-        stop_when: stop_when.and_then(|s| {
-            Some(EventSpec {
-                text: s.surface.clone()?,
-                direction: parse(&s.direction, Direction::Both),
-                count: s.count.unwrap_or(1),
-                field: Field::new("stop_when"),
-            })
+        stop_when: stop_when.map(|s| EventSpec {
+            text: s.surface.clone(),
+            direction: parse(&s.direction, Direction::Both),
+            count: s.count.unwrap_or(1),
+            field: Field::new("stop_when"),
         }),
         energy: energy.map(|e| EnergyLevel {
             energy: e.value,

@@ -120,6 +120,9 @@ pub(super) fn write<W: Write + Send + 'static>(
     drop(rec);
     let written = join(thread);
     logged?;
+    // The encoder's own error carries its cause (a full disk, say); the flush reports it only
+    // as text, so it goes first.
+    let writer = written?;
     flushed?;
-    written
+    Ok(writer)
 }

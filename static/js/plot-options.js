@@ -35,7 +35,9 @@ export function energyErrorSource({ sent, exact, compared, undamped }) {
 
 /** The energy-error options: the source, and whether the page derives the error itself. */
 function energyError(header, request, exact, undamped) {
-  const source = energyErrorSource({
+  // The server says what it measured against; recordings made before it did are inferred.
+  const served = { exact: 'exact', reference: 'ref', initial: 'initial' }[header.energy_reference];
+  const source = served ?? energyErrorSource({
     sent: Boolean(header.energy_error), exact, compared: Boolean(request?.compare_to_reference), undamped,
   });
   return { energyErrorSource: source, deriveEnergyError: source === 'initial' && !header.energy_error };

@@ -12,7 +12,7 @@ use common::{every_fixed_step_choice, method, params, run_to_columns};
 use geomint::api::system::SystemDefinition;
 use geomint::core::error::{CoreError, Field};
 use geomint::core::run::Budget;
-use geomint::core::simulation::{Columns, Limits, Simulation, SimulationSpec};
+use geomint::core::simulation::{Columns, EnergyReference, Limits, Simulation, SimulationSpec};
 use geomint::core::systems::{HarmonicOscillator, SystemRef};
 use serde_json::{json, Value};
 
@@ -332,6 +332,38 @@ fn henon_heiles(damping: Option<Value>) -> SystemRef {
         definition["parameters"] = json!({"gamma": 0.05});
     }
     defined(definition)
+}
+
+/// An undamped system without an exact solution measures its energy error against H₀, which
+/// its exact flow keeps; a damped one has no reference unless the reference run is asked for.
+#[test]
+fn an_undamped_definition_measures_its_energy_error_against_the_initial_energy() {
+    let document = |system: SystemRef| {
+        let spec = SimulationSpec {
+            every: Some(100),
+            ..SimulationSpec::new(system, &[method("modin_3s")], 0.05, 50.0)
+        };
+        let sim = Simulation::prepare(&spec, &Limits::default()).expect("valid");
+        let reference = sim.energy_reference();
+        (reference, sim.simulate(1, Budget::default()).expect("runs"))
+    };
+    let (reference, doc) = document(henon_heiles(None));
+    assert_eq!(reference, Some(EnergyReference::Initial));
+    assert_eq!(doc.energy_reference, Some(EnergyReference::Initial));
+    let c = &doc.runs[0].columns;
+    let errors = c.energy_error.as_ref().expect("an energy error against H0");
+    assert_eq!(errors.len(), c.energy.len());
+    assert_eq!(errors[0], 0.0);
+    for (e, h) in errors.iter().zip(&c.energy) {
+        assert_eq!(*e, h - c.energy[0], "H - H0 exactly");
+    }
+    // Second order at h = 0.05 on a bounded orbit: small, and not zero.
+    let largest = errors.iter().fold(0.0f64, |m, e| m.max(e.abs()));
+    assert!(largest > 1e-12 && largest < 1e-3, "{largest:e}");
+
+    let (reference, doc) = document(henon_heiles(Some(json!({"gamma": "gamma"}))));
+    assert_eq!(reference, None);
+    assert!(doc.runs[0].columns.energy_error.is_none());
 }
 
 #[test]

@@ -12,7 +12,18 @@ from .catalog import Chart, Definition, Facts, Method, Parameter, System
 from .client import DEFAULT_URL, Client
 from .errors import GeomintError, OverloadedError, RefusedError, ServerError, ValidationError
 from .recording import Recording, RecordingInfo
-from .simulation import DivergedAt, Run, Schedule, Simulation, Stats, Stop, SystemState
+from .simulation import (
+    Crossings,
+    DivergedAt,
+    Run,
+    Schedule,
+    SectionSummary,
+    Simulation,
+    Stats,
+    Stop,
+    Surface,
+    SystemState,
+)
 from .studies import (
     Axis,
     Convergence,
@@ -36,6 +47,7 @@ __all__ = [
     "Client",
     "Convergence",
     "ConvergenceSeries",
+    "Crossings",
     "Definition",
     "DivergedAt",
     "EnergyMap",
@@ -50,6 +62,7 @@ __all__ = [
     "RefusedError",
     "Run",
     "Schedule",
+    "SectionSummary",
     "ServerError",
     "Simulation",
     "Spectrum",
@@ -58,6 +71,7 @@ __all__ = [
     "StabilityPoint",
     "Stats",
     "Stop",
+    "Surface",
     "Sweep",
     "SweepRun",
     "SystemState",

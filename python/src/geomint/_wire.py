@@ -91,6 +91,43 @@ class OutputOptions(TypedDict, total=False):
     every: int
 
 
+CrossingDirection = Literal["up", "down", "both"]
+"""Which crossings of a surface S = 0 count: ``up`` (S from negative to non-negative), ``down``,
+``both``."""
+
+
+class SectionRequest(TypedDict, total=False):
+    """A Poincaré section of each run: the crossings of the surface ``where`` = 0 in
+    ``direction`` (default ``up``), or a stroboscopic section, the states at the times
+    t ≡ ``phase`` (mod ``period``); at most ``max_points`` points per run (default 10⁴)."""
+
+    where: str
+    direction: CrossingDirection
+    max_points: int
+    period: float
+    phase: float
+
+
+class _StopWhenRequestRequired(TypedDict):
+    where: str
+
+
+class StopWhenRequest(_StopWhenRequestRequired, total=False):
+    """An event that ends each run: the ``count``-th crossing (default 1) of ``where`` = 0 in
+    ``direction`` (default ``both``)."""
+
+    direction: CrossingDirection
+    count: int
+
+
+class EnergyRequest(TypedDict):
+    """An energy level: the initial ``momentum`` (one of the system's momenta) is solved for,
+    non-negative, so that H(q0, p0) = ``value``."""
+
+    value: float
+    momentum: str
+
+
 class _SimulateRequestRequired(TypedDict):
     system: SystemRequest
     h: float
@@ -109,6 +146,9 @@ class SimulateRequest(_SimulateRequestRequired, total=False):
     output: OutputOptions
     compare_to_reference: bool
     jacobian_defect: bool
+    section: SectionRequest
+    stop_when: StopWhenRequest
+    energy: EnergyRequest
 
 
 class _AxisRequestRequired(TypedDict):
@@ -447,7 +487,19 @@ class StopFailed(TypedDict):
     message: str
 
 
-Stop = Union[StopFinished, StopDiverged, StopCancelled, StopFailed]
+class StopEvent(TypedDict):
+    """The ``stop_when`` surface's ``count``-th crossing, at ``t``, ended the run after ``step``."""
+
+    reason: Literal["event"]
+    step: int
+    t: float
+
+
+Stop = Union[StopFinished, StopDiverged, StopCancelled, StopFailed, StopEvent]
+
+EnergyReference = Literal["exact", "initial", "reference"]
+"""What ``energy_error`` is measured against: the exact solution, H₀ (nothing damps or drives the
+system), or the adaptive reference run."""
 
 
 class _ColumnsRequired(TypedDict):
@@ -469,6 +521,52 @@ class Columns(_ColumnsRequired, total=False):
     jacobian_defect: Optional[List[Optional[float]]]
 
 
+class _CrossingColumnsRequired(TypedDict):
+    t: List[float]
+    q: List[List[float]]
+    p: List[List[float]]
+    energy: List[Optional[float]]
+
+
+class CrossingColumns(_CrossingColumnsRequired, total=False):
+    """Located crossings of a surface (a section's points, or an event's crossings): one entry
+    per point in every column; ``cartesian_q`` when the chart is not Cartesian."""
+
+    cartesian_q: Optional[List[List[float]]]
+
+
+class _SectionSummaryRequired(TypedDict):
+    points: int
+    truncated: bool
+
+
+class SectionSummary(_SectionSummaryRequired, total=False):
+    """How a run's section went: points located, whether ``max_points`` cut it short, the range
+    of S over the run's steps (expressions only), crossings that could not be located, and why
+    there are no points when there are none."""
+
+    surface_range: Optional[List[float]]
+    unlocated: Optional[int]
+    note: Optional[str]
+
+
+class _SurfaceInfoRequired(TypedDict):
+    coordinates: List[str]
+    momenta: List[str]
+
+
+class SurfaceInfo(_SurfaceInfoRequired, total=False):
+    """A section or an event as the server resolved it, with the names of its points' positions
+    and momenta."""
+
+    where: Optional[str]
+    direction: Optional[CrossingDirection]
+    max_points: Optional[int]
+    count: Optional[int]
+    period: Optional[float]
+    phase: Optional[float]
+
+
 class _RunOutcomeRequired(TypedDict):
     stats: Stats
     stop: Stop
@@ -479,26 +577,37 @@ class RunOutcome(_RunOutcomeRequired, total=False):
 
     dissipation_drift: Optional[List[DriftPoint]]
     diverged_at: Optional[DivergedAt]
+    section_summary: Optional[SectionSummary]
 
 
-class RunDocument(Columns, RunOutcome):
-    """One method's run in a simulation's answer."""
-
+class _RunDocumentRequired(Columns, RunOutcome):
     method: str
 
 
-class SimulationDocument(TypedDict):
-    """The answer to ``POST /api/v1/simulate``."""
+class RunDocument(_RunDocumentRequired, total=False):
+    """One method's run in a simulation's answer, with its section's points and the crossings
+    of its ``stop_when`` surface when asked for."""
 
+    section: Optional[CrossingColumns]
+    events: Optional[CrossingColumns]
+
+
+class _SimulationDocumentRequired(TypedDict):
     system: SystemSummary
     schedule: ScheduleSummary
     invariants: List[str]
     runs: List[RunDocument]
 
 
-class HeaderLine(TypedDict):
-    """The first line of a simulation's stream."""
+class SimulationDocument(_SimulationDocumentRequired, total=False):
+    """The answer to ``POST /api/v1/simulate``."""
 
+    energy_reference: Optional[EnergyReference]
+    section: Optional[SurfaceInfo]
+    stop_when: Optional[SurfaceInfo]
+
+
+class _HeaderLineRequired(TypedDict):
     type: Literal["header"]
     system: SystemSummary
     schedule: ScheduleSummary
@@ -506,11 +615,32 @@ class HeaderLine(TypedDict):
     invariants: List[str]
 
 
+class HeaderLine(_HeaderLineRequired, total=False):
+    """The first line of a simulation's stream."""
+
+    energy_reference: Optional[EnergyReference]
+    section: Optional[SurfaceInfo]
+    stop_when: Optional[SurfaceInfo]
+
+
 class SamplesLine(Columns):
     """A chunk of one method's samples, from sample ``offset`` on."""
 
     type: Literal["samples"]
     method: int
+    offset: int
+
+
+SurfaceName = Literal["section", "stop_when"]
+"""Whose crossings a ``crossings`` line carries: the section's or the ``stop_when`` event's."""
+
+
+class CrossingsLine(CrossingColumns):
+    """A chunk of one method's located crossings of ``surface``, from point ``offset`` on."""
+
+    type: Literal["crossings"]
+    method: int
+    surface: SurfaceName
     offset: int
 
 
@@ -540,7 +670,7 @@ class EndLine(TypedDict):
     type: Literal["end"]
 
 
-StreamLine = Union[HeaderLine, SamplesLine, SummaryLine, ErrorLine, EndLine]
+StreamLine = Union[HeaderLine, SamplesLine, CrossingsLine, SummaryLine, ErrorLine, EndLine]
 
 
 class StudyErrorLine(TypedDict):

@@ -37,6 +37,7 @@ from ._wire import (
     ConvergenceResultLine,
     DampingEntry,
     EnergyMapRequest,
+    EnergyRequest,
     ErrorBody,
     ErrorDetail,
     Health,
@@ -52,8 +53,10 @@ from ._wire import (
     ReferenceRun,
     Route,
     RunSpec,
+    SectionRequest,
     SimulateRequest,
     StabilityRequest,
+    StopWhenRequest,
     StoredSystem,
     StreamLine,
     StudyLine,
@@ -92,6 +95,15 @@ AxisLike = Union[Axis, AxisRequest, Tuple[str, float, float, int], Tuple[str, fl
 with an optional scale."""
 GridAxis = Union[AxisSpec, Tuple[float, float, int]]
 """An axis of a stability map: ``{"min", "max", "n"}`` or ``(min, max, n)``."""
+SectionLike = Union[str, SectionRequest]
+"""A Poincaré section: the expression S of the surface S = 0 (crossed upwards), or
+``{"where": S, "direction": "up" | "down" | "both", "max_points": N}``, or a stroboscopic
+section ``{"period": T, "phase": φ}``."""
+StopWhenLike = Union[str, StopWhenRequest]
+"""An event that ends each run: the expression S (its first crossing of S = 0 either way), or
+``{"where": S, "direction": "up" | "down" | "both", "count": n}``."""
+EnergyLike = Union[EnergyRequest, Tuple[float, str]]
+"""An energy level: ``{"value": E, "momentum": name}`` or ``(E, name)``."""
 Result = Union[Simulation, Sweep, StabilityMaps, EnergyMap, WorkPrecision]
 AnyStudyLine = Union[SweepLine, MapLine, ConvergenceLine, StudyLine]
 StudyResult = Union[SweepResultLine, MapResultLine, ConvergenceResultLine, WorkPrecisionResultLine]
@@ -190,6 +202,56 @@ def _grid_axis(axis: GridAxis, where: str) -> AxisSpec:
         if key not in out:
             raise ValidationError(f"{where}.{key}", "is missing", code="missing_field")
     return cast(AxisSpec, _plain(out, where))
+
+
+def _section(section: SectionLike) -> SectionRequest:
+    if isinstance(section, str):
+        return {"where": section}
+    if not isinstance(section, Mapping):
+        raise ValidationError("section", "a section is an expression, {'where', 'direction', 'max_points'} "
+                              "or {'period', 'phase'}", code="invalid_type")
+    if "where" in section and "period" in section:
+        raise ValidationError("section", "give either `where` or `period`, not both")
+    if "where" not in section and "period" not in section:
+        raise ValidationError("section", "give the surface `where`, or a stroboscopic `period`",
+                              code="missing_field")
+    out = cast(SectionRequest, _plain(section, "section"))
+    if "max_points" in out:
+        _count(out["max_points"], "section.max_points")
+    if "period" in out:
+        _positive(out["period"], "section.period")
+    return out
+
+
+def _stop_when(stop_when: StopWhenLike) -> StopWhenRequest:
+    if isinstance(stop_when, str):
+        return {"where": stop_when}
+    if not isinstance(stop_when, Mapping):
+        raise ValidationError("stop_when", "an event is an expression or {'where', 'direction', 'count'}",
+                              code="invalid_type")
+    if "where" not in stop_when:
+        raise ValidationError("stop_when.where", "is missing", code="missing_field")
+    out = cast(StopWhenRequest, _plain(stop_when, "stop_when"))
+    if "count" in out:
+        _count(out["count"], "stop_when.count")
+    return out
+
+
+def _energy(energy: EnergyLike) -> EnergyRequest:
+    if isinstance(energy, tuple) and len(energy) == 2:
+        out: Dict[str, Any] = {"value": energy[0], "momentum": energy[1]}
+    elif isinstance(energy, Mapping):
+        out = dict(energy)
+    else:
+        raise ValidationError("energy", "an energy level is {'value', 'momentum'} or (value, momentum)",
+                              code="invalid_type")
+    for key in ("value", "momentum"):
+        if key not in out:
+            raise ValidationError(f"energy.{key}", "is missing", code="missing_field")
+    if not isinstance(out["momentum"], str):
+        raise ValidationError("energy.momentum", "give the name of one of the system's momenta",
+                              code="invalid_type")
+    return cast(EnergyRequest, _plain(out, "energy"))
 
 
 def _is_error_body(body: object) -> bool:
@@ -434,6 +496,9 @@ class Client:
         every: Optional[int] = None,
         compare_to_reference: Optional[bool] = None,
         jacobian_defect: Optional[bool] = None,
+        section: Optional[SectionLike] = None,
+        stop_when: Optional[StopWhenLike] = None,
+        energy: Optional[EnergyLike] = None,
         stream: bool = False,
         progress: bool = True,
         on_line: Optional[Callable[[StreamLine], None]] = None,
@@ -444,7 +509,20 @@ class Client:
         ``params`` override the system's defaults; ``q0``/``p0`` the initial state (in ``chart``'s
         coordinates, or Cartesian ones with ``initial_coordinates="cartesian"``); ``every``
         samples every so many steps; ``compare_to_reference`` measures energy errors against the
-        adaptive reference; ``jacobian_defect`` reports |det ∂Φ/∂z − e^{−2γh}| per step.
+        adaptive reference (:attr:`Simulation.energy_reference` says what they are measured
+        against); ``jacobian_defect`` reports |det ∂Φ/∂z − e^{−2γh}| per step.
+
+        ``section`` collects a Poincaré section of each run: the crossings of a surface S = 0
+        (an expression in the coordinates, momenta, parameters and ``t``, e.g. ``"y"``: crossed
+        upwards; or ``{"where": "y", "direction": "up" | "down" | "both", "max_points": N}``),
+        located to round-off, or the states of a stroboscopic section ``{"period": T,
+        "phase": φ}``; each run's points are :attr:`Run.section` and how it went
+        :attr:`Run.section_summary`. ``stop_when`` ends each run at an event, the ``count``-th
+        crossing of a surface (``{"where": "y", "direction": "up", "count": 3}``; a string is its
+        first crossing either way): its stop reason is then ``event`` and the crossings are
+        :attr:`Run.events`. ``energy`` starts on an energy level: ``{"value": E, "momentum":
+        "py"}`` (or ``(E, "py")``) replaces that initial momentum with the non-negative one for
+        which H(q0, p0) = E (the state used is :attr:`Simulation.system`).
 
         With ``stream`` (or through :meth:`stream`) the samples come over the NDJSON stream as
         they are computed, with a progress bar (tqdm, when installed and ``progress`` is true);
@@ -470,6 +548,12 @@ class Client:
             body["output"] = output
         _put(body, "compare_to_reference", compare_to_reference)
         _put(body, "jacobian_defect", jacobian_defect)
+        if section is not None:
+            body["section"] = _section(section)
+        if stop_when is not None:
+            body["stop_when"] = _stop_when(stop_when)
+        if energy is not None:
+            body["energy"] = _energy(energy)
         if not stream:
             return Simulation.from_json(self._json("simulate", body=body), body)
 
@@ -483,6 +567,8 @@ class Client:
                     bar.total(assembler.total_samples)
                 elif line["type"] == "samples":
                     bar.advance(assembler.samples_line(line))
+                elif line["type"] == "crossings":
+                    assembler.crossings_line(line)
                 elif line["type"] == "summary":
                     assembler.summary_line(line)
 

@@ -1,4 +1,5 @@
-"""A simulation's answer as numpy arrays: one :class:`Run` per method."""
+"""A simulation's answer as numpy arrays: one :class:`Run` per method, with its section's points
+and its event's crossings as :class:`Crossings`."""
 
 from __future__ import annotations
 
@@ -12,6 +13,8 @@ from ._lookup import pick
 from ._arrays import FloatArray
 from ._wire import (
     Columns,
+    CrossingColumns,
+    CrossingsLine,
     DivergedAt as DivergedAtDoc,
     DriftPoint,
     HeaderLine,
@@ -24,8 +27,10 @@ from ._wire import (
     SimulateRequest,
     SimulationDocument,
     Stats as StatsDoc,
+    SectionSummary as SectionSummaryDoc,
     Stop as StopDoc,
     SummaryLine,
+    SurfaceInfo,
     SystemSummary,
 )
 from .errors import ServerError
@@ -33,8 +38,10 @@ from .errors import ServerError
 
 @dataclass(frozen=True)
 class Stop:
-    """Why a run stopped: ``finished``, ``diverged``, ``cancelled``, ``time_limit`` or ``failed``
-    (with the step, the time and a message where the server gives them)."""
+    """Why a run stopped: ``finished``, ``diverged``, ``cancelled``, ``time_limit``, ``failed``
+    or ``event`` (the ``stop_when`` surface's ``count``-th crossing, at ``t``; the run's last
+    sample is the step ``step`` past it), with the step, the time and a message where the server
+    gives them."""
 
     reason: str
     step: Optional[int] = None
@@ -49,6 +56,8 @@ class Stop:
             return cls("diverged", doc["step"], doc["t"])
         if doc["reason"] == "failed":
             return cls("failed", doc["step"], doc["t"], doc["message"])
+        if doc["reason"] == "event":
+            return cls("event", doc["step"], doc["t"])
         return cls(doc["reason"], doc["step"])
 
 
@@ -117,6 +126,114 @@ def _optional_rows(values: Optional[List[List[float]]], width: int) -> Optional[
     return None if values is None else _arrays.rows(values, width)
 
 
+@dataclass(frozen=True)
+class Surface:
+    """A section or an event as the server resolved it (every default filled in).
+
+    A surface ``where`` = 0 has ``direction`` (``up``, ``down`` or ``both``); a section has
+    ``max_points``, an event ``count``; a stroboscopic section has ``period`` and ``phase``
+    instead of ``where`` and ``direction``. ``coordinates`` and ``momenta`` name the columns of
+    the points' ``q`` and ``p``.
+    """
+
+    coordinates: Tuple[str, ...]
+    momenta: Tuple[str, ...]
+    where: Optional[str] = None
+    direction: Optional[str] = None
+    max_points: Optional[int] = None
+    count: Optional[int] = None
+    period: Optional[float] = None
+    phase: Optional[float] = None
+
+    @classmethod
+    def from_json(cls, doc: Optional[SurfaceInfo]) -> Optional["Surface"]:
+        if doc is None:
+            return None
+        return cls(tuple(doc["coordinates"]), tuple(doc["momenta"]), doc.get("where"), doc.get("direction"),
+                   doc.get("max_points"), doc.get("count"), doc.get("period"), doc.get("phase"))
+
+
+@dataclass(frozen=True)
+class SectionSummary:
+    """How a run's section went: ``points`` located; ``truncated`` when crossings after
+    ``max_points`` went uncollected; ``surface_range``, the least and greatest value of S over
+    the run's steps (surfaces given as expressions); ``unlocated``, crossings seen whose point
+    could not be located (tangent to the surface within round-off); ``note``, why there are no
+    points when there are none."""
+
+    points: int
+    truncated: bool
+    surface_range: Optional[Tuple[float, float]] = None
+    unlocated: Optional[int] = None
+    note: Optional[str] = None
+
+    @classmethod
+    def from_json(cls, doc: Optional[SectionSummaryDoc]) -> Optional["SectionSummary"]:
+        if doc is None:
+            return None
+        bounds = doc.get("surface_range")
+        surface_range = None if bounds is None else (float(bounds[0]), float(bounds[1]))
+        return cls(doc["points"], doc["truncated"], surface_range, doc.get("unlocated"), doc.get("note"))
+
+
+@dataclass(frozen=True, eq=False)
+class Crossings:
+    """Located crossings of a surface, as numpy arrays (float64, the server's bits): a run's
+    Poincaré section, or the crossings of its ``stop_when`` surface.
+
+    ``t`` and ``energy`` (H at each point) have one entry per point; ``q`` and ``p`` are
+    (points, degrees of freedom), located on the surface to round-off; ``cartesian_q`` comes
+    with a non-Cartesian chart.
+    """
+
+    t: FloatArray
+    q: FloatArray
+    p: FloatArray
+    energy: FloatArray
+    cartesian_q: Optional[FloatArray] = None
+
+    @classmethod
+    def from_json(cls, doc: CrossingColumns, dof: int) -> "Crossings":
+        cartesian = doc.get("cartesian_q")
+        return cls(
+            t=_arrays.floats(doc["t"]),
+            q=_arrays.rows(doc["q"], dof),
+            p=_arrays.rows(doc["p"], dof),
+            energy=_arrays.floats(doc["energy"]),
+            cartesian_q=_optional_rows(cartesian, len(cartesian[0]) if cartesian else 0),
+        )
+
+    @classmethod
+    def optional(cls, doc: Optional[CrossingColumns], dof: int) -> Optional["Crossings"]:
+        return None if doc is None else cls.from_json(doc, dof)
+
+    @property
+    def points(self) -> int:
+        """The number of points."""
+        return int(self.t.shape[0])
+
+    def __len__(self) -> int:
+        return self.points
+
+    def columns(self) -> Dict[str, FloatArray]:
+        """Every column, flat: ``t``, ``q0``…, ``p0``…, ``energy``, ``cartesian_q0``…."""
+        out: Dict[str, FloatArray] = {"t": self.t}
+        for i in range(self.q.shape[1]):
+            out[f"q{i}"] = self.q[:, i]
+        for i in range(self.p.shape[1]):
+            out[f"p{i}"] = self.p[:, i]
+        out["energy"] = self.energy
+        if self.cartesian_q is not None:
+            for i in range(self.cartesian_q.shape[1]):
+                out[f"cartesian_q{i}"] = self.cartesian_q[:, i]
+        return out
+
+    def to_pandas(self) -> Any:
+        """The points as a pandas DataFrame, one row per point (see :meth:`columns`)."""
+        pd = _optional.pandas()
+        return pd.DataFrame(self.columns())
+
+
 def _optional_floats(values: Optional[List[Optional[float]]]) -> Optional[FloatArray]:
     return None if values is None else _arrays.floats(values)
 
@@ -127,10 +244,15 @@ class Run:
 
     ``t``, ``energy`` and ``energy_error`` have one entry per sample; ``q`` and ``p`` are
     (samples, degrees of freedom); ``invariants`` maps each invariant's name to its values.
-    ``energy_error`` is ``None`` unless measured (an exact solution, or ``compare_to_reference``);
-    ``cartesian_q``/``cartesian_p`` come with a non-Cartesian chart, ``bodies`` with a defined
-    system (per sample, every body's position one after the other), ``jacobian_defect`` when asked
-    for, ``dissipation_drift`` (``t``, ``d``) for 1-DOF conformally damped systems.
+    ``energy_error`` is ``None`` unless measured (against what:
+    :attr:`Simulation.energy_reference`); ``cartesian_q``/``cartesian_p`` come with a
+    non-Cartesian chart, ``bodies`` with a defined system (per sample, every body's position one
+    after the other), ``jacobian_defect`` when asked for, ``dissipation_drift`` (``t``, ``d``)
+    for 1-DOF conformally damped systems.
+
+    With a ``section``, ``section`` holds the run's section points (:class:`Crossings`) and
+    ``section_summary`` how the section went; with ``stop_when``, ``events`` holds the crossings
+    of its surface, the last of which ended the run (``stop.reason == "event"``).
     """
 
     method: str
@@ -148,6 +270,9 @@ class Run:
     jacobian_defect: Optional[FloatArray] = None
     dissipation_drift: Optional[Tuple[FloatArray, FloatArray]] = None
     diverged_at: Optional[DivergedAt] = None
+    section: Optional[Crossings] = None
+    section_summary: Optional[SectionSummary] = None
+    events: Optional[Crossings] = None
 
     @property
     def samples(self) -> int:
@@ -164,6 +289,9 @@ class Run:
         stats: Optional[Stats],
         drift: Optional[List[DriftPoint]],
         diverged_at: Optional[DivergedAt],
+        section: Optional[CrossingColumns] = None,
+        section_summary: Optional[SectionSummary] = None,
+        events: Optional[CrossingColumns] = None,
     ) -> "Run":
         cartesian = columns.get("cartesian_q")
         cartesian_width = len(cartesian[0]) if cartesian else 0
@@ -186,15 +314,27 @@ class Run:
                 _arrays.floats([d["t"] for d in drift]), _arrays.floats([d["d"] for d in drift])
             ),
             diverged_at=diverged_at,
+            section=Crossings.optional(section, dof),
+            section_summary=section_summary,
+            events=Crossings.optional(events, dof),
         )
 
     @classmethod
-    def from_outcome(cls, method: str, columns: Columns, outcome: RunOutcome, dof: int) -> "Run":
+    def from_outcome(
+        cls,
+        method: str,
+        columns: Columns,
+        outcome: RunOutcome,
+        dof: int,
+        section: Optional[CrossingColumns] = None,
+        events: Optional[CrossingColumns] = None,
+    ) -> "Run":
         """A run from its samples and how it ended (a JSON answer's run, or a stream's chunks
-        and summary)."""
+        and summary), with its section's points and its event's crossings when it has them."""
         return cls._from_columns(
             method, columns, dof, Stop.from_json(outcome["stop"]), Stats.from_json(outcome["stats"]),
             outcome.get("dissipation_drift"), DivergedAt.from_json(outcome.get("diverged_at")),
+            section, SectionSummary.from_json(outcome.get("section_summary")), events,
         )
 
     @classmethod
@@ -230,20 +370,33 @@ class Run:
 @dataclass(frozen=True, eq=False)
 class Simulation:
     """The answer to a simulation: the system as run, the schedule and one :class:`Run` per
-    method in the order asked. Index it by position or by the method's label."""
+    method in the order asked. Index it by position or by the method's label.
+
+    ``energy_reference`` says what the runs' ``energy_error`` is measured against: ``exact``
+    (the exact solution), ``initial`` (H₀: nothing damps or drives the system, so its exact
+    flow keeps H) or ``reference`` (the adaptive reference run); ``None`` when there is none.
+    ``section`` and ``stop_when`` are the request's section and event as the server resolved
+    them (:class:`Surface`), ``None`` when not asked for.
+    """
 
     system: SystemState
     schedule: Schedule
     invariants: Tuple[str, ...]
     runs: Tuple[Run, ...]
     request: Optional[SimulateRequest] = field(default=None, repr=False)
+    energy_reference: Optional[str] = None
+    section: Optional[Surface] = None
+    stop_when: Optional[Surface] = None
 
     @classmethod
     def from_json(cls, doc: SimulationDocument, request: Optional[SimulateRequest] = None) -> "Simulation":
         """The simulation of a simulation's JSON answer."""
         system = SystemState.from_json(doc["system"])
-        runs = tuple(Run.from_outcome(r["method"], r, r, system.dof) for r in doc["runs"])
-        return cls(system, Schedule.from_json(doc["schedule"]), tuple(doc["invariants"]), runs, request)
+        runs = tuple(Run.from_outcome(r["method"], r, r, system.dof, r.get("section"), r.get("events"))
+                     for r in doc["runs"])
+        return cls(system, Schedule.from_json(doc["schedule"]), tuple(doc["invariants"]), runs, request,
+                   energy_reference=doc.get("energy_reference"), section=Surface.from_json(doc.get("section")),
+                   stop_when=Surface.from_json(doc.get("stop_when")))
 
     @classmethod
     def from_recorded(cls, doc: RecordedDocument) -> "Simulation":
@@ -277,7 +430,8 @@ class Simulation:
         """The runs as an xarray Dataset with dimensions ``run`` (the methods' labels), ``t`` and
         ``dof`` (and ``invariant``): ``q``, ``p``, ``energy``, ``energy_error``, ``invariants``,
         ``cartesian_q``, ``cartesian_p``; ``ds.sel(run="heun")`` picks a method. A run that
-        stopped early is NaN past its last sample.
+        stopped early is NaN past its last sample. Section points are not samples: they stay in
+        each run's :attr:`Run.section` (``run.section.to_pandas()``).
         Runs whose sample times differ (which one request does not produce) are laid along a
         ``sample`` dimension with ``t`` as a variable instead."""
         xr = _optional.xarray()
@@ -326,6 +480,8 @@ class Simulation:
             coords["invariant"] = list(self.invariants)
         attrs = {"system": self.system.id, "chart": self.system.chart, "h": self.schedule.h,
                  "t_end": self.schedule.t_end, "every": self.schedule.every}
+        if self.energy_reference is not None:
+            attrs["energy_reference"] = self.energy_reference
         return xr.Dataset(data, coords=coords, attrs=attrs)
 
 
@@ -336,6 +492,8 @@ class StreamAssembler:
         self.request = request
         self.header: Optional[HeaderLine] = None
         self._columns: List[Dict[str, Any]] = []
+        # Per method, the crossings of each surface the header announced ("section", "stop_when").
+        self._crossings: List[Dict[str, Dict[str, Any]]] = []
         self._summaries: Dict[int, SummaryLine] = {}
 
     @property
@@ -350,6 +508,10 @@ class StreamAssembler:
         self._columns = [
             {"t": [], "q": [], "p": [], "energy": [], "invariants": {k: [] for k in line["invariants"]}}
             for _ in line["methods"]
+        ]
+        surfaces = [name for name in ("section", "stop_when") if line.get(name) is not None]
+        self._crossings = [
+            {name: {"t": [], "q": [], "p": [], "energy": []} for name in surfaces} for _ in line["methods"]
         ]
 
     def samples_line(self, line: SamplesLine) -> int:
@@ -368,6 +530,22 @@ class StreamAssembler:
             columns["invariants"].setdefault(name, []).extend(values)
         return len(line["t"])
 
+    def crossings_line(self, line: CrossingsLine) -> None:
+        """Adds a chunk of crossings of the section or the event's surface."""
+        surface = line["surface"]
+        columns = self._crossings[line["method"]].get(surface)
+        if columns is None:
+            raise ServerError("stream_order", f"method {line['method']}: crossings of {surface}, "
+                              "which the header did not announce")
+        have = len(columns["t"])
+        if line["offset"] != have:
+            raise ServerError("stream_order", f"method {line['method']}: {surface} crossings from point "
+                              f"{line['offset']} after {have} points")
+        for key in ("t", "q", "p", "energy", "cartesian_q"):
+            values = line.get(key)
+            if values is not None:
+                columns.setdefault(key, []).extend(values)
+
     def summary_line(self, line: SummaryLine) -> None:
         self._summaries[line["method"]] = line
 
@@ -382,6 +560,11 @@ class StreamAssembler:
             if summary is None:
                 raise ServerError("stream_cut", f"the stream had no summary for {label}")
             columns: Columns = self._columns[i]  # type: ignore[assignment]
-            runs.append(Run.from_outcome(summary["label"], columns, summary, system.dof))
+            crossings: Dict[str, CrossingColumns] = self._crossings[i]  # type: ignore[assignment]
+            runs.append(Run.from_outcome(summary["label"], columns, summary, system.dof,
+                                         crossings.get("section"), crossings.get("stop_when")))
         return Simulation(system, Schedule.from_json(self.header["schedule"]),
-                          tuple(self.header["invariants"]), tuple(runs), self.request)
+                          tuple(self.header["invariants"]), tuple(runs), self.request,
+                          energy_reference=self.header.get("energy_reference"),
+                          section=Surface.from_json(self.header.get("section")),
+                          stop_when=Surface.from_json(self.header.get("stop_when")))

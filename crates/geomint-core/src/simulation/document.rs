@@ -9,6 +9,7 @@ use std::collections::BTreeMap;
 use serde::Serialize;
 
 use super::crossings::{CrossingColumns, SurfaceInfo};
+use super::spec::EnergyReference;
 use super::run::{Sample, SampleSink};
 use super::spec::Simulation;
 use crate::diagnostics::DriftPoint;
@@ -356,6 +357,9 @@ pub struct RunDocument {
 pub struct SimulationDocument {
     /// The system, parameters resolved.
     pub system: SystemSummary,
+    /// What the runs' `energy_error` is measured against (see the stream's header).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub energy_reference: Option<EnergyReference>,
     /// The sampling.
     pub schedule: ScheduleSummary,
     /// Names of the invariants in each run's `invariants`.

@@ -23,6 +23,7 @@ pub use document::{
 };
 pub use run::{for_each_method, Outcome, Sample, SampleSink};
 pub use spec::{
+    EnergyReference,
     InitialCoordinates, InputFields, Limits, MethodAt, Simulation, SimulationSpec, MAX_METHODS,
 };
 pub use crossings::{CrossingColumns, SurfaceInfo, Watching};

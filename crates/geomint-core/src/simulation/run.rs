@@ -10,7 +10,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use nalgebra::allocator::Allocator;
 use nalgebra::DefaultAllocator;
 
-use super::spec::Simulation;
+use super::spec::{EnergyReference, Simulation};
 use crate::error::{CoreError, Field};
 use crate::methods::{self, Method, MethodId};
 use crate::run::{integrate, Budget, Observer, RunStats, StopReason};
@@ -120,6 +120,8 @@ impl Simulation {
                 expected_det: (-sys.damping_rate() * self.schedule.h * n as f64).exp(),
                 last_det: None,
                 sample_index: 0,
+                initial_energy: (self.energy_reference() == Some(EnergyReference::Initial))
+                    .then(|| sys.energy(&start.q, &start.p)),
             };
             let track = self.jacobian_defect && method.no_step_jacobian().is_none();
             let (stop, stats) = with_stepper!(&mut stepper, st => integrate(
@@ -198,6 +200,8 @@ where
     expected_det: f64,
     last_det: Option<f64>,
     sample_index: usize,
+    /// H at the start, when energy errors are measured against it.
+    initial_energy: Option<f64>,
 }
 
 impl<S: MechanicalSystem> Observer<S::Dim> for Diagnose<'_, S>
@@ -206,9 +210,10 @@ where
 {
     fn on_sample(&mut self, step: u64, t: f64, z: &State<S::Dim>) {
         let energy = self.sys.energy(&z.q, &z.p);
-        let energy_error = match self.reference {
-            Some(r) => r.get(self.sample_index).map(|e| energy - e),
-            None => self
+        let energy_error = match (self.reference, self.initial_energy) {
+            (Some(r), _) => r.get(self.sample_index).map(|e| energy - e),
+            (None, Some(e0)) => Some(energy - e0),
+            (None, None) => self
                 .sys
                 .exact(t, self.start)
                 .map(|x| energy - self.sys.energy(&x.q, &x.p)),

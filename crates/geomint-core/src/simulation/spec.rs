@@ -45,6 +45,19 @@ pub enum InitialCoordinates {
     Cartesian,
 }
 
+/// What the energy error of a sample is measured against.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+#[serde(rename_all = "snake_case")]
+pub enum EnergyReference {
+    /// H at the same time on the exact solution.
+    Exact,
+    /// H₀, the energy at the start: the exact flow keeps it when nothing is damped (eq. 50).
+    Initial,
+    /// H at the same time on a reference run (the adaptive DOP853).
+    Reference,
+}
+
 /// Most methods in one simulation.
 pub const MAX_METHODS: usize = 16;
 
@@ -362,9 +375,27 @@ impl Simulation {
         &self.world
     }
 
-    /// Whether energy errors are available (an exact solution, or the reference when asked).
+    /// What the runs' energy errors are measured against: the reference run when asked for,
+    /// else the exact solution where the system has one, else H₀ when nothing damps or drives
+    /// the system (its exact flow keeps H); none for a damped or driven system without either.
+    pub fn energy_reference(&self) -> Option<EnergyReference> {
+        let (rate, driven) =
+            with_system!(&self.system, s => (s.damping_rate(), s.clock().is_some()));
+        let damped = rate != 0.0;
+        if self.compare_to_reference {
+            Some(EnergyReference::Reference)
+        } else if self.info.exact_solution {
+            Some(EnergyReference::Exact)
+        } else if !damped && !driven {
+            Some(EnergyReference::Initial)
+        } else {
+            None
+        }
+    }
+
+    /// Whether energy errors are available.
     pub fn has_energy_error(&self) -> bool {
-        self.compare_to_reference || self.info.exact_solution
+        self.energy_reference().is_some()
     }
 
     /// Names of the system's invariants.

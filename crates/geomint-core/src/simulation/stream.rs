@@ -24,7 +24,7 @@ use super::document::{
 };
 use super::crossings::{CrossingColumns, CrossingsChunk, SurfaceInfo, SurfaceName};
 use super::run::{for_each_method, Sample, SampleSink};
-use super::spec::Simulation;
+use super::spec::{EnergyReference, Simulation};
 use crate::diagnostics::{self, DriftPoint};
 use crate::error::{CoreError, ErrorCode, ErrorDetail};
 use crate::run::{Budget, RunStats};
@@ -67,6 +67,11 @@ pub struct StreamHeader {
     /// Whether chunks carry `energy_error` (they do not when a reference run asked for stopped at
     /// the time limit: the runs then stop at their first sample).
     pub energy_error: bool,
+    /// What `energy_error` is measured against: `exact` (the exact solution), `reference` (the
+    /// reference run), `initial` (H₀: nothing damps or drives the system, so its exact flow
+    /// keeps H); absent when there is none.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub energy_reference: Option<EnergyReference>,
     /// Whether chunks carry `jacobian_defect`.
     pub jacobian_defect: bool,
     /// The sampling.
@@ -228,6 +233,7 @@ impl Simulation {
                 .map(|s| s.to_string())
                 .collect(),
             energy_error: self.has_energy_error(),
+            energy_reference: self.energy_reference(),
             jacobian_defect: self.jacobian_defect,
             schedule: ScheduleSummary::of(self),
             section: self.section_info(),
@@ -439,6 +445,7 @@ impl DocumentCollector {
             .collect::<Result<_, ErrorDetail>>()?;
         Ok(SimulationDocument {
             system: header.system,
+            energy_reference: header.energy_reference,
             schedule: header.schedule,
             invariants: header.invariants,
             runs,

@@ -11,18 +11,7 @@ use crate::simulation::{Outcome, Sample, SampleSink};
 /// the energy-error map).
 pub const DIVERGENCE: f64 = 100.0;
 
-/// What the energy error of a sample is measured against.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
-#[serde(rename_all = "snake_case")]
-pub enum EnergyReference {
-    /// H at the same time on the exact solution.
-    Exact,
-    /// H₀, the energy at the start: the exact flow keeps it when nothing is damped (eq. 50).
-    Initial,
-    /// H at the same time on a reference run (adaptive DOP853 at tolerance 1e-13).
-    Reference,
-}
+pub use crate::simulation::EnergyReference;
 
 /// What one run of one cell measured. A run that diverged reports its time of divergence, its
 /// steps and its last finite state, and no error figures; a run that could not start (its
