@@ -3,7 +3,10 @@
 # geomint: build the release binary, then run it in a slim image as an unprivileged user.
 #   docker build -t geomint .
 #   docker run --rm -p 8080:8080 geomint
-# Settings come from GEOMINT_* environment variables (see `geomint --help`).
+# Settings come from GEOMINT_* environment variables (see `geomint --help`). The default command
+# lets anyone who reaches the port do everything, as on a single user's machine; a shared
+# deployment mounts a tokens file and runs e.g. `serve --addr 0.0.0.0:8080 --tokens /data/tokens`
+# (README, "Security").
 
 # The page's browser libraries (uPlot, the Rerun web viewer) from npm into static/vendor/.
 FROM node:20-bookworm-slim AS page
@@ -42,4 +45,4 @@ STOPSIGNAL SIGTERM
 HEALTHCHECK --interval=30s --timeout=3s --start-period=5s \
     CMD ["bash", "-c", "exec 3<>/dev/tcp/127.0.0.1/8080 && printf 'GET /healthz HTTP/1.0\\r\\nHost: localhost\\r\\n\\r\\n' >&3 && head -n 1 <&3 | grep -q ' 200 '"]
 ENTRYPOINT ["geomint"]
-CMD ["serve", "--addr", "0.0.0.0:8080"]
+CMD ["serve", "--addr", "0.0.0.0:8080", "--anonymous", "all"]

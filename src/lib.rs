@@ -8,6 +8,8 @@
 //! - [`core`]: the integrator core — systems, exact sub-flows, methods, the driver, simulations
 //!   and studies as pure computations from typed specs to typed results, typed errors. No HTTP,
 //!   no files, no async.
+//! - [`access`]: who may do what: tokens, scopes, quotas, the policy for clients without a
+//!   token.
 //! - [`api`]: the wire layer — requests read strictly into the core's specs, the NDJSON
 //!   encoding of the lines the core streams.
 //! - [`recording`]: Rerun recordings (`.rrd`) of the core's results.
@@ -17,6 +19,7 @@
 //! - [`cli`]: the command line.
 #![warn(missing_docs)]
 
+pub mod access;
 pub mod api;
 pub mod cli;
 pub mod executor;

@@ -20,7 +20,14 @@
 //!   purged from the stream: no worker starts them.
 //! - A lost NATS server fails the study after [`DISCONNECTED_GRACE`] with a clear error rather
 //!   than waiting for the time limit.
+//! - A poison shard (one that panics or kills its worker) is delivered at most `max_deliver`
+//!   times, then fails its study ([`poison`]).
+//! - Connections take NATS credentials and TLS ([`options`]).
 
+pub mod options;
+pub mod poison;
+
+use std::collections::HashMap;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -103,9 +110,14 @@ impl Queue {
     /// Connects (failing at once, not retrying, when no server answers) and creates the stream
     /// and the workers' consumer if they do not exist. `ack_wait` applies when this call creates
     /// the consumer.
-    pub async fn connect(url: &str, ack_wait: Duration) -> Result<Queue, String> {
-        let client = async_nats::ConnectOptions::new()
-            .connection_timeout(Duration::from_secs(5))
+    pub async fn connect(
+        url: &str,
+        ack_wait: Duration,
+        options: &options::NatsOptions,
+    ) -> Result<Queue, String> {
+        let client = options
+            .connect_options()
+            .await?
             .connect(url)
             .await
             .map_err(|e| failed("cannot connect", url, e))?;
@@ -127,11 +139,33 @@ impl Queue {
                     durable_name: Some(CONSUMER.into()),
                     ack_policy: jetstream::consumer::AckPolicy::Explicit,
                     ack_wait,
+                    max_deliver: options.max_deliver,
                     ..Default::default()
                 },
             )
             .await
             .map_err(|e| failed("cannot create the workers' consumer", url, e))?;
+        // A consumer made before deliveries were bounded redelivers a poison shard for ever.
+        let consumer: jetstream::consumer::PullConsumer = stream
+            .get_consumer(CONSUMER)
+            .await
+            .map_err(|e| failed("cannot find the workers' consumer", url, e))?;
+        let config = consumer.cached_info().config.clone();
+        if config.max_deliver <= 0 {
+            let bounded = jetstream::consumer::Config {
+                max_deliver: options.max_deliver,
+                ..config
+            };
+            // Creating a durable consumer that exists with a compatible configuration updates it.
+            stream
+                .create_consumer(bounded)
+                .await
+                .map_err(|e| failed("cannot bound the workers' consumer's deliveries", url, e))?;
+            tracing::info!(
+                max_deliver = options.max_deliver,
+                "bounded the deliveries of the workers' consumer"
+            );
+        }
         Ok(Queue {
             client,
             jetstream,
@@ -182,7 +216,8 @@ impl Executor for Queue {
 /// parts, calls `done` for each cell of a part as it arrives, and returns every cell's result in
 /// order. Stops (purging what no worker has started) when the budget says so: at the deadline
 /// with the cells of the parts received so far (`None` for the others), on cancellation with an
-/// error. Fails when the NATS server is gone for [`DISCONNECTED_GRACE`].
+/// error. Fails when the NATS server is gone for [`DISCONNECTED_GRACE`], and when a shard was
+/// delivered `max_deliver` times without a part ([`poison`]).
 async fn run<S: Study>(
     queue: &Queue,
     spec: StudySpec,
@@ -196,11 +231,19 @@ async fn run<S: Study>(
     };
     let id = uuid::Uuid::new_v4().simple().to_string();
     let tasks = format!("{TASKS}.{id}");
-    let mut parts_in = queue
+    let parts_only = queue
         .client
         .subscribe(format!("{PARTS}.{id}"))
         .await
         .map_err(|e| lost("cannot subscribe to the parts", &e))?;
+    // A shard delivered max_deliver times without an answer fails the study.
+    let advisories = queue
+        .client
+        .subscribe(poison::advisory())
+        .await
+        .map_err(|e| lost("cannot subscribe to the advisories", &e))?;
+    let mut parts_in = futures_util::stream::select(parts_only, advisories);
+    let mut sequences: HashMap<u64, usize> = HashMap::new();
     // A cell's size in a part, as the spec's size per cell, at least 400 bytes (a sweep's runs
     // carry their final states).
     let spec_bytes = serde_json::to_vec(&spec).map_or(0, |b| b.len());
@@ -215,13 +258,14 @@ async fn run<S: Study>(
             shards: count,
         };
         let payload = serde_json::to_vec(&task).map_err(|e| lost("cannot encode a task", &e))?;
-        queue
+        let stored = queue
             .jetstream
             .publish(tasks.clone(), payload.into())
             .await
             .map_err(|e| lost("cannot queue a shard", &e))?
             .await
             .map_err(|e| lost("the stream did not take a shard", &e))?;
+        sequences.insert(stored.sequence, index);
     }
 
     let purge = || async {
@@ -275,6 +319,16 @@ async fn run<S: Study>(
             Ok(None) => return Err(lost("the subscription to the parts ended", &"closed")),
             Ok(Some(message)) => message,
         };
+        // A shard whose part came after all (from a slow worker) is done, whatever its copies did.
+        if let Some((shard, error)) = poison::exhausted(name, &message, &sequences) {
+            if parts.get(shard).is_some_and(Option::is_none) {
+                purge().await;
+                return Err(error);
+            }
+        }
+        if message.subject.starts_with(poison::ADVISORY) {
+            continue;
+        }
         match serde_json::from_slice::<Reply<Part<S::Cell>>>(&message.payload) {
             Ok(Reply::Part(part)) if part.shard < count && part.shards == count => {
                 // A redelivered shard may arrive twice: the first copy counts.
@@ -369,7 +423,12 @@ async fn run_one(
     let max_payload = queue.client.server_info().max_payload;
     let reply = tokio::task::spawn_blocking(move || run_task(&payload, &limits, max_payload)).await;
     keepalive.abort();
-    let (study, reply) = reply.map_err(|e| format!("a shard panicked: {e}"))?;
+    let (study, reply) = match reply {
+        Ok(done) => done,
+        Err(panic) => {
+            return poisoned(queue, &message, consumer, poison::panic_message(panic)).await
+        }
+    };
     if let Some(study) = study {
         let bytes = serde_json::to_vec(&reply).map_err(|e| e.to_string())?;
         queue
@@ -390,12 +449,51 @@ async fn run_one(
         .map_err(|e| failed("cannot acknowledge a shard", &queue.url, e))
 }
 
+/// A shard whose run panicked: given back at once for another attempt, or, on its last
+/// delivery, failed (the study's server told why) and terminated.
+async fn poisoned(
+    queue: &Queue,
+    message: &jetstream::Message,
+    consumer: &jetstream::consumer::PullConsumer,
+    panic: String,
+) -> Result<(), String> {
+    let delivered = message.info().map(|i| i.delivered).unwrap_or(1);
+    let max_deliver = consumer.cached_info().config.max_deliver;
+    tracing::error!(delivered, max_deliver, %panic, "a shard panicked");
+    let task: Option<Task> = serde_json::from_slice(&message.payload).ok();
+    if max_deliver <= 0 || delivered < max_deliver {
+        return message
+            .ack_with(AckKind::Nak(None))
+            .await
+            .map_err(|e| failed("cannot give back a shard", &queue.url, e));
+    }
+    if let Some(task) = task {
+        let reply: Reply<AnyPart> = Reply::Failed {
+            shard: task.shard,
+            message: format!(
+                "it panicked on each of its {delivered} deliveries (max_deliver): {panic}"
+            ),
+        };
+        let bytes = serde_json::to_vec(&reply).map_err(|e| e.to_string())?;
+        queue
+            .client
+            .publish(format!("{PARTS}.{}", task.study), bytes.into())
+            .await
+            .map_err(|e| failed("cannot publish a failure", &queue.url, e))?;
+    }
+    message
+        .ack_with(AckKind::Term)
+        .await
+        .map_err(|e| failed("cannot terminate a shard", &queue.url, e))
+}
+
 /// Runs one task: its study (if the task could be read) and the reply.
 fn run_task(
     payload: &[u8],
     limits: &Limits,
     max_payload: usize,
 ) -> (Option<String>, Reply<AnyPart>) {
+    poison::test_fault(payload);
     let task: Task = match serde_json::from_slice(payload) {
         Ok(task) => task,
         Err(e) => {

@@ -11,6 +11,15 @@ A Python type is checked against a JSON schema in one of two directions:
   (a required key) is one the schema requires, ``null`` only where the client expects ``None``,
   and each branch of the schema's union is read by some branch of the client's type.
 
+An ``allOf`` is the intersection of its parts: a member two parts declare takes both schemas
+(``{"where": {"not": {"type": "null"}}}`` narrows a nullable ``where`` to a string), and an
+``anyOf``/``oneOf`` part without a type or properties of its own splits the object into its
+alternatives (which members must come, or must not come, together). ``not`` is understood in the
+two forms such constraints use, ``{"not": {"type": T}}`` (any type but T) and ``{"not":
+{"properties": {k: {"not": {"type": "null"}}}, "required": [k]}}`` (``k`` absent or null); any
+other ``not`` is refused rather than skipped. A ``oneOf``/``anyOf`` beside the object's own type
+or properties (``method`` or ``methods``), or a ``not`` there, is not expanded.
+
 The functions return problems as strings naming the place (``SimulateRequest.methods[]``), so
 a failing test lists every drift at once.
 """
@@ -26,6 +35,7 @@ Schema = Dict[str, Any]
 NoneType = type(None)
 
 JSON_TYPES = {bool: "boolean", int: "integer", float: "number", str: "string"}
+ALL_TYPES = frozenset({"null", "boolean", "integer", "number", "string", "array", "object"})
 
 
 @dataclass
@@ -39,20 +49,34 @@ class Shape:
     items: Schema | None = None
     additional: Schema | None = None
     enum: list | None = None
+    # No value has this shape (the parts of an allOf disagree on the type).
+    impossible: bool = False
 
     def merge(self, other: "Shape") -> "Shape":
-        types_ = self.types & other.types if self.types and other.types else self.types | other.types
+        """The values of both shapes (an ``allOf`` of the two)."""
+        mine = self.types - {"any"}
+        theirs = other.types - {"any"}
+        if mine and theirs:
+            types_ = mine & theirs
+            impossible = not types_
+        else:
+            types_ = mine | theirs or (self.types | other.types)
+            impossible = False
         enum = self.enum if other.enum is None else other.enum if self.enum is None else [
             v for v in self.enum if v in other.enum
         ]
+        properties = dict(self.properties)
+        for key, schema in other.properties.items():
+            properties[key] = {"allOf": [properties[key], schema]} if key in properties else schema
         return Shape(
             types=types_,
-            properties={**self.properties, **other.properties},
+            properties=properties,
             required=self.required | other.required,
             closed=self.closed or other.closed,
             items=other.items or self.items,
             additional=other.additional or self.additional,
             enum=enum,
+            impossible=impossible or self.impossible or other.impossible or enum == [],
         )
 
 
@@ -99,6 +123,10 @@ class Document:
             base.enum = [schema["const"]]
             base.types = base.types or {_json_type(schema["const"])}
         alternatives = [base]
+        # A "not" beside a type or properties, like a oneOf there, only constrains which members
+        # come together; elsewhere (an allOf's part, an anyOf's branch) it is a shape's own.
+        if "not" in schema and not is_object_like:
+            alternatives = [base.merge(n) for n in self.negation(schema["not"])]
         for part in schema.get("allOf", []):
             alternatives = [a.merge(b) for a in alternatives for b in self.shapes(part)]
         # oneOf/anyOf beside a type or properties only constrain which members come together.
@@ -110,7 +138,29 @@ class Document:
                     for a in alternatives:
                         merged.append(a.merge(b) if (a.types or a.properties) else b)
             alternatives = merged
-        return alternatives
+        return [a for a in alternatives if not a.impossible and not self._required_never(a)]
+
+    def _required_never(self, shape: Shape) -> bool:
+        """Whether a member ``shape`` requires can take no value (a contradiction in allOf)."""
+        return any(key in shape.properties and not self.shapes(shape.properties[key])
+                   for key in shape.required)
+
+    def negation(self, schema: Schema) -> List[Shape]:
+        """The alternatives ``{"not": schema}`` takes, in the forms the document's constraints
+        use: not a type; not (``k`` present and not null), that is ``k`` absent or null; and not
+        an allOf of those (one of them absent or null)."""
+        schema = self.deref(schema)
+        if set(schema) == {"type"}:
+            t = schema["type"]
+            excluded = set(t) if isinstance(t, list) else {t}
+            return [Shape(types=set(ALL_TYPES - excluded))]
+        if set(schema) == {"properties", "required"} and len(schema["required"]) == 1:
+            (key,) = schema["required"]
+            if schema["properties"] == {key: {"not": {"type": "null"}}}:
+                return [Shape(properties={key: {"type": "null"}})]
+        if set(schema) == {"allOf"}:
+            return [n for part in schema["allOf"] for n in self.negation(part)]
+        raise ValueError(f"the checker does not understand {{'not': {schema!r}}}")
 
 
 def _json_type(value: Any) -> str:
@@ -172,6 +222,7 @@ def _without_null(shape: Shape) -> Shape:
         items=shape.items,
         additional=shape.additional,
         enum=None if shape.enum is None else [v for v in shape.enum if v is not None],
+        impossible=shape.impossible,
     )
 
 

@@ -120,6 +120,44 @@ class _Answer(TypedDict):
     stop: Literal["finished"]
 
 
+class _StopWhenAnything(TypedDict, total=False):
+    where: str
+    megno_mean: float
+
+
+class _DirectionWithoutWhere(TypedDict):
+    megno: float
+    direction: Literal["up"]
+
+
+class _NullWhere(TypedDict):
+    where: Optional[str]
+
+
+def test_the_checker_reads_member_constraints(doc: Document) -> None:
+    """StopWhenRequest's allOf of anyOf clauses: at least one of `where` and the thresholds,
+    non-null; `direction` and `count` only beside `where`."""
+    ref = {"$ref": "#/components/schemas/StopWhenRequest"}
+    empty = check(doc, _StopWhenAnything, ref, "request", "StopWhen")
+    assert any("the schema requires it, the client may leave it out" in p for p in empty), empty
+    lonely = check(doc, _DirectionWithoutWhere, ref, "request", "StopWhen")
+    # Fits no alternative: with `where` it lacks `where`, without it `direction` must be null.
+    assert lonely == ["StopWhen.where: the schema requires it, the client may leave it out"], lonely
+    alternatives = doc.shapes(ref)
+    without_where = [a for a in alternatives if "where" not in a.required]
+    assert without_where and len(without_where) < len(alternatives)
+    for a in without_where:
+        for member in ("direction", "count"):
+            assert {t for s in doc.shapes(a.properties[member]) for t in s.types} == {"null"}, (member, a)
+    null = check(doc, _NullWhere, ref, "request", "StopWhen")
+    assert any("StopWhen.where: the client may send null" in p for p in null), null
+    assert check(doc, _wire.StopWhenEvent, ref, "request", "StopWhen") == []
+    assert check(doc, _wire.StopWhenRequest, ref, "request", "StopWhen") == []
+    # A shape the checker cannot read is an error, not a pass.
+    with pytest.raises(ValueError, match="does not understand"):
+        doc.shapes({"not": {"enum": ["up"]}})
+
+
 def test_the_checker_reports_drift(doc: Document) -> None:
     ref = lambda name: {"$ref": f"#/components/schemas/{name}"}  # noqa: E731
     drift = check(doc, _Drifted, ref("SystemDefinition"), "request", "SystemDefinition")

@@ -2,7 +2,8 @@
 //! simulation written as JSON, NDJSON or a Rerun recording, optionally streamed live to a Rerun
 //! viewer; [`run`](mod@run)), `geomint study KIND spec.json` (a work–precision or convergence study, or an
 //! energy-error map, as JSON or `.rrd`; [`study`]), and `geomint systems` / `geomint methods`
-//! (the catalogues). Every server setting can also come from a `GEOMINT_*` environment variable.
+//! (the catalogues), `geomint token NAME` (a bearer token's secret and its line of the tokens
+//! file; [`token`]). Every server setting can also come from a `GEOMINT_*` environment variable.
 //!
 //! Exit codes: 0 on success, 2 for a bad command line, an unreadable spec or an invalid one
 //! (the message names the field), 1 when output cannot be written, the Rerun viewer cannot be
@@ -12,6 +13,7 @@ pub mod run;
 pub mod serve;
 pub mod study;
 pub mod sweep;
+pub mod token;
 
 use std::io::{self, Read, Write};
 use std::process::ExitCode;
@@ -24,6 +26,7 @@ use crate::store::systems::{SystemStore, DEFAULT_SYSTEMS_DIR};
 pub use run::RunArgs;
 pub use serve::{ServeArgs, WorkerArgs};
 pub use study::{StudyArgs, StudyKind};
+pub use token::TokenArgs;
 
 /// Geometric numerical integration of damped Hamiltonian systems, as a web service.
 #[derive(Debug, Parser)]
@@ -56,6 +59,9 @@ pub enum Command {
     /// Run sweep shards from a NATS JetStream server for `geomint serve --nats` (any number of
     /// workers, on any machines).
     Worker(WorkerArgs),
+    /// Make a bearer token: print its secret and the line of the tokens file (`serve --tokens`)
+    /// that admits it.
+    Token(TokenArgs),
     /// Print the system catalogue as JSON.
     Systems,
     /// Print the method catalogue as JSON.
@@ -73,6 +79,7 @@ pub fn run(cli: Cli) -> ExitCode {
             _ => study::run_study(&args),
         },
         Command::Worker(args) => serve::work(&args),
+        Command::Token(args) => token::make_token(&args),
         Command::Systems => print_json(&systems::catalog()),
         Command::Methods => {
             let methods: Vec<_> = MethodId::ALL.iter().map(|m| m.info()).collect();

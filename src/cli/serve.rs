@@ -10,8 +10,10 @@ use std::time::Duration;
 use clap::Args;
 
 use super::parse_count;
+use crate::access::{read_tokens, AccessConfig, Anonymous, Quotas};
 use crate::core::simulation::Limits;
 use crate::http::{self, Config};
+use crate::nats::options::NatsOptions;
 use crate::nats::{self, Queue};
 
 /// Settings of `geomint serve`.
@@ -84,6 +86,30 @@ pub struct ServeArgs {
     /// Log filter (tracing's EnvFilter syntax).
     #[arg(long, env = "GEOMINT_LOG", default_value = "info")]
     pub log: String,
+    /// Log lines as text or as one JSON object each (the access log included).
+    #[arg(long, env = "GEOMINT_LOG_FORMAT", value_enum, default_value_t = LogFormat::Text)]
+    pub log_format: LogFormat,
+    /// The tokens file: names, scopes, quotas and SHA-256 digests of the secrets (`geomint token`
+    /// makes the lines). Reloaded when it changes and on SIGHUP. Requests then authenticate with
+    /// `Authorization: Bearer <secret>`.
+    #[arg(long, env = "GEOMINT_TOKENS")]
+    pub tokens: Option<PathBuf>,
+    /// What clients without a token may do: `all` (everything), `public` (read, and run
+    /// simulations within --short-work), `none`. Default: `all` on a loopback address without
+    /// --tokens, `none` with --tokens; another address needs --tokens, --public or this.
+    #[arg(long, env = "GEOMINT_ANONYMOUS", value_enum)]
+    pub anonymous: Option<Anonymous>,
+    /// The same as --anonymous public.
+    #[arg(long, env = "GEOMINT_PUBLIC", conflicts_with = "anonymous")]
+    pub public: bool,
+    /// Runs in flight per address of clients without a token (default 2 with --public, else
+    /// unbounded).
+    #[arg(long, env = "GEOMINT_ANONYMOUS_RUNS")]
+    pub anonymous_runs: Option<usize>,
+    /// Steps × coordinates per minute per address of clients without a token (default 60 ×
+    /// --short-work with --public, else unbounded; 1e9 style accepted).
+    #[arg(long, env = "GEOMINT_ANONYMOUS_STEPS_PER_MINUTE", value_parser = parse_count)]
+    pub anonymous_steps_per_minute: Option<u64>,
     /// Run sweeps on the workers of this NATS server (JetStream on), e.g. nats://host:4222,
     /// instead of on this machine's cores. The server must answer at start-up.
     #[arg(long, env = "GEOMINT_NATS_URL")]
@@ -96,6 +122,36 @@ pub struct ServeArgs {
     /// and less lost with a worker, more messages).
     #[arg(long, env = "GEOMINT_NATS_SHARD_STEPS", default_value = "20000000", value_parser = parse_count)]
     pub nats_shard_steps: u64,
+    /// NATS credentials, TLS and deliveries.
+    #[command(flatten)]
+    pub nats_options: NatsArgs,
+}
+
+/// How `serve` and `worker` connect to NATS.
+#[derive(Clone, Debug, Args)]
+pub struct NatsArgs {
+    /// A NATS credentials file (`.creds`: a user's JWT and NKey seed).
+    #[arg(long, env = "GEOMINT_NATS_CREDS")]
+    pub nats_creds: Option<PathBuf>,
+    /// The certificate authority (PEM) that signs the NATS server's certificate; the connection
+    /// then requires TLS.
+    #[arg(long, env = "GEOMINT_NATS_TLS_CA")]
+    pub nats_tls_ca: Option<PathBuf>,
+    /// Deliveries of a study's shard before the study fails (a shard that panics or kills its
+    /// worker); applies when this process creates the workers' consumer, or bounds one that has
+    /// no bound.
+    #[arg(long, env = "GEOMINT_NATS_MAX_DELIVER", default_value_t = crate::nats::poison::DEFAULT_MAX_DELIVER, value_parser = clap::value_parser!(i64).range(1..=1000))]
+    pub nats_max_deliver: i64,
+}
+
+impl NatsArgs {
+    fn options(&self) -> NatsOptions {
+        NatsOptions {
+            creds: self.nats_creds.clone(),
+            tls_ca: self.nats_tls_ca.clone(),
+            max_deliver: self.nats_max_deliver,
+        }
+    }
 }
 
 /// Settings of `geomint worker`.
@@ -111,9 +167,24 @@ pub struct WorkerArgs {
     /// Most steps per run a shard may ask for.
     #[arg(long, env = "GEOMINT_MAX_STEPS", default_value = "10000000", value_parser = parse_count)]
     pub max_steps: u64,
+    /// NATS credentials, TLS and deliveries.
+    #[command(flatten)]
+    pub nats_options: NatsArgs,
     /// Log filter (tracing's EnvFilter syntax).
     #[arg(long, env = "GEOMINT_LOG", default_value = "info")]
     pub log: String,
+    /// Log lines as text or as one JSON object each.
+    #[arg(long, env = "GEOMINT_LOG_FORMAT", value_enum, default_value_t = LogFormat::Text)]
+    pub log_format: LogFormat,
+}
+
+/// How log lines are written.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum LogFormat {
+    /// Human-readable text.
+    Text,
+    /// One JSON object a line.
+    Json,
 }
 
 impl ServeArgs {
@@ -143,21 +214,59 @@ impl ServeArgs {
             recordings_max_bytes: self.recordings_max_bytes,
             systems_dir: self.systems_dir.clone(),
             max_systems: self.max_systems,
+            access: AccessConfig::default(),
         }
+    }
+
+    /// Who may do what under these settings: the tokens file (checked now) and the policy for
+    /// clients without a token. An address other machines reach needs the policy said.
+    pub fn access(&self) -> Result<AccessConfig, String> {
+        if let Some(path) = &self.tokens {
+            read_tokens(path)?;
+        }
+        let anonymous = match (self.anonymous, self.public) {
+            (Some(policy), _) => policy,
+            (None, true) => Anonymous::Public,
+            (None, false) if self.tokens.is_some() => Anonymous::None,
+            (None, false) if self.addr.ip().is_loopback() => Anonymous::All,
+            (None, false) => {
+                return Err(format!(
+                    "{} is reachable from other machines, and without a tokens file anyone who \
+                     reaches it could delete every recording: pass --tokens FILE (`geomint \
+                     token` makes its lines), --public (clients may read and run small runs), or \
+                     --anonymous all (anyone may do everything, as on a single user's machine)",
+                    self.addr
+                ))
+            }
+        };
+        let public = anonymous == Anonymous::Public;
+        Ok(AccessConfig {
+            tokens_file: self.tokens.clone(),
+            anonymous,
+            anonymous_quotas: Quotas {
+                runs: self.anonymous_runs.or(public.then_some(2)),
+                steps_per_minute: self
+                    .anonymous_steps_per_minute
+                    .or(public.then(|| self.short_work.saturating_mul(60))),
+                ..Quotas::default()
+            },
+        })
     }
 }
 
-/// Logs to standard error with `filter`.
-fn init_logging(filter: &str) {
+/// Logs to standard error with `filter`, as text or JSON lines.
+fn init_logging(filter: &str, format: LogFormat) {
     let parsed = tracing_subscriber::EnvFilter::try_new(filter).unwrap_or_else(|e| {
         eprintln!("warning: invalid log filter `{filter}` ({e}); using `info`");
         tracing_subscriber::EnvFilter::new("info")
     });
-    tracing_subscriber::fmt()
+    let builder = tracing_subscriber::fmt()
         .with_env_filter(parsed)
-        .with_writer(io::stderr)
-        .with_ansi(io::stderr().is_terminal())
-        .init();
+        .with_writer(io::stderr);
+    match format {
+        LogFormat::Text => builder.with_ansi(io::stderr().is_terminal()).init(),
+        LogFormat::Json => builder.json().flatten_event(true).init(),
+    }
 }
 
 /// Settles glibc's malloc for a process that runs for days, before its threads start: at most
@@ -210,9 +319,11 @@ fn connect(
     runtime: &tokio::runtime::Runtime,
     url: &str,
     ack_wait_secs: u64,
+    options: &NatsArgs,
 ) -> Result<Queue, ExitCode> {
+    let options = options.options();
     runtime
-        .block_on(Queue::connect(url, Duration::from_secs(ack_wait_secs)))
+        .block_on(Queue::connect(url, Duration::from_secs(ack_wait_secs), &options))
         .map_err(|e| {
             eprintln!("error: {e}");
             ExitCode::FAILURE
@@ -220,14 +331,22 @@ fn connect(
 }
 
 pub(crate) fn serve(args: &ServeArgs) -> ExitCode {
-    init_logging(&args.log);
+    init_logging(&args.log, args.log_format);
+    let mut config = args.config();
+    config.access = match args.access() {
+        Ok(access) => access,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(2);
+        }
+    };
     let runtime = match runtime() {
         Ok(rt) => rt,
         Err(code) => return code,
     };
     let queue = match &args.nats {
         None => None,
-        Some(url) => match connect(&runtime, url, args.nats_ack_wait_secs) {
+        Some(url) => match connect(&runtime, url, args.nats_ack_wait_secs, &args.nats_options) {
             Ok(mut queue) => {
                 queue.steps_per_shard = args.nats_shard_steps.max(1);
                 Some(queue)
@@ -235,7 +354,7 @@ pub(crate) fn serve(args: &ServeArgs) -> ExitCode {
             Err(code) => return code,
         },
     };
-    match runtime.block_on(http::serve(args.addr, args.config(), queue)) {
+    match runtime.block_on(http::serve(args.addr, config, queue)) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: cannot serve on {}: {e}", args.addr);
@@ -247,12 +366,12 @@ pub(crate) fn serve(args: &ServeArgs) -> ExitCode {
 /// `geomint worker`: runs sweep shards from the NATS server for as long as it lives (a lost
 /// connection is retried); fails when no server answers at the start.
 pub(crate) fn work(args: &WorkerArgs) -> ExitCode {
-    init_logging(&args.log);
+    init_logging(&args.log, args.log_format);
     let runtime = match runtime() {
         Ok(rt) => rt,
         Err(code) => return code,
     };
-    let queue = match connect(&runtime, &args.nats, args.ack_wait_secs) {
+    let queue = match connect(&runtime, &args.nats, args.ack_wait_secs, &args.nats_options) {
         Ok(queue) => queue,
         Err(code) => return code,
     };

@@ -27,6 +27,7 @@ use tracing::Instrument;
 
 use super::error::ApiError;
 use super::recordings::rrd_response;
+use crate::access::{Caller, RunGuard};
 use super::state::{run_blocking, AppState, Cost};
 use crate::api::{ndjson_line, NDJSON};
 use crate::core::error::{ErrorCode, ErrorDetail};
@@ -165,17 +166,28 @@ impl Format {
     }
 }
 
-/// The address a request came from, for fair admission (none when the service runs without
-/// a listener, as under `tower::ServiceExt::oneshot`).
-#[derive(Clone, Copy, Debug)]
-pub struct Client(pub Option<IpAddr>);
+/// Who a request came from: its address, for fair admission (none when the service runs
+/// without a listener, as under `tower::ServiceExt::oneshot`), and its caller, whose quotas
+/// bound the work it is admitted to.
+#[derive(Clone, Debug)]
+pub struct Client {
+    /// The peer's address.
+    pub address: Option<IpAddr>,
+    /// The caller ([`super::auth`] authenticated it).
+    pub caller: Arc<Caller>,
+}
 
 impl<S: Send + Sync> FromRequestParts<S> for Client {
     type Rejection = Infallible;
 
-    async fn from_request_parts(parts: &mut Parts, _: &S) -> Result<Self, Infallible> {
+    async fn from_request_parts(parts: &mut Parts, state: &S) -> Result<Self, Infallible> {
         let peer = parts.extensions.get::<ConnectInfo<SocketAddr>>();
-        Ok(Client(peer.map(|info| info.0.ip())))
+        let _ = state;
+        let caller = super::auth::caller_of(&parts.extensions);
+        Ok(Client {
+            address: peer.map(|info| info.0.ip()),
+            caller,
+        })
     }
 }
 
@@ -183,24 +195,31 @@ impl<S: Send + Sync> FromRequestParts<S> for Client {
 /// cancellation flag (set when the server shuts down, or when the request goes away).
 pub struct Work {
     permits: Vec<OwnedSemaphorePermit>,
+    run: RunGuard,
     deadline: Instant,
     cancel: Arc<AtomicBool>,
     state: AppState,
 }
 
 impl Work {
-    /// Admits a request that wants `slots` simulation threads and predicts `cost`: one, waiting
-    /// its turn as [`AppState::acquire`] says (else 503), plus up to `slots − 1` more that are
-    /// free now.
+    /// Admits a request that wants `slots` simulation threads and predicts `cost`: within its
+    /// caller's quotas (runs in flight, steps per minute; else 429), one slot, waiting its turn
+    /// as [`AppState::acquire`] says (else 503), plus up to `slots − 1` more that are free now.
     pub async fn admit(
         state: &AppState,
         slots: usize,
         cost: Cost,
         client: Client,
     ) -> Result<Work, ApiError> {
-        let permits = state.acquire(slots, cost, client.0).await?;
+        let steps = match cost {
+            Cost::Steps(n) => Some(n),
+            Cost::Study | Cost::Read => None,
+        };
+        let run = state.access.usage.admit(&client.caller, steps)?;
+        let permits = state.acquire(slots, cost, client.address).await?;
         Ok(Work {
             permits,
+            run,
             deadline: Instant::now() + state.config.request_timeout,
             cancel: Arc::new(AtomicBool::new(false)),
             state: state.clone(),
@@ -241,12 +260,13 @@ impl Work {
         let _guard = CancelOnDrop(self.cancel.clone());
         let Work {
             permits,
+            run,
             deadline,
             cancel,
             ..
         } = self;
         let result = run_blocking(move || {
-            let _permits = permits;
+            let _permits = (permits, run);
             compute(Budget {
                 cancel: Some(&cancel),
                 deadline: Some(deadline),
@@ -277,6 +297,7 @@ impl Work {
         let watcher = self.cancel_when(async move { watched.closed().await });
         let Work {
             permits,
+            run,
             deadline,
             cancel,
             ..
@@ -285,7 +306,7 @@ impl Work {
             let sender = tx.clone();
             let runtime = tokio::runtime::Handle::current();
             let result = run_blocking(move || {
-                let _permits = permits;
+                let _permits = (permits, run);
                 // Waits while the client reads slowly, but not past the deadline plus a grace
                 // time: a client that stops reading cannot hold its slots for ever.
                 let emit = |line: L| {

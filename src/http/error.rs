@@ -45,7 +45,7 @@ pub enum SlotsBusy {
     Busy(ErrorBody),
 }
 
-/// An error answer: status, error detail and, for 503, a `Retry-After` hint.
+/// An error answer: status, error detail and, for 429 and 503, a `Retry-After` hint.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ApiError {
     status: StatusCode,
@@ -69,6 +69,9 @@ pub fn status_for(code: ErrorCode) -> StatusCode {
             StatusCode::INSUFFICIENT_STORAGE
         }
         ErrorCode::BuiltInSystem => StatusCode::CONFLICT,
+        ErrorCode::Unauthorized => StatusCode::UNAUTHORIZED,
+        ErrorCode::Forbidden | ErrorCode::QuotaExceeded => StatusCode::FORBIDDEN,
+        ErrorCode::RateLimited | ErrorCode::TooManyRuns => StatusCode::TOO_MANY_REQUESTS,
         ErrorCode::ExecutorUnavailable => StatusCode::BAD_GATEWAY,
         ErrorCode::UnknownField
         | ErrorCode::MissingField
@@ -158,6 +161,12 @@ impl ApiError {
         }
     }
 
+    /// The same error with a `Retry-After` hint of `secs` seconds (429 and 503 answers).
+    pub fn with_retry_after(mut self, secs: u64) -> Self {
+        self.retry_after_secs = Some(secs);
+        self
+    }
+
     /// No such resource.
     pub fn not_found(message: impl Into<String>) -> Self {
         Self::new(
@@ -227,6 +236,13 @@ impl IntoResponse for ApiError {
         );
         if let Some(secs) = self.retry_after_secs {
             headers.insert(header::RETRY_AFTER, HeaderValue::from(secs));
+        }
+        // RFC 6750: a refusal for want of credentials names the scheme that would pass.
+        if self.status == StatusCode::UNAUTHORIZED {
+            headers.insert(
+                header::WWW_AUTHENTICATE,
+                HeaderValue::from_static("Bearer realm=\"geomint\""),
+            );
         }
         response
     }

@@ -8,8 +8,10 @@
 //! of the middleware (body limit 413; 504 from a backstop past the time limit, which only a
 //! computation that ignored its deadline would reach) and unknown routes (404, 405).
 
+pub mod access_log;
 pub mod answer;
 pub mod assets;
+pub mod auth;
 pub mod error;
 pub mod extract;
 pub mod handlers;
@@ -132,7 +134,11 @@ pub fn routes(config: &Config) -> OpenApiRouter<AppState> {
 /// The service: routes and middleware, shared by the server and the tests.
 pub fn app(state: AppState) -> Router {
     let config = state.config.clone();
-    let (api, _) = routes(&config).split_for_parts();
+    let (api, doc) = routes(&config).split_for_parts();
+    let scopes = serde_json::to_value(&doc)
+        .map(|doc| auth::RouteScopes::of(&doc))
+        .unwrap_or_default();
+    let guard = (state.clone(), std::sync::Arc::new(scopes));
     let api = api
         .method_not_allowed_fallback(handlers::method_not_allowed)
         .with_state(state);
@@ -158,6 +164,7 @@ pub fn app(state: AppState) -> Router {
     // request time limit and answer with what they have.
     let backstop = config.request_timeout + std::time::Duration::from_secs(30);
     router
+        .layer(from_fn_with_state(guard, auth::authorize))
         .layer(TimeoutLayer::with_status_code(StatusCode::GATEWAY_TIMEOUT, backstop))
         .layer(map_response(json_errors))
         .layer(map_response(nosniff))
@@ -178,6 +185,7 @@ pub fn app(state: AppState) -> Router {
         // flood the log exactly when the machine is busiest. Real faults are logged where they
         // happen, with their details.
         .on_failure(DefaultOnFailure::new().level(tracing::Level::DEBUG)))
+        .layer(axum::middleware::from_fn(access_log::log))
         .layer(SetRequestIdLayer::x_request_id(MakeRequestUuid))
 }
 
@@ -210,7 +218,7 @@ fn cors(origins: &[String]) -> Option<CorsLayer> {
         CorsLayer::new()
             .allow_origin(allow)
             .allow_methods([Method::GET, Method::POST, Method::DELETE])
-            .allow_headers([header::CONTENT_TYPE, header::ACCEPT])
+            .allow_headers([header::CONTENT_TYPE, header::ACCEPT, header::AUTHORIZATION])
             .expose_headers([
                 header::RETRY_AFTER,
                 header::LOCATION,

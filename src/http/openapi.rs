@@ -9,7 +9,7 @@ use utoipa::OpenApi;
 use super::answer::{AnyFormat, RecordFormat, StreamFormat};
 use super::error::ErrorBody;
 use super::handlers;
-use super::recordings::RecordingCreated;
+use super::recordings::{ListedRecording, RecordingCreated};
 use crate::api::stability::{PointRequest, StabilityRequest};
 use crate::api::studies::{ConvergenceRequest, EnergyMapRequest, WorkPrecisionRequest};
 use crate::api::sweep::{Preset, SweepRequest};
@@ -65,6 +65,7 @@ use crate::store::systems::{StoredSystem, SystemEntry};
         MethodInfo,
         ErrorBody,
         handlers::Health,
+        ListedRecording,
         RecordingCreated,
         RecordingEntry,
         Origin,
@@ -85,8 +86,13 @@ use crate::store::systems::{StoredSystem, SystemEntry};
 )]
 pub struct ApiDoc;
 
-/// The document as served.
+/// The document as a server whose clients without a token may do everything serves it.
 pub fn document() -> Value {
+    document_for(crate::access::Anonymous::All)
+}
+
+/// The document as served under `anonymous`, the policy for clients without a token.
+pub fn document_for(anonymous: crate::access::Anonymous) -> Value {
     let (_, api) = super::routes(&super::Config::default()).split_for_parts();
     let mut doc = serde_json::to_value(api).unwrap_or_else(|e| json!({"error": e.to_string()}));
     // The readers take an explicit `null` for an optional member as its absence.
@@ -124,6 +130,7 @@ pub fn document() -> Value {
         &["200", "201"],
         &["get_system", "delete_system"],
     );
+    super::auth::document_security(&mut doc, anonymous);
     doc
 }
 

@@ -20,7 +20,7 @@
 use std::sync::atomic::Ordering;
 
 use axum::body::Body;
-use axum::extract::{FromRequest, Path, Request, State};
+use axum::extract::{FromRequest, Path, Query, Request, State};
 use axum::http::{header, HeaderMap, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::Json;
@@ -38,7 +38,8 @@ use super::error::ErrorBody;
 use super::extract::ApiJson;
 use super::paths;
 use super::state::{run_blocking, AppState, Cost};
-use crate::store::recordings::{is_valid_id, Contents, Origin, RecordingEntry, SpecSummary, StoreError};
+use crate::access::Caller;
+use crate::store::recordings::{Contents, Origin, Owner, RecordingEntry, SpecSummary, StoreError};
 use crate::api::SimulateRequest;
 use crate::core::error::{ErrorCode, ErrorDetail};
 use crate::recording::read::{self as recorded, ReadError, RecordedDocument};
@@ -68,6 +69,19 @@ pub fn download_url(id: &str) -> String {
     format!("{}/{id}.rrd", paths::RECORDINGS)
 }
 
+/// The refusal to delete what another owner stored.
+pub(crate) fn not_yours(what: &str, id: &str, owner: Option<&str>) -> ApiError {
+    let whose = match owner {
+        Some(owner) => format!("belongs to `{owner}`"),
+        None => "was stored before owners were recorded".to_string(),
+    };
+    ApiError::from(ErrorDetail::at(
+        ErrorCode::Forbidden,
+        "id",
+        format!("the {what} `{id}` {whose}: only its owner or an `admin` token deletes it"),
+    ))
+}
+
 fn no_recording(name: &str) -> ApiError {
     ApiError::not_found(format!(
         "no recording `{name}`; ids are 32 lowercase hexadecimal digits (see {})",
@@ -83,7 +97,21 @@ pub(crate) fn store_error(error: StoreError) -> ApiError {
             "output.every",
             format!("{error}; sample less often"),
         )),
+        StoreError::OverQuota { .. } => {
+            ApiError::from(ErrorDetail::new(ErrorCode::QuotaExceeded, error.to_string()))
+        }
+        StoreError::FullOfOthers { .. } => {
+            ApiError::from(ErrorDetail::new(ErrorCode::StorageFull, error.to_string()))
+        }
         other => ApiError::storage("recording store", &other),
+    }
+}
+
+/// Who a recording stored for `client` belongs to, with its quota of bytes.
+fn owner_of(client: &Client) -> Owner {
+    Owner {
+        name: client.caller.owner.clone(),
+        quota: client.caller.quotas.recordings_bytes,
     }
 }
 
@@ -115,7 +143,7 @@ fn declared_length(headers: &HeaderMap) -> Option<u64> {
 }
 
 /// Whether a request's body is declared as an `.rrd` file.
-fn is_rrd_upload(headers: &HeaderMap) -> bool {
+pub(crate) fn is_rrd_upload(headers: &HeaderMap) -> bool {
     headers
         .get(header::CONTENT_TYPE)
         .and_then(|v| v.to_str().ok())
@@ -177,7 +205,7 @@ pub async fn create_recording(
     request: Request,
 ) -> Result<Response, ApiError> {
     if is_rrd_upload(request.headers()) {
-        return upload_recording(state, request).await;
+        return upload_recording(state, owner_of(&client), request).await;
     }
     // The route's own body limit is the store's cap (for uploads): JSON keeps the service's.
     if declared_length(request.headers()).is_some_and(|n| n > state.config.body_limit as u64) {
@@ -204,7 +232,11 @@ fn invalid_upload(message: impl std::fmt::Display) -> ApiError {
 }
 
 /// Receives an `.rrd` upload into a locked temporary file, checks it and keeps it.
-async fn upload_recording(state: AppState, request: Request) -> Result<Response, ApiError> {
+async fn upload_recording(
+    state: AppState,
+    owner: Owner,
+    request: Request,
+) -> Result<Response, ApiError> {
     let store = state.recordings.clone();
     let cap = store.max_bytes();
     let over_cap = move |bytes: String| {
@@ -255,7 +287,7 @@ async fn upload_recording(state: AppState, request: Request) -> Result<Response,
             origin: Origin::Upload,
             application_id: inspected.application_id,
         };
-        store.keep_upload(upload, contents).map_err(|e| match e {
+        store.keep_upload(upload, contents, &owner).map_err(|e| match e {
             StoreError::TooLarge { bytes, .. } => over_cap(bytes.to_string()),
             StoreError::Incomplete => invalid_upload("it lacks the RRD header or stream footer"),
             other => store_error(other),
@@ -274,9 +306,10 @@ async fn record_simulation(
     let request = SimulateRequest::from_value(&body)?;
     let sim = request.prepare(&state.config.limits, &*state.systems)?;
     let request = request.inlined(&*state.systems);
-    let work = Work::admit(&state, sim.methods.len(), Cost::Steps(sim.cost()), client).await?;
+    let work = Work::admit(&state, sim.methods.len(), Cost::Steps(sim.cost()), client.clone()).await?;
     let workers = work.workers();
     let store = state.recordings.clone();
+    let owner = owner_of(&client);
     tracing::info!(system = %sim.system_id(), methods = sim.methods.len(), steps = sim.schedule.steps, "recording started");
     let entry = work
         .run(move |budget| {
@@ -289,7 +322,7 @@ async fn record_simulation(
                 ));
             }
             store
-                .save(SpecSummary::of(&sim), |w| {
+                .save(SpecSummary::of(&sim), &owner, |w| {
                     recording::write_rrd(w, &recording::Spec::of(&request), &doc)
                 })
                 .map_err(store_error)
@@ -298,22 +331,58 @@ async fn record_simulation(
     Ok(created(entry))
 }
 
-/// The stored recordings, newest first: id, creation time, size and what each holds.
+/// The stored recordings, newest first: id, creation time, size, owner, what each holds, and
+/// whether the caller may delete it; `?owner=NAME` lists only those of one owner.
 #[utoipa::path(get, path = paths::RECORDINGS, tag = "recordings",
-    responses((status = 200, description = "Every stored recording", body = Vec<RecordingEntry>)))]
-pub async fn list_recordings(State(state): State<AppState>) -> Json<Vec<RecordingEntry>> {
-    Json(state.recordings.list())
+    params(("owner" = Option<String>, Query, description = "Only the recordings of this owner \
+        (a token's name, or `anonymous@ADDRESS`)", example = "alice")),
+    responses((status = 200, description = "Every stored recording", body = Vec<ListedRecording>)))]
+pub async fn list_recordings(
+    State(state): State<AppState>,
+    caller: Caller,
+    Query(query): Query<OwnerQuery>,
+) -> Json<Vec<ListedRecording>> {
+    let listed = state.recordings.list_owned(query.owner.as_deref()).into_iter();
+    Json(listed.map(|entry| ListedRecording::for_caller(entry, &caller)).collect())
+}
+
+/// A recording as the list shows it to a caller.
+#[derive(Clone, Debug, Serialize, ToSchema)]
+pub struct ListedRecording {
+    /// The recording.
+    #[serde(flatten)]
+    pub entry: RecordingEntry,
+    /// Whether the caller may delete it: its owner or an `admin` token.
+    pub may_delete: bool,
+}
+
+impl ListedRecording {
+    /// `entry` as `caller` sees it.
+    pub fn for_caller(entry: RecordingEntry, caller: &Caller) -> Self {
+        ListedRecording {
+            may_delete: caller.may_delete(entry.owner.iter().map(String::as_str)),
+            entry,
+        }
+    }
+}
+
+/// `?owner=` of a listing.
+#[derive(Debug, Default, serde::Deserialize)]
+pub struct OwnerQuery {
+    /// Only what this owner stored.
+    pub owner: Option<String>,
 }
 
 /// One recording: `{id}.rrd` downloads the file (`application/octet-stream`, as an
-/// attachment, with range requests); `{id}` alone gives its entry as JSON.
+/// attachment, with range requests); `{id}` alone gives its entry as JSON, as the list shows it
+/// to the caller.
 #[utoipa::path(get, path = paths::RECORDING, tag = "recordings",
     params(("id" = String, Path,
         description = "The recording id followed by `.rrd` for the file, or the id alone for its entry",
         example = "3f2a9c0d6b1e4f8a9d7c5b3a1e0f2d4c.rrd")),
     responses(
         (status = 200, description = "The recording file, or its entry",
-            content((RrdFile = "application/octet-stream"), (RecordingEntry = "application/json"))),
+            content((RrdFile = "application/octet-stream"), (ListedRecording = "application/json"))),
         (status = 206, description = "The requested byte range of the file (`Range: bytes=…`)",
             content((RrdFile = "application/octet-stream"))),
         (status = 404, description = "No such recording (also for anything that is not an id)", body = ErrorBody),
@@ -321,6 +390,7 @@ pub async fn list_recordings(State(state): State<AppState>) -> Json<Vec<Recordin
     ))]
 pub async fn get_recording(
     State(state): State<AppState>,
+    caller: Caller,
     Path(name): Path<String>,
     request: Request,
 ) -> Result<Response, ApiError> {
@@ -333,7 +403,7 @@ pub async fn get_recording(
         .get(id)
         .ok_or_else(|| no_recording(&name))?;
     if !file {
-        return Ok(Json(entry).into_response());
+        return Ok(Json(ListedRecording::for_caller(entry, &caller)).into_response());
     }
     // ServeFile answers conditional and range requests and streams the file in chunks.
     let response = ServeFile::new(&path)
@@ -402,7 +472,7 @@ pub async fn recording_samples(
     })
 }
 
-/// Deletes a recording.
+/// Deletes a recording: its owner may, and an `admin` token.
 #[utoipa::path(delete, path = paths::RECORDING, tag = "recordings",
     params(("id" = String, Path, description = "The recording id",
         example = "3f2a9c0d6b1e4f8a9d7c5b3a1e0f2d4c")),
@@ -412,10 +482,12 @@ pub async fn recording_samples(
     ))]
 pub async fn delete_recording(
     State(state): State<AppState>,
+    caller: Caller,
     Path(id): Path<String>,
 ) -> Result<StatusCode, ApiError> {
-    if !is_valid_id(&id) {
-        return Err(no_recording(&id));
+    let (entry, _) = state.recordings.get(&id).ok_or_else(|| no_recording(&id))?;
+    if !caller.may_delete(entry.owner.iter().map(String::as_str)) {
+        return Err(not_yours("recording", &id, entry.owner.as_deref()));
     }
     let store = state.recordings.clone();
     let key = id.clone();

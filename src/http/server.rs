@@ -249,8 +249,11 @@ pub async fn serve(
         timeout_secs = config.request_timeout.as_secs_f64(),
         cors = ?config.cors_origins,
         nats = queue.as_ref().map(crate::nats::Queue::url),
+        tokens = config.access.tokens_file.as_ref().map(|f| f.display().to_string()),
+        anonymous = ?config.access.anonymous,
         "geomint listening on http://{local}"
     );
     let state = AppState::new(config).with_queue(queue);
+    tokio::spawn(crate::access::reload::watch(state.access.clone()));
     serve_on(listener, state, shutdown_signal()).await
 }

@@ -12,6 +12,7 @@ use std::time::Duration;
 use tokio::sync::{watch, OwnedSemaphorePermit, Semaphore};
 
 use super::error::ApiError;
+use crate::access::{Access, AccessConfig};
 use crate::executor::{cores, StudyExecutor};
 use crate::store::recordings::RecordingStore;
 use crate::store::systems::{SystemStore, DEFAULT_MAX_SYSTEMS, DEFAULT_SYSTEMS_DIR};
@@ -59,6 +60,8 @@ pub struct Config {
     pub systems_dir: PathBuf,
     /// Most stored system definitions.
     pub max_systems: usize,
+    /// Tokens, and what clients without one may do.
+    pub access: AccessConfig,
 }
 
 /// The default directory of stored recordings.
@@ -113,6 +116,7 @@ impl Default for Config {
             recordings_max_bytes: DEFAULT_RECORDINGS_MAX_BYTES,
             systems_dir: PathBuf::from(DEFAULT_SYSTEMS_DIR),
             max_systems: DEFAULT_MAX_SYSTEMS,
+            access: AccessConfig::default(),
         }
     }
 }
@@ -126,6 +130,8 @@ pub struct AppState {
     pub recordings: Arc<RecordingStore>,
     /// The stored system definitions.
     pub systems: Arc<SystemStore>,
+    /// Tokens in force, the anonymous policy, and what callers use.
+    pub access: Arc<Access>,
     /// Where studies run: here, or on NATS workers.
     pub executor: StudyExecutor,
     permits: Arc<Semaphore>,
@@ -144,6 +150,7 @@ impl AppState {
         Self {
             recordings: Arc::new(recordings),
             systems: Arc::new(systems),
+            access: Arc::new(Access::new(config.access.clone(), config.short_work)),
             executor: StudyExecutor::Local,
             config: Arc::new(Config {
                 max_concurrent: max,

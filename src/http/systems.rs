@@ -7,7 +7,7 @@
 use std::sync::Arc;
 use std::time::SystemTime;
 
-use axum::extract::{Path as UrlPath, State};
+use axum::extract::{Path as UrlPath, Query, State};
 use axum::http::{header, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::Json;
@@ -19,8 +19,10 @@ use super::state::{run_blocking, AppState};
 use crate::api::system::SystemDefinition;
 use crate::core::error::{ErrorCode, ErrorDetail, Field};
 use crate::core::systems;
+use super::recordings::OwnerQuery;
+use crate::access::{Caller, Scope};
 use crate::store::systems::{
-    is_definition_id, unix_ms, StoredSystem, SystemEntry, SystemStoreError,
+    is_definition_id, unix_ms, Owner, Removal, StoredSystem, SystemEntry, SystemStoreError,
 };
 
 fn no_system(id: &str) -> ApiError {
@@ -36,22 +38,34 @@ fn store_error(error: SystemStoreError) -> ApiError {
             StatusCode::INSUFFICIENT_STORAGE,
             ErrorDetail::new(ErrorCode::TooManySystems, error.to_string()),
         ),
+        SystemStoreError::OverQuota { .. } => {
+            ApiError::from(ErrorDetail::new(ErrorCode::QuotaExceeded, error.to_string()))
+        }
         SystemStoreError::Io(e) => ApiError::storage("system store", &e),
     }
 }
 
 /// The built-in systems, then the stored definitions: parameters with defaults and ranges,
-/// default initial state, invariants; a stored one also with its definition and facts.
+/// default initial state, invariants; a stored one also with its definition, facts and owners.
+/// `?owner=NAME` lists only the definitions that owner stored.
 #[utoipa::path(get, path = paths::SYSTEMS, tag = "catalog",
+    params(("owner" = Option<String>, Query, description = "Only the stored definitions of this \
+        owner (a token's name, or `anonymous@ADDRESS`)", example = "alice")),
     responses((status = 200, description = "Every system", body = Vec<SystemEntry>)))]
-pub async fn list_systems(State(state): State<AppState>) -> Json<Vec<SystemEntry>> {
+pub async fn list_systems(
+    State(state): State<AppState>,
+    Query(query): Query<OwnerQuery>,
+) -> Json<Vec<SystemEntry>> {
+    let owner = query.owner.as_deref();
     let built_in = systems::catalog()
         .iter()
+        .filter(|_| owner.is_none())
         .map(|info| SystemEntry::BuiltIn((**info).clone()));
     let stored = state
         .systems
         .list()
         .into_iter()
+        .filter(|s| owner.is_none_or(|o| s.owners.iter().any(|mine| mine == o)))
         .map(|s| SystemEntry::Stored((*s).clone()));
     Json(built_in.chain(stored).collect())
 }
@@ -75,8 +89,9 @@ pub async fn get_system(
         .map_err(|_| no_system(&id))
 }
 
-/// Stores a definition. The answer is its entry: `201 Created` with `Location` for a new one,
-/// `200 OK` when the same definition is stored already (the id is a digest of the definition).
+/// Stores a definition for the caller. The answer is its entry: `201 Created` with `Location`
+/// for a new one, `200 OK` when the same definition is stored already (the id is a digest of
+/// the definition; the caller becomes one of its owners).
 #[utoipa::path(post, path = paths::SYSTEMS, tag = "catalog",
     request_body(content = SystemDefinition, content_type = "application/json"),
     responses(
@@ -90,13 +105,18 @@ pub async fn get_system(
     ))]
 pub async fn create_system(
     State(state): State<AppState>,
+    caller: Caller,
     ApiJson(body): ApiJson,
 ) -> Result<Response, ApiError> {
     let definition = SystemDefinition::read(&body, &Field::default())?;
     let store = Arc::clone(&state.systems);
+    let owner = Owner {
+        name: caller.owner,
+        quota: caller.quotas.systems,
+    };
     let (stored, new) = run_blocking(move || {
         let stored = StoredSystem::new(definition, unix_ms(SystemTime::now()))?;
-        store.insert(stored).map_err(store_error)
+        store.insert(stored, &owner).map_err(store_error)
     })
     .await??;
     let url = format!("{}/{}", paths::SYSTEMS, stored.info.id);
@@ -115,7 +135,8 @@ pub async fn create_system(
     Ok(response)
 }
 
-/// Removes a stored definition (built-in systems stay).
+/// Removes the caller's share of a stored definition: the definition goes with its last owner,
+/// or at once for an `admin` token (built-in systems stay).
 #[utoipa::path(delete, path = paths::SYSTEM, tag = "catalog",
     params(("id" = String, Path, description = "A stored system's id", example = "sys-0123456789abcdef")),
     responses(
@@ -125,6 +146,7 @@ pub async fn create_system(
     ))]
 pub async fn delete_system(
     State(state): State<AppState>,
+    caller: Caller,
     UrlPath(id): UrlPath<String>,
 ) -> Result<StatusCode, ApiError> {
     if systems::catalog().iter().any(|s| s.id == id) {
@@ -141,13 +163,21 @@ pub async fn delete_system(
     }
     let store = Arc::clone(&state.systems);
     let target = id.clone();
-    let removed = run_blocking(move || store.remove(&target))
+    let admin = caller.scopes.grants(Scope::Admin);
+    let owner = caller.owner;
+    let removed = run_blocking(move || store.remove(&target, &owner, admin))
         .await?
         .map_err(store_error)?;
-    if removed {
-        tracing::info!(%id, "system deleted");
-        Ok(StatusCode::NO_CONTENT)
-    } else {
-        Err(no_system(&id))
+    match removed {
+        Removal::Removed | Removal::Released => {
+            tracing::info!(%id, ?removed, "system deleted");
+            Ok(StatusCode::NO_CONTENT)
+        }
+        Removal::Missing => Err(no_system(&id)),
+        Removal::NotOwner(owners) => Err(super::recordings::not_yours(
+            "system",
+            &id,
+            Some(owners.join("`, `").as_str()).filter(|o| !o.is_empty()),
+        )),
     }
 }

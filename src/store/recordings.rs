@@ -10,8 +10,11 @@
 //! - An uploaded recording ([`RecordingStore::begin_upload`]) arrives in a locked temporary file
 //!   too, is checked by the caller while it is there, and only then kept
 //!   ([`RecordingStore::keep_upload`]); an upload that is refused or cut short leaves nothing.
-//! - Past the size cap the oldest recordings are deleted; a recording larger than the whole cap
-//!   is refused.
+//! - Every recording belongs to the caller that stored it (its `owner`, in the sidecar; none for
+//!   those stored before owners were recorded). A new recording evicts only its owner's own
+//!   oldest recordings: past the owner's quota, and past the store's size cap, where recordings
+//!   without an owner go too. A recording larger than its owner's quota or the whole cap is
+//!   refused, and so is one for which only other owners' recordings could make room.
 //! - At start-up, files that are not complete recordings of this service (a torn `.rrd`, a
 //!   sidecar that does not match its file, anything foreign) are skipped with a log line, and
 //!   left alone; leftover temporary files of this service are removed. A temporary file is
@@ -21,7 +24,6 @@
 //!
 //! Everything here is blocking file I/O: call it off the async runtime.
 
-use std::collections::BTreeMap;
 use std::fs::{self, File};
 use std::io::{self, BufWriter, Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
@@ -29,11 +31,12 @@ use std::sync::Mutex;
 use std::time::{SystemTime, UNIX_EPOCH};
 
 use serde::{Deserialize, Serialize};
-use utoipa::ToSchema;
 
+pub use super::entry::{Contents, Origin, Owner, RecordingEntry, SpecSummary};
 pub use super::tempfile::Upload;
+use super::dates::rfc3339;
+use super::index::Index;
 use super::tempfile::{remove_if_abandoned, write_atomically, TempFile, TMP_PREFIX};
-use crate::core::simulation::Simulation;
 use crate::recording::RecordingError;
 
 /// The sidecar's format tag.
@@ -47,100 +50,6 @@ pub fn is_valid_id(id: &str) -> bool {
 /// A new random recording id.
 pub fn new_id() -> String {
     uuid::Uuid::new_v4().simple().to_string()
-}
-
-/// What a recording holds, in brief.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
-pub struct SpecSummary {
-    /// System id.
-    #[schema(example = "pendulum")]
-    pub system: String,
-    /// Method labels, in the order asked.
-    pub methods: Vec<String>,
-    /// Step size.
-    pub h: f64,
-    /// Steps per method.
-    pub steps: u64,
-    /// Sampling interval in steps.
-    pub every: u64,
-    /// Time of the last step.
-    pub t_end: f64,
-    /// Samples of a run that finishes.
-    pub samples_per_method: u64,
-}
-
-impl SpecSummary {
-    /// The summary of a prepared simulation.
-    pub fn of(sim: &Simulation) -> Self {
-        SpecSummary {
-            system: sim.system_id().to_string(),
-            methods: sim.methods.iter().map(|m| m.label()).collect(),
-            h: sim.schedule.h,
-            steps: sim.schedule.steps,
-            every: sim.schedule.every,
-            t_end: sim.schedule.steps as f64 * sim.schedule.h,
-            samples_per_method: sim.schedule.samples(),
-        }
-    }
-}
-
-/// How a recording came into the store.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
-#[serde(rename_all = "snake_case")]
-pub enum Origin {
-    /// Recorded by the server from a simulation request (`POST /api/v1/recordings` with JSON).
-    #[default]
-    Simulation,
-    /// Uploaded as an `.rrd` file (`POST /api/v1/recordings` with `application/octet-stream`).
-    Upload,
-}
-
-/// What is known of a recording before it is stored: what it holds and where it came from.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Contents {
-    /// The simulation it records, when it records one of this service's simulations.
-    pub spec: Option<SpecSummary>,
-    /// How it came.
-    pub origin: Origin,
-    /// The application id written in the recording.
-    pub application_id: Option<String>,
-}
-
-impl Contents {
-    /// A recording this server made of `spec`.
-    pub fn simulation(spec: SpecSummary) -> Self {
-        Contents {
-            spec: Some(spec),
-            origin: Origin::Simulation,
-            application_id: Some(crate::recording::APPLICATION_ID.to_string()),
-        }
-    }
-}
-
-/// One stored recording.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
-pub struct RecordingEntry {
-    /// The id (32 lowercase hex digits).
-    #[schema(example = "3f2a9c0d6b1e4f8a9d7c5b3a1e0f2d4c")]
-    pub id: String,
-    /// When it was stored (RFC 3339, UTC).
-    #[schema(example = "2026-01-31T12:00:00.000Z")]
-    pub created: String,
-    /// Size of the `.rrd` file in bytes.
-    pub bytes: u64,
-    /// The simulation it records; null for an uploaded recording that is not one of this
-    /// service's simulations (another application's, or a study's).
-    pub spec: Option<SpecSummary>,
-    /// How it came into the store.
-    #[serde(default)]
-    pub origin: Origin,
-    /// The application id written in the recording (`geomint` for this service's own).
-    #[serde(default)]
-    #[schema(example = "geomint")]
-    pub application_id: Option<String>,
-    /// Milliseconds since the Unix epoch at creation (orders eviction).
-    #[serde(default)]
-    pub created_unix_ms: u64,
 }
 
 /// The sidecar file of a recording.
@@ -174,38 +83,25 @@ pub enum StoreError {
     /// An upload is no longer in its temporary file (it was kept or discarded before).
     #[error("the upload was already kept or discarded")]
     UploadGone,
-}
-
-#[derive(Debug, Default)]
-struct Index {
-    /// Entries with their insertion order (which breaks ties in creation time).
-    entries: BTreeMap<String, (u64, RecordingEntry)>,
-    next_seq: u64,
-    total: u64,
-}
-
-impl Index {
-    fn insert(&mut self, entry: RecordingEntry) {
-        self.total += entry.bytes;
-        self.next_seq += 1;
-        self.entries
-            .insert(entry.id.clone(), (self.next_seq, entry));
-    }
-
-    fn remove(&mut self, id: &str) -> Option<RecordingEntry> {
-        let (_, entry) = self.entries.remove(id)?;
-        self.total -= entry.bytes;
-        Some(entry)
-    }
-
-    /// The id of the oldest entry other than `keep`.
-    fn oldest_except(&self, keep: &str) -> Option<String> {
-        self.entries
-            .iter()
-            .filter(|(id, _)| id.as_str() != keep)
-            .min_by_key(|(_, (seq, e))| (e.created_unix_ms, *seq))
-            .map(|(id, _)| id.clone())
-    }
+    /// The recording alone exceeds its owner's quota.
+    #[error("the recording has {bytes} bytes, more than `{owner}`'s quota of {quota} bytes")]
+    OverQuota {
+        /// The owner.
+        owner: String,
+        /// Size of the recording.
+        bytes: u64,
+        /// The owner's quota.
+        quota: u64,
+    },
+    /// Only other owners' recordings could make room under the store's cap.
+    #[error("the store's cap of {max} bytes is taken by other owners' recordings; it keeps \
+             {bytes} more bytes only once they delete some")]
+    FullOfOthers {
+        /// Size of the recording.
+        bytes: u64,
+        /// The cap.
+        max: u64,
+    },
 }
 
 /// The recordings under one data directory.
@@ -229,30 +125,6 @@ fn is_complete_rrd(path: &Path, len: u64) -> io::Result<bool> {
     file.seek(SeekFrom::End(-12))?;
     file.read_exact(&mut tail)?;
     Ok(&head == b"RRF2" && &tail[..8] == b"RRF2FOOT")
-}
-
-/// RFC 3339 (UTC, milliseconds) of a time since the Unix epoch.
-fn rfc3339(unix_ms: u64) -> String {
-    let secs = unix_ms / 1000;
-    let days = (secs / 86_400) as i64;
-    let rem = secs % 86_400;
-    // Civil date from days since 1970-01-01 (proleptic Gregorian calendar).
-    let z = days + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z - era * 146_097;
-    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let day = doy - (153 * mp + 2) / 5 + 1;
-    let month = if mp < 10 { mp + 3 } else { mp - 9 };
-    let year = yoe + era * 400 + i64::from(month <= 2);
-    format!(
-        "{year:04}-{month:02}-{day:02}T{:02}:{:02}:{:02}.{:03}Z",
-        rem / 3600,
-        rem % 3600 / 60,
-        rem % 60,
-        unix_ms % 1000
-    )
 }
 
 impl RecordingStore {
@@ -279,10 +151,20 @@ impl RecordingStore {
                 "recordings found"
             );
         }
-        let evicted = store.evict(&mut index, "");
+        // A cap lowered since the last start: the oldest go, whoever owns them.
+        let mut evicted = Vec::new();
+        while index.total > store.max_bytes {
+            let Some(id) = index.oldest_except("", None) else { break };
+            evicted.extend(index.remove(&id));
+        }
         drop(index);
         store.delete_files(&evicted);
         store
+    }
+
+    /// Bytes of `owner`'s recordings now.
+    pub fn owned_bytes(&self, owner: &str) -> u64 {
+        self.lock().owned(owner)
     }
 
     /// The data directory.
@@ -374,6 +256,7 @@ impl RecordingStore {
     pub fn save(
         &self,
         spec: SpecSummary,
+        owner: &Owner,
         write: impl FnOnce(BufWriter<File>) -> Result<BufWriter<File>, RecordingError>,
     ) -> Result<RecordingEntry, StoreError> {
         fs::create_dir_all(&self.dir)?;
@@ -384,9 +267,10 @@ impl RecordingStore {
             .file
             .try_clone()
             .map_err(StoreError::from)
-            .and_then(|handle| self.write_checked(&tmp.path, handle, write));
+            .and_then(|handle| self.write_checked(&tmp.path, handle, write))
+            .and_then(|bytes| self.within_quota(owner, bytes));
         match written {
-            Ok(bytes) => self.keep(tmp, Contents::simulation(spec), bytes),
+            Ok(bytes) => self.keep(tmp, Contents::simulation(spec), owner, bytes),
             Err(e) => {
                 tmp.discard();
                 Err(e)
@@ -410,6 +294,7 @@ impl RecordingStore {
         &self,
         mut upload: Upload,
         contents: Contents,
+        owner: &Owner,
     ) -> Result<RecordingEntry, StoreError> {
         let tmp = upload.tmp.take().ok_or(StoreError::UploadGone)?;
         let checked = (|| {
@@ -424,10 +309,10 @@ impl RecordingStore {
             if !is_complete_rrd(&tmp.path, bytes)? {
                 return Err(StoreError::Incomplete);
             }
-            Ok(bytes)
+            self.within_quota(owner, bytes)
         })();
         match checked {
-            Ok(bytes) => self.keep(tmp, contents, bytes),
+            Ok(bytes) => self.keep(tmp, contents, owner, bytes),
             Err(e) => {
                 tmp.discard();
                 Err(e)
@@ -459,11 +344,25 @@ impl RecordingStore {
         Ok(bytes)
     }
 
-    /// Moves a checked recording into place under a new id, with its sidecar, and indexes it.
+    /// `bytes`, unless they alone exceed `owner`'s quota.
+    fn within_quota(&self, owner: &Owner, bytes: u64) -> Result<u64, StoreError> {
+        match owner.quota {
+            Some(quota) if bytes > quota => Err(StoreError::OverQuota {
+                owner: owner.name.clone(),
+                bytes,
+                quota,
+            }),
+            _ => Ok(bytes),
+        }
+    }
+
+    /// Moves a checked recording into place under a new id, with its sidecar, indexes it and
+    /// makes room for it ([`RecordingStore::evict`]); removes it again when there is none.
     fn keep(
         &self,
         tmp: TempFile,
         contents: Contents,
+        owner: &Owner,
         bytes: u64,
     ) -> Result<RecordingEntry, StoreError> {
         let id = new_id();
@@ -480,6 +379,7 @@ impl RecordingStore {
             origin: contents.origin,
             application_id: contents.application_id,
             created_unix_ms,
+            owner: Some(owner.name.clone()),
         };
         tmp.persist(&self.rrd_path(id))?;
         let sidecar = serde_json::to_vec_pretty(&Sidecar {
@@ -494,25 +394,22 @@ impl RecordingStore {
         let evicted = {
             let mut index = self.lock();
             index.insert(entry.clone());
-            self.evict(&mut index, id)
+            let room = index.make_room(id, owner, self.max_bytes);
+            if room.is_err() {
+                index.remove(id);
+            }
+            room
+        };
+        let evicted = match evicted {
+            Ok(evicted) => evicted,
+            Err(e) => {
+                self.delete_files(std::slice::from_ref(&entry));
+                return Err(e);
+            }
         };
         self.delete_files(&evicted);
         tracing::info!(id, bytes, origin = ?entry.origin, evicted = evicted.len(), "recording stored");
         Ok(entry)
-    }
-
-    /// Removes the oldest entries (never `keep`) until the total fits the cap; returns them.
-    fn evict(&self, index: &mut Index, keep: &str) -> Vec<RecordingEntry> {
-        let mut evicted = Vec::new();
-        while index.total > self.max_bytes {
-            let Some(id) = index.oldest_except(keep) else {
-                break;
-            };
-            if let Some(entry) = index.remove(&id) {
-                evicted.push(entry);
-            }
-        }
-        evicted
     }
 
     fn delete_files(&self, entries: &[RecordingEntry]) {
@@ -526,8 +423,18 @@ impl RecordingStore {
 
     /// Every recording, newest first.
     pub fn list(&self) -> Vec<RecordingEntry> {
+        self.list_owned(None)
+    }
+
+    /// The recordings of `owner` (all for `None`), newest first.
+    pub fn list_owned(&self, owner: Option<&str>) -> Vec<RecordingEntry> {
         let index = self.lock();
-        let mut entries: Vec<(u64, RecordingEntry)> = index.entries.values().cloned().collect();
+        let mut entries: Vec<(u64, RecordingEntry)> = index
+            .entries
+            .values()
+            .filter(|(_, e)| owner.is_none_or(|o| e.owner.as_deref() == Some(o)))
+            .cloned()
+            .collect();
         entries.sort_by(|a, b| (b.1.created_unix_ms, b.0).cmp(&(a.1.created_unix_ms, a.0)));
         entries.into_iter().map(|(_, e)| e).collect()
     }
@@ -602,8 +509,12 @@ mod tests {
             t_end: 0.1,
             samples_per_method: 2,
         };
+        let owner = Owner {
+            name: "alice".into(),
+            quota: None,
+        };
         let entry = writer
-            .save(spec, |mut w| {
+            .save(spec, &owner, |mut w| {
                 // Mid-write, a second store scans the directory.
                 w.write_all(b"RRF2").unwrap();
                 w.flush().unwrap();
@@ -627,12 +538,5 @@ mod tests {
         let reopened = RecordingStore::open(&dir, 1 << 30);
         assert_eq!(reopened.list(), vec![entry]);
         fs::remove_dir_all(&dir).unwrap();
-    }
-
-    #[test]
-    fn dates_are_rfc3339() {
-        assert_eq!(rfc3339(0), "1970-01-01T00:00:00.000Z");
-        assert_eq!(rfc3339(951_782_400_123), "2000-02-29T00:00:00.123Z");
-        assert_eq!(rfc3339(1_767_225_599_999), "2025-12-31T23:59:59.999Z");
     }
 }

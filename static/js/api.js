@@ -5,8 +5,11 @@
 // samples read back, upload of an .rrd file, delete), the stability analysis
 // (POST /api/v1/stability, /api/v1/stability/point) and the studies (POST
 // /api/v1/studies/work-precision, /convergence and /energy-map, the map also as a recording).
-// Errors in the service's shape, {"error": {"code", "message", "field", "position"}}, become
+// Every request carries the header's bearer token, if the user gave one (token.js). Errors in
+// the service's shape, {"error": {"code", "message", "field", "position"}}, become
 // ApiError objects that keep the field path and, for an expression, the character position.
+
+import { withToken } from './token.js';
 
 /** An error answered by the API (or a stream's `error` line). */
 export class ApiError extends Error {
@@ -47,7 +50,7 @@ async function errorFrom(response) {
 
 /** GETs a JSON document of the API. */
 async function getJson(path) {
-  const response = await fetch(path, { headers: { accept: 'application/json' } });
+  const response = await fetch(path, { headers: withToken({ accept: 'application/json' }) });
   if (!response.ok) throw await errorFrom(response);
   return response.json();
 }
@@ -108,7 +111,7 @@ export async function simulateStream(request, onLine, signal) {
 async function ndjsonStream(path, body, onLine, signal) {
   const response = await fetch(path, {
     method: 'POST',
-    headers: { 'content-type': 'application/json', accept: 'application/x-ndjson' },
+    headers: withToken({ 'content-type': 'application/json', accept: 'application/x-ndjson' }),
     body: JSON.stringify(body),
     signal,
   });
@@ -168,7 +171,7 @@ export async function workPrecisionRrd(body, signal) {
 async function post(path, body, { accept = 'application/json', signal } = {}) {
   const response = await fetch(path, {
     method: 'POST',
-    headers: { 'content-type': 'application/json', accept },
+    headers: withToken({ 'content-type': 'application/json', accept }),
     body: JSON.stringify(body),
     signal,
   });
@@ -243,7 +246,7 @@ export async function stabilityPoint(body, signal) {
 
 /** The stored recordings, newest first (GET /api/v1/recordings). */
 export async function listRecordings(signal) {
-  const response = await fetch('api/v1/recordings', { headers: { accept: 'application/json' }, signal });
+  const response = await fetch('api/v1/recordings', { headers: withToken({ accept: 'application/json' }), signal });
   if (!response.ok) throw await errorFrom(response);
   return response.json();
 }
@@ -256,7 +259,7 @@ export async function getRecording(id) {
 /** A stored simulation recording's samples, read back from its .rrd by the server. */
 export async function recordingSamples(id, signal) {
   const response = await fetch(`api/v1/recordings/${encodeURIComponent(id)}/samples`, {
-    headers: { accept: 'application/json' }, signal,
+    headers: withToken({ accept: 'application/json' }), signal,
   });
   if (!response.ok) throw await errorFrom(response);
   return response.json();
@@ -264,7 +267,9 @@ export async function recordingSamples(id, signal) {
 
 /** Deletes a stored recording; resolves to false when it was already gone (404). */
 export async function deleteRecording(id) {
-  const response = await fetch(`api/v1/recordings/${encodeURIComponent(id)}`, { method: 'DELETE' });
+  const response = await fetch(`api/v1/recordings/${encodeURIComponent(id)}`, {
+    method: 'DELETE', headers: withToken(),
+  });
   if (response.status === 404) return false;
   if (!response.ok) throw await errorFrom(response);
   return true;
@@ -277,7 +282,7 @@ export async function deleteRecording(id) {
 export async function uploadRecording(file, signal) {
   const response = await fetch('api/v1/recordings', {
     method: 'POST',
-    headers: { 'content-type': 'application/octet-stream', accept: 'application/json' },
+    headers: withToken({ 'content-type': 'application/octet-stream', accept: 'application/json' }),
     body: file,
     signal,
   });

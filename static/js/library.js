@@ -306,7 +306,11 @@ export class RecordingsPanel {
         el('a', { class: 'button secondary small', href: url, download: `geomint-${entry.id}.rrd`,
           'aria-label': `Download ${what}` }, 'Download'),
         action('Copy link', 'Copy a link to', () => this.copyLink(entry)),
-        action('Delete', 'Delete', () => this.confirmDelete(entry)))));
+        // The server says whether the user may delete it (its owner, or an admin token).
+        action('Delete', 'Delete', () => this.confirmDelete(entry), entry.may_delete !== false ? {} : {
+          disabled: true,
+          title: `Stored by ${entry.owner ?? 'an earlier version of the server'}: only its owner or an admin token deletes it`,
+        }))));
   }
 
   /** Turns the list to the page that holds recording `id` (clearing filters that hide it). */

@@ -11,6 +11,7 @@
 // cancelled, error).
 
 import { catalogues } from './api.js';
+import { setupTokenField } from './token.js';
 import { el, expandTemplates } from './common.js';
 import { Sections } from './sections.js';
 import { SimForm } from './form.js';
@@ -81,6 +82,9 @@ function start() {
 async function init() {
   document.querySelector('#boot')?.remove();
   expandTemplates();
+  // The token first: a server that needs one refuses the catalogues without it.
+  let library = null;
+  setupTokenField($('#api-token'), $('#token-status'), () => library?.refresh());
   sections = new Sections($('nav.sections'), 'simulation');
   buildPresets();
   for (const button of ui.presets.querySelectorAll('button')) button.disabled = true;
@@ -108,7 +112,7 @@ async function init() {
   const convergence = new ConvergencePanel($('#convergence'));
   const energyMap = new EnergyMapPanel($('#energy-map'), cats.methods);
   const sweep = new SweepPanel($('#sweep'));
-  const library = new RecordingsPanel($('#recordings'), cats.systems);
+  library = new RecordingsPanel($('#recordings'), cats.systems);
   const phaseSpace = new PhaseSpacePanel($('#phase-space'), cats.systems);
   for (const button of ui.presets.querySelectorAll('button')) button.disabled = false;
   ui.run.disabled = false;

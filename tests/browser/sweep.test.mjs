@@ -40,6 +40,9 @@ async function readAt(col, row) {
   // A redraw replaces the canvas and lays it out in the next animation frame: aim after that
   // frame, or the pointer may land where the old layout put the cell.
   await page.evaluate(() => new Promise((done) => requestAnimationFrame(() => requestAnimationFrame(done))));
+  // The pointer reaches only what is in the window, and the map's lower rows may lie below it
+  // (under a header whose links wrap onto another line).
+  await page.locator('#sw-canvas').scrollIntoViewIfNeeded();
   const [x, y] = await page.evaluate(([c, r]) => window.geomint.sweep.map.cellCentre(c, r), [col, row]);
   const box = await page.locator('#sw-canvas').boundingBox();
   // From outside the map, so that the move reaches the new canvas even when it ends where the

@@ -251,7 +251,11 @@ fn files_that_are_not_definitions_are_skipped_with_a_log_line_and_left_in_place(
         let store = SystemStore::open(&dir, 10);
         let definition = SystemDefinition::read(&elastic(), &Default::default()).unwrap();
         let stored = StoredSystem::new(definition, 0).unwrap();
-        let (stored, new) = store.insert(stored).unwrap();
+        let owner = geomint::store::systems::Owner {
+            name: "alice".into(),
+            quota: None,
+        };
+        let (stored, new) = store.insert(stored, &owner).unwrap();
         assert!(new);
         stored.info.id.to_string()
     };

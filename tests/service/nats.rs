@@ -34,7 +34,7 @@ fn nats_server_binary() -> PathBuf {
     .expect("nats-server is not installed: `apt-get install nats-server` (scripts/test does)")
 }
 
-fn scratch(name: &str) -> PathBuf {
+pub(crate) fn scratch(name: &str) -> PathBuf {
     let dir = server::scratch_dir(&format!("nats-{name}"));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
@@ -42,7 +42,7 @@ fn scratch(name: &str) -> PathBuf {
 }
 
 /// A NATS server with JetStream storing under `dir`, on a port it picks (`-p -1`).
-fn nats_server(dir: &Path) -> (Process, String) {
+pub(crate) fn nats_server(dir: &Path) -> (Process, String) {
     let mut command = Command::new(nats_server_binary());
     command
         .args(["-a", "127.0.0.1", "-p", "-1", "-js", "-sd"])
@@ -56,7 +56,7 @@ fn nats_server(dir: &Path) -> (Process, String) {
     (process, format!("nats://{address}"))
 }
 
-fn geomint() -> Command {
+pub(crate) fn geomint() -> Command {
     let mut command = Command::new(env!("CARGO_BIN_EXE_geomint"));
     command
         .env_remove("GEOMINT_NATS_URL")
@@ -76,6 +76,16 @@ fn worker(url: &str) -> Process {
 
 /// `geomint serve --nats url` on a port of its own, with its data in `dir`.
 fn server(url: &str, dir: &Path, time_limit_secs: u32) -> (Process, String) {
+    server_with(url, dir, time_limit_secs, &[])
+}
+
+/// The same, with `extra` arguments.
+pub(crate) fn server_with(
+    url: &str,
+    dir: &Path,
+    time_limit_secs: u32,
+    extra: &[&str],
+) -> (Process, String) {
     let mut command = geomint();
     command
         .env("GEOMINT_LOG", SERVE_LOG)
@@ -93,6 +103,7 @@ fn server(url: &str, dir: &Path, time_limit_secs: u32) -> (Process, String) {
         .arg(dir.join("systems"))
         .arg("--static-dir")
         .arg(dir.join("no-static"))
+        .args(extra)
         .stdout(Stdio::null());
     let (process, address) = spawn_listening(command, "geomint serve", SERVE_LISTENING);
     (process, format!("http://{address}"))

@@ -15,6 +15,7 @@ from .recording import Recording, RecordingInfo
 from .simulation import (
     Crossings,
     DivergedAt,
+    Indicators,
     Run,
     Schedule,
     SectionSummary,
@@ -53,6 +54,7 @@ __all__ = [
     "EnergyMap",
     "Facts",
     "GeomintError",
+    "Indicators",
     "Method",
     "OrderFit",
     "OverloadedError",

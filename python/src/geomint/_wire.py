@@ -108,16 +108,98 @@ class SectionRequest(TypedDict, total=False):
     phase: float
 
 
-class _StopWhenRequestRequired(TypedDict):
+Indicator = Literal["lyapunov", "megno", "fli", "sali", "gali"]
+"""A chaos indicator a run can report: ``lyapunov`` (the finite-time Lyapunov spectrum),
+``megno`` (MEGNO Y and its running mean ⟨Y⟩), ``fli``, ``sali``, ``gali``."""
+
+Statistic = Literal["lyapunov_max", "megno", "megno_mean", "fli", "sali", "gali"]
+"""A number the indicators report, by the name answers and thresholds give it."""
+
+
+# ``stop_when`` is one object: an event surface (``where``, with ``direction`` and ``count``),
+# thresholds of the indicators, or both, with at least one member, and ``direction``/``count``
+# only beside ``where``. A TypedDict cannot say "at least one of", so the request is a union: an
+# event (thresholds optional), or thresholds alone, each variant requiring one threshold and
+# allowing the ones after it (any non-empty set of thresholds is the variant of its first).
+
+
+class _AfterSali(TypedDict, total=False):
+    gali: float
+
+
+class _AfterFli(_AfterSali, total=False):
+    sali: float
+
+
+class _AfterMegnoMean(_AfterFli, total=False):
+    fli: float
+
+
+class _AfterMegno(_AfterMegnoMean, total=False):
+    megno_mean: float
+
+
+class _AfterLyapunovMax(_AfterMegno, total=False):
+    megno: float
+
+
+class Thresholds(_AfterLyapunovMax, total=False):
+    """Every threshold, each optional: a rising indicator (``lyapunov_max``, ``megno``,
+    ``megno_mean``, ``fli``) reaching its value from below, or a falling one (``sali``,
+    ``gali``) falling to it, ends the run (its stop reason is then ``indicator``)."""
+
+    lyapunov_max: float
+
+
+class _StopWhenEventRequired(Thresholds):
     where: str
 
 
-class StopWhenRequest(_StopWhenRequestRequired, total=False):
+class StopWhenEvent(_StopWhenEventRequired, total=False):
     """An event that ends each run: the ``count``-th crossing (default 1) of ``where`` = 0 in
-    ``direction`` (default ``both``)."""
+    ``direction`` (default ``both``), with thresholds besides (whichever comes first)."""
 
     direction: CrossingDirection
     count: int
+
+
+class StopAtLyapunovMax(_AfterLyapunovMax):
+    lyapunov_max: float
+
+
+class StopAtMegno(_AfterMegno):
+    megno: float
+
+
+class StopAtMegnoMean(_AfterMegnoMean):
+    megno_mean: float
+
+
+class StopAtFli(_AfterFli):
+    fli: float
+
+
+class StopAtSali(_AfterSali):
+    sali: float
+
+
+class StopAtGali(TypedDict):
+    gali: float
+
+
+StopWhenThresholds = Union[StopAtLyapunovMax, StopAtMegno, StopAtMegnoMean, StopAtFli, StopAtSali, StopAtGali]
+"""Thresholds alone (at least one): what a sweep's ``stop_when`` takes."""
+
+StopWhenRequest = Union[StopWhenEvent, StopWhenThresholds]
+"""What ends each run before ``t_end``: an event, thresholds, or both."""
+
+
+class EnergySurfaceRequest(TypedDict):
+    """A sweep's initial states on the energy surface H = ``energy``: per cell, the initial
+    momentum ``solve_for`` (``p0[i]``) is solved for."""
+
+    energy: float
+    solve_for: str
 
 
 class EnergyRequest(TypedDict):
@@ -149,6 +231,9 @@ class SimulateRequest(_SimulateRequestRequired, total=False):
     section: SectionRequest
     stop_when: StopWhenRequest
     energy: EnergyRequest
+    indicators: List[Indicator]
+    deviations: int
+    qr_every: int
 
 
 class _AxisRequestRequired(TypedDict):
@@ -182,6 +267,11 @@ class SweepRequest(_SweepRequestRequired, total=False):
     every: int
     energy_reference: str
     initial_coordinates: str
+    indicators: List[Indicator]
+    deviations: int
+    qr_every: int
+    stop_when: StopWhenThresholds
+    energy_surface: EnergySurfaceRequest
 
 
 class AxisSpec(TypedDict):
@@ -495,7 +585,19 @@ class StopEvent(TypedDict):
     t: float
 
 
-Stop = Union[StopFinished, StopDiverged, StopCancelled, StopFailed, StopEvent]
+class StopIndicator(TypedDict):
+    """A ``stop_when`` threshold: ``indicator`` reached ``threshold`` (its ``value`` there) at
+    ``step``, ``t``, the run's last sample."""
+
+    reason: Literal["indicator"]
+    step: int
+    t: float
+    indicator: Statistic
+    value: float
+    threshold: float
+
+
+Stop = Union[StopFinished, StopDiverged, StopCancelled, StopFailed, StopEvent, StopIndicator]
 
 EnergyReference = Literal["exact", "initial", "reference"]
 """What ``energy_error`` is measured against: the exact solution, H₀ (nothing damps or drives the
@@ -519,6 +621,12 @@ class Columns(_ColumnsRequired, total=False):
     cartesian_p: Optional[List[List[float]]]
     bodies: Optional[List[List[float]]]
     jacobian_defect: Optional[List[Optional[float]]]
+    lyapunov: Optional[List[List[float]]]
+    megno: Optional[List[float]]
+    megno_mean: Optional[List[float]]
+    fli: Optional[List[float]]
+    sali: Optional[List[float]]
+    gali: Optional[List[float]]
 
 
 class _CrossingColumnsRequired(TypedDict):
@@ -567,6 +675,18 @@ class SurfaceInfo(_SurfaceInfoRequired, total=False):
     phase: Optional[float]
 
 
+class IndicatorValues(TypedDict, total=False):
+    """The indicators at a run's last sample, under the names of the sample columns (``None``
+    for those not asked for)."""
+
+    lyapunov: Optional[List[float]]
+    megno: Optional[float]
+    megno_mean: Optional[float]
+    fli: Optional[float]
+    sali: Optional[float]
+    gali: Optional[float]
+
+
 class _RunOutcomeRequired(TypedDict):
     stats: Stats
     stop: Stop
@@ -578,6 +698,7 @@ class RunOutcome(_RunOutcomeRequired, total=False):
     dissipation_drift: Optional[List[DriftPoint]]
     diverged_at: Optional[DivergedAt]
     section_summary: Optional[SectionSummary]
+    indicators: Optional[IndicatorValues]
 
 
 class _RunDocumentRequired(Columns, RunOutcome):
@@ -616,11 +737,14 @@ class _HeaderLineRequired(TypedDict):
 
 
 class HeaderLine(_HeaderLineRequired, total=False):
-    """The first line of a simulation's stream."""
+    """The first line of a simulation's stream (``indicators`` the chunks carry, with
+    ``deviations`` vectors: the length of each ``lyapunov`` entry)."""
 
     energy_reference: Optional[EnergyReference]
     section: Optional[SurfaceInfo]
     stop_when: Optional[SurfaceInfo]
+    indicators: Optional[List[Indicator]]
+    deviations: Optional[int]
 
 
 class SamplesLine(Columns):
@@ -772,7 +896,21 @@ class AxisDocument(TypedDict):
     values: List[float]
 
 
-class RunColumns(TypedDict):
+class ChaosColumns(TypedDict, total=False):
+    """A sweep's chaos maps: each indicator's last value per cell (``None`` where not asked for
+    or the run did not start), and the time a threshold stopped a cell's run (``None``: it ran
+    to the end)."""
+
+    lyapunov_max: List[Optional[float]]
+    megno: List[Optional[float]]
+    megno_mean: List[Optional[float]]
+    fli: List[Optional[float]]
+    sali: List[Optional[float]]
+    gali: List[Optional[float]]
+    stopped_at: List[Optional[float]]
+
+
+class RunColumns(ChaosColumns):
     """One run's metrics over a sweep's cells, in cell order (the first axis runs fastest)."""
 
     method: str

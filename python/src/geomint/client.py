@@ -56,7 +56,10 @@ from ._wire import (
     SectionRequest,
     SimulateRequest,
     StabilityRequest,
+    EnergySurfaceRequest,
+    Indicator,
     StopWhenRequest,
+    StopWhenThresholds,
     StoredSystem,
     StreamLine,
     StudyLine,
@@ -100,8 +103,18 @@ SectionLike = Union[str, SectionRequest]
 ``{"where": S, "direction": "up" | "down" | "both", "max_points": N}``, or a stroboscopic
 section ``{"period": T, "phase": φ}``."""
 StopWhenLike = Union[str, StopWhenRequest]
-"""An event that ends each run: the expression S (its first crossing of S = 0 either way), or
-``{"where": S, "direction": "up" | "down" | "both", "count": n}``."""
+"""What ends each run before ``t_end``: the expression S (its first crossing of S = 0 either
+way), or ``{"where": S, "direction": "up" | "down" | "both", "count": n}``, or thresholds of
+the indicators (``{"megno_mean": 8}``; ``lyapunov_max``, ``megno``, ``megno_mean`` and ``fli``
+reached from below, ``sali`` and ``gali`` falling to theirs), or a surface and thresholds
+together (whichever comes first)."""
+Indicators = Union[Indicator, Sequence[Indicator]]
+"""One chaos indicator (``lyapunov``, ``megno``, ``fli``, ``sali``, ``gali``) or several."""
+EnergySurfaceLike = Union[EnergySurfaceRequest, Tuple[float, str]]
+"""A sweep's energy surface: ``{"energy": E, "solve_for": "p0[i]"}`` or ``(E, "p0[i]")``."""
+
+THRESHOLDS = ("lyapunov_max", "megno", "megno_mean", "fli", "sali", "gali")
+INDICATOR_NAMES = ("lyapunov", "megno", "fli", "sali", "gali")
 EnergyLike = Union[EnergyRequest, Tuple[float, str]]
 """An energy level: ``{"value": E, "momentum": name}`` or ``(E, name)``."""
 Result = Union[Simulation, Sweep, StabilityMaps, EnergyMap, WorkPrecision]
@@ -227,14 +240,60 @@ def _stop_when(stop_when: StopWhenLike) -> StopWhenRequest:
     if isinstance(stop_when, str):
         return {"where": stop_when}
     if not isinstance(stop_when, Mapping):
-        raise ValidationError("stop_when", "an event is an expression or {'where', 'direction', 'count'}",
+        raise ValidationError("stop_when", "give an expression, {'where', 'direction', 'count'} or thresholds "
+                              "such as {'megno_mean': 8}", code="invalid_type")
+    members = cast(Mapping[str, Any], stop_when)
+    if "where" not in members:
+        for key in ("direction", "count"):
+            if key in members:
+                raise ValidationError("stop_when.where", f"is missing: `{key}` goes with a surface `where`",
+                                      code="missing_field")
+        if not any(k in members for k in THRESHOLDS):
+            raise ValidationError("stop_when", "give the surface `where`, or a threshold of "
+                                  + ", ".join(f"`{k}`" for k in THRESHOLDS), code="missing_field")
+    if "count" in members:
+        _count(members["count"], "stop_when.count")
+    for key in THRESHOLDS:
+        value = members.get(key)
+        if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float, np.number))):
+            raise ValidationError(f"stop_when.{key}", f"a threshold is a number, not {value!r}", code="invalid_type")
+    return cast(StopWhenRequest, _plain(members, "stop_when"))
+
+
+def _thresholds(stop_when: Mapping[str, float]) -> StopWhenThresholds:
+    """A sweep's ``stop_when``: thresholds only (a sweep's cells have no event surface)."""
+    if not isinstance(stop_when, Mapping):
+        raise ValidationError("stop_when", "a sweep's stop_when is thresholds, such as {'megno_mean': 8}",
                               code="invalid_type")
-    if "where" not in stop_when:
-        raise ValidationError("stop_when.where", "is missing", code="missing_field")
-    out = cast(StopWhenRequest, _plain(stop_when, "stop_when"))
-    if "count" in out:
-        _count(out["count"], "stop_when.count")
-    return out
+    for key in ("where", "direction", "count"):
+        if key in stop_when:
+            raise ValidationError(f"stop_when.{key}", "a sweep stops on thresholds only, not on an event")
+    return cast(StopWhenThresholds, _stop_when(cast(StopWhenRequest, stop_when)))
+
+
+def _indicators(indicators: Indicators) -> List[Indicator]:
+    items: List[Any] = [indicators] if isinstance(indicators, str) else list(indicators)
+    for i, name in enumerate(items):
+        if name not in INDICATOR_NAMES:
+            raise ValidationError(f"indicators[{i}]", f"{name!r} is not one of {', '.join(INDICATOR_NAMES)}")
+    return cast(List[Indicator], items)
+
+
+def _energy_surface(surface: EnergySurfaceLike) -> EnergySurfaceRequest:
+    if isinstance(surface, tuple) and len(surface) == 2:
+        out: Dict[str, Any] = {"energy": surface[0], "solve_for": surface[1]}
+    elif isinstance(surface, Mapping):
+        out = dict(surface)
+    else:
+        raise ValidationError("energy_surface", "an energy surface is {'energy', 'solve_for'} or (energy, 'p0[i]')",
+                              code="invalid_type")
+    for key in ("energy", "solve_for"):
+        if key not in out:
+            raise ValidationError(f"energy_surface.{key}", "is missing", code="missing_field")
+    if not isinstance(out["solve_for"], str):
+        raise ValidationError("energy_surface.solve_for", "give the momentum to solve for as `p0[i]`",
+                              code="invalid_type")
+    return cast(EnergySurfaceRequest, _plain(out, "energy_surface"))
 
 
 def _energy(energy: EnergyLike) -> EnergyRequest:
@@ -499,6 +558,9 @@ class Client:
         section: Optional[SectionLike] = None,
         stop_when: Optional[StopWhenLike] = None,
         energy: Optional[EnergyLike] = None,
+        indicators: Optional[Indicators] = None,
+        deviations: Optional[int] = None,
+        qr_every: Optional[int] = None,
         stream: bool = False,
         progress: bool = True,
         on_line: Optional[Callable[[StreamLine], None]] = None,
@@ -523,6 +585,16 @@ class Client:
         :attr:`Run.events`. ``energy`` starts on an energy level: ``{"value": E, "momentum":
         "py"}`` (or ``(E, "py")``) replaces that initial momentum with the non-negative one for
         which H(q0, p0) = E (the state used is :attr:`Simulation.system`).
+
+        ``indicators`` asks each run for chaos indicators, from ``deviations`` tangent vectors
+        (k, 1 to 2n; the server's default is 2n with ``lyapunov`` or ``gali``, 2 with ``sali``,
+        else 1) advanced by the method's own tangent map and re-orthonormalised every
+        ``qr_every`` steps (default 10): ``lyapunov`` (the finite-time spectrum, a
+        samples × k array :attr:`Run.lyapunov`), ``megno`` (:attr:`Run.megno` and
+        :attr:`Run.megno_mean`), ``fli``, ``sali``, ``gali``; :attr:`Run.final` has their last
+        values. ``stop_when`` may then hold thresholds, ``{"megno_mean": 8}``: a run that
+        reaches one stops with the reason ``indicator`` (:class:`~geomint.Stop` names the
+        statistic, its value and the threshold).
 
         With ``stream`` (or through :meth:`stream`) the samples come over the NDJSON stream as
         they are computed, with a progress bar (tqdm, when installed and ``progress`` is true);
@@ -554,6 +626,12 @@ class Client:
             body["stop_when"] = _stop_when(stop_when)
         if energy is not None:
             body["energy"] = _energy(energy)
+        if indicators is not None:
+            body["indicators"] = _indicators(indicators)
+        if deviations is not None:
+            body["deviations"] = _count(deviations, "deviations")
+        if qr_every is not None:
+            body["qr_every"] = _count(qr_every, "qr_every")
         if not stream:
             return Simulation.from_json(self._json("simulate", body=body), body)
 
@@ -676,6 +754,11 @@ class Client:
         every: Optional[int] = None,
         energy_reference: Optional[str] = None,
         initial_coordinates: Optional[str] = None,
+        indicators: Optional[Indicators] = None,
+        deviations: Optional[int] = None,
+        qr_every: Optional[int] = None,
+        stop_when: Optional[Mapping[str, float]] = None,
+        energy_surface: Optional[EnergySurfaceLike] = None,
         progress: bool = True,
     ) -> Sweep:
         """Runs ``methods`` (in each of ``charts``) over a grid of one or two axes and returns
@@ -686,6 +769,14 @@ class Client:
         and an optional ``scale`` (``linear`` or ``log``): ``("params.gamma", 0, 2, 21)``.
         ``h`` is the step size unless an axis varies it; ``every`` the sampling; ``energy_reference``
         ``exact``, ``initial`` or ``reference``. Interrupting it stops the server's sweep.
+
+        Chaos maps: ``indicators`` (with ``deviations`` and ``qr_every``, as in
+        :meth:`simulate`) gives every run's last values per cell (:attr:`SweepRun.megno_mean`,
+        …; variables of :meth:`Sweep.to_xarray`), ``stop_when`` thresholds (``{"megno_mean":
+        8}``) stop a cell's run early (:attr:`SweepRun.stopped_at`), and ``energy_surface``
+        (``{"energy": E, "solve_for": "p0[0]"}`` or ``(E, "p0[0]")``) solves that momentum per
+        cell so that H = E while the axes vary the rest of the state (cells where no momentum
+        reaches E have an entry in ``errors``).
         """
         if isinstance(axes, (Axis, Mapping)) or (isinstance(axes, tuple) and axes and isinstance(axes[0], str)):
             axes = [cast(AxisLike, axes)]
@@ -709,6 +800,16 @@ class Client:
             body["every"] = _count(every, "every")
         _put(body, "energy_reference", energy_reference)
         _put(body, "initial_coordinates", initial_coordinates)
+        if indicators is not None:
+            body["indicators"] = _indicators(indicators)
+        if deviations is not None:
+            body["deviations"] = _count(deviations, "deviations")
+        if qr_every is not None:
+            body["qr_every"] = _count(qr_every, "qr_every")
+        if stop_when is not None:
+            body["stop_when"] = _thresholds(stop_when)
+        if energy_surface is not None:
+            body["energy_surface"] = _energy_surface(energy_surface)
         line = cast(SweepResultLine, self._study("sweep", body, progress, "cells"))
         return Sweep.from_json(line, body)
 

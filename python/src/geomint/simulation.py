@@ -4,7 +4,7 @@ and its event's crossings as :class:`Crossings`."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Dict, Iterator, List, Mapping, Optional, Tuple, Union
+from typing import Any, Dict, Iterator, List, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -18,6 +18,7 @@ from ._wire import (
     DivergedAt as DivergedAtDoc,
     DriftPoint,
     HeaderLine,
+    IndicatorValues,
     ParamValue,
     RecordedDocument,
     RecordedRun,
@@ -38,15 +39,20 @@ from .errors import ServerError
 
 @dataclass(frozen=True)
 class Stop:
-    """Why a run stopped: ``finished``, ``diverged``, ``cancelled``, ``time_limit``, ``failed``
-    or ``event`` (the ``stop_when`` surface's ``count``-th crossing, at ``t``; the run's last
-    sample is the step ``step`` past it), with the step, the time and a message where the server
-    gives them."""
+    """Why a run stopped: ``finished``, ``diverged``, ``cancelled``, ``time_limit``, ``failed``,
+    ``event`` (the ``stop_when`` surface's ``count``-th crossing, at ``t``; the run's last
+    sample is the step ``step`` past it) or ``indicator`` (a ``stop_when`` threshold: the
+    statistic ``indicator``, e.g. ``megno_mean``, reached ``threshold`` with ``value`` at
+    ``step``, ``t``, the run's last sample), with the step, the time and a message where the
+    server gives them."""
 
     reason: str
     step: Optional[int] = None
     t: Optional[float] = None
     message: Optional[str] = None
+    indicator: Optional[str] = None
+    value: Optional[float] = None
+    threshold: Optional[float] = None
 
     @classmethod
     def from_json(cls, doc: StopDoc) -> "Stop":
@@ -58,6 +64,9 @@ class Stop:
             return cls("failed", doc["step"], doc["t"], doc["message"])
         if doc["reason"] == "event":
             return cls("event", doc["step"], doc["t"])
+        if doc["reason"] == "indicator":
+            return cls("indicator", doc["step"], doc["t"], indicator=doc["indicator"], value=doc["value"],
+                       threshold=doc["threshold"])
         return cls(doc["reason"], doc["step"])
 
 
@@ -234,8 +243,52 @@ class Crossings:
         return pd.DataFrame(self.columns())
 
 
-def _optional_floats(values: Optional[List[Optional[float]]]) -> Optional[FloatArray]:
+def _optional_floats(values: Optional[Sequence[Optional[float]]]) -> Optional[FloatArray]:
     return None if values is None else _arrays.floats(values)
+
+
+INDICATORS = ("lyapunov", "megno", "fli", "sali", "gali")
+"""The chaos indicators, in the order the server reports them."""
+
+STATISTICS = ("megno", "megno_mean", "fli", "sali", "gali")
+"""The indicators' per-sample columns of one number each (``lyapunov`` has k per sample)."""
+
+
+@dataclass(frozen=True, eq=False)
+class Indicators:
+    """A run's chaos indicators at its last sample (``None``: not asked for): ``lyapunov``, the
+    finite-time Lyapunov spectrum, largest first (k exponents); ``megno`` Y and its running
+    mean ``megno_mean`` ⟨Y⟩ (≈ 2 on a torus, growing like λt/2 on a chaotic orbit); ``fli``;
+    ``sali``; ``gali`` (GALI_k)."""
+
+    lyapunov: Optional[FloatArray] = None
+    megno: Optional[float] = None
+    megno_mean: Optional[float] = None
+    fli: Optional[float] = None
+    sali: Optional[float] = None
+    gali: Optional[float] = None
+
+    @classmethod
+    def from_json(cls, doc: Optional[IndicatorValues]) -> Optional["Indicators"]:
+        if doc is None:
+            return None
+        spectrum = doc.get("lyapunov")
+        return cls(None if spectrum is None else _arrays.floats(spectrum), doc.get("megno"),
+                   doc.get("megno_mean"), doc.get("fli"), doc.get("sali"), doc.get("gali"))
+
+    @property
+    def lyapunov_max(self) -> Optional[float]:
+        """The largest exponent of :attr:`lyapunov`."""
+        return None if self.lyapunov is None or len(self.lyapunov) == 0 else float(self.lyapunov[0])
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, Indicators):
+            return NotImplemented
+        same_spectrum = (self.lyapunov is None) == (other.lyapunov is None) and (
+            self.lyapunov is None or other.lyapunov is None or self.lyapunov.tobytes() == other.lyapunov.tobytes())
+        return same_spectrum and all(getattr(self, k) == getattr(other, k) for k in STATISTICS)
+
+    __hash__ = None  # type: ignore[assignment]
 
 
 @dataclass(frozen=True, eq=False)
@@ -253,6 +306,11 @@ class Run:
     With a ``section``, ``section`` holds the run's section points (:class:`Crossings`) and
     ``section_summary`` how the section went; with ``stop_when``, ``events`` holds the crossings
     of its surface, the last of which ended the run (``stop.reason == "event"``).
+
+    With ``indicators``, the asked-for ones come per sample: ``lyapunov`` (samples, k), the
+    finite-time Lyapunov spectrum, largest first; ``megno`` and ``megno_mean`` (Y and ⟨Y⟩),
+    ``fli``, ``sali``, ``gali`` one value per sample; and :attr:`final` holds their values at
+    the last sample (:class:`Indicators`).
     """
 
     method: str
@@ -273,6 +331,13 @@ class Run:
     section: Optional[Crossings] = None
     section_summary: Optional[SectionSummary] = None
     events: Optional[Crossings] = None
+    lyapunov: Optional[FloatArray] = None
+    megno: Optional[FloatArray] = None
+    megno_mean: Optional[FloatArray] = None
+    fli: Optional[FloatArray] = None
+    sali: Optional[FloatArray] = None
+    gali: Optional[FloatArray] = None
+    final: Optional[Indicators] = None
 
     @property
     def samples(self) -> int:
@@ -292,8 +357,13 @@ class Run:
         section: Optional[CrossingColumns] = None,
         section_summary: Optional[SectionSummary] = None,
         events: Optional[CrossingColumns] = None,
+        final: Optional[Indicators] = None,
+        deviations: Optional[int] = None,
     ) -> "Run":
         cartesian = columns.get("cartesian_q")
+        spectrum = columns.get("lyapunov")
+        if spectrum is not None and deviations is None:
+            deviations = len(spectrum[0]) if spectrum else 0
         cartesian_width = len(cartesian[0]) if cartesian else 0
         bodies = columns.get("bodies")
         return cls(
@@ -317,6 +387,13 @@ class Run:
             section=Crossings.optional(section, dof),
             section_summary=section_summary,
             events=Crossings.optional(events, dof),
+            lyapunov=None if spectrum is None else _arrays.rows(spectrum, deviations or 0),
+            megno=_optional_floats(columns.get("megno")),
+            megno_mean=_optional_floats(columns.get("megno_mean")),
+            fli=_optional_floats(columns.get("fli")),
+            sali=_optional_floats(columns.get("sali")),
+            gali=_optional_floats(columns.get("gali")),
+            final=final,
         )
 
     @classmethod
@@ -328,13 +405,16 @@ class Run:
         dof: int,
         section: Optional[CrossingColumns] = None,
         events: Optional[CrossingColumns] = None,
+        deviations: Optional[int] = None,
     ) -> "Run":
         """A run from its samples and how it ended (a JSON answer's run, or a stream's chunks
-        and summary), with its section's points and its event's crossings when it has them."""
+        and summary), with its section's points and its event's crossings when it has them
+        (``deviations``: the width of its ``lyapunov`` rows, when the stream's header gave it)."""
         return cls._from_columns(
             method, columns, dof, Stop.from_json(outcome["stop"]), Stats.from_json(outcome["stats"]),
             outcome.get("dissipation_drift"), DivergedAt.from_json(outcome.get("diverged_at")),
             section, SectionSummary.from_json(outcome.get("section_summary")), events,
+            Indicators.from_json(outcome.get("indicators")), deviations,
         )
 
     @classmethod
@@ -343,9 +423,15 @@ class Run:
         stats = Stats(doc["last_step"], doc.get("force_evaluations"), None)
         return cls._from_columns(doc["method"], doc, dof, None, stats, doc.get("dissipation_drift"), None)
 
+    @property
+    def indicators(self) -> Tuple[str, ...]:
+        """The indicators this run reports per sample, in the server's order."""
+        return tuple(name for name in INDICATORS if getattr(self, name) is not None)
+
     def columns(self) -> Dict[str, FloatArray]:
         """Every per-sample column, flat: ``t``, ``q0``…, ``p0``…, ``energy``, ``energy_error``,
-        the invariants by name, ``cartesian_q0``…, ``cartesian_p0``…."""
+        the invariants by name, ``cartesian_q0``…, ``cartesian_p0``…, and the indicators:
+        ``lyapunov0``… (largest first), ``megno``, ``megno_mean``, ``fli``, ``sali``, ``gali``."""
         out: Dict[str, FloatArray] = {"t": self.t}
         for i in range(self.q.shape[1]):
             out[f"q{i}"] = self.q[:, i]
@@ -359,6 +445,13 @@ class Run:
             if values is not None:
                 for i in range(values.shape[1]):
                     out[f"{name}{i}"] = values[:, i]
+        if self.lyapunov is not None:
+            for i in range(self.lyapunov.shape[1]):
+                out[f"lyapunov{i}"] = self.lyapunov[:, i]
+        for name in STATISTICS:
+            column = getattr(self, name)
+            if column is not None:
+                out[name] = column
         return out
 
     def to_pandas(self) -> Any:
@@ -376,7 +469,11 @@ class Simulation:
     (the exact solution), ``initial`` (H₀: nothing damps or drives the system, so its exact
     flow keeps H) or ``reference`` (the adaptive reference run); ``None`` when there is none.
     ``section`` and ``stop_when`` are the request's section and event as the server resolved
-    them (:class:`Surface`), ``None`` when not asked for.
+    them (:class:`Surface`), ``None`` when not asked for (a ``stop_when`` of thresholds alone
+    has no surface). ``indicators`` are the chaos indicators the runs report and ``deviations``
+    the number of deviation vectors (the width of each run's ``lyapunov``): a stream's header
+    gives it; from a one-document answer it is the width of ``lyapunov``, else the request's
+    ``deviations``, else ``None`` (the server's default).
     """
 
     system: SystemState
@@ -387,6 +484,8 @@ class Simulation:
     energy_reference: Optional[str] = None
     section: Optional[Surface] = None
     stop_when: Optional[Surface] = None
+    indicators: Tuple[str, ...] = ()
+    deviations: Optional[int] = None
 
     @classmethod
     def from_json(cls, doc: SimulationDocument, request: Optional[SimulateRequest] = None) -> "Simulation":
@@ -394,9 +493,22 @@ class Simulation:
         system = SystemState.from_json(doc["system"])
         runs = tuple(Run.from_outcome(r["method"], r, r, system.dof, r.get("section"), r.get("events"))
                      for r in doc["runs"])
+        # The document has no header: what the runs carry says which indicators and how many
+        # deviation vectors (the stream's header says the same).
+        indicators = runs[0].indicators if runs else ()
+        deviations = None
+        for r in doc["runs"]:
+            final = r.get("indicators")
+            spectrum = None if final is None else final.get("lyapunov")
+            if spectrum is not None:
+                deviations = len(spectrum)
+                break
+        if deviations is None and indicators and request is not None:
+            deviations = request.get("deviations")
         return cls(system, Schedule.from_json(doc["schedule"]), tuple(doc["invariants"]), runs, request,
                    energy_reference=doc.get("energy_reference"), section=Surface.from_json(doc.get("section")),
-                   stop_when=Surface.from_json(doc.get("stop_when")))
+                   stop_when=Surface.from_json(doc.get("stop_when")), indicators=indicators,
+                   deviations=deviations)
 
     @classmethod
     def from_recorded(cls, doc: RecordedDocument) -> "Simulation":
@@ -429,7 +541,9 @@ class Simulation:
     def to_xarray(self) -> Any:
         """The runs as an xarray Dataset with dimensions ``run`` (the methods' labels), ``t`` and
         ``dof`` (and ``invariant``): ``q``, ``p``, ``energy``, ``energy_error``, ``invariants``,
-        ``cartesian_q``, ``cartesian_p``; ``ds.sel(run="heun")`` picks a method. A run that
+        ``cartesian_q``, ``cartesian_p``, and the indicators asked for (``megno``,
+        ``megno_mean``, ``fli``, ``sali``, ``gali``; ``lyapunov`` with an ``exponent``
+        dimension, largest first); ``ds.sel(run="heun")`` picks a method. A run that
         stopped early is NaN past its last sample. Section points are not samples: they stay in
         each run's :attr:`Run.section` (``run.section.to_pandas()``).
         Runs whose sample times differ (which one request does not produce) are laid along a
@@ -471,7 +585,15 @@ class Simulation:
             stacked = stack(lambda r, name=name: getattr(r, name))
             if stacked is not None:
                 data[name] = (("run", time, "cartesian_dof"), stacked)
+        for name in STATISTICS:
+            stacked = stack(lambda r, name=name: getattr(r, name))
+            if stacked is not None:
+                data[name] = (("run", time), stacked)
+        spectrum = stack(lambda r: r.lyapunov)
         coords: Dict[str, Any] = {"run": self.methods, "dof": np.arange(dof)}
+        if spectrum is not None:
+            data["lyapunov"] = (("run", time, "exponent"), spectrum)
+            coords["exponent"] = np.arange(spectrum.shape[-1])
         if shared:
             coords["t"] = pad(longest)
         else:
@@ -482,6 +604,8 @@ class Simulation:
                  "t_end": self.schedule.t_end, "every": self.schedule.every}
         if self.energy_reference is not None:
             attrs["energy_reference"] = self.energy_reference
+        if self.indicators:
+            attrs["indicators"] = list(self.indicators)
         return xr.Dataset(data, coords=coords, attrs=attrs)
 
 
@@ -522,7 +646,7 @@ class StreamAssembler:
             raise ServerError("stream_order", f"method {line['method']}: a chunk at sample "
                               f"{line['offset']} after {have} samples")
         for key in ("t", "q", "p", "energy", "energy_error", "cartesian_q", "cartesian_p",
-                    "bodies", "jacobian_defect"):
+                    "bodies", "jacobian_defect", "lyapunov", "megno", "megno_mean", "fli", "sali", "gali"):
             values = line.get(key)
             if values is not None:
                 columns.setdefault(key, []).extend(values)
@@ -562,9 +686,12 @@ class StreamAssembler:
             columns: Columns = self._columns[i]  # type: ignore[assignment]
             crossings: Dict[str, CrossingColumns] = self._crossings[i]  # type: ignore[assignment]
             runs.append(Run.from_outcome(summary["label"], columns, summary, system.dof,
-                                         crossings.get("section"), crossings.get("stop_when")))
+                                         crossings.get("section"), crossings.get("stop_when"),
+                                         self.header.get("deviations")))
         return Simulation(system, Schedule.from_json(self.header["schedule"]),
                           tuple(self.header["invariants"]), tuple(runs), self.request,
                           energy_reference=self.header.get("energy_reference"),
                           section=Surface.from_json(self.header.get("section")),
-                          stop_when=Surface.from_json(self.header.get("stop_when")))
+                          stop_when=Surface.from_json(self.header.get("stop_when")),
+                          indicators=tuple(self.header.get("indicators") or ()),
+                          deviations=self.header.get("deviations"))

@@ -67,9 +67,18 @@ class Axis:
         return dimension_name(self.name)
 
 
+CHAOS_COLUMNS = ("lyapunov_max", "megno", "megno_mean", "fli", "sali", "gali", "stopped_at")
+"""A sweep run's chaos maps (with ``indicators``)."""
+
+
 @dataclass(frozen=True, eq=False)
 class SweepRun:
-    """One method in one chart over a sweep's grid (arrays shaped like :attr:`Sweep.shape`)."""
+    """One method in one chart over a sweep's grid (arrays shaped like :attr:`Sweep.shape`).
+
+    With ``indicators``, the chaos maps: each indicator's last value per cell
+    (``lyapunov_max``, ``megno``, ``megno_mean``, ``fli``, ``sali``, ``gali``; NaN where not
+    asked for or the run did not start) and ``stopped_at``, the time a ``stop_when`` threshold
+    stopped the cell's run (NaN: it ran to the end); all ``None`` without indicators."""
 
     method: str
     chart: str
@@ -83,6 +92,13 @@ class SweepRun:
     final_q: FloatArray
     final_p: FloatArray
     invariant_drift: Mapping[str, FloatArray]
+    lyapunov_max: Optional[FloatArray] = None
+    megno: Optional[FloatArray] = None
+    megno_mean: Optional[FloatArray] = None
+    fli: Optional[FloatArray] = None
+    sali: Optional[FloatArray] = None
+    gali: Optional[FloatArray] = None
+    stopped_at: Optional[FloatArray] = None
 
     @property
     def label(self) -> str:
@@ -145,6 +161,9 @@ class Sweep:
         def on_grid(values: Sequence[Optional[float]]) -> FloatArray:
             return _arrays.grid(values, shape)
 
+        def maybe_on_grid(values: Optional[Sequence[Optional[float]]]) -> Optional[FloatArray]:
+            return None if values is None else on_grid(values)
+
         def rows_on_grid(values: Sequence[Sequence[float]]) -> FloatArray:
             flat = _ragged(values)
             return np.reshape(flat, shape + (flat.shape[1],), order="F")
@@ -163,6 +182,13 @@ class Sweep:
                 final_q=rows_on_grid(r["final_q"]),
                 final_p=rows_on_grid(r["final_p"]),
                 invariant_drift={k: on_grid(v) for k, v in r["invariant_drift"].items()},
+                lyapunov_max=maybe_on_grid(r.get("lyapunov_max")),
+                megno=maybe_on_grid(r.get("megno")),
+                megno_mean=maybe_on_grid(r.get("megno_mean")),
+                fli=maybe_on_grid(r.get("fli")),
+                sali=maybe_on_grid(r.get("sali")),
+                gali=maybe_on_grid(r.get("gali")),
+                stopped_at=maybe_on_grid(r.get("stopped_at")),
             )
             for r in doc["runs"]
         )
@@ -189,7 +215,9 @@ class Sweep:
         and ``chart``. Variables: ``energy_error_final``, ``energy_error_max``,
         ``energy_error_l2``, ``diverged_at``, ``steps``, ``force_evaluations``, ``errors``,
         ``final_q`` and ``final_p`` (with a ``dof`` dimension) and ``invariant_drift`` (with an
-        ``invariant`` dimension) where the system has invariants. ``run`` is indexed by the
+        ``invariant`` dimension) where the system has invariants; with indicators, the chaos
+        maps ``lyapunov_max``, ``megno``, ``megno_mean``, ``fli``, ``sali``, ``gali`` (NaN where
+        not asked for) and ``stopped_at``. ``run`` is indexed by the
         method's label, followed by `` [chart]`` when the sweep has several charts:
         ``ds.sel(run="csv1")``."""
         xr = _optional.xarray()
@@ -206,6 +234,10 @@ class Sweep:
             for name in ("energy_error_final", "energy_error_max", "energy_error_l2", "diverged_at",
                          "steps", "force_evaluations", "errors")
         }
+        for name in CHAOS_COLUMNS:
+            if any(getattr(r, name) is not None for r in self.runs):
+                data[name] = (cell, np.stack([getattr(r, name) if getattr(r, name) is not None
+                                              else np.full(self.shape, np.nan) for r in self.runs]))
         width = max((r.final_q.shape[-1] for r in self.runs), default=0)
         if all(r.final_q.shape[-1] == width for r in self.runs):
             data["final_q"] = (cell + ("dof",), stacked("final_q"))

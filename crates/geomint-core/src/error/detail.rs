@@ -71,6 +71,18 @@ pub enum ErrorCode {
     StorageFull,
     /// The stored data cannot be written (a read-only or removed data directory).
     StorageUnavailable,
+    /// No credentials where the route needs them, or a bearer token that is not valid.
+    Unauthorized,
+    /// The token is valid but lacks the scope the route needs, or does not own what it would
+    /// change.
+    Forbidden,
+    /// The request is beyond the caller's quota (a stored count or size, or a run larger than
+    /// its rate allows at all); retrying does not help.
+    QuotaExceeded,
+    /// The caller's rate (steps per minute) is used up for now; retry after `Retry-After`.
+    RateLimited,
+    /// The caller has its quota of runs in flight; retry once one ends.
+    TooManyRuns,
 }
 
 impl ErrorCode {
@@ -107,6 +119,11 @@ impl ErrorCode {
             ExecutorUnavailable => "executor_unavailable",
             StorageFull => "storage_full",
             StorageUnavailable => "storage_unavailable",
+            Unauthorized => "unauthorized",
+            Forbidden => "forbidden",
+            QuotaExceeded => "quota_exceeded",
+            RateLimited => "rate_limited",
+            TooManyRuns => "too_many_runs",
         }
     }
 }
