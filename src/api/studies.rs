@@ -276,6 +276,7 @@ pub const STUDY_FIELDS: &[&str] = &[
     "samples",
     "runs",
     "reference",
+    "repeats",
 ];
 
 /// A work–precision study.
@@ -316,6 +317,16 @@ pub struct WorkPrecisionRequest {
     /// (default: `reference` at tolerance 1e-13). Give one step size or tolerance.
     #[schema(value_type = Option<ReferenceRun>)]
     pub reference: Option<RunRequest>,
+    /// Timings per setting, 1 to 20 (default 1; a run under 20 ms is always timed 5 times): a
+    /// point's `wall_ms` is their median and `timings_ms` lists them, so that a busy machine
+    /// shows as spread rather than as a wrong slope.
+    #[serde(skip_serializing_if = "is_one")]
+    #[schema(minimum = 1, maximum = 20, default = 1)]
+    pub repeats: u64,
+}
+
+fn is_one(n: &u64) -> bool {
+    *n == 1
 }
 
 impl WorkPrecisionRequest {
@@ -346,6 +357,9 @@ impl WorkPrecisionRequest {
             samples: common.samples.unwrap_or(DEFAULT_SAMPLES),
             runs,
             reference: common.reference,
+            repeats: obj
+                .optional("repeats", |v, at| count(v, at, "a whole number from 1 to 20"))?
+                .unwrap_or(1),
         })
     }
 
@@ -378,6 +392,7 @@ impl WorkPrecisionRequest {
                 .as_ref()
                 .map(|r| r.to_spec(&Field::new("reference")))
                 .transpose()?,
+            repeats: self.repeats,
         })
     }
 }

@@ -195,6 +195,52 @@ async fn progress_streams_as_ndjson_and_the_study_records_as_rrd() {
     assert_eq!(d.activations, 1);
 }
 
+/// A setting timed `repeats` times reports every timing, fastest first, with their median as its
+/// wall time, and the same errors bit for bit as one timing; `repeats` out of 1..=20 is refused.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn repeated_timings_give_the_median_and_the_spread_with_the_same_errors() {
+    let server = start(config()).await;
+    // rk4 at h = 0.001 over t = 2000 (2·10⁶ steps) takes well over 20 ms, so only `repeats`
+    // times it again.
+    let study = |repeats: Option<u64>| {
+        let mut body = json!({"system": "pendulum", "t_end": 2000, "samples": 20,
+            "runs": [{"method": "rk4", "h": [0.001]}, {"method": "csv1", "h": [0.5]}]});
+        if let Some(n) = repeats {
+            body["repeats"] = json!(n);
+        }
+        body
+    };
+    let (status, once) = post(&server, STUDY, &study(None)).await;
+    assert_eq!(status, 200, "{once}");
+    let (status, thrice) = post(&server, STUDY, &study(Some(3))).await;
+    assert_eq!(status, 200, "{thrice}");
+    for (one, three) in points_of(&once).iter().zip(points_of(&thrice)) {
+        assert_eq!(one["max_energy_error"], three["max_energy_error"]);
+        assert_eq!(one["final_state_error"], three["final_state_error"]);
+        let timings: Vec<f64> = three["timings_ms"]
+            .as_array()
+            .expect("timings_ms with repeats")
+            .iter()
+            .map(|t| t.as_f64().unwrap())
+            .collect();
+        assert!(timings.len() >= 3, "{three}");
+        assert!(timings.windows(2).all(|w| w[0] <= w[1]), "fastest first: {timings:?}");
+        assert_eq!(three["wall_ms"].as_f64().unwrap(), timings[timings.len() / 2]);
+    }
+    // Without repeats, the long run is timed once (no list) and the short one five times.
+    let [long, short] = [&points_of(&once)[0], &points_of(&once)[1]];
+    assert!(long["wall_ms"].as_f64().unwrap() >= 20.0, "{long}");
+    assert!(long.get("timings_ms").is_none(), "{long}");
+    assert_eq!(short["timings_ms"].as_array().map(Vec::len), Some(5), "{short}");
+    for bad in [json!(0), json!(21), json!(2.5)] {
+        let mut body = study(None);
+        body["repeats"] = bad.clone();
+        let (status, answer) = post(&server, STUDY, &body).await;
+        assert_eq!(status, 422, "{bad}: {answer}");
+        assert_eq!(answer["error"]["field"], "repeats", "{bad}: {answer}");
+    }
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn bad_studies_get_errors_naming_the_field() {
     let server = start(config()).await;

@@ -15,7 +15,7 @@ use serde_json::{json, Value};
 use server::{post_json, start};
 
 /// Fields that hold wall times, at any depth.
-const TIMED: &[&str] = &["wall_time_ms", "wall_ms", "reference_ms"];
+const TIMED: &[&str] = &["wall_time_ms", "wall_ms", "timings_ms", "reference_ms"];
 
 /// `value` with every timed number replaced by a marker: wall times, and the work–precision
 /// fits (objects with a `slope`), which regress wall time on error. Convergence fits (`order`

@@ -352,6 +352,7 @@ fn order_of(data: impl Iterator<Item = (f64, Option<f64>)>) -> OrderFit {
 
 /// Measures one setting: its errors at t_end against the truth.
 fn point(
+    _job: &StudyJob,
     series: usize,
     sim: &Simulation,
     truth: &Truth,

@@ -436,23 +436,37 @@ pub fn measure_once<'a>(
     Ok((outcome, sink, began.elapsed().as_secs_f64() * 1e3))
 }
 
-/// [`measure_once`], with short runs timed again (their numbers are the same, bit for bit): the
-/// wall time is the median, so that one scheduling hiccup does not move a point of a diagram.
+/// Most timings of one setting a study may ask for.
+pub const MAX_REPEATS: u64 = 20;
+
+/// [`measure_once`] timed `repeats` times (their numbers are the same, bit for bit), and a short
+/// run at least [`SHORT_RUN_REPEATS`] times: every timing, fastest first. Their median is the
+/// setting's wall time, so that one scheduling hiccup does not move a point of a diagram. A run
+/// that did not finish is timed once.
 pub fn measure_timed<'a>(
     sim: &Simulation,
     energies: Option<&'a [f64]>,
     budget: Budget<'_>,
-) -> Result<(Outcome, Measure<'a>, f64), CoreError> {
+    repeats: usize,
+) -> Result<(Outcome, Measure<'a>, Vec<f64>), CoreError> {
     let (outcome, sink, first) = measure_once(sim, energies, budget)?;
     let mut times = vec![first];
-    while outcome.stop == StopReason::Finished
-        && times.len() < SHORT_RUN_REPEATS
-        && times[0] < SHORT_RUN_MS
-    {
+    let wanted = if first < SHORT_RUN_MS {
+        repeats.max(SHORT_RUN_REPEATS)
+    } else {
+        repeats
+    };
+    while outcome.stop == StopReason::Finished && times.len() < wanted {
         times.push(measure_once(sim, energies, budget)?.2);
     }
     times.sort_by(f64::total_cmp);
-    Ok((outcome, sink, times[times.len() / 2]))
+    Ok((outcome, sink, times))
+}
+
+/// The median of timings sorted fastest first (the upper one of an even count, as a setting's
+/// wall time has always been taken).
+pub fn median(sorted: &[f64]) -> f64 {
+    sorted[sorted.len() / 2]
 }
 
 /// How a run stopped, as studies report it.
@@ -549,7 +563,7 @@ pub(crate) use progress_lines;
 /// How a study measures one setting: given the setting's run (or series) index, its simulation,
 /// the truth and the budget, its point.
 pub type Measurer<P> =
-    fn(usize, &Simulation, &Truth, Budget<'_>) -> Result<P, CoreError>;
+    fn(&StudyJob, usize, &Simulation, &Truth, Budget<'_>) -> Result<P, CoreError>;
 
 /// A settings study as the engine runs it: one cell per setting, measured against the truth.
 pub struct SettingsStudy<'a, P> {
@@ -573,7 +587,7 @@ impl<'a, P> SettingsStudy<'a, P> {
     /// One setting's point.
     fn point(&self, setting: usize, budget: Budget<'_>) -> Result<P, CoreError> {
         let (run, sim) = &self.job.settings[setting];
-        (self.measure)(*run, sim, &self.truth, budget)
+        (self.measure)(self.job, *run, sim, &self.truth, budget)
     }
 }
 

@@ -16,13 +16,13 @@ use std::collections::BTreeMap;
 use serde::Serialize;
 
 use super::settings::{
-    self, check_samples, check_t_end, measure_timed, prepare_reference, prepare_setting,
+    self, check_samples, check_t_end, measure_timed, MAX_REPEATS, prepare_reference, prepare_setting,
     progress_lines, stop_name, RunSpec, Setting, SettingsStudy, StudyJob, Truth, MAX_SETTINGS,
 };
 use super::engine::{Executor, Order};
 use super::StudySpec;
 use crate::diagnostics::fit_log_log;
-use crate::error::{CoreError, Field};
+use crate::error::{CoreError, Field, Range};
 use crate::methods::Method;
 use crate::run::{Budget, StopReason};
 use crate::simulation::{Limits, Simulation, SimulationSpec, SystemSummary};
@@ -50,6 +50,13 @@ pub struct WorkPrecisionSpec {
     pub runs: Vec<RunSpec>,
     /// The reference run, where the system has no exact solution.
     pub reference: Option<RunSpec>,
+    /// Timings per setting (1 to [`MAX_REPEATS`]; a run under 20 ms is timed at least 5 times).
+    #[serde(default = "one_timing")]
+    pub repeats: u64,
+}
+
+fn one_timing() -> u64 {
+    1
 }
 
 /// One setting of a study: what ran and what it measured.
@@ -64,9 +71,13 @@ pub struct WorkPrecisionPoint {
     pub h: Option<f64>,
     /// The tolerance (the adaptive reference).
     pub tolerance: Option<f64>,
-    /// Wall time of the run in milliseconds: building the stepper, the steps and the samples
-    /// (for runs under 20 ms the median of 5 runs).
+    /// Wall time of the run in milliseconds: building the stepper, the steps and the samples;
+    /// the median of `timings_ms` when the setting was timed more than once.
     pub wall_ms: f64,
+    /// Every timing of the setting in milliseconds, fastest first, when it was timed more than
+    /// once (the request's `repeats`; a run under 20 ms is always timed 5 times).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub timings_ms: Vec<f64>,
     /// Steps taken (segments of t_end/samples for the adaptive reference).
     pub steps: u64,
     /// Gradient evaluations.
@@ -162,6 +173,8 @@ impl WorkPrecisionSpec {
     pub fn prepare(&self, limits: &Limits) -> Result<StudyJob, CoreError> {
         check_t_end(self.t_end)?;
         check_samples(self.samples)?;
+        Range::closed(1.0, false, MAX_REPEATS as f64)
+            .check(self.repeats as f64, &Field::new("repeats"))?;
         if self.runs.is_empty() {
             return Err(CoreError::Empty {
                 field: Field::new("runs"),
@@ -217,13 +230,21 @@ impl WorkPrecisionSpec {
 /// Measures one setting: its wall time (timed again when short) and its errors against the
 /// truth.
 fn point(
+    job: &StudyJob,
     run: usize,
     sim: &Simulation,
     truth: &Truth,
     budget: Budget<'_>,
 ) -> Result<WorkPrecisionPoint, CoreError> {
     let method = &sim.methods[0];
-    let (outcome, sink, wall_ms) = measure_timed(sim, truth.energies.as_deref(), budget)?;
+    let repeats = match &job.spec {
+        StudySpec::WorkPrecision(spec) => spec.repeats,
+        _ => 1,
+    };
+    let repeats = usize::try_from(repeats).unwrap_or(usize::MAX);
+    let (outcome, sink, timings) =
+        measure_timed(sim, truth.energies.as_deref(), budget, repeats)?;
+    let wall_ms = settings::median(&timings);
     let finished = outcome.stop == StopReason::Finished;
     let tolerance = match method {
         Method::Reference { tolerance } => Some(*tolerance),
@@ -239,6 +260,7 @@ fn point(
         h: tolerance.is_none().then_some(sim.schedule.h),
         tolerance,
         wall_ms,
+        timings_ms: if timings.len() > 1 { timings } else { Vec::new() },
         steps: outcome.stats.steps,
         force_evaluations: outcome.stats.force_evaluations,
         max_energy_error: finished.then_some(sink.max_energy_error),
