@@ -41,6 +41,8 @@ fn sequence(id: MethodId) -> Option<splitting::Sequence> {
         MethodId::SymplecticEulerAdjoint => splitting::SYMPLECTIC_EULER_ADJOINT,
         MethodId::PositionVerlet => splitting::POSITION_VERLET,
         MethodId::VelocityVerlet => splitting::VELOCITY_VERLET,
+        MethodId::BlanesMoanS6 => splitting::BLANES_MOAN_S6,
+        MethodId::BlanesMoanSrkn11 => splitting::BLANES_MOAN_SRKN11,
         _ => return None,
     })
 }
@@ -364,8 +366,16 @@ where
             MethodId::Heun => AnyStepper::Heun(explicit(sys.dim())),
             MethodId::Rk3 => AnyStepper::Rk3(explicit(sys.dim())),
             MethodId::Rk4 => AnyStepper::Rk4(explicit(sys.dim())),
-            // A method with options written as `Plain`: its defaults.
-            id => stepper(&Method::new(id), sys),
+            // Any other sequence runs as built at run time; a method with options written as
+            // `Plain` takes its defaults.
+            id => match sequence(id) {
+                Some(seq) => AnyStepper::Splitting(Splitting::new(
+                    sys,
+                    splitting::Composition::new(seq, &[1.0]),
+                    None,
+                )),
+                None => stepper(&Method::new(id), sys),
+            },
         },
     }
 }

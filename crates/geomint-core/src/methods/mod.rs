@@ -187,6 +187,7 @@ pub(crate) mod sources {
     pub const MODIN: &str = "000 Modin & Söderlind 2011";
     pub const FLOYD: &str = "003 Floyd 2014";
     pub const TAKACS: &str = "001 Takács & Fülöp";
+    pub const BLANES_MOAN: &str = "Blanes & Moan, J. Comput. Appl. Math. 142 (2002) 313–330";
 }
 
 /// A method's catalogue entry.
@@ -271,6 +272,10 @@ catalogue! {
     KahanLi8 => composition::KAHAN_LI_8_INFO,
     /// Blanes, Casas and Murua's processed composition of effective order 8, 13 stages.
     BlanesCasasMurua8 => composition::BLANES_CASAS_MURUA_8_INFO,
+    /// Blanes and Moan's optimized fourth-order splitting, six stages.
+    BlanesMoanS6 => splitting::BLANES_MOAN_S6_INFO,
+    /// Blanes and Moan's optimized sixth-order Runge–Kutta–Nyström splitting, eleven stages.
+    BlanesMoanSrkn11 => splitting::BLANES_MOAN_SRKN11_INFO,
     /// Rowlands time stepping: Störmer–Verlet on a modified potential with processing.
     Rowlands => rowlands::ROWLANDS_INFO,
     /// Symplectic Euler (kick then drift).

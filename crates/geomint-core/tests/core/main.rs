@@ -6,6 +6,7 @@
 #[allow(dead_code)]
 mod common;
 
+mod blanes_moan;
 mod chaos;
 mod chaos_map;
 mod charts;

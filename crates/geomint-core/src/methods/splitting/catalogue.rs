@@ -157,3 +157,44 @@ pub const VELOCITY_VERLET_INFO: MethodInfo = MethodInfo {
     options: &[],
     no_step_jacobian: None,
 };
+
+/// Catalogue entry of `blanes_moan_s6`.
+pub const BLANES_MOAN_S6_INFO: MethodInfo = MethodInfo {
+    id: "blanes_moan_s6",
+    name: "Blanes–Moan S6 (order 4, six stages)",
+    order: 4,
+    kind: Kind::Explicit,
+    symplectic: true,
+    conformal_symplectic: true,
+    symmetric: true,
+    requirements: &[Requirement::SeparableConstantMass],
+    reference: Citation {
+        paper: BLANES_MOAN,
+        equation: "S6",
+    },
+    group: Group::Geometric,
+    options: &[],
+    no_step_jacobian: None,
+};
+
+/// Catalogue entry of `blanes_moan_srkn11`.
+pub const BLANES_MOAN_SRKN11_INFO: MethodInfo = MethodInfo {
+    id: "blanes_moan_srkn11",
+    name: "Blanes–Moan SRKN11b (order 6, eleven stages)",
+    order: 6,
+    kind: Kind::Explicit,
+    symplectic: true,
+    conformal_symplectic: false,
+    symmetric: true,
+    requirements: &[
+        Requirement::SeparableConstantMass,
+        Requirement::Conservative,
+    ],
+    reference: Citation {
+        paper: BLANES_MOAN,
+        equation: "SRKN11b",
+    },
+    group: Group::Geometric,
+    options: &[],
+    no_step_jacobian: None,
+};
