@@ -297,3 +297,34 @@ async fn the_chaos_presets_run_and_mark_the_cells_off_the_energy_surface() {
     let (status, error) = post_json(&server, "/api/v1/studies/sweep", &hh).await;
     assert_eq!((status, error["error"]["field"].as_str()), (422, Some("energy_surface.energy")));
 }
+
+/// One `stop_when` holds an event and thresholds together, and whichever comes first ends the
+/// run: on the chaotic orbit ⟨Y⟩ passes 4 long before the 1000th upward crossing of y = 0, and
+/// the second crossing comes before ⟨Y⟩ reaches 4; the threshold's stop is the one a run with
+/// the threshold alone makes, step for step.
+#[tokio::test]
+async fn an_event_and_a_threshold_in_one_stop_when_end_a_run_at_whichever_comes_first() {
+    use crate::server::{post_json, start};
+    let server = start(config()).await;
+    let run = |stop_when: Value| {
+        json!({"system": "henon_heiles", "params": {"lambda": 1}, "q0": [0, -0.25], "p0": [0.5103, 0],
+            "method": "velocity_verlet", "h": 0.05, "t_end": 2000, "output": {"every": 100},
+            "indicators": ["megno"], "stop_when": stop_when})
+    };
+    let stop_of = |doc: &Value| doc["runs"][0]["stop"].clone();
+    let (status, alone) = post_json(&server, "/api/v1/simulate", &run(json!({"megno_mean": 4}))).await;
+    assert_eq!(status, 200, "{alone}");
+    let threshold = stop_of(&alone);
+    assert_eq!(threshold["reason"], "indicator", "{threshold}");
+    let both = json!({"where": "y", "direction": "up", "count": 1000, "megno_mean": 4});
+    let (status, doc) = post_json(&server, "/api/v1/simulate", &run(both)).await;
+    assert_eq!(status, 200, "{doc}");
+    assert_eq!(stop_of(&doc), threshold);
+    let early = json!({"where": "y", "direction": "up", "count": 2, "megno_mean": 4});
+    let (status, doc) = post_json(&server, "/api/v1/simulate", &run(early)).await;
+    assert_eq!(status, 200, "{doc}");
+    let event = stop_of(&doc);
+    assert_eq!(event["reason"], "event", "{event}");
+    assert!(event["t"].as_f64().unwrap() < threshold["t"].as_f64().unwrap(), "{event} {threshold}");
+    assert_eq!(doc["runs"][0]["events"]["t"].as_array().map(Vec::len), Some(2), "{doc}");
+}
