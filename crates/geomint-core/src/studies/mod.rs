@@ -14,7 +14,8 @@
 //!   fitted orders; a cell per setting.
 //! - [`work_precision`]: wall time against energy error, per method and setting; its cells are
 //!   timed one at a time.
-//! - [`settings`]: what the settings-based studies share (a setting, the truth, measurement).
+//! - [`settings`]: what the settings-based studies share (a setting, the truth, progress);
+//!   [`measure`]: one setting's errors and timings.
 //!
 //! To add a study: a spec that prepares into a job implementing [`engine::Study`] (its cells and
 //! what one cell computes), a variant of [`StudySpec`] so that workers can prepare it, and a
@@ -27,6 +28,7 @@
 pub mod convergence;
 pub mod energy_map;
 pub mod engine;
+pub mod measure;
 pub mod parts;
 pub mod settings;
 pub mod stability;
