@@ -11,7 +11,6 @@
 //! settings and a reference run supplies the energies at exactly those times.
 
 use std::ops::Range as Cells;
-use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 use serde::de::DeserializeOwned;
@@ -512,11 +511,14 @@ where
     let truth = job.truth(budget)?;
     emit(L::reference(truth.description.clone(), truth.ms, total));
     let study = make(truth);
-    let done = AtomicUsize::new(0);
+    // Settings finish in any order on several cores; counting and emitting under one lock keeps
+    // the stream's `done` rising one by one.
+    let done = std::sync::Mutex::new(0usize);
     let finished = engine::run(&study, executor, budget, &|_, point| {
         if let Some(point) = point {
-            let n = done.fetch_add(1, Ordering::Relaxed) + 1;
-            emit(L::point(n, total, point.clone()));
+            let mut done = done.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+            *done += 1;
+            emit(L::point(*done, total, point.clone()));
         }
     })?;
     let expired = Budget {
