@@ -62,7 +62,8 @@ fn main() {
         cpu * 1e9 / steps.max(1) as f64,
     );
     let path = format!("target/chaos-map-{n}.tsv");
-    let mut out = std::io::BufWriter::new(std::fs::File::create(&path).expect("target/ is writable"));
+    let mut out =
+        std::io::BufWriter::new(std::fs::File::create(&path).expect("target/ is writable"));
     for (cell, m) in megno.iter().enumerate() {
         let (y, py) = (doc.axes[0].values[cell % n], doc.axes[1].values[cell / n]);
         let value = m.map_or("nan".to_string(), |m| m.to_string());

@@ -149,7 +149,12 @@ fn main() {
         .first
         .iter()
         .zip(&reference.first)
-        .map(|(a, b)| a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max))
+        .map(|(a, b)| {
+            a.iter()
+                .zip(b)
+                .map(|(x, y)| (x - y).abs())
+                .fold(0.0, f64::max)
+        })
         .fold(0.0, f64::max);
     println!("first 100 crossings (regular orbit) against the reference: {agreement:.1e}");
 

@@ -174,7 +174,12 @@ fn scope_list<S: serde::Serializer>(scopes: &Scopes, s: S) -> Result<S::Ok, S::E
 
 impl Caller {
     /// An anonymous client at `address` under `policy`.
-    fn anonymous(address: Option<IpAddr>, policy: Anonymous, quotas: Quotas, short_work: u64) -> Self {
+    fn anonymous(
+        address: Option<IpAddr>,
+        policy: Anonymous,
+        quotas: Quotas,
+        short_work: u64,
+    ) -> Self {
         let (scopes, largest_run) = match policy {
             Anonymous::All => (Scopes::ALL, None),
             Anonymous::Public => (Scopes::of(&[Scope::Read, Scope::Run]), Some(short_work)),
@@ -202,7 +207,10 @@ impl Caller {
         Err(if self.token {
             refusal(
                 ErrorCode::Forbidden,
-                format!("the token `{}` lacks the `{name}` scope this route needs", self.owner),
+                format!(
+                    "the token `{}` lacks the `{name}` scope this route needs",
+                    self.owner
+                ),
             )
         } else {
             refusal(
@@ -363,7 +371,9 @@ fn bearer(value: &[u8]) -> Result<&str, ApiError> {
     }
     let token = rest.trim_start_matches(' ');
     if token.is_empty() || !token.bytes().all(|b| b.is_ascii_graphic()) {
-        return Err(wrong("has no token, or one with characters a token cannot have"));
+        return Err(wrong(
+            "has no token, or one with characters a token cannot have",
+        ));
     }
     Ok(token)
 }

@@ -23,8 +23,7 @@ pub async fn watch(access: Arc<Access>) {
     let Some(path) = access.tokens_file().map(std::path::Path::to_path_buf) else {
         return;
     };
-    let mut hangup =
-        tokio::signal::unix::signal(tokio::signal::unix::SignalKind::hangup()).ok();
+    let mut hangup = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::hangup()).ok();
     let mut seen = stamp(&path);
     let mut tick = tokio::time::interval(POLL);
     loop {

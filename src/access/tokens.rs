@@ -256,7 +256,10 @@ mod tests {
         assert!(!made.line.contains(&made.secret));
         let file = TokenFile::parse(&format!("# tokens\n\n{}  # alice\n", made.line)).unwrap();
         let entry = file.verify(&made.secret).expect("its own secret passes");
-        assert_eq!((entry.name.as_str(), entry.scopes, &entry.quotas), ("alice", scopes, &quotas));
+        assert_eq!(
+            (entry.name.as_str(), entry.scopes, &entry.quotas),
+            ("alice", scopes, &quotas)
+        );
         let other = generate("alice", scopes, &quotas).unwrap();
         assert!(file.verify(&other.secret).is_none());
         assert!(file.verify("").is_none());
@@ -270,7 +273,10 @@ mod tests {
         for (text, says) in [
             ("alice read".to_string(), "name scopes"),
             (format!("al/ice read {digest}"), "not a token name"),
-            (format!("alice read,write {digest}"), "unknown scope `write`"),
+            (
+                format!("alice read,write {digest}"),
+                "unknown scope `write`",
+            ),
             ("alice read sha256:abc".to_string(), "64 hex digits"),
             ("alice read gmt_secret".to_string(), "not a digest"),
             (format!("alice read {digest} runs=-1"), "runs"),

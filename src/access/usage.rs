@@ -64,7 +64,11 @@ pub struct RunGuard {
 
 impl Drop for RunGuard {
     fn drop(&mut self) {
-        let mut in_flight = self.usage.in_flight.lock().unwrap_or_else(|p| p.into_inner());
+        let mut in_flight = self
+            .usage
+            .in_flight
+            .lock()
+            .unwrap_or_else(|p| p.into_inner());
         if let Some(n) = in_flight.get_mut(&self.owner) {
             *n -= 1;
             if *n == 0 {
@@ -85,7 +89,11 @@ impl Usage {
     /// count): 401 past an anonymous client's small-run budget, 429 `too_many_runs` at its quota
     /// of runs in flight, 429 `rate_limited` with the wait in `Retry-After` past its steps per
     /// minute, 403 `quota_exceeded` for a run larger than a whole minute's steps.
-    pub fn admit(self: &Arc<Self>, caller: &Caller, steps: Option<u64>) -> Result<RunGuard, ApiError> {
+    pub fn admit(
+        self: &Arc<Self>,
+        caller: &Caller,
+        steps: Option<u64>,
+    ) -> Result<RunGuard, ApiError> {
         if let Some(largest) = caller.largest_run {
             let what = match steps {
                 Some(n) if n <= largest => None,
@@ -119,7 +127,10 @@ impl Usage {
             }
             return Err(ApiError::from(ErrorDetail::new(
                 ErrorCode::TooManyRuns,
-                format!("`{}` has {max} runs in flight, its quota; retry once one ends", caller.owner),
+                format!(
+                    "`{}` has {max} runs in flight, its quota; retry once one ends",
+                    caller.owner
+                ),
             ))
             .with_retry_after(1));
         }
@@ -202,7 +213,10 @@ mod tests {
         let first = usage.admit(&alice, Some(1)).unwrap();
         let _second = usage.admit(&alice, None).unwrap();
         let refused = usage.admit(&alice, Some(1)).unwrap_err();
-        assert_eq!((refused.status_code().as_u16(), refused.retry_after_secs()), (429, Some(1)));
+        assert_eq!(
+            (refused.status_code().as_u16(), refused.retry_after_secs()),
+            (429, Some(1))
+        );
         drop(first);
         let _third = usage.admit(&alice, Some(1)).unwrap();
         assert_eq!(usage.runs_in_flight("alice"), 2);

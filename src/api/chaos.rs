@@ -26,7 +26,10 @@ pub fn read_indicators(v: &Value, at: &Field) -> Result<Vec<Indicator>, ErrorDet
                 field: at.clone(),
                 what: "indicator".into(),
                 value: name,
-                known: Indicator::ALL.iter().map(|i| i.as_str().to_string()).collect(),
+                known: Indicator::ALL
+                    .iter()
+                    .map(|i| i.as_str().to_string())
+                    .collect(),
             }
             .into()
         })
@@ -52,7 +55,9 @@ pub fn read(obj: &Obj<'_>) -> Result<ChaosFieldsRead, ErrorDetail> {
         deviations: obj.optional("deviations", |v, at| {
             count(v, at, "a whole number of deviation vectors")
         })?,
-        qr_every: obj.optional("qr_every", |v, at| count(v, at, "a whole number of steps ≥ 1"))?,
+        qr_every: obj.optional("qr_every", |v, at| {
+            count(v, at, "a whole number of steps ≥ 1")
+        })?,
     })
 }
 
@@ -64,7 +69,9 @@ pub fn chaos_spec(
     qr_every: Option<u64>,
     stop_when: Option<&StopWhenRequest>,
 ) -> Result<Option<ChaosSpec>, CoreError> {
-    let thresholds = stop_when.map(StopWhenRequest::thresholds).unwrap_or_default();
+    let thresholds = stop_when
+        .map(StopWhenRequest::thresholds)
+        .unwrap_or_default();
     if indicators.is_empty() {
         let threshold = thresholds
             .first()
@@ -110,7 +117,11 @@ pub fn read_surface(v: &Value, at: &Field) -> Result<EnergySurfaceRequest, Error
     let o = Obj::new(v, at.clone(), &["energy", "solve_for"])?;
     Ok(EnergySurfaceRequest {
         energy: o.required("energy", "the energy E of the surface", number)?,
-        solve_for: o.required("solve_for", "the momentum solved from H = E, e.g. \"p0[0]\"", string)?,
+        solve_for: o.required(
+            "solve_for",
+            "the momentum solved from H = E, e.g. \"p0[0]\"",
+            string,
+        )?,
     })
 }
 
@@ -129,7 +140,10 @@ impl EnergySurfaceRequest {
                 Err(ErrorDetail::at(
                     ErrorCode::InvalidValue,
                     &at,
-                    format!("{at}: `{}` is not an initial momentum p0[i]", self.solve_for),
+                    format!(
+                        "{at}: `{}` is not an initial momentum p0[i]",
+                        self.solve_for
+                    ),
                 ))
             }
         }

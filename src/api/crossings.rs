@@ -213,7 +213,11 @@ pub fn read_energy(v: &Value, field: &Field) -> Result<EnergyRequest, ErrorDetai
     let o = Obj::new(v, field.clone(), ENERGY_FIELDS)?;
     Ok(EnergyRequest {
         value: o.required("value", "the energy E", number)?,
-        momentum: o.required("momentum", "the momentum to solve for, e.g. \"p_y\"", string)?,
+        momentum: o.required(
+            "momentum",
+            "the momentum to solve for, e.g. \"p_y\"",
+            string,
+        )?,
     })
 }
 
@@ -223,11 +227,8 @@ pub fn watching(
     stop_when: Option<&StopWhenRequest>,
     energy: Option<&EnergyRequest>,
 ) -> Watching {
-    let parse = |d: &Option<String>, default| {
-        d.as_deref()
-            .and_then(Direction::parse)
-            .unwrap_or(default)
-    };
+    let parse =
+        |d: &Option<String>, default| d.as_deref().and_then(Direction::parse).unwrap_or(default);
     Watching {
         section: section.map(|s| SectionSpec {
             surface: match (&s.surface, s.period) {

@@ -9,13 +9,13 @@ use serde_json::Value;
 use utoipa::ToSchema;
 
 use super::chaos;
-use super::system::StoredSystems;
-use super::json::{self, boolean, count, numbers, string, Obj};
 use super::crossings::{
     read_energy, read_section, read_stop_when, watching, EnergyRequest, SectionRequest,
     StopWhenRequest, DEFAULT_MAX_POINTS,
 };
+use super::json::{self, boolean, count, numbers, string, Obj};
 use super::method::{read_method, read_methods, MethodSpec};
+use super::system::StoredSystems;
 use super::system::{read_system, SystemRequest};
 use crate::core::chaos::{ChaosSpec, Indicator};
 use crate::core::error::{CoreError, ErrorCode, ErrorDetail, Field};

@@ -9,10 +9,10 @@ use serde::Serialize;
 use serde_json::Value;
 use utoipa::ToSchema;
 
-use super::system::StoredSystems;
 use super::json::{self, count, list, numbers, string, wrong_type, Obj};
 use super::method::{read_method, read_methods, MethodSpec};
 use super::simulate::initial_coordinates;
+use super::system::StoredSystems;
 use super::system::{read_system, SystemRequest};
 use crate::core::error::{ErrorDetail, Field};
 use crate::core::simulation::{InitialCoordinates, MethodAt};
@@ -358,7 +358,9 @@ impl WorkPrecisionRequest {
             runs,
             reference: common.reference,
             repeats: obj
-                .optional("repeats", |v, at| count(v, at, "a whole number from 1 to 20"))?
+                .optional("repeats", |v, at| {
+                    count(v, at, "a whole number from 1 to 20")
+                })?
                 .unwrap_or(1),
         })
     }
@@ -514,7 +516,11 @@ mod tests {
         let req = ConvergenceRequest::from_value(&json!({
             "system": "harmonic_oscillator", "t_end": 9, "methods": ["rk4"], "h": [0.3, 0.45]}))
         .unwrap();
-        let job = req.to_spec(&NoStoredSystems).unwrap().prepare(&Limits::default()).unwrap();
+        let job = req
+            .to_spec(&NoStoredSystems)
+            .unwrap()
+            .prepare(&Limits::default())
+            .unwrap();
         assert_eq!(job.samples, 10);
     }
 

@@ -14,11 +14,11 @@ use utoipa::ToSchema;
 
 use super::chaos::{self, EnergySurfaceRequest};
 use super::crossings::{read_stop_when, StopWhenRequest};
-use super::system::StoredSystems;
 use super::json::{self, count, list, numbers, string, Obj};
 use super::method::{read_methods, MethodSpec};
 use super::simulate::initial_coordinates;
 use super::studies::EnergyMapRequest;
+use super::system::StoredSystems;
 use super::system::{read_system, SystemRequest};
 use crate::core::chaos::Indicator;
 use crate::core::error::{CoreError, ErrorCode, ErrorDetail, Field};
@@ -397,7 +397,8 @@ pub fn presets() -> Vec<Preset> {
         },
         Preset {
             id: "henon_heiles_megno",
-            title: "Hénon–Heiles at E = 1/8: MEGNO ⟨Y⟩ over the (y, p_y) section at x = 0, p_x ≥ 0 \
+            title:
+                "Hénon–Heiles at E = 1/8: MEGNO ⟨Y⟩ over the (y, p_y) section at x = 0, p_x ≥ 0 \
                     from the energy (⟨Y⟩ ≈ 2 on tori, growing as λt/2 in the chaotic sea; cells \
                     outside the energy surface are marked)",
             request: json!({

@@ -444,7 +444,11 @@ impl StoredSystems for NoStoredSystems {
 impl SystemRequest {
     /// The system in core terms: a stored definition's id as its checked entry, a built-in id
     /// as it is, a definition checked; errors name `field`.
-    pub fn to_ref(&self, field: &Field, stored: &dyn StoredSystems) -> Result<SystemRef, CoreError> {
+    pub fn to_ref(
+        &self,
+        field: &Field,
+        stored: &dyn StoredSystems,
+    ) -> Result<SystemRef, CoreError> {
         match self {
             SystemRequest::Id(id) => Ok(match stored.stored(id) {
                 Some((_, info)) => SystemRef::Defined(info),

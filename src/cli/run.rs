@@ -76,8 +76,7 @@ pub(crate) fn run_spec(args: &RunArgs) -> ExitCode {
     let (spec, sim) = match SimulateRequest::from_slice(&text).and_then(|req| {
         let sim = req.prepare(&limits, &stored)?;
         Ok((req.inlined(&stored), sim))
-    })
-    {
+    }) {
         Ok(parsed) => parsed,
         Err(e) => {
             eprintln!("error: {source}: {e}");
@@ -220,13 +219,14 @@ impl Job<'_> {
             Format::Rrd => (Some(out), None),
             Format::Json | Format::Ndjson => (None, Some(out)),
         };
-        let live = match recording::LiveRecording::start(sink, name, recording::Spec::of(&spec), file) {
-            Ok(live) => live,
-            Err(e) => {
-                eprintln!("error: cannot stream to the Rerun viewer at {url}: {e}");
-                return ExitCode::FAILURE;
-            }
-        };
+        let live =
+            match recording::LiveRecording::start(sink, name, recording::Spec::of(&spec), file) {
+                Ok(live) => live,
+                Err(e) => {
+                    eprintln!("error: cannot stream to the Rerun viewer at {url}: {e}");
+                    return ExitCode::FAILURE;
+                }
+            };
         let mut collector = (format == Format::Json).then(DocumentCollector::new);
         let ndjson = if format == Format::Ndjson {
             text.as_mut()

@@ -323,7 +323,11 @@ fn connect(
 ) -> Result<Queue, ExitCode> {
     let options = options.options();
     runtime
-        .block_on(Queue::connect(url, Duration::from_secs(ack_wait_secs), &options))
+        .block_on(Queue::connect(
+            url,
+            Duration::from_secs(ack_wait_secs),
+            &options,
+        ))
         .map_err(|e| {
             eprintln!("error: {e}");
             ExitCode::FAILURE

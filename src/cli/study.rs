@@ -120,9 +120,13 @@ pub(crate) fn run_study(args: &StudyArgs) -> ExitCode {
                 _ => {}
             };
             let rrd = |f: File, spec: &WorkPrecisionRequest, doc: &_| {
-                recording::work_precision::write_rrd(BufWriter::new(f), &recording::Spec::of(spec), doc)
-                    .map_err(|e| e.to_string())
-                    .and_then(|mut w| w.flush().map_err(|e| e.to_string()))
+                recording::work_precision::write_rrd(
+                    BufWriter::new(f),
+                    &recording::Spec::of(spec),
+                    doc,
+                )
+                .map_err(|e| e.to_string())
+                .and_then(|mut w| w.flush().map_err(|e| e.to_string()))
             };
             finish_study(
                 args,
@@ -170,7 +174,9 @@ pub(crate) fn run_study(args: &StudyArgs) -> ExitCode {
             )
         }
         StudyKind::EnergyMap => run_energy_map(args, &source, &text),
-        StudyKind::Sweep | StudyKind::Merge => unreachable!("`geomint study sweep|merge` runs in cli::sweep"),
+        StudyKind::Sweep | StudyKind::Merge => {
+            unreachable!("`geomint study sweep|merge` runs in cli::sweep")
+        }
     }
 }
 
@@ -248,7 +254,12 @@ fn finish_study<S, L: ProgressLine>(
     args: &StudyArgs,
     source: &str,
     parsed: Result<(S, StudyJob), ErrorDetail>,
-    run: fn(&StudyJob, &Local, Budget<'_>, &(dyn Fn(L) -> bool + Sync)) -> Result<L::Document, CoreError>,
+    run: fn(
+        &StudyJob,
+        &Local,
+        Budget<'_>,
+        &(dyn Fn(L) -> bool + Sync),
+    ) -> Result<L::Document, CoreError>,
     progress: impl Fn(&L) + Sync,
     rrd: Option<impl FnOnce(File, &S, &L::Document) -> Result<(), String>>,
 ) -> ExitCode {

@@ -121,13 +121,19 @@ pub(crate) fn run_sweep(args: &StudyArgs) -> ExitCode {
     };
     let progress = Progress::new(cells.len(), &report);
     let written = match shard {
-        Some(shard) => parts::run_shard(&job, StudySpec::Sweep(spec), shard, &|_, _| {
-            progress.add(1)
-        })
-        .map(|part| {
-            eprintln!("{:.1} s", part.wall_ms / 1e3);
-            write_document(args, false, &part, None::<NoRecording<Part<Vec<RunMetrics>>>>)
-        }),
+        Some(shard) => {
+            parts::run_shard(&job, StudySpec::Sweep(spec), shard, &|_, _| progress.add(1)).map(
+                |part| {
+                    eprintln!("{:.1} s", part.wall_ms / 1e3);
+                    write_document(
+                        args,
+                        false,
+                        &part,
+                        None::<NoRecording<Part<Vec<RunMetrics>>>>,
+                    )
+                },
+            )
+        }
         None => {
             let emit = |line: SweepLine| {
                 if let SweepLine::Progress { done, total } = line {

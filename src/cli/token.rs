@@ -87,7 +87,11 @@ pub(crate) fn make_token(args: &TokenArgs) -> ExitCode {
             .mode(0o600)
             .open(path)
             .and_then(|mut file| {
-                let start = if existing.is_empty() || existing.ends_with('\n') { "" } else { "\n" };
+                let start = if existing.is_empty() || existing.ends_with('\n') {
+                    ""
+                } else {
+                    "\n"
+                };
                 writeln!(file, "{start}{}", made.line)?;
                 file.sync_all()
             })

@@ -27,8 +27,8 @@ use tracing::Instrument;
 
 use super::error::ApiError;
 use super::recordings::rrd_response;
-use crate::access::{Caller, RunGuard};
 use super::state::{run_blocking, AppState, Cost};
+use crate::access::{Caller, RunGuard};
 use crate::api::{ndjson_line, NDJSON};
 use crate::core::error::{ErrorCode, ErrorDetail};
 use crate::core::run::Budget;

@@ -54,14 +54,18 @@ impl RouteScopes {
         let mut routes: HashMap<String, HashMap<Method, Option<Scope>>> = HashMap::new();
         for (path, item) in doc["paths"].as_object().into_iter().flatten() {
             for method in METHODS {
-                let Some(operation) = item.get(method) else { continue };
+                let Some(operation) = item.get(method) else {
+                    continue;
+                };
                 let tags: Vec<&str> = operation["tags"]
                     .as_array()
                     .into_iter()
                     .flatten()
                     .filter_map(Value::as_str)
                     .collect();
-                let Ok(parsed) = method.to_ascii_uppercase().parse::<Method>() else { continue };
+                let Ok(parsed) = method.to_ascii_uppercase().parse::<Method>() else {
+                    continue;
+                };
                 routes
                     .entry(path.clone())
                     .or_default()
@@ -79,7 +83,11 @@ impl RouteScopes {
         let Some(methods) = self.0.get(route) else {
             return Some(Scope::Admin);
         };
-        let method = if method == Method::HEAD { &Method::GET } else { method };
+        let method = if method == Method::HEAD {
+            &Method::GET
+        } else {
+            method
+        };
         methods.get(method).copied().flatten()
     }
 }
@@ -123,12 +131,18 @@ pub async fn authorize(
         .get::<ConnectInfo<SocketAddr>>()
         .map(|info| info.0.ip());
     let headers = request.headers();
-    let values = headers.get_all(header::AUTHORIZATION).iter().map(|v| v.as_bytes());
+    let values = headers
+        .get_all(header::AUTHORIZATION)
+        .iter()
+        .map(|v| v.as_bytes());
     let caller = match state.access.caller(values, address) {
         Ok(caller) => caller,
         Err(refusal) => return refusal.into_response(),
     };
-    let route = request.extensions().get::<MatchedPath>().map(MatchedPath::as_str);
+    let route = request
+        .extensions()
+        .get::<MatchedPath>()
+        .map(MatchedPath::as_str);
     let mut needs: Vec<Scope> = routes.need(request.method(), route).into_iter().collect();
     // Storing a recording of a simulation runs it.
     if route == Some(paths::RECORDINGS)
@@ -193,9 +207,15 @@ pub fn document_security(doc: &mut Value, anonymous: Anonymous) {
                 Anonymous::None => false,
             };
             let required = json!({"bearer": [scope.name()]});
-            let security = if open { json!([{}, required]) } else { json!([required]) };
+            let security = if open {
+                json!([{}, required])
+            } else {
+                json!([required])
+            };
             operation.insert("security".into(), security);
-            let Some(responses) = operation.get_mut("responses").and_then(Value::as_object_mut)
+            let Some(responses) = operation
+                .get_mut("responses")
+                .and_then(Value::as_object_mut)
             else {
                 continue;
             };
@@ -248,8 +268,15 @@ mod tests {
         assert_eq!(need(Method::DELETE, paths::RECORDING), Some(Scope::Store));
         assert_eq!(need(Method::HEAD, paths::RECORDING), Some(Scope::Read));
         assert_eq!(need(Method::POST, paths::SWEEP), Some(Scope::Run));
-        assert_eq!(need(Method::PUT, paths::SWEEP), None, "left to the router's 405");
-        assert_eq!(need(Method::GET, "/api/v1/unknown/{id}"), Some(Scope::Admin));
+        assert_eq!(
+            need(Method::PUT, paths::SWEEP),
+            None,
+            "left to the router's 405"
+        );
+        assert_eq!(
+            need(Method::GET, "/api/v1/unknown/{id}"),
+            Some(Scope::Admin)
+        );
         assert_eq!(need(Method::GET, paths::HEALTHZ), None);
     }
 }

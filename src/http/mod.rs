@@ -25,7 +25,6 @@ pub mod state;
 pub mod studies;
 pub mod systems;
 
-
 use axum::body::Body;
 use axum::extract::DefaultBodyLimit;
 use axum::http::{header, HeaderValue, Method, StatusCode};
@@ -40,8 +39,8 @@ use tower_http::limit::RequestBodyLimitLayer;
 use tower_http::request_id::{MakeRequestUuid, PropagateRequestIdLayer, SetRequestIdLayer};
 use tower_http::timeout::TimeoutLayer;
 use tower_http::trace::{DefaultOnFailure, DefaultOnResponse, TraceLayer};
-use utoipa_axum::router::OpenApiRouter;
 use utoipa::OpenApi;
+use utoipa_axum::router::OpenApiRouter;
 use utoipa_axum::routes;
 
 pub use error::ApiError;
@@ -110,7 +109,10 @@ pub fn routes(config: &Config) -> OpenApiRouter<AppState> {
         .routes(routes!(studies::sweep_presets))
         .routes(routes!(handlers::openapi_json))
         .routes(routes!(recordings::list_recordings))
-        .routes(routes!(recordings::get_recording, recordings::delete_recording))
+        .routes(routes!(
+            recordings::get_recording,
+            recordings::delete_recording
+        ))
         .routes(routes!(recordings::recording_samples))
         .layer(DefaultBodyLimit::max(config.body_limit))
         .layer(RequestBodyLimitLayer::new(config.body_limit))

@@ -110,7 +110,15 @@ pub fn document_for(anonymous: crate::access::Anonymous) -> Value {
         at_least_one_of(
             schemas,
             "StopWhenRequest",
-            &["where", "lyapunov_max", "megno", "megno_mean", "fli", "sali", "gali"],
+            &[
+                "where",
+                "lyapunov_max",
+                "megno",
+                "megno_mean",
+                "fli",
+                "sali",
+                "gali",
+            ],
         );
         only_with(schemas, "StopWhenRequest", "direction", "where");
         only_with(schemas, "StopWhenRequest", "count", "where");
@@ -366,7 +374,10 @@ fn at_least_one_of(schemas: &mut Map<String, Value>, name: &str, members: &[&str
 /// Schema `name` takes `member` only beside `needs`.
 fn only_with(schemas: &mut Map<String, Value>, name: &str, member: &str, needs: &str) {
     if let Some(Value::Object(schema)) = schemas.get_mut(name) {
-        all_of(schema, json!({"anyOf": [{"not": given(member)}, given(needs)]}));
+        all_of(
+            schema,
+            json!({"anyOf": [{"not": given(member)}, given(needs)]}),
+        );
     }
 }
 

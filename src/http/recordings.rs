@@ -39,11 +39,11 @@ use super::extract::ApiJson;
 use super::paths;
 use super::state::{run_blocking, AppState, Cost};
 use crate::access::Caller;
-use crate::store::recordings::{Contents, Origin, Owner, RecordingEntry, SpecSummary, StoreError};
 use crate::api::SimulateRequest;
 use crate::core::error::{ErrorCode, ErrorDetail};
 use crate::recording::read::{self as recorded, ReadError, RecordedDocument};
 use crate::recording::{self, RRD_MEDIA_TYPE};
+use crate::store::recordings::{Contents, Origin, Owner, RecordingEntry, SpecSummary, StoreError};
 
 /// The answer to a stored recording.
 #[derive(Clone, Debug, Serialize, ToSchema)]
@@ -97,9 +97,10 @@ pub(crate) fn store_error(error: StoreError) -> ApiError {
             "output.every",
             format!("{error}; sample less often"),
         )),
-        StoreError::OverQuota { .. } => {
-            ApiError::from(ErrorDetail::new(ErrorCode::QuotaExceeded, error.to_string()))
-        }
+        StoreError::OverQuota { .. } => ApiError::from(ErrorDetail::new(
+            ErrorCode::QuotaExceeded,
+            error.to_string(),
+        )),
         StoreError::FullOfOthers { .. } => {
             ApiError::from(ErrorDetail::new(ErrorCode::StorageFull, error.to_string()))
         }
@@ -287,11 +288,15 @@ async fn upload_recording(
             origin: Origin::Upload,
             application_id: inspected.application_id,
         };
-        store.keep_upload(upload, contents, &owner).map_err(|e| match e {
-            StoreError::TooLarge { bytes, .. } => over_cap(bytes.to_string()),
-            StoreError::Incomplete => invalid_upload("it lacks the RRD header or stream footer"),
-            other => store_error(other),
-        })
+        store
+            .keep_upload(upload, contents, &owner)
+            .map_err(|e| match e {
+                StoreError::TooLarge { bytes, .. } => over_cap(bytes.to_string()),
+                StoreError::Incomplete => {
+                    invalid_upload("it lacks the RRD header or stream footer")
+                }
+                other => store_error(other),
+            })
     })
     .await??;
     Ok(created(entry))
@@ -306,7 +311,13 @@ async fn record_simulation(
     let request = SimulateRequest::from_value(&body)?;
     let sim = request.prepare(&state.config.limits, &*state.systems)?;
     let request = request.inlined(&*state.systems);
-    let work = Work::admit(&state, sim.methods.len(), Cost::Steps(sim.cost()), client.clone()).await?;
+    let work = Work::admit(
+        &state,
+        sim.methods.len(),
+        Cost::Steps(sim.cost()),
+        client.clone(),
+    )
+    .await?;
     let workers = work.workers();
     let store = state.recordings.clone();
     let owner = owner_of(&client);
@@ -342,8 +353,15 @@ pub async fn list_recordings(
     caller: Caller,
     Query(query): Query<OwnerQuery>,
 ) -> Json<Vec<ListedRecording>> {
-    let listed = state.recordings.list_owned(query.owner.as_deref()).into_iter();
-    Json(listed.map(|entry| ListedRecording::for_caller(entry, &caller)).collect())
+    let listed = state
+        .recordings
+        .list_owned(query.owner.as_deref())
+        .into_iter();
+    Json(
+        listed
+            .map(|entry| ListedRecording::for_caller(entry, &caller))
+            .collect(),
+    )
 }
 
 /// A recording as the list shows it to a caller.

@@ -84,7 +84,9 @@ pub async fn simulate(
     let bytes = work
         .run(move |budget| {
             let doc: SimulationDocument = sim.simulate(workers, budget)?;
-            format.encode(&doc, |d| recording::rrd_bytes(&recording::Spec::of(&request), d))
+            format.encode(&doc, |d| {
+                recording::rrd_bytes(&recording::Spec::of(&request), d)
+            })
         })
         .await?;
     Ok(format.respond(bytes, "geomint.rrd"))

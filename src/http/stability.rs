@@ -80,7 +80,9 @@ pub async fn stability_map(
     let bytes = work
         .run(move |budget| {
             let doc: StabilityDocument = stability::maps(&job, &executor, budget)?;
-            format.encode(&doc, |d| recording::stability::rrd_bytes(&recording::Spec::of(&request), d))
+            format.encode(&doc, |d| {
+                recording::stability::rrd_bytes(&recording::Spec::of(&request), d)
+            })
         })
         .await?;
     Ok(format.respond(bytes, "geomint-stability.rrd"))

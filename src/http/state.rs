@@ -13,10 +13,10 @@ use tokio::sync::{watch, OwnedSemaphorePermit, Semaphore};
 
 use super::error::ApiError;
 use crate::access::{Access, AccessConfig};
+use crate::core::simulation::Limits;
 use crate::executor::{cores, StudyExecutor};
 use crate::store::recordings::RecordingStore;
 use crate::store::systems::{SystemStore, DEFAULT_MAX_SYSTEMS, DEFAULT_SYSTEMS_DIR};
-use crate::core::simulation::Limits;
 
 /// Settings of the service.
 #[derive(Clone, Debug)]

@@ -148,10 +148,14 @@ pub async fn work_precision(
 ) -> Result<Response, ApiError> {
     let format = Format::requested(&query, &headers, Format::ALL)?;
     let request = WorkPrecisionRequest::from_value(&body)?;
-    let job = request.to_spec(&*state.systems)?.prepare(&state.config.limits)?;
+    let job = request
+        .to_spec(&*state.systems)?
+        .prepare(&state.config.limits)?;
     let request = request.inlined(&*state.systems);
     let encode = move |doc: &WorkPrecisionDocument| {
-        format.encode(doc, |d| recording::work_precision::rrd_bytes(&recording::Spec::of(&request), d))
+        format.encode(doc, |d| {
+            recording::work_precision::rrd_bytes(&recording::Spec::of(&request), d)
+        })
     };
     answer_settings::<StudyLine>(
         state,
@@ -194,7 +198,9 @@ pub async fn convergence(
 ) -> Result<Response, ApiError> {
     let format = Format::requested(&query, &headers, &[Format::Json, Format::Ndjson])?;
     let request = ConvergenceRequest::from_value(&body)?;
-    let job = request.to_spec(&*state.systems)?.prepare(&state.config.limits)?;
+    let job = request
+        .to_spec(&*state.systems)?
+        .prepare(&state.config.limits)?;
     let encode = |doc: &ConvergenceDocument| serde_json::to_vec(doc).map_err(ApiError::internal);
     answer_settings::<ConvergenceLine>(
         state,
@@ -293,7 +299,9 @@ pub async fn sweep(
 ) -> Result<Response, ApiError> {
     let format = Format::requested(&query, &headers, Format::ALL)?;
     let request = SweepRequest::from_value(&body)?;
-    let job = request.to_spec(&*state.systems)?.prepare(&state.config.limits)?;
+    let job = request
+        .to_spec(&*state.systems)?
+        .prepare(&state.config.limits)?;
     let work = Work::admit(&state, slots(&state, &job), Cost::Study, client).await?;
     tracing::info!(
         cells = job.cells(),

@@ -15,12 +15,12 @@ use axum::Json;
 use super::error::{ApiError, ErrorBody};
 use super::extract::ApiJson;
 use super::paths;
+use super::recordings::OwnerQuery;
 use super::state::{run_blocking, AppState};
+use crate::access::{Caller, Scope};
 use crate::api::system::SystemDefinition;
 use crate::core::error::{ErrorCode, ErrorDetail, Field};
 use crate::core::systems;
-use super::recordings::OwnerQuery;
-use crate::access::{Caller, Scope};
 use crate::store::systems::{
     is_definition_id, unix_ms, Owner, Removal, StoredSystem, SystemEntry, SystemStoreError,
 };
@@ -38,9 +38,10 @@ fn store_error(error: SystemStoreError) -> ApiError {
             StatusCode::INSUFFICIENT_STORAGE,
             ErrorDetail::new(ErrorCode::TooManySystems, error.to_string()),
         ),
-        SystemStoreError::OverQuota { .. } => {
-            ApiError::from(ErrorDetail::new(ErrorCode::QuotaExceeded, error.to_string()))
-        }
+        SystemStoreError::OverQuota { .. } => ApiError::from(ErrorDetail::new(
+            ErrorCode::QuotaExceeded,
+            error.to_string(),
+        )),
         SystemStoreError::Io(e) => ApiError::storage("system store", &e),
     }
 }

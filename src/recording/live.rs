@@ -21,8 +21,8 @@ use rerun::{RecordingStream, RecordingStreamBuilder};
 use super::encode::{self, EncoderThread, EncodingSink};
 use super::layout::{send_blueprint, Layout};
 use super::simulation::SimulationLogger;
-use super::{RecordingError, APPLICATION_ID};
 use super::Spec;
+use super::{RecordingError, APPLICATION_ID};
 use crate::core::simulation::crossings::SurfaceName;
 use crate::core::simulation::StreamLine;
 

@@ -46,8 +46,8 @@ use rerun::{
 };
 
 use super::layout::{path_block_len, sample_step, send_blueprint, Layout};
-use super::{color, encode, method_color, RecordingError, STEP_TIMELINE, TIME_TIMELINE};
 use super::Spec;
+use super::{color, encode, method_color, RecordingError, STEP_TIMELINE, TIME_TIMELINE};
 use crate::core::simulation::{Columns, CrossingColumns, ScheduleSummary, SimulationDocument};
 use crate::core::systems::World;
 
@@ -179,7 +179,10 @@ fn indicator_series(c: &Columns) -> Vec<(String, Vec<f64>)> {
     if let Some(spectra) = &c.lyapunov {
         let k = spectra.first().map_or(0, Vec::len);
         for i in 0..k {
-            series.push((format!("lyapunov/{i}"), spectra.iter().map(|s| s[i]).collect()));
+            series.push((
+                format!("lyapunov/{i}"),
+                spectra.iter().map(|s| s[i]).collect(),
+            ));
         }
     }
     for (part, column) in [
@@ -321,7 +324,10 @@ impl RunLogger {
             TimeColumn::new_duration_secs(TIME_TIMELINE, c.t.iter().copied()),
         ];
         for dof in 0..self.phase_dofs {
-            let points = c.q.iter().zip(&c.p).map(|(q, p)| [q[dof] as f32, p[dof] as f32]);
+            let points =
+                c.q.iter()
+                    .zip(&c.p)
+                    .map(|(q, p)| [q[dof] as f32, p[dof] as f32]);
             self.rec.send_columns(
                 format!("/{m}/section/{dof}"),
                 times.iter().cloned(),
@@ -332,7 +338,9 @@ impl RunLogger {
         for q in c.cartesian_q.as_ref().unwrap_or(&c.q) {
             self.world.positions(q, &mut exact);
         }
-        let positions = exact.iter().map(|p| [p[0] as f32, p[1] as f32, p[2] as f32]);
+        let positions = exact
+            .iter()
+            .map(|p| [p[0] as f32, p[1] as f32, p[2] as f32]);
         self.rec.send_columns(
             format!("/{m}/world/section"),
             times.iter().cloned(),
@@ -560,10 +568,7 @@ pub fn write_rrd<W: Write + Send + 'static>(
 }
 
 /// The `.rrd` file of a simulation in memory (see [`write_rrd`]).
-pub fn rrd_bytes(
-    spec: &Spec,
-    doc: &SimulationDocument,
-) -> Result<Vec<u8>, RecordingError> {
+pub fn rrd_bytes(spec: &Spec, doc: &SimulationDocument) -> Result<Vec<u8>, RecordingError> {
     write_rrd(Vec::new(), spec, doc)
 }
 

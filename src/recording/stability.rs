@@ -26,8 +26,8 @@ use rerun::{
 };
 
 use super::blueprint::{self, Node};
-use super::{encode, entity_names, RecordingError};
 use super::Spec;
+use super::{encode, entity_names, RecordingError};
 use crate::core::studies::stability::{MapDocument, StabilityDocument};
 
 /// The class of a cell in a `verdict` image. Class 0 is left unused: segmentation images draw
@@ -232,10 +232,7 @@ pub fn write_rrd<W: Write + Send + 'static>(
 }
 
 /// The `.rrd` file of a stability study in memory (see [`write_rrd`]).
-pub fn rrd_bytes(
-    spec: &Spec,
-    doc: &StabilityDocument,
-) -> Result<Vec<u8>, RecordingError> {
+pub fn rrd_bytes(spec: &Spec, doc: &StabilityDocument) -> Result<Vec<u8>, RecordingError> {
     write_rrd(Vec::new(), spec, doc)
 }
 

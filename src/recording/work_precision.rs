@@ -17,8 +17,8 @@ use rerun::external::re_sdk_types::blueprint::components::ContainerKind;
 use rerun::{LineStrips2D, Points2D, Radius, RecordingStream, TextDocument};
 
 use super::blueprint::{self, Node};
-use super::{color, encode, entity_names, method_color, RecordingError};
 use super::Spec;
+use super::{color, encode, entity_names, method_color, RecordingError};
 use crate::core::studies::work_precision::WorkPrecisionDocument;
 
 /// The per-run labels of a study (`runs[i]`'s method).
@@ -161,9 +161,6 @@ pub fn write_rrd<W: Write + Send + 'static>(
 }
 
 /// The `.rrd` file of a study in memory (see [`write_rrd`]).
-pub fn rrd_bytes(
-    spec: &Spec,
-    doc: &WorkPrecisionDocument,
-) -> Result<Vec<u8>, RecordingError> {
+pub fn rrd_bytes(spec: &Spec, doc: &WorkPrecisionDocument) -> Result<Vec<u8>, RecordingError> {
     write_rrd(Vec::new(), spec, doc)
 }

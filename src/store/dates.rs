@@ -24,7 +24,6 @@ pub(crate) fn rfc3339(unix_ms: u64) -> String {
     )
 }
 
-
 #[cfg(test)]
 mod tests {
     use super::*;

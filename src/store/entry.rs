@@ -114,4 +114,3 @@ pub struct RecordingEntry {
     #[schema(example = "alice")]
     pub owner: Option<String>,
 }
-

@@ -9,7 +9,6 @@ use super::recordings::{Owner, RecordingEntry, StoreError};
 
 #[derive(Debug, Default)]
 pub(super) struct Index {
-
     /// Entries with their insertion order (which breaks ties in creation time).
     pub(super) entries: BTreeMap<String, (u64, RecordingEntry)>,
     next_seq: u64,
@@ -50,9 +49,7 @@ impl Index {
     pub(super) fn oldest_except(&self, keep: &str, owner: Option<&str>) -> Option<String> {
         self.entries
             .iter()
-            .filter(|(id, (_, e))| {
-                id.as_str() != keep && owner.is_none_or(|o| owner_key(e) == o)
-            })
+            .filter(|(id, (_, e))| id.as_str() != keep && owner.is_none_or(|o| owner_key(e) == o))
             .min_by_key(|(_, (seq, e))| (e.created_unix_ms, *seq))
             .map(|(id, _)| id.clone())
     }
@@ -78,7 +75,15 @@ impl Index {
             .filter(|(id, (_, e))| {
                 id.as_str() != keep && e.owner.as_deref().is_none_or(|o| o == owner.name)
             })
-            .map(|(id, (seq, e))| (e.owner.is_some(), e.created_unix_ms, *seq, id.clone(), e.bytes))
+            .map(|(id, (seq, e))| {
+                (
+                    e.owner.is_some(),
+                    e.created_unix_ms,
+                    *seq,
+                    id.clone(),
+                    e.bytes,
+                )
+            })
             .collect::<Vec<_>>();
         // The owner's own first (oldest first), then those without an owner.
         candidates.sort_by(|a, b| (!a.0, a.1, a.2).cmp(&(!b.0, b.1, b.2)));
@@ -112,7 +117,6 @@ fn owner_key(entry: &RecordingEntry) -> String {
     entry.owner.clone().unwrap_or_default()
 }
 
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -144,14 +148,24 @@ mod tests {
     #[test]
     fn room_comes_from_the_owners_own_then_the_unowned_never_others() {
         let mut index = Index::default();
-        for (id, who, at) in [("old", None, 0), ("b1", Some("bob"), 1), ("a1", Some("alice"), 2), ("a2", Some("alice"), 3)] {
+        for (id, who, at) in [
+            ("old", None, 0),
+            ("b1", Some("bob"), 1),
+            ("a1", Some("alice"), 2),
+            ("a2", Some("alice"), 3),
+        ] {
             index.insert(entry(id, who, 10, at));
         }
         // Past alice's quota of 25: her oldest goes, not bob's older one nor the unowned.
         index.insert(entry("a3", Some("alice"), 10, 4));
-        let evicted = index.make_room("a3", &owner("alice", Some(25)), 1000).unwrap();
+        let evicted = index
+            .make_room("a3", &owner("alice", Some(25)), 1000)
+            .unwrap();
         assert_eq!(ids(&evicted), ["a1"]);
-        assert_eq!((index.owned("alice"), index.owned("bob"), index.total), (20, 10, 40));
+        assert_eq!(
+            (index.owned("alice"), index.owned("bob"), index.total),
+            (20, 10, 40)
+        );
         // Past the cap of 40: bob's new one takes his own oldest first, then the unowned.
         index.insert(entry("b2", Some("bob"), 10, 5));
         let evicted = index.make_room("b2", &owner("bob", None), 40).unwrap();

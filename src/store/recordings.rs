@@ -32,10 +32,10 @@ use std::time::{SystemTime, UNIX_EPOCH};
 
 use serde::{Deserialize, Serialize};
 
-pub use super::entry::{Contents, Origin, Owner, RecordingEntry, SpecSummary};
-pub use super::tempfile::Upload;
 use super::dates::rfc3339;
+pub use super::entry::{Contents, Origin, Owner, RecordingEntry, SpecSummary};
 use super::index::Index;
+pub use super::tempfile::Upload;
 use super::tempfile::{remove_if_abandoned, write_atomically, TempFile, TMP_PREFIX};
 use crate::recording::RecordingError;
 
@@ -94,8 +94,10 @@ pub enum StoreError {
         quota: u64,
     },
     /// Only other owners' recordings could make room under the store's cap.
-    #[error("the store's cap of {max} bytes is taken by other owners' recordings; it keeps \
-             {bytes} more bytes only once they delete some")]
+    #[error(
+        "the store's cap of {max} bytes is taken by other owners' recordings; it keeps \
+             {bytes} more bytes only once they delete some"
+    )]
     FullOfOthers {
         /// Size of the recording.
         bytes: u64,
@@ -154,7 +156,9 @@ impl RecordingStore {
         // A cap lowered since the last start: the oldest go, whoever owns them.
         let mut evicted = Vec::new();
         while index.total > store.max_bytes {
-            let Some(id) = index.oldest_except("", None) else { break };
+            let Some(id) = index.oldest_except("", None) else {
+                break;
+            };
             evicted.extend(index.remove(&id));
         }
         drop(index);

@@ -210,9 +210,11 @@ impl SystemStore {
                 continue;
             }
             if let Some(id) = name.strip_suffix(OWNERS).filter(|id| is_definition_id(id)) {
-                match fs::read(&path).map_err(|e| e.to_string()).and_then(|bytes| {
-                    serde_json::from_slice::<Vec<String>>(&bytes).map_err(|e| e.to_string())
-                }) {
+                match fs::read(&path)
+                    .map_err(|e| e.to_string())
+                    .and_then(|bytes| {
+                        serde_json::from_slice::<Vec<String>>(&bytes).map_err(|e| e.to_string())
+                    }) {
                     Ok(list) => {
                         owners.insert(id.to_string(), list);
                     }
@@ -343,7 +345,12 @@ impl SystemStore {
         if !owns && !admin {
             return Ok(Removal::NotOwner(existing.owners.clone()));
         }
-        let rest: Vec<String> = existing.owners.iter().filter(|o| *o != owner).cloned().collect();
+        let rest: Vec<String> = existing
+            .owners
+            .iter()
+            .filter(|o| *o != owner)
+            .cloned()
+            .collect();
         if !admin && !rest.is_empty() {
             self.write_owners(id, &rest)?;
             Arc::make_mut(existing).owners = rest;
@@ -358,7 +365,6 @@ impl SystemStore {
         entries.remove(id);
         Ok(Removal::Removed)
     }
-
 }
 
 impl StoredSystems for SystemStore {
@@ -394,4 +400,3 @@ impl StoredSystem {
         })
     }
 }
-

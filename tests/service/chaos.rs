@@ -39,27 +39,42 @@ fn defined(definition: Value) -> SystemRef {
 /// The page's five examples (static/js/examples.js), as definitions.
 fn examples() -> Vec<(&'static str, Value)> {
     vec![
-        ("duffing", json!({
+        (
+            "duffing",
+            json!({
             "coordinates": ["x"], "mass": 1, "potential": "alpha*x^2/2 + beta*x^4/4",
             "damping": {"gamma": "gamma"}, "parameters": {"alpha": -1, "beta": 1, "gamma": 0.05},
-            "q0": [1.5], "p0": [0]})),
-        ("henon-heiles", json!({
+            "q0": [1.5], "p0": [0]}),
+        ),
+        (
+            "henon-heiles",
+            json!({
             "coordinates": ["x", "y"], "mass": 1, "potential": "(x^2 + y^2)/2 + x^2*y - y^3/3",
             "damping": {"epsilon": "eps", "matrix": [[1, 0], [0, 1]]}, "parameters": {"eps": 0.002},
-            "q0": [0, 0.1], "p0": [0.49, 0]})),
-        ("double-pendulum", json!({
+            "q0": [0, 0.1], "p0": [0.49, 0]}),
+        ),
+        (
+            "double-pendulum",
+            json!({
             "coordinates": ["a", "b"], "momenta": ["p1", "p2"],
             "hamiltonian": "(p1^2 + 2*p2^2 - 2*p1*p2*cos(a-b)) / (2*(1 + sin(a-b)^2)) - 2*g*cos(a) - g*cos(b)",
-            "parameters": {"g": 9.81}, "q0": [1.8, 2.4], "p0": [0, 0]})),
-        ("kepler", json!({
+            "parameters": {"g": 9.81}, "q0": [1.8, 2.4], "p0": [0, 0]}),
+        ),
+        (
+            "kepler",
+            json!({
             "coordinates": ["x", "y"], "mass": 1, "potential": "-k/sqrt(x^2 + y^2)",
             "damping": {"epsilon": "eps", "matrix": [["x^2/(x^2 + y^2)", "x*y/(x^2 + y^2)"], ["x*y/(x^2 + y^2)", "y^2/(x^2 + y^2)"]]},
-            "parameters": {"k": 1, "eps": 0.05}, "q0": [1, 0], "p0": [0, 1.2]})),
-        ("spring-chain", json!({
+            "parameters": {"k": 1, "eps": 0.05}, "q0": [1, 0], "p0": [0, 1.2]}),
+        ),
+        (
+            "spring-chain",
+            json!({
             "coordinates": ["x1", "x2", "x3"], "mass": "m",
             "potential": "k/2*(x1^2 + (x2 - x1)^2 + (x3 - x2)^2 + x3^2)",
             "damping": {"epsilon": "c", "matrix": [[0, 0, 0], [0, 1, 0], [0, 0, 0]]},
-            "parameters": {"m": 1, "k": 1, "c": 0.2}, "q0": [0.3, 0, 0], "p0": [0.1, 0, -0.2]})),
+            "parameters": {"m": 1, "k": 1, "c": 0.2}, "q0": [0.3, 0, 0], "p0": [0.1, 0, -0.2]}),
+        ),
     ]
 }
 
@@ -68,7 +83,12 @@ fn tangent_maps_of_typed_in_systems_equal_differences_of_the_step() {
     let mut checked = 0;
     let mut failures = Vec::new();
     for (name, definition) in examples() {
-        let spec = SimulationSpec::new(defined(definition), &[Method::Plain(MethodId::Rk4)], 0.01, 1.0);
+        let spec = SimulationSpec::new(
+            defined(definition),
+            &[Method::Plain(MethodId::Rk4)],
+            0.01,
+            1.0,
+        );
         let sim = Simulation::prepare(&spec, &Limits::default()).expect("a valid system");
         for choice in common::every_fixed_step_choice() {
             if choice.no_step_jacobian().is_some() {
@@ -167,32 +187,70 @@ fn requests_name_the_fields_of_indicators_they_cannot_serve() {
     let base = json!({"system": "henon_heiles", "methods": ["velocity_verlet", "rk4"], "h": 0.05, "t_end": 1});
     let with = |extra: Value| {
         let mut body = base.clone();
-        body.as_object_mut().unwrap().extend(extra.as_object().unwrap().clone());
+        body.as_object_mut()
+            .unwrap()
+            .extend(extra.as_object().unwrap().clone());
         body
     };
     for (extra, expected) in [
-        (json!({"indicators": ["megno", "lyapunovv"]}), "indicators[1]"),
-        (json!({"indicators": ["megno"], "deviations": 5}), "deviations"),
-        (json!({"indicators": ["sali"], "deviations": 1}), "deviations"),
-        (json!({"indicators": ["megno"], "stop_when": {"fli": 3}}), "stop_when.fli"),
-        (json!({"indicators": ["megno"], "stop_when": {"megno_max": 3}}), "stop_when.megno_max"),
+        (
+            json!({"indicators": ["megno", "lyapunovv"]}),
+            "indicators[1]",
+        ),
+        (
+            json!({"indicators": ["megno"], "deviations": 5}),
+            "deviations",
+        ),
+        (
+            json!({"indicators": ["sali"], "deviations": 1}),
+            "deviations",
+        ),
+        (
+            json!({"indicators": ["megno"], "stop_when": {"fli": 3}}),
+            "stop_when.fli",
+        ),
+        (
+            json!({"indicators": ["megno"], "stop_when": {"megno_max": 3}}),
+            "stop_when.megno_max",
+        ),
         (json!({"deviations": 2}), "deviations"),
         // One `stop_when` for events and thresholds: a threshold needs its indicator, an
         // event's direction and count need its surface, and an empty object says what it lacks.
-        (json!({"stop_when": {"megno_mean": 8}}), "stop_when.megno_mean"),
+        (
+            json!({"stop_when": {"megno_mean": 8}}),
+            "stop_when.megno_mean",
+        ),
         (json!({"stop_when": {"count": 2}}), "stop_when.where"),
         (json!({"stop_when": {}}), "stop_when.where"),
         (json!({"indicators": ["megno"], "qr_every": 0}), "qr_every"),
-        (json!({"indicators": ["megno"], "methods": ["rk4", "reference"]}), "methods[1]"),
-        (json!({"indicators": ["megno"], "methods": ["rowlands"]}), "methods[0]"),
+        (
+            json!({"indicators": ["megno"], "methods": ["rk4", "reference"]}),
+            "methods[1]",
+        ),
+        (
+            json!({"indicators": ["megno"], "methods": ["rowlands"]}),
+            "methods[0]",
+        ),
     ] {
-        assert_eq!(field(with(extra.clone())).as_deref(), Some(expected), "{extra}");
+        assert_eq!(
+            field(with(extra.clone())).as_deref(),
+            Some(expected),
+            "{extra}"
+        );
     }
     // A request reads back what it was given.
-    let req = SimulateRequest::from_value(&with(json!({"indicators": ["megno", "lyapunov"], "deviations": 2,
-        "qr_every": 5, "stop_when": {"megno_mean": 8}})))
+    let req = SimulateRequest::from_value(&with(
+        json!({"indicators": ["megno", "lyapunov"], "deviations": 2,
+        "qr_every": 5, "stop_when": {"megno_mean": 8}}),
+    ))
     .unwrap();
-    assert_eq!(req.stop_when, Some(StopWhenRequest { megno_mean: Some(8.0), ..Default::default() }));
+    assert_eq!(
+        req.stop_when,
+        Some(StopWhenRequest {
+            megno_mean: Some(8.0),
+            ..Default::default()
+        })
+    );
     let again = SimulateRequest::from_value(&serde_json::to_value(&req).unwrap()).unwrap();
     assert_eq!(again, req);
 }
@@ -230,7 +288,10 @@ async fn simulate_answers_carry_the_indicators_in_json_and_ndjson() {
     let (status, _, lines) =
         post_ndjson(&server, "/api/v1/simulate", "application/x-ndjson", &body).await;
     assert_eq!(status, 200);
-    assert_eq!(lines[0]["indicators"], json!(["lyapunov", "megno", "sali", "gali"]));
+    assert_eq!(
+        lines[0]["indicators"],
+        json!(["lyapunov", "megno", "sali", "gali"])
+    );
     assert_eq!(lines[0]["deviations"], 4);
     let summaries: Vec<&Value> = lines.iter().filter(|l| l["type"] == "summary").collect();
     assert_eq!(summaries.len(), 2);
@@ -248,7 +309,10 @@ async fn simulate_answers_carry_the_indicators_in_json_and_ndjson() {
     let mut bad = body.clone();
     bad["deviations"] = json!(9);
     let (status, error) = post_json(&server, "/api/v1/simulate", &bad).await;
-    assert_eq!((status, error["error"]["field"].as_str()), (422, Some("deviations")));
+    assert_eq!(
+        (status, error["error"]["field"].as_str()),
+        (422, Some("deviations"))
+    );
 }
 
 #[tokio::test]
@@ -264,7 +328,13 @@ async fn the_chaos_presets_run_and_mark_the_cells_off_the_energy_surface() {
         .await
         .unwrap();
     let preset = |id: &str| {
-        presets.as_array().unwrap().iter().find(|p| p["id"] == id).unwrap()["request"].clone()
+        presets
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|p| p["id"] == id)
+            .unwrap()["request"]
+            .clone()
     };
     // The Hénon–Heiles map, coarser and shorter.
     let mut hh = preset("henon_heiles_megno");
@@ -278,7 +348,9 @@ async fn the_chaos_presets_run_and_mark_the_cells_off_the_energy_surface() {
     let megno = run["megno_mean"].as_array().unwrap();
     assert_eq!(megno.len(), 81);
     for (cell, m) in megno.iter().enumerate() {
-        let off = run["errors"][cell].as_str().is_some_and(|e| e.contains("energy_surface.energy"));
+        let off = run["errors"][cell]
+            .as_str()
+            .is_some_and(|e| e.contains("energy_surface.energy"));
         assert_eq!(m.is_null(), off, "cell {cell}");
     }
     assert!(megno.iter().any(Value::is_null) && megno.iter().any(Value::is_number));
@@ -291,11 +363,18 @@ async fn the_chaos_presets_run_and_mark_the_cells_off_the_energy_surface() {
     let (status, doc) = post_json(&server, "/api/v1/studies/sweep", &elastic).await;
     assert_eq!(status, 200, "{doc}");
     assert_eq!(doc["runs"].as_array().unwrap().len(), 2);
-    assert!(doc["runs"][1]["megno_mean"].as_array().unwrap().iter().any(Value::is_number));
+    assert!(doc["runs"][1]["megno_mean"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .any(Value::is_number));
     // A surface no cell reaches.
     hh["energy_surface"]["energy"] = json!(-1);
     let (status, error) = post_json(&server, "/api/v1/studies/sweep", &hh).await;
-    assert_eq!((status, error["error"]["field"].as_str()), (422, Some("energy_surface.energy")));
+    assert_eq!(
+        (status, error["error"]["field"].as_str()),
+        (422, Some("energy_surface.energy"))
+    );
 }
 
 /// One `stop_when` holds an event and thresholds together, and whichever comes first ends the
@@ -312,7 +391,8 @@ async fn an_event_and_a_threshold_in_one_stop_when_end_a_run_at_whichever_comes_
             "indicators": ["megno"], "stop_when": stop_when})
     };
     let stop_of = |doc: &Value| doc["runs"][0]["stop"].clone();
-    let (status, alone) = post_json(&server, "/api/v1/simulate", &run(json!({"megno_mean": 4}))).await;
+    let (status, alone) =
+        post_json(&server, "/api/v1/simulate", &run(json!({"megno_mean": 4}))).await;
     assert_eq!(status, 200, "{alone}");
     let threshold = stop_of(&alone);
     assert_eq!(threshold["reason"], "indicator", "{threshold}");
@@ -325,6 +405,13 @@ async fn an_event_and_a_threshold_in_one_stop_when_end_a_run_at_whichever_comes_
     assert_eq!(status, 200, "{doc}");
     let event = stop_of(&doc);
     assert_eq!(event["reason"], "event", "{event}");
-    assert!(event["t"].as_f64().unwrap() < threshold["t"].as_f64().unwrap(), "{event} {threshold}");
-    assert_eq!(doc["runs"][0]["events"]["t"].as_array().map(Vec::len), Some(2), "{doc}");
+    assert!(
+        event["t"].as_f64().unwrap() < threshold["t"].as_f64().unwrap(),
+        "{event} {threshold}"
+    );
+    assert_eq!(
+        doc["runs"][0]["events"]["t"].as_array().map(Vec::len),
+        Some(2),
+        "{doc}"
+    );
 }

@@ -36,7 +36,10 @@ fn service() -> &'static (AppState, String, tokio::runtime::Runtime) {
             },
             ..Config::default()
         });
-        let runtime = tokio::runtime::Builder::new_current_thread().enable_all().build().unwrap();
+        let runtime = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .unwrap();
         (state, secrets["admin"].clone(), runtime)
     })
 }
@@ -55,7 +58,12 @@ fn send(path: &str, values: &[Vec<u8>]) -> Result<u16, TestCaseError> {
     let (status, bytes) = runtime.block_on(async {
         let response = app(state.clone()).oneshot(request).await.unwrap();
         let status = response.status().as_u16();
-        (status, axum::body::to_bytes(response.into_body(), usize::MAX).await.unwrap())
+        (
+            status,
+            axum::body::to_bytes(response.into_body(), usize::MAX)
+                .await
+                .unwrap(),
+        )
     });
     prop_assert!(status < 500, "{path}: {status}");
     let answer: Value = serde_json::from_slice(&bytes)
@@ -93,7 +101,9 @@ fn near_miss(token: &str) -> impl Strategy<Value = Vec<u8>> {
 }
 
 fn header_value(token: String) -> impl Strategy<Value = Vec<u8>> {
-    let scheme = prop::sample::select(vec!["Bearer ", "bearer ", "BEARER  ", "Basic ", "Bearer", "", " Bearer ", "Bearer\t"]);
+    let scheme = prop::sample::select(vec![
+        "Bearer ", "bearer ", "BEARER  ", "Basic ", "Bearer", "", " Bearer ", "Bearer\t",
+    ]);
     prop_oneof![
         prop::collection::vec(any::<u8>(), 0..300),
         "[ -~]{0,300}".prop_map(String::into_bytes),
@@ -105,7 +115,10 @@ fn header_value(token: String) -> impl Strategy<Value = Vec<u8>> {
 #[test]
 fn no_malformed_or_wrong_authorization_passes() {
     let (_, token, _) = service();
-    let cases = std::env::var("PROPTEST_CASES").ok().and_then(|n| n.parse().ok()).unwrap_or(10_000);
+    let cases = std::env::var("PROPTEST_CASES")
+        .ok()
+        .and_then(|n| n.parse().ok())
+        .unwrap_or(10_000);
     let mut runner = TestRunner::new(RunnerConfig {
         cases,
         failure_persistence: None,
@@ -132,6 +145,9 @@ fn no_malformed_or_wrong_authorization_passes() {
         .header("authorization", format!("Bearer {token}"))
         .body(Body::empty())
         .unwrap();
-    let status = runtime.block_on(app(state.clone()).oneshot(request)).unwrap().status();
+    let status = runtime
+        .block_on(app(state.clone()).oneshot(request))
+        .unwrap()
+        .status();
     assert_eq!(status.as_u16(), 200);
 }

@@ -4,11 +4,11 @@
 use std::collections::BTreeSet;
 use std::time::{Duration, Instant};
 
+use crate::server;
 use geomint::api::system::NoStoredSystems;
 use geomint::core::methods::{Method, MethodId};
 use geomint::core::run::{Budget, StopReason};
 use geomint::core::simulation::{ColumnSink, Columns, Limits, Simulation, SimulationSpec};
-use crate::server;
 
 use geomint::http::{AppState, Config};
 use serde_json::{json, Value};

@@ -15,7 +15,10 @@ use serde_json::{json, Value};
 use crate::server::{self, client, Server};
 
 /// Writes a tokens file in `dir` for `tokens` (name, scopes, quotas); the secrets by name.
-pub fn tokens_file(dir: &Path, tokens: &[(&str, &str, Quotas)]) -> (PathBuf, BTreeMap<String, String>) {
+pub fn tokens_file(
+    dir: &Path,
+    tokens: &[(&str, &str, Quotas)],
+) -> (PathBuf, BTreeMap<String, String>) {
     std::fs::create_dir_all(dir).unwrap();
     let mut lines = String::from("# the tokens of a test\n");
     let mut secrets = BTreeMap::new();
@@ -112,7 +115,11 @@ async fn stored(server: &Server, admin: &str) -> (Value, Value) {
         serde_json::from_slice::<Value>(&bytes).unwrap()
     };
     let recordings = get("/api/v1/recordings").await;
-    let systems: Vec<Value> = get("/api/v1/systems").await.as_array().unwrap().iter()
+    let systems: Vec<Value> = get("/api/v1/systems")
+        .await
+        .as_array()
+        .unwrap()
+        .iter()
         .filter(|s| s.get("owners").is_some())
         .map(|s| json!([s["id"], s["owners"]]))
         .collect();
@@ -125,7 +132,14 @@ async fn stored(server: &Server, admin: &str) -> (Value, Value) {
 async fn every_route_answers_each_caller_as_its_scope_says() {
     let (server, secrets) = start("access-matrix", &scoped_tokens(), Anonymous::None, |_| {}).await;
     let admin = secrets["admin"].clone();
-    let (_, _, rrd) = send(&server, Method::POST, "/api/v1/simulate?format=rrd", &Body::Json(small_run()), Some(&admin)).await;
+    let (_, _, rrd) = send(
+        &server,
+        Method::POST,
+        "/api/v1/simulate?format=rrd",
+        &Body::Json(small_run()),
+        Some(&admin),
+    )
+    .await;
     let stability = json!({"methods": ["csv1"], "omega": 3.51, "gamma": {"min": 0, "max": 3.5, "n": 4}, "h": {"min": 0.1, "max": 1, "n": 4}});
     let work_precision = json!({"system": "harmonic_oscillator", "params": {"omega": 2, "gamma": 0.1},
         "q0": [1.0], "p0": [0.0], "t_end": 5, "samples": 5, "runs": [{"method": "csv1", "h": [0.1, 0.05]}]});
@@ -138,26 +152,116 @@ async fn every_route_answers_each_caller_as_its_scope_says() {
         (Method::GET, "/healthz", Body::None, &[]),
         (Method::GET, "/api/v1/openapi.json", Body::None, &[]),
         (Method::GET, "/api/v1/systems", Body::None, &["read"]),
-        (Method::POST, "/api/v1/systems", Body::Json(definition(7)), &["store"]),
-        (Method::GET, "/api/v1/systems/pendulum", Body::None, &["read"]),
-        (Method::DELETE, "/api/v1/systems/{system}", Body::None, &["store"]),
+        (
+            Method::POST,
+            "/api/v1/systems",
+            Body::Json(definition(7)),
+            &["store"],
+        ),
+        (
+            Method::GET,
+            "/api/v1/systems/pendulum",
+            Body::None,
+            &["read"],
+        ),
+        (
+            Method::DELETE,
+            "/api/v1/systems/{system}",
+            Body::None,
+            &["store"],
+        ),
         (Method::GET, "/api/v1/methods", Body::None, &["read"]),
-        (Method::GET, "/api/v1/methods/modin_3s", Body::None, &["read"]),
-        (Method::POST, "/api/v1/simulate", Body::Json(small_run()), &["run"]),
-        (Method::POST, "/api/v1/stability", Body::Json(stability), &["run"]),
-        (Method::POST, "/api/v1/stability/point", Body::Json(json!({"method": "csv1", "omega": 3.51, "gamma": 0.5, "h": 0.2})), &["run"]),
-        (Method::POST, "/api/v1/studies/work-precision", Body::Json(work_precision), &["run"]),
-        (Method::POST, "/api/v1/studies/energy-map", Body::Json(json!({"nx": 3, "ny": 3, "t_max": 20})), &["run"]),
-        (Method::POST, "/api/v1/studies/convergence", Body::Json(convergence), &["run"]),
-        (Method::POST, "/api/v1/studies/sweep", Body::Json(sweep), &["run"]),
-        (Method::GET, "/api/v1/studies/sweep/presets", Body::None, &["read"]),
+        (
+            Method::GET,
+            "/api/v1/methods/modin_3s",
+            Body::None,
+            &["read"],
+        ),
+        (
+            Method::POST,
+            "/api/v1/simulate",
+            Body::Json(small_run()),
+            &["run"],
+        ),
+        (
+            Method::POST,
+            "/api/v1/stability",
+            Body::Json(stability),
+            &["run"],
+        ),
+        (
+            Method::POST,
+            "/api/v1/stability/point",
+            Body::Json(json!({"method": "csv1", "omega": 3.51, "gamma": 0.5, "h": 0.2})),
+            &["run"],
+        ),
+        (
+            Method::POST,
+            "/api/v1/studies/work-precision",
+            Body::Json(work_precision),
+            &["run"],
+        ),
+        (
+            Method::POST,
+            "/api/v1/studies/energy-map",
+            Body::Json(json!({"nx": 3, "ny": 3, "t_max": 20})),
+            &["run"],
+        ),
+        (
+            Method::POST,
+            "/api/v1/studies/convergence",
+            Body::Json(convergence),
+            &["run"],
+        ),
+        (
+            Method::POST,
+            "/api/v1/studies/sweep",
+            Body::Json(sweep),
+            &["run"],
+        ),
+        (
+            Method::GET,
+            "/api/v1/studies/sweep/presets",
+            Body::None,
+            &["read"],
+        ),
         (Method::GET, "/api/v1/recordings", Body::None, &["read"]),
-        (Method::POST, "/api/v1/recordings", Body::Json(small_run()), &["store", "run"]),
-        (Method::POST, "/api/v1/recordings", Body::Rrd(rrd.clone()), &["store"]),
-        (Method::GET, "/api/v1/recordings/{recording}", Body::None, &["read"]),
-        (Method::GET, "/api/v1/recordings/{recording}.rrd", Body::None, &["read"]),
-        (Method::GET, "/api/v1/recordings/{recording}/samples", Body::None, &["read"]),
-        (Method::DELETE, "/api/v1/recordings/{recording}", Body::None, &["store"]),
+        (
+            Method::POST,
+            "/api/v1/recordings",
+            Body::Json(small_run()),
+            &["store", "run"],
+        ),
+        (
+            Method::POST,
+            "/api/v1/recordings",
+            Body::Rrd(rrd.clone()),
+            &["store"],
+        ),
+        (
+            Method::GET,
+            "/api/v1/recordings/{recording}",
+            Body::None,
+            &["read"],
+        ),
+        (
+            Method::GET,
+            "/api/v1/recordings/{recording}.rrd",
+            Body::None,
+            &["read"],
+        ),
+        (
+            Method::GET,
+            "/api/v1/recordings/{recording}/samples",
+            Body::None,
+            &["read"],
+        ),
+        (
+            Method::DELETE,
+            "/api/v1/recordings/{recording}",
+            Body::None,
+            &["store"],
+        ),
     ];
     let callers: Vec<(&str, Option<String>)> = vec![
         ("no token", None),
@@ -175,15 +279,30 @@ async fn every_route_answers_each_caller_as_its_scope_says() {
                 &"store" | &"admin" => token.clone().unwrap(),
                 _ => admin.clone(),
             };
-            let (_, _, made) = send(&server, Method::POST, "/api/v1/recordings", &Body::Rrd(rrd.clone()), Some(&owner)).await;
+            let (_, _, made) = send(
+                &server,
+                Method::POST,
+                "/api/v1/recordings",
+                &Body::Rrd(rrd.clone()),
+                Some(&owner),
+            )
+            .await;
             let recording: Value = serde_json::from_slice(&made).unwrap();
-            let (_, _, made) = send(&server, Method::POST, "/api/v1/systems", &Body::Json(definition(100 + answered)), Some(&owner)).await;
+            let (_, _, made) = send(
+                &server,
+                Method::POST,
+                "/api/v1/systems",
+                &Body::Json(definition(100 + answered)),
+                Some(&owner),
+            )
+            .await;
             let system: Value = serde_json::from_slice(&made).unwrap();
             let path = template
                 .replace("{recording}", recording["id"].as_str().unwrap())
                 .replace("{system}", system["id"].as_str().unwrap());
             let before = stored(&server, &admin).await;
-            let (status, headers, bytes) = send(&server, method.clone(), &path, body, token.as_deref()).await;
+            let (status, headers, bytes) =
+                send(&server, method.clone(), &path, body, token.as_deref()).await;
             let text = String::from_utf8_lossy(&bytes[..bytes.len().min(300)]).into_owned();
             let granted = |scope: &&str| *who == "admin" || who == scope;
             let expected = match (who, needs.is_empty()) {
@@ -200,13 +319,24 @@ async fn every_route_answers_each_caller_as_its_scope_says() {
             }
             assert_eq!(status, expected, "{what}");
             let error: Value = serde_json::from_slice(&bytes).expect(&what);
-            let code = if expected == 401 { "unauthorized" } else { "forbidden" };
+            let code = if expected == 401 {
+                "unauthorized"
+            } else {
+                "forbidden"
+            };
             assert_eq!(error["error"]["code"], code, "{what}");
             assert_eq!(error["error"]["field"], "Authorization", "{what}");
             if expected == 401 {
-                assert_eq!(headers["www-authenticate"], "Bearer realm=\"geomint\"", "{what}");
+                assert_eq!(
+                    headers["www-authenticate"], "Bearer realm=\"geomint\"",
+                    "{what}"
+                );
             }
-            assert_eq!(stored(&server, &admin).await, before, "{what} changed what is stored");
+            assert_eq!(
+                stored(&server, &admin).await,
+                before,
+                "{what} changed what is stored"
+            );
             answered += 1;
         }
     }
@@ -226,34 +356,97 @@ async fn a_public_server_lets_clients_without_a_token_read_and_run_small_runs() 
         let server = &server;
         async move { send(server, method, path, &body, None).await }
     };
-    assert_eq!(anonymous(Method::GET, "/api/v1/systems", Body::None).await.0, 200);
-    assert_eq!(anonymous(Method::GET, "/api/v1/recordings", Body::None).await.0, 200);
-    assert_eq!(anonymous(Method::POST, "/api/v1/simulate", Body::Json(small_run())).await.0, 200);
+    assert_eq!(
+        anonymous(Method::GET, "/api/v1/systems", Body::None)
+            .await
+            .0,
+        200
+    );
+    assert_eq!(
+        anonymous(Method::GET, "/api/v1/recordings", Body::None)
+            .await
+            .0,
+        200
+    );
+    assert_eq!(
+        anonymous(Method::POST, "/api/v1/simulate", Body::Json(small_run()))
+            .await
+            .0,
+        200
+    );
     let large = json!({"system": "pendulum", "methods": ["modin_3s"], "h": 0.001, "t_end": 200});
-    let (status, _, bytes) = anonymous(Method::POST, "/api/v1/simulate", Body::Json(large.clone())).await;
+    let (status, _, bytes) =
+        anonymous(Method::POST, "/api/v1/simulate", Body::Json(large.clone())).await;
     assert_eq!(status, 401, "{}", String::from_utf8_lossy(&bytes));
     assert!(String::from_utf8_lossy(&bytes).contains("more than the 200000"));
-    let (status, _, _) = send(&server, Method::POST, "/api/v1/simulate", &Body::Json(large), Some(&secrets["run"])).await;
+    let (status, _, _) = send(
+        &server,
+        Method::POST,
+        "/api/v1/simulate",
+        &Body::Json(large),
+        Some(&secrets["run"]),
+    )
+    .await;
     assert_eq!(status, 200, "a token runs it");
     let energy_map = json!({"nx": 3, "ny": 3, "t_max": 20});
-    assert_eq!(anonymous(Method::POST, "/api/v1/studies/energy-map", Body::Json(energy_map)).await.0, 401);
-    assert_eq!(anonymous(Method::POST, "/api/v1/systems", Body::Json(definition(3))).await.0, 401);
-    assert_eq!(anonymous(Method::POST, "/api/v1/recordings", Body::Json(small_run())).await.0, 401);
+    assert_eq!(
+        anonymous(
+            Method::POST,
+            "/api/v1/studies/energy-map",
+            Body::Json(energy_map)
+        )
+        .await
+        .0,
+        401
+    );
+    assert_eq!(
+        anonymous(Method::POST, "/api/v1/systems", Body::Json(definition(3)))
+            .await
+            .0,
+        401
+    );
+    assert_eq!(
+        anonymous(Method::POST, "/api/v1/recordings", Body::Json(small_run()))
+            .await
+            .0,
+        401
+    );
     // A recording an admin stored: listed to everyone, deletable only by its owner.
     let admin = &secrets["admin"];
-    send(&server, Method::POST, "/api/v1/recordings", &Body::Json(small_run()), Some(admin)).await;
+    send(
+        &server,
+        Method::POST,
+        "/api/v1/recordings",
+        &Body::Json(small_run()),
+        Some(admin),
+    )
+    .await;
     let (_, _, listed) = anonymous(Method::GET, "/api/v1/recordings", Body::None).await;
     let listed: Value = serde_json::from_slice(&listed).unwrap();
-    assert_eq!((listed[0]["owner"].as_str(), &listed[0]["may_delete"]), (Some("admin"), &json!(false)));
-    let (_, _, listed) = send(&server, Method::GET, "/api/v1/recordings", &Body::None, Some(admin)).await;
-    assert_eq!(serde_json::from_slice::<Value>(&listed).unwrap()[0]["may_delete"], true);
+    assert_eq!(
+        (listed[0]["owner"].as_str(), &listed[0]["may_delete"]),
+        (Some("admin"), &json!(false))
+    );
+    let (_, _, listed) = send(
+        &server,
+        Method::GET,
+        "/api/v1/recordings",
+        &Body::None,
+        Some(admin),
+    )
+    .await;
+    assert_eq!(
+        serde_json::from_slice::<Value>(&listed).unwrap()[0]["may_delete"],
+        true
+    );
 }
 
 /// The header's forms: the scheme in any case and a valid token pass; anything else is 401
 /// naming the header, whatever the route.
 #[tokio::test]
 async fn bearer_headers_are_read_strictly() {
-    let (server, secrets) = start("access-header", &scoped_tokens(), Anonymous::Public, |_| {}).await;
+    let (server, secrets) =
+        start("access-header", &scoped_tokens(), Anonymous::Public, |_| {}).await;
     let read = &secrets["read"];
     let answer = |value: String| {
         let server = &server;
@@ -268,7 +461,11 @@ async fn bearer_headers_are_read_strictly() {
             (status, response.json::<Value>().await.unwrap())
         }
     };
-    for good in [format!("Bearer {read}"), format!("bearer {read}"), format!("BEARER   {read}")] {
+    for good in [
+        format!("Bearer {read}"),
+        format!("bearer {read}"),
+        format!("BEARER   {read}"),
+    ] {
         let (status, listed) = answer(good.clone()).await;
         assert_eq!((status, listed.is_array()), (200, true), "{good}");
     }
@@ -303,17 +500,41 @@ async fn bearer_headers_are_read_strictly() {
 #[tokio::test]
 async fn the_document_states_each_operations_scope() {
     for (policy, simulate, store) in [
-        (Anonymous::None, json!([{"bearer": ["run"]}]), json!([{"bearer": ["store"]}])),
-        (Anonymous::Public, json!([{}, {"bearer": ["run"]}]), json!([{"bearer": ["store"]}])),
+        (
+            Anonymous::None,
+            json!([{"bearer": ["run"]}]),
+            json!([{"bearer": ["store"]}]),
+        ),
+        (
+            Anonymous::Public,
+            json!([{}, {"bearer": ["run"]}]),
+            json!([{"bearer": ["store"]}]),
+        ),
     ] {
         let (server, _) = start("access-doc", &scoped_tokens(), policy, |_| {}).await;
-        let (status, _, bytes) = send(&server, Method::GET, "/api/v1/openapi.json", &Body::None, None).await;
+        let (status, _, bytes) = send(
+            &server,
+            Method::GET,
+            "/api/v1/openapi.json",
+            &Body::None,
+            None,
+        )
+        .await;
         assert_eq!(status, 200);
         let doc: Value = serde_json::from_slice(&bytes).unwrap();
-        assert_eq!(doc["components"]["securitySchemes"]["bearer"]["scheme"], "bearer");
+        assert_eq!(
+            doc["components"]["securitySchemes"]["bearer"]["scheme"],
+            "bearer"
+        );
         let paths = &doc["paths"];
-        assert_eq!(paths["/api/v1/simulate"]["post"]["security"], simulate, "{policy:?}");
-        assert_eq!(paths["/api/v1/recordings/{id}"]["delete"]["security"], store, "{policy:?}");
+        assert_eq!(
+            paths["/api/v1/simulate"]["post"]["security"], simulate,
+            "{policy:?}"
+        );
+        assert_eq!(
+            paths["/api/v1/recordings/{id}"]["delete"]["security"], store,
+            "{policy:?}"
+        );
         assert_eq!(paths["/healthz"]["get"]["security"], json!([{}]));
         assert!(paths["/api/v1/simulate"]["post"]["responses"]["429"].is_object());
         assert!(paths["/api/v1/systems"]["get"]["responses"]["401"].is_object());
@@ -332,7 +553,13 @@ async fn every_request_writes_one_access_line() {
     let process = server::Process(
         std::process::Command::new(env!("CARGO_BIN_EXE_geomint"))
             .env("GEOMINT_LOG", "warn,geomint::access=info")
-            .args(["serve", "--log-format", "json", "--static-dir", "no-static-here"])
+            .args([
+                "serve",
+                "--log-format",
+                "json",
+                "--static-dir",
+                "no-static-here",
+            ])
             .args(["--addr", &format!("127.0.0.1:{port}")])
             .arg("--tokens")
             .arg(&file)
@@ -346,7 +573,10 @@ async fn every_request_writes_one_access_line() {
     server::wait_for_port(port, "geomint serve");
     let base = format!("http://127.0.0.1:{port}");
     let mut sizes = Vec::new();
-    for (path, token) in [("/api/v1/methods/modin_3s", Some(&secrets["alice"])), ("/api/v1/systems/pendulum", None)] {
+    for (path, token) in [
+        ("/api/v1/methods/modin_3s", Some(&secrets["alice"])),
+        ("/api/v1/systems/pendulum", None),
+    ] {
         let mut request = client().get(format!("{base}{path}"));
         if let Some(token) = token {
             request = request.bearer_auth(token);
@@ -363,8 +593,36 @@ async fn every_request_writes_one_access_line() {
         .filter(|l| l["target"] == "geomint::access")
         .collect();
     assert_eq!(lines.len(), 2, "{text}");
-    let fields = |l: &Value| (l["caller"].clone(), l["route"].clone(), l["status"].clone(), l["bytes"].clone());
-    assert_eq!(fields(&lines[0]), (json!("alice"), json!("/api/v1/methods/{id}"), json!(200), json!(sizes[0])));
-    assert_eq!(fields(&lines[1]), (json!("anonymous@127.0.0.1"), json!("/api/v1/systems/{id}"), json!(401), json!(sizes[1])));
-    assert!(lines.iter().all(|l| l["duration_ms"].as_f64().is_some_and(|d| d >= 0.0)), "{text}");
+    let fields = |l: &Value| {
+        (
+            l["caller"].clone(),
+            l["route"].clone(),
+            l["status"].clone(),
+            l["bytes"].clone(),
+        )
+    };
+    assert_eq!(
+        fields(&lines[0]),
+        (
+            json!("alice"),
+            json!("/api/v1/methods/{id}"),
+            json!(200),
+            json!(sizes[0])
+        )
+    );
+    assert_eq!(
+        fields(&lines[1]),
+        (
+            json!("anonymous@127.0.0.1"),
+            json!("/api/v1/systems/{id}"),
+            json!(401),
+            json!(sizes[1])
+        )
+    );
+    assert!(
+        lines
+            .iter()
+            .all(|l| l["duration_ms"].as_f64().is_some_and(|d| d >= 0.0)),
+        "{text}"
+    );
 }

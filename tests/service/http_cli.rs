@@ -247,8 +247,13 @@ fn study_convergence_writes_the_document_of_the_library() {
         .unwrap()
         .prepare(&Limits::default())
         .unwrap();
-    let doc = convergence::run(&job, &geomint::core::studies::engine::Local, Budget::default(), &|_| true)
-        .unwrap();
+    let doc = convergence::run(
+        &job,
+        &geomint::core::studies::engine::Local,
+        Budget::default(),
+        &|_| true,
+    )
+    .unwrap();
     assert_eq!(written, serde_json::to_value(&doc).unwrap());
     let rk4 = doc.series[0].state.order.unwrap();
     assert!((3.8..4.2).contains(&rk4), "rk4 order {rk4}");

@@ -256,8 +256,12 @@ async fn progress_streams_as_ndjson_and_ends_with_the_result() {
             assert_eq!(line["total"], 6);
             streamed.push(line["point"].to_string());
         }
-        let mut documented: Vec<String> =
-            lines[7]["points"].as_array().unwrap().iter().map(Value::to_string).collect();
+        let mut documented: Vec<String> = lines[7]["points"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(Value::to_string)
+            .collect();
         streamed.sort();
         documented.sort();
         assert_eq!(streamed, documented);

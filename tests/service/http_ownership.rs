@@ -23,13 +23,26 @@ fn run(t_end: u64) -> Value {
     json!({"system": "pendulum", "methods": ["modin_3s"], "h": 0.1, "t_end": t_end})
 }
 
-async fn json_of(server: &Server, method: Method, path: &str, body: Body, token: &str) -> (u16, Value) {
+async fn json_of(
+    server: &Server,
+    method: Method,
+    path: &str,
+    body: Body,
+    token: &str,
+) -> (u16, Value) {
     let (status, _, bytes) = send(server, method, path, &body, Some(token)).await;
-    (status, serde_json::from_slice(&bytes).unwrap_or(Value::Null))
+    (
+        status,
+        serde_json::from_slice(&bytes).unwrap_or(Value::Null),
+    )
 }
 
 fn ids(list: &Value) -> Vec<String> {
-    list.as_array().unwrap().iter().map(|r| r["id"].as_str().unwrap().to_string()).collect()
+    list.as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["id"].as_str().unwrap().to_string())
+        .collect()
 }
 
 fn quota(bytes: u64) -> Quotas {
@@ -44,53 +57,151 @@ fn quota(bytes: u64) -> Quotas {
 #[tokio::test]
 async fn only_owners_and_admins_delete_and_a_shared_definition_has_two_owners() {
     let store = Quotas::default();
-    let tokens = [("alice", "read,run,store", store.clone()), ("bob", "read,run,store", store.clone()), ("ops", "admin", store)];
+    let tokens = [
+        ("alice", "read,run,store", store.clone()),
+        ("bob", "read,run,store", store.clone()),
+        ("ops", "admin", store),
+    ];
     let (server, secrets) = start("own-delete", &tokens, Anonymous::None, |_| {}).await;
     let (alice, bob, ops) = (&secrets["alice"], &secrets["bob"], &secrets["ops"]);
-    let (status, mine) = json_of(&server, Method::POST, "/api/v1/recordings", Body::Json(run(2)), alice).await;
+    let (status, mine) = json_of(
+        &server,
+        Method::POST,
+        "/api/v1/recordings",
+        Body::Json(run(2)),
+        alice,
+    )
+    .await;
     assert_eq!(status, 201);
-    let (_, theirs) = json_of(&server, Method::POST, "/api/v1/recordings", Body::Json(run(3)), bob).await;
+    let (_, theirs) = json_of(
+        &server,
+        Method::POST,
+        "/api/v1/recordings",
+        Body::Json(run(3)),
+        bob,
+    )
+    .await;
     let path = format!("/api/v1/recordings/{}", mine["id"].as_str().unwrap());
     let (status, refused) = json_of(&server, Method::DELETE, &path, Body::None, bob).await;
-    assert_eq!((status, refused["error"]["code"].as_str()), (403, Some("forbidden")));
-    assert!(refused["error"]["message"].as_str().unwrap().contains("belongs to `alice`"));
+    assert_eq!(
+        (status, refused["error"]["code"].as_str()),
+        (403, Some("forbidden"))
+    );
+    assert!(refused["error"]["message"]
+        .as_str()
+        .unwrap()
+        .contains("belongs to `alice`"));
     let (status, entry) = json_of(&server, Method::GET, &path, Body::None, bob).await;
-    assert_eq!((status, entry["owner"].as_str()), (200, Some("alice")), "bob may read it");
-    let (_, listed) = json_of(&server, Method::GET, "/api/v1/recordings?owner=alice", Body::None, bob).await;
+    assert_eq!(
+        (status, entry["owner"].as_str()),
+        (200, Some("alice")),
+        "bob may read it"
+    );
+    let (_, listed) = json_of(
+        &server,
+        Method::GET,
+        "/api/v1/recordings?owner=alice",
+        Body::None,
+        bob,
+    )
+    .await;
     assert_eq!(ids(&listed), vec![mine["id"].as_str().unwrap()]);
     let (_, listed) = json_of(&server, Method::GET, "/api/v1/recordings", Body::None, bob).await;
     assert_eq!(ids(&listed).len(), 2);
-    let deletable: Vec<bool> = listed.as_array().unwrap().iter().map(|r| r["may_delete"].as_bool().unwrap()).collect();
-    assert_eq!(deletable, vec![true, false], "bob's own (newest), not alice's");
-    assert_eq!(json_of(&server, Method::DELETE, &path, Body::None, alice).await.0, 204);
+    let deletable: Vec<bool> = listed
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["may_delete"].as_bool().unwrap())
+        .collect();
+    assert_eq!(
+        deletable,
+        vec![true, false],
+        "bob's own (newest), not alice's"
+    );
+    assert_eq!(
+        json_of(&server, Method::DELETE, &path, Body::None, alice)
+            .await
+            .0,
+        204
+    );
     let path = format!("/api/v1/recordings/{}", theirs["id"].as_str().unwrap());
-    assert_eq!(json_of(&server, Method::DELETE, &path, Body::None, ops).await.0, 204, "an admin deletes anyone's");
+    assert_eq!(
+        json_of(&server, Method::DELETE, &path, Body::None, ops)
+            .await
+            .0,
+        204,
+        "an admin deletes anyone's"
+    );
 
     // The same definition from two owners: one file, two owners.
-    let (status, first) = json_of(&server, Method::POST, "/api/v1/systems", Body::Json(definition(5)), alice).await;
+    let (status, first) = json_of(
+        &server,
+        Method::POST,
+        "/api/v1/systems",
+        Body::Json(definition(5)),
+        alice,
+    )
+    .await;
     assert_eq!(status, 201);
-    let (status, second) = json_of(&server, Method::POST, "/api/v1/systems", Body::Json(definition(5)), bob).await;
+    let (status, second) = json_of(
+        &server,
+        Method::POST,
+        "/api/v1/systems",
+        Body::Json(definition(5)),
+        bob,
+    )
+    .await;
     assert_eq!((status, &second["id"]), (200, &first["id"]));
     assert_eq!(second["owners"], json!(["alice", "bob"]));
     let id = first["id"].as_str().unwrap();
     let dir = server.state.config.systems_dir.clone();
     let files = || {
-        let mut names: Vec<String> = std::fs::read_dir(&dir).unwrap().flatten()
-            .map(|e| e.file_name().to_string_lossy().into_owned()).collect();
+        let mut names: Vec<String> = std::fs::read_dir(&dir)
+            .unwrap()
+            .flatten()
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .collect();
         names.sort();
         names
     };
     assert_eq!(files(), vec![format!("{id}.json"), format!("{id}.owners")]);
-    let (_, listed) = json_of(&server, Method::GET, "/api/v1/systems?owner=bob", Body::None, alice).await;
+    let (_, listed) = json_of(
+        &server,
+        Method::GET,
+        "/api/v1/systems?owner=bob",
+        Body::None,
+        alice,
+    )
+    .await;
     assert_eq!(ids(&listed), vec![id]);
     let path = format!("/api/v1/systems/{id}");
-    assert_eq!(json_of(&server, Method::DELETE, &path, Body::None, alice).await.0, 204);
+    assert_eq!(
+        json_of(&server, Method::DELETE, &path, Body::None, alice)
+            .await
+            .0,
+        204
+    );
     let (status, left) = json_of(&server, Method::GET, &path, Body::None, alice).await;
-    assert_eq!((status, &left["owners"]), (200, &json!(["bob"])), "bob's share stays");
+    assert_eq!(
+        (status, &left["owners"]),
+        (200, &json!(["bob"])),
+        "bob's share stays"
+    );
     let (status, _) = json_of(&server, Method::DELETE, &path, Body::None, alice).await;
     assert_eq!(status, 403, "alice gave up her share");
-    assert_eq!(json_of(&server, Method::DELETE, &path, Body::None, bob).await.0, 204);
-    assert_eq!(json_of(&server, Method::GET, &path, Body::None, bob).await.0, 404);
+    assert_eq!(
+        json_of(&server, Method::DELETE, &path, Body::None, bob)
+            .await
+            .0,
+        204
+    );
+    assert_eq!(
+        json_of(&server, Method::GET, &path, Body::None, bob)
+            .await
+            .0,
+        404
+    );
     assert!(files().is_empty(), "{:?}", files());
 }
 
@@ -99,8 +210,21 @@ async fn only_owners_and_admins_delete_and_a_shared_definition_has_two_owners() 
 #[tokio::test]
 async fn a_full_quota_evicts_only_its_owners_recordings() {
     // Sizes first: one run's recording.
-    let (probe, secrets) = start("own-probe", &[("p", "admin", Quotas::default())], Anonymous::None, |_| {}).await;
-    let (_, made) = json_of(&probe, Method::POST, "/api/v1/recordings", Body::Json(run(20)), &secrets["p"]).await;
+    let (probe, secrets) = start(
+        "own-probe",
+        &[("p", "admin", Quotas::default())],
+        Anonymous::None,
+        |_| {},
+    )
+    .await;
+    let (_, made) = json_of(
+        &probe,
+        Method::POST,
+        "/api/v1/recordings",
+        Body::Json(run(20)),
+        &secrets["p"],
+    )
+    .await;
     let size = made["bytes"].as_u64().unwrap();
     // alice may keep two and a half of them; the store four and a half.
     let tokens = [
@@ -108,13 +232,23 @@ async fn a_full_quota_evicts_only_its_owners_recordings() {
         ("bob", "read,run,store", Quotas::default()),
         ("tiny", "read,run,store", quota(size / 2)),
     ];
-    let (server, secrets) = start("own-evict", &tokens, Anonymous::None, |c| c.recordings_max_bytes = size * 9 / 2).await;
+    let (server, secrets) = start("own-evict", &tokens, Anonymous::None, |c| {
+        c.recordings_max_bytes = size * 9 / 2
+    })
+    .await;
     let (alice, bob) = (&secrets["alice"], &secrets["bob"]);
     let store = |token: &str| {
         let token = token.to_string();
         let server = &server;
         async move {
-            let (status, made) = json_of(server, Method::POST, "/api/v1/recordings", Body::Json(run(20)), &token).await;
+            let (status, made) = json_of(
+                server,
+                Method::POST,
+                "/api/v1/recordings",
+                Body::Json(run(20)),
+                &token,
+            )
+            .await;
             assert_eq!(status, 201, "{made}");
             made["id"].as_str().unwrap().to_string()
         }
@@ -125,22 +259,72 @@ async fn a_full_quota_evicts_only_its_owners_recordings() {
     let b2 = store(bob).await;
     let a3 = store(alice).await; // past alice's quota: her oldest goes
     let (_, listed) = json_of(&server, Method::GET, "/api/v1/recordings", Body::None, bob).await;
-    assert_eq!(ids(&listed), vec![a3.clone(), b2.clone(), a2.clone(), b1.clone()]);
+    assert_eq!(
+        ids(&listed),
+        vec![a3.clone(), b2.clone(), a2.clone(), b1.clone()]
+    );
     for id in [&b1, &b2] {
-        let (status, _, bytes) = send(&server, Method::GET, &format!("/api/v1/recordings/{id}.rrd"), &Body::None, Some(alice)).await;
+        let (status, _, bytes) = send(
+            &server,
+            Method::GET,
+            &format!("/api/v1/recordings/{id}.rrd"),
+            &Body::None,
+            Some(alice),
+        )
+        .await;
         assert_eq!(status, 200, "bob's recording stays readable");
         assert!(bytes.starts_with(b"RRF2") && bytes.len() as u64 > size / 2);
     }
-    assert_eq!(send(&server, Method::GET, &format!("/api/v1/recordings/{a1}"), &Body::None, Some(alice)).await.0, 404);
+    assert_eq!(
+        send(
+            &server,
+            Method::GET,
+            &format!("/api/v1/recordings/{a1}"),
+            &Body::None,
+            Some(alice)
+        )
+        .await
+        .0,
+        404
+    );
     // bob fills the store's cap: only his own make room (alice's two stay).
     let b3 = store(bob).await;
-    let (_, listed) = json_of(&server, Method::GET, "/api/v1/recordings?owner=alice", Body::None, bob).await;
+    let (_, listed) = json_of(
+        &server,
+        Method::GET,
+        "/api/v1/recordings?owner=alice",
+        Body::None,
+        bob,
+    )
+    .await;
     assert_eq!(ids(&listed), vec![a3.clone(), a2.clone()]);
-    let (_, listed) = json_of(&server, Method::GET, "/api/v1/recordings?owner=bob", Body::None, bob).await;
-    assert_eq!(ids(&listed), vec![b3.clone(), b2.clone()], "bob's oldest made room");
+    let (_, listed) = json_of(
+        &server,
+        Method::GET,
+        "/api/v1/recordings?owner=bob",
+        Body::None,
+        bob,
+    )
+    .await;
+    assert_eq!(
+        ids(&listed),
+        vec![b3.clone(), b2.clone()],
+        "bob's oldest made room"
+    );
     // A recording larger than its owner's whole quota is refused; nothing goes.
-    let (status, refused) = json_of(&server, Method::POST, "/api/v1/recordings", Body::Json(run(20)), &secrets["tiny"]).await;
-    assert_eq!((status, refused["error"]["code"].as_str()), (403, Some("quota_exceeded")), "{refused}");
+    let (status, refused) = json_of(
+        &server,
+        Method::POST,
+        "/api/v1/recordings",
+        Body::Json(run(20)),
+        &secrets["tiny"],
+    )
+    .await;
+    assert_eq!(
+        (status, refused["error"]["code"].as_str()),
+        (403, Some("quota_exceeded")),
+        "{refused}"
+    );
     let (_, listed) = json_of(&server, Method::GET, "/api/v1/recordings", Body::None, bob).await;
     assert_eq!(ids(&listed).len(), 4);
 }
@@ -155,11 +339,24 @@ async fn rates_and_counts_past_a_quota_are_refused() {
         runs: Some(1),
         ..Quotas::default()
     };
-    let (server, secrets) = start("own-rate", &[("carol", "read,run,store", quotas)], Anonymous::None, |_| {}).await;
+    let (server, secrets) = start(
+        "own-rate",
+        &[("carol", "read,run,store", quotas)],
+        Anonymous::None,
+        |_| {},
+    )
+    .await;
     let carol = &secrets["carol"];
     // 20 steps × 2 coordinates = 40 steps: two fit in a minute, not three.
     for expected in [200, 200, 429] {
-        let (status, headers, bytes) = send(&server, Method::POST, "/api/v1/simulate", &Body::Json(run(2)), Some(carol)).await;
+        let (status, headers, bytes) = send(
+            &server,
+            Method::POST,
+            "/api/v1/simulate",
+            &Body::Json(run(2)),
+            Some(carol),
+        )
+        .await;
         assert_eq!(status, expected, "{}", String::from_utf8_lossy(&bytes));
         if status == 429 {
             let wait: u64 = headers["retry-after"].to_str().unwrap().parse().unwrap();
@@ -168,13 +365,45 @@ async fn rates_and_counts_past_a_quota_are_refused() {
             assert_eq!(error["error"]["code"], "rate_limited");
         }
     }
-    let (status, too_big) = json_of(&server, Method::POST, "/api/v1/simulate", Body::Json(run(100)), carol).await;
-    assert_eq!((status, too_big["error"]["code"].as_str()), (403, Some("quota_exceeded")));
+    let (status, too_big) = json_of(
+        &server,
+        Method::POST,
+        "/api/v1/simulate",
+        Body::Json(run(100)),
+        carol,
+    )
+    .await;
+    assert_eq!(
+        (status, too_big["error"]["code"].as_str()),
+        (403, Some("quota_exceeded"))
+    );
     for k in [1, 2] {
-        assert_eq!(json_of(&server, Method::POST, "/api/v1/systems", Body::Json(definition(k)), carol).await.0, 201);
+        assert_eq!(
+            json_of(
+                &server,
+                Method::POST,
+                "/api/v1/systems",
+                Body::Json(definition(k)),
+                carol
+            )
+            .await
+            .0,
+            201
+        );
     }
-    let (status, refused) = json_of(&server, Method::POST, "/api/v1/systems", Body::Json(definition(3)), carol).await;
-    assert_eq!((status, refused["error"]["code"].as_str()), (403, Some("quota_exceeded")), "{refused}");
+    let (status, refused) = json_of(
+        &server,
+        Method::POST,
+        "/api/v1/systems",
+        Body::Json(definition(3)),
+        carol,
+    )
+    .await;
+    assert_eq!(
+        (status, refused["error"]["code"].as_str()),
+        (403, Some("quota_exceeded")),
+        "{refused}"
+    );
 }
 
 /// Runs in flight: a second run while the first streams is 429 `too_many_runs`.
@@ -184,7 +413,13 @@ async fn a_second_run_in_flight_past_the_quota_is_429() {
         runs: Some(1),
         ..Quotas::default()
     };
-    let (server, secrets) = start("own-runs", &[("dan", "read,run", quotas)], Anonymous::None, |_| {}).await;
+    let (server, secrets) = start(
+        "own-runs",
+        &[("dan", "read,run", quotas)],
+        Anonymous::None,
+        |_| {},
+    )
+    .await;
     let dan = secrets["dan"].clone();
     let long = json!({"system": "pendulum", "methods": ["modin_3s"], "h": 1e-4, "t_end": 1000});
     let response = server::client()
@@ -195,19 +430,39 @@ async fn a_second_run_in_flight_past_the_quota_is_429() {
         .await
         .unwrap();
     assert_eq!(response.status().as_u16(), 200);
-    let (status, headers, bytes) = send(&server, Method::POST, "/api/v1/simulate", &Body::Json(run(2)), Some(&dan)).await;
+    let (status, headers, bytes) = send(
+        &server,
+        Method::POST,
+        "/api/v1/simulate",
+        &Body::Json(run(2)),
+        Some(&dan),
+    )
+    .await;
     assert_eq!(status, 429, "{}", String::from_utf8_lossy(&bytes));
     assert_eq!(headers["retry-after"], "1");
-    assert_eq!(serde_json::from_slice::<Value>(&bytes).unwrap()["error"]["code"], "too_many_runs");
+    assert_eq!(
+        serde_json::from_slice::<Value>(&bytes).unwrap()["error"]["code"],
+        "too_many_runs"
+    );
     drop(response);
     // The run ends once its client is gone; then dan runs again.
     let until = std::time::Instant::now() + std::time::Duration::from_secs(20);
     loop {
-        let (status, _, _) = send(&server, Method::POST, "/api/v1/simulate", &Body::Json(run(2)), Some(&dan)).await;
+        let (status, _, _) = send(
+            &server,
+            Method::POST,
+            "/api/v1/simulate",
+            &Body::Json(run(2)),
+            Some(&dan),
+        )
+        .await;
         if status == 200 {
             break;
         }
-        assert!(std::time::Instant::now() < until, "the cancelled run still counts");
+        assert!(
+            std::time::Instant::now() < until,
+            "the cancelled run still counts"
+        );
         tokio::time::sleep(std::time::Duration::from_millis(100)).await;
     }
 }
@@ -216,7 +471,13 @@ fn serve(dir: &Path, tokens: &Path, cap: u64) -> (server::Process, Server) {
     let mut command = Command::new(env!("CARGO_BIN_EXE_geomint"));
     command
         .env("GEOMINT_LOG", SERVE_LOG)
-        .args(["serve", "--addr", "127.0.0.1:0", "--static-dir", "no-static-here"])
+        .args([
+            "serve",
+            "--addr",
+            "127.0.0.1:0",
+            "--static-dir",
+            "no-static-here",
+        ])
         .arg("--data-dir")
         .arg(dir.join("recordings"))
         .arg("--systems-dir")
@@ -232,7 +493,14 @@ fn serve(dir: &Path, tokens: &Path, cap: u64) -> (server::Process, Server) {
         ..Default::default()
     });
     let addr = address.parse().unwrap();
-    (process, Server { base: format!("http://{address}"), addr, state })
+    (
+        process,
+        Server {
+            base: format!("http://{address}"),
+            addr,
+            state,
+        },
+    )
 }
 
 /// Ownership and quotas survive SIGKILL: after a restart the owners are the same, others still
@@ -240,43 +508,107 @@ fn serve(dir: &Path, tokens: &Path, cap: u64) -> (server::Process, Server) {
 #[tokio::test]
 async fn ownership_and_quotas_survive_sigkill() {
     let dir = server::scratch_dir("own-sigkill");
-    let (probe, secrets) = start("own-sigkill-probe", &[("p", "admin", Quotas::default())], Anonymous::None, |_| {}).await;
-    let (_, made) = json_of(&probe, Method::POST, "/api/v1/recordings", Body::Json(run(20)), &secrets["p"]).await;
+    let (probe, secrets) = start(
+        "own-sigkill-probe",
+        &[("p", "admin", Quotas::default())],
+        Anonymous::None,
+        |_| {},
+    )
+    .await;
+    let (_, made) = json_of(
+        &probe,
+        Method::POST,
+        "/api/v1/recordings",
+        Body::Json(run(20)),
+        &secrets["p"],
+    )
+    .await;
     let size = made["bytes"].as_u64().unwrap();
-    let tokens = [("alice", "read,run,store", quota(size * 5 / 2)), ("bob", "read,run,store", Quotas::default())];
+    let tokens = [
+        ("alice", "read,run,store", quota(size * 5 / 2)),
+        ("bob", "read,run,store", Quotas::default()),
+    ];
     let (file, secrets) = tokens_file(&dir, &tokens);
     let (alice, bob) = (secrets["alice"].clone(), secrets["bob"].clone());
     let (mut process, server) = serve(&dir, &file, 1 << 30);
     let mut stored = Vec::new();
     for token in [&alice, &bob, &alice] {
-        let (status, made) = json_of(&server, Method::POST, "/api/v1/recordings", Body::Json(run(20)), token).await;
+        let (status, made) = json_of(
+            &server,
+            Method::POST,
+            "/api/v1/recordings",
+            Body::Json(run(20)),
+            token,
+        )
+        .await;
         assert_eq!(status, 201);
         stored.push(made["id"].as_str().unwrap().to_string());
     }
-    let (_, system) = json_of(&server, Method::POST, "/api/v1/systems", Body::Json(definition(9)), &alice).await;
-    json_of(&server, Method::POST, "/api/v1/systems", Body::Json(definition(9)), &bob).await;
+    let (_, system) = json_of(
+        &server,
+        Method::POST,
+        "/api/v1/systems",
+        Body::Json(definition(9)),
+        &alice,
+    )
+    .await;
+    json_of(
+        &server,
+        Method::POST,
+        "/api/v1/systems",
+        Body::Json(definition(9)),
+        &bob,
+    )
+    .await;
     process.0.kill().unwrap();
     process.0.wait().unwrap();
 
     let (_process, server) = serve(&dir, &file, 1 << 30);
     let (_, listed) = json_of(&server, Method::GET, "/api/v1/recordings", Body::None, &bob).await;
-    let owners: Vec<(String, String)> = listed.as_array().unwrap().iter()
-        .map(|r| (r["id"].as_str().unwrap().to_string(), r["owner"].as_str().unwrap().to_string()))
+    let owners: Vec<(String, String)> = listed
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| {
+            (
+                r["id"].as_str().unwrap().to_string(),
+                r["owner"].as_str().unwrap().to_string(),
+            )
+        })
         .collect();
-    let expected: Vec<(String, String)> = stored.iter().rev().cloned()
-        .zip(["alice", "bob", "alice"].map(String::from)).collect();
+    let expected: Vec<(String, String)> = stored
+        .iter()
+        .rev()
+        .cloned()
+        .zip(["alice", "bob", "alice"].map(String::from))
+        .collect();
     assert_eq!(owners, expected);
     let path = format!("/api/v1/recordings/{}", stored[0]);
-    assert_eq!(json_of(&server, Method::DELETE, &path, Body::None, &bob).await.0, 403);
+    assert_eq!(
+        json_of(&server, Method::DELETE, &path, Body::None, &bob)
+            .await
+            .0,
+        403
+    );
     let path = format!("/api/v1/systems/{}", system["id"].as_str().unwrap());
     let (_, entry) = json_of(&server, Method::GET, &path, Body::None, &bob).await;
     assert_eq!(entry["owners"], json!(["alice", "bob"]));
     // alice has two before the kill: a third evicts her oldest, not bob's.
-    let (status, _) = json_of(&server, Method::POST, "/api/v1/recordings", Body::Json(run(20)), &alice).await;
+    let (status, _) = json_of(
+        &server,
+        Method::POST,
+        "/api/v1/recordings",
+        Body::Json(run(20)),
+        &alice,
+    )
+    .await;
     assert_eq!(status, 201);
     let (_, listed) = json_of(&server, Method::GET, "/api/v1/recordings", Body::None, &bob).await;
     let left = ids(&listed);
-    assert!(!left.contains(&stored[0]) && left.contains(&stored[1]) && left.contains(&stored[2]), "{left:?}");
+    assert!(
+        !left.contains(&stored[0]) && left.contains(&stored[1]) && left.contains(&stored[2]),
+        "{left:?}"
+    );
 }
 
 /// A token removed from the file is refused within a few seconds, without a restart; a file
@@ -284,12 +616,25 @@ async fn ownership_and_quotas_survive_sigkill() {
 #[tokio::test]
 async fn tokens_are_reloaded_when_the_file_changes() {
     let dir = server::scratch_dir("own-reload");
-    let tokens = [("alice", "read", Quotas::default()), ("bob", "read", Quotas::default())];
+    let tokens = [
+        ("alice", "read", Quotas::default()),
+        ("bob", "read", Quotas::default()),
+    ];
     let (file, secrets) = tokens_file(&dir, &tokens);
     let (_process, server) = serve(&dir, &file, 1 << 30);
     let status = |token: String| {
         let server = &server;
-        async move { send(server, Method::GET, "/api/v1/recordings", &Body::None, Some(&token)).await.0 }
+        async move {
+            send(
+                server,
+                Method::GET,
+                "/api/v1/recordings",
+                &Body::None,
+                Some(&token),
+            )
+            .await
+            .0
+        }
     };
     assert_eq!(status(secrets["alice"].clone()).await, 200);
     let text = std::fs::read_to_string(&file).unwrap();
@@ -298,11 +643,18 @@ async fn tokens_are_reloaded_when_the_file_changes() {
     tokio::time::sleep(std::time::Duration::from_secs(5)).await;
     assert_eq!(status(secrets["alice"].clone()).await, 200);
     // alice's line removed: refused once the file is read again.
-    let kept: String = text.lines().filter(|l| !l.starts_with("alice ")).map(|l| format!("{l}\n")).collect();
+    let kept: String = text
+        .lines()
+        .filter(|l| !l.starts_with("alice "))
+        .map(|l| format!("{l}\n"))
+        .collect();
     std::fs::write(&file, kept).unwrap();
     let until = std::time::Instant::now() + std::time::Duration::from_secs(10);
     while status(secrets["alice"].clone()).await != 401 {
-        assert!(std::time::Instant::now() < until, "alice's token still passes");
+        assert!(
+            std::time::Instant::now() < until,
+            "alice's token still passes"
+        );
         tokio::time::sleep(std::time::Duration::from_millis(200)).await;
     }
     assert_eq!(status(secrets["bob"].clone()).await, 200);
@@ -315,15 +667,27 @@ fn the_token_command_and_the_policy_of_an_open_address() {
     let dir = server::scratch_dir("own-cli");
     std::fs::create_dir_all(&dir).unwrap();
     let geomint = || Command::new(env!("CARGO_BIN_EXE_geomint"));
-    let made = geomint().args(["token", "alice", "--scopes", "read,store", "--runs", "2"]).output().unwrap();
+    let made = geomint()
+        .args(["token", "alice", "--scopes", "read,store", "--runs", "2"])
+        .output()
+        .unwrap();
     assert!(made.status.success());
     let out = String::from_utf8(made.stdout).unwrap();
     let (secret, line) = out.trim_end().split_once('\n').unwrap();
-    assert!(line.starts_with("alice read,store sha256:") && line.ends_with(" runs=2"), "{line}");
+    assert!(
+        line.starts_with("alice read,store sha256:") && line.ends_with(" runs=2"),
+        "{line}"
+    );
     let file = geomint::access::tokens::TokenFile::parse(line).unwrap();
     assert_eq!(file.verify(secret).map(|e| e.name.as_str()), Some("alice"));
     let tokens = dir.join("tokens");
-    let append = |name: &str| geomint().args(["token", name, "--append"]).arg(&tokens).output().unwrap();
+    let append = |name: &str| {
+        geomint()
+            .args(["token", name, "--append"])
+            .arg(&tokens)
+            .output()
+            .unwrap()
+    };
     let first = append("bob");
     assert!(first.status.success());
     let again = append("bob");
@@ -331,14 +695,27 @@ fn the_token_command_and_the_policy_of_an_open_address() {
     assert!(String::from_utf8_lossy(&again.stderr).contains("used twice"));
     let secret = String::from_utf8(first.stdout).unwrap();
     let file = geomint::access::read_tokens(&tokens).unwrap();
-    assert_eq!(file.verify(secret.trim()).map(|e| e.name.as_str()), Some("bob"));
+    assert_eq!(
+        file.verify(secret.trim()).map(|e| e.name.as_str()),
+        Some("bob")
+    );
     let open = geomint()
         .env("GEOMINT_LOG", "warn")
-        .args(["serve", "--addr", "0.0.0.0:0", "--static-dir", "no-static-here"])
+        .args([
+            "serve",
+            "--addr",
+            "0.0.0.0:0",
+            "--static-dir",
+            "no-static-here",
+        ])
         .arg("--data-dir")
         .arg(dir.join("recordings"))
         .output()
         .unwrap();
     assert_eq!(open.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&open.stderr).contains("--tokens FILE"), "{}", String::from_utf8_lossy(&open.stderr));
+    assert!(
+        String::from_utf8_lossy(&open.stderr).contains("--tokens FILE"),
+        "{}",
+        String::from_utf8_lossy(&open.stderr)
+    );
 }

@@ -43,7 +43,9 @@ fn henon_heiles(extra: Value) -> Value {
 /// The document the core makes for `body`.
 fn in_process(body: &Value) -> Value {
     let spec = SimulateRequest::from_value(body).unwrap();
-    let sim = spec.prepare(&Limits::default(), &geomint::api::system::NoStoredSystems).unwrap();
+    let sim = spec
+        .prepare(&Limits::default(), &geomint::api::system::NoStoredSystems)
+        .unwrap();
     serde_json::to_value(sim.simulate(2, Budget::default()).unwrap()).unwrap()
 }
 
@@ -63,8 +65,16 @@ async fn a_section_answers_its_points_in_json_and_ndjson_as_the_core_computes_th
         let points = &run["section"];
         let n = points["t"].as_array().unwrap().len();
         assert_eq!(run["section_summary"]["points"], n);
-        assert!(n >= 40 || run["section_summary"]["truncated"] == false, "{run}");
-        for (q, h) in points["q"].as_array().unwrap().iter().zip(points["energy"].as_array().unwrap()) {
+        assert!(
+            n >= 40 || run["section_summary"]["truncated"] == false,
+            "{run}"
+        );
+        for (q, h) in points["q"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .zip(points["energy"].as_array().unwrap())
+        {
             assert!(q[1].as_f64().unwrap().abs() <= 1e-13);
             if run["method"] != "rk4" {
                 assert!((h.as_f64().unwrap() - 0.125).abs() <= 1e-12);
@@ -73,8 +83,21 @@ async fn a_section_answers_its_points_in_json_and_ndjson_as_the_core_computes_th
     }
     // The same request gives the same bits, over HTTP and in process.
     let again = in_process(&body);
-    for (a, b) in doc["runs"].as_array().unwrap().iter().zip(again["runs"].as_array().unwrap()) {
-        for key in ["section", "section_summary", "t", "q", "p", "energy", "stop"] {
+    for (a, b) in doc["runs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .zip(again["runs"].as_array().unwrap())
+    {
+        for key in [
+            "section",
+            "section_summary",
+            "t",
+            "q",
+            "p",
+            "energy",
+            "stop",
+        ] {
             assert_eq!(a[key], b[key], "{key}");
         }
     }
@@ -87,7 +110,10 @@ async fn a_section_answers_its_points_in_json_and_ndjson_as_the_core_computes_th
     for (m, run) in doc["runs"].as_array().unwrap().iter().enumerate() {
         let mut t = Vec::new();
         let mut q = Vec::new();
-        for line in lines.iter().filter(|l| l["type"] == "crossings" && l["method"] == m) {
+        for line in lines
+            .iter()
+            .filter(|l| l["type"] == "crossings" && l["method"] == m)
+        {
             assert_eq!(line["surface"], "section");
             assert_eq!(line["offset"], t.len());
             t.extend(line["t"].as_array().unwrap().iter().cloned());
@@ -120,7 +146,16 @@ async fn an_event_stops_each_run_and_a_surface_never_crossed_says_so() {
         assert_eq!(events.len(), 3);
         assert_eq!(run["stop"]["t"], events[2]);
         let step = run["stop"]["step"].as_u64().unwrap();
-        assert_eq!(run["t"].as_array().unwrap().last().unwrap().as_f64().unwrap(), step as f64 * 0.08);
+        assert_eq!(
+            run["t"]
+                .as_array()
+                .unwrap()
+                .last()
+                .unwrap()
+                .as_f64()
+                .unwrap(),
+            step as f64 * 0.08
+        );
         assert_eq!(run["section_summary"]["points"], 0);
         let note = run["section_summary"]["note"].as_str().unwrap();
         assert!(note.contains("never crossed upwards"), "{note}");
@@ -168,24 +203,114 @@ async fn bad_sections_events_and_levels_are_refused_naming_their_field() {
     let driven = json!({"coordinates": ["x"], "mass": 1, "potential": "x^2/2 - x*cos(t)",
                         "damping": {"gamma": 0.1}});
     let cases = [
-        (json!({"section": {"where": "y +"}}), "invalid_expression", "section.where", Some(3)),
-        (json!({"section": {"where": "y + w"}}), "invalid_expression", "section.where", Some(4)),
-        (json!({"section": {"period": 0}}), "invalid_value", "section.period", None),
-        (json!({"section": {"period": -2, "phase": 0}}), "invalid_value", "section.period", None),
-        (json!({"section": {"where": "y", "period": 1}}), "invalid_value", "section", None),
-        (json!({"section": {"where": "y", "phase": 1}}), "invalid_value", "section", None),
-        (json!({"section": {"direction": "up"}}), "missing_field", "section.where", None),
-        (json!({"section": {"where": "y", "direction": "sideways"}}), "invalid_value", "section.direction", None),
-        (json!({"section": {"where": "y", "max_points": 0}}), "invalid_value", "section.max_points", None),
-        (json!({"section": {"where": "y", "max_points": 600000}}), "too_many_samples", "section.max_points", None),
-        (json!({"section": {"where": "y", "every": 2}}), "unknown_field", "section.every", None),
-        (json!({"stop_when": {"count": 2}}), "missing_field", "stop_when.where", None),
-        (json!({"stop_when": {"where": "x", "count": 0}}), "invalid_value", "stop_when.count", None),
-        (json!({"stop_when": {"where": "x)"}}), "invalid_expression", "stop_when.where", Some(1)),
-        (json!({"energy": {"value": 0.001, "momentum": "p_y"}}), "invalid_value", "energy.value", None),
-        (json!({"energy": {"value": 0.1, "momentum": "p_z"}}), "invalid_value", "energy.momentum", None),
-        (json!({"system": driven.clone(), "q0": [1], "p0": [0], "methods": ["csv2"]}), "unmet_requirement", "methods[0]", None),
-        (json!({"system": driven, "q0": [1], "p0": [0], "methods": ["rk4"], "jacobian_defect": true}), "invalid_value", "jacobian_defect", None),
+        (
+            json!({"section": {"where": "y +"}}),
+            "invalid_expression",
+            "section.where",
+            Some(3),
+        ),
+        (
+            json!({"section": {"where": "y + w"}}),
+            "invalid_expression",
+            "section.where",
+            Some(4),
+        ),
+        (
+            json!({"section": {"period": 0}}),
+            "invalid_value",
+            "section.period",
+            None,
+        ),
+        (
+            json!({"section": {"period": -2, "phase": 0}}),
+            "invalid_value",
+            "section.period",
+            None,
+        ),
+        (
+            json!({"section": {"where": "y", "period": 1}}),
+            "invalid_value",
+            "section",
+            None,
+        ),
+        (
+            json!({"section": {"where": "y", "phase": 1}}),
+            "invalid_value",
+            "section",
+            None,
+        ),
+        (
+            json!({"section": {"direction": "up"}}),
+            "missing_field",
+            "section.where",
+            None,
+        ),
+        (
+            json!({"section": {"where": "y", "direction": "sideways"}}),
+            "invalid_value",
+            "section.direction",
+            None,
+        ),
+        (
+            json!({"section": {"where": "y", "max_points": 0}}),
+            "invalid_value",
+            "section.max_points",
+            None,
+        ),
+        (
+            json!({"section": {"where": "y", "max_points": 600000}}),
+            "too_many_samples",
+            "section.max_points",
+            None,
+        ),
+        (
+            json!({"section": {"where": "y", "every": 2}}),
+            "unknown_field",
+            "section.every",
+            None,
+        ),
+        (
+            json!({"stop_when": {"count": 2}}),
+            "missing_field",
+            "stop_when.where",
+            None,
+        ),
+        (
+            json!({"stop_when": {"where": "x", "count": 0}}),
+            "invalid_value",
+            "stop_when.count",
+            None,
+        ),
+        (
+            json!({"stop_when": {"where": "x)"}}),
+            "invalid_expression",
+            "stop_when.where",
+            Some(1),
+        ),
+        (
+            json!({"energy": {"value": 0.001, "momentum": "p_y"}}),
+            "invalid_value",
+            "energy.value",
+            None,
+        ),
+        (
+            json!({"energy": {"value": 0.1, "momentum": "p_z"}}),
+            "invalid_value",
+            "energy.momentum",
+            None,
+        ),
+        (
+            json!({"system": driven.clone(), "q0": [1], "p0": [0], "methods": ["csv2"]}),
+            "unmet_requirement",
+            "methods[0]",
+            None,
+        ),
+        (
+            json!({"system": driven, "q0": [1], "p0": [0], "methods": ["rk4"], "jacobian_defect": true}),
+            "invalid_value",
+            "jacobian_defect",
+            None,
+        ),
     ];
     for (extra, code, field, position) in cases {
         let body = henon_heiles(extra.clone());
@@ -214,7 +339,10 @@ fn a_recording_holds_the_section_per_orbit_in_the_chart_and_in_space() {
     for dof in 0..2 {
         let path = format!("/{m}/section/{dof}");
         assert_eq!(d.rows(&path), section.t.len(), "{path}");
-        let chunk = d.chunks[path.as_str()].iter().find(|c| !c.is_static()).unwrap();
+        let chunk = d.chunks[path.as_str()]
+            .iter()
+            .find(|c| !c.is_static())
+            .unwrap();
         let points: Vec<[f32; 2]> = chunk
             .iter_slices::<[f32; 2]>(rerun::Points2D::descriptor_positions().component)
             .flat_map(|s| s.to_vec())

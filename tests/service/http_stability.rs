@@ -4,12 +4,12 @@
 use std::collections::BTreeSet;
 use std::time::{Duration, Instant};
 
-use geomint::core::methods::{Base, Method, MethodId};
-use geomint::core::simulation::Limits;
-use geomint::core::stability::{self, Axis, Relation};
 use crate::decoded;
 use crate::server;
 use decoded::Decoded;
+use geomint::core::methods::{Base, Method, MethodId};
+use geomint::core::simulation::Limits;
+use geomint::core::stability::{self, Axis, Relation};
 use rerun::components::{ImageBuffer, TensorData};
 use rerun::external::re_sdk_types::datatypes::TensorBuffer;
 use rerun::{SegmentationImage, Tensor};

@@ -224,14 +224,24 @@ async fn repeated_timings_give_the_median_and_the_spread_with_the_same_errors() 
             .map(|t| t.as_f64().unwrap())
             .collect();
         assert!(timings.len() >= 3, "{three}");
-        assert!(timings.windows(2).all(|w| w[0] <= w[1]), "fastest first: {timings:?}");
-        assert_eq!(three["wall_ms"].as_f64().unwrap(), timings[timings.len() / 2]);
+        assert!(
+            timings.windows(2).all(|w| w[0] <= w[1]),
+            "fastest first: {timings:?}"
+        );
+        assert_eq!(
+            three["wall_ms"].as_f64().unwrap(),
+            timings[timings.len() / 2]
+        );
     }
     // Without repeats, the long run is timed once (no list) and the short one five times.
     let [long, short] = [&points_of(&once)[0], &points_of(&once)[1]];
     assert!(long["wall_ms"].as_f64().unwrap() >= 20.0, "{long}");
     assert!(long.get("timings_ms").is_none(), "{long}");
-    assert_eq!(short["timings_ms"].as_array().map(Vec::len), Some(5), "{short}");
+    assert_eq!(
+        short["timings_ms"].as_array().map(Vec::len),
+        Some(5),
+        "{short}"
+    );
     for bad in [json!(0), json!(21), json!(2.5)] {
         let mut body = study(None);
         body["repeats"] = bad.clone();

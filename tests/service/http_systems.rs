@@ -12,8 +12,8 @@ use std::time::Duration;
 use crate::server;
 
 use geomint::api::system::SystemDefinition;
-use geomint::store::systems::{StoredSystem, SystemStore};
 use geomint::http::Config;
+use geomint::store::systems::{StoredSystem, SystemStore};
 use serde_json::{json, Value};
 use server::{client, post_json, start, Server};
 
@@ -485,7 +485,11 @@ async fn the_command_line_names_stored_systems_like_the_server() {
     let spec = scratch.join("run.json");
     std::fs::write(&spec, serde_json::to_vec(&request).unwrap()).unwrap();
     let out = geomint_with_systems(&dir, &["run", spec.to_str().unwrap()]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let ran = geomint::api::json::parse_json(&out.stdout).unwrap();
     assert_eq!(numbers(&ran), numbers(&served));
 
@@ -498,7 +502,11 @@ async fn the_command_line_names_stored_systems_like_the_server() {
     let spec = scratch.join("sweep.json");
     std::fs::write(&spec, serde_json::to_vec(&sweep).unwrap()).unwrap();
     let out = geomint_with_systems(&dir, &["study", "sweep", spec.to_str().unwrap()]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let mut swept = geomint::api::json::parse_json(&out.stdout).unwrap();
     let mut served = served;
     for doc in [&mut swept, &mut served] {
@@ -509,5 +517,8 @@ async fn the_command_line_names_stored_systems_like_the_server() {
     let out = geomint_with_systems(&nowhere, &["study", "sweep", spec.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(2));
     let message = String::from_utf8_lossy(&out.stderr);
-    assert!(message.contains("system") && message.contains(&id), "{message}");
+    assert!(
+        message.contains("system") && message.contains(&id),
+        "{message}"
+    );
 }

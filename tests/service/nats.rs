@@ -12,8 +12,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use geomint::api::system::NoStoredSystems;
 use geomint::api::sweep::SweepRequest;
+use geomint::api::system::NoStoredSystems;
 use geomint::core::run::Budget;
 use geomint::core::simulation::Limits;
 use geomint::core::studies::sweep;
@@ -136,7 +136,18 @@ fn local() -> Value {
         .unwrap()
         .prepare(&Limits::default())
         .unwrap();
-    numbers(serde_json::to_value(sweep::run(&job, &geomint::core::studies::engine::Local, Budget::default(), &|_| true).unwrap()).unwrap())
+    numbers(
+        serde_json::to_value(
+            sweep::run(
+                &job,
+                &geomint::core::studies::engine::Local,
+                Budget::default(),
+                &|_| true,
+            )
+            .unwrap(),
+        )
+        .unwrap(),
+    )
 }
 
 fn numbers(mut doc: Value) -> Value {

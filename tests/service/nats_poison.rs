@@ -30,7 +30,15 @@ async fn a_panicking_shard_fails_its_study_after_max_deliver_and_the_others_comp
     let _worker = Process(
         geomint()
             .env("GEOMINT_WORKER_PANIC_ON", POISON)
-            .args(["worker", "--nats", &url, "--ack-wait-secs", "2", "--nats-max-deliver", "3"])
+            .args([
+                "worker",
+                "--nats",
+                &url,
+                "--ack-wait-secs",
+                "2",
+                "--nats-max-deliver",
+                "3",
+            ])
             .stdout(Stdio::null())
             .spawn()
             .unwrap(),
@@ -45,18 +53,29 @@ async fn a_panicking_shard_fails_its_study_after_max_deliver_and_the_others_comp
         }
     };
     let started = Instant::now();
-    let (poisoned, first, second) = tokio::join!(post(sweep(POISON)), post(sweep("0.5")), post(sweep("1")));
+    let (poisoned, first, second) =
+        tokio::join!(post(sweep(POISON)), post(sweep("0.5")), post(sweep("1")));
     let (status, error) = poisoned;
     assert_eq!(status, 502, "{error}");
     assert_eq!(error["error"]["code"], "executor_unavailable");
     let message = error["error"]["message"].as_str().unwrap();
-    assert!(message.contains("panicked on each of its 3 deliveries"), "{message}");
+    assert!(
+        message.contains("panicked on each of its 3 deliveries"),
+        "{message}"
+    );
     // Three attempts, each given back at once: far within the ack waits a lost worker costs.
-    assert!(started.elapsed() < Duration::from_secs(30), "{:?}", started.elapsed());
+    assert!(
+        started.elapsed() < Duration::from_secs(30),
+        "{:?}",
+        started.elapsed()
+    );
     for (status, doc) in [first, second] {
         assert_eq!(status, 200, "{doc}");
         assert_eq!(doc["cells"], 4, "{doc}");
-        assert!(doc["unfinished_cells"].as_array().is_none_or(Vec::is_empty), "{doc}");
+        assert!(
+            doc["unfinished_cells"].as_array().is_none_or(Vec::is_empty),
+            "{doc}"
+        );
     }
     // Nothing of the poisoned study stays queued.
     let client = async_nats::connect(&url).await.unwrap();
@@ -77,7 +96,15 @@ async fn a_shard_that_kills_its_workers_fails_its_study_after_max_deliver() {
         Process(
             geomint()
                 .env("GEOMINT_WORKER_ABORT_ON", POISON)
-                .args(["worker", "--nats", &url, "--ack-wait-secs", "2", "--nats-max-deliver", "3"])
+                .args([
+                    "worker",
+                    "--nats",
+                    &url,
+                    "--ack-wait-secs",
+                    "2",
+                    "--nats-max-deliver",
+                    "3",
+                ])
                 .stdout(Stdio::null())
                 .stderr(Stdio::null())
                 .spawn()
@@ -87,7 +114,10 @@ async fn a_shard_that_kills_its_workers_fails_its_study_after_max_deliver() {
     let mut workers: Vec<Process> = (0..2).map(|_| start_worker()).collect();
     let (_server, base) = server_with(&url, &dir, 60, &["--nats-max-deliver", "3"]);
     let started = Instant::now();
-    let request = client().post(format!("{base}/api/v1/studies/sweep")).json(&sweep(POISON)).send();
+    let request = client()
+        .post(format!("{base}/api/v1/studies/sweep"))
+        .json(&sweep(POISON))
+        .send();
     let mut request = Box::pin(request);
     let mut deaths = 0;
     let response = loop {
@@ -107,8 +137,15 @@ async fn a_shard_that_kills_its_workers_fails_its_study_after_max_deliver() {
     let error: Value = response.json().await.unwrap();
     assert_eq!(status, 502, "{error}");
     let message = error["error"]["message"].as_str().unwrap();
-    assert!(message.contains("handed to workers 3 times (max_deliver)"), "{message}");
+    assert!(
+        message.contains("handed to workers 3 times (max_deliver)"),
+        "{message}"
+    );
     assert_eq!(deaths, 3, "each delivery killed a worker");
     // Three ack waits of 2 s and the advisory: well within the 60 s time limit.
-    assert!(started.elapsed() < Duration::from_secs(30), "{:?}", started.elapsed());
+    assert!(
+        started.elapsed() < Duration::from_secs(30),
+        "{:?}",
+        started.elapsed()
+    );
 }

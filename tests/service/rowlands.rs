@@ -7,8 +7,8 @@
 
 use crate::common;
 
-use geomint::api::system::NoStoredSystems;
 use geomint::api::method::{MethodOptions, MethodSpec};
+use geomint::api::system::NoStoredSystems;
 use geomint::api::{ErrorCode, ErrorDetail, SimulateRequest};
 use geomint::core::diagnostics::log_log_slope;
 use geomint::core::error::Field;

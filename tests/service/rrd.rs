@@ -28,7 +28,9 @@ impl Run {
     /// Runs a request like the service does.
     fn of(body: Value, limits: &Limits) -> Run {
         let spec = SimulateRequest::from_value(&body).expect("valid request");
-        let sim = spec.prepare(limits, &NoStoredSystems).expect("valid simulation");
+        let sim = spec
+            .prepare(limits, &NoStoredSystems)
+            .expect("valid simulation");
         let doc = sim.simulate(2, Budget::default()).expect("runs");
         let json = serde_json::to_string(&doc).unwrap();
         let rrd = recording::rrd_bytes(&recording::Spec::of(&spec), &doc).expect("recording");

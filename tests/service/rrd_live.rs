@@ -4,7 +4,6 @@
 //! `GEOMINT_PYTHON` is set; otherwise it prints a notice and passes. Unix only (the receiver is
 //! stopped through its process group).
 
-
 use std::collections::BTreeSet;
 use std::fs::File;
 use std::net::TcpStream;

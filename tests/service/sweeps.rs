@@ -6,9 +6,9 @@
 //! the map's kind run in SIMD lanes with the one-cell path's numbers bit for bit, and leave the
 //! same partial document at the time limit.
 
-use geomint::api::system::NoStoredSystems;
 use geomint::api::studies::EnergyMapRequest;
 use geomint::api::sweep::{energy_map_preset, SweepRequest};
+use geomint::api::system::NoStoredSystems;
 use geomint::core::methods::{Method, MethodId};
 use geomint::core::run::Budget;
 use geomint::core::simulation::Limits;
@@ -153,7 +153,11 @@ fn another_spec_has_another_digest() {
     let a = energy_map_preset(&map_request());
     let mut b = a.clone();
     b["t_end"] = json!(401.0);
-    let digest = |v: &Value| SweepRequest::from_value(v).unwrap().digest(&NoStoredSystems);
+    let digest = |v: &Value| {
+        SweepRequest::from_value(v)
+            .unwrap()
+            .digest(&NoStoredSystems)
+    };
     assert_eq!(digest(&a), digest(&a.clone()));
     assert_ne!(digest(&a), digest(&b));
     // Key order in the text does not matter: the digest is of the canonical form.

@@ -239,7 +239,8 @@ pub struct Budget<'a> {
 impl Budget<'_> {
     /// Whether the cancellation flag is set.
     pub fn cancelled(&self) -> bool {
-        self.cancel.is_some_and(|c| c.load(std::sync::atomic::Ordering::Relaxed))
+        self.cancel
+            .is_some_and(|c| c.load(std::sync::atomic::Ordering::Relaxed))
     }
 
     /// Whether the deadline has passed.

@@ -143,7 +143,10 @@ pub struct ErrorDetail {
     /// Stable error code.
     pub code: ErrorCode,
     /// Explanation.
-    #[cfg_attr(feature = "openapi", schema(example = "h: must be finite and > 0, got -0.1"))]
+    #[cfg_attr(
+        feature = "openapi",
+        schema(example = "h: must be finite and > 0, got -0.1")
+    )]
     pub message: String,
     /// The input at fault as a path (`h`, `params.omega`, `methods[1].inner`, `q0[2]`), when
     /// the error concerns one.

@@ -8,7 +8,16 @@ use super::CoreError;
 /// `runs[0].h[2]`. Callers build it from the names their input uses, so an error raised deep in
 /// the core names the field the user wrote.
 #[derive(
-    Clone, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
+    Clone,
+    Debug,
+    Default,
+    PartialEq,
+    Eq,
+    Hash,
+    PartialOrd,
+    Ord,
+    serde::Serialize,
+    serde::Deserialize,
 )]
 #[serde(transparent)]
 pub struct Field(String);

@@ -553,8 +553,7 @@ mod tests {
                     ..start
                 };
                 let with_idle =
-                    dispatch(&c, chart, order, &idle, 20_000, &limit, Budget::default())
-                        .unwrap();
+                    dispatch(&c, chart, order, &idle, 20_000, &limit, Budget::default()).unwrap();
                 assert_eq!(with_idle.non_finite[1], 0.0);
                 for lane in [0, 2, 3] {
                     assert_eq!(

@@ -439,8 +439,7 @@ pub enum Method {
 }
 
 /// The valid tolerances of the adaptive reference.
-pub const TOLERANCE_RANGE: crate::error::Range =
-    crate::error::Range::closed(1e-14, false, 1e-2);
+pub const TOLERANCE_RANGE: crate::error::Range = crate::error::Range::closed(1e-14, false, 1e-2);
 
 impl Method {
     /// The method `id` with default options.
@@ -614,7 +613,9 @@ impl<'de> serde::Deserialize<'de> for Method {
                 tolerance: Option<f64>,
             },
         }
-        let id_of = |s: &str| MethodId::parse(s).ok_or_else(|| D::Error::custom(format!("no method `{s}`")));
+        let id_of = |s: &str| {
+            MethodId::parse(s).ok_or_else(|| D::Error::custom(format!("no method `{s}`")))
+        };
         let subset = |name: &Option<String>, what: &str| -> Result<MethodId, D::Error> {
             let name = name
                 .as_deref()
@@ -631,7 +632,8 @@ impl<'de> serde::Deserialize<'de> for Method {
                 tolerance,
             } => {
                 let id = id_of(&id)?;
-                let wrong = || D::Error::custom(format!("`{}` does not take that option", id.as_str()));
+                let wrong =
+                    || D::Error::custom(format!("`{}` does not take that option", id.as_str()));
                 match Method::new(id) {
                     Method::ModinRks { .. } => Ok(Method::ModinRks {
                         inner: Inner::of(subset(&inner, "inner method")?).ok_or_else(wrong)?,

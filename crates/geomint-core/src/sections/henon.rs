@@ -53,7 +53,12 @@ where
     }
 
     fn components(&self) -> impl Iterator<Item = f64> + '_ {
-        self.z.q.iter().chain(self.z.p.iter()).copied().chain([self.t])
+        self.z
+            .q
+            .iter()
+            .chain(self.z.p.iter())
+            .copied()
+            .chain([self.t])
     }
 }
 
@@ -77,7 +82,12 @@ where
     /// S at (z, t).
     fn value(&mut self, surface: &Surface, z: &State<D>, t: f64) -> f64 {
         let n = self.n;
-        surface.value(&z.q.as_slice()[..n], &z.p.as_slice()[..n], t, &mut self.inputs)
+        surface.value(
+            &z.q.as_slice()[..n],
+            &z.p.as_slice()[..n],
+            t,
+            &mut self.inputs,
+        )
     }
 
     /// S and σ at `at`, with the vector field f(z) left in `out` (unscaled).
@@ -88,7 +98,13 @@ where
         at: &Point<D>,
         out: &mut Point<D>,
     ) -> (f64, f64) {
-        sys.vector_field(&at.z.q, &at.z.p, &mut out.z.q, &mut out.z.p, &mut self.scratch);
+        sys.vector_field(
+            &at.z.q,
+            &at.z.p,
+            &mut out.z.q,
+            &mut out.z.p,
+            &mut self.scratch,
+        );
         self.evaluations += 1;
         let n = self.n;
         surface.rate(
@@ -283,7 +299,8 @@ where
         // the residue's ninth power).
         let residue = self.eval.value(surface, &self.y.z, self.y.t) - level;
         if residue != 0.0 && residue.is_finite() {
-            self.step(sys, surface, -residue).ok_or(Unlocated::Singular)?;
+            self.step(sys, surface, -residue)
+                .ok_or(Unlocated::Singular)?;
         }
         copy(out, &self.y.z);
         Ok(self.y.t)

@@ -55,8 +55,7 @@ pub mod watch;
 
 pub use energy::EnergyLevel;
 pub use spec::{
-    Direction, EventSpec, SectionSpec, StopWhen, SurfaceSpec, MAX_EVENT_COUNT,
-    MAX_SECTION_POINTS,
+    Direction, EventSpec, SectionSpec, StopWhen, SurfaceSpec, MAX_EVENT_COUNT, MAX_SECTION_POINTS,
 };
 pub use surface::{Crossings, Surface};
 pub use watch::{Crossing, CrossingKind, SectionSummary, Watch};

@@ -92,6 +92,9 @@ impl StateNames {
         if let Some(i) = self.coordinates.iter().position(|c| c == name) {
             return Some((false, i));
         }
-        self.momenta.iter().position(|c| c == name).map(|i| (true, i))
+        self.momenta
+            .iter()
+            .position(|c| c == name)
+            .map(|i| (true, i))
     }
 }

@@ -67,9 +67,8 @@ impl Surface {
                 .collect(),
             ..CompileOptions::default()
         };
-        let compile = |outputs: &[_]| {
-            CompiledFunction::new(&graph, outputs, &options).map_err(error)
-        };
+        let compile =
+            |outputs: &[_]| CompiledFunction::new(&graph, outputs, &options).map_err(error);
         Ok(Surface::Expression {
             text: text.to_string(),
             value: compile(&[s])?,

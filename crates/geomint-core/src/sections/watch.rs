@@ -116,8 +116,14 @@ where
             next: 0,
         };
         let trackers = [
-            crossings.section.as_ref().map(|s| tracker(CrossingKind::Section, s)),
-            crossings.event.as_ref().map(|s| tracker(CrossingKind::Event, s)),
+            crossings
+                .section
+                .as_ref()
+                .map(|s| tracker(CrossingKind::Section, s)),
+            crossings
+                .event
+                .as_ref()
+                .map(|s| tracker(CrossingKind::Event, s)),
         ]
         .into_iter()
         .flatten()
@@ -231,12 +237,11 @@ where
         let rising = after > before;
         let sigma = self.henon.rate(sys, surface, &self.last, self.last_t);
         let from_last = (sigma > 0.0) == rising && sigma != 0.0;
-        let ends = [
-            (&self.last, self.last_t, before),
-            (z, t_now, after),
-        ];
+        let ends = [(&self.last, self.last_t, before), (z, t_now, after)];
         let order = if from_last { [0, 1] } else { [1, 0] };
-        let first = self.henon.locate(sys, surface, ends[order[0]], 0.0, &mut self.point);
+        let first = self
+            .henon
+            .locate(sys, surface, ends[order[0]], 0.0, &mut self.point);
         first.or_else(|_| {
             self.henon
                 .locate(sys, surface, ends[order[1]], 0.0, &mut self.point)
@@ -284,7 +289,10 @@ where
             .trackers
             .iter()
             .find(|t| t.kind == CrossingKind::Section)?;
-        let expression = matches!(self.surface(CrossingKind::Section), Surface::Expression { .. });
+        let expression = matches!(
+            self.surface(CrossingKind::Section),
+            Surface::Expression { .. }
+        );
         let range = (expression && tracker.range[0] <= tracker.range[1]).then_some(tracker.range);
         let note = (tracker.count == 0).then(|| match (range, tracker.unlocated) {
             (_, u) if u > 0 => format!(

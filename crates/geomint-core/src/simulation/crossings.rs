@@ -41,7 +41,9 @@ impl CrossingColumns {
         self.p.push(c.p.to_vec());
         self.energy.push(c.energy);
         if let Some(x) = c.cartesian_q {
-            self.cartesian_q.get_or_insert_with(Vec::new).push(x.to_vec());
+            self.cartesian_q
+                .get_or_insert_with(Vec::new)
+                .push(x.to_vec());
         }
     }
 
@@ -160,8 +162,11 @@ impl Simulation {
             self.p0[index] = energy::solve(&h, &self.p0, index, level.energy, &level.field)?;
         }
         if watching.section.is_some() || watching.stop_when.is_some() {
-            let crossings =
-                Crossings::new(watching.section.as_ref(), watching.stop_when.as_ref(), names)?;
+            let crossings = Crossings::new(
+                watching.section.as_ref(),
+                watching.stop_when.as_ref(),
+                names,
+            )?;
             self.crossings = Some(Arc::new(crossings));
         }
         Ok(self)
@@ -171,14 +176,26 @@ impl Simulation {
     pub fn section_info(&self) -> Option<SurfaceInfo> {
         let crossings = self.crossings.as_ref()?;
         let (surface, direction, max_points) = crossings.section.as_ref()?;
-        Some(surface_info(crossings, surface, *direction, Some(*max_points), None))
+        Some(surface_info(
+            crossings,
+            surface,
+            *direction,
+            Some(*max_points),
+            None,
+        ))
     }
 
     /// The event as the header announces it.
     pub fn event_info(&self) -> Option<SurfaceInfo> {
         let crossings = self.crossings.as_ref()?;
         let (surface, direction, count) = crossings.event.as_ref()?;
-        Some(surface_info(crossings, surface, *direction, None, Some(*count)))
+        Some(surface_info(
+            crossings,
+            surface,
+            *direction,
+            None,
+            Some(*count),
+        ))
     }
 }
 

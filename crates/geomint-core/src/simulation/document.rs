@@ -9,8 +9,8 @@ use std::collections::BTreeMap;
 use serde::Serialize;
 
 use super::crossings::{CrossingColumns, SurfaceInfo};
-use super::spec::EnergyReference;
 use super::run::{Sample, SampleSink};
+use super::spec::EnergyReference;
 use super::spec::Simulation;
 use crate::chaos::{IndicatorValues, ThresholdStop};
 use crate::diagnostics::DriftPoint;

@@ -19,15 +19,15 @@ pub mod spec;
 pub mod stream;
 pub mod surface;
 
+pub use crossings::{CrossingColumns, SurfaceInfo, Watching};
 pub use document::{
     ColumnSink, Columns, DivergedAt, RunDocument, RunOutcome, ScheduleSummary, SimulationDocument,
     Stop, SystemSummary,
 };
 pub use run::{for_each_method, Outcome, Sample, SampleSink};
 pub use spec::{
-    EnergyReference,
-    InitialCoordinates, InputFields, Limits, MethodAt, Simulation, SimulationSpec, MAX_METHODS,
+    EnergyReference, InitialCoordinates, InputFields, Limits, MethodAt, Simulation, SimulationSpec,
+    MAX_METHODS,
 };
-pub use crossings::{CrossingColumns, SurfaceInfo, Watching};
 pub use stream::{DocumentCollector, StreamLine};
 pub use surface::EnergySurface;

@@ -158,7 +158,14 @@ impl Simulation {
         let field = Field::new("compare_to_reference");
         // The reference runs to the end, whatever the runs' events.
         let outcome = self
-            .run_with(&Method::new(MethodId::Reference), None, budget, &mut log, false, None)
+            .run_with(
+                &Method::new(MethodId::Reference),
+                None,
+                budget,
+                &mut log,
+                false,
+                None,
+            )
             .map_err(|e| match e {
                 CoreError::Step {
                     step, t, source, ..

@@ -8,15 +8,15 @@ use std::sync::Arc;
 
 use crate::chaos::{self, ChaosPlan, ChaosSpec};
 use crate::error::{CoreError, Field, Range, StepError, StepScope};
-use crate::run::Stepper;
-use crate::tangent::Tangent;
 use crate::methods::build::{self, Origin};
 use crate::methods::{self, Method};
+use crate::run::Stepper;
 use crate::run::{step_count, Schedule};
 use crate::system::{MechanicalSystem, State};
 use crate::systems::{
     self, AnySystem, ChartInfo, ParamValue, ParamValues, SystemInfo, SystemRef, World,
 };
+use crate::tangent::Tangent;
 use crate::with_system;
 
 /// Hard limits on the work a request may ask for.

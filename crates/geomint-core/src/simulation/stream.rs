@@ -18,11 +18,11 @@ use std::time::{Duration, Instant};
 
 use serde::Serialize;
 
+use super::crossings::{CrossingColumns, CrossingsChunk, SurfaceInfo, SurfaceName};
 use super::document::{
     ColumnSink, Columns, RunDocument, RunOutcome, ScheduleSummary, SimulationDocument, Stop,
     SystemSummary,
 };
-use super::crossings::{CrossingColumns, CrossingsChunk, SurfaceInfo, SurfaceName};
 use super::run::{for_each_method, Sample, SampleSink};
 use super::spec::{EnergyReference, Simulation};
 use crate::chaos::{Indicator, IndicatorValues};
@@ -211,8 +211,7 @@ impl SampleSink for ChunkSink<'_> {
         self.crossings[i].0.push(crossing);
         // Points come far apart in steps: they go out with the next flush, at the latest
         // CHUNK_INTERVAL after the last.
-        if self.crossings[i].0.len() >= CHUNK_SAMPLES
-            || self.last_flush.elapsed() >= CHUNK_INTERVAL
+        if self.crossings[i].0.len() >= CHUNK_SAMPLES || self.last_flush.elapsed() >= CHUNK_INTERVAL
         {
             self.flush();
         }
@@ -392,7 +391,10 @@ impl DocumentCollector {
                 self.summaries = vec![None; header.methods.len()];
                 let empty = |on: bool| on.then(CrossingColumns::default);
                 self.crossings = vec![
-                    [empty(header.section.is_some()), empty(header.stop_when.is_some())];
+                    [
+                        empty(header.section.is_some()),
+                        empty(header.stop_when.is_some())
+                    ];
                     header.methods.len()
                 ];
                 self.header = Some(header);
@@ -402,7 +404,11 @@ impl DocumentCollector {
                     SurfaceName::Section => 0,
                     SurfaceName::StopWhen => 1,
                 };
-                match self.crossings.get_mut(chunk.method).and_then(|c| c[i].as_mut()) {
+                match self
+                    .crossings
+                    .get_mut(chunk.method)
+                    .and_then(|c| c[i].as_mut())
+                {
                     Some(points) if points.len() as u64 == chunk.offset => {
                         points.extend(chunk.columns)
                     }

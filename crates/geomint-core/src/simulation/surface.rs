@@ -44,7 +44,11 @@ impl EnergySurface {
     }
 
     /// Solves the momentum in `p` for the state (q, p) of `sys`.
-    pub fn solve<S: MechanicalSystem>(&self, sys: &S, z: &mut State<S::Dim>) -> Result<(), AboveSurface>
+    pub fn solve<S: MechanicalSystem>(
+        &self,
+        sys: &S,
+        z: &mut State<S::Dim>,
+    ) -> Result<(), AboveSurface>
     where
         DefaultAllocator: Allocator<S::Dim>,
     {
@@ -77,7 +81,8 @@ impl EnergySurface {
     /// no momentum on the surface is an error that says by how much it misses.
     pub fn apply(&self, spec: &mut SimulationSpec, info: &SystemInfo) -> Result<(), CoreError> {
         let f = &spec.fields;
-        let default_chart = spec.chart.is_none() || spec.chart.as_deref() == Some(info.charts[0].id);
+        let default_chart =
+            spec.chart.is_none() || spec.chart.as_deref() == Some(info.charts[0].id);
         let chart = if default_chart || spec.initial_cartesian {
             info.charts[0]
         } else {

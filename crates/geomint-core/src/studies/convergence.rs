@@ -15,11 +15,12 @@ use std::collections::BTreeMap;
 
 use serde::Serialize;
 
+use super::engine::{Executor, Order};
 use super::settings::{
     self, check_samples, check_t_end, measure_once, prepare_reference, prepare_setting,
-    progress_lines, stop_name, whole_steps, RunSpec, Setting, SettingsStudy, StudyJob, Truth, MAX_SAMPLES, MAX_SETTINGS,
+    progress_lines, stop_name, whole_steps, RunSpec, Setting, SettingsStudy, StudyJob, Truth,
+    MAX_SAMPLES, MAX_SETTINGS,
 };
-use super::engine::{Executor, Order};
 use super::StudySpec;
 use crate::diagnostics::fit_log_log;
 use crate::error::{CoreError, Field, Range};
@@ -393,7 +394,8 @@ pub fn run<E: Executor>(
     budget: Budget<'_>,
     emit: &(dyn Fn(ConvergenceLine) -> bool + Sync),
 ) -> Result<ConvergenceDocument, CoreError> {
-    let (truth, points) = settings::run_settings(job, executor, budget, emit, |truth| study(job, truth))?;
+    let (truth, points) =
+        settings::run_settings(job, executor, budget, emit, |truth| study(job, truth))?;
 
     let mut charts: Vec<String> = Vec::new();
     for p in &points {

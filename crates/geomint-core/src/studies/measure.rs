@@ -143,4 +143,3 @@ pub fn stop_name(stop: &StopReason) -> &'static str {
         StopReason::Indicator(_) => "indicator",
     }
 }
-

@@ -23,10 +23,7 @@ use super::StudySpec;
 use crate::error::{CoreError, ErrorDetail, Field, Range, StepScope};
 use crate::methods::{Method, MethodId, TOLERANCE_RANGE};
 use crate::run::{Budget, StopReason};
-use crate::simulation::{
-    InputFields, Limits, MethodAt, Simulation, SimulationSpec,
-    SystemSummary,
-};
+use crate::simulation::{InputFields, Limits, MethodAt, Simulation, SimulationSpec, SystemSummary};
 
 /// Most settings (step sizes and tolerances over all runs) in one study.
 pub const MAX_SETTINGS: usize = 64;
@@ -476,8 +473,14 @@ impl<P: Clone + Send + Sync + Serialize + DeserializeOwned> Study for SettingsSt
     }
 
     /// A setting always has its point: one stopped by the time limit says so itself.
-    fn run_cells(&self, cells: Cells<usize>, budget: Budget<'_>) -> Result<Vec<Option<P>>, CoreError> {
-        cells.map(|cell| self.point(cell, budget).map(Some)).collect()
+    fn run_cells(
+        &self,
+        cells: Cells<usize>,
+        budget: Budget<'_>,
+    ) -> Result<Vec<Option<P>>, CoreError> {
+        cells
+            .map(|cell| self.point(cell, budget).map(Some))
+            .collect()
     }
 
     fn spec(&self) -> Option<StudySpec> {
@@ -516,7 +519,9 @@ where
     let done = std::sync::Mutex::new(0usize);
     let finished = engine::run(&study, executor, budget, &|_, point| {
         if let Some(point) = point {
-            let mut done = done.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+            let mut done = done
+                .lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner);
             *done += 1;
             emit(L::point(*done, total, point.clone()));
         }

@@ -15,11 +15,12 @@ use std::collections::BTreeMap;
 
 use serde::Serialize;
 
-use super::settings::{
-    self, check_samples, check_t_end, measure_timed, MAX_REPEATS, prepare_reference, prepare_setting,
-    progress_lines, stop_name, RunSpec, Setting, SettingsStudy, StudyJob, Truth, MAX_SETTINGS,
-};
 use super::engine::{Executor, Order};
+use super::settings::{
+    self, check_samples, check_t_end, measure_timed, prepare_reference, prepare_setting,
+    progress_lines, stop_name, RunSpec, Setting, SettingsStudy, StudyJob, Truth, MAX_REPEATS,
+    MAX_SETTINGS,
+};
 use super::StudySpec;
 use crate::diagnostics::fit_log_log;
 use crate::error::{CoreError, Field, Range};
@@ -242,8 +243,7 @@ fn point(
         _ => 1,
     };
     let repeats = usize::try_from(repeats).unwrap_or(usize::MAX);
-    let (outcome, sink, timings) =
-        measure_timed(sim, truth.energies.as_deref(), budget, repeats)?;
+    let (outcome, sink, timings) = measure_timed(sim, truth.energies.as_deref(), budget, repeats)?;
     let wall_ms = settings::median(&timings);
     let finished = outcome.stop == StopReason::Finished;
     let tolerance = match method {
@@ -260,7 +260,11 @@ fn point(
         h: tolerance.is_none().then_some(sim.schedule.h),
         tolerance,
         wall_ms,
-        timings_ms: if timings.len() > 1 { timings } else { Vec::new() },
+        timings_ms: if timings.len() > 1 {
+            timings
+        } else {
+            Vec::new()
+        },
         steps: outcome.stats.steps,
         force_evaluations: outcome.stats.force_evaluations,
         max_energy_error: finished.then_some(sink.max_energy_error),
@@ -292,7 +296,8 @@ pub fn run<E: Executor>(
     budget: Budget<'_>,
     emit: &(dyn Fn(StudyLine) -> bool + Sync),
 ) -> Result<WorkPrecisionDocument, CoreError> {
-    let (truth, points) = settings::run_settings(job, executor, budget, emit, |truth| study(job, truth))?;
+    let (truth, points) =
+        settings::run_settings(job, executor, budget, emit, |truth| study(job, truth))?;
 
     let mut fits = Vec::new();
     for run in 0..job.settings.last().map_or(0, |s| s.0 + 1) {

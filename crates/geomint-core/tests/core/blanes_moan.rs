@@ -17,7 +17,13 @@ use nalgebra::U1;
 /// The distance of `choice`'s end state from the reference's, per step size.
 fn errors(sys: &Pendulum, choice: Method, hs: &[f64], t_end: f64) -> Vec<f64> {
     let start = State::from_slices(U1, &[1.2], &[0.3]);
-    let truth = final_state(sys, &Method::Reference { tolerance: 1e-14 }, &start, 0.5, t_end);
+    let truth = final_state(
+        sys,
+        &Method::Reference { tolerance: 1e-14 },
+        &start,
+        0.5,
+        t_end,
+    );
     hs.iter()
         .map(|&h| {
             let z = final_state(sys, &choice, &start, h, t_end);
@@ -38,7 +44,10 @@ fn s6_is_of_order_4_on_the_damped_pendulum_and_srkn11_of_order_6_undamped() {
     );
     let order = log_log_slope(&hs, &s6);
     println!("S6 on the damped pendulum: observed order {order:.3}, errors {s6:?}");
-    assert!((order - 4.0).abs() < 0.15, "S6 observed order {order:.3}: {s6:?}");
+    assert!(
+        (order - 4.0).abs() < 0.15,
+        "S6 observed order {order:.3}: {s6:?}"
+    );
     // Larger steps for order 6, whose error at h = 0.05 already nears the reference's.
     let hs = [0.8, 0.4, 0.2];
     let srkn = errors(
@@ -49,7 +58,10 @@ fn s6_is_of_order_4_on_the_damped_pendulum_and_srkn11_of_order_6_undamped() {
     );
     let order = log_log_slope(&hs, &srkn);
     println!("SRKN11b on the pendulum: observed order {order:.3}, errors {srkn:?}");
-    assert!((order - 6.0).abs() < 0.3, "SRKN11b observed order {order:.3}: {srkn:?}");
+    assert!(
+        (order - 6.0).abs() < 0.3,
+        "SRKN11b observed order {order:.3}: {srkn:?}"
+    );
     // What the optimisation buys: at h = 0.2 (40 steps of 11 force evaluations) it is far more
     // accurate than the sixth-order composition of velocity Verlet at the same cost (63 steps
     // of 7).
@@ -62,8 +74,16 @@ fn s6_is_of_order_4_on_the_damped_pendulum_and_srkn11_of_order_6_undamped() {
         &[t_end / 63.0],
         t_end,
     );
-    println!("at equal force evaluations: SRKN11b {:e}, yoshida_6(velocity_verlet) {:e}", srkn[2], yoshida[0]);
-    assert!(srkn[2] < yoshida[0] / 10.0, "SRKN11b {:e} against yoshida_6 {:e}", srkn[2], yoshida[0]);
+    println!(
+        "at equal force evaluations: SRKN11b {:e}, yoshida_6(velocity_verlet) {:e}",
+        srkn[2], yoshida[0]
+    );
+    assert!(
+        srkn[2] < yoshida[0] / 10.0,
+        "SRKN11b {:e} against yoshida_6 {:e}",
+        srkn[2],
+        yoshida[0]
+    );
 }
 
 #[test]
@@ -73,9 +93,15 @@ fn the_sequences_are_consistent_and_symmetric() {
         ("blanes_moan_srkn11", splitting::BLANES_MOAN_SRKN11),
     ] {
         let total = |kinds: &[SubFlow]| -> f64 {
-            seq.iter().filter(|(f, _)| kinds.contains(f)).map(|(_, w)| w).sum()
+            seq.iter()
+                .filter(|(f, _)| kinds.contains(f))
+                .map(|(_, w)| w)
+                .sum()
         };
-        assert!((total(&[SubFlow::Drift]) - 1.0).abs() < 1e-15, "{name}: drifts");
+        assert!(
+            (total(&[SubFlow::Drift]) - 1.0).abs() < 1e-15,
+            "{name}: drifts"
+        );
         let kicks = total(&[SubFlow::Kick, SubFlow::KickDamp]);
         assert!((kicks - 1.0).abs() < 1e-15, "{name}: kicks {kicks}");
         assert!(
@@ -83,5 +109,11 @@ fn the_sequences_are_consistent_and_symmetric() {
             "{name}: not palindromic"
         );
     }
-    assert_eq!(splitting::BLANES_MOAN_SRKN11.iter().filter(|(f, _)| *f == SubFlow::Kick).count(), 12);
+    assert_eq!(
+        splitting::BLANES_MOAN_SRKN11
+            .iter()
+            .filter(|(f, _)| *f == SubFlow::Kick)
+            .count(),
+        12
+    );
 }

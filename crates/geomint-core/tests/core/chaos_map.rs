@@ -4,8 +4,8 @@ use geomint_core::chaos::{ChaosSpec, Indicator, Statistic};
 use geomint_core::error::{CoreError, Field};
 use geomint_core::methods::{Base, Method};
 use geomint_core::run::Budget;
-use geomint_core::studies::engine::Local;
 use geomint_core::simulation::{EnergySurface, InputFields, Limits, MethodAt, SimulationSpec};
+use geomint_core::studies::engine::Local;
 use geomint_core::studies::sweep::{self, Axis, Scale, SweepLine, SweepSpec, Target};
 use geomint_core::system::MechanicalSystem;
 use geomint_core::systems::HenonHeiles;
@@ -49,18 +49,34 @@ fn section(e: f64, n: usize, t_end: f64, chaos: ChaosSpec) -> SweepSpec {
 
 #[test]
 fn a_megno_map_of_the_henon_heiles_section_marks_the_cells_off_the_surface() {
-    let spec = section(0.125, 11, 200.0, ChaosSpec::new(&[Indicator::Megno, Indicator::Fli]));
+    let spec = section(
+        0.125,
+        11,
+        200.0,
+        ChaosSpec::new(&[Indicator::Megno, Indicator::Fli]),
+    );
     let job = spec.prepare(&Limits::default()).expect("a valid sweep");
     let document = sweep::run(&job, &Local, Budget::default(), &|_: SweepLine| true).expect("runs");
     let run = &document.runs[0];
     let chaos = run.chaos.as_ref().expect("chaos columns");
-    let sys = HenonHeiles { lambda: 1.0, gamma: 0.0 };
+    let sys = HenonHeiles {
+        lambda: 1.0,
+        gamma: 0.0,
+    };
     let (mut on, mut off, mut chaotic) = (0, 0, 0);
     for cell in 0..document.cells {
-        let (y, py) = (document.axes[0].values[cell % 11], document.axes[1].values[cell / 11]);
+        let (y, py) = (
+            document.axes[0].values[cell % 11],
+            document.axes[1].values[cell / 11],
+        );
         // p_x² = 2E − p_y² − y² + 2y³/3 must not be negative.
         let reachable = 2.0 * 0.125 - py * py - y * y + 2.0 * y * y * y / 3.0 >= 0.0;
-        assert_eq!(run.errors[cell].is_none(), reachable, "cell {cell}: {:?}", run.errors[cell]);
+        assert_eq!(
+            run.errors[cell].is_none(),
+            reachable,
+            "cell {cell}: {:?}",
+            run.errors[cell]
+        );
         if reachable {
             on += 1;
             let megno = chaos.megno_mean[cell].expect("⟨Y⟩");
@@ -69,7 +85,10 @@ fn a_megno_map_of_the_henon_heiles_section_marks_the_cells_off_the_surface() {
             assert_eq!(chaos.sali[cell], None);
         } else {
             off += 1;
-            assert!(run.errors[cell].as_deref().unwrap().contains("energy_surface.energy"));
+            assert!(run.errors[cell]
+                .as_deref()
+                .unwrap()
+                .contains("energy_surface.energy"));
             assert_eq!(chaos.megno_mean[cell], None);
         }
     }
@@ -77,7 +96,12 @@ fn a_megno_map_of_the_henon_heiles_section_marks_the_cells_off_the_surface() {
     let mut spec = SimulationSpec {
         q0: Some(vec![0.0, 0.0]),
         p0: Some(vec![0.0, 0.0]),
-        ..SimulationSpec::new("henon_heiles", &[Method::triple_jump(Base::VelocityVerlet)], 0.05, 1.0)
+        ..SimulationSpec::new(
+            "henon_heiles",
+            &[Method::triple_jump(Base::VelocityVerlet)],
+            0.05,
+            1.0,
+        )
     };
     let surface = EnergySurface {
         energy: 0.125,
@@ -124,7 +148,10 @@ fn a_threshold_stops_cells_which_keep_their_values_and_stop_time() {
 fn a_surface_no_cell_reaches_is_refused_with_the_least_energy_of_the_grid() {
     let spec = section(-0.01, 5, 10.0, ChaosSpec::new(&[Indicator::Megno]));
     let error = spec.prepare(&Limits::default()).unwrap_err();
-    let CoreError::NoEnergySolution { ref field, lowest, .. } = error else {
+    let CoreError::NoEnergySolution {
+        ref field, lowest, ..
+    } = error
+    else {
         panic!("{error}")
     };
     assert_eq!(field.as_str(), "energy_surface.energy");

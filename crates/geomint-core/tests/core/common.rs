@@ -1,6 +1,5 @@
 //! Helpers shared by the core integration tests.
 
-
 use geomint_core::methods::{self, Method, MethodId};
 use geomint_core::run::{integrate, Budget, Observer, Schedule, Stepper, StopReason};
 use geomint_core::simulation::{ColumnSink, Columns, Limits, Outcome, Simulation, SimulationSpec};

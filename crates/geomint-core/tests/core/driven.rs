@@ -26,7 +26,8 @@ fn steps(order: u32) -> &'static [f64] {
 fn every_method_that_takes_time_has_its_order_on_the_driven_duffing_oscillator() {
     let info = duffing(0.3, 0.5, 1.2);
     let t_end = 4.0;
-    let build = |h: f64| -> AnySystem { info.build(&Default::default(), &info.charts[0], h).unwrap() };
+    let build =
+        |h: f64| -> AnySystem { info.build(&Default::default(), &info.charts[0], h).unwrap() };
     let system = build(0.1);
     let reference = with_system!(&system, sys => {
         let start = State::at_time(sys, 0.0, &[1.0], &[0.0]);
@@ -67,7 +68,10 @@ fn every_method_that_takes_time_has_its_order_on_the_driven_duffing_oscillator()
             method.label()
         );
     }
-    println!("driven damped Duffing, observed orders: {}", report.join(", "));
+    println!(
+        "driven damped Duffing, observed orders: {}",
+        report.join(", ")
+    );
     println!("refused: {}", refused.join(", "));
     assert_eq!(
         refused,

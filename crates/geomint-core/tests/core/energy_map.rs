@@ -42,7 +42,13 @@ fn map_of(
 
 fn fig6(t_max: f64) -> EnergyMapJob {
     let grid = ([-1.5, 1.5], [-1.5, 1.5]);
-    map_of(MethodId::SymplecticEuler, [1.0, 1.0, 1.0, 0.02], t_max, (N, N), grid)
+    map_of(
+        MethodId::SymplecticEuler,
+        [1.0, 1.0, 1.0, 0.02],
+        t_max,
+        (N, N),
+        grid,
+    )
 }
 
 #[test]

@@ -175,10 +175,8 @@ const SRKN11_A: [f64; 5] = [
     -0.246331761062075,
     0.357208872795928,
 ];
-const SRKN11_B6: f64 =
-    0.5 - (SRKN11_B[0] + SRKN11_B[1] + SRKN11_B[2] + SRKN11_B[3] + SRKN11_B[4]);
-const SRKN11_A6: f64 =
-    0.5 - (SRKN11_A[0] + SRKN11_A[1] + SRKN11_A[2] + SRKN11_A[3] + SRKN11_A[4]);
+const SRKN11_B6: f64 = 0.5 - (SRKN11_B[0] + SRKN11_B[1] + SRKN11_B[2] + SRKN11_B[3] + SRKN11_B[4]);
+const SRKN11_A6: f64 = 0.5 - (SRKN11_A[0] + SRKN11_A[1] + SRKN11_A[2] + SRKN11_A[3] + SRKN11_A[4]);
 
 /// Blanes & Moan's SRKN₁₁ᵇ: order 6 for H = T(p) + V(q) with T quadratic (a
 /// Runge–Kutta–Nyström splitting: kicks commute with [kick, [kick, drift]]), kick first; eleven

@@ -34,7 +34,9 @@ use crate::methods::Method;
 use crate::run::{step_count, Budget};
 use crate::simulation::{InitialCoordinates, Limits, MethodAt};
 use crate::studies::engine::{self, Executor, Finished, Local, Progress, Study};
-use crate::studies::sweep::{Axis, EnergyReference, RunMetrics, Scale, SweepJob, SweepSpec, Target};
+use crate::studies::sweep::{
+    Axis, EnergyReference, RunMetrics, Scale, SweepJob, SweepSpec, Target,
+};
 use crate::system::MechanicalSystem;
 use crate::systems::{self, ParamValue, PlanarCartesian, PlanarKind, PlanarPolar, PlanarSpring};
 
@@ -294,7 +296,13 @@ pub struct EnergyMapSpec {
 impl EnergyMapSpec {
     /// Checks the grid and the work against the limits, and the method against the polar
     /// chart's Hamiltonian; errors name the request's fields (`nx`, `x`, `t_max`, `method`).
-    fn check(&self, method: &Method, pendulum: &PlanarSpring, h: f64, steps: u64) -> Result<(), CoreError> {
+    fn check(
+        &self,
+        method: &Method,
+        pendulum: &PlanarSpring,
+        h: f64,
+        steps: u64,
+    ) -> Result<(), CoreError> {
         for (name, n) in [("nx", self.nx), ("ny", self.ny)] {
             if n == 0 || n > MAX_AXIS {
                 return Err(CoreError::Count {

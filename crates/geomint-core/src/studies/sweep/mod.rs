@@ -26,9 +26,9 @@ pub use axis::{Axis, Grid, Scale, Target};
 pub use document::{AxisDocument, ChaosColumns, RunColumns, SweepDocument};
 pub use metrics::{ChaosMetrics, EnergyReference, RunMetrics};
 
+use crate::chaos::ChaosSpec;
 use crate::error::{CoreError, ErrorDetail, Field, StepScope};
 use crate::run::{step_count, Budget, StopReason};
-use crate::chaos::ChaosSpec;
 use crate::simulation::{
     EnergySurface, InitialCoordinates, InputFields, Limits, MethodAt, Simulation, SimulationSpec,
 };

@@ -224,10 +224,7 @@ pub fn define(definition: CustomDefinition, id: &str) -> Result<Arc<SystemInfo>,
 
 /// The methods that run on a system of this structure and damping (the plain methods, and
 /// each composition when some base runs).
-pub(crate) fn applicable(
-    structure: crate::system::Structure,
-    rate: f64,
-) -> Vec<&'static str> {
+pub(crate) fn applicable(structure: crate::system::Structure, rate: f64) -> Vec<&'static str> {
     MethodId::ALL
         .iter()
         .filter(|&&id| {

@@ -120,7 +120,11 @@ fn the_field_in_s_is_the_difference_quotient_along_the_solution() {
         let dp_ds = (-(t + d).sin() + (t - d).sin()) / ds;
         let dt_ds = 2.0 * d / ds;
         let (f_q, f_p) = (-t.sin(), -t.cos());
-        for (got, want) in [(f_q / sigma, dq_ds), (f_p / sigma, dp_ds), (1.0 / sigma, dt_ds)] {
+        for (got, want) in [
+            (f_q / sigma, dq_ds),
+            (f_p / sigma, dp_ds),
+            (1.0 / sigma, dt_ds),
+        ] {
             assert!(
                 (got - want).abs() <= 1e-8 * (1.0 + want.abs()),
                 "t = {t}: {got} against {want}"

@@ -65,11 +65,19 @@ fn ten_thousand_points_lie_on_the_surface_and_the_energy_level_to_round_off() {
     );
     let (out, outcome) = run(&sim);
     let section = &out.section;
-    assert!(matches!(outcome.stop, StopReason::Event { .. }), "{:?}", outcome.stop);
+    assert!(
+        matches!(outcome.stop, StopReason::Event { .. }),
+        "{:?}",
+        outcome.stop
+    );
     assert_eq!(section.len() as u64, points, "{:?}", out.summary);
     assert_eq!(out.events.t.last(), section.t.last());
     let worst_y = section.q.iter().map(|q| q[1].abs()).fold(0.0, f64::max);
-    let worst_h = section.energy.iter().map(|h| (h - E).abs()).fold(0.0, f64::max);
+    let worst_h = section
+        .energy
+        .iter()
+        .map(|h| (h - E).abs())
+        .fold(0.0, f64::max);
     let least_py = section.p.iter().map(|p| p[1]).fold(f64::INFINITY, f64::min);
     println!(
         "{points} points to t = {:.0}: |y| ≤ {worst_y:e}, |H − E| ≤ {worst_h:e}, p_y ≥ {least_py:e}",
@@ -80,8 +88,16 @@ fn ten_thousand_points_lie_on_the_surface_and_the_energy_level_to_round_off() {
     assert!(least_py > 0.0);
     assert_eq!(out.summary.as_ref().map(|s| s.unlocated), Some(0));
     // The points are the run's own: H at the samples drifts no more than at the points.
-    let sample_drift = out.samples.energy.iter().map(|h| (h - E).abs()).fold(0.0, f64::max);
-    assert!(sample_drift <= 1e-12, "the run's |H − E| up to {sample_drift:e}");
+    let sample_drift = out
+        .samples
+        .energy
+        .iter()
+        .map(|h| (h - E).abs())
+        .fold(0.0, f64::max);
+    assert!(
+        sample_drift <= 1e-12,
+        "the run's |H − E| up to {sample_drift:e}"
+    );
 }
 
 #[test]
@@ -189,5 +205,3 @@ fn a_located_crossing_lies_on_each_methods_own_trajectory() {
     }
     println!("observed local orders: {}", report.join(", "));
 }
-
-

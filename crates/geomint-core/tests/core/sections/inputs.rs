@@ -7,7 +7,10 @@ use geomint_core::methods::{Method, MethodId};
 use geomint_core::sections::{Direction, EnergyLevel};
 use geomint_core::simulation::{Limits, Simulation, SimulationSpec, Watching};
 
-fn watch(system: std::sync::Arc<geomint_core::systems::SystemInfo>, w: Watching) -> Result<Simulation, CoreError> {
+fn watch(
+    system: std::sync::Arc<geomint_core::systems::SystemInfo>,
+    w: Watching,
+) -> Result<Simulation, CoreError> {
     let mut spec = SimulationSpec::new(system, &[Method::new(MethodId::Rk4)], 0.1, 10.0);
     spec.q0 = Some(vec![0.1, 0.0]);
     spec.p0 = Some(vec![0.0, 0.3]);
@@ -40,12 +43,24 @@ fn a_bad_expression_is_refused_at_its_field_and_character() {
 #[test]
 fn numbers_out_of_bounds_name_their_field() {
     let cases = [
-        (Some(section("y", Direction::Up, 0)), None, "section.max_points"),
-        (Some(section("y", Direction::Up, 2_000_000)), None, "section.max_points"),
+        (
+            Some(section("y", Direction::Up, 0)),
+            None,
+            "section.max_points",
+        ),
+        (
+            Some(section("y", Direction::Up, 2_000_000)),
+            None,
+            "section.max_points",
+        ),
         (Some(stroboscopic(0.0, 0.0, 10)), None, "section.period"),
         (Some(stroboscopic(-1.0, 0.0, 10)), None, "section.period"),
         (Some(stroboscopic(1.0, f64::NAN, 10)), None, "section.phase"),
-        (Some(stroboscopic(1.0, f64::INFINITY, 10)), None, "section.phase"),
+        (
+            Some(stroboscopic(1.0, f64::INFINITY, 10)),
+            None,
+            "section.phase",
+        ),
         (None, Some(event("y", Direction::Up, 0)), "stop_when.count"),
     ];
     for (section, stop_when, field) in cases {
@@ -136,7 +151,12 @@ fn methods_that_cannot_take_time_are_refused_naming_the_method() {
         }
     }
     // Undamped, rowlands is refused for the time alone.
-    let mut spec = SimulationSpec::new(duffing(0.0, 0.5, 1.2), &[Method::new(MethodId::Rowlands)], 0.1, 1.0);
+    let mut spec = SimulationSpec::new(
+        duffing(0.0, 0.5, 1.2),
+        &[Method::new(MethodId::Rowlands)],
+        0.1,
+        1.0,
+    );
     spec.q0 = Some(vec![1.0]);
     spec.p0 = Some(vec![0.0]);
     let e = Simulation::prepare(&spec, &Limits::default()).unwrap_err();

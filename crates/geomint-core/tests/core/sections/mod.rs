@@ -12,13 +12,11 @@ use std::sync::Arc;
 use geomint_core::error::Field;
 use geomint_core::methods::Method;
 use geomint_core::run::Budget;
+use geomint_core::sections::{Crossing, CrossingKind, SectionSummary};
 use geomint_core::sections::{Direction, EventSpec, SectionSpec, SurfaceSpec};
 use geomint_core::simulation::crossings::CrossingColumns;
-use geomint_core::simulation::{
-    Columns, Limits, Simulation, SimulationSpec, Watching,
-};
+use geomint_core::simulation::{Columns, Limits, Simulation, SimulationSpec, Watching};
 use geomint_core::simulation::{Sample, SampleSink};
-use geomint_core::sections::{Crossing, CrossingKind, SectionSummary};
 use geomint_core::systems::custom::{self, CustomDefinition, Damping, Energy, Expression, Mass};
 use geomint_core::systems::{SystemInfo, SystemRef};
 
@@ -47,7 +45,10 @@ pub fn separable(
             potential: expr("potential", potential),
         },
         damping,
-        parameters: parameters.iter().map(|(n, v)| (n.to_string(), *v)).collect(),
+        parameters: parameters
+            .iter()
+            .map(|(n, v)| (n.to_string(), *v))
+            .collect(),
         invariants: Vec::new(),
         positions: None,
         q0: None,

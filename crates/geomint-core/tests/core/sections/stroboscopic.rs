@@ -49,7 +49,11 @@ fn a_periodic_orbit_repeats_in_the_stroboscopic_section() {
     let repeat = (tail..x.len() - 1)
         .map(|k| (x[k + 1] - x[k]).abs().max((p[k + 1] - p[k]).abs()))
         .fold(0.0, f64::max);
-    println!("periodic regime: last 50 points repeat to {repeat:e} (x = {}, p = {})", x[x.len() - 1], p[p.len() - 1]);
+    println!(
+        "periodic regime: last 50 points repeat to {repeat:e} (x = {}, p = {})",
+        x[x.len() - 1],
+        p[p.len() - 1]
+    );
     assert!(repeat <= 1e-10, "{repeat:e}");
 }
 
@@ -82,10 +86,17 @@ fn the_strange_attractor_has_the_reference_runs_statistics() {
             strobe(points + 100),
         );
         let (out, _) = run(&sim);
-        out.section.q[100..].iter().map(|q| q[0]).collect::<Vec<_>>()
+        out.section.q[100..]
+            .iter()
+            .map(|q| q[0])
+            .collect::<Vec<_>>()
     };
     let ours = collect(sixth_order(), period / 100.0, 10_000);
-    let reference = collect(Method::Reference { tolerance: 1e-10 }, period / 4.0, 100_000);
+    let reference = collect(
+        Method::Reference { tolerance: 1e-10 },
+        period / 4.0,
+        100_000,
+    );
     let (m1, s1, b1) = statistics(&ours);
     let (m2, s2, b2) = statistics(&reference);
     let l1: f64 = b1.iter().zip(&b2).map(|(a, b)| (a - b).abs()).sum();

@@ -55,7 +55,11 @@ pub(super) fn positive_semidefinite(m: &[f64], n: usize) -> bool {
 
 impl CustomModel {
     /// Checks that D(q) is symmetric and positive semidefinite at the sample points.
-    pub(super) fn check_damping_matrix(&self, matrix: &[NodeId], slots: &[f64]) -> Result<(), CoreError> {
+    pub(super) fn check_damping_matrix(
+        &self,
+        matrix: &[NodeId],
+        slots: &[f64],
+    ) -> Result<(), CoreError> {
         let n = self.n;
         let field = self.definition.field.key("damping").key("matrix");
         let mut values = slots.to_vec();

@@ -13,12 +13,12 @@ use super::system::{Compiled, CustomSystem, DampingModel, EnergyModel};
 use super::{applicable, CustomDefinition, Damping, DampingKind, Energy, Expression, Facts};
 use super::{MAX_COORDINATES, MAX_NAMES};
 use crate::error::{CoreError, Field, Range};
-use checks::uses;
 use crate::expr::{CompileOptions, CompiledFunction, ExprError, Graph, NodeId, Scope, Var};
 use crate::methods::{build, Method, MethodId};
 use crate::system::Structure;
 use crate::systems::world::Drawing;
 use crate::systems::{AnySystem, ParamValues, World};
+use checks::uses;
 
 /// The graph nodes of the energy.
 #[derive(Clone, Debug)]
