@@ -10,7 +10,9 @@ use std::io::Write;
 use std::time::Instant;
 
 use geomint::api::sweep::{presets, SweepRequest};
+use geomint::api::system::NoStoredSystems;
 use geomint::core::run::Budget;
+use geomint::core::studies::engine::Local;
 use geomint::core::studies::sweep::{self, SweepLine};
 use serde_json::json;
 
@@ -41,14 +43,15 @@ fn main() {
     let job = SweepRequest::from_value(&request)
         .map_err(|e| e.message)
         .and_then(|r| {
-            r.to_spec()
+            r.to_spec(&NoStoredSystems)
                 .map_err(|e| e.message)?
                 .prepare(&Default::default())
                 .map_err(|e| e.to_string())
         })
         .expect("a valid sweep");
     let (cpu, wall) = (cpu_seconds(), Instant::now());
-    let doc = sweep::run(&job, Budget::default(), &|_: SweepLine| true).expect("the map runs");
+    let doc =
+        sweep::run(&job, &Local, Budget::default(), &|_: SweepLine| true).expect("the map runs");
     let (wall, cpu) = (wall.elapsed().as_secs_f64(), cpu_seconds() - cpu);
     let run = &doc.runs[0];
     let megno = &run.chaos.as_ref().expect("indicators").megno_mean;

@@ -25,7 +25,7 @@ fn main() {
     let mut times: Vec<f64> = (0..6)
         .map(|_| {
             let began = Instant::now();
-            bytes = recording::rrd_bytes(&spec, &doc)
+            bytes = recording::rrd_bytes(&recording::Spec::of(&spec), &doc)
                 .expect("a recording")
                 .len();
             began.elapsed().as_secs_f64() * 1e3

@@ -58,7 +58,8 @@ pub fn start(n: usize, k: usize) -> DMatrix<f64> {
 }
 
 /// 2^e for |e| ≤ 1022, exactly.
-pub fn power_of_two(e: i32) -> f64 {
+#[inline(always)]
+pub const fn power_of_two(e: i32) -> f64 {
     f64::from_bits(((1023 + e) as u64) << 52)
 }
 
@@ -74,10 +75,16 @@ pub fn guard(w: &mut DMatrix<f64>, exponents: &mut [i32]) {
         for x in column.iter() {
             n2 += x * x;
         }
-        if !(n2 <= power_of_two(GUARD_EXPONENT) && n2 >= power_of_two(-GUARD_EXPONENT)) {
+        if !in_range(n2) {
             *e += rescale(column);
         }
     }
+}
+
+/// Whether a column's squared norm `n2` is within [2⁻⁶⁰⁰, 2⁶⁰⁰] (false for NaN).
+#[inline(always)]
+pub fn in_range(n2: f64) -> bool {
+    n2 <= power_of_two(GUARD_EXPONENT) && n2 >= power_of_two(-GUARD_EXPONENT)
 }
 
 /// The binary exponent of a positive finite x (−1023 for subnormal numbers).

@@ -94,6 +94,14 @@ where
         self.plan.qr_every
     }
 
+    /// Adds the powers of two by which the deviation vectors were scaled outside the tracker
+    /// (the lanes keep them in range themselves) since it last saw them.
+    pub fn add_exponents(&mut self, exponents: &[i32]) {
+        for (e, x) in self.exponents.iter_mut().zip(exponents) {
+            *e += x;
+        }
+    }
+
     /// After step `step` (counted from 1): keeps the vectors in range, and on the grid updates
     /// the indicators. Returns the threshold a grid update found passed: the statistic, its
     /// value and the threshold.

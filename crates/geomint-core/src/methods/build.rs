@@ -96,6 +96,28 @@ where
     Processed(Box<Processed<AnyStepper<S>>>),
 }
 
+impl<S: MechanicalSystem> AnyStepper<S>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    /// The sub-flows of one step, for a splitting or a composition of splittings (none for the
+    /// other families, whose steps are not sequences of exact flows).
+    pub fn splitting_flows(&self) -> Option<&[(SubFlow, f64)]> {
+        Some(match self {
+            AnyStepper::Splitting(s) => s.flows(),
+            AnyStepper::Modin3s(s) => s.flows(),
+            AnyStepper::Modin2s(s) => s.flows(),
+            AnyStepper::ModinRks(s) => s.flows(),
+            AnyStepper::Csv1(s) => s.flows(),
+            AnyStepper::SymplecticEuler(s) => s.flows(),
+            AnyStepper::SymplecticEulerAdjoint(s) => s.flows(),
+            AnyStepper::PositionVerlet(s) => s.flows(),
+            AnyStepper::VelocityVerlet(s) => s.flows(),
+            _ => return None,
+        })
+    }
+}
+
 /// Runs `$body` with `$st` bound to the concrete stepper inside an [`AnyStepper`].
 #[macro_export]
 macro_rules! with_stepper {

@@ -11,9 +11,12 @@
 //! - [`crossings`]: a run's Poincaré section, event and energy level, as the stream and the
 //!   document carry them.
 //! - [`surface`]: an initial state on an energy surface, one momentum solved from H = E.
+//! - `lanes`: runs from up to four initial states side by side in SIMD lanes, with their chaos
+//!   indicators ([`Simulation::run_side_by_side`]).
 
 pub mod crossings;
 pub mod document;
+mod lanes;
 pub mod run;
 pub mod spec;
 pub mod stream;

@@ -110,27 +110,7 @@ impl Simulation {
             let mut stepper = methods::build(method, sys, &self.system_label, self.schedule.h)?;
             let start = State::at_time(sys, 0.0, &self.q0, &self.p0);
             let mut z = start.clone();
-            let n = self.q0.len();
-            let crossings = self.crossings.as_deref().filter(|_| watch);
-            let mut observer = Diagnose {
-                watch: crossings.map(|c| Watch::new(sys, c, &start)),
-                sys,
-                start: &start,
-                reference,
-                sink,
-                invariants: vec![0.0; sys.invariant_count()],
-                cartesian: (!sys.is_cartesian()).then(|| (vec![0.0; n], vec![0.0; n])),
-                drawing: match &self.world {
-                    World::Drawn(drawing) => Some((&**drawing, Vec::new())),
-                    _ => None,
-                },
-                expected_det: (-sys.damping_rate() * self.schedule.h * n as f64).exp(),
-                last_det: None,
-                indicators: None,
-                sample_index: 0,
-                initial_energy: (self.energy_reference() == Some(EnergyReference::Initial))
-                    .then(|| sys.energy(&start.q, &start.p)),
-            };
+            let mut observer = self.observer(sys, &start, reference, sink, watch);
             let mut tracker = chaos.map(|plan| Tracker::new(sys, &z, plan, self.schedule.h));
             let tracking = match tracker.as_mut() {
                 Some(tracker) => Tracking::Chaos(tracker),
@@ -147,6 +127,43 @@ impl Simulation {
             }
             Ok(Outcome { stop, stats })
         })
+    }
+
+    /// The observer of a run of this simulation from `start` on `sys`: it turns the driver's
+    /// states into samples for `sink` and, when `watch` is set, watches the simulation's
+    /// section and event.
+    pub(super) fn observer<'a, S: MechanicalSystem>(
+        &'a self,
+        sys: &'a S,
+        start: &'a State<S::Dim>,
+        reference: Option<&'a [f64]>,
+        sink: &'a mut dyn SampleSink,
+        watch: bool,
+    ) -> Diagnose<'a, S>
+    where
+        DefaultAllocator: Allocator<S::Dim>,
+    {
+        let n = self.q0.len();
+        let crossings = self.crossings.as_deref().filter(|_| watch);
+        Diagnose {
+            watch: crossings.map(|c| Watch::new(sys, c, start)),
+            sys,
+            start,
+            reference,
+            sink,
+            invariants: vec![0.0; sys.invariant_count()],
+            cartesian: (!sys.is_cartesian()).then(|| (vec![0.0; n], vec![0.0; n])),
+            drawing: match &self.world {
+                World::Drawn(drawing) => Some((&**drawing, Vec::new())),
+                _ => None,
+            },
+            expected_det: (-sys.damping_rate() * self.schedule.h * n as f64).exp(),
+            last_det: None,
+            indicators: None,
+            sample_index: 0,
+            initial_energy: (self.energy_reference() == Some(EnergyReference::Initial))
+                .then(|| sys.energy(&start.q, &start.p)),
+        }
     }
 
     /// The reference energies at the sample times (None unless `compare_to_reference`).
@@ -205,7 +222,7 @@ impl SampleSink for EnergyLog {
 
 /// The observer that turns raw states into [`Sample`]s, and watches every step for the
 /// crossings of a section or an event.
-struct Diagnose<'a, S: MechanicalSystem>
+pub(super) struct Diagnose<'a, S: MechanicalSystem>
 where
     DefaultAllocator: Allocator<S::Dim>,
 {

@@ -10,6 +10,7 @@ use nalgebra::{DMatrix, U2};
 use std::borrow::Cow;
 
 use super::{AnySystem, Builder, ChartInfo, ParamSpec, ParamValues, SystemInfo, World};
+use crate::methods::lanes::{Lane, LaneForces, LANES};
 use crate::system::{MechanicalSystem, Structure, Vector};
 
 /// The Hénon–Heiles system with unit masses and frequencies.
@@ -41,9 +42,7 @@ impl MechanicalSystem for HenonHeiles {
     }
     #[inline]
     fn grad_potential(&self, q: &Vector<U2>, out: &mut Vector<U2>) {
-        let (x, y) = (q[0], q[1]);
-        out[0] = x + 2.0 * self.lambda * x * y;
-        out[1] = y + self.lambda * (x * x - y * y);
+        [out[0], out[1]] = self.grad(q[0], q[1]);
     }
     #[inline]
     fn velocity(&self, _q: &Vector<U2>, p: &Vector<U2>, out: &mut Vector<U2>) {
@@ -54,13 +53,54 @@ impl MechanicalSystem for HenonHeiles {
         2.0 * self.gamma
     }
     fn hess_potential(&self, q: &Vector<U2>, out: &mut DMatrix<f64>) -> u64 {
-        let (x, y) = (q[0], q[1]);
-        let (cx, cy) = (2.0 * self.lambda * x, 2.0 * self.lambda * y);
-        out[(0, 0)] = 1.0 + cy;
-        out[(0, 1)] = cx;
-        out[(1, 0)] = cx;
-        out[(1, 1)] = 1.0 - cy;
+        let [[a, b], [c, d]] = self.hessian(q[0], q[1]);
+        out[(0, 0)] = a;
+        out[(0, 1)] = b;
+        out[(1, 0)] = c;
+        out[(1, 1)] = d;
         0
+    }
+}
+
+/// The force and Hessian at one point: the one formula the one-run path and the lanes share.
+impl HenonHeiles {
+    #[inline(always)]
+    fn grad(&self, x: f64, y: f64) -> [f64; 2] {
+        [
+            x + 2.0 * self.lambda * x * y,
+            y + self.lambda * (x * x - y * y),
+        ]
+    }
+
+    #[inline(always)]
+    fn hessian(&self, x: f64, y: f64) -> [[f64; 2]; 2] {
+        let (cx, cy) = (2.0 * self.lambda * x, 2.0 * self.lambda * y);
+        [[1.0 + cy, cx], [cx, 1.0 - cy]]
+    }
+}
+
+impl LaneForces<2> for HenonHeiles {
+    #[inline(always)]
+    fn velocity_lanes(&self, p: &[Lane; 2], v: &mut [Lane; 2]) {
+        *v = *p;
+    }
+
+    #[inline(always)]
+    fn grad_lanes(&self, q: &[Lane; 2], g: &mut [Lane; 2]) {
+        for l in 0..LANES {
+            [g[0][l], g[1][l]] = self.grad(q[0][l], q[1][l]);
+        }
+    }
+
+    #[inline(always)]
+    fn hessian_lanes(&self, q: &[Lane; 2], hess: &mut [[Lane; 2]; 2]) {
+        for l in 0..LANES {
+            let [[a, b], [c, d]] = self.hessian(q[0][l], q[1][l]);
+            hess[0][0][l] = a;
+            hess[0][1][l] = b;
+            hess[1][0][l] = c;
+            hess[1][1][l] = d;
+        }
     }
 }
 

@@ -1,14 +1,17 @@
-//! Chaos maps: sweeps whose runs report indicators, over initial states on an energy surface.
+//! Chaos maps: sweeps whose runs report indicators, over initial states on an energy surface;
+//! in SIMD lanes with the one-cell path's numbers bit for bit.
 
 use geomint_core::chaos::{ChaosSpec, Indicator, Statistic};
 use geomint_core::error::{CoreError, Field};
-use geomint_core::methods::{Base, Method};
+use geomint_core::methods::{Base, Method, MethodId};
 use geomint_core::run::Budget;
 use geomint_core::simulation::{EnergySurface, InputFields, Limits, MethodAt, SimulationSpec};
 use geomint_core::studies::engine::Local;
-use geomint_core::studies::sweep::{self, Axis, Scale, SweepLine, SweepSpec, Target};
+use geomint_core::studies::sweep::{
+    self, Axis, Scale, SweepDocument, SweepJob, SweepLine, SweepSpec, Target,
+};
 use geomint_core::system::MechanicalSystem;
-use geomint_core::systems::HenonHeiles;
+use geomint_core::systems::{HenonHeiles, ParamValue};
 
 /// The Hénon–Heiles (y, p_y) section at x = 0 and energy `e`, n × n cells over [−0.5, 0.5]²,
 /// p_x solved from the energy, with `chaos`.
@@ -162,4 +165,140 @@ fn a_surface_no_cell_reaches_is_refused_with_the_least_energy_of_the_grid() {
     twice.axes[1].target = Target::P0(0);
     let error = twice.prepare(&Limits::default()).unwrap_err();
     assert_eq!(error.field().unwrap().as_str(), "energy_surface.solve_for");
+}
+
+fn run(job: &SweepJob) -> SweepDocument {
+    sweep::run(job, &Local, Budget::default(), &|_: SweepLine| true).expect("runs")
+}
+
+/// The document as text without its wall time: the shortest decimals that read back to the
+/// same bits, −0 included.
+fn numbers(doc: &SweepDocument) -> String {
+    let mut v = serde_json::to_value(doc).unwrap();
+    v.as_object_mut().unwrap().remove("wall_ms");
+    v.to_string()
+}
+
+fn methods(methods: &[Method]) -> Vec<MethodAt> {
+    methods
+        .iter()
+        .enumerate()
+        .map(|(i, m)| MethodAt {
+            method: m.clone(),
+            field: InputFields::default().methods.index(i),
+        })
+        .collect()
+}
+
+#[test]
+fn chaos_maps_in_lanes_give_the_one_cell_paths_numbers_bit_for_bit() {
+    let all = [
+        Indicator::Lyapunov,
+        Indicator::Megno,
+        Indicator::Fli,
+        Indicator::Sali,
+        Indicator::Gali,
+    ];
+    // Every indicator with four vectors and an odd grid; above the escape energy 1/6, where
+    // orbits leave and blow up; thresholds met on the grid of updates; several methods in one
+    // sweep. 9 × 9 and 7 × 7 cells: the last group of four holds one cell.
+    let mut specs = vec![SweepSpec {
+        every: Some(333),
+        ..section(
+            0.125,
+            9,
+            100.0,
+            ChaosSpec {
+                deviations: Some(4),
+                qr_every: Some(7),
+                ..ChaosSpec::new(&all)
+            },
+        )
+    }];
+    specs.push(SweepSpec {
+        methods: methods(&[
+            Method::new(MethodId::VelocityVerlet),
+            Method::new(MethodId::SymplecticEuler),
+            Method::new(MethodId::BlanesMoanSrkn11),
+            Method::new(MethodId::PositionVerlet),
+        ]),
+        every: Some(97),
+        ..section(0.4, 7, 60.0, ChaosSpec::new(&[Indicator::Megno]))
+    });
+    specs.push(section(
+        1.0 / 6.0,
+        7,
+        300.0,
+        ChaosSpec {
+            deviations: Some(2),
+            qr_every: Some(5),
+            stop_when: vec![(Statistic::MegnoMean, 4.0), (Statistic::Sali, 1e-6)],
+            ..ChaosSpec::new(&[Indicator::Megno, Indicator::Sali])
+        },
+    ));
+    // (failed, diverged, stopped by a threshold, finished)
+    let mut outcomes = [0usize; 4];
+    for spec in specs {
+        let job = spec.prepare(&Limits::default()).expect("a valid sweep");
+        assert!(job.runs_in_lanes(), "{:?}", spec.methods);
+        let one_by_one = job.clone().cell_by_cell();
+        assert!(!one_by_one.runs_in_lanes());
+        let doc = run(&job);
+        assert_eq!(numbers(&doc), numbers(&run(&one_by_one)));
+        for r in &doc.runs {
+            let chaos = r.chaos.as_ref().expect("chaos columns");
+            for c in 0..doc.cells {
+                let k = if r.errors[c].is_some() {
+                    0
+                } else if r.diverged_at[c].is_some() {
+                    1
+                } else if chaos.stopped_at[c].is_some() {
+                    2
+                } else {
+                    3
+                };
+                outcomes[k] += 1;
+            }
+        }
+    }
+    println!("outcomes (failed, diverged, stopped, finished): {outcomes:?}");
+    assert!(outcomes.iter().all(|&n| n > 0), "outcomes {outcomes:?}");
+}
+
+#[test]
+fn chaos_maps_the_lanes_cannot_take_run_cell_by_cell() {
+    let megno = || ChaosSpec::new(&[Indicator::Megno]);
+    // Damped (the θ-kicks are no longer kicks), and a method that is not a splitting.
+    let mut damped = section(0.125, 3, 10.0, megno());
+    damped
+        .params
+        .insert("gamma".into(), ParamValue::Number(0.01));
+    let rk4 = SweepSpec {
+        methods: methods(&[Method::new(MethodId::Rk4)]),
+        ..section(0.125, 3, 10.0, megno())
+    };
+    for spec in [damped, rk4] {
+        let job = spec.prepare(&Limits::default()).expect("a valid sweep");
+        assert!(!job.runs_in_lanes(), "{:?}", spec.methods);
+        assert!(run(&job).runs[0].chaos.as_ref().unwrap().megno_mean[4].is_some());
+    }
+}
+
+#[test]
+fn a_chaos_map_in_lanes_stopped_by_its_budget_leaves_its_cells_unfinished() {
+    let job = section(0.125, 5, 100.0, ChaosSpec::new(&[Indicator::Megno]))
+        .prepare(&Limits::default())
+        .expect("a valid sweep");
+    assert!(job.runs_in_lanes());
+    let past = Budget {
+        cancel: None,
+        deadline: Some(std::time::Instant::now()),
+    };
+    let doc = sweep::run(&job, &Local, past, &|_: SweepLine| true).expect("a partial map");
+    // Every cell on the surface is unfinished; those off it fail before any step.
+    let errors = &doc.runs[0].errors;
+    assert!(!doc.unfinished_cells.is_empty());
+    for &cell in &doc.unfinished_cells {
+        assert!(errors[cell].as_deref().unwrap().contains("time limit"));
+    }
 }

@@ -76,6 +76,11 @@ where
         }
     }
 
+    /// The sub-flows of one step with their fractions of h, in the order they act.
+    pub fn flows(&self) -> &[(SubFlow, f64)] {
+        self.sequence.flows()
+    }
+
     /// Recomputes the h-dependent coefficients when the step size changes (once per fixed-step
     /// run; compositions of splittings are flattened into one sequence, so they too).
     #[inline]

@@ -1,9 +1,11 @@
-//! Sweeps whose every run has a batched stepper ([`LaneKernel`]: today symplectic Euler or its
-//! adjoint on the planar elastic pendulum), with axes over the initial state only and the energy
-//! error against H₀ at every step (paper 001 Fig. 6's energy map is one), run their cells four at
-//! a time in SIMD lanes, with the numbers of the one-cell path bit for bit: the lanes do its
-//! arithmetic operation for operation, and each run's metrics come out of the same [`Measure`]
-//! the one-cell path fills sample by sample.
+//! Sweeps whose runs go four at a time in SIMD lanes, with axes over the initial state only
+//! (the lanes share the parameters and the step), with the numbers of the one-cell path bit for
+//! bit:
+//! - energy maps ([`LaneKernel`]: symplectic Euler or its adjoint on the planar elastic
+//!   pendulum, the energy error against H₀ at every step; paper 001 Fig. 6's map is one), whose
+//!   metrics come out of the same [`Measure`] the one-cell path fills sample by sample;
+//! - chaos maps (runs with indicators that [`Simulation::runs_in_lanes`]), whose samples go to
+//!   the same observer and [`Measure`] as on the one-cell path.
 
 use std::ops::Range as Cells;
 
@@ -12,15 +14,25 @@ use super::{SweepJob, Target};
 pub(super) use crate::methods::lanes::LANES;
 use crate::methods::lanes::{LaneKernel, Start, Tally};
 use crate::run::Budget;
-use crate::simulation::Simulation;
+use crate::simulation::{SampleSink, Simulation};
 use crate::studies::engine::Study;
 use crate::system::{MechanicalSystem, State};
 use crate::systems::AnySystem;
 use crate::with_system;
 
-/// How the lanes run a sweep: one entry per run (method × chart), and the common schedule.
+/// How the lanes run a sweep.
 #[derive(Clone, Debug)]
-pub(super) struct LanePlan {
+pub(super) enum LanePlan {
+    /// An energy map's runs.
+    Energy(EnergyLanes),
+    /// A chaos map's runs, each prepared per group of cells.
+    Chaos,
+}
+
+/// How the lanes run an energy map: one entry per run (method × chart), and the common
+/// schedule.
+#[derive(Clone, Debug)]
+pub(super) struct EnergyLanes {
     runs: Vec<LaneRun>,
     h: f64,
     steps: u64,
@@ -34,15 +46,41 @@ struct LaneRun {
 }
 
 impl SweepJob {
-    /// The plan, if every run of the sweep has a kernel, is sampled at every step and measured
-    /// against H₀, with axes over q₀ and p₀ only (the lanes share the parameters and the step).
+    /// The plan, if the axes are over q₀ and p₀ only and the runs are those of a chaos map the
+    /// lanes take or of an energy map.
     pub(super) fn lane_plan(&self) -> Option<LanePlan> {
         let initial_state_only = self
             .grid
             .axes
             .iter()
             .all(|a| matches!(a.target, Target::Q0(_) | Target::P0(_)));
-        if self.against != EnergyReference::Initial || !initial_state_only || self.tracks_chaos() {
+        if !initial_state_only {
+            return None;
+        }
+        if self.tracks_chaos() {
+            return self.chaos_in_lanes().then_some(LanePlan::Chaos);
+        }
+        self.energy_lanes().map(LanePlan::Energy)
+    }
+
+    /// Whether every run of a chaos map goes side by side, judged at the grid's middle, first
+    /// and last cells (the first that can be prepared).
+    fn chaos_in_lanes(&self) -> bool {
+        let cells = self.cells();
+        let probes = [cells / 2, 0, cells.saturating_sub(1)];
+        self.against != EnergyReference::Reference
+            && (0..self.templates.len()).all(|k| {
+                probes
+                    .iter()
+                    .find_map(|&c| self.cell_simulation(k, &self.grid.point(c)).ok())
+                    .is_some_and(|sim| sim.runs_in_lanes())
+            })
+    }
+
+    /// The energy map's plan, if every run has a kernel, is sampled at every step and measured
+    /// against H₀.
+    fn energy_lanes(&self) -> Option<EnergyLanes> {
+        if self.against != EnergyReference::Initial {
             return None;
         }
         let mut runs = Vec::with_capacity(self.templates.len());
@@ -68,7 +106,7 @@ impl SweepJob {
             });
         }
         let (h, steps) = schedule?;
-        Some(LanePlan { runs, h, steps })
+        Some(EnergyLanes { runs, h, steps })
     }
 
     /// The runs of `cells` (at most [`LANES`]), side by side. As on the one-cell path, a cell
@@ -78,6 +116,63 @@ impl SweepJob {
     pub(super) fn lane_group(
         &self,
         plan: &LanePlan,
+        cells: Cells<usize>,
+        budget: Budget<'_>,
+    ) -> Vec<Option<Vec<RunMetrics>>> {
+        match plan {
+            LanePlan::Energy(plan) => self.energy_group(plan, cells, budget),
+            LanePlan::Chaos => self.chaos_group(cells, budget),
+        }
+    }
+
+    /// A chaos map's runs of `cells`, side by side: a run that cannot be prepared is that
+    /// run's result, as on the one-cell path.
+    fn chaos_group(&self, cells: Cells<usize>, budget: Budget<'_>) -> Vec<Option<Vec<RunMetrics>>> {
+        let mut results: Vec<Option<Vec<RunMetrics>>> = vec![Some(Vec::new()); cells.len()];
+        for k in 0..self.templates.len() {
+            let mut sims = Vec::with_capacity(cells.len());
+            let mut prepared = Vec::with_capacity(cells.len());
+            for cell in cells.clone() {
+                match self.cell_simulation(k, &self.grid.point(cell)) {
+                    Ok(sim) => {
+                        prepared.push(Ok(sims.len()));
+                        sims.push(sim);
+                    }
+                    Err(e) => prepared.push(Err(RunMetrics::failed(e.to_string()))),
+                }
+            }
+            let mut measures: Vec<Measure> =
+                sims.iter().map(|_| Measure::new(self.against)).collect();
+            let mut sinks: Vec<&mut dyn SampleSink> = measures
+                .iter_mut()
+                .map(|m| m as &mut dyn SampleSink)
+                .collect();
+            let Some(outcomes) = Simulation::run_side_by_side(&sims, budget, &mut sinks) else {
+                return vec![None; cells.len()];
+            };
+            let mut metrics: Vec<RunMetrics> = measures
+                .into_iter()
+                .zip(outcomes)
+                .map(|(measure, outcome)| match outcome {
+                    Ok(outcome) => measure.finish(&outcome),
+                    Err(e) => RunMetrics::failed(e.to_string()),
+                })
+                .collect();
+            // The runs in cell order, each taken out of `metrics` once.
+            for (result, run) in results.iter_mut().zip(prepared) {
+                let run = run.map_or_else(|failed| failed, |i| std::mem::take(&mut metrics[i]));
+                if let Some(runs) = result.as_mut() {
+                    runs.push(run);
+                }
+            }
+        }
+        results
+    }
+
+    /// An energy map's runs of `cells`, side by side.
+    fn energy_group(
+        &self,
+        plan: &EnergyLanes,
         cells: Cells<usize>,
         budget: Budget<'_>,
     ) -> Vec<Option<Vec<RunMetrics>>> {
@@ -136,7 +231,7 @@ impl SweepJob {
     }
 }
 
-impl LanePlan {
+impl EnergyLanes {
     /// Lane `i`'s metrics, as the one-cell path's [`Measure`] would have them: a state that
     /// stopped being finite at step s ends the run there (s steps, the state of step s − 1);
     /// each step costs one force evaluation, as in the composer's symplectic Euler (one kick)

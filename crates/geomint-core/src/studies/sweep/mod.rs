@@ -332,6 +332,19 @@ impl SweepJob {
         Ok(spec)
     }
 
+    /// Run `run` at the grid point `point`, prepared: on the energy surface, with the
+    /// indicators, against the reference run when the sweep measures against it.
+    fn cell_simulation(&self, run: usize, point: &[f64]) -> Result<Simulation, CoreError> {
+        let spec = self.cell_spec_on_surface(run, point)?;
+        let sim = Simulation::prepare(&spec, &self.limits)?;
+        let mut sim = match &self.chaos {
+            Some(chaos) => sim.with_chaos(chaos)?,
+            None => sim,
+        };
+        sim.compare_to_reference = self.against == EnergyReference::Reference;
+        Ok(sim)
+    }
+
     /// The spec of run `run` at `cell`.
     fn cell_spec(&self, run: usize, point: &[f64]) -> SimulationSpec {
         let mut spec = self.templates[run].clone();
@@ -436,21 +449,13 @@ impl SweepJob {
         let point = self.grid.point(cell);
         let mut results = Vec::with_capacity(self.templates.len());
         for run in 0..self.templates.len() {
-            let prepared = self.cell_spec_on_surface(run, &point).and_then(|spec| {
-                let sim = Simulation::prepare(&spec, &self.limits)?;
-                match &self.chaos {
-                    Some(chaos) => sim.with_chaos(chaos),
-                    None => Ok(sim),
-                }
-            });
-            let mut sim = match prepared {
+            let sim = match self.cell_simulation(run, &point) {
                 Ok(sim) => sim,
                 Err(e) => {
                     results.push(RunMetrics::failed(e.to_string()));
                     continue;
                 }
             };
-            sim.compare_to_reference = self.against == EnergyReference::Reference;
             let reference = match sim.reference_energies(budget) {
                 Ok(r) => r,
                 Err(CoreError::TimeLimit { .. } | CoreError::Cancelled { .. }) => return Ok(None),

@@ -1,7 +1,5 @@
-//! A batched stepper: symplectic Euler and its adjoint on the planar elastic pendulum, in either
-//! chart, four runs side by side with the state of [`LANES`] runs in arrays the compiler packs
-//! into SIMD registers (f64×2 on any x86-64, f64×4 where the CPU has AVX2, chosen when the run
-//! starts). The study engine asks [`LaneKernel::of`] for a method on a system; a sweep whose
+//! Symplectic Euler and its adjoint on the planar elastic pendulum, in either chart, four runs
+//! side by side. The study engine asks [`LaneKernel::of`] for a method on a system; a sweep whose
 //! runs all have a kernel runs its cells four at a time (paper 001 Fig. 6's energy map is such a
 //! sweep), measured against H₀ at every step.
 //!
@@ -26,17 +24,11 @@
 use std::sync::atomic::Ordering;
 use std::time::Instant;
 
+use super::{Lane, CHECK_EVERY, LANES};
 use crate::methods::{Method, MethodId};
 use crate::run::Budget;
 use crate::studies::sweep::metrics::DIVERGENCE;
 use crate::systems::{AnySystem, PlanarCartesian, PlanarKind, PlanarPolar, PlanarSpring};
-
-/// Cells integrated side by side.
-pub const LANES: usize = 4;
-/// One value per lane.
-pub type Lane = [f64; LANES];
-/// Steps between two looks at the budget (the one-cell path's interval).
-const CHECK_EVERY: u64 = 1024;
 
 /// The chart a lane kernel works in.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

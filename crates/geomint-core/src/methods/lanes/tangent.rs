@@ -1,0 +1,341 @@
+//! A composition of kicks and drifts (velocity Verlet and its compositions, the triple jump,
+//! Blanes–Moan's RKN splitting, symplectic Euler, …) on a separable system with constant mass,
+//! four runs side by side, each with deviation vectors advanced by the method's own tangent map:
+//! the step of a chaos map's cells.
+//!
+//! Each flow does what the composer's `step_tangent` does, in its order: a drift's tangent map
+//! δq ← δq + Σⱼ (τM⁻¹)ᵢⱼ δpⱼ and then the drift; a kick's δp ← 1·δp + Σⱼ (−τ∇²V)ᵢⱼ δqⱼ with ∇²V
+//! at q, and then the kick with the force, which is evaluated again only after a drift (the
+//! composer's force cache, so the evaluations count the same). The products by the zero
+//! entries of M⁻¹ are kept: they are what the one-run path computes. A step leaves the lanes to
+//! the caller when one of them needs a look: its state is no longer finite, or a deviation
+//! vector left the range the chaos frame keeps it in (see `chaos::frame`).
+
+// Lanes, components and columns are indexed side by side: loops over lane numbers are the form
+// the compiler vectorises.
+#![allow(clippy::needless_range_loop)]
+
+use nalgebra::DMatrix;
+
+use super::{Lane, LANES};
+use crate::chaos::frame;
+use crate::methods::splitting::SubFlow;
+
+/// A separable system with constant mass whose velocity, force and Hessian the lanes evaluate,
+/// each lane with exactly the arithmetic of the system's own `velocity`, `grad_potential` and
+/// `hess_potential` (an exact Hessian, which costs no gradient evaluations).
+pub trait LaneForces<const N: usize> {
+    /// v = M⁻¹p.
+    fn velocity_lanes(&self, p: &[Lane; N], v: &mut [Lane; N]);
+    /// ∇V(q).
+    fn grad_lanes(&self, q: &[Lane; N], g: &mut [Lane; N]);
+    /// ∇²V(q), row i and column j in `hess[i][j]`.
+    fn hessian_lanes(&self, q: &[Lane; N], hess: &mut [[Lane; N]; N]);
+}
+
+/// The most degrees of freedom a lane system may have (a bound for the guard's scratch column).
+pub const MAX_DIMENSION: usize = 16;
+
+/// One deviation vector in every lane.
+#[derive(Clone, Copy, Debug)]
+pub struct Column<const N: usize> {
+    /// δq.
+    pub q: [Lane; N],
+    /// δp.
+    pub p: [Lane; N],
+}
+
+/// A flow of the sequence with its time τ = fraction · h.
+#[derive(Clone, Copy, Debug)]
+enum Flow {
+    Drift(f64),
+    Kick(f64),
+}
+
+/// What ended an [`TangentLanes::advance`]: the steps taken and, for the last of them, the
+/// lanes whose state is not finite (its components do not sum to a finite number, the one-run
+/// path's test) and those with a deviation vector out of range.
+#[derive(Clone, Copy, Debug)]
+pub struct Advanced {
+    /// Steps taken.
+    pub steps: u64,
+    /// Per lane: the state's components do not sum to a finite number.
+    pub not_finite: [bool; LANES],
+    /// Per lane: a deviation vector's squared norm left [2⁻⁶⁰⁰, 2⁶⁰⁰].
+    pub out_of_range: [bool; LANES],
+}
+
+/// The runs of four cells and their deviation vectors.
+#[derive(Clone, Debug)]
+pub struct TangentLanes<const N: usize> {
+    flows: Vec<Flow>,
+    minv: [[f64; N]; N],
+    /// Positions.
+    pub q: [Lane; N],
+    /// Momenta.
+    pub p: [Lane; N],
+    /// The deviation vectors.
+    pub columns: Vec<Column<N>>,
+    grad: [Lane; N],
+    grad_valid: bool,
+    force_evaluations: u64,
+    avx2: bool,
+}
+
+impl<const N: usize> TangentLanes<N> {
+    /// The lanes of the splitting `flows` at step `h` with `k` deviation vectors, all zero, on
+    /// a system of damping rate `r`; the inverse mass matrix `minv` as the one-run path's
+    /// tangent map reads it. `None` unless every flow is a kick or a drift: without damping
+    /// (r = 0) a θ-kick is one too, to the bit (its state update is the kick's, and its tangent
+    /// coefficients (1 − (1−θ)rτ)/(1 + θrτ) and τ/(1 + θrτ) are exactly 1 and τ).
+    pub fn new(
+        flows: &[(SubFlow, f64)],
+        r: f64,
+        h: f64,
+        minv: [[f64; N]; N],
+        k: usize,
+    ) -> Option<Self> {
+        if N > MAX_DIMENSION {
+            return None;
+        }
+        let flows = flows
+            .iter()
+            .map(|&(flow, fraction)| match flow {
+                SubFlow::Drift => Some(Flow::Drift(fraction * h)),
+                SubFlow::Kick => Some(Flow::Kick(fraction * h)),
+                SubFlow::DampedKick(_) if r == 0.0 => Some(Flow::Kick(fraction * h)),
+                _ => None,
+            })
+            .collect::<Option<Vec<_>>>()?;
+        let zero = [[0.0; LANES]; N];
+        Some(TangentLanes {
+            flows,
+            minv,
+            q: zero,
+            p: zero,
+            columns: vec![Column { q: zero, p: zero }; k],
+            grad: zero,
+            grad_valid: false,
+            force_evaluations: 0,
+            #[cfg(target_arch = "x86_64")]
+            avx2: std::arch::is_x86_feature_detected!("avx2"),
+            #[cfg(not(target_arch = "x86_64"))]
+            avx2: false,
+        })
+    }
+
+    /// Force evaluations so far (every lane has taken the same).
+    pub fn force_evaluations(&self) -> u64 {
+        self.force_evaluations
+    }
+
+    /// Up to `steps` steps of every lane; stops early after a step that leaves a `watched` lane
+    /// not finite or with a deviation vector out of range.
+    pub fn advance<S: LaneForces<N>>(
+        &mut self,
+        sys: &S,
+        steps: u64,
+        watched: &[bool; LANES],
+    ) -> Advanced {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: the CPU supports AVX2, detected when the lanes were made.
+            return unsafe { self.advance_avx2(sys, steps, watched) };
+        }
+        self.advance_portable(sys, steps, watched)
+    }
+
+    /// [`Self::advance_portable`] compiled with AVX2 (f64×4 registers).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn advance_avx2<S: LaneForces<N>>(
+        &mut self,
+        sys: &S,
+        steps: u64,
+        watched: &[bool; LANES],
+    ) -> Advanced {
+        self.advance_portable(sys, steps, watched)
+    }
+
+    #[inline(always)]
+    fn advance_portable<S: LaneForces<N>>(
+        &mut self,
+        sys: &S,
+        steps: u64,
+        watched: &[bool; LANES],
+    ) -> Advanced {
+        let mut done = 0;
+        while done < steps {
+            self.step(sys);
+            done += 1;
+            let (not_finite, out_of_range) = self.look();
+            let flagged = (0..LANES).any(|i| watched[i] & (not_finite[i] | out_of_range[i]));
+            if flagged || done == steps {
+                return Advanced {
+                    steps: done,
+                    not_finite,
+                    out_of_range,
+                };
+            }
+        }
+        Advanced {
+            steps: 0,
+            not_finite: [false; LANES],
+            out_of_range: [false; LANES],
+        }
+    }
+
+    /// One step of every lane.
+    #[inline(always)]
+    fn step<S: LaneForces<N>>(&mut self, sys: &S) {
+        let mut v = [[0.0; LANES]; N];
+        // ∇²V at q, kept while q is (consecutive kicks): the same bits as evaluating it again.
+        let mut hess = [[[0.0; LANES]; N]; N];
+        let mut hess_valid = false;
+        for f in 0..self.flows.len() {
+            match self.flows[f] {
+                Flow::Drift(tau) => {
+                    let mut scaled = [[0.0; N]; N];
+                    for i in 0..N {
+                        for j in 0..N {
+                            scaled[i][j] = tau * self.minv[i][j];
+                        }
+                    }
+                    for c in self.columns.iter_mut() {
+                        for i in 0..N {
+                            let mut acc = [0.0; LANES];
+                            for l in 0..LANES {
+                                acc[l] = scaled[i][0] * c.p[0][l];
+                            }
+                            for j in 1..N {
+                                for l in 0..LANES {
+                                    acc[l] += scaled[i][j] * c.p[j][l];
+                                }
+                            }
+                            for l in 0..LANES {
+                                c.q[i][l] += acc[l];
+                            }
+                        }
+                    }
+                    sys.velocity_lanes(&self.p, &mut v);
+                    for i in 0..N {
+                        for l in 0..LANES {
+                            self.q[i][l] = tau * v[i][l] + self.q[i][l];
+                        }
+                    }
+                    self.grad_valid = false;
+                    hess_valid = false;
+                }
+                Flow::Kick(tau) => {
+                    if !hess_valid {
+                        sys.hessian_lanes(&self.q, &mut hess);
+                        hess_valid = true;
+                    }
+                    let nb = -tau;
+                    for c in self.columns.iter_mut() {
+                        for i in 0..N {
+                            let mut acc = [0.0; LANES];
+                            for l in 0..LANES {
+                                acc[l] = (nb * hess[i][0][l]) * c.q[0][l];
+                            }
+                            for j in 1..N {
+                                for l in 0..LANES {
+                                    acc[l] += (nb * hess[i][j][l]) * c.q[j][l];
+                                }
+                            }
+                            for l in 0..LANES {
+                                c.p[i][l] = c.p[i][l] + acc[l];
+                            }
+                        }
+                    }
+                    if !self.grad_valid {
+                        sys.grad_lanes(&self.q, &mut self.grad);
+                        self.force_evaluations += 1;
+                        self.grad_valid = true;
+                    }
+                    for i in 0..N {
+                        for l in 0..LANES {
+                            self.p[i][l] = -tau * self.grad[i][l] + self.p[i][l];
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// Per lane: whether the state's components fail to sum to a finite number (summed as the
+    /// one-run path sums them, positions then momenta), and whether a deviation vector's
+    /// squared norm is out of range.
+    #[inline(always)]
+    fn look(&self) -> ([bool; LANES], [bool; LANES]) {
+        let mut not_finite = [false; LANES];
+        let mut out_of_range = [false; LANES];
+        for l in 0..LANES {
+            let (mut sq, mut sp) = (0.0, 0.0);
+            for i in 0..N {
+                sq += self.q[i][l];
+                sp += self.p[i][l];
+            }
+            not_finite[l] = !((sq + sp).abs() < f64::INFINITY);
+        }
+        for c in &self.columns {
+            for l in 0..LANES {
+                let mut n2 = 0.0;
+                for i in 0..N {
+                    n2 += c.q[i][l] * c.q[i][l];
+                }
+                for i in 0..N {
+                    n2 += c.p[i][l] * c.p[i][l];
+                }
+                out_of_range[l] |= !frame::in_range(n2);
+            }
+        }
+        (not_finite, out_of_range)
+    }
+
+    /// Whether every component of lane `l`'s state is finite.
+    pub fn finite(&self, l: usize) -> bool {
+        (0..N).all(|i| self.q[i][l].is_finite() && self.p[i][l].is_finite())
+    }
+
+    /// Brings lane `l`'s deviation vectors back in range as `chaos::frame::guard` does, adding
+    /// the powers of two taken out to `exponents` (one per vector).
+    pub fn guard(&mut self, l: usize, exponents: &mut [i32]) {
+        let mut buffer = [0.0; 2 * MAX_DIMENSION];
+        let column = &mut buffer[..2 * N];
+        for (c, e) in self.columns.iter_mut().zip(exponents) {
+            for i in 0..N {
+                column[i] = c.q[i][l];
+                column[N + i] = c.p[i][l];
+            }
+            let n2 = column.iter().fold(0.0, |acc, x| acc + x * x);
+            if !frame::in_range(n2) {
+                *e += frame::rescale(column);
+                for i in 0..N {
+                    c.q[i][l] = column[i];
+                    c.p[i][l] = column[N + i];
+                }
+            }
+        }
+    }
+
+    /// Lane `l`'s deviation vectors into the columns of `jac` (2n × k, δq rows first).
+    pub fn store(&self, l: usize, jac: &mut DMatrix<f64>) {
+        for (col, c) in self.columns.iter().enumerate() {
+            for i in 0..N {
+                jac[(i, col)] = c.q[i][l];
+                jac[(N + i, col)] = c.p[i][l];
+            }
+        }
+    }
+
+    /// Lane `l`'s deviation vectors from the columns of `jac`.
+    pub fn load(&mut self, l: usize, jac: &DMatrix<f64>) {
+        for (col, c) in self.columns.iter_mut().enumerate() {
+            for i in 0..N {
+                c.q[i][l] = jac[(i, col)];
+                c.p[i][l] = jac[(N + i, col)];
+            }
+        }
+    }
+}

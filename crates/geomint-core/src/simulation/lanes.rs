@@ -1,0 +1,262 @@
+//! Runs of one simulation's method from up to four initial states, side by side in SIMD lanes
+//! (see [`crate::methods::lanes`]), with their chaos indicators: a chaos map's cells. For each
+//! run the driver does what [`integrate_tracked`](crate::run::integrate_tracked) does — the
+//! samples, the indicators' updates on their grid and their thresholds, divergence, the budget —
+//! and hands the samples to the same observer, so each run's samples and outcome are bit for
+//! bit the one-run path's (`tests/core/chaos_lanes.rs` compares them cell by cell). Runs the
+//! lanes cannot take go one by one.
+
+use std::time::Instant;
+
+use nalgebra::allocator::Allocator;
+use nalgebra::{DefaultAllocator, Dim};
+
+use super::run::{Outcome, SampleSink};
+use super::spec::Simulation;
+use crate::chaos::{ThresholdStop, Tracker};
+use crate::error::CoreError;
+use crate::methods::lanes::{LaneForces, TangentLanes, CHECK_EVERY, LANES};
+use crate::methods::{self};
+use crate::run::{Budget, Observer, RunStats, StopReason};
+use crate::system::{MechanicalSystem, State};
+use crate::systems::AnySystem;
+use crate::tangent::Tangent;
+
+/// Runs `$body` with `$sys` bound to the system inside `$any` if the lanes evaluate it (it
+/// implements [`LaneForces`]), else `$other`. A system joins the lanes with an arm here.
+macro_rules! with_lane_system {
+    ($any:expr, $sys:ident => $body:expr, _ => $other:expr) => {
+        match $any {
+            AnySystem::HenonHeiles($sys) => $body,
+            _ => $other,
+        }
+    };
+}
+
+impl Simulation {
+    /// Whether runs of this simulation's first method go side by side in lanes: chaos
+    /// indicators asked for and nothing else (no section, event, reference run or Jacobian
+    /// defect), a composition of kicks and drifts, on an undamped autonomous system the lanes
+    /// evaluate (today Hénon–Heiles).
+    pub fn runs_in_lanes(&self) -> bool {
+        with_lane_system!(&self.system, sys => self.lanes(sys).is_some(), _ => false)
+    }
+
+    /// The lanes for this simulation's first method on `sys`, if they can run it.
+    fn lanes<S, const N: usize>(&self, sys: &S) -> Option<TangentLanes<N>>
+    where
+        S: MechanicalSystem + LaneForces<N>,
+        DefaultAllocator: Allocator<S::Dim>,
+    {
+        let plan = self.chaos.as_ref()?;
+        let plain = self.crossings.is_none() && !self.compare_to_reference && !self.jacobian_defect;
+        let simple = sys.damping_rate() == 0.0
+            && sys.clock().is_none()
+            && sys.structure().separable_constant_mass
+            && sys.dim().value() == N;
+        if !plain || !simple {
+            return None;
+        }
+        let h = self.schedule.h;
+        let stepper = methods::build(self.methods.first()?, sys, &self.system_label, h).ok()?;
+        let z = State::from_slices(sys.dim(), &self.q0, &self.p0);
+        let tangent = Tangent::new(sys, &z);
+        let mut minv = [[0.0; N]; N];
+        for (i, row) in minv.iter_mut().enumerate() {
+            for (j, m) in row.iter_mut().enumerate() {
+                *m = tangent.minv[(i, j)];
+            }
+        }
+        let flows = stepper.splitting_flows()?;
+        TangentLanes::new(flows, sys.damping_rate(), h, minv, plan.deviations)
+    }
+
+    /// Runs the first method of each of `sims` (simulations that differ only in their initial
+    /// states), each run's samples to its sink: four at a time in lanes where
+    /// [`runs_in_lanes`](Self::runs_in_lanes), else one by one. `None` when the budget stopped
+    /// a run.
+    pub fn run_side_by_side(
+        sims: &[Simulation],
+        budget: Budget<'_>,
+        sinks: &mut [&mut dyn SampleSink],
+    ) -> Option<Vec<Result<Outcome, CoreError>>> {
+        let mut outcomes = Vec::with_capacity(sims.len());
+        for (group, sinks) in sims.chunks(LANES).zip(sinks.chunks_mut(LANES)) {
+            let ran = with_lane_system!(
+                &group[0].system,
+                sys => side_by_side(sys, group, budget, sinks),
+                _ => one_by_one(group, budget, sinks)
+            );
+            outcomes.extend(ran?);
+        }
+        Some(outcomes)
+    }
+}
+
+/// Each run on its own, through the one-run path.
+fn one_by_one(
+    sims: &[Simulation],
+    budget: Budget<'_>,
+    sinks: &mut [&mut dyn SampleSink],
+) -> Option<Vec<Result<Outcome, CoreError>>> {
+    let mut outcomes = Vec::with_capacity(sims.len());
+    for (sim, sink) in sims.iter().zip(sinks) {
+        let outcome = sim.run_method(0, None, budget, &mut **sink);
+        if let Ok(Outcome {
+            stop: StopReason::Cancelled { .. } | StopReason::TimeLimit { .. },
+            ..
+        }) = outcome
+        {
+            return None;
+        }
+        outcomes.push(outcome);
+    }
+    Some(outcomes)
+}
+
+/// Up to [`LANES`] runs of `sims` on `sys` in lanes (one by one if the lanes cannot take them).
+fn side_by_side<S, const N: usize>(
+    sys: &S,
+    sims: &[Simulation],
+    budget: Budget<'_>,
+    sinks: &mut [&mut dyn SampleSink],
+) -> Option<Vec<Result<Outcome, CoreError>>>
+where
+    S: MechanicalSystem + LaneForces<N>,
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    let first = &sims[0];
+    let (Some(mut lanes), Some(plan)) = (first.lanes(sys), first.chaos.as_ref()) else {
+        return one_by_one(sims, budget, sinks);
+    };
+    let started = Instant::now();
+    let count = sims.len();
+    let schedule = first.schedule;
+    let (h, steps, every) = (schedule.h, schedule.steps, schedule.every.max(1));
+    let qr_every = plan.qr_every.max(1);
+    let starts: Vec<State<S::Dim>> = sims
+        .iter()
+        .map(|sim| State::at_time(sys, 0.0, &sim.q0, &sim.p0))
+        .collect();
+    let mut states = starts.clone();
+    let mut trackers: Vec<Tracker<S::Dim>> = starts
+        .iter()
+        .map(|z| Tracker::new(sys, z, plan, h))
+        .collect();
+    let mut observers: Vec<_> = sims
+        .iter()
+        .zip(&starts)
+        .zip(sinks.iter_mut())
+        .map(|((sim, start), sink)| sim.observer(sys, start, None, &mut **sink, false))
+        .collect();
+    // Powers of two the lanes took out of each run's vectors since its tracker last saw them.
+    let mut exponents = vec![vec![0; plan.deviations]; count];
+    let mut running = [false; LANES];
+    for l in 0..count {
+        for i in 0..N {
+            lanes.q[i][l] = states[l].q[i];
+            lanes.p[i][l] = states[l].p[i];
+        }
+        lanes.load(l, &trackers[l].tangent.jac);
+        running[l] = true;
+        observers[l].on_indicators(&trackers[l].peek(0));
+        observers[l].on_sample(0, 0.0, &states[l]);
+    }
+    let mut ended: Vec<Option<(StopReason, u64, u64)>> = vec![None; count];
+    let mut step = 0u64;
+    while step < steps && running.iter().any(|&r| r) {
+        if step.is_multiple_of(CHECK_EVERY) && (budget.cancelled() || budget.expired()) {
+            return None;
+        }
+        // Up to the next look at the budget, update of the indicators or sample, or the end.
+        let next = |m: u64| (step / m + 1) * m;
+        let until = next(CHECK_EVERY)
+            .min(next(qr_every))
+            .min(next(every))
+            .min(steps);
+        let advanced = lanes.advance(sys, until - step, &running);
+        step += advanced.steps;
+        let t = step as f64 * h;
+        for l in 0..count {
+            if !running[l] {
+                continue;
+            }
+            let tracker = &mut trackers[l];
+            let mut passed = None;
+            if advanced.not_finite[l] {
+                if !lanes.finite(l) {
+                    running[l] = false;
+                    let stop = StopReason::Diverged { step, t };
+                    ended[l] = Some((stop, step, lanes.force_evaluations()));
+                    continue;
+                }
+                // Finite components whose sum overflows: the one-run path leaves the
+                // indicators alone after such a step, and so do the lanes.
+            } else {
+                if advanced.out_of_range[l] {
+                    lanes.guard(l, &mut exponents[l]);
+                }
+                if step.is_multiple_of(qr_every) {
+                    hand_over(&lanes, l, tracker, &mut exponents[l]);
+                    // The tracker's own guard finds the vectors in range: it only updates.
+                    passed = tracker.after_step(step);
+                    lanes.load(l, &tracker.tangent.jac);
+                }
+            }
+            let due = step.is_multiple_of(every) || step == steps || passed.is_some();
+            if due {
+                hand_over(&lanes, l, tracker, &mut exponents[l]);
+                for i in 0..N {
+                    states[l].q[i] = lanes.q[i][l];
+                    states[l].p[i] = lanes.p[i][l];
+                }
+                observers[l].on_indicators(&tracker.peek(step));
+                observers[l].on_sample(step, t, &states[l]);
+            }
+            if let Some((indicator, value, threshold)) = passed {
+                running[l] = false;
+                let stop = StopReason::Indicator(ThresholdStop {
+                    step,
+                    t,
+                    indicator,
+                    value,
+                    threshold,
+                });
+                ended[l] = Some((stop, step, lanes.force_evaluations()));
+            }
+        }
+    }
+    let wall_time_ms = started.elapsed().as_secs_f64() * 1e3;
+    let finished = (StopReason::Finished, step, lanes.force_evaluations());
+    Some(
+        ended
+            .into_iter()
+            .map(|end| {
+                let (stop, steps, force_evaluations) = end.unwrap_or(finished);
+                Ok(Outcome {
+                    stop,
+                    stats: RunStats {
+                        steps,
+                        force_evaluations,
+                        wall_time_ms,
+                    },
+                })
+            })
+            .collect(),
+    )
+}
+
+/// Gives run `l`'s deviation vectors and the exponents the lanes took out of them to its
+/// tracker.
+fn hand_over<D: Dim, const N: usize>(
+    lanes: &TangentLanes<N>,
+    l: usize,
+    tracker: &mut Tracker<D>,
+    exponents: &mut [i32],
+) where
+    DefaultAllocator: Allocator<D>,
+{
+    lanes.store(l, &mut tracker.tangent.jac);
+    tracker.add_exponents(exponents);
+    exponents.fill(0);
+}
