@@ -1,10 +1,13 @@
 //! The Hénon–Heiles MEGNO map: ⟨Y⟩ over the (y, p_y) section at x = 0, p_x ≥ 0 from H = 1/8,
 //! T = 1000, h = 0.05, the triple jump of velocity Verlet (fourth order), one deviation vector —
-//! the `henon_heiles_megno` preset's request on a grid of n × n cells, run as any sweep is
-//! (all cores). n is 101 by default and `GEOMINT_CHAOS_GRID` (401 for the full map). Reports the
-//! wall and CPU time, ns per cell-step, the cells on the energy surface and those with ⟨Y⟩ > 4,
-//! and writes the map (y, p_y, ⟨Y⟩ per line) to `target/chaos-map-<n>.tsv`, which
-//! `scripts/bench-chaos-peers` compares with the peers' maps.
+//! the `henon_heiles_megno` preset's request on a grid of n × n cells, run as any sweep is (all
+//! cores, four cells side by side in SIMD lanes). n is 101 by default and `GEOMINT_CHAOS_GRID`
+//! (401 for the full map). Reports the wall and CPU time, ns per cell-step, the cells on the
+//! energy surface and those with ⟨Y⟩ > 4, and writes the map (y, p_y, ⟨Y⟩ per line) to
+//! `target/chaos-map-<n>.tsv`, which `scripts/bench-chaos-peers` compares with the peers' maps.
+//! Then the same map of the same potential typed in as text, which runs cell by cell, on
+//! `GEOMINT_CHAOS_TYPED_GRID` × the same (51 by default; 0 skips it), and how far its ⟨Y⟩ is
+//! from the built-in system's when the grids are the same.
 
 use std::io::Write;
 use std::time::Instant;
@@ -13,7 +16,7 @@ use geomint::api::sweep::{presets, SweepRequest};
 use geomint::api::system::NoStoredSystems;
 use geomint::core::run::Budget;
 use geomint::core::studies::engine::Local;
-use geomint::core::studies::sweep::{self, SweepLine};
+use geomint::core::studies::sweep::{self, SweepDocument, SweepLine};
 use serde_json::json;
 
 /// CPU time of the process so far, user and system, in seconds.
@@ -29,10 +32,60 @@ fn cpu_seconds() -> f64 {
 }
 
 fn main() {
-    let n: usize = std::env::var("GEOMINT_CHAOS_GRID")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(101);
+    let grid = |name: &str, default: usize| -> usize {
+        std::env::var(name)
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(default)
+    };
+    let n = grid("GEOMINT_CHAOS_GRID", 101);
+    let doc = megno_map(n, "built-in, in lanes", None);
+    let megno = &doc.runs[0].chaos.as_ref().expect("indicators").megno_mean;
+    let path = format!("target/chaos-map-{n}.tsv");
+    let mut out =
+        std::io::BufWriter::new(std::fs::File::create(&path).expect("target/ is writable"));
+    for (cell, m) in megno.iter().enumerate() {
+        let (y, py) = (doc.axes[0].values[cell % n], doc.axes[1].values[cell / n]);
+        let value = m.map_or("nan".to_string(), |m| m.to_string());
+        writeln!(out, "{y}\t{py}\t{value}").expect("written");
+    }
+    println!("map written to {path}");
+    let typed_n = grid("GEOMINT_CHAOS_TYPED_GRID", 51);
+    if typed_n > 0 {
+        let typed = json!({"coordinates": ["x", "y"], "mass": 1,
+            "potential": "(x^2 + y^2)/2 + x^2*y - y^3/3"});
+        let doc = megno_map(typed_n, "typed in, cell by cell", Some(typed));
+        if typed_n == n {
+            // Chaotic orbits part at the first rounding that differs; regular ones stay close.
+            let theirs = &doc.runs[0].chaos.as_ref().expect("indicators").megno_mean;
+            let pairs: Vec<(f64, f64)> = megno
+                .iter()
+                .zip(theirs)
+                .filter_map(|(a, b)| Some(((*a)?, (*b)?)))
+                .collect();
+            let same = pairs
+                .iter()
+                .filter(|(a, b)| (*a > 4.0) == (*b > 4.0))
+                .count();
+            let mut regular: Vec<f64> = pairs
+                .iter()
+                .filter(|(a, b)| *a < 4.0 && *b < 4.0)
+                .map(|(a, b)| (a - b).abs())
+                .collect();
+            regular.sort_by(f64::total_cmp);
+            let median = regular.get(regular.len() / 2).copied().unwrap_or(f64::NAN);
+            println!(
+                "  same verdict (⟨Y⟩ > 4) in {same} of {} cells; median |Δ⟨Y⟩| on regular cells \
+                 {median:.1e}",
+                pairs.len()
+            );
+        }
+    }
+}
+
+/// The preset's map on n × n cells, of the built-in system or of `system` typed in; prints its
+/// times.
+fn megno_map(n: usize, label: &str, system: Option<serde_json::Value>) -> SweepDocument {
     let mut request = presets()
         .into_iter()
         .find(|p| p.id == "henon_heiles_megno")
@@ -40,6 +93,9 @@ fn main() {
         .request;
     request["axes"][0]["n"] = json!(n);
     request["axes"][1]["n"] = json!(n);
+    if let Some(system) = system {
+        request["system"] = system;
+    }
     let job = SweepRequest::from_value(&request)
         .map_err(|e| e.message)
         .and_then(|r| {
@@ -59,18 +115,11 @@ fn main() {
     let chaotic = megno.iter().filter(|m| m.is_some_and(|m| m > 4.0)).count();
     let steps: u64 = run.steps.iter().sum();
     println!(
-        "Hénon–Heiles MEGNO map {n} × {n}: {wall:.2} s wall, {cpu:.2} s CPU on {} threads, \
-         {:.1} ns per cell-step (CPU), {on} cells on the surface, {chaotic} with ⟨Y⟩ > 4, {steps} steps",
+        "Hénon–Heiles MEGNO map {n} × {n} ({label}): {wall:.2} s wall, {cpu:.2} s CPU on {} \
+         threads, {:.1} ns per cell-step (CPU), {on} cells on the surface, {chaotic} with \
+         ⟨Y⟩ > 4, {steps} steps",
         rayon::current_num_threads(),
         cpu * 1e9 / steps.max(1) as f64,
     );
-    let path = format!("target/chaos-map-{n}.tsv");
-    let mut out =
-        std::io::BufWriter::new(std::fs::File::create(&path).expect("target/ is writable"));
-    for (cell, m) in megno.iter().enumerate() {
-        let (y, py) = (doc.axes[0].values[cell % n], doc.axes[1].values[cell / n]);
-        let value = m.map_or("nan".to_string(), |m| m.to_string());
-        writeln!(out, "{y}\t{py}\t{value}").expect("written");
-    }
-    println!("map written to {path}");
+    doc
 }
