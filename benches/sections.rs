@@ -6,9 +6,12 @@
 //!
 //! geomint runs Kahan and Li's eighth-order composition of velocity Verlet at h = 0.08 (the
 //! largest step whose first 100 crossings stay within 1e-10 of the reference) from a chaotic start
-//! (x, y, p_x) = (−0.2, 0, 0.1), p_y solved from E, through the same path as a request: a typed-in
-//! definition compiled to machine code, a section and an event on the same surface that ends the
-//! run at its 10⁶-th crossing.
+//! (x, y, p_x) = (−0.2, 0, 0.1), p_y solved from E, through the same path as a request — a section
+//! and an event on the same surface that ends the run at its 10⁶-th crossing — on the built-in
+//! system and on the same potential typed in (a definition compiled to machine code);
+//! `GEOMINT_SECTION_SYSTEM=builtin` or `typed` runs one of them. `GEOMINT_SECTION_METHOD`
+//! (kahan_li_6, blanes_moan_srkn11, blanes_casas_murua_8) and `GEOMINT_SECTION_H` try others;
+//! the bounds are asserted whatever the choice. The peers' ratios are to the first system run.
 //!
 //! `scripts/bench-sections` sets up the peers' venv under target/ and runs this with
 //! `GEOMINT_PEERS_PYTHON` pointing at it; `GEOMINT_SECTION_POINTS` (default 10⁶) sets the count.
@@ -19,7 +22,7 @@ use std::time::Instant;
 
 use geomint::core::error::Field;
 use geomint::core::methods::composition::Scheme;
-use geomint::core::methods::{Base, Method};
+use geomint::core::methods::{Base, Method, MethodId};
 use geomint::core::run::Budget;
 use geomint::core::sections::{
     Crossing, Direction, EnergyLevel, EventSpec, SectionSpec, SectionSummary, SurfaceSpec,
@@ -33,7 +36,11 @@ const H: f64 = 0.08;
 const CHAOTIC: ([f64; 2], [f64; 2]) = ([-0.2, 0.0], [0.1, 0.0]);
 const REGULAR: ([f64; 2], [f64; 2]) = ([0.1, 0.0], [0.05, 0.0]);
 
-fn henon_heiles() -> SystemRef {
+/// The built-in system, or the same potential typed in as text.
+fn henon_heiles(built_in: bool) -> SystemRef {
+    if built_in {
+        return SystemRef::Id("henon_heiles".into());
+    }
     let expr = |name: &str, text: &str| Expression {
         text: text.into(),
         field: Field::new("system").key(name),
@@ -93,8 +100,14 @@ impl SampleSink for Check {
 }
 
 /// `points` crossings from `start` with `method`; the check and the wall time in seconds.
-fn run(method: Method, h: f64, start: ([f64; 2], [f64; 2]), points: u64) -> (Check, f64) {
-    let mut spec = SimulationSpec::new(henon_heiles(), &[method], h, 10.0 * points as f64);
+fn run(
+    system: SystemRef,
+    method: Method,
+    h: f64,
+    start: ([f64; 2], [f64; 2]),
+    points: u64,
+) -> (Check, f64) {
+    let mut spec = SimulationSpec::new(system, &[method], h, 10.0 * points as f64);
     spec.q0 = Some(start.0.to_vec());
     spec.p0 = Some(start.1.to_vec());
     spec.every = Some(u64::MAX / 4);
@@ -140,37 +153,60 @@ fn main() {
         .ok()
         .and_then(|v| v.parse().ok())
         .unwrap_or(1_000_000);
-    let method = Method::composition(Scheme::KahanLi8, Base::VelocityVerlet);
+    let method = match std::env::var("GEOMINT_SECTION_METHOD").as_deref() {
+        Ok("blanes_moan_srkn11") => Method::new(MethodId::BlanesMoanSrkn11),
+        Ok("kahan_li_6") => Method::composition(Scheme::KahanLi6, Base::VelocityVerlet),
+        Ok("blanes_casas_murua_8") => {
+            Method::composition(Scheme::BlanesCasasMurua8, Base::VelocityVerlet)
+        }
+        _ => Method::composition(Scheme::KahanLi8, Base::VelocityVerlet),
+    };
+    let h: f64 = std::env::var("GEOMINT_SECTION_H")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(H);
 
-    // The first 100 crossings of a regular orbit against the adaptive reference.
-    let (ours, _) = run(method, H, REGULAR, 100);
-    let (reference, _) = run(Method::Reference { tolerance: 1e-14 }, H, REGULAR, 100);
-    let agreement = ours
-        .first
-        .iter()
-        .zip(&reference.first)
-        .map(|(a, b)| {
-            a.iter()
-                .zip(b)
-                .map(|(x, y)| (x - y).abs())
-                .fold(0.0, f64::max)
-        })
-        .fold(0.0, f64::max);
-    println!("first 100 crossings (regular orbit) against the reference: {agreement:.1e}");
-
-    let (check, seconds) = run(method, H, CHAOTIC, points);
-    println!(
-        "geomint kahan_li_8(velocity_verlet), h = {H}: {} points in {seconds:.2} s \
-         ({:.0} ns per point); |y| ≤ {:.1e}, |H − E| ≤ {:.1e}, least p_y {:.1e}, unlocated {}",
-        check.points,
-        seconds * 1e9 / check.points as f64,
-        check.max_y,
-        check.max_dh,
-        check.min_py,
-        check.summary.as_ref().map_or(0, |s| s.unlocated),
-    );
-    assert_eq!(check.points, points);
-    assert!(check.max_y <= 1e-13 && check.max_dh <= 1e-12 && agreement <= 1e-10);
+    let systems: &[(&str, bool)] = match std::env::var("GEOMINT_SECTION_SYSTEM").as_deref() {
+        Ok("builtin") => &[("built-in", true)],
+        Ok("typed") => &[("typed in", false)],
+        _ => &[("built-in", true), ("typed in", false)],
+    };
+    let mut rows = Vec::new();
+    for &(label, built_in) in systems {
+        // The first 100 crossings of a regular orbit against the adaptive reference.
+        let system = henon_heiles(built_in);
+        let (ours, _) = run(system.clone(), method.clone(), h, REGULAR, 100);
+        let reference = Method::Reference { tolerance: 1e-14 };
+        let (reference, _) = run(system.clone(), reference, h, REGULAR, 100);
+        let agreement = ours
+            .first
+            .iter()
+            .zip(&reference.first)
+            .map(|(a, b)| {
+                a.iter()
+                    .zip(b)
+                    .map(|(x, y)| (x - y).abs())
+                    .fold(0.0, f64::max)
+            })
+            .fold(0.0, f64::max);
+        let (check, seconds) = run(system, method.clone(), h, CHAOTIC, points);
+        println!(
+            "geomint {} on the {label} system, h = {h}: {} points in {seconds:.2} s ({:.0} ns per \
+             point); |y| ≤ {:.1e}, |H − E| ≤ {:.1e}, least p_y {:.1e}, unlocated {}; the first \
+             100 crossings of the regular orbit within {agreement:.1e} of the reference",
+            method.label(),
+            check.points,
+            seconds * 1e9 / check.points as f64,
+            check.max_y,
+            check.max_dh,
+            check.min_py,
+            check.summary.as_ref().map_or(0, |s| s.unlocated),
+        );
+        assert_eq!(check.points, points);
+        assert!(check.max_y <= 1e-13 && check.max_dh <= 1e-12 && agreement <= 1e-10);
+        rows.push((label, check, seconds));
+    }
+    let seconds = rows[0].2;
 
     let Ok(python) = std::env::var("GEOMINT_PEERS_PYTHON") else {
         println!("(set GEOMINT_PEERS_PYTHON, or run scripts/bench-sections, for the peers)");
@@ -184,12 +220,17 @@ fn main() {
         .expect("the peers' script runs");
     print!("{}", String::from_utf8_lossy(&output.stdout));
     eprint!("{}", String::from_utf8_lossy(&output.stderr));
-    println!("| peer | points | seconds | ratio to geomint | max abs y | max abs H − E |");
+    println!("| peer | points | seconds | ratio to geomint (first) | max abs y | max abs H − E |");
     println!("|---|---|---|---|---|---|");
-    println!(
-        "| geomint | {} | {seconds:.2} | 1.00 | {:.1e} | {:.1e} |",
-        check.points, check.max_y, check.max_dh
-    );
+    for (label, check, s) in &rows {
+        println!(
+            "| geomint ({label}) | {} | {s:.2} | {:.2} | {:.1e} | {:.1e} |",
+            check.points,
+            s / seconds,
+            check.max_y,
+            check.max_dh
+        );
+    }
     for line in String::from_utf8_lossy(&output.stdout).lines() {
         let Ok(row) = serde_json::from_str::<serde_json::Value>(line) else {
             continue;
