@@ -28,6 +28,7 @@ macro_rules! with_lane_system {
     ($any:expr, $sys:ident => $body:expr, _ => $other:expr) => {
         match $any {
             AnySystem::HenonHeiles($sys) => $body,
+            AnySystem::PlanarCartesian($sys) => $body,
             _ => $other,
         }
     };
@@ -37,7 +38,7 @@ impl Simulation {
     /// Whether runs of this simulation's first method go side by side in lanes: chaos
     /// indicators asked for and nothing else (no section, event, reference run or Jacobian
     /// defect), a composition of kicks and drifts, on an undamped autonomous system the lanes
-    /// evaluate (today Hénon–Heiles).
+    /// evaluate (Hénon–Heiles, the planar elastic pendulum in Cartesian coordinates).
     pub fn runs_in_lanes(&self) -> bool {
         with_lane_system!(&self.system, sys => self.lanes(sys).is_some(), _ => false)
     }

@@ -20,6 +20,7 @@ use nalgebra::{DMatrix, U2};
 use std::borrow::Cow;
 
 use super::{AnySystem, Builder, ChartInfo, ParamSpec, ParamValues, SystemInfo, World};
+use crate::methods::lanes::{Lane, LaneForces, LANES};
 use crate::system::{MechanicalSystem, State, Structure, Vector};
 
 /// Which first integrals a planar system reports.
@@ -104,38 +105,19 @@ impl MechanicalSystem for PlanarCartesian {
     }
     #[inline]
     fn grad_potential(&self, q: &Vector<U2>, out: &mut Vector<U2>) {
-        let s = &self.0;
-        // k(1 − l/|q|) q: zero spring force for the free particle even at q = 0.
-        let c = if s.k == 0.0 {
-            0.0
-        } else {
-            s.k * (1.0 - s.l / q.norm())
-        };
-        out[0] = c * q[0];
-        out[1] = c * q[1] - s.m * s.g;
+        [out[0], out[1]] = self.grad(q);
     }
     #[inline]
     fn velocity(&self, _q: &Vector<U2>, p: &Vector<U2>, out: &mut Vector<U2>) {
-        let inv_m = 1.0 / self.0.m;
-        out[0] = p[0] * inv_m;
-        out[1] = p[1] * inv_m;
+        [out[0], out[1]] = self.velocity_of(p[0], p[1]);
     }
     fn damping_rate(&self) -> f64 {
         0.0
     }
     fn hess_potential(&self, q: &Vector<U2>, out: &mut DMatrix<f64>) -> u64 {
-        // ∇²V = k(1 − l/r) I + k l q qᵀ / r³.
-        let s = &self.0;
-        if s.k == 0.0 {
-            out.fill(0.0);
-            return 0;
-        }
-        let r = q.norm();
-        let a = s.k * (1.0 - s.l / r);
-        let b = s.k * s.l / (r * r * r);
-        for i in 0..2 {
-            for j in 0..2 {
-                out[(i, j)] = b * q[i] * q[j] + if i == j { a } else { 0.0 };
+        for (i, row) in self.hessian(q).iter().enumerate() {
+            for (j, &v) in row.iter().enumerate() {
+                out[(i, j)] = v;
             }
         }
         0
@@ -151,6 +133,75 @@ impl MechanicalSystem for PlanarCartesian {
             .0
             .exact_cartesian(t, start.q.as_slice(), start.p.as_slice())?;
         Some(State::from_slices(U2, &x, &px))
+    }
+}
+
+/// The velocity, force and Hessian at one point: the one formula the one-run path and the
+/// lanes share.
+impl PlanarCartesian {
+    #[inline(always)]
+    fn velocity_of(&self, px: f64, py: f64) -> [f64; 2] {
+        let inv_m = 1.0 / self.0.m;
+        [px * inv_m, py * inv_m]
+    }
+
+    #[inline(always)]
+    fn grad(&self, q: &Vector<U2>) -> [f64; 2] {
+        let s = &self.0;
+        // k(1 − l/|q|) q: zero spring force for the free particle even at q = 0.
+        let c = if s.k == 0.0 {
+            0.0
+        } else {
+            s.k * (1.0 - s.l / q.norm())
+        };
+        [c * q[0], c * q[1] - s.m * s.g]
+    }
+
+    /// ∇²V = k(1 − l/r) I + k l q qᵀ / r³.
+    #[inline(always)]
+    fn hessian(&self, q: &Vector<U2>) -> [[f64; 2]; 2] {
+        let s = &self.0;
+        let mut out = [[0.0; 2]; 2];
+        if s.k == 0.0 {
+            return out;
+        }
+        let r = q.norm();
+        let a = s.k * (1.0 - s.l / r);
+        let b = s.k * s.l / (r * r * r);
+        for i in 0..2 {
+            for j in 0..2 {
+                out[i][j] = b * q[i] * q[j] + if i == j { a } else { 0.0 };
+            }
+        }
+        out
+    }
+}
+
+impl LaneForces<2> for PlanarCartesian {
+    #[inline(always)]
+    fn velocity_lanes(&self, p: &[Lane; 2], v: &mut [Lane; 2]) {
+        for l in 0..LANES {
+            [v[0][l], v[1][l]] = self.velocity_of(p[0][l], p[1][l]);
+        }
+    }
+
+    #[inline(always)]
+    fn grad_lanes(&self, q: &[Lane; 2], g: &mut [Lane; 2]) {
+        for l in 0..LANES {
+            [g[0][l], g[1][l]] = self.grad(&Vector::<U2>::new(q[0][l], q[1][l]));
+        }
+    }
+
+    #[inline(always)]
+    fn hessian_lanes(&self, q: &[Lane; 2], hess: &mut [[Lane; 2]; 2]) {
+        for l in 0..LANES {
+            let h = self.hessian(&Vector::<U2>::new(q[0][l], q[1][l]));
+            for i in 0..2 {
+                for j in 0..2 {
+                    hess[i][j][l] = h[i][j];
+                }
+            }
+        }
     }
 }
 

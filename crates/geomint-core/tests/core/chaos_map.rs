@@ -5,7 +5,9 @@ use geomint_core::chaos::{ChaosSpec, Indicator, Statistic};
 use geomint_core::error::{CoreError, Field};
 use geomint_core::methods::{Base, Method, MethodId};
 use geomint_core::run::Budget;
-use geomint_core::simulation::{EnergySurface, InputFields, Limits, MethodAt, SimulationSpec};
+use geomint_core::simulation::{
+    EnergySurface, InitialCoordinates, InputFields, Limits, MethodAt, SimulationSpec,
+};
 use geomint_core::studies::engine::Local;
 use geomint_core::studies::sweep::{
     self, Axis, Scale, SweepDocument, SweepJob, SweepLine, SweepSpec, Target,
@@ -236,6 +238,39 @@ fn chaos_maps_in_lanes_give_the_one_cell_paths_numbers_bit_for_bit() {
             ..ChaosSpec::new(&[Indicator::Megno, Indicator::Sali])
         },
     ));
+    // The planar elastic pendulum released at rest, in Cartesian coordinates (in lanes) and in
+    // polar ones (one by one in the same groups), as the `elastic_pendulum_chaos` preset.
+    let axis = |k: usize, min: f64, max: f64| Axis {
+        target: Target::Q0(k),
+        min,
+        max,
+        n: 5,
+        scale: Scale::Linear,
+        field: Field::new("axes").index(k),
+    };
+    specs.push(SweepSpec {
+        system: "elastic_pendulum_2d".into(),
+        charts: ["cartesian", "polar"]
+            .iter()
+            .enumerate()
+            .map(|(i, c)| (Some(c.to_string()), Field::new("charts").index(i)))
+            .collect(),
+        initial_coordinates: Some(InitialCoordinates::Cartesian),
+        methods: methods(&[Method::new(MethodId::SymplecticEuler)]),
+        h: Some(0.01),
+        every: Some(250),
+        axes: vec![axis(0, -1.5, 1.5), axis(1, -1.5, 0.0)],
+        energy_surface: None,
+        ..section(
+            0.125,
+            5,
+            20.0,
+            ChaosSpec {
+                deviations: Some(4),
+                ..ChaosSpec::new(&[Indicator::Lyapunov, Indicator::Megno])
+            },
+        )
+    });
     // (failed, diverged, stopped by a threshold, finished)
     let mut outcomes = [0usize; 4];
     for spec in specs {

@@ -63,13 +63,14 @@ impl SweepJob {
         self.energy_lanes().map(LanePlan::Energy)
     }
 
-    /// Whether every run of a chaos map goes side by side, judged at the grid's middle, first
-    /// and last cells (the first that can be prepared).
+    /// Whether some run of a chaos map goes side by side, judged at the grid's middle, first
+    /// and last cells (the first that can be prepared); the others then run one by one within
+    /// the same groups of cells.
     fn chaos_in_lanes(&self) -> bool {
         let cells = self.cells();
         let probes = [cells / 2, 0, cells.saturating_sub(1)];
         self.against != EnergyReference::Reference
-            && (0..self.templates.len()).all(|k| {
+            && (0..self.templates.len()).any(|k| {
                 probes
                     .iter()
                     .find_map(|&c| self.cell_simulation(k, &self.grid.point(c)).ok())
