@@ -4,7 +4,9 @@
 //! cores, four cells side by side in SIMD lanes). n is 101 by default and `GEOMINT_CHAOS_GRID`
 //! (401 for the full map). Reports the wall and CPU time, ns per cell-step, the cells on the
 //! energy surface and those with ⟨Y⟩ > 4, and writes the map (y, p_y, ⟨Y⟩ per line) to
-//! `target/chaos-map-<n>.tsv`, which `scripts/bench-chaos-peers` compares with the peers' maps.
+//! `target/chaos-map-<n>.tsv`; with `GEOMINT_PEERS_PYTHON` set (`scripts/bench-chaos` sets up the
+//! venv and sets it) the peers' script `scripts/bench-chaos-peers.py` then runs heyoka and
+//! pynamicalsys on the same grid in the same run and compares their maps with this one.
 //! Then the same map of the same potential typed in as text, which runs cell by cell, on
 //! `GEOMINT_CHAOS_TYPED_GRID` × the same (51 by default; 0 skips it), and how far its ⟨Y⟩ is
 //! from the built-in system's when the grids are the same.
@@ -49,7 +51,19 @@ fn main() {
         let value = m.map_or("nan".to_string(), |m| m.to_string());
         writeln!(out, "{y}\t{py}\t{value}").expect("written");
     }
+    out.flush().expect("written");
     println!("map written to {path}");
+    match std::env::var("GEOMINT_PEERS_PYTHON") {
+        Ok(python) => {
+            let script = concat!(env!("CARGO_MANIFEST_DIR"), "/scripts/bench-chaos-peers.py");
+            let status = std::process::Command::new(python)
+                .args([script, &n.to_string()])
+                .status()
+                .expect("the peers' script runs");
+            assert!(status.success(), "the peers' script failed");
+        }
+        Err(_) => println!("(run scripts/bench-chaos for the peers in the same run)"),
+    }
     let typed_n = grid("GEOMINT_CHAOS_TYPED_GRID", 51);
     if typed_n > 0 {
         let typed = json!({"coordinates": ["x", "y"], "mass": 1,
