@@ -234,3 +234,21 @@ def test_shorthands_are_sent_as_the_api_takes_them() -> None:
     sent = json.loads(transport.requests[0].content)
     assert sent["section"] == {"where": "q"} and sent["stop_when"] == {"where": "p_q"}
     assert sent["energy"] == {"value": 0.5, "momentum": "p_q"}
+
+
+def test_a_sweep_collects_each_cells_section_as_its_simulation_does(client: geomint.Client) -> None:
+    section = {"where": "y", "direction": "up", "max_points": 4}
+    sweep = client.sweep(HENON_HEILES, ["velocity_verlet"], [("q0[0]", -0.1, 0.1, 3)], 40, h=0.05,
+                         q0=[0.0, 0.0], p0=[0.3, 0.2], every=100, section=section, progress=False)
+    run = sweep.runs[0]
+    assert run.sections is not None and run.section_truncated is not None
+    assert len(run.sections) == 3 and run.section_truncated.shape == (3,)
+    for cell, x in enumerate(sweep.axes[0].values):
+        alone = client.simulate(HENON_HEILES, ["velocity_verlet"], h=0.05, t_end=40, q0=[x, 0.0],
+                                p0=[0.3, 0.2], every=100, section=section)
+        points = run.sections[cell]
+        assert points is not None and 0 < len(points) <= 4
+        same_crossings(points, alone.runs[0].section)
+        assert bool(run.section_truncated[cell]) == alone.runs[0].section_summary.truncated
+    assert client.sweep(HENON_HEILES, ["velocity_verlet"], [("q0[0]", -0.1, 0.1, 3)], 40, h=0.05,
+                        progress=False).runs[0].sections is None

@@ -13,7 +13,7 @@ use sha2::{Digest, Sha256};
 use utoipa::ToSchema;
 
 use super::chaos::{self, EnergySurfaceRequest};
-use super::crossings::{read_stop_when, StopWhenRequest};
+use super::crossings::{read_section, read_stop_when, watching, SectionRequest, StopWhenRequest};
 use super::json::{self, count, list, numbers, string, Obj};
 use super::method::{read_methods, MethodSpec};
 use super::simulate::initial_coordinates;
@@ -47,6 +47,7 @@ pub const SWEEP_FIELDS: &[&str] = &[
     "qr_every",
     "stop_when",
     "energy_surface",
+    "section",
 ];
 
 /// The fields of an axis.
@@ -143,6 +144,11 @@ pub struct SweepRequest {
     /// energy while the axes vary other components (a Poincaré section).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub energy_surface: Option<EnergySurfaceRequest>,
+    /// A Poincaré section each run collects, as in a simulation: each cell's points (up to
+    /// `max_points` per run; all cells' points together count against the sample limit) in the
+    /// runs' `sections`, so that a grid of orbits exports as one document.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub section: Option<SectionRequest>,
 }
 
 fn axis(v: &Value, at: &Field) -> Result<AxisRequest, ErrorDetail> {
@@ -249,6 +255,7 @@ impl SweepRequest {
             qr_every: chaos.qr_every,
             stop_when: obj.optional("stop_when", read_thresholds)?,
             energy_surface: obj.optional("energy_surface", chaos::read_surface)?,
+            section: obj.optional("section", read_section)?,
         })
     }
 
@@ -343,6 +350,7 @@ impl SweepRequest {
                 .as_ref()
                 .map(EnergySurfaceRequest::to_core)
                 .transpose()?,
+            section: watching(self.section.as_ref(), None, None).section,
             digest: self.digest(stored),
         })
     }

@@ -1,6 +1,7 @@
 //! Sweeps through the service and the command line: `POST /api/v1/studies/sweep` (JSON, and
 //! NDJSON progress ending in the same document), the presets (the Fig. 6 one equal to the
-//! energy-map route's numbers), a stored definition swept by id, refusals naming their field;
+//! energy-map route's numbers), a stored definition swept by id, each cell's section points,
+//! refusals naming their field;
 //! and `geomint study sweep --shard` as Slurm and Kubernetes array tasks would run it (index
 //! from `SLURM_ARRAY_TASK_ID` / `JOB_COMPLETION_INDEX`), merged by `geomint study merge` into
 //! the document of the unsharded run bit for bit, with missing, duplicate and foreign parts
@@ -265,6 +266,40 @@ async fn a_stored_definition_sweeps_by_id_as_inline() {
 }
 
 #[tokio::test]
+async fn a_sweep_with_a_section_carries_each_cells_points() {
+    let server = start(config()).await;
+    let mut body = damped_pendulum_sweep();
+    body["section"] = json!({"where": "q", "direction": "down", "max_points": 3});
+    let (status, doc) = post_json(&server, "/api/v1/studies/sweep", &body).await;
+    assert_eq!(status, 200, "{doc}");
+    for run in doc["runs"].as_array().unwrap() {
+        let sections = run["sections"].as_array().expect("sections per cell");
+        assert_eq!(sections.len(), doc["cells"].as_u64().unwrap() as usize);
+        let mut full = 0;
+        for section in sections {
+            let points = &section["points"];
+            let t = points["t"].as_array().unwrap();
+            assert!(t.len() <= 3, "{section}");
+            // Lightly damped swings cross more often than the cap, which truncates them.
+            if t.len() == 3 {
+                full += 1;
+                assert_eq!(section["truncated"], true, "{section}");
+            }
+            for q in points["q"].as_array().unwrap() {
+                assert!(q[0].as_f64().unwrap().abs() <= 1e-13, "{section}");
+            }
+            for p in points["p"].as_array().unwrap() {
+                assert!(p[0].as_f64().unwrap() < 0.0, "down: {section}");
+            }
+        }
+        assert!(full > 0, "{}", run["method"]);
+    }
+    // Without a section, no such column.
+    let (_, plain) = post_json(&server, "/api/v1/studies/sweep", &damped_pendulum_sweep()).await;
+    assert!(plain["runs"][0].get("sections").is_none());
+}
+
+#[tokio::test]
 async fn refusals_name_their_field() {
     let server = start(config()).await;
     let cases = [
@@ -280,6 +315,20 @@ async fn refusals_name_their_field() {
         (json!({"every": 0}), "every"),
         (json!({"energy_reference": "exactly"}), "energy_reference"),
         (json!({"t_end": 1e9}), "t_end"),
+        (json!({"section": {"where": "x +* 2"}}), "section.where"),
+        (
+            json!({"section": {"where": "q", "max_points": 0}}),
+            "section.max_points",
+        ),
+        (
+            json!({"section": {"where": "q", "bogus": 1}}),
+            "section.bogus",
+        ),
+        // The points of every cell count against the sample limit.
+        (
+            json!({"section": {"where": "q", "max_points": 1000000}}),
+            "section.max_points",
+        ),
     ];
     for (change, field) in cases {
         let mut body = damped_pendulum_sweep();

@@ -272,6 +272,7 @@ class SweepRequest(_SweepRequestRequired, total=False):
     qr_every: int
     stop_when: StopWhenThresholds
     energy_surface: EnergySurfaceRequest
+    section: SectionRequest
 
 
 class AxisSpec(TypedDict):
@@ -910,7 +911,22 @@ class ChaosColumns(TypedDict, total=False):
     stopped_at: List[Optional[float]]
 
 
-class RunColumns(ChaosColumns):
+class CellSection(TypedDict):
+    """One run's section in one cell of a sweep: its points (up to ``max_points``), whether
+    later crossings went uncollected, and the crossings that could not be located."""
+
+    points: CrossingColumns
+    truncated: bool
+    unlocated: int
+
+
+class SectionColumns(TypedDict, total=False):
+    """Per cell, a run's section (``None`` where the run did not start), with ``section``."""
+
+    sections: Optional[List[Optional[CellSection]]]
+
+
+class RunColumns(ChaosColumns, SectionColumns):
     """One run's metrics over a sweep's cells, in cell order (the first axis runs fastest)."""
 
     method: str

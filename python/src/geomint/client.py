@@ -759,6 +759,7 @@ class Client:
         qr_every: Optional[int] = None,
         stop_when: Optional[Mapping[str, float]] = None,
         energy_surface: Optional[EnergySurfaceLike] = None,
+        section: Optional[SectionLike] = None,
         progress: bool = True,
     ) -> Sweep:
         """Runs ``methods`` (in each of ``charts``) over a grid of one or two axes and returns
@@ -777,6 +778,9 @@ class Client:
         (``{"energy": E, "solve_for": "p0[0]"}`` or ``(E, "p0[0]")``) solves that momentum per
         cell so that H = E while the axes vary the rest of the state (cells where no momentum
         reaches E have an entry in ``errors``).
+
+        ``section`` (as in :meth:`simulate`) collects each cell's section points, up to its
+        ``max_points`` per run (:attr:`SweepRun.sections`): a grid of orbits as one result.
         """
         if isinstance(axes, (Axis, Mapping)) or (isinstance(axes, tuple) and axes and isinstance(axes[0], str)):
             axes = [cast(AxisLike, axes)]
@@ -810,6 +814,8 @@ class Client:
             body["stop_when"] = _thresholds(stop_when)
         if energy_surface is not None:
             body["energy_surface"] = _energy_surface(energy_surface)
+        if section is not None:
+            body["section"] = _section(section)
         line = cast(SweepResultLine, self._study("sweep", body, progress, "cells"))
         return Sweep.from_json(line, body)
 

@@ -19,6 +19,7 @@ from ._lookup import pick
 from ._arrays import BoolArray, FloatArray, IntArray, ObjectArray
 from ._wire import (
     AxisSpec,
+    CellSection,
     ConvergenceDocument,
     ConvergenceRequest,
     EnergyMapDocument,
@@ -33,7 +34,7 @@ from ._wire import (
     WorkPrecisionDocument,
     WorkPrecisionRequest,
 )
-from .simulation import SystemState
+from .simulation import Crossings, SystemState
 
 # --------------------------------------------------------------------------------------------
 # Sweeps
@@ -78,7 +79,11 @@ class SweepRun:
     With ``indicators``, the chaos maps: each indicator's last value per cell
     (``lyapunov_max``, ``megno``, ``megno_mean``, ``fli``, ``sali``, ``gali``; NaN where not
     asked for or the run did not start) and ``stopped_at``, the time a ``stop_when`` threshold
-    stopped the cell's run (NaN: it ran to the end); all ``None`` without indicators."""
+    stopped the cell's run (NaN: it ran to the end); all ``None`` without indicators.
+
+    With a ``section``, ``sections`` holds each cell's points in cell order (the first axis
+    running fastest; ``None`` where the run did not start) and ``section_truncated`` on the grid
+    whether a cell's crossings went past ``max_points``; both ``None`` without a section."""
 
     method: str
     chart: str
@@ -99,11 +104,24 @@ class SweepRun:
     sali: Optional[FloatArray] = None
     gali: Optional[FloatArray] = None
     stopped_at: Optional[FloatArray] = None
+    sections: Optional[Tuple[Optional[Crossings], ...]] = None
+    section_truncated: Optional[BoolArray] = None
 
     @property
     def label(self) -> str:
         """``method [chart]``."""
         return f"{self.method} [{self.chart}]"
+
+
+def _sections(
+    cells: Optional[Sequence[Optional[CellSection]]], shape: Tuple[int, ...], dof: int
+) -> Dict[str, Any]:
+    """A run's ``sections`` and ``section_truncated``, if the sweep has a section."""
+    if cells is None:
+        return {}
+    points = tuple(None if c is None else Crossings.from_json(c["points"], dof) for c in cells)
+    truncated = _arrays.bools([c is not None and c["truncated"] for c in cells])
+    return {"sections": points, "section_truncated": _arrays.grid_of(truncated, shape)}
 
 
 def _ragged(values: Sequence[Sequence[float]]) -> FloatArray:
@@ -189,6 +207,7 @@ class Sweep:
                 sali=maybe_on_grid(r.get("sali")),
                 gali=maybe_on_grid(r.get("gali")),
                 stopped_at=maybe_on_grid(r.get("stopped_at")),
+                **_sections(r.get("sections"), shape, max(map(len, r["final_q"]), default=0)),
             )
             for r in doc["runs"]
         )

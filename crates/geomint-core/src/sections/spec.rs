@@ -10,7 +10,7 @@ pub const MAX_SECTION_POINTS: u64 = 1_000_000;
 pub const MAX_EVENT_COUNT: u64 = 1_000_000;
 
 /// Which crossings of S = 0 count.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 #[serde(rename_all = "snake_case")]
 #[cfg_attr(feature = "openapi", schema(as = CrossingDirection))]
@@ -48,7 +48,7 @@ impl Direction {
 }
 
 /// The surface of a section.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum SurfaceSpec {
     /// S(q, p, t) = 0 for an expression S in the coordinates, momenta, parameters and t.
     Where {
@@ -67,7 +67,7 @@ pub enum SurfaceSpec {
 }
 
 /// A Poincaré section of each run.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SectionSpec {
     /// The surface.
     pub surface: SurfaceSpec,

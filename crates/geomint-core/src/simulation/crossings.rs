@@ -17,7 +17,7 @@ use crate::system::{MechanicalSystem, State};
 use crate::with_system;
 
 /// Located points: one entry per point in every column.
-#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, serde::Deserialize)]
 #[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct CrossingColumns {
     /// The crossing times.
@@ -29,7 +29,7 @@ pub struct CrossingColumns {
     /// H at each crossing.
     pub energy: Vec<f64>,
     /// Cartesian positions at each crossing, when the chart is not Cartesian.
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub cartesian_q: Option<Vec<Vec<f64>>>,
 }
 

@@ -1,19 +1,23 @@
 //! Chaos maps: sweeps whose runs report indicators, over initial states on an energy surface;
-//! in SIMD lanes with the one-cell path's numbers bit for bit.
+//! in SIMD lanes with the one-cell path's numbers bit for bit; sweeps that collect each cell's
+//! section points.
 
 use geomint_core::chaos::{ChaosSpec, Indicator, Statistic};
 use geomint_core::error::{CoreError, Field};
 use geomint_core::methods::{Base, Method, MethodId};
 use geomint_core::run::Budget;
+use geomint_core::sections::{Crossing, CrossingKind, Direction, SectionSpec, SurfaceSpec};
+use geomint_core::simulation::crossings::CrossingColumns;
 use geomint_core::simulation::{
-    EnergySurface, InitialCoordinates, InputFields, Limits, MethodAt, SimulationSpec,
+    EnergySurface, InitialCoordinates, InputFields, Limits, MethodAt, Sample, SampleSink,
+    Simulation, SimulationSpec, Watching,
 };
 use geomint_core::studies::engine::Local;
 use geomint_core::studies::sweep::{
     self, Axis, Scale, SweepDocument, SweepJob, SweepLine, SweepSpec, Target,
 };
 use geomint_core::system::MechanicalSystem;
-use geomint_core::systems::{HenonHeiles, ParamValue};
+use geomint_core::systems::{HenonHeiles, ParamValue, SystemRef};
 
 /// The Hénon–Heiles (y, p_y) section at x = 0 and energy `e`, n × n cells over [−0.5, 0.5]²,
 /// p_x solved from the energy, with `chaos`.
@@ -48,6 +52,7 @@ fn section(e: f64, n: usize, t_end: f64, chaos: ChaosSpec) -> SweepSpec {
             momentum: 0,
             field: Field::new("energy_surface"),
         }),
+        section: None,
         digest: "test".into(),
     }
 }
@@ -336,4 +341,99 @@ fn a_chaos_map_in_lanes_stopped_by_its_budget_leaves_its_cells_unfinished() {
     for &cell in &doc.unfinished_cells {
         assert!(errors[cell].as_deref().unwrap().contains("time limit"));
     }
+}
+
+/// The crossings of one run, as a sink receives them.
+#[derive(Default)]
+struct Points(CrossingColumns);
+
+impl SampleSink for Points {
+    fn on_sample(&mut self, _: &Sample<'_>) {}
+    fn on_crossing(&mut self, c: &Crossing<'_>) {
+        if c.kind == CrossingKind::Section {
+            self.0.push(c);
+        }
+    }
+}
+
+#[test]
+fn a_sweep_collects_each_cells_section_points_as_its_own_run_would() {
+    let section_y = |max_points| SectionSpec {
+        surface: SurfaceSpec::Where {
+            text: "y".into(),
+            direction: Direction::Up,
+        },
+        max_points,
+        field: Field::new("section"),
+    };
+    // Bound orbits: H < 1/6 over the whole grid.
+    let axis = |k: usize, target| Axis {
+        target,
+        min: -0.2,
+        max: 0.2,
+        n: 3,
+        scale: Scale::Linear,
+        field: Field::new("axes").index(k),
+    };
+    let spec = SweepSpec {
+        p0: Some(vec![0.3, 0.0]),
+        axes: vec![axis(0, Target::Q0(1)), axis(1, Target::P0(1))],
+        energy_surface: None,
+        chaos: None,
+        every: Some(100),
+        section: Some(section_y(6)),
+        ..section(0.125, 3, 60.0, ChaosSpec::new(&[Indicator::Megno]))
+    };
+    let job = spec.prepare(&Limits::default()).expect("a valid sweep");
+    assert!(!job.runs_in_lanes(), "the lanes watch no section");
+    let doc = run(&job);
+    let sections = doc.runs[0].sections.as_ref().expect("sections");
+    let (mut truncated, mut points) = (0, 0);
+    for cell in 0..doc.cells {
+        let (y, py) = (doc.axes[0].values[cell % 3], doc.axes[1].values[cell / 3]);
+        let mut alone = SimulationSpec::new(
+            SystemRef::Id("henon_heiles".into()),
+            &[Method::triple_jump(Base::VelocityVerlet)],
+            0.05,
+            60.0,
+        );
+        alone.q0 = Some(vec![0.0, y]);
+        alone.p0 = Some(vec![0.3, py]);
+        alone.every = Some(100);
+        let watching = Watching {
+            section: Some(section_y(6)),
+            ..Watching::default()
+        };
+        let sim = Simulation::prepare(&alone, &Limits::default())
+            .and_then(|s| s.watching(&watching))
+            .expect("the cell's run alone");
+        let mut own = Points::default();
+        sim.run_method(0, None, Budget::default(), &mut own)
+            .expect("runs");
+        let cell_section = sections[cell].as_ref().expect("every cell starts");
+        // Bit for bit, as text: the shortest decimals that read back to the same bits.
+        assert_eq!(
+            serde_json::to_string(&cell_section.points).unwrap(),
+            serde_json::to_string(&own.0).unwrap(),
+            "cell {cell}"
+        );
+        assert!(own.0.len() <= 6);
+        for (q, p) in own.0.q.iter().zip(&own.0.p) {
+            assert!(q[1].abs() <= 1e-13 && p[1] > 0.0);
+        }
+        truncated += usize::from(cell_section.truncated);
+        points += own.0.len();
+    }
+    assert!(
+        truncated > 0 && points > 0,
+        "{truncated} truncated, {points} points"
+    );
+
+    // The points of every cell count against the sample limit.
+    let limits = Limits {
+        max_samples: 9 * 6 - 1,
+        ..Limits::default()
+    };
+    let e = spec.prepare(&limits).expect_err("too many points");
+    assert_eq!(e.field().map(Field::as_str), Some("section.max_points"));
 }

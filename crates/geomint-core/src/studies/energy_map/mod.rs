@@ -415,6 +415,7 @@ impl EnergyMapSpec {
             axes: vec![axis(0, self.x, self.nx, "x"), axis(1, self.y, self.ny, "y")],
             chaos: None,
             energy_surface: None,
+            section: None,
             digest: String::new(),
         }
     }

@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 use serde::Serialize;
 
 use super::axis::Scale;
-use super::metrics::{ChaosMetrics, EnergyReference, RunMetrics};
+use super::metrics::{CellSection, ChaosMetrics, EnergyReference, RunMetrics};
 use super::RunLabel;
 use crate::studies::StudyStop;
 
@@ -62,6 +62,10 @@ pub struct RunColumns {
     /// run (with `indicators` only).
     #[serde(flatten, skip_serializing_if = "Option::is_none")]
     pub chaos: Option<ChaosColumns>,
+    /// Per cell, the run's section (null where the run did not start), when the sweep asks for
+    /// a section.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sections: Option<Vec<Option<CellSection>>>,
 }
 
 /// A chaos map: each indicator's last value per cell (`null` where not asked for or the run did
@@ -86,7 +90,12 @@ pub struct ChaosColumns {
 }
 
 impl RunColumns {
-    pub(super) fn new(label: RunLabel, invariants: &[String], cells: usize, chaos: bool) -> Self {
+    pub(super) fn new(
+        label: RunLabel,
+        invariants: &[String],
+        cells: usize,
+        (chaos, section): (bool, bool),
+    ) -> Self {
         RunColumns {
             method: label.method,
             chart: label.chart,
@@ -104,6 +113,7 @@ impl RunColumns {
             force_evaluations: Vec::with_capacity(cells),
             errors: Vec::with_capacity(cells),
             chaos: chaos.then(ChaosColumns::default),
+            sections: section.then(|| Vec::with_capacity(cells)),
         }
     }
 
@@ -124,6 +134,9 @@ impl RunColumns {
         self.errors.push(m.error);
         if let Some(columns) = self.chaos.as_mut() {
             columns.push(m.chaos.unwrap_or_default());
+        }
+        if let Some(sections) = self.sections.as_mut() {
+            sections.push(m.section);
         }
     }
 }

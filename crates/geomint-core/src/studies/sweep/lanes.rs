@@ -54,7 +54,8 @@ impl SweepJob {
             .axes
             .iter()
             .all(|a| matches!(a.target, Target::Q0(_) | Target::P0(_)));
-        if !initial_state_only {
+        // The lanes watch no section.
+        if !initial_state_only || self.watching.is_some() {
             return None;
         }
         if self.tracks_chaos() {

@@ -1,13 +1,15 @@
 //! What a sweep measures in each run of each cell, from the run's samples: the energy error at
 //! the end, its largest value and its ℓ² mean (paper 001 eq. 50), each invariant's drift, the
 //! time of divergence and the final state; with chaos indicators asked for, each indicator's last
-//! value (a chaos map) and the time a threshold stopped the run.
+//! value (a chaos map) and the time a threshold stopped the run; with a section, its points
+//! (capped by the section's `max_points`).
 
 use serde::{Deserialize, Serialize};
 
 use crate::chaos::Statistic;
 use crate::run::StopReason;
-use crate::simulation::{Outcome, Sample, SampleSink};
+use crate::sections::{Crossing, CrossingKind, SectionSummary};
+use crate::simulation::{CrossingColumns, Outcome, Sample, SampleSink};
 
 /// A run whose energy leaves H₀ by more than this many times 1 + |H₀| has diverged (the test of
 /// the energy-error map).
@@ -47,6 +49,22 @@ pub struct RunMetrics {
     /// The chaos indicators at the last sample, when asked for.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub chaos: Option<ChaosMetrics>,
+    /// The section's points, when the sweep asks for a section.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub section: Option<CellSection>,
+}
+
+/// One run's section in a sweep: its located points, up to the section's `max_points`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+pub struct CellSection {
+    /// The points: t, q, p and H at each crossing, in the order they were found.
+    pub points: CrossingColumns,
+    /// Whether crossings after `max_points` went uncollected.
+    pub truncated: bool,
+    /// Crossings seen whose point could not be located (tangent to the surface within
+    /// round-off).
+    pub unlocated: u64,
 }
 
 /// A run's chaos indicators at its last sample, and when a threshold stopped it: the values a
@@ -95,6 +113,7 @@ pub struct Measure {
     q: Vec<f64>,
     p: Vec<f64>,
     chaos: Option<ChaosMetrics>,
+    section: Option<CellSection>,
 }
 
 impl Measure {
@@ -114,6 +133,7 @@ impl Measure {
             q: Vec::new(),
             p: Vec::new(),
             chaos: None,
+            section: None,
         }
     }
 
@@ -184,6 +204,7 @@ impl Measure {
             force_evaluations,
             error: None,
             chaos: self.chaos,
+            section: self.section,
         }
     }
 }
@@ -241,5 +262,17 @@ impl SampleSink for Measure {
         self.q.extend_from_slice(q);
         self.p.clear();
         self.p.extend_from_slice(p);
+    }
+
+    fn on_crossing(&mut self, crossing: &Crossing<'_>) {
+        if crossing.kind == CrossingKind::Section {
+            self.section.get_or_insert_default().points.push(crossing);
+        }
+    }
+
+    fn on_section_end(&mut self, summary: &SectionSummary) {
+        let section = self.section.get_or_insert_default();
+        section.truncated = summary.truncated;
+        section.unlocated = summary.unlocated;
     }
 }

@@ -29,8 +29,10 @@ pub use metrics::{ChaosMetrics, EnergyReference, RunMetrics};
 use crate::chaos::ChaosSpec;
 use crate::error::{CoreError, ErrorDetail, Field, StepScope};
 use crate::run::{step_count, Budget, StopReason};
+use crate::sections::SectionSpec;
 use crate::simulation::{
     EnergySurface, InitialCoordinates, InputFields, Limits, MethodAt, Simulation, SimulationSpec,
+    Watching,
 };
 use crate::studies::engine::{self, Executor, Finished, Progress, Study};
 use crate::studies::{StudySpec, StudyStop};
@@ -77,6 +79,9 @@ pub struct SweepSpec {
     pub chaos: Option<ChaosSpec>,
     /// The energy surface the initial states lie on, one momentum solved per cell, if any.
     pub energy_surface: Option<EnergySurface>,
+    /// A Poincaré section each run collects (a grid of orbits as one document), if any.
+    #[serde(default)]
+    pub section: Option<SectionSpec>,
     /// The identity of the request (a digest of its canonical form): parts of a sweep carry it,
     /// and merging refuses parts of another.
     pub digest: String,
@@ -118,6 +123,8 @@ pub struct SweepJob {
     chaos: Option<ChaosSpec>,
     /// The energy surface of every cell's initial state.
     surface: Option<EnergySurface>,
+    /// What every run watches: the section, if any.
+    watching: Option<Watching>,
 }
 
 impl SweepSpec {
@@ -263,6 +270,11 @@ impl SweepSpec {
             spec: self.clone(),
             chaos: self.chaos.clone(),
             surface: self.energy_surface.clone(),
+            watching: self.section.clone().map(|section| Watching {
+                section: Some(section),
+                stop_when: None,
+                energy: None,
+            }),
             // A run's samples go into its metrics as they come and are not kept, so the sample
             // limit (which bounds documents) does not apply — except to a reference run, whose
             // energies are kept for the whole run.
@@ -273,6 +285,20 @@ impl SweepSpec {
         };
         let damped = job.check_corners()?;
         job.check_surface()?;
+        if let Some(section) = &self.section {
+            // Every point is kept: the points of all cells count against the sample limit.
+            let points = section
+                .max_points
+                .saturating_mul(job.cells() as u64)
+                .saturating_mul(job.templates.len() as u64);
+            if points > limits.max_samples {
+                return Err(CoreError::TooManySamples {
+                    field: section.field.key("max_points"),
+                    samples: points,
+                    limit: limits.max_samples,
+                });
+            }
+        }
         job.against = match self.energy_reference {
             Some(EnergyReference::Exact) if !job.info.exact_solution => {
                 return Err(CoreError::Unsupported {
@@ -336,13 +362,21 @@ impl SweepJob {
     /// indicators, against the reference run when the sweep measures against it.
     fn cell_simulation(&self, run: usize, point: &[f64]) -> Result<Simulation, CoreError> {
         let spec = self.cell_spec_on_surface(run, point)?;
-        let sim = Simulation::prepare(&spec, &self.limits)?;
-        let mut sim = match &self.chaos {
+        let mut sim = self.with_extras(Simulation::prepare(&spec, &self.limits)?)?;
+        sim.compare_to_reference = self.against == EnergyReference::Reference;
+        Ok(sim)
+    }
+
+    /// `sim` with what every run of the sweep adds: the indicators and the section.
+    fn with_extras(&self, sim: Simulation) -> Result<Simulation, CoreError> {
+        let sim = match &self.chaos {
             Some(chaos) => sim.with_chaos(chaos)?,
             None => sim,
         };
-        sim.compare_to_reference = self.against == EnergyReference::Reference;
-        Ok(sim)
+        match &self.watching {
+            Some(watching) => sim.watching(watching),
+            None => Ok(sim),
+        }
     }
 
     /// The spec of run `run` at `cell`.
@@ -393,9 +427,7 @@ impl SweepJob {
                 match Simulation::prepare(&spec, &self.limits) {
                     Ok(sim) => {
                         damped |= with_system!(&sim.system, s => s.damping_rate()) != 0.0;
-                        if let Some(chaos) = &self.chaos {
-                            sim.with_chaos(chaos)?;
-                        }
+                        self.with_extras(sim)?;
                     }
                     Err(CoreError::OutsideChart { .. }) => {}
                     Err(e) => {
@@ -501,7 +533,10 @@ impl SweepJob {
         let mut runs: Vec<RunColumns> = self
             .runs
             .iter()
-            .map(|label| RunColumns::new(label.clone(), &names, cells.len(), self.chaos.is_some()))
+            .map(|label| {
+                let extras = (self.chaos.is_some(), self.watching.is_some());
+                RunColumns::new(label.clone(), &names, cells.len(), extras)
+            })
             .collect();
         let (mut steps, mut force_evaluations) = (0u64, 0u64);
         for cell in cells {
