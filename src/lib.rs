@@ -10,8 +10,9 @@
 //!   no files, no async.
 //! - [`access`]: who may do what: tokens, scopes, quotas, the policy for clients without a
 //!   token.
-//! - [`api`]: the wire layer — requests read strictly into the core's specs, the NDJSON
-//!   encoding of the lines the core streams.
+//! - [`api`]: the wire layer (the crate `geomint-api`, which the Python module builds on too) —
+//!   requests read strictly into the core's specs, the NDJSON encoding of the lines the core
+//!   streams.
 //! - [`recording`]: Rerun recordings (`.rrd`) of the core's results.
 //! - [`store`]: what the service keeps on disk: recordings and stored system definitions.
 //! - [`http`]: the axum service: routes, answer forms, limits.
@@ -20,7 +21,8 @@
 #![warn(missing_docs)]
 
 pub mod access;
-pub mod api;
+/// The wire layer ([`geomint_api`]), under the name the service's modules use.
+pub use geomint_api as api;
 pub mod cli;
 pub mod executor;
 /// The integrator core ([`geomint_core`]), under the name the service's modules use.

@@ -326,6 +326,62 @@ def _put(body: Any, key: str, value: Any) -> None:
         body[key] = _plain(value, key)
 
 
+def simulate_request(
+    system: SystemLike,
+    methods: Methods,
+    *,
+    h: float,
+    t_end: float,
+    params: Optional[Mapping[str, ParamValue]] = None,
+    q0: Optional[Vector] = None,
+    p0: Optional[Vector] = None,
+    chart: Optional[str] = None,
+    initial_coordinates: Optional[str] = None,
+    every: Optional[int] = None,
+    compare_to_reference: Optional[bool] = None,
+    jacobian_defect: Optional[bool] = None,
+    section: Optional[SectionLike] = None,
+    stop_when: Optional[StopWhenLike] = None,
+    energy: Optional[EnergyLike] = None,
+    indicators: Optional[Indicators] = None,
+    deviations: Optional[int] = None,
+    qr_every: Optional[int] = None,
+) -> SimulateRequest:
+    """The body of ``POST /api/v1/simulate`` for :meth:`Client.simulate`'s arguments (and
+    :func:`geomint.local.simulate`'s), checked as far as the client can check it."""
+    body: SimulateRequest = {
+        "system": _system(system),
+        "methods": _method_list(methods),
+        "h": _positive(h, "h"),
+        "t_end": _positive(t_end, "t_end"),
+    }
+    if len(body["methods"]) > 16:
+        raise ValidationError("methods", f"at most 16 methods, not {len(body['methods'])}")
+    _put(body, "params", params)
+    _put(body, "q0", q0)
+    _put(body, "p0", p0)
+    _put(body, "chart", chart)
+    _put(body, "initial_coordinates", initial_coordinates)
+    if every is not None:
+        output: OutputOptions = {"every": _count(every, "output.every")}
+        body["output"] = output
+    _put(body, "compare_to_reference", compare_to_reference)
+    _put(body, "jacobian_defect", jacobian_defect)
+    if section is not None:
+        body["section"] = _section(section)
+    if stop_when is not None:
+        body["stop_when"] = _stop_when(stop_when)
+    if energy is not None:
+        body["energy"] = _energy(energy)
+    if indicators is not None:
+        body["indicators"] = _indicators(indicators)
+    if deviations is not None:
+        body["deviations"] = _count(deviations, "deviations")
+    if qr_every is not None:
+        body["qr_every"] = _count(qr_every, "qr_every")
+    return body
+
+
 class Client:
     """A geomint server's API as Python calls.
 
@@ -602,36 +658,13 @@ class Client:
         the notebook's stop button) closes the connection, which stops the server's run. Both
         ways give the same numbers, bit for bit.
         """
-        body: SimulateRequest = {
-            "system": _system(system),
-            "methods": _method_list(methods),
-            "h": _positive(h, "h"),
-            "t_end": _positive(t_end, "t_end"),
-        }
-        if len(body["methods"]) > 16:
-            raise ValidationError("methods", f"at most 16 methods, not {len(body['methods'])}")
-        _put(body, "params", params)
-        _put(body, "q0", q0)
-        _put(body, "p0", p0)
-        _put(body, "chart", chart)
-        _put(body, "initial_coordinates", initial_coordinates)
-        if every is not None:
-            output: OutputOptions = {"every": _count(every, "output.every")}
-            body["output"] = output
-        _put(body, "compare_to_reference", compare_to_reference)
-        _put(body, "jacobian_defect", jacobian_defect)
-        if section is not None:
-            body["section"] = _section(section)
-        if stop_when is not None:
-            body["stop_when"] = _stop_when(stop_when)
-        if energy is not None:
-            body["energy"] = _energy(energy)
-        if indicators is not None:
-            body["indicators"] = _indicators(indicators)
-        if deviations is not None:
-            body["deviations"] = _count(deviations, "deviations")
-        if qr_every is not None:
-            body["qr_every"] = _count(qr_every, "qr_every")
+        body = simulate_request(
+            system, methods, h=h, t_end=t_end, params=params, q0=q0, p0=p0, chart=chart,
+            initial_coordinates=initial_coordinates, every=every,
+            compare_to_reference=compare_to_reference, jacobian_defect=jacobian_defect,
+            section=section, stop_when=stop_when, energy=energy, indicators=indicators,
+            deviations=deviations, qr_every=qr_every,
+        )
         if not stream:
             return Simulation.from_json(self._json("simulate", body=body), body)
 

@@ -14,6 +14,10 @@
 //!
 //! Results are the core's typed documents, serialized as they are.
 
+// The core under the name the service knows it by (`geomint::core`), so that paths read the
+// same in both crates.
+use geomint_core as core;
+
 pub mod chaos;
 pub mod crossings;
 pub mod json;

@@ -18,6 +18,7 @@ use super::method::{read_method, read_methods, MethodSpec};
 use super::system::StoredSystems;
 use super::system::{read_system, SystemRequest};
 use crate::core::chaos::{ChaosSpec, Indicator};
+use crate::core::run::Budget;
 use crate::core::error::{CoreError, ErrorCode, ErrorDetail, Field};
 use crate::core::simulation::{
     InitialCoordinates, InputFields, Limits, MethodAt, Simulation, SimulationSpec,
@@ -327,6 +328,21 @@ impl SimulateRequest {
         );
         Ok(sim.watching(&watching)?)
     }
+}
+
+/// Reads the simulation `request` (JSON text), checks it against `limits` and runs it with up to
+/// `workers` methods at once, without stored systems: its document as the service writes it
+/// (JSON text), or the error it would answer. What `geomint.local` runs in a Python process.
+pub fn simulate_to_json(
+    request: &[u8],
+    limits: &Limits,
+    workers: usize,
+) -> Result<String, ErrorDetail> {
+    let request = SimulateRequest::from_slice(request)?;
+    let sim = request.prepare(limits, &crate::system::NoStoredSystems)?;
+    let document = sim.simulate(workers.clamp(1, sim.methods.len()), Budget::default())?;
+    serde_json::to_string(&document)
+        .map_err(|e| ErrorDetail::new(ErrorCode::Internal, format!("the document: {e}")))
 }
 
 #[cfg(test)]
