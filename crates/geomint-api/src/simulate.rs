@@ -18,8 +18,8 @@ use super::method::{read_method, read_methods, MethodSpec};
 use super::system::StoredSystems;
 use super::system::{read_system, SystemRequest};
 use crate::core::chaos::{ChaosSpec, Indicator};
-use crate::core::run::Budget;
 use crate::core::error::{CoreError, ErrorCode, ErrorDetail, Field};
+use crate::core::run::Budget;
 use crate::core::simulation::{
     InitialCoordinates, InputFields, Limits, MethodAt, Simulation, SimulationSpec,
 };
@@ -348,7 +348,7 @@ pub fn simulate_to_json(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::api::system::NoStoredSystems;
+    use crate::system::NoStoredSystems;
     use serde_json::json;
 
     fn field_of(text: &str) -> Option<String> {

@@ -500,8 +500,8 @@ impl EnergyMapRequest {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::api::system::NoStoredSystems;
     use crate::core::simulation::Limits;
+    use crate::system::NoStoredSystems;
     use serde_json::json;
 
     fn field_of(body: Value) -> Option<String> {

@@ -15,8 +15,8 @@ pub const REQUEST: &str = r#"{"system": "pendulum", "methods": ["modin_3s"], "h"
 fn main() {
     let run = || {
         let began = Instant::now();
-        let document = simulate_to_json(REQUEST.as_bytes(), &Limits::default(), 1)
-            .expect("the request runs");
+        let document =
+            simulate_to_json(REQUEST.as_bytes(), &Limits::default(), 1).expect("the request runs");
         (began.elapsed().as_secs_f64() * 1e3, document.len())
     };
     run();

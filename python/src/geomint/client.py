@@ -7,6 +7,7 @@ import math
 import os
 from pathlib import Path
 from typing import (
+    TYPE_CHECKING,
     Any,
     Callable,
     Dict,
@@ -15,10 +16,14 @@ from typing import (
     Optional,
     Sequence,
     Tuple,
+    TypedDict,
     Union,
     cast,
 )
 from urllib.parse import quote
+
+if TYPE_CHECKING:  # the keyword arguments' types (typing.Unpack from Python 3.11 on)
+    from typing_extensions import Unpack
 
 import httpx
 import numpy as np
@@ -326,29 +331,52 @@ def _put(body: Any, key: str, value: Any) -> None:
         body[key] = _plain(value, key)
 
 
+def _put_indicators(
+    body: Any, indicators: Optional[Indicators], deviations: Optional[int], qr_every: Optional[int]
+) -> None:
+    """Sets the chaos indicators' members of a simulation's or a sweep's body, where given."""
+    if indicators is not None:
+        body["indicators"] = _indicators(indicators)
+    if deviations is not None:
+        body["deviations"] = _count(deviations, "deviations")
+    if qr_every is not None:
+        body["qr_every"] = _count(qr_every, "qr_every")
+
+
+class SimulateOptions(TypedDict, total=False):
+    """A simulation's options beside its system, methods, ``h`` and ``t_end``, as
+    :meth:`Client.simulate` and :func:`geomint.local.simulate` take them (``None``: not given)."""
+
+    params: Optional[Mapping[str, ParamValue]]
+    q0: Optional[Vector]
+    p0: Optional[Vector]
+    chart: Optional[str]
+    initial_coordinates: Optional[str]
+    every: Optional[int]
+    compare_to_reference: Optional[bool]
+    jacobian_defect: Optional[bool]
+    section: Optional[SectionLike]
+    stop_when: Optional[StopWhenLike]
+    energy: Optional[EnergyLike]
+    indicators: Optional[Indicators]
+    deviations: Optional[int]
+    qr_every: Optional[int]
+
+
 def simulate_request(
     system: SystemLike,
     methods: Methods,
     *,
     h: float,
     t_end: float,
-    params: Optional[Mapping[str, ParamValue]] = None,
-    q0: Optional[Vector] = None,
-    p0: Optional[Vector] = None,
-    chart: Optional[str] = None,
-    initial_coordinates: Optional[str] = None,
-    every: Optional[int] = None,
-    compare_to_reference: Optional[bool] = None,
-    jacobian_defect: Optional[bool] = None,
-    section: Optional[SectionLike] = None,
-    stop_when: Optional[StopWhenLike] = None,
-    energy: Optional[EnergyLike] = None,
-    indicators: Optional[Indicators] = None,
-    deviations: Optional[int] = None,
-    qr_every: Optional[int] = None,
+    **options: Unpack[SimulateOptions],
 ) -> SimulateRequest:
     """The body of ``POST /api/v1/simulate`` for :meth:`Client.simulate`'s arguments (and
     :func:`geomint.local.simulate`'s), checked as far as the client can check it."""
+    every, section = options.get("every"), options.get("section")
+    stop_when, energy = options.get("stop_when"), options.get("energy")
+    indicators, deviations = options.get("indicators"), options.get("deviations")
+    qr_every = options.get("qr_every")
     body: SimulateRequest = {
         "system": _system(system),
         "methods": _method_list(methods),
@@ -357,28 +385,23 @@ def simulate_request(
     }
     if len(body["methods"]) > 16:
         raise ValidationError("methods", f"at most 16 methods, not {len(body['methods'])}")
-    _put(body, "params", params)
-    _put(body, "q0", q0)
-    _put(body, "p0", p0)
-    _put(body, "chart", chart)
-    _put(body, "initial_coordinates", initial_coordinates)
+    _put(body, "params", options.get("params"))
+    _put(body, "q0", options.get("q0"))
+    _put(body, "p0", options.get("p0"))
+    _put(body, "chart", options.get("chart"))
+    _put(body, "initial_coordinates", options.get("initial_coordinates"))
     if every is not None:
         output: OutputOptions = {"every": _count(every, "output.every")}
         body["output"] = output
-    _put(body, "compare_to_reference", compare_to_reference)
-    _put(body, "jacobian_defect", jacobian_defect)
+    _put(body, "compare_to_reference", options.get("compare_to_reference"))
+    _put(body, "jacobian_defect", options.get("jacobian_defect"))
     if section is not None:
         body["section"] = _section(section)
     if stop_when is not None:
         body["stop_when"] = _stop_when(stop_when)
     if energy is not None:
         body["energy"] = _energy(energy)
-    if indicators is not None:
-        body["indicators"] = _indicators(indicators)
-    if deviations is not None:
-        body["deviations"] = _count(deviations, "deviations")
-    if qr_every is not None:
-        body["qr_every"] = _count(qr_every, "qr_every")
+    _put_indicators(body, indicators, deviations, qr_every)
     return body
 
 
@@ -603,23 +626,10 @@ class Client:
         *,
         h: float,
         t_end: float,
-        params: Optional[Mapping[str, ParamValue]] = None,
-        q0: Optional[Vector] = None,
-        p0: Optional[Vector] = None,
-        chart: Optional[str] = None,
-        initial_coordinates: Optional[str] = None,
-        every: Optional[int] = None,
-        compare_to_reference: Optional[bool] = None,
-        jacobian_defect: Optional[bool] = None,
-        section: Optional[SectionLike] = None,
-        stop_when: Optional[StopWhenLike] = None,
-        energy: Optional[EnergyLike] = None,
-        indicators: Optional[Indicators] = None,
-        deviations: Optional[int] = None,
-        qr_every: Optional[int] = None,
         stream: bool = False,
         progress: bool = True,
         on_line: Optional[Callable[[StreamLine], None]] = None,
+        **options: Unpack[SimulateOptions],
     ) -> Simulation:
         """Runs ``methods`` on ``system`` with step ``h`` to ``t_end`` and returns every run's
         samples as numpy arrays.
@@ -658,13 +668,7 @@ class Client:
         the notebook's stop button) closes the connection, which stops the server's run. Both
         ways give the same numbers, bit for bit.
         """
-        body = simulate_request(
-            system, methods, h=h, t_end=t_end, params=params, q0=q0, p0=p0, chart=chart,
-            initial_coordinates=initial_coordinates, every=every,
-            compare_to_reference=compare_to_reference, jacobian_defect=jacobian_defect,
-            section=section, stop_when=stop_when, energy=energy, indicators=indicators,
-            deviations=deviations, qr_every=qr_every,
-        )
+        body = simulate_request(system, methods, h=h, t_end=t_end, **options)
         if not stream:
             return Simulation.from_json(self._json("simulate", body=body), body)
 
@@ -837,12 +841,7 @@ class Client:
             body["every"] = _count(every, "every")
         _put(body, "energy_reference", energy_reference)
         _put(body, "initial_coordinates", initial_coordinates)
-        if indicators is not None:
-            body["indicators"] = _indicators(indicators)
-        if deviations is not None:
-            body["deviations"] = _count(deviations, "deviations")
-        if qr_every is not None:
-            body["qr_every"] = _count(qr_every, "qr_every")
+        _put_indicators(body, indicators, deviations, qr_every)
         if stop_when is not None:
             body["stop_when"] = _thresholds(stop_when)
         if energy_surface is not None:

@@ -17,21 +17,14 @@ from __future__ import annotations
 
 import json
 from types import ModuleType
-from typing import Mapping, Optional
+from typing import TYPE_CHECKING
 
-from ._wire import ParamValue
-from .client import (
-    EnergyLike,
-    Indicators,
-    Methods,
-    SectionLike,
-    StopWhenLike,
-    SystemLike,
-    Vector,
-    simulate_request,
-)
+from .client import Methods, SimulateOptions, SystemLike, simulate_request
 from .errors import GeomintError, ServerError
 from .simulation import Simulation
+
+if TYPE_CHECKING:
+    from typing_extensions import Unpack
 
 
 def _native() -> ModuleType:
@@ -52,30 +45,11 @@ def simulate(
     *,
     h: float,
     t_end: float,
-    params: Optional[Mapping[str, ParamValue]] = None,
-    q0: Optional[Vector] = None,
-    p0: Optional[Vector] = None,
-    chart: Optional[str] = None,
-    initial_coordinates: Optional[str] = None,
-    every: Optional[int] = None,
-    compare_to_reference: Optional[bool] = None,
-    jacobian_defect: Optional[bool] = None,
-    section: Optional[SectionLike] = None,
-    stop_when: Optional[StopWhenLike] = None,
-    energy: Optional[EnergyLike] = None,
-    indicators: Optional[Indicators] = None,
-    deviations: Optional[int] = None,
-    qr_every: Optional[int] = None,
+    **options: Unpack[SimulateOptions],
 ) -> Simulation:
-    """Runs ``methods`` on ``system`` in this process: :meth:`Client.simulate`'s arguments and
-    result, the same numbers."""
-    body = simulate_request(
-        system, methods, h=h, t_end=t_end, params=params, q0=q0, p0=p0, chart=chart,
-        initial_coordinates=initial_coordinates, every=every,
-        compare_to_reference=compare_to_reference, jacobian_defect=jacobian_defect,
-        section=section, stop_when=stop_when, energy=energy, indicators=indicators,
-        deviations=deviations, qr_every=qr_every,
-    )
+    """Runs ``methods`` on ``system`` in this process: :meth:`Client.simulate`'s arguments
+    (:class:`~geomint.client.SimulateOptions`) and result, the same numbers."""
+    body = simulate_request(system, methods, h=h, t_end=t_end, **options)
     ok, text = _native().simulate(json.dumps(body, allow_nan=False, ensure_ascii=False))
     answer = json.loads(text)
     if not ok:
