@@ -13,7 +13,9 @@ processes), and compared cell by cell with geomint's map (target/chaos-map-<n>.t
 
 Usage: bench-chaos-peers.py N [TOL] [PEERS]   (PEERS: heyoka,pynamicalsys by default; pynamicalsys
 takes about 0.6 s per cell, so it runs on GEOMINT_PYNAMICALSYS_CELLS cells of the grid, 200 by
-default, and its time for the whole grid is extrapolated)
+default, and its time for the whole grid is extrapolated). GEOMINT_CHAOS_ACCURACY=1 also measures
+geomint's and heyoka's <Y> against heyoka's at tolerance 1e-15, to set heyoka's tolerance for the
+same accuracy.
 """
 
 import math
@@ -115,6 +117,8 @@ def main():
         rows, wall = timed(heyoka_rows, [(h, tol) for h in halves])
         print(f"heyoka (Taylor, batch, tol {tol:g}): {n} x {n}, {live} cells on the surface, {wall:.2f} s wall")
         compare("heyoka <Y>", rows, ours, lambda v: v > 4.0)
+        if os.environ.get("GEOMINT_CHAOS_ACCURACY"):
+            accuracy(halves, ours, rows)
 
     if "pynamicalsys" in peers:
         # About 0.6 s per cell: a sample of the grid's cells on the surface, spread evenly, timed
@@ -130,6 +134,21 @@ def main():
               f"{wall:.2f} s wall: {compile_s:.1f} s compiling, then {per_cell:.3f} s per cell; "
               f"the {n} x {n} grid would take about {compile_s + per_cell * live / 2:.0f} s on two workers")
         compare("pynamicalsys lambda_max", rows, ours, lambda v: v > 8.0 / T)
+
+
+def accuracy(halves, ours, rows):
+    """Each map's <Y> against heyoka's at tolerance 1e-15 on the regular cells (<Y> < 4 there):
+    the median and the 90th percentile of |<Y> - <Y>_ref|, so that heyoka's tolerance can be set
+    for geomint's accuracy."""
+    key = lambda yv, pyv: (round(yv, 12), round(pyv, 12))
+    ref, wall = timed(heyoka_rows, [(h, 1e-15) for h in halves])
+    ref = {key(yv, pyv): v for yv, pyv, v in ref}
+    theirs = {key(yv, pyv): v for yv, pyv, v in rows}
+    regular = [k for k, v in ref.items() if v < 4.0 and math.isfinite(ours.get(k, math.nan))]
+    for label, m in (("geomint", ours), ("heyoka", theirs)):
+        errors = [abs(m[k] - ref[k]) for k in regular]
+        print(f"  {label} <Y> against heyoka at tol 1e-15 ({wall:.1f} s) on {len(regular)} regular cells: "
+              f"median {np.median(errors):.2e}, 90th percentile {np.percentile(errors, 90):.2e}")
 
 
 def compare(label, rows, ours, chaotic):
