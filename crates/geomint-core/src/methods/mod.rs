@@ -2,7 +2,9 @@
 //! ([`MethodId`] and its [`MethodInfo`]: order, kind, properties, requirements, citation), and the
 //! construction of a stepper for a concrete system ([`build`](fn@build)). One file per family beside this
 //! one, each with the catalogue entries of its methods; a method's id is written once, in its
-//! entry.
+//! entry. [`lanes`] holds the batched steppers that run four cells of a study side by side in
+//! SIMD lanes (energy maps; compositions of kicks and drifts with their tangent maps for chaos
+//! maps).
 
 pub mod build;
 pub mod composition;
