@@ -38,7 +38,7 @@ mod tracker;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{CoreError, Field};
-pub use tracker::Tracker;
+pub use tracker::{OneVectorLanes, Tracker};
 
 /// Steps between re-orthonormalisations when a request does not say.
 pub const DEFAULT_QR_EVERY: u64 = 10;

@@ -1,7 +1,8 @@
 //! One run's deviation vectors and the running sums of its indicators: advanced by the driver
 //! after every step (the range guard), updated on the grid of every `qr_every` steps
 //! (re-orthonormalisation, MEGNO, FLI, the directions behind SALI and GALI, thresholds), and read
-//! at samples without being changed.
+//! at samples without being changed. [`OneVectorLanes`] keeps the sums of one vector for many
+//! runs side by side, updated together with the same arithmetic.
 
 use nalgebra::allocator::Allocator;
 use nalgebra::{DMatrix, DefaultAllocator, Dim};
@@ -22,6 +23,17 @@ struct Megno {
     y: f64,
     /// ∫ Y dt.
     integral: f64,
+}
+
+impl Megno {
+    /// The sums after a grid interval [t0, t1] over which ln δ went from `self.l` to `l`.
+    #[inline(always)]
+    fn advance(self, l: f64, t0: f64, t1: f64) -> Megno {
+        let s = self.s + 0.5 * (t0 + t1) * (l - self.l);
+        let y = 2.0 * s / t1;
+        let integral = self.integral + 0.5 * (self.y + y) * (t1 - t0);
+        Megno { l, s, y, integral }
+    }
 }
 
 /// The tangent dynamics of one run and its indicators.
@@ -173,11 +185,8 @@ where
             };
         }
         let (t0, t1) = (self.last_step as f64 * self.h, step as f64 * self.h);
-        let s = self.megno.s + 0.5 * (t0 + t1) * (l - self.megno.l);
-        let y = 2.0 * s / t1;
-        let integral = self.megno.integral + 0.5 * (self.megno.y + y) * (t1 - t0);
         Interval {
-            megno: Megno { l, s, y, integral },
+            megno: self.megno.advance(l, t0, t1),
             fli: self.fli.max(l),
         }
     }
@@ -251,5 +260,103 @@ where
             }
         }
         values
+    }
+}
+
+/// The sums of one deviation vector (k = 1, without the directions of SALI and GALI, which need
+/// two) for `L` runs side by side, updated on the grid together: lane by lane what
+/// [`Tracker::after_step`]'s update keeps, with its arithmetic, where ln δ, MEGNO's sums and the
+/// FLI are all a lane needs (Σ ln R₁₁ is ln δ itself). A run with thresholds keeps its own
+/// tracker, which looks at them after every update.
+#[derive(Clone, Debug)]
+pub struct OneVectorLanes<const L: usize> {
+    h: f64,
+    /// ln δ.
+    l: [f64; L],
+    s: [f64; L],
+    y: [f64; L],
+    integral: [f64; L],
+    fli: [f64; L],
+    last_step: [u64; L],
+}
+
+impl<const L: usize> OneVectorLanes<L> {
+    /// The sums of runs of step `h` if their plan has them kept here, all at the start.
+    pub fn new(plan: &ChaosPlan, h: f64) -> Option<Self> {
+        let one_vector = plan.deviations == 1
+            && plan.stop_when.is_empty()
+            && !plan.asks(Indicator::Sali)
+            && !plan.asks(Indicator::Gali);
+        one_vector.then_some(OneVectorLanes {
+            h,
+            l: [0.0; L],
+            s: [0.0; L],
+            y: [0.0; L],
+            integral: [0.0; L],
+            fli: [0.0; L],
+            last_step: [0; L],
+        })
+    }
+
+    /// The update at `step` of the lanes in `due`, whose vectors had norm `r` (R₁₁, positive
+    /// and finite) and were scaled by 2^`exponents` since the last update.
+    // Lanes are indexed side by side in several arrays: the form the compiler vectorises.
+    #[allow(clippy::needless_range_loop)]
+    pub fn update(&mut self, step: u64, r: &[f64; L], exponents: &[i32; L], due: &[bool; L]) {
+        let t1 = step as f64 * self.h;
+        let mut growth = [0.0; L];
+        for i in 0..L {
+            if due[i] {
+                growth[i] = frame::log_growth(r[i], exponents[i]);
+            }
+        }
+        for i in 0..L {
+            let l = self.l[i] + growth[i];
+            let t0 = self.last_step[i] as f64 * self.h;
+            let kept = Megno {
+                l: self.l[i],
+                s: self.s[i],
+                y: self.y[i],
+                integral: self.integral[i],
+            };
+            let m = kept.advance(l, t0, t1);
+            let fli = self.fli[i].max(l);
+            if due[i] {
+                (self.l[i], self.s[i], self.y[i], self.integral[i]) = (m.l, m.s, m.y, m.integral);
+                self.fli[i] = fli;
+                self.last_step[i] = step;
+            }
+        }
+    }
+
+    /// Gives lane `i`'s sums to its run's `tracker`, as though the tracker had made the last
+    /// update itself (its vectors and the exponents since then are the caller's to give).
+    pub fn hand_to<D: Dim>(&self, i: usize, tracker: &mut Tracker<D>)
+    where
+        DefaultAllocator: Allocator<D>,
+    {
+        tracker.log_r[0] = self.l[i];
+        tracker.megno = Megno {
+            l: self.l[i],
+            s: self.s[i],
+            y: self.y[i],
+            integral: self.integral[i],
+        };
+        tracker.fli = self.fli[i];
+        tracker.last_step = self.last_step[i];
+        tracker.exponents.fill(0);
+    }
+
+    /// Takes lane `i`'s sums back from `tracker` after it updated them itself.
+    pub fn take_from<D: Dim>(&mut self, i: usize, tracker: &Tracker<D>)
+    where
+        DefaultAllocator: Allocator<D>,
+    {
+        self.l[i] = tracker.log_r[0];
+        self.s[i] = tracker.megno.s;
+        self.y[i] = tracker.megno.y;
+        self.integral[i] = tracker.megno.integral;
+        self.fli[i] = tracker.fli;
+        self.last_step[i] = tracker.last_step;
     }
 }

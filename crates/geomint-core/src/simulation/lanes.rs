@@ -1,4 +1,4 @@
-//! Runs of one simulation's method from up to four initial states, side by side in SIMD lanes
+//! Runs of one simulation's method from up to [`LANES`] initial states, side by side in SIMD lanes
 //! (see [`crate::methods::lanes`]), with their chaos indicators: a chaos map's cells. For each
 //! run the driver does what [`integrate_tracked`](crate::run::integrate_tracked) does — the
 //! samples, the indicators' updates on their grid and their thresholds, divergence, the budget —
@@ -13,9 +13,10 @@ use nalgebra::{DefaultAllocator, Dim};
 
 use super::run::{Outcome, SampleSink};
 use super::spec::Simulation;
-use crate::chaos::{ThresholdStop, Tracker};
+use crate::chaos::{OneVectorLanes, ThresholdStop, Tracker};
 use crate::error::CoreError;
-use crate::methods::lanes::{LaneForces, TangentLanes, CHECK_EVERY, LANES};
+use crate::methods::lanes::tangent::LANES;
+use crate::methods::lanes::{LaneForces, TangentLanes, CHECK_EVERY};
 use crate::methods::{self};
 use crate::run::{Budget, Observer, RunStats, StopReason};
 use crate::system::{MechanicalSystem, State};
@@ -73,7 +74,7 @@ impl Simulation {
     }
 
     /// Runs the first method of each of `sims` (simulations that differ only in their initial
-    /// states), each run's samples to its sink: four at a time in lanes where
+    /// states), each run's samples to its sink: [`LANES`] at a time in lanes where
     /// [`runs_in_lanes`](Self::runs_in_lanes), else one by one. `None` when the budget stopped
     /// a run.
     pub fn run_side_by_side(
@@ -164,6 +165,9 @@ where
         observers[l].on_sample(0, 0.0, &states[l]);
     }
     let mut ended: Vec<Option<(StopReason, u64, u64)>> = vec![None; count];
+    // With one vector and nothing to look at between samples, the lanes keep the sums and
+    // update them together; each run's tracker takes them over at its samples.
+    let mut sums = OneVectorLanes::<LANES>::new(plan, h);
     let mut step = 0u64;
     while step < steps && running.iter().any(|&r| r) {
         if step.is_multiple_of(CHECK_EVERY) && (budget.cancelled() || budget.expired()) {
@@ -178,34 +182,65 @@ where
         let advanced = lanes.advance(sys, until - step, &running);
         step += advanced.steps;
         let t = step as f64 * h;
+        // Lanes whose indicators this step updates: the one-run path leaves them alone after a
+        // step whose state's components are finite but overflow when summed.
+        let mut update = [false; LANES];
         for l in 0..count {
             if !running[l] {
                 continue;
             }
-            let tracker = &mut trackers[l];
-            let mut passed = None;
             if advanced.not_finite[l] {
                 if !lanes.finite(l) {
                     running[l] = false;
                     let stop = StopReason::Diverged { step, t };
                     ended[l] = Some((stop, step, lanes.force_evaluations()));
-                    continue;
                 }
-                // Finite components whose sum overflows: the one-run path leaves the
-                // indicators alone after such a step, and so do the lanes.
-            } else {
-                if advanced.out_of_range[l] {
-                    lanes.guard(l, &mut exponents[l]);
-                }
-                if step.is_multiple_of(qr_every) {
-                    hand_over(&lanes, l, tracker, &mut exponents[l]);
-                    // The tracker's own guard finds the vectors in range: it only updates.
-                    passed = tracker.after_step(step);
-                    lanes.load(l, &tracker.tangent.jac);
+                continue;
+            }
+            if advanced.out_of_range[l] {
+                lanes.guard(l, &mut exponents[l]);
+            }
+            update[l] = step.is_multiple_of(qr_every);
+        }
+        let mut passed = [None; LANES];
+        if let Some(sums) = sums.as_mut() {
+            if update.iter().any(|&u| u) {
+                let r = lanes.normalise_first(&update);
+                let kept = std::array::from_fn(|l| update[l] && r[l] > 0.0 && r[l].is_finite());
+                let e = std::array::from_fn(|l| exponents.get(l).map_or(0, |e| e[0]));
+                sums.update(step, &r, &e, &kept);
+                for l in 0..count {
+                    if kept[l] {
+                        exponents[l][0] = 0;
+                    } else if update[l] {
+                        // A vector with no length: the tracker replaces it.
+                        sums.hand_to(l, &mut trackers[l]);
+                        hand_over(&lanes, l, &mut trackers[l], &mut exponents[l]);
+                        trackers[l].after_step(step);
+                        lanes.load(l, &trackers[l].tangent.jac);
+                        sums.take_from(l, &trackers[l]);
+                    }
                 }
             }
-            let due = step.is_multiple_of(every) || step == steps || passed.is_some();
+        } else {
+            for l in (0..count).filter(|&l| update[l]) {
+                let tracker = &mut trackers[l];
+                hand_over(&lanes, l, tracker, &mut exponents[l]);
+                // The tracker's own guard finds the vectors in range: it only updates.
+                passed[l] = tracker.after_step(step);
+                lanes.load(l, &tracker.tangent.jac);
+            }
+        }
+        for l in 0..count {
+            if !running[l] {
+                continue;
+            }
+            let due = step.is_multiple_of(every) || step == steps || passed[l].is_some();
             if due {
+                let tracker = &mut trackers[l];
+                if let Some(sums) = &sums {
+                    sums.hand_to(l, tracker);
+                }
                 hand_over(&lanes, l, tracker, &mut exponents[l]);
                 for i in 0..N {
                     states[l].q[i] = lanes.q[i][l];
@@ -214,7 +249,7 @@ where
                 observers[l].on_indicators(&tracker.peek(step));
                 observers[l].on_sample(step, t, &states[l]);
             }
-            if let Some((indicator, value, threshold)) = passed {
+            if let Some((indicator, value, threshold)) = passed[l] {
                 running[l] = false;
                 let stop = StopReason::Indicator(ThresholdStop {
                     step,

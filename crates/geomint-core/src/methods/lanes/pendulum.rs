@@ -24,11 +24,16 @@
 use std::sync::atomic::Ordering;
 use std::time::Instant;
 
-use super::{Lane, CHECK_EVERY, LANES};
+use super::CHECK_EVERY;
 use crate::methods::{Method, MethodId};
 use crate::run::Budget;
 use crate::studies::sweep::metrics::DIVERGENCE;
 use crate::systems::{AnySystem, PlanarCartesian, PlanarKind, PlanarPolar, PlanarSpring};
+
+/// Cells integrated side by side.
+pub const LANES: usize = 4;
+/// One value per lane.
+pub type Lane = [f64; LANES];
 
 /// The chart a lane kernel works in.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

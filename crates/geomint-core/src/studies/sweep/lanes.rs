@@ -1,4 +1,4 @@
-//! Sweeps whose runs go four at a time in SIMD lanes, with axes over the initial state only
+//! Sweeps whose runs go a group at a time in SIMD lanes, with axes over the initial state only
 //! (the lanes share the parameters and the step), with the numbers of the one-cell path bit for
 //! bit:
 //! - energy maps ([`LaneKernel`]: symplectic Euler or its adjoint on the planar elastic
@@ -11,7 +11,7 @@ use std::ops::Range as Cells;
 
 use super::metrics::{EnergyReference, Measure, RunMetrics};
 use super::{SweepJob, Target};
-pub(super) use crate::methods::lanes::LANES;
+use crate::methods::lanes::pendulum::LANES;
 use crate::methods::lanes::{LaneKernel, Start, Tally};
 use crate::run::Budget;
 use crate::simulation::{SampleSink, Simulation};
@@ -27,6 +27,16 @@ pub(super) enum LanePlan {
     Energy(EnergyLanes),
     /// A chaos map's runs, each prepared per group of cells.
     Chaos,
+}
+
+impl LanePlan {
+    /// Cells run side by side.
+    pub(super) fn group(&self) -> usize {
+        match self {
+            LanePlan::Energy(_) => LANES,
+            LanePlan::Chaos => crate::methods::lanes::tangent::LANES,
+        }
+    }
 }
 
 /// How the lanes run an energy map: one entry per run (method × chart), and the common
@@ -111,7 +121,7 @@ impl SweepJob {
         Some(EnergyLanes { runs, h, steps })
     }
 
-    /// The runs of `cells` (at most [`LANES`]), side by side. As on the one-cell path, a cell
+    /// The runs of `cells` (at most [`LanePlan::group`]), side by side. As on the one-cell path, a cell
     /// is `None` when the budget stopped one of its runs, and keeps its results when every run
     /// either failed to start or finished (a cell whose starts are all outside the chart keeps
     /// its failures after the time limit).

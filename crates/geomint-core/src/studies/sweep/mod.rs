@@ -610,10 +610,7 @@ impl Study for SweepJob {
     }
 
     fn group(&self) -> usize {
-        match self.lanes {
-            Some(_) => lanes::LANES,
-            None => 1,
-        }
+        self.lanes.as_ref().map_or(1, lanes::LanePlan::group)
     }
 
     fn run_cells(
