@@ -7,9 +7,10 @@
 //! `target/chaos-map-<n>.tsv`; with `GEOMINT_PEERS_PYTHON` set (`scripts/bench-chaos` sets up the
 //! venv and sets it) the peers' script `scripts/bench-chaos-peers.py` then runs heyoka and
 //! pynamicalsys on the same grid in the same run and compares their maps with this one.
-//! Then the same map of the same potential typed in as text, which runs cell by cell, on
-//! `GEOMINT_CHAOS_TYPED_GRID` × the same (51 by default; 0 skips it), and how far its ⟨Y⟩ is
-//! from the built-in system's when the grids are the same.
+//! Then the same map of the same potential typed in as text on `GEOMINT_CHAOS_TYPED_GRID` × the
+//! same (101 by default; 0 skips it): in lanes, then cell by cell (the same numbers, checked),
+//! the ratio of the two, and how far its ⟨Y⟩ is from the built-in system's when the grids are
+//! the same.
 
 use std::io::Write;
 use std::time::Instant;
@@ -41,7 +42,7 @@ fn main() {
             .unwrap_or(default)
     };
     let n = grid("GEOMINT_CHAOS_GRID", 101);
-    let doc = megno_map(n, "built-in, in lanes", None);
+    let doc = megno_map(n, "built-in, in lanes", None, false);
     let megno = &doc.runs[0].chaos.as_ref().expect("indicators").megno_mean;
     let path = format!("target/chaos-map-{n}.tsv");
     let mut out =
@@ -64,11 +65,26 @@ fn main() {
         }
         Err(_) => println!("(run scripts/bench-chaos for the peers in the same run)"),
     }
-    let typed_n = grid("GEOMINT_CHAOS_TYPED_GRID", 51);
+    let typed_n = grid("GEOMINT_CHAOS_TYPED_GRID", 101);
     if typed_n > 0 {
         let typed = json!({"coordinates": ["x", "y"], "mass": 1,
             "potential": "(x^2 + y^2)/2 + x^2*y - y^3/3"});
-        let doc = megno_map(typed_n, "typed in, cell by cell", Some(typed));
+        let wall = Instant::now();
+        let doc = megno_map(typed_n, "typed in, in lanes", Some(typed.clone()), false);
+        let in_lanes = wall.elapsed().as_secs_f64();
+        let wall = Instant::now();
+        let alone = megno_map(typed_n, "typed in, cell by cell", Some(typed), true);
+        let cell_by_cell = wall.elapsed().as_secs_f64();
+        assert_eq!(
+            serde_json::to_string(&doc.runs).expect("numbers"),
+            serde_json::to_string(&alone.runs).expect("numbers"),
+            "the lanes give the one-cell path's numbers"
+        );
+        println!(
+            "  typed in: the same numbers both ways; in lanes {:.1}× the cells per second of \
+             cell by cell",
+            cell_by_cell / in_lanes
+        );
         if typed_n == n {
             // Chaotic orbits part at the first rounding that differs; regular ones stay close.
             let theirs = &doc.runs[0].chaos.as_ref().expect("indicators").megno_mean;
@@ -97,9 +113,14 @@ fn main() {
     }
 }
 
-/// The preset's map on n × n cells, of the built-in system or of `system` typed in; prints its
-/// times.
-fn megno_map(n: usize, label: &str, system: Option<serde_json::Value>) -> SweepDocument {
+/// The preset's map on n × n cells, of the built-in system or of `system` typed in, in lanes
+/// where the sweep runs so or `one_by_one`; prints its times.
+fn megno_map(
+    n: usize,
+    label: &str,
+    system: Option<serde_json::Value>,
+    one_by_one: bool,
+) -> SweepDocument {
     let mut request = presets()
         .into_iter()
         .find(|p| p.id == "henon_heiles_megno")
@@ -119,6 +140,7 @@ fn megno_map(n: usize, label: &str, system: Option<serde_json::Value>) -> SweepD
                 .map_err(|e| e.to_string())
         })
         .expect("a valid sweep");
+    let job = if one_by_one { job.cell_by_cell() } else { job };
     let (cpu, wall) = (cpu_seconds(), Instant::now());
     let doc =
         sweep::run(&job, &Local, Budget::default(), &|_: SweepLine| true).expect("the map runs");

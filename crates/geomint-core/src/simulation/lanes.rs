@@ -30,6 +30,9 @@ macro_rules! with_lane_system {
         match $any {
             AnySystem::HenonHeiles($sys) => $body,
             AnySystem::PlanarCartesian($sys) => $body,
+            AnySystem::Custom1($sys) => $body,
+            AnySystem::Custom2($sys) => $body,
+            AnySystem::Custom3($sys) => $body,
             _ => $other,
         }
     };
@@ -39,7 +42,8 @@ impl Simulation {
     /// Whether runs of this simulation's first method go side by side in lanes: chaos
     /// indicators asked for and nothing else (no section, event, reference run or Jacobian
     /// defect), a composition of kicks and drifts, on an undamped autonomous system the lanes
-    /// evaluate (Hénon–Heiles, the planar elastic pendulum in Cartesian coordinates).
+    /// evaluate (Hénon–Heiles, the planar elastic pendulum in Cartesian coordinates, typed-in
+    /// separable systems of one to three degrees of freedom).
     pub fn runs_in_lanes(&self) -> bool {
         with_lane_system!(&self.system, sys => self.lanes(sys).is_some(), _ => false)
     }
@@ -52,7 +56,8 @@ impl Simulation {
     {
         let plan = self.chaos.as_ref()?;
         let plain = self.crossings.is_none() && !self.compare_to_reference && !self.jacobian_defect;
-        let simple = sys.damping_rate() == 0.0
+        let simple = sys.in_lanes()
+            && sys.damping_rate() == 0.0
             && sys.clock().is_none()
             && sys.structure().separable_constant_mass
             && sys.dim().value() == N;

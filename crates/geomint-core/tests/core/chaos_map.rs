@@ -2,6 +2,8 @@
 //! in SIMD lanes with the one-cell path's numbers bit for bit; sweeps that collect each cell's
 //! section points.
 
+use std::sync::Arc;
+
 use geomint_core::chaos::{ChaosSpec, Indicator, Statistic};
 use geomint_core::error::{CoreError, Field};
 use geomint_core::methods::{Base, Method, MethodId};
@@ -17,7 +19,8 @@ use geomint_core::studies::sweep::{
     self, Axis, Scale, SweepDocument, SweepJob, SweepLine, SweepSpec, Target,
 };
 use geomint_core::system::MechanicalSystem;
-use geomint_core::systems::{HenonHeiles, ParamValue, SystemRef};
+use geomint_core::systems::custom::{self, CustomDefinition, Energy, Expression, Mass};
+use geomint_core::systems::{params, AnySystem, HenonHeiles, ParamValue, SystemInfo, SystemRef};
 
 /// The Hénon–Heiles (y, p_y) section at x = 0 and energy `e`, n × n cells over [−0.5, 0.5]²,
 /// p_x solved from the energy, with `chaos`.
@@ -285,6 +288,25 @@ fn chaos_maps_in_lanes_give_the_one_cell_paths_numbers_bit_for_bit() {
             },
         )
     });
+    // Hénon–Heiles typed in, with a full mass matrix and with a scalar one: the lanes call its
+    // compiled functions.
+    specs.push(SweepSpec {
+        system: SystemRef::Defined(typed_in_henon_heiles(true)),
+        ..section(
+            0.125,
+            7,
+            60.0,
+            ChaosSpec {
+                deviations: Some(2),
+                ..ChaosSpec::new(&[Indicator::Lyapunov, Indicator::Megno, Indicator::Sali])
+            },
+        )
+    });
+    specs.push(SweepSpec {
+        system: SystemRef::Defined(typed_in_henon_heiles(false)),
+        every: Some(97),
+        ..section(0.4, 5, 60.0, ChaosSpec::new(&[Indicator::Megno]))
+    });
     // (failed, diverged, stopped by a threshold, finished)
     let mut outcomes = [0usize; 4];
     for spec in specs {
@@ -312,6 +334,68 @@ fn chaos_maps_in_lanes_give_the_one_cell_paths_numbers_bit_for_bit() {
     }
     println!("outcomes (failed, diverged, stopped, finished): {outcomes:?}");
     assert!(outcomes.iter().all(|&n| n > 0), "outcomes {outcomes:?}");
+}
+
+/// Hénon–Heiles with λ a parameter, typed in, with the mass matrix [[1.5, 0.25], [0.25, 1]]
+/// (`full`) or 1.5 I.
+fn typed_in_henon_heiles(full: bool) -> Arc<SystemInfo> {
+    let expr = |name: &str, text: &str| Expression {
+        text: text.to_string(),
+        field: Field::new("system").key(name),
+    };
+    let definition = CustomDefinition {
+        field: Field::new("system"),
+        name: None,
+        coordinates: vec!["x".into(), "y".into()],
+        momenta: None,
+        energy: Energy::Separable {
+            mass: if full {
+                Mass::Matrix(vec![
+                    vec![expr("mass", "1.5"), expr("mass", "0.25")],
+                    vec![expr("mass", "0.25"), expr("mass", "1")],
+                ])
+            } else {
+                Mass::Scalar(expr("mass", "1.5"))
+            },
+            potential: expr("potential", "(x^2 + y^2)/2 + lambda*(x^2*y - y^3/3)"),
+        },
+        damping: None,
+        parameters: vec![("lambda".into(), 1.0)],
+        invariants: Vec::new(),
+        positions: None,
+        q0: None,
+        p0: None,
+    };
+    custom::define(definition, "test").expect("a valid definition")
+}
+
+/// The cells of a sweep over initial states share one compilation of a typed-in system: the
+/// same parameter values give the same compiled functions, others their own.
+#[test]
+fn a_typed_in_system_is_compiled_once_for_the_same_parameter_values() {
+    let info = typed_in_henon_heiles(false);
+    let chart = info.chart(None, &Field::new("chart")).expect("the chart");
+    let field = Field::new("params");
+    let with = |lambda: f64| {
+        let given = [("lambda".to_string(), ParamValue::Number(lambda))].into();
+        let params = params::resolve(&info, &given, &field).expect("valid parameters");
+        match info.build(&params, chart, 0.05).expect("compiles") {
+            AnySystem::Custom2(sys) => sys,
+            _ => panic!("two degrees of freedom"),
+        }
+    };
+    let (a, b, c) = (with(1.0), with(1.0), with(0.5));
+    assert!(std::ptr::eq(a.model(), b.model()));
+    assert!(!std::ptr::eq(a.model(), c.model()));
+    let q = nalgebra::Vector2::new(0.3, -0.2);
+    let grad = |sys: &geomint_core::systems::CustomSystem<nalgebra::U2>| {
+        let mut g = nalgebra::Vector2::zeros();
+        sys.grad_potential(&q, &mut g);
+        g
+    };
+    // ∇V = (x + 2λxy, y + λ(x² − y²)).
+    assert!((grad(&b) - nalgebra::Vector2::new(0.18, -0.15)).amax() < 1e-15);
+    assert!((grad(&c) - nalgebra::Vector2::new(0.24, -0.175)).amax() < 1e-15);
 }
 
 #[test]

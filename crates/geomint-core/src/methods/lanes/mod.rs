@@ -14,7 +14,8 @@
 //! - [`pendulum`]: symplectic Euler and its adjoint on the planar elastic pendulum in either
 //!   chart, with the energy error at every step (paper 001's Fig. 6 map); four runs.
 //! - [`tangent`]: any composition of kicks and drifts on a separable system that evaluates its
-//!   forces and their Hessian in lanes ([`LaneForces`]), with deviation vectors advanced by the
+//!   forces and their Hessian in lanes ([`LaneForces`]: built-in systems with their formulas,
+//!   typed-in ones through their compiled functions), with deviation vectors advanced by the
 //!   method's own tangent map (chaos maps); sixteen runs, so that a step's chain of dependent
 //!   operations (drift, force, kick) has several registers of independent work to overlap.
 

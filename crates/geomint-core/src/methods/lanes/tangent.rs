@@ -22,8 +22,8 @@ use crate::methods::splitting::SubFlow;
 
 /// Runs side by side: four registers of four with AVX2, two of eight with AVX-512. One register
 /// of four would leave the CPU waiting on each operation's latency along the step's chain
-/// (drift, force, kick); with four independent registers per operation it overlaps them (the
-/// triple jump on Hénon–Heiles: 1.7× faster per cell-step than four runs side by side).
+/// (drift, force, kick); with several independent registers per operation it overlaps them.
+/// (Eight lanes were slower than four with AVX2's 16 registers; AVX-512 has 32.)
 pub const LANES: usize = 16;
 /// One value per lane.
 pub type Lane = [f64; LANES];
@@ -32,6 +32,11 @@ pub type Lane = [f64; LANES];
 /// each lane with exactly the arithmetic of the system's own `velocity`, `grad_potential` and
 /// `hess_potential` (an exact Hessian, which costs no gradient evaluations).
 pub trait LaneForces<const N: usize> {
+    /// Whether this instance evaluates in lanes (a system type may do so only for some of its
+    /// instances).
+    fn in_lanes(&self) -> bool {
+        true
+    }
     /// v = M⁻¹p.
     fn velocity_lanes(&self, p: &[Lane; N], v: &mut [Lane; N]);
     /// ∇V(q).

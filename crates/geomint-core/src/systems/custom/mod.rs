@@ -17,6 +17,7 @@
 //! `instantiate`), parameters folded into the machine code.
 
 pub mod damping;
+mod lanes;
 pub mod model;
 mod shapes;
 pub mod system;

@@ -42,7 +42,7 @@ impl InverseMass {
 
     /// out = M⁻¹ v.
     #[inline]
-    fn apply(&self, v: &[f64], out: &mut [f64]) {
+    pub(crate) fn apply(&self, v: &[f64], out: &mut [f64]) {
         match self {
             InverseMass::Scalar(m) => {
                 for (o, x) in out.iter_mut().zip(v) {

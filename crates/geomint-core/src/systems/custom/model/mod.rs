@@ -5,7 +5,7 @@
 
 mod checks;
 
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 use super::damping::MassFactor;
 use super::shapes::{check_square, mass_nodes, position_nodes};
@@ -72,6 +72,9 @@ pub struct CustomModel {
     /// momentum p_t in extended phase space (see [`Clock`]).
     clock: Option<Clock>,
     facts: Facts,
+    /// The last compilation and its parameter values' bits: the cells of a sweep over initial
+    /// states share one compilation rather than each compiling the same code again.
+    last: Mutex<Option<(Vec<u64>, Arc<Compiled>)>>,
 }
 
 /// The time of a driven definition as extended phase space sees it: t a coordinate after the
@@ -306,6 +309,7 @@ impl CustomModel {
                 methods: Vec::new(),
                 time_dependent: false,
             },
+            last: Mutex::new(None),
         };
         model.check_states()?;
         // The numbers the default parameters fix: checked now, so that a definition that can
@@ -527,6 +531,35 @@ impl CustomModel {
     pub fn instantiate(&self, params: &ParamValues) -> Result<AnySystem, CoreError> {
         let values = self.values(params);
         let numbers = self.numbers(&values, &Field::new("params"))?;
+        let key: Vec<u64> = values.iter().map(|v| v.to_bits()).collect();
+        // The same values compile to the same code: a poisoned lock only loses the cache.
+        let cached = match self.last.lock() {
+            Ok(last) => last
+                .as_ref()
+                .filter(|(k, _)| *k == key)
+                .map(|(_, c)| c.clone()),
+            Err(_) => None,
+        };
+        let compiled = match cached {
+            Some(compiled) => compiled,
+            None => {
+                let compiled = self.compile_system(&values, numbers)?;
+                if let Ok(mut last) = self.last.lock() {
+                    *last = Some((key, compiled.clone()));
+                }
+                compiled
+            }
+        };
+        Ok(match compiled.n {
+            1 => AnySystem::Custom1(CustomSystem::new(nalgebra::U1, compiled)),
+            2 => AnySystem::Custom2(CustomSystem::new(nalgebra::U2, compiled)),
+            3 => AnySystem::Custom3(CustomSystem::new(nalgebra::U3, compiled)),
+            n => AnySystem::CustomN(CustomSystem::new(nalgebra::Dyn(n), compiled)),
+        })
+    }
+
+    /// The system's functions compiled for parameter values `values`, which fix `numbers`.
+    fn compile_system(&self, values: &[f64], numbers: Numbers) -> Result<Arc<Compiled>, CoreError> {
         let structure = self.structure(&numbers);
         let energy = match &self.energy {
             EnergyNodes::Separable {
@@ -539,9 +572,9 @@ impl CustomModel {
                     unreachable!("a separable energy always has its mass checked")
                 };
                 EnergyModel::separable(
-                    self.compile(&[*potential], false, &values)?,
-                    self.compile(gradient, false, &values)?,
-                    self.compile(hessian, false, &values)?,
+                    self.compile(&[*potential], false, values)?,
+                    self.compile(gradient, false, values)?,
+                    self.compile(hessian, false, values)?,
                     m,
                     factor,
                     self.n,
@@ -553,26 +586,26 @@ impl CustomModel {
                 dp,
                 second,
             } => EnergyModel::General {
-                hamiltonian: self.compile(&[*hamiltonian], true, &values)?,
-                dq: self.compile(dq, true, &values)?,
-                dp: self.compile(dp, true, &values)?,
-                second: self.compile(second, true, &values)?,
+                hamiltonian: self.compile(&[*hamiltonian], true, values)?,
+                dq: self.compile(dq, true, values)?,
+                dp: self.compile(dp, true, values)?,
+                second: self.compile(second, true, values)?,
             },
         };
         let damping_matrix = match &self.damping {
-            DampingNodes::Rayleigh { matrix, .. } => Some(self.compile(matrix, false, &values)?),
+            DampingNodes::Rayleigh { matrix, .. } => Some(self.compile(matrix, false, values)?),
             _ => None,
         };
         let damping_derivative = self
             .damping_derivative
             .as_ref()
-            .and_then(|nodes| self.compile(nodes, false, &values).ok());
+            .and_then(|nodes| self.compile(nodes, false, values).ok());
         let invariants = if self.invariants.is_empty() {
             None
         } else {
-            Some(self.compile(&self.invariants, true, &values)?)
+            Some(self.compile(&self.invariants, true, values)?)
         };
-        let compiled = Arc::new(Compiled {
+        Ok(Arc::new(Compiled {
             n: self.n + usize::from(self.clock.is_some()),
             clock: self.clock.map(|_| self.n),
             structure,
@@ -581,13 +614,7 @@ impl CustomModel {
             damping_matrix,
             damping_derivative,
             invariants,
-        });
-        Ok(match compiled.n {
-            1 => AnySystem::Custom1(CustomSystem::new(nalgebra::U1, compiled)),
-            2 => AnySystem::Custom2(CustomSystem::new(nalgebra::U2, compiled)),
-            3 => AnySystem::Custom3(CustomSystem::new(nalgebra::U3, compiled)),
-            n => AnySystem::CustomN(CustomSystem::new(nalgebra::Dyn(n), compiled)),
-        })
+        }))
     }
 
     /// How the system appears in space for parameters `params`: its `positions`, or without

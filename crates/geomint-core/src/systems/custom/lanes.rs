@@ -1,0 +1,98 @@
+//! Typed-in separable systems in the chaos maps' SIMD lanes: each lane calls the system's own
+//! compiled ∇V and ∇²V and its M⁻¹, the functions its one-run path calls, so every lane's
+//! numbers are that path's by construction; what the lanes vectorise is the rest of the step
+//! (the drifts, the kicks and the deviation vectors' tangent maps). One, two and three degrees
+//! of freedom, the dimensions a typed-in system runs on the stack with.
+
+// Lanes and components are indexed side by side.
+#![allow(clippy::needless_range_loop)]
+
+use nalgebra::{U1, U2, U3};
+
+use super::system::{CustomSystem, EnergyModel, InverseMass};
+use crate::methods::lanes::tangent::{Lane, LaneForces, LANES};
+
+macro_rules! lane_forces {
+    ($($dim:ty => $n:literal),*) => {$(
+        impl LaneForces<$n> for CustomSystem<$dim> {
+            fn in_lanes(&self) -> bool {
+                matches!(self.model().energy, EnergyModel::Separable { .. })
+            }
+
+            #[inline(always)]
+            fn velocity_lanes(&self, p: &[Lane; $n], v: &mut [Lane; $n]) {
+                let EnergyModel::Separable { inverse_mass, .. } = &self.model().energy else {
+                    return;
+                };
+                // `InverseMass::apply`'s arithmetic, vectorised where it is one division.
+                match inverse_mass {
+                    InverseMass::Scalar(m) => {
+                        for i in 0..$n {
+                            for l in 0..LANES {
+                                v[i][l] = p[i][l] / m;
+                            }
+                        }
+                    }
+                    InverseMass::Diagonal(d) => {
+                        for i in 0..$n {
+                            for l in 0..LANES {
+                                v[i][l] = p[i][l] / d[i];
+                            }
+                        }
+                    }
+                    InverseMass::Full(_) => each_lane(p, v, |x, out| inverse_mass.apply(x, out)),
+                }
+            }
+
+            #[inline(always)]
+            fn grad_lanes(&self, q: &[Lane; $n], g: &mut [Lane; $n]) {
+                if let EnergyModel::Separable { gradient, .. } = &self.model().energy {
+                    each_lane(q, g, |x, out| gradient.eval(x, out));
+                }
+            }
+
+            #[inline(always)]
+            fn hessian_lanes(&self, q: &[Lane; $n], hess: &mut [[Lane; $n]; $n]) {
+                let EnergyModel::Separable { hessian, .. } = &self.model().energy else {
+                    return;
+                };
+                let mut x = [0.0; $n];
+                let mut out = [[0.0; $n]; $n];
+                for l in 0..LANES {
+                    for i in 0..$n {
+                        x[i] = q[i][l];
+                    }
+                    hessian.eval(&x, out.as_flattened_mut());
+                    // The one-run path reads the n² outputs as a column-major matrix: entry
+                    // (i, j) is output j·n + i.
+                    for i in 0..$n {
+                        for j in 0..$n {
+                            hess[i][j][l] = out[j][i];
+                        }
+                    }
+                }
+            }
+        }
+    )*};
+}
+
+lane_forces!(U1 => 1, U2 => 2, U3 => 3);
+
+/// `f` from `inputs` to `outputs` lane by lane, through arrays of one lane's components.
+#[inline(always)]
+fn each_lane<const N: usize>(
+    inputs: &[Lane; N],
+    outputs: &mut [Lane; N],
+    f: impl Fn(&[f64], &mut [f64]),
+) {
+    let (mut x, mut y) = ([0.0; N], [0.0; N]);
+    for l in 0..LANES {
+        for i in 0..N {
+            x[i] = inputs[i][l];
+        }
+        f(&x, &mut y);
+        for i in 0..N {
+            outputs[i][l] = y[i];
+        }
+    }
+}
