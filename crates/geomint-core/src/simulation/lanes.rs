@@ -1,9 +1,9 @@
-//! Runs of one simulation's method from up to [`LANES`] initial states, side by side in SIMD lanes
-//! (see [`crate::methods::lanes`]), with their chaos indicators: a chaos map's cells. For each
+//! Runs of one simulation's method from up to [`LANES`] initial states, side by side in SIMD
+//! lanes (see [`crate::methods::lanes`]), with their chaos indicators: a chaos map's cells. For each
 //! run the driver does what [`integrate_tracked`](crate::run::integrate_tracked) does — the
 //! samples, the indicators' updates on their grid and their thresholds, divergence, the budget —
 //! and hands the samples to the same observer, so each run's samples and outcome are bit for
-//! bit the one-run path's (`tests/core/chaos_lanes.rs` compares them cell by cell). Runs the
+//! bit the one-run path's (`tests/core/chaos_map.rs` compares them cell by cell). Runs the
 //! lanes cannot take go one by one.
 
 use std::time::Instant;
@@ -30,6 +30,7 @@ macro_rules! with_lane_system {
         match $any {
             AnySystem::HenonHeiles($sys) => $body,
             AnySystem::PlanarCartesian($sys) => $body,
+            AnySystem::ElasticPendulum3d($sys) => $body,
             AnySystem::Custom1($sys) => $body,
             AnySystem::Custom2($sys) => $body,
             AnySystem::Custom3($sys) => $body,
@@ -42,8 +43,8 @@ impl Simulation {
     /// Whether runs of this simulation's first method go side by side in lanes: chaos
     /// indicators asked for and nothing else (no section, event, reference run or Jacobian
     /// defect), a composition of kicks and drifts, on an undamped autonomous system the lanes
-    /// evaluate (Hénon–Heiles, the planar elastic pendulum in Cartesian coordinates, typed-in
-    /// separable systems of one to three degrees of freedom).
+    /// evaluate (Hénon–Heiles, the planar and the 3-D elastic pendulum in Cartesian coordinates,
+    /// typed-in separable systems of one to three degrees of freedom).
     pub fn runs_in_lanes(&self) -> bool {
         with_lane_system!(&self.system, sys => self.lanes(sys).is_some(), _ => false)
     }
@@ -243,10 +244,16 @@ where
             let due = step.is_multiple_of(every) || step == steps || passed[l].is_some();
             if due {
                 let tracker = &mut trackers[l];
-                if let Some(sums) = &sums {
-                    sums.hand_to(l, tracker);
+                match &sums {
+                    // The lanes' next update still needs the exponents since the last: the
+                    // tracker, which only reads the run here, is given a copy.
+                    Some(sums) => {
+                        sums.hand_to(l, tracker);
+                        lanes.store(l, &mut tracker.tangent.jac);
+                        tracker.add_exponents(&exponents[l]);
+                    }
+                    None => hand_over(&lanes, l, tracker, &mut exponents[l]),
                 }
-                hand_over(&lanes, l, tracker, &mut exponents[l]);
                 for i in 0..N {
                     states[l].q[i] = lanes.q[i][l];
                     states[l].p[i] = lanes.p[i][l];

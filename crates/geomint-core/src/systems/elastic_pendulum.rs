@@ -11,6 +11,7 @@ use nalgebra::{DMatrix, U3};
 use std::borrow::Cow;
 
 use super::{AnySystem, Builder, ChartInfo, ParamSpec, ParamValues, SystemInfo, World};
+use crate::methods::lanes::tangent::{Lane, LaneForces, LANES};
 use crate::system::{MechanicalSystem, Structure, Vector};
 
 /// The damped elastic 3-D pendulum.
@@ -48,18 +49,11 @@ impl MechanicalSystem for ElasticPendulum3d {
     }
     #[inline]
     fn grad_potential(&self, q: &Vector<U3>, out: &mut Vector<U3>) {
-        let r = q.norm();
-        let c = self.k * (1.0 - self.l / r);
-        out[0] = c * q[0];
-        out[1] = c * q[1];
-        out[2] = c * q[2] + self.m * self.g;
+        [out[0], out[1], out[2]] = self.grad(q);
     }
     #[inline]
     fn velocity(&self, _q: &Vector<U3>, p: &Vector<U3>, out: &mut Vector<U3>) {
-        let inv_m = 1.0 / self.m;
-        out[0] = p[0] * inv_m;
-        out[1] = p[1] * inv_m;
-        out[2] = p[2] * inv_m;
+        [out[0], out[1], out[2]] = self.velocity_of(p);
     }
     fn damping_rate(&self) -> f64 {
         self.epsilon / self.m
@@ -76,13 +70,10 @@ impl MechanicalSystem for ElasticPendulum3d {
         true
     }
     fn hess_potential(&self, q: &Vector<U3>, out: &mut DMatrix<f64>) -> u64 {
-        // ∇V = k(1 − l/r) q + m g e_z, so ∇²V = k(1 − l/r) I + k l q qᵀ / r³.
-        let r = q.norm();
-        let a = self.k * (1.0 - self.l / r);
-        let b = self.k * self.l / (r * r * r);
+        let h = self.hessian(q);
         for i in 0..3 {
             for j in 0..3 {
-                out[(i, j)] = b * q[i] * q[j] + if i == j { a } else { 0.0 };
+                out[(i, j)] = h[i][j];
             }
         }
         0
@@ -92,6 +83,63 @@ impl MechanicalSystem for ElasticPendulum3d {
     }
     fn invariants(&self, _t: f64, q: &Vector<U3>, p: &Vector<U3>, out: &mut [f64]) {
         out[0] = q[0] * p[1] - q[1] * p[0];
+    }
+}
+
+/// The velocity, force and Hessian at one point: the one formula the one-run path and the lanes
+/// share.
+impl ElasticPendulum3d {
+    #[inline(always)]
+    fn velocity_of(&self, p: &Vector<U3>) -> [f64; 3] {
+        let inv_m = 1.0 / self.m;
+        [p[0] * inv_m, p[1] * inv_m, p[2] * inv_m]
+    }
+
+    #[inline(always)]
+    fn grad(&self, q: &Vector<U3>) -> [f64; 3] {
+        let r = q.norm();
+        let c = self.k * (1.0 - self.l / r);
+        [c * q[0], c * q[1], c * q[2] + self.m * self.g]
+    }
+
+    /// ∇V = k(1 − l/r) q + m g e_z, so ∇²V = k(1 − l/r) I + k l q qᵀ / r³.
+    #[inline(always)]
+    fn hessian(&self, q: &Vector<U3>) -> [[f64; 3]; 3] {
+        let r = q.norm();
+        let a = self.k * (1.0 - self.l / r);
+        let b = self.k * self.l / (r * r * r);
+        std::array::from_fn(|i| {
+            std::array::from_fn(|j| b * q[i] * q[j] + if i == j { a } else { 0.0 })
+        })
+    }
+}
+
+impl LaneForces<3> for ElasticPendulum3d {
+    #[inline(always)]
+    fn velocity_lanes(&self, p: &[Lane; 3], v: &mut [Lane; 3]) {
+        for l in 0..LANES {
+            [v[0][l], v[1][l], v[2][l]] =
+                self.velocity_of(&Vector::<U3>::new(p[0][l], p[1][l], p[2][l]));
+        }
+    }
+
+    #[inline(always)]
+    fn grad_lanes(&self, q: &[Lane; 3], g: &mut [Lane; 3]) {
+        for l in 0..LANES {
+            [g[0][l], g[1][l], g[2][l]] = self.grad(&Vector::<U3>::new(q[0][l], q[1][l], q[2][l]));
+        }
+    }
+
+    #[inline(always)]
+    fn hessian_lanes(&self, q: &[Lane; 3], hess: &mut [[Lane; 3]; 3]) {
+        for l in 0..LANES {
+            let h = self.hessian(&Vector::<U3>::new(q[0][l], q[1][l], q[2][l]));
+            for i in 0..3 {
+                for j in 0..3 {
+                    hess[i][j][l] = h[i][j];
+                }
+            }
+        }
     }
 }
 

@@ -288,6 +288,67 @@ fn chaos_maps_in_lanes_give_the_one_cell_paths_numbers_bit_for_bit() {
             },
         )
     });
+    // The undamped elastic 3-D pendulum (paper 000's), over a plane of starts, every vector.
+    let start_axis = |k: usize, target, min: f64, max: f64| Axis {
+        target,
+        min,
+        max,
+        n: 5,
+        scale: Scale::Linear,
+        field: Field::new("axes").index(k),
+    };
+    specs.push(SweepSpec {
+        system: "elastic_pendulum_3d".into(),
+        params: [("epsilon".to_string(), ParamValue::Number(0.0))].into(),
+        q0: Some(vec![0.0, 1.55884573, -0.6]),
+        p0: Some(vec![1.34164079, 0.0, 0.0]),
+        methods: methods(&[
+            Method::new(MethodId::VelocityVerlet),
+            Method::triple_jump(Base::VelocityVerlet),
+        ]),
+        h: Some(0.02),
+        every: Some(150),
+        axes: vec![
+            start_axis(0, Target::Q0(0), -0.5, 0.5),
+            start_axis(1, Target::P0(1), -1.0, 1.0),
+        ],
+        energy_surface: None,
+        ..section(
+            0.125,
+            5,
+            20.0,
+            ChaosSpec {
+                deviations: Some(6),
+                ..ChaosSpec::new(&[Indicator::Lyapunov, Indicator::Megno, Indicator::Gali])
+            },
+        )
+    });
+    // A saddle, whose vector the range guard rescales between updates and samples that fall
+    // between updates: the tracker must see those powers of two at the samples and the lanes'
+    // sums at the next update.
+    specs.push(SweepSpec {
+        system: SystemRef::Defined(crate::sections::separable(&["x"], "-625*x^2/2", None, &[])),
+        q0: Some(vec![0.0]),
+        p0: Some(vec![0.0]),
+        methods: methods(&[Method::new(MethodId::VelocityVerlet)]),
+        h: Some(0.01),
+        every: Some(300),
+        axes: vec![
+            start_axis(0, Target::Q0(0), -1.0, 1.0),
+            start_axis(1, Target::P0(0), -1.0, 1.0),
+        ],
+        energy_surface: None,
+        ..section(
+            0.125,
+            5,
+            25.0,
+            ChaosSpec {
+                deviations: Some(1),
+                qr_every: Some(1000),
+                ..ChaosSpec::new(&[Indicator::Lyapunov, Indicator::Megno, Indicator::Fli])
+            },
+        )
+    });
     // Hénon–Heiles typed in, with a full mass matrix and with a scalar one: the lanes call its
     // compiled functions.
     specs.push(SweepSpec {

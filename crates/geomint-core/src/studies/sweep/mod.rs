@@ -115,7 +115,7 @@ pub struct SweepJob {
     /// The request's identity.
     pub digest: String,
     limits: Limits,
-    /// How the cells run four at a time, when the sweep is one the lanes run.
+    /// How the cells run a group at a time, when the sweep is one the lanes run.
     lanes: Option<lanes::LanePlan>,
     /// The spec it was prepared from (what workers and parts carry).
     spec: SweepSpec,
@@ -330,7 +330,7 @@ impl SweepSpec {
 }
 
 impl SweepJob {
-    /// Whether the cells run four at a time in SIMD lanes (the energy map's kind of sweep: see
+    /// Whether the cells run a group at a time in SIMD lanes (energy maps and chaos maps: see
     /// `sweep/lanes.rs`); the numbers are those of the one-cell path either way.
     pub fn runs_in_lanes(&self) -> bool {
         self.lanes.is_some()
