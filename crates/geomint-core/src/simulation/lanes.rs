@@ -211,8 +211,7 @@ where
         let mut passed = [None; LANES];
         if let Some(sums) = sums.as_mut() {
             if update.iter().any(|&u| u) {
-                let r = lanes.normalise_first(&update);
-                let kept = std::array::from_fn(|l| update[l] && r[l] > 0.0 && r[l].is_finite());
+                let (r, kept) = lanes.normalise_first(&update);
                 let e = std::array::from_fn(|l| exponents.get(l).map_or(0, |e| e[0]));
                 sums.update(step, &r, &e, &kept);
                 for l in 0..count {

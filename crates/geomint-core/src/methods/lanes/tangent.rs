@@ -376,9 +376,10 @@ impl<const N: usize> TangentLanes<N> {
     }
 
     /// Normalises the first deviation vector of each lane in `due` as `frame::orthonormalise`
-    /// normalises a first column, and returns the norms (R₁₁); a vector whose norm is zero or
-    /// not finite is left alone (`frame::orthonormalise` replaces it).
-    pub fn normalise_first(&mut self, due: &[bool; LANES]) -> Lane {
+    /// normalises a first column, and returns the norms (R₁₁) and which lanes it normalised; a
+    /// vector whose norm is zero or not finite is left alone (`frame::orthonormalise` replaces
+    /// it).
+    pub fn normalise_first(&mut self, due: &[bool; LANES]) -> (Lane, [bool; LANES]) {
         let c = &mut self.columns[0];
         let mut n2 = [0.0; LANES];
         for i in 0..N {
@@ -408,7 +409,7 @@ impl<const N: usize> TangentLanes<N> {
                 }
             }
         }
-        norm
+        (norm, scale)
     }
 
     /// Lane `l`'s deviation vectors into the columns of `jac` (2n × k, δq rows first).
