@@ -27,7 +27,6 @@ use serde::Serialize;
 use utoipa::ToSchema;
 
 use crate::core::error::{ErrorCode, ErrorDetail};
-use crate::http::ApiError;
 use tokens::{TokenFile, MAX_SECRET_LEN};
 pub use usage::{RunGuard, Usage};
 
@@ -199,7 +198,7 @@ impl Caller {
 
     /// Whether it may use a route that needs `scope`; the refusal is 401 for a client without
     /// a token (a token would help), 403 for a token without the scope.
-    pub fn require(&self, scope: Scope) -> Result<(), ApiError> {
+    pub fn require(&self, scope: Scope) -> Result<(), Refusal> {
         if self.scopes.grants(scope) {
             return Ok(());
         }
@@ -227,8 +226,35 @@ impl Caller {
     }
 }
 
-fn refusal(code: ErrorCode, message: String) -> ApiError {
-    ApiError::from(ErrorDetail::at(code, "Authorization", message))
+fn refusal(code: ErrorCode, message: String) -> Refusal {
+    Refusal::from(ErrorDetail::at(code, "Authorization", message))
+}
+
+/// Why a caller may not go on: the error as the API reports it (its code gives the HTTP
+/// status), and for a quota that frees up, when to try again.
+#[derive(Debug)]
+pub struct Refusal {
+    /// The error.
+    pub detail: ErrorDetail,
+    /// Seconds until a retry may succeed (the `Retry-After` header).
+    pub retry_after_secs: Option<u64>,
+}
+
+impl Refusal {
+    /// The refusal with a time to retry after.
+    pub fn with_retry_after(mut self, secs: u64) -> Self {
+        self.retry_after_secs = Some(secs);
+        self
+    }
+}
+
+impl From<ErrorDetail> for Refusal {
+    fn from(detail: ErrorDetail) -> Self {
+        Refusal {
+            detail,
+            retry_after_secs: None,
+        }
+    }
 }
 
 /// The access settings of a server.
@@ -316,7 +342,7 @@ impl Access {
         &self,
         mut authorization: impl Iterator<Item = &'a [u8]>,
         address: Option<IpAddr>,
-    ) -> Result<Caller, ApiError> {
+    ) -> Result<Caller, Refusal> {
         let anonymous = || {
             let quotas = self.config.anonymous_quotas.clone();
             Caller::anonymous(address, self.config.anonymous, quotas, self.short_work)
@@ -354,7 +380,7 @@ impl Access {
 
 /// The token of an `Authorization: Bearer <token>` value (RFC 6750: the scheme in any case, one
 /// or more spaces, a token of visible ASCII).
-fn bearer(value: &[u8]) -> Result<&str, ApiError> {
+fn bearer(value: &[u8]) -> Result<&str, Refusal> {
     let wrong = |what: &str| {
         refusal(
             ErrorCode::Unauthorized,

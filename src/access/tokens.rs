@@ -103,11 +103,26 @@ fn parse_digest(text: &str) -> Result<[u8; 32], String> {
     Ok(out)
 }
 
+/// Parses a whole number ≥ 0 as the tokens file's quotas and the command line's counts write it:
+/// digits with optional `_` separators, or `1e7` style.
+pub fn parse_count(s: &str) -> Result<u64, String> {
+    let s = s.trim().replace('_', "");
+    if let Ok(n) = s.parse::<u64>() {
+        return Ok(n);
+    }
+    match s.parse::<f64>() {
+        Ok(x) if x.is_finite() && x >= 0.0 && x.fract() == 0.0 && x <= u64::MAX as f64 => {
+            Ok(x as u64)
+        }
+        _ => Err(format!("`{s}` is not a whole number ≥ 0")),
+    }
+}
+
 fn parse_quota(quotas: &mut Quotas, item: &str) -> Result<(), String> {
     let (key, value) = item
         .split_once('=')
         .ok_or_else(|| format!("`{item}` is not a quota (key=value)"))?;
-    let n = crate::cli::parse_count(value).map_err(|e| format!("{key}: {e}"))?;
+    let n = parse_count(value).map_err(|e| format!("{key}: {e}"))?;
     match key {
         "recordings_bytes" => quotas.recordings_bytes = Some(n),
         "systems" => quotas.systems = Some(usize::try_from(n).unwrap_or(usize::MAX)),

@@ -15,9 +15,8 @@ use std::time::{Duration, Instant};
 use governor::clock::{Clock, DefaultClock};
 use governor::{DefaultDirectRateLimiter, Quota};
 
-use super::Caller;
+use super::{Caller, Refusal};
 use crate::core::error::{ErrorCode, ErrorDetail};
-use crate::http::ApiError;
 
 /// Limiters unused this long are full again, the same as new ones: dropped when many pile up.
 const IDLE: Duration = Duration::from_secs(60);
@@ -93,7 +92,7 @@ impl Usage {
         self: &Arc<Self>,
         caller: &Caller,
         steps: Option<u64>,
-    ) -> Result<RunGuard, ApiError> {
+    ) -> Result<RunGuard, Refusal> {
         if let Some(largest) = caller.largest_run {
             let what = match steps {
                 Some(n) if n <= largest => None,
@@ -103,7 +102,7 @@ impl Usage {
                 None => Some("a study, which a client without a token may not run".to_string()),
             };
             if let Some(what) = what {
-                return Err(ApiError::from(ErrorDetail::at(
+                return Err(Refusal::from(ErrorDetail::at(
                     ErrorCode::Unauthorized,
                     "Authorization",
                     format!("{what}: send a token with the `run` scope"),
@@ -117,7 +116,7 @@ impl Usage {
         Ok(guard)
     }
 
-    fn enter(self: &Arc<Self>, caller: &Caller) -> Result<RunGuard, ApiError> {
+    fn enter(self: &Arc<Self>, caller: &Caller) -> Result<RunGuard, Refusal> {
         let mut in_flight = self.in_flight.lock().unwrap_or_else(|p| p.into_inner());
         let count = in_flight.entry(caller.owner.clone()).or_insert(0);
         if caller.quotas.runs.is_some_and(|max| *count >= max) {
@@ -125,7 +124,7 @@ impl Usage {
             if *count == 0 {
                 in_flight.remove(&caller.owner);
             }
-            return Err(ApiError::from(ErrorDetail::new(
+            return Err(Refusal::from(ErrorDetail::new(
                 ErrorCode::TooManyRuns,
                 format!(
                     "`{}` has {max} runs in flight, its quota; retry once one ends",
@@ -141,7 +140,7 @@ impl Usage {
         })
     }
 
-    fn charge(&self, owner: &str, per_minute: u64, steps: u64) -> Result<(), ApiError> {
+    fn charge(&self, owner: &str, per_minute: u64, steps: u64) -> Result<(), Refusal> {
         let mut rates = self.rates.lock().unwrap_or_else(|p| p.into_inner());
         if rates.len() >= KEEP {
             rates.retain(|_, rate| rate.used.elapsed() < IDLE);
@@ -167,7 +166,7 @@ impl Usage {
             Ok(Err(not_until)) => {
                 let wait = not_until.wait_time_from(self.clock.now());
                 let secs = wait.as_secs() + u64::from(wait.subsec_nanos() > 0);
-                Err(ApiError::from(ErrorDetail::new(
+                Err(Refusal::from(ErrorDetail::new(
                     ErrorCode::RateLimited,
                     format!(
                         "`{owner}` has started more than its {per_minute} steps per minute; \
@@ -181,8 +180,8 @@ impl Usage {
     }
 }
 
-fn larger_than_rate(owner: &str, steps: u64, per_minute: u64) -> ApiError {
-    ApiError::from(ErrorDetail::new(
+fn larger_than_rate(owner: &str, steps: u64, per_minute: u64) -> Refusal {
+    Refusal::from(ErrorDetail::new(
         ErrorCode::QuotaExceeded,
         format!("a run of {steps} steps is more than `{owner}`'s quota of {per_minute} steps per minute"),
     ))
@@ -214,8 +213,8 @@ mod tests {
         let _second = usage.admit(&alice, None).unwrap();
         let refused = usage.admit(&alice, Some(1)).unwrap_err();
         assert_eq!(
-            (refused.status_code().as_u16(), refused.retry_after_secs()),
-            (429, Some(1))
+            (refused.detail.code, refused.retry_after_secs),
+            (ErrorCode::TooManyRuns, Some(1))
         );
         drop(first);
         let _third = usage.admit(&alice, Some(1)).unwrap();
@@ -231,12 +230,12 @@ mod tests {
         });
         drop(usage.admit(&alice, Some(4_000)).unwrap());
         let refused = usage.admit(&alice, Some(4_000)).unwrap_err();
-        assert_eq!(refused.detail().code, ErrorCode::RateLimited);
+        assert_eq!(refused.detail.code, ErrorCode::RateLimited);
         // 2000 steps come back after 20 s.
-        let wait = refused.retry_after_secs().unwrap();
+        let wait = refused.retry_after_secs.unwrap();
         assert!((19..=21).contains(&wait), "{wait}");
         let never = usage.admit(&alice, Some(6_001)).unwrap_err();
-        assert_eq!(never.detail().code, ErrorCode::QuotaExceeded);
+        assert_eq!(never.detail.code, ErrorCode::QuotaExceeded);
         // Quotas beyond u32 cells count in larger units.
         let big = caller(Quotas {
             steps_per_minute: Some(1 << 40),

@@ -104,19 +104,7 @@ impl SystemsDir {
     }
 }
 
-/// Parses a positive whole number, also written as `1e7`.
-pub(crate) fn parse_count(s: &str) -> Result<u64, String> {
-    let s = s.trim().replace('_', "");
-    if let Ok(n) = s.parse::<u64>() {
-        return Ok(n);
-    }
-    match s.parse::<f64>() {
-        Ok(x) if x.is_finite() && x >= 0.0 && x.fract() == 0.0 && x <= u64::MAX as f64 => {
-            Ok(x as u64)
-        }
-        _ => Err(format!("`{s}` is not a whole number ≥ 0")),
-    }
-}
+pub(crate) use crate::access::tokens::parse_count;
 
 pub(crate) fn print_json<T: serde::Serialize>(value: &T) -> ExitCode {
     let stdout = io::stdout();

@@ -25,6 +25,7 @@ use serde_json::{json, Value};
 
 use super::paths;
 use super::state::AppState;
+use super::ApiError;
 use crate::access::{Anonymous, Caller, Scope, Scopes};
 
 /// The scope an operation needs (`None`: open to all), by its method and tags.
@@ -137,7 +138,7 @@ pub async fn authorize(
         .map(|v| v.as_bytes());
     let caller = match state.access.caller(values, address) {
         Ok(caller) => caller,
-        Err(refusal) => return refusal.into_response(),
+        Err(refusal) => return ApiError::from(refusal).into_response(),
     };
     let route = request
         .extensions()
@@ -153,7 +154,7 @@ pub async fn authorize(
     }
     let logged = LoggedCaller(caller.owner.clone());
     if let Some(refusal) = needs.into_iter().find_map(|s| caller.require(s).err()) {
-        let mut response = refusal.into_response();
+        let mut response = ApiError::from(refusal).into_response();
         response.extensions_mut().insert(logged);
         return response;
     }

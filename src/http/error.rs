@@ -8,6 +8,7 @@ use axum::response::{IntoResponse, Response};
 use serde::Serialize;
 use utoipa::ToSchema;
 
+use crate::access::Refusal;
 use crate::core::error::{CoreError, ErrorCode, ErrorDetail};
 
 /// The body of every HTTP error response: `{"error": {"code", "message", "field"}}`.
@@ -194,6 +195,16 @@ impl ApiError {
     pub fn body(&self) -> ErrorBody {
         ErrorBody {
             error: self.detail.clone(),
+        }
+    }
+}
+
+impl From<Refusal> for ApiError {
+    fn from(refusal: Refusal) -> Self {
+        let error = ApiError::from(refusal.detail);
+        match refusal.retry_after_secs {
+            Some(secs) => error.with_retry_after(secs),
+            None => error,
         }
     }
 }

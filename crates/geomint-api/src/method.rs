@@ -59,6 +59,10 @@ fn method_id(id: &str, field: &Field) -> Result<MethodId, CoreError> {
     MethodId::parse(id).ok_or_else(|| CoreError::UnknownMethod {
         field: field.clone(),
         id: id.to_string(),
+        known: MethodId::ALL
+            .iter()
+            .map(|m| m.as_str().to_string())
+            .collect(),
     })
 }
 
@@ -128,7 +132,7 @@ impl MethodSpec {
             if given && !takes.contains(&option) {
                 return Err(CoreError::UnknownOption {
                     field: field.key(option.as_str()),
-                    method: id,
+                    method: id.as_str(),
                     option: option.as_str(),
                 });
             }
@@ -139,7 +143,7 @@ impl MethodSpec {
             let inner = method_id(name, &at)?;
             let inner = Inner::of(inner).ok_or_else(|| CoreError::NotAllowed {
                 field: at,
-                method: inner,
+                method: inner.as_str(),
                 rule: Inner::RULE,
                 allowed: Inner::ids(),
             })?;
@@ -150,7 +154,7 @@ impl MethodSpec {
             let base = method_id(name, &at)?;
             let base = Base::of(base).ok_or_else(|| CoreError::NotAllowed {
                 field: at,
-                method: base,
+                method: base.as_str(),
                 rule: Base::RULE,
                 allowed: Base::ids(),
             })?;

@@ -1,7 +1,11 @@
-//! Diagnostics computed from sampled runs: the dissipation drift of paper 003 eq. (4.4) and
-//! least-squares slopes for observed orders.
+//! Diagnostics computed from sampled runs: the dissipation drift of paper 003 eq. (4.4),
+//! least-squares slopes for observed orders, and the test of divergence.
 
 use serde::Serialize;
+
+/// A run whose energy leaves H₀ by more than this many times 1 + |H₀| has diverged (the test of
+/// the energy-error map, in the sweeps' metrics and in the energy-map lanes alike).
+pub const DIVERGENCE: f64 = 100.0;
 
 /// One point of the dissipation drift d = ln(max |q| over a half-oscillation) + γ t* (paper 003
 /// eq. 4.4): constant for the exact flow, so a trend shows a wrong dissipation rate.

@@ -5,51 +5,23 @@
 //!
 //! - [`field`]: field paths and valid ranges.
 //! - [`detail`]: error codes and the error shape every interface reports.
+//! - [`StepError`]: a failure inside one step.
 
 pub mod detail;
 pub mod field;
+mod message;
+mod step;
 
 use thiserror::Error;
 
 use super::expr::ExprError;
-use super::methods::{MethodId, Requirement};
+use super::system::Requirement;
 pub use detail::{ErrorCode, ErrorDetail};
 use field::out_of_range;
 pub use field::{show, Field, Range};
-
-/// A failure inside one step.
-#[derive(Debug, Clone, PartialEq, Error)]
-#[non_exhaustive]
-pub enum StepError {
-    /// Newton's method did not converge in an implicit step.
-    #[error("Newton iteration did not converge in {iterations} iterations (last correction {residual:e})")]
-    NewtonFailed {
-        /// Iterations made.
-        iterations: usize,
-        /// Norm of the last Newton correction.
-        residual: f64,
-    },
-    /// The adaptive reference integrator failed (step size underflow, too many steps).
-    #[error("adaptive integrator failed: {message}")]
-    AdaptiveFailed {
-        /// The integrator's own message.
-        message: String,
-    },
-    /// The deadline passed inside a step (the adaptive reference looks at it between its inner
-    /// steps); the state is left as it was before the step.
-    #[error("the deadline passed inside a step")]
-    DeadlinePassed,
-    /// The method has no tangent map for this system.
-    #[error("the step Jacobian is not available for this method and system: {reason}")]
-    TangentUnsupported {
-        /// Why.
-        reason: &'static str,
-    },
-}
-
-fn list(names: &[String]) -> String {
-    names.join(", ")
-}
+pub use message::StepScope;
+use message::{at_point, divisor_detail, list, too_many_steps};
+pub use step::StepError;
 
 /// Why a request to the core cannot be carried out. Every variant about an input names its
 /// field; the interfaces map variants to error codes.
@@ -67,12 +39,14 @@ pub enum CoreError {
         known: Vec<String>,
     },
     /// No method has this id.
-    #[error("{field}: unknown method `{id}`; known: {}", MethodId::known())]
+    #[error("{field}: unknown method `{id}`; known: {}", list(known))]
     UnknownMethod {
         /// The field, e.g. `methods[1]` or `methods[1].inner`.
         field: Field,
         /// The id asked for.
         id: String,
+        /// The ids on offer.
+        known: Vec<String>,
     },
     /// The system has no chart of this id.
     #[error("{field}: `{system}` has no chart `{id}`; charts: {}", list(known))]
@@ -113,8 +87,8 @@ pub enum CoreError {
     UnknownOption {
         /// The field, e.g. `methods[0].inner`.
         field: Field,
-        /// The method.
-        method: MethodId,
+        /// The method's id.
+        method: &'static str,
         /// The option given.
         option: &'static str,
     },
@@ -124,8 +98,8 @@ pub enum CoreError {
     NotAllowed {
         /// The field.
         field: Field,
-        /// The method given.
-        method: MethodId,
+        /// The id of the method given.
+        method: &'static str,
         /// What is required, in words.
         rule: &'static str,
         /// The methods allowed.
@@ -317,8 +291,8 @@ pub enum CoreError {
     NoStepJacobian {
         /// The method's field.
         field: Field,
-        /// The method.
-        method: MethodId,
+        /// The method's id.
+        method: &'static str,
         /// Why it has none, as the method's catalogue entry says.
         why: &'static str,
     },
@@ -431,8 +405,8 @@ pub enum CoreError {
     SingularStep {
         /// The field (`h`).
         field: Field,
-        /// The method.
-        method: MethodId,
+        /// The method's id.
+        method: &'static str,
         /// γh there.
         gamma_h: f64,
     },
@@ -542,44 +516,6 @@ pub enum CoreError {
         /// What did not finish and what to do, in words.
         message: String,
     },
-}
-
-/// What a step limit counts.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum StepScope {
-    /// The steps of one method's run.
-    PerMethod,
-    /// The steps of every setting of a study together.
-    PerStudy,
-}
-
-fn too_many_steps(field: &Field, steps: u64, limit: u64, scope: StepScope) -> String {
-    match scope {
-        StepScope::PerMethod => {
-            format!("{field}: t_end/h = {steps} steps exceeds the limit of {limit} per method")
-        }
-        StepScope::PerStudy => format!(
-            "{field}: {steps} steps over all settings exceed the limit of {limit} per study; use \
-             fewer or larger steps"
-        ),
-    }
-}
-
-fn at_point(q: &[f64]) -> String {
-    if q.is_empty() {
-        String::new()
-    } else {
-        let shown: Vec<String> = q.iter().map(|&x| show(x)).collect();
-        format!(" at q = [{}]", shown.join(", "))
-    }
-}
-
-fn divisor_detail(h: f64, span: f64, show_ratio: bool) -> String {
-    if show_ratio {
-        format!("t_end/h = {}", span / h)
-    } else {
-        format!("{} does not", show(h))
-    }
 }
 
 /// Matches an error on where its field is: `$field` binds the field of the variants that always

@@ -436,7 +436,7 @@ fn check_divisors(method: &Method, r: f64, h: f64, field: &Field) -> Result<(), 
         if bad {
             return Err(CoreError::SingularStep {
                 field: field.clone(),
-                method: base,
+                method: base.as_str(),
                 gamma_h: 0.5 * r * h,
             });
         }

@@ -336,7 +336,7 @@ impl Simulation {
                 if let Some(why) = at.method.no_step_jacobian() {
                     return Err(CoreError::NoStepJacobian {
                         field: at.field.clone(),
-                        method: at.method.id(),
+                        method: at.method.id().as_str(),
                         why,
                     });
                 }

@@ -11,7 +11,7 @@ use nalgebra::{DMatrix, U3};
 use std::borrow::Cow;
 
 use super::{AnySystem, Builder, ChartInfo, ParamSpec, ParamValues, SystemInfo, World};
-use crate::methods::lanes::tangent::{Lane, LaneForces, LANES};
+use crate::system::{Lane, LaneForces, LANES};
 use crate::system::{MechanicalSystem, Structure, Vector};
 
 /// The damped elastic 3-D pendulum.

@@ -10,7 +10,7 @@ use nalgebra::{DMatrix, U2};
 use std::borrow::Cow;
 
 use super::{AnySystem, Builder, ChartInfo, ParamSpec, ParamValues, SystemInfo, World};
-use crate::methods::lanes::tangent::{Lane, LaneForces, LANES};
+use crate::system::{Lane, LaneForces, LANES};
 use crate::system::{MechanicalSystem, Structure, Vector};
 
 /// The Hénon–Heiles system with unit masses and frequencies.

@@ -20,7 +20,7 @@ use nalgebra::{DMatrix, U2};
 use std::borrow::Cow;
 
 use super::{AnySystem, Builder, ChartInfo, ParamSpec, ParamValues, SystemInfo, World};
-use crate::methods::lanes::tangent::{Lane, LaneForces, LANES};
+use crate::system::{Lane, LaneForces, LANES};
 use crate::system::{MechanicalSystem, State, Structure, Vector};
 
 /// Which first integrals a planar system reports.

@@ -20,31 +20,7 @@ use nalgebra::DMatrix;
 use crate::chaos::frame;
 use crate::methods::splitting::SubFlow;
 
-/// Runs side by side: four registers of four with AVX2, two of eight with AVX-512. One register
-/// of four would leave the CPU waiting on each operation's latency along the step's chain
-/// (drift, force, kick); with several independent registers per operation it overlaps them.
-/// On the Hénon–Heiles MEGNO map sixteen lanes (AVX-512) with the one-vector sums in lanes took
-/// 8.2 ns per cell-step against 16.2 ns for four (README, chaos maps).
-pub const LANES: usize = 16;
-/// One value per lane.
-pub type Lane = [f64; LANES];
-
-/// A separable system with constant mass whose velocity, force and Hessian the lanes evaluate,
-/// each lane with exactly the arithmetic of the system's own `velocity`, `grad_potential` and
-/// `hess_potential` (an exact Hessian, which costs no gradient evaluations).
-pub trait LaneForces<const N: usize> {
-    /// Whether this instance evaluates in lanes (a system type may do so only for some of its
-    /// instances).
-    fn in_lanes(&self) -> bool {
-        true
-    }
-    /// v = M⁻¹p.
-    fn velocity_lanes(&self, p: &[Lane; N], v: &mut [Lane; N]);
-    /// ∇V(q).
-    fn grad_lanes(&self, q: &[Lane; N], g: &mut [Lane; N]);
-    /// ∇²V(q), row i and column j in `hess[i][j]`.
-    fn hessian_lanes(&self, q: &[Lane; N], hess: &mut [[Lane; N]; N]);
-}
+pub use crate::system::{Lane, LaneForces, LANES};
 
 /// The most degrees of freedom a lane system may have (a bound for the guard's scratch column).
 pub const MAX_DIMENSION: usize = 16;

@@ -11,9 +11,7 @@ use crate::run::StopReason;
 use crate::sections::{Crossing, CrossingKind, SectionSummary};
 use crate::simulation::{CrossingColumns, Outcome, Sample, SampleSink};
 
-/// A run whose energy leaves H₀ by more than this many times 1 + |H₀| has diverged (the test of
-/// the energy-error map).
-pub const DIVERGENCE: f64 = 100.0;
+pub use crate::diagnostics::DIVERGENCE;
 
 pub use crate::simulation::EnergyReference;
 

@@ -10,7 +10,7 @@
 use nalgebra::{U1, U2, U3};
 
 use super::system::{CustomSystem, EnergyModel, InverseMass};
-use crate::methods::lanes::tangent::{Lane, LaneForces, LANES};
+use crate::system::{Lane, LaneForces, LANES};
 
 macro_rules! lane_forces {
     ($($dim:ty => $n:literal),*) => {$(

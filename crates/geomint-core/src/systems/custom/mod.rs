@@ -18,6 +18,7 @@
 
 pub mod damping;
 mod lanes;
+mod mass;
 pub mod model;
 mod shapes;
 pub mod system;
@@ -29,7 +30,6 @@ use serde::{Deserialize, Serialize};
 
 use super::{Builder, ChartInfo, ParamSpec, SystemInfo};
 use crate::error::{CoreError, Field};
-use crate::methods::{Method, MethodId};
 pub use model::CustomModel;
 
 /// Most coordinates of a user-defined system.
@@ -134,7 +134,8 @@ pub enum DampingKind {
     Rayleigh,
 }
 
-/// What a definition is, derived from it.
+/// What a definition is, derived from it (by [`crate::methods::facts`], which adds the methods
+/// that apply).
 #[derive(Clone, Debug, PartialEq, Serialize)]
 #[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct Facts {
@@ -171,9 +172,9 @@ const GENERAL_CHART: ChartInfo = ChartInfo::new(
 /// Checks a definition and builds its model; the catalogue entry it runs under, with `id`.
 pub fn define(definition: CustomDefinition, id: &str) -> Result<Arc<SystemInfo>, CoreError> {
     let model = CustomModel::new(definition)?;
-    let facts = model.facts();
+    let (structure, _) = model.structure_at_defaults();
     let def = model.definition();
-    let n = facts.dimension;
+    let n = model.dimension();
     let params = def
         .parameters
         .iter()
@@ -199,7 +200,7 @@ pub fn define(definition: CustomDefinition, id: &str) -> Result<Arc<SystemInfo>,
             "A damped Hamiltonian system defined by its user (see its definition).",
         ),
         degrees_of_freedom: n,
-        charts: vec![if facts.separable {
+        charts: vec![if structure.separable_constant_mass {
             SEPARABLE_CHART
         } else {
             GENERAL_CHART
@@ -221,22 +222,4 @@ pub fn define(definition: CustomDefinition, id: &str) -> Result<Arc<SystemInfo>,
         build: Builder::Custom(Arc::new(model)),
     };
     Ok(Arc::new(info))
-}
-
-/// The methods that run on a system of this structure and damping (the plain methods, and
-/// each composition when some base runs).
-pub(crate) fn applicable(structure: crate::system::Structure, rate: f64) -> Vec<&'static str> {
-    MethodId::ALL
-        .iter()
-        .filter(|&&id| {
-            let runs = |m: Method| m.requirements().iter().all(|r| r.met_by(structure, rate));
-            match Method::new(id) {
-                Method::Composition { scheme, .. } => crate::methods::Base::ALL
-                    .iter()
-                    .any(|&base| runs(Method::composition(scheme, base))),
-                m => runs(m),
-            }
-        })
-        .map(|id| id.as_str())
-        .collect()
 }

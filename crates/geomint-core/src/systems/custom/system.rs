@@ -12,80 +12,10 @@ use nalgebra::allocator::Allocator;
 use nalgebra::{DMatrix, DefaultAllocator, Dim};
 
 use super::damping::{Flows, MassFactor};
+pub use super::mass::InverseMass;
+use super::DampingKind;
 use crate::expr::CompiledFunction;
 use crate::system::{projector, MechanicalSystem, Structure, Vector};
-
-/// M⁻¹ of a constant mass matrix, in the cheapest form that represents it exactly.
-#[derive(Debug)]
-pub enum InverseMass {
-    /// M = m I: M⁻¹p = p / m.
-    Scalar(f64),
-    /// A diagonal M: M⁻¹p = p_i / m_i.
-    Diagonal(Vec<f64>),
-    /// A full M: M⁻¹, row-major.
-    Full(Vec<f64>),
-}
-
-impl InverseMass {
-    /// M⁻¹ of the symmetric positive definite `m` (row-major n×n, factor `factor`).
-    fn new(m: &[f64], factor: &MassFactor, n: usize) -> Self {
-        let off_diagonal_zero = (0..n * n).all(|k| k / n == k % n || m[k] == 0.0);
-        let diagonal: Vec<f64> = (0..n).map(|i| m[i * n + i]).collect();
-        if off_diagonal_zero && diagonal.iter().all(|&d| d == diagonal[0]) {
-            InverseMass::Scalar(diagonal[0])
-        } else if off_diagonal_zero {
-            InverseMass::Diagonal(diagonal)
-        } else {
-            InverseMass::Full(factor.inverse())
-        }
-    }
-
-    /// out = M⁻¹ v.
-    #[inline]
-    pub(crate) fn apply(&self, v: &[f64], out: &mut [f64]) {
-        match self {
-            InverseMass::Scalar(m) => {
-                for (o, x) in out.iter_mut().zip(v) {
-                    *o = x / m;
-                }
-            }
-            InverseMass::Diagonal(d) => {
-                for ((o, x), m) in out.iter_mut().zip(v).zip(d) {
-                    *o = x / m;
-                }
-            }
-            InverseMass::Full(inverse) => {
-                let n = v.len();
-                for (i, o) in out.iter_mut().enumerate() {
-                    *o = inverse[i * n..(i + 1) * n]
-                        .iter()
-                        .zip(v)
-                        .map(|(a, x)| a * x)
-                        .sum();
-                }
-            }
-        }
-    }
-
-    /// ½ vᵀ M⁻¹ v.
-    #[inline]
-    fn half_quadratic(&self, v: &[f64]) -> f64 {
-        match self {
-            InverseMass::Scalar(m) => 0.5 * v.iter().map(|x| x * x).sum::<f64>() / m,
-            InverseMass::Diagonal(d) => 0.5 * v.iter().zip(d).map(|(x, m)| x * x / m).sum::<f64>(),
-            InverseMass::Full(inverse) => {
-                let n = v.len();
-                let quadratic: f64 = (0..n)
-                    .map(|i| {
-                        let row: f64 = (0..n).map(|j| inverse[i * n + j] * v[j]).sum();
-                        v[i] * row
-                    })
-                    .sum();
-                0.5 * quadratic
-            }
-        }
-    }
-}
 
 /// The energy's compiled functions.
 #[derive(Debug)]
@@ -165,6 +95,16 @@ impl DampingModel {
             DampingModel::None => 0.0,
             DampingModel::Conformal { rate } | DampingModel::Projector { rate } => *rate,
             DampingModel::General { epsilon, .. } => *epsilon,
+        }
+    }
+
+    /// The damping's form.
+    pub fn kind(&self) -> DampingKind {
+        match self {
+            DampingModel::None => DampingKind::None,
+            DampingModel::Conformal { .. } => DampingKind::Conformal,
+            DampingModel::Projector { .. } => DampingKind::RayleighProjector,
+            DampingModel::General { .. } => DampingKind::Rayleigh,
         }
     }
 }

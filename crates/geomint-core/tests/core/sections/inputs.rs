@@ -162,7 +162,7 @@ fn methods_that_cannot_take_time_are_refused_naming_the_method() {
     let e = Simulation::prepare(&spec, &Limits::default()).unwrap_err();
     assert!(matches!(e, CoreError::TimeDependent { .. }), "{e}");
     // The definition says so: the methods it lists take time.
-    let facts = duffing(0.3, 0.5, 1.2).custom_model().unwrap().facts();
+    let facts = geomint_core::methods::facts(duffing(0.3, 0.5, 1.2).custom_model().unwrap());
     assert!(facts.time_dependent);
     assert!(!facts.methods.contains(&"csv2") && facts.methods.contains(&"csv1"));
 }

@@ -11,11 +11,10 @@ use std::sync::{Arc, Mutex};
 use super::damping::MassFactor;
 use super::shapes::{check_square, mass_nodes, position_nodes};
 use super::system::{Compiled, DampingModel};
-use super::{applicable, CustomDefinition, Damping, DampingKind, Energy, Expression, Facts};
+use super::{CustomDefinition, Damping, DampingKind, Energy, Expression};
 use super::{MAX_COORDINATES, MAX_NAMES};
 use crate::error::{CoreError, Field, Range};
 use crate::expr::{ExprError, Graph, NodeId, Scope, Var};
-use crate::methods::{build, Method, MethodId};
 use crate::system::Structure;
 use crate::systems::ParamValues;
 use checks::uses;
@@ -71,7 +70,9 @@ pub struct CustomModel {
     /// For a definition whose energy or damping uses the time `t`: the slots of t and of its
     /// momentum p_t in extended phase space (see [`Clock`]).
     clock: Option<Clock>,
-    facts: Facts,
+    /// The structure and damping rate at the default parameter values (what the methods
+    /// require), and the damping's form.
+    at_defaults: (Structure, f64, DampingKind),
     /// The last compilation and its parameter values' bits: the cells of a sweep over initial
     /// states share one compilation rather than each compiling the same code again.
     last: Mutex<Option<(Vec<u64>, Arc<Compiled>)>>,
@@ -302,13 +303,14 @@ impl CustomModel {
             coordinate_nodes,
             positions,
             clock,
-            facts: Facts {
-                dimension: n,
-                separable: false,
-                damping: DampingKind::None,
-                methods: Vec::new(),
-                time_dependent: false,
-            },
+            at_defaults: (
+                Structure {
+                    separable_constant_mass: false,
+                    conformal_damping: false,
+                },
+                0.0,
+                DampingKind::None,
+            ),
             last: Mutex::new(None),
         };
         model.check_states()?;
@@ -321,7 +323,11 @@ impl CustomModel {
             .map(|(_, v)| *v)
             .collect();
         let numbers = model.numbers(&defaults, &model.definition.field.clone())?;
-        model.facts = model.facts_of(&numbers);
+        model.at_defaults = (
+            model.structure(&numbers),
+            numbers.damping.rate(),
+            numbers.damping.kind(),
+        );
         Ok(model)
     }
 
@@ -330,9 +336,20 @@ impl CustomModel {
         &self.definition
     }
 
-    /// What the definition is.
-    pub fn facts(&self) -> Facts {
-        self.facts.clone()
+    /// Degrees of freedom.
+    pub fn dimension(&self) -> usize {
+        self.n
+    }
+
+    /// The structure and damping rate at the default parameter values: what the methods'
+    /// requirements are checked against ([`crate::methods::facts`] lists the methods that apply).
+    pub fn structure_at_defaults(&self) -> (Structure, f64) {
+        (self.at_defaults.0, self.at_defaults.1)
+    }
+
+    /// The damping's form at the default parameter values.
+    pub fn damping_kind(&self) -> DampingKind {
+        self.at_defaults.2
     }
 
     /// Checks the default states' lengths and values.
@@ -367,29 +384,6 @@ impl CustomModel {
                 numbers.damping,
                 DampingModel::None | DampingModel::Conformal { .. }
             ),
-        }
-    }
-
-    fn facts_of(&self, numbers: &Numbers) -> Facts {
-        let structure = self.structure(numbers);
-        let rate = numbers.damping.rate();
-        let mut methods = applicable(structure, rate);
-        if self.clock.is_some() {
-            methods.retain(|id| {
-                MethodId::parse(id).is_some_and(|m| build::no_time(&Method::new(m), rate).is_none())
-            });
-        }
-        Facts {
-            dimension: self.n,
-            separable: structure.separable_constant_mass,
-            damping: match numbers.damping {
-                DampingModel::None => DampingKind::None,
-                DampingModel::Conformal { .. } => DampingKind::Conformal,
-                DampingModel::Projector { .. } => DampingKind::RayleighProjector,
-                DampingModel::General { .. } => DampingKind::Rayleigh,
-            },
-            methods,
-            time_dependent: self.clock.is_some(),
         }
     }
 
