@@ -19,8 +19,8 @@ use crate::flows::Tangent;
 use crate::run::{Advanced, Stepper};
 use crate::system::{MechanicalSystem, State};
 
-/// The Butcher tableau of an explicit Runge–Kutta method.
-fn tableau(id: MethodId) -> Option<&'static Tableau> {
+/// The Butcher tableau of an explicit Runge–Kutta method (`None` for the other methods).
+pub fn tableau(id: MethodId) -> Option<&'static Tableau> {
     match id {
         MethodId::ExplicitEuler => Some(&runge_kutta::EXPLICIT_EULER),
         MethodId::Heun => Some(&runge_kutta::HEUN),
@@ -30,8 +30,8 @@ fn tableau(id: MethodId) -> Option<&'static Tableau> {
     }
 }
 
-/// The sub-flow sequence of a splitting method.
-fn sequence(id: MethodId) -> Option<splitting::Sequence> {
+/// The sub-flow sequence of a splitting method (`None` for the other methods).
+pub fn sequence(id: MethodId) -> Option<splitting::Sequence> {
     Some(match id {
         MethodId::Modin3s => splitting::MODIN_3S,
         MethodId::Modin2s => splitting::MODIN_2S,

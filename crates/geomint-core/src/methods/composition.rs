@@ -30,9 +30,10 @@
 //! stages with the base's flows written out); other bases (cimp, csv2, implicit_midpoint) are
 //! wrapped by [`Composed`].
 //!
-//! The order conditions the tables must meet are tested (`tests/core/compositions.rs`): Σγ = 1 to
-//! round-off, Σγ³ = 0 for order ≥ 4, Σγ⁵ = 0 for order ≥ 6, Σγ⁷ = 0 for order 8, and the observed
-//! order on the damped oscillator.
+//! The order conditions the tables must meet are tested: Σγ = 1 to round-off, Σγ³ = 0 for order
+//! ≥ 4, Σγ⁵ = 0 for order ≥ 6, Σγ⁷ = 0 for order 8, and the observed order on the damped
+//! oscillator (`tests/core/compositions.rs`); every condition up to the order, as words in the
+//! flows' Lie operators, with and without damping (`tests/core/order_conditions.rs`).
 
 use std::time::Instant;
 

@@ -14,6 +14,7 @@ mod compositions;
 mod driven;
 mod energy_map;
 mod expr;
+mod order_conditions;
 mod orders;
 mod reference;
 mod sections;
