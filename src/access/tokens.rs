@@ -105,13 +105,13 @@ fn parse_digest(text: &str) -> Result<[u8; 32], String> {
 
 /// Parses a whole number ≥ 0 as the tokens file's quotas and the command line's counts write it:
 /// digits with optional `_` separators, or `1e7` style.
-pub fn parse_count(s: &str) -> Result<u64, String> {
+pub(crate) fn parse_count(s: &str) -> Result<u64, String> {
     let s = s.trim().replace('_', "");
     if let Ok(n) = s.parse::<u64>() {
         return Ok(n);
     }
     match s.parse::<f64>() {
-        Ok(x) if x.is_finite() && x >= 0.0 && x.fract() == 0.0 && x <= u64::MAX as f64 => {
+        Ok(x) if x.is_finite() && x >= 0.0 && x.fract() == 0.0 && x < u64::MAX as f64 => {
             Ok(x as u64)
         }
         _ => Err(format!("`{s}` is not a whole number ≥ 0")),

@@ -48,6 +48,30 @@ pub enum InitialCoordinates {
     Cartesian,
 }
 
+impl InitialCoordinates {
+    /// Whether a study's q0 and p0 (`state_given`) are Cartesian, for the choice `chosen` over
+    /// `charts` charts: by default they are when there are several (one physical state for every
+    /// chart), and in several charts they cannot be a chart's own.
+    pub fn cartesian_in_study(
+        chosen: Option<InitialCoordinates>,
+        charts: usize,
+        state_given: bool,
+    ) -> Result<bool, CoreError> {
+        let several = charts > 1;
+        if several && state_given && chosen == Some(InitialCoordinates::Chart) {
+            return Err(CoreError::Unsupported {
+                field: Field::new("initial_coordinates"),
+                reason: "with several charts q0 and p0 are one physical state: give them in \
+                         `cartesian` coordinates",
+            });
+        }
+        Ok(match chosen {
+            Some(c) => c == InitialCoordinates::Cartesian,
+            None => several,
+        })
+    }
+}
+
 /// What the energy error of a sample is measured against.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]

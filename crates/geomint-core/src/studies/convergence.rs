@@ -226,19 +226,11 @@ impl ConvergenceSpec {
         for (chart, field) in &charts {
             info.chart(*chart, field)?;
         }
-        let several = charts.len() > 1;
-        let given = self.q0.is_some() || self.p0.is_some();
-        if several && given && self.initial_coordinates == Some(InitialCoordinates::Chart) {
-            return Err(CoreError::Unsupported {
-                field: Field::new("initial_coordinates"),
-                reason: "with several charts q0 and p0 are one physical state: give them in \
-                         `cartesian` coordinates",
-            });
-        }
-        let initial_cartesian = match self.initial_coordinates {
-            Some(c) => c == InitialCoordinates::Cartesian,
-            None => several,
-        };
+        let initial_cartesian = InitialCoordinates::cartesian_in_study(
+            self.initial_coordinates,
+            charts.len(),
+            self.q0.is_some() || self.p0.is_some(),
+        )?;
         check_t_end(self.t_end)?;
         if self.methods.is_empty() {
             return Err(CoreError::Empty {

@@ -69,19 +69,11 @@ impl SweepSpec {
                 got: Some(runs),
             });
         }
-        let several = charts.len() > 1;
-        let given = self.q0.is_some() || self.p0.is_some();
-        if several && given && self.initial_coordinates == Some(InitialCoordinates::Chart) {
-            return Err(CoreError::Unsupported {
-                field: Field::new("initial_coordinates"),
-                reason: "with several charts q0 and p0 are one physical state: give them in \
-                         `cartesian` coordinates",
-            });
-        }
-        let initial_cartesian = match self.initial_coordinates {
-            Some(c) => c == InitialCoordinates::Cartesian,
-            None => several,
-        };
+        let initial_cartesian = InitialCoordinates::cartesian_in_study(
+            self.initial_coordinates,
+            charts.len(),
+            self.q0.is_some() || self.p0.is_some(),
+        )?;
         let mut templates = Vec::with_capacity(runs);
         let mut labels = Vec::with_capacity(runs);
         for method in &self.methods {
