@@ -12,29 +12,33 @@ from .catalog import Chart, Definition, Facts, Method, Parameter, System
 from .client import DEFAULT_URL, Client
 from .errors import GeomintError, OverloadedError, RefusedError, ServerError, ValidationError
 from .recording import Recording, RecordingInfo
-from .simulation import (
+from .sections import (
     Crossings,
+    SectionSummary,
+    Surface,
+)
+from .simulation import (
     DivergedAt,
     Indicators,
     Run,
     Schedule,
-    SectionSummary,
     Simulation,
     Stats,
     Stop,
-    Surface,
     SystemState,
+)
+from .maps import (
+    EnergyMap,
+    Spectrum,
+    StabilityMap,
+    StabilityMaps,
+    StabilityPoint,
 )
 from .studies import (
     Axis,
     Convergence,
     ConvergenceSeries,
-    EnergyMap,
     OrderFit,
-    Spectrum,
-    StabilityMap,
-    StabilityMaps,
-    StabilityPoint,
     Sweep,
     SweepRun,
     WorkPrecision,

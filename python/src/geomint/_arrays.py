@@ -70,3 +70,8 @@ Scalar = TypeVar("Scalar", bound=np.generic)
 def grid_of(array: npt.NDArray[Scalar], shape: tuple[int, ...]) -> npt.NDArray[Scalar]:
     """``grid`` for an array that is already numpy (integers, booleans, objects)."""
     return np.reshape(array, shape, order="F")
+
+
+def optional_rows(values: Optional[Sequence[Sequence[float]]], width: int) -> Optional[FloatArray]:
+    """:func:`rows`, or ``None`` for a column the server left out."""
+    return None if values is None else rows(values, width)

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import math
 import os
 from pathlib import Path
 from typing import (
@@ -16,7 +15,6 @@ from typing import (
     Optional,
     Sequence,
     Tuple,
-    TypedDict,
     Union,
     cast,
 )
@@ -26,8 +24,35 @@ if TYPE_CHECKING:  # the keyword arguments' types (typing.Unpack from Python 3.1
     from typing_extensions import Unpack
 
 import httpx
-import numpy as np
 
+from ._arguments import (
+    AnyStudyLine,
+    AxisLike,
+    EnergySurfaceLike,
+    GridAxis,
+    Indicators,
+    Methods,
+    Result,
+    SectionLike,
+    SimulateOptions,
+    StudyResult,
+    SystemLike,
+    Vector,
+    _axis,
+    _count,
+    _energy_surface,
+    _grid_axis,
+    _is_error_body,
+    _method_list,
+    _plain,
+    _positive,
+    _put,
+    _put_indicators,
+    _section,
+    _system,
+    _thresholds,
+    simulate_request,
+)
 from ._version import __version__
 from ._progress import Progress
 from ._wire import (
@@ -35,22 +60,16 @@ from ._wire import (
     NDJSON,
     ROUTES,
     RRD,
-    AxisRequest,
-    AxisSpec,
-    ConvergenceLine,
     ConvergenceRequest,
     ConvergenceResultLine,
     DampingEntry,
     EnergyMapRequest,
-    EnergyRequest,
     ErrorBody,
     ErrorDetail,
     Health,
-    MapLine,
     MapResultLine,
     MassEntry,
     MethodSpec,
-    OutputOptions,
     ParamValue,
     PointRequest,
     Preset,
@@ -58,21 +77,12 @@ from ._wire import (
     ReferenceRun,
     Route,
     RunSpec,
-    SectionRequest,
-    SimulateRequest,
     StabilityRequest,
-    EnergySurfaceRequest,
-    Indicator,
-    StopWhenRequest,
-    StopWhenThresholds,
     StoredSystem,
     StreamLine,
-    StudyLine,
-    SweepLine,
     SweepRequest,
     SweepResultLine,
     SystemDefinition,
-    SystemRequest,
     WorkPrecisionRequest,
     WorkPrecisionResultLine,
 )
@@ -80,329 +90,19 @@ from .catalog import Definition, Method, System
 from .errors import GeomintError, ServerError, ValidationError
 from .recording import RRD_MAGIC, Recording, RecordingInfo
 from .simulation import Simulation, StreamAssembler
-from .studies import (
-    Axis,
-    Convergence,
+from .maps import (
     EnergyMap,
     StabilityMaps,
     StabilityPoint,
+)
+from .studies import (
+    Axis,
+    Convergence,
     Sweep,
     WorkPrecision,
 )
 
 DEFAULT_URL = "http://127.0.0.1:8080"
-
-SystemLike = Union[str, SystemDefinition, System, Definition]
-"""A system: a built-in or stored id, a definition, or a catalogue entry."""
-Methods = Union[MethodSpec, Sequence[MethodSpec]]
-"""One method (an id, or an object with options such as ``{"id": "modin_rks", "inner": "rk4"}``),
-or several."""
-Vector = Union[Sequence[float], "np.ndarray[Any, Any]"]
-AxisLike = Union[Axis, AxisRequest, Tuple[str, float, float, int], Tuple[str, float, float, int, str]]
-"""An axis of a sweep: an :class:`Axis`, a dict as the API takes it, or ``(name, min, max, n)``
-with an optional scale."""
-GridAxis = Union[AxisSpec, Tuple[float, float, int]]
-"""An axis of a stability map: ``{"min", "max", "n"}`` or ``(min, max, n)``."""
-SectionLike = Union[str, SectionRequest]
-"""A Poincaré section: the expression S of the surface S = 0 (crossed upwards), or
-``{"where": S, "direction": "up" | "down" | "both", "max_points": N}``, or a stroboscopic
-section ``{"period": T, "phase": φ}``."""
-StopWhenLike = Union[str, StopWhenRequest]
-"""What ends each run before ``t_end``: the expression S (its first crossing of S = 0 either
-way), or ``{"where": S, "direction": "up" | "down" | "both", "count": n}``, or thresholds of
-the indicators (``{"megno_mean": 8}``; ``lyapunov_max``, ``megno``, ``megno_mean`` and ``fli``
-reached from below, ``sali`` and ``gali`` falling to theirs), or a surface and thresholds
-together (whichever comes first)."""
-Indicators = Union[Indicator, Sequence[Indicator]]
-"""One chaos indicator (``lyapunov``, ``megno``, ``fli``, ``sali``, ``gali``) or several."""
-EnergySurfaceLike = Union[EnergySurfaceRequest, Tuple[float, str]]
-"""A sweep's energy surface: ``{"energy": E, "solve_for": "p0[i]"}`` or ``(E, "p0[i]")``."""
-
-THRESHOLDS = ("lyapunov_max", "megno", "megno_mean", "fli", "sali", "gali")
-INDICATOR_NAMES = ("lyapunov", "megno", "fli", "sali", "gali")
-EnergyLike = Union[EnergyRequest, Tuple[float, str]]
-"""An energy level: ``{"value": E, "momentum": name}`` or ``(E, name)``."""
-Result = Union[Simulation, Sweep, StabilityMaps, EnergyMap, WorkPrecision]
-AnyStudyLine = Union[SweepLine, MapLine, ConvergenceLine, StudyLine]
-StudyResult = Union[SweepResultLine, MapResultLine, ConvergenceResultLine, WorkPrecisionResultLine]
-
-
-def _plain(value: Any, where: str) -> Any:
-    """``value`` as plain JSON data (numpy arrays and scalars, tuples become lists and numbers),
-    refusing numbers that are not finite with the field named: JSON has none, and the server
-    would refuse them anyway."""
-    if isinstance(value, np.ndarray):
-        value = value.tolist()
-    elif isinstance(value, np.generic):
-        value = value.item()
-    if isinstance(value, bool) or value is None or isinstance(value, str):
-        return value
-    if isinstance(value, int):
-        return value
-    if isinstance(value, float):
-        if not math.isfinite(value):
-            raise ValidationError(where, f"must be a finite number, not {value!r}")
-        return value
-    if isinstance(value, Mapping):
-        return {str(k): _plain(v, f"{where}.{k}" if where else str(k)) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v, f"{where}[{i}]") for i, v in enumerate(value)]
-    raise ValidationError(where, f"cannot be sent as JSON: {type(value).__name__}")
-
-
-def _positive(value: float, where: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
-        raise ValidationError(where, f"must be a number, not {type(value).__name__}", code="invalid_type")
-    number = float(value)
-    if not math.isfinite(number) or number <= 0:
-        raise ValidationError(where, f"must be a finite number > 0, not {value!r}")
-    return number
-
-
-def _count(value: int, where: str, minimum: int = 1) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise ValidationError(where, f"must be a whole number, not {value!r}", code="invalid_type")
-    if value < minimum:
-        raise ValidationError(where, f"must be at least {minimum}, not {value}")
-    return int(value)
-
-
-def _method_list(methods: Methods, where: str = "methods") -> List[MethodSpec]:
-    items: List[Any] = [methods] if isinstance(methods, (str, Mapping)) else list(methods)
-    if not items:
-        raise ValidationError(where, "give at least one method")
-    for i, m in enumerate(items):
-        if not isinstance(m, (str, Mapping)):
-            raise ValidationError(f"{where}[{i}]", "a method is an id or an object with `id`",
-                                  code="invalid_type")
-    return cast(List[MethodSpec], _plain(items, where))
-
-
-def _system(system: SystemLike) -> SystemRequest:
-    if isinstance(system, (System, Definition)):
-        return system.id
-    if isinstance(system, str):
-        return system
-    if isinstance(system, Mapping):
-        return cast(SystemDefinition, _plain(system, "system"))
-    raise ValidationError("system", "give a system id, a definition (a dict) or a catalogue entry",
-                          code="invalid_type")
-
-
-def _axis(axis: AxisLike, where: str) -> AxisRequest:
-    if isinstance(axis, Axis):
-        out: AxisRequest = {"name": axis.name, "min": axis.min, "max": axis.max, "n": axis.n,
-                            "scale": axis.scale}
-    elif isinstance(axis, Mapping):
-        out = cast(AxisRequest, dict(axis))
-    elif isinstance(axis, tuple) and len(axis) in (4, 5):
-        out = {"name": axis[0], "min": axis[1], "max": axis[2], "n": axis[3]}
-        if len(axis) == 5:
-            out["scale"] = axis[4]
-    else:
-        raise ValidationError(where, "an axis is an Axis, a dict or (name, min, max, n[, scale])",
-                              code="invalid_type")
-    for key in ("name", "min", "max", "n"):
-        if key not in out:
-            raise ValidationError(f"{where}.{key}", "is missing", code="missing_field")
-    _count(out["n"], f"{where}.n")
-    return cast(AxisRequest, _plain(out, where))
-
-
-def _grid_axis(axis: GridAxis, where: str) -> AxisSpec:
-    if isinstance(axis, Mapping):
-        out = cast(AxisSpec, dict(axis))
-    elif isinstance(axis, tuple) and len(axis) == 3:
-        out = {"min": axis[0], "max": axis[1], "n": axis[2]}
-    else:
-        raise ValidationError(where, "an axis is {'min', 'max', 'n'} or (min, max, n)", code="invalid_type")
-    for key in ("min", "max", "n"):
-        if key not in out:
-            raise ValidationError(f"{where}.{key}", "is missing", code="missing_field")
-    return cast(AxisSpec, _plain(out, where))
-
-
-def _section(section: SectionLike) -> SectionRequest:
-    if isinstance(section, str):
-        return {"where": section}
-    if not isinstance(section, Mapping):
-        raise ValidationError("section", "a section is an expression, {'where', 'direction', 'max_points'} "
-                              "or {'period', 'phase'}", code="invalid_type")
-    if "where" in section and "period" in section:
-        raise ValidationError("section", "give either `where` or `period`, not both")
-    if "where" not in section and "period" not in section:
-        raise ValidationError("section", "give the surface `where`, or a stroboscopic `period`",
-                              code="missing_field")
-    out = cast(SectionRequest, _plain(section, "section"))
-    if "max_points" in out:
-        _count(out["max_points"], "section.max_points")
-    if "period" in out:
-        _positive(out["period"], "section.period")
-    return out
-
-
-def _stop_when(stop_when: StopWhenLike) -> StopWhenRequest:
-    if isinstance(stop_when, str):
-        return {"where": stop_when}
-    if not isinstance(stop_when, Mapping):
-        raise ValidationError("stop_when", "give an expression, {'where', 'direction', 'count'} or thresholds "
-                              "such as {'megno_mean': 8}", code="invalid_type")
-    members = cast(Mapping[str, Any], stop_when)
-    if "where" not in members:
-        for key in ("direction", "count"):
-            if key in members:
-                raise ValidationError("stop_when.where", f"is missing: `{key}` goes with a surface `where`",
-                                      code="missing_field")
-        if not any(k in members for k in THRESHOLDS):
-            raise ValidationError("stop_when", "give the surface `where`, or a threshold of "
-                                  + ", ".join(f"`{k}`" for k in THRESHOLDS), code="missing_field")
-    if "count" in members:
-        _count(members["count"], "stop_when.count")
-    for key in THRESHOLDS:
-        value = members.get(key)
-        if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float, np.number))):
-            raise ValidationError(f"stop_when.{key}", f"a threshold is a number, not {value!r}", code="invalid_type")
-    return cast(StopWhenRequest, _plain(members, "stop_when"))
-
-
-def _thresholds(stop_when: Mapping[str, float]) -> StopWhenThresholds:
-    """A sweep's ``stop_when``: thresholds only (a sweep's cells have no event surface)."""
-    if not isinstance(stop_when, Mapping):
-        raise ValidationError("stop_when", "a sweep's stop_when is thresholds, such as {'megno_mean': 8}",
-                              code="invalid_type")
-    for key in ("where", "direction", "count"):
-        if key in stop_when:
-            raise ValidationError(f"stop_when.{key}", "a sweep stops on thresholds only, not on an event")
-    return cast(StopWhenThresholds, _stop_when(cast(StopWhenRequest, stop_when)))
-
-
-def _indicators(indicators: Indicators) -> List[Indicator]:
-    items: List[Any] = [indicators] if isinstance(indicators, str) else list(indicators)
-    for i, name in enumerate(items):
-        if name not in INDICATOR_NAMES:
-            raise ValidationError(f"indicators[{i}]", f"{name!r} is not one of {', '.join(INDICATOR_NAMES)}")
-    return cast(List[Indicator], items)
-
-
-def _energy_surface(surface: EnergySurfaceLike) -> EnergySurfaceRequest:
-    if isinstance(surface, tuple) and len(surface) == 2:
-        out: Dict[str, Any] = {"energy": surface[0], "solve_for": surface[1]}
-    elif isinstance(surface, Mapping):
-        out = dict(surface)
-    else:
-        raise ValidationError("energy_surface", "an energy surface is {'energy', 'solve_for'} or (energy, 'p0[i]')",
-                              code="invalid_type")
-    for key in ("energy", "solve_for"):
-        if key not in out:
-            raise ValidationError(f"energy_surface.{key}", "is missing", code="missing_field")
-    if not isinstance(out["solve_for"], str):
-        raise ValidationError("energy_surface.solve_for", "give the momentum to solve for as `p0[i]`",
-                              code="invalid_type")
-    return cast(EnergySurfaceRequest, _plain(out, "energy_surface"))
-
-
-def _energy(energy: EnergyLike) -> EnergyRequest:
-    if isinstance(energy, tuple) and len(energy) == 2:
-        out: Dict[str, Any] = {"value": energy[0], "momentum": energy[1]}
-    elif isinstance(energy, Mapping):
-        out = dict(energy)
-    else:
-        raise ValidationError("energy", "an energy level is {'value', 'momentum'} or (value, momentum)",
-                              code="invalid_type")
-    for key in ("value", "momentum"):
-        if key not in out:
-            raise ValidationError(f"energy.{key}", "is missing", code="missing_field")
-    if not isinstance(out["momentum"], str):
-        raise ValidationError("energy.momentum", "give the name of one of the system's momenta",
-                              code="invalid_type")
-    return cast(EnergyRequest, _plain(out, "energy"))
-
-
-def _is_error_body(body: object) -> bool:
-    """Whether ``body`` has the service's error shape, ``{"error": {"code", "message", …}}``."""
-    detail = body.get("error") if isinstance(body, dict) else None
-    return isinstance(detail, dict) and isinstance(detail.get("code"), str) and isinstance(detail.get("message"), str)
-
-
-def _put(body: Any, key: str, value: Any) -> None:
-    """Sets ``body[key]`` to ``value`` as JSON data, unless ``value`` is None (left to the
-    server's default)."""
-    if value is not None:
-        body[key] = _plain(value, key)
-
-
-def _put_indicators(
-    body: Any, indicators: Optional[Indicators], deviations: Optional[int], qr_every: Optional[int]
-) -> None:
-    """Sets the chaos indicators' members of a simulation's or a sweep's body, where given."""
-    if indicators is not None:
-        body["indicators"] = _indicators(indicators)
-    if deviations is not None:
-        body["deviations"] = _count(deviations, "deviations")
-    if qr_every is not None:
-        body["qr_every"] = _count(qr_every, "qr_every")
-
-
-class SimulateOptions(TypedDict, total=False):
-    """A simulation's options beside its system, methods, ``h`` and ``t_end``, as
-    :meth:`Client.simulate` and :func:`geomint.local.simulate` take them (``None``: not given)."""
-
-    params: Optional[Mapping[str, ParamValue]]
-    q0: Optional[Vector]
-    p0: Optional[Vector]
-    chart: Optional[str]
-    initial_coordinates: Optional[str]
-    every: Optional[int]
-    compare_to_reference: Optional[bool]
-    jacobian_defect: Optional[bool]
-    section: Optional[SectionLike]
-    stop_when: Optional[StopWhenLike]
-    energy: Optional[EnergyLike]
-    indicators: Optional[Indicators]
-    deviations: Optional[int]
-    qr_every: Optional[int]
-
-
-def simulate_request(
-    system: SystemLike,
-    methods: Methods,
-    *,
-    h: float,
-    t_end: float,
-    **options: Unpack[SimulateOptions],
-) -> SimulateRequest:
-    """The body of ``POST /api/v1/simulate`` for :meth:`Client.simulate`'s arguments (and
-    :func:`geomint.local.simulate`'s), checked as far as the client can check it."""
-    every, section = options.get("every"), options.get("section")
-    stop_when, energy = options.get("stop_when"), options.get("energy")
-    indicators, deviations = options.get("indicators"), options.get("deviations")
-    qr_every = options.get("qr_every")
-    body: SimulateRequest = {
-        "system": _system(system),
-        "methods": _method_list(methods),
-        "h": _positive(h, "h"),
-        "t_end": _positive(t_end, "t_end"),
-    }
-    if len(body["methods"]) > 16:
-        raise ValidationError("methods", f"at most 16 methods, not {len(body['methods'])}")
-    _put(body, "params", options.get("params"))
-    _put(body, "q0", options.get("q0"))
-    _put(body, "p0", options.get("p0"))
-    _put(body, "chart", options.get("chart"))
-    _put(body, "initial_coordinates", options.get("initial_coordinates"))
-    if every is not None:
-        output: OutputOptions = {"every": _count(every, "output.every")}
-        body["output"] = output
-    _put(body, "compare_to_reference", options.get("compare_to_reference"))
-    _put(body, "jacobian_defect", options.get("jacobian_defect"))
-    if section is not None:
-        body["section"] = _section(section)
-    if stop_when is not None:
-        body["stop_when"] = _stop_when(stop_when)
-    if energy is not None:
-        body["energy"] = _energy(energy)
-    _put_indicators(body, indicators, deviations, qr_every)
-    return body
 
 
 class Client:

@@ -19,7 +19,7 @@ import json
 from types import ModuleType
 from typing import TYPE_CHECKING
 
-from .client import Methods, SimulateOptions, SystemLike, simulate_request
+from ._arguments import Methods, SimulateOptions, SystemLike, simulate_request
 from .errors import GeomintError, ServerError
 from .simulation import Simulation
 
@@ -48,7 +48,7 @@ def simulate(
     **options: Unpack[SimulateOptions],
 ) -> Simulation:
     """Runs ``methods`` on ``system`` in this process: :meth:`Client.simulate`'s arguments
-    (:class:`~geomint.client.SimulateOptions`) and result, the same numbers."""
+    (:class:`~geomint._arguments.SimulateOptions`) and result, the same numbers."""
     body = simulate_request(system, methods, h=h, t_end=t_end, **options)
     ok, text = _native().simulate(json.dumps(body, allow_nan=False, ensure_ascii=False))
     answer = json.loads(text)

@@ -1,7 +1,7 @@
 //! The integrator core's integration tests, in one binary that links the core only: methods
 //! against exact solutions and the papers' experiments, the geometric properties they keep,
 //! charts, stability, the adaptive reference, the expression engine, Poincaré sections and
-//! events, and driven systems.
+//! events, driven systems, chaos indicators, and every method's order conditions.
 
 #[allow(dead_code)]
 mod common;
@@ -14,9 +14,11 @@ mod compositions;
 mod driven;
 mod energy_map;
 mod expr;
+mod indicators;
 mod order_conditions;
 mod orders;
 mod reference;
 mod sections;
 mod stability;
+mod steps;
 mod structure;
