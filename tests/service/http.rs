@@ -10,15 +10,15 @@ use geomint::core::methods::{Method, MethodId};
 use geomint::core::run::{Budget, StopReason};
 use geomint::core::simulation::{ColumnSink, Columns, Limits, Simulation, SimulationSpec};
 
-use geomint::http::{AppState, Config};
+use geomint::http::Config;
 use serde_json::{json, Value};
 use server::{client, start, Server};
 
-const NDJSON: &str = "application/x-ndjson";
+pub(crate) const NDJSON: &str = "application/x-ndjson";
 
 /// A test configuration: a safety time limit so that no run outlives its test, and recordings
 /// in a scratch directory of this test process.
-fn config() -> Config {
+pub(crate) fn config() -> Config {
     Config {
         request_timeout: Duration::from_secs(15),
         data_dir: server::scratch_dir("http"),
@@ -27,7 +27,7 @@ fn config() -> Config {
     }
 }
 
-async fn post(server: &Server, body: &Value) -> reqwest::Response {
+pub(crate) async fn post(server: &Server, body: &Value) -> reqwest::Response {
     client()
         .post(server.url("/api/v1/simulate"))
         .json(body)
@@ -36,7 +36,7 @@ async fn post(server: &Server, body: &Value) -> reqwest::Response {
         .unwrap()
 }
 
-async fn post_stream(server: &Server, body: &Value) -> reqwest::Response {
+pub(crate) async fn post_stream(server: &Server, body: &Value) -> reqwest::Response {
     client()
         .post(server.url("/api/v1/simulate"))
         .header("accept", NDJSON)
@@ -47,20 +47,20 @@ async fn post_stream(server: &Server, body: &Value) -> reqwest::Response {
 }
 
 /// Reads NDJSON lines from a streaming response.
-struct Lines {
+pub(crate) struct Lines {
     response: reqwest::Response,
     buffer: Vec<u8>,
 }
 
 impl Lines {
-    fn new(response: reqwest::Response) -> Self {
+    pub(crate) fn new(response: reqwest::Response) -> Self {
         Self {
             response,
             buffer: Vec::new(),
         }
     }
 
-    async fn next(&mut self) -> Option<Value> {
+    pub(crate) async fn next(&mut self) -> Option<Value> {
         loop {
             if let Some(i) = self.buffer.iter().position(|&b| b == b'\n') {
                 let line: Vec<u8> = self.buffer.drain(..=i).collect();
@@ -76,7 +76,7 @@ impl Lines {
         }
     }
 
-    async fn all(mut self) -> Vec<Value> {
+    pub(crate) async fn all(mut self) -> Vec<Value> {
         let mut lines = Vec::new();
         while let Some(line) = self.next().await {
             lines.push(line);
@@ -86,7 +86,7 @@ impl Lines {
 }
 
 /// The core's runs for a core request.
-fn core_runs(req: &SimulationSpec) -> (Simulation, Vec<(Columns, StopReason)>) {
+pub(crate) fn core_runs(req: &SimulationSpec) -> (Simulation, Vec<(Columns, StopReason)>) {
     let sim = Simulation::prepare(req, &Limits::default()).unwrap();
     let reference = sim.reference_energies(Budget::default()).unwrap();
     let runs = (0..sim.methods.len())
@@ -103,7 +103,7 @@ fn core_runs(req: &SimulationSpec) -> (Simulation, Vec<(Columns, StopReason)>) {
 
 /// The exact text the response must contain for run `traj` of `label`: every number in the
 /// shortest form that round-trips, so a match is a bit-for-bit match.
-fn expected_fragment(label: &str, traj: &Columns) -> String {
+pub(crate) fn expected_fragment(label: &str, traj: &Columns) -> String {
     fn s(v: &impl serde::Serialize) -> String {
         serde_json::to_string(v).unwrap()
     }
@@ -122,7 +122,7 @@ fn expected_fragment(label: &str, traj: &Columns) -> String {
     text
 }
 
-fn pendulum_request() -> Value {
+pub(crate) fn pendulum_request() -> Value {
     json!({
         "system": "pendulum",
         "params": {"epsilon": 0.01},
@@ -137,12 +137,12 @@ fn pendulum_request() -> Value {
 }
 
 /// A request that runs for a long time (cut short by cancellation or the time limit).
-fn long_request() -> Value {
+pub(crate) fn long_request() -> Value {
     json!({"system": "pendulum", "method": "modin_3s", "h": 1e-3, "t_end": 1e6, "output": {"every": 10000}})
 }
 
 /// `max_concurrent` slots and no short lane: small runs probe whether the long ones hold them.
-fn long_config(max_concurrent: usize) -> Config {
+pub(crate) fn long_config(max_concurrent: usize) -> Config {
     Config {
         max_concurrent,
         short_lane: 0,
@@ -157,7 +157,7 @@ fn long_config(max_concurrent: usize) -> Config {
 }
 
 /// Waits until no simulation thread runs (so that no blocking work outlives the test).
-async fn wait_idle(server: &Server) -> Duration {
+pub(crate) async fn wait_idle(server: &Server) -> Duration {
     let started = Instant::now();
     while server.state.runs_in_progress() > 0 {
         assert!(
@@ -548,581 +548,4 @@ async fn ndjson_stream_is_ordered_and_complete() {
     }
     let methods: BTreeSet<u64> = lines.iter().filter_map(|l| l["method"].as_u64()).collect();
     assert_eq!(methods, BTreeSet::from([0, 1, 2]));
-}
-
-/// Posts raw bytes and returns (status, error object).
-async fn post_raw(
-    server: &Server,
-    body: impl Into<reqwest::Body>,
-    content_type: Option<&str>,
-) -> (u16, Value) {
-    let mut request = client().post(server.url("/api/v1/simulate")).body(body);
-    if let Some(ct) = content_type {
-        request = request.header("content-type", ct);
-    }
-    let response = request.send().await.unwrap();
-    let status = response.status().as_u16();
-    assert_eq!(
-        response.headers()["content-type"],
-        "application/json",
-        "status {status}"
-    );
-    let body: Value = response.json().await.unwrap();
-    let error = body["error"].clone();
-    let keys: BTreeSet<&str> = error
-        .as_object()
-        .expect("an error object")
-        .keys()
-        .map(String::as_str)
-        .collect();
-    assert_eq!(keys, BTreeSet::from(["code", "message", "field"]));
-    assert!(!error["message"].as_str().unwrap().is_empty());
-    (status, error)
-}
-
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn bad_inputs_get_clean_errors() {
-    let server = start(config()).await;
-    let ok = r#""system": "pendulum", "methods": ["heun"], "h": 0.1, "t_end": 10"#;
-    let osc = r#""system": "harmonic_oscillator", "h": 0.1, "t_end": 10"#;
-    let cases: Vec<(String, u16, &str, Option<&str>)> = vec![
-        (r#"{"system": "#.into(), 400, "malformed_json", None),
-        ("".into(), 400, "malformed_json", None),
-        ("[1, 2]".into(), 422, "invalid_type", None),
-        (r#"{"system": "pendulum", "methods": ["heun"], "h": 1e999, "t_end": 10}"#.into(), 400, "malformed_json", Some("h")),
-        (format!(r#"{{{ok}, "q0": [1e999]}}"#), 400, "malformed_json", Some("q0[0]")),
-        (format!(r#"{{{ok}, "foo": 1}}"#), 422, "unknown_field", Some("foo")),
-        (format!(r#"{{{ok}, "output": {{"every": 2, "format": "csv"}}}}"#), 422, "unknown_field", Some("output.format")),
-        (format!(r#"{{{osc}, "methods": [{{"id": "rk4", "order": 4}}]}}"#), 422, "unknown_field", Some("methods[0].order")),
-        (format!(r#"{{{ok}, "params": {{"omega": 1}}}}"#), 422, "unknown_field", Some("params.omega")),
-        (r#"{"system": "double_pendulum", "methods": ["heun"], "h": 0.1, "t_end": 10}"#.into(), 422, "unknown_system", Some("system")),
-        (format!(r#"{{{osc}, "methods": ["heun", "rk5"]}}"#), 422, "unknown_method", Some("methods[1]")),
-        (format!(r#"{{{osc}, "method": {{"id": "modin_rks", "inner": "rk9"}}}}"#), 422, "unknown_method", Some("method.inner")),
-        (format!(r#"{{{osc}, "methods": ["heun"], "method": "rk4"}}"#), 422, "invalid_value", Some("method")),
-        (format!(r#"{{{osc}}}"#), 422, "missing_field", Some("methods")),
-        (r#"{"system": "pendulum", "methods": ["heun"], "t_end": 10}"#.into(), 422, "missing_field", Some("h")),
-        (r#"{"system": "elastic_pendulum_3d", "methods": ["heun", "csv1"], "h": 0.1, "t_end": 10}"#.into(), 422, "unmet_requirement", Some("methods[1]")),
-        (r#"{"system": "pendulum", "methods": ["heun"], "h": 0, "t_end": 10}"#.into(), 422, "invalid_value", Some("h")),
-        (r#"{"system": "pendulum", "methods": ["heun"], "h": -0.1, "t_end": 10}"#.into(), 422, "invalid_value", Some("h")),
-        (r#"{"system": "pendulum", "methods": ["heun"], "h": "0.1", "t_end": 10}"#.into(), 422, "invalid_type", Some("h")),
-        (r#"{"system": "pendulum", "methods": ["heun"], "h": 0.1, "t_end": 0}"#.into(), 422, "invalid_value", Some("t_end")),
-        (r#"{"system": "pendulum", "methods": ["heun"], "h": 1e-7, "t_end": 10}"#.into(), 422, "too_many_steps", Some("t_end")),
-        (r#"{"system": "pendulum", "methods": ["heun", "rk4"], "h": 1e-3, "t_end": 1000, "output": {"every": 1}}"#.into(), 422, "too_many_samples", Some("output.every")),
-        (format!(r#"{{{ok}, "output": {{"every": 0}}}}"#), 422, "invalid_value", Some("output.every")),
-        (format!(r#"{{{ok}, "output": {{"every": 2.5}}}}"#), 422, "invalid_type", Some("output.every")),
-        (format!(r#"{{{ok}, "q0": [1, 2]}}"#), 422, "invalid_value", Some("q0")),
-        (format!(r#"{{{ok}, "p0": [1, "x"]}}"#), 422, "invalid_type", Some("p0[1]")),
-        (format!(r#"{{{ok}, "params": {{"gamma": -1}}}}"#), 422, "invalid_value", Some("params.gamma")),
-        (format!(r#"{{{ok}, "params": {{"epsilon": 1e7}}}}"#), 422, "invalid_value", Some("params.epsilon")),
-        (r#"{"system": "elastic_pendulum_3d", "methods": ["heun"], "h": 0.1, "t_end": 10, "jacobian_defect": true}"#.into(), 422, "invalid_value", Some("jacobian_defect")),
-        (format!(r#"{{{ok}, "compare_to_reference": "yes"}}"#), 422, "invalid_type", Some("compare_to_reference")),
-    ];
-    for (body, status, code, field) in cases {
-        let (got, error) = post_raw(&server, body.clone(), Some("application/json")).await;
-        assert_eq!(
-            (got, error["code"].as_str().unwrap()),
-            (status, code),
-            "{body}: {error}"
-        );
-        assert_eq!(error["field"].as_str(), field, "{body}: {error}");
-    }
-
-    // The unmet requirement is named.
-    let (_, error) = post_raw(
-        &server,
-        r#"{"system": "elastic_pendulum_3d", "methods": ["csv2"], "h": 0.1, "t_end": 1}"#,
-        Some("application/json"),
-    )
-    .await;
-    assert!(
-        error["message"]
-            .as_str()
-            .unwrap()
-            .contains("conformal damping"),
-        "{error}"
-    );
-    // A number JSON cannot carry is explained.
-    let (_, error) = post_raw(&server, format!(r#"{{{ok}, "p0": [-1e400]}}"#), None).await;
-    assert!(
-        error["message"].as_str().unwrap().contains("out of range"),
-        "{error}"
-    );
-
-    // A body over 1 MiB, streamed without a declared length: the server reads up to the limit.
-    let big = format!(r#"{{"system": "{}"}}"#, "x".repeat((1 << 20) - 13));
-    assert_eq!(big.len(), (1 << 20) + 1);
-    let chunks: Vec<Result<Vec<u8>, std::io::Error>> = big
-        .into_bytes()
-        .chunks(64 * 1024)
-        .map(|c| Ok(c.to_vec()))
-        .collect();
-    let streamed = reqwest::Body::wrap_stream(futures_util::stream::iter(chunks));
-    let (status, error) = post_raw(&server, streamed, Some("application/json")).await;
-    assert_eq!(
-        (status, error["code"].as_str().unwrap()),
-        (413, "payload_too_large")
-    );
-    // A declared length over the limit is refused before the body is read (a small limit here,
-    // so that the whole body is sent before the answer comes).
-    let small_limit = start(Config {
-        body_limit: 1024,
-        ..config()
-    })
-    .await;
-    let (status, error) = post_raw(&small_limit, "x".repeat(4096), Some("application/json")).await;
-    assert_eq!(
-        (status, error["code"].as_str().unwrap()),
-        (413, "payload_too_large")
-    );
-
-    // Not JSON.
-    let (status, error) = post_raw(
-        &server,
-        "system=pendulum",
-        Some("application/x-www-form-urlencoded"),
-    )
-    .await;
-    assert_eq!(
-        (status, error["code"].as_str().unwrap()),
-        (415, "unsupported_media_type")
-    );
-
-    // Unknown routes and methods.
-    let c = client();
-    let response = c.get(server.url("/api/v2/simulate")).send().await.unwrap();
-    assert_eq!(response.status(), 404);
-    assert_eq!(
-        response.json::<Value>().await.unwrap()["error"]["code"],
-        "not_found"
-    );
-    let response = c.get(server.url("/api/v1/simulate")).send().await.unwrap();
-    assert_eq!(response.status(), 405);
-    assert_eq!(
-        response.json::<Value>().await.unwrap()["error"]["code"],
-        "method_not_allowed"
-    );
-}
-
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn overload_is_answered_503_with_retry_after() {
-    let server = start(Config {
-        queue_timeout: Duration::from_millis(50),
-        ..long_config(1)
-    })
-    .await;
-    let mut holder = Lines::new(post_stream(&server, &long_request()).await);
-    assert_eq!(holder.next().await.unwrap()["type"], "header");
-    assert_eq!(server.state.runs_in_progress(), 1);
-
-    let small = json!({"system": "pendulum", "method": "heun", "h": 0.1, "t_end": 1});
-    let started = Instant::now();
-    let response = post(&server, &small).await;
-    assert_eq!(response.status(), 503);
-    assert!(
-        started.elapsed() >= Duration::from_millis(50),
-        "it waited the queue timeout"
-    );
-    assert_eq!(response.headers()["retry-after"], "1");
-    let body: Value = response.json().await.unwrap();
-    assert_eq!(body["error"]["code"], "overloaded");
-    // Validation comes first: a bad request is still a 422 when the server is busy.
-    let bad = post(
-        &server,
-        &json!({"system": "pendulum", "method": "heun", "h": -1, "t_end": 1}),
-    )
-    .await;
-    assert_eq!(bad.status(), 422);
-    let health: Value = client()
-        .get(server.url("/healthz"))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
-    assert_eq!(health["runs_in_progress"], 1);
-
-    drop(holder);
-    wait_idle(&server).await;
-    assert_eq!(post(&server, &small).await.status(), 200);
-}
-
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn a_client_disconnect_frees_its_slot() {
-    let server = start(long_config(1)).await;
-    let mut stream = Lines::new(post_stream(&server, &long_request()).await);
-    assert_eq!(stream.next().await.unwrap()["type"], "header");
-    let chunk = stream.next().await.unwrap();
-    assert_eq!(
-        chunk["type"], "samples",
-        "samples come while the run computes"
-    );
-    let small = json!({"system": "pendulum", "method": "heun", "h": 0.1, "t_end": 1});
-    assert_eq!(post(&server, &small).await.status(), 503);
-
-    drop(stream);
-    let dropped = Instant::now();
-    loop {
-        let response = post(&server, &small).await;
-        if response.status() == 200 {
-            let doc: Value = response.json().await.unwrap();
-            assert_eq!(doc["runs"][0]["stop"]["reason"], "finished");
-            break;
-        }
-        assert_eq!(response.status(), 503);
-        assert!(
-            dropped.elapsed() < Duration::from_secs(3),
-            "the slot was not freed"
-        );
-        tokio::time::sleep(Duration::from_millis(20)).await;
-    }
-    wait_idle(&server).await;
-
-    // The same for a JSON request whose client gives up.
-    let quick = reqwest::Client::builder()
-        .no_proxy()
-        .timeout(Duration::from_millis(300))
-        .build()
-        .unwrap();
-    let gave_up = quick
-        .post(server.url("/api/v1/simulate"))
-        .json(&long_request())
-        .send()
-        .await;
-    assert!(gave_up.unwrap_err().is_timeout());
-    let freed = wait_idle(&server).await;
-    assert!(freed < Duration::from_secs(3), "{freed:?}");
-}
-
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn the_time_limit_stops_runs_and_keeps_their_samples() {
-    let server = start(Config {
-        request_timeout: Duration::from_millis(400),
-        ..long_config(2)
-    })
-    .await;
-    let started = Instant::now();
-    let response = post(&server, &long_request()).await;
-    assert_eq!(response.status(), 200);
-    let doc: Value = response.json().await.unwrap();
-    assert!(started.elapsed() < Duration::from_secs(3));
-    let run = &doc["runs"][0];
-    assert_eq!(run["stop"]["reason"], "time_limit");
-    let steps = run["stats"]["steps"].as_u64().unwrap();
-    assert_eq!(run["stop"]["step"], steps);
-    assert!(steps > 0 && steps < 1_000_000_000);
-    assert_eq!(
-        run["t"].as_array().unwrap().len() as u64,
-        steps / 10_000 + 1
-    );
-
-    // Streams stop the same way.
-    let lines = Lines::new(post_stream(&server, &long_request()).await)
-        .all()
-        .await;
-    let summary = lines.iter().find(|l| l["type"] == "summary").unwrap();
-    assert_eq!(summary["stop"]["reason"], "time_limit");
-    assert_eq!(lines.last().unwrap()["type"], "end");
-}
-
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn fifty_concurrent_requests_are_all_answered_correctly() {
-    let server = start(Config {
-        max_concurrent: 64,
-        ..config()
-    })
-    .await;
-    let bodies: Vec<Value> = (0..50)
-        .map(|i| {
-            json!({"system": "harmonic_oscillator", "params": {"omega": 1.0 + 0.1 * i as f64},
-                "methods": ["modin_3s", "rk4"], "h": 0.01, "t_end": 20, "output": {"every": 20}})
-        })
-        .collect();
-    let c = client();
-    let answers = futures_util::future::join_all(bodies.iter().map(|body| {
-        let c = c.clone();
-        let url = server.url("/api/v1/simulate");
-        async move {
-            let response = c.post(url).json(body).send().await.unwrap();
-            (response.status().as_u16(), response.text().await.unwrap())
-        }
-    }))
-    .await;
-    for (body, (status, text)) in bodies.iter().zip(&answers) {
-        assert_eq!(*status, 200);
-        let req = geomint::api::SimulateRequest::from_value(body)
-            .unwrap()
-            .to_spec(&NoStoredSystems)
-            .unwrap();
-        let (sim, runs) = core_runs(&req);
-        for (i, (traj, _)) in runs.iter().enumerate() {
-            assert!(
-                text.contains(&expected_fragment(&sim.methods[i].label(), traj)),
-                "{body}"
-            );
-        }
-    }
-    assert_eq!(server.state.runs_in_progress(), 0);
-}
-
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn openapi_lists_every_route() {
-    let server = start(config()).await;
-    let c = client();
-    let doc: Value = c
-        .get(server.url("/api/v1/openapi.json"))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
-    assert!(doc["openapi"].as_str().unwrap().starts_with("3."));
-    let paths = doc["paths"].as_object().unwrap();
-    let documented: BTreeSet<(String, String)> = paths
-        .iter()
-        .flat_map(|(path, ops)| {
-            ops.as_object()
-                .unwrap()
-                .keys()
-                .map(move |m| (m.clone(), path.clone()))
-        })
-        .collect();
-    // The router and the document come from one registration (`http::routes`); every
-    // documented route must answer below.
-    assert_eq!(documented.len(), 21, "{documented:?}");
-    // Two stored recordings: one to download, one to delete.
-    let mut ids = Vec::new();
-    for _ in 0..2 {
-        let created: Value = c
-            .post(server.url("/api/v1/recordings"))
-            .json(&pendulum_request())
-            .send()
-            .await
-            .unwrap()
-            .json()
-            .await
-            .unwrap();
-        let id = created["id"].as_str();
-        ids.push(id.unwrap_or_else(|| panic!("{created}")).to_string());
-    }
-    // Two stored system definitions: one to read, one to delete.
-    let definition = json!({"coordinates": ["x"], "potential": "x^2/2"});
-    let mut systems = Vec::new();
-    for potential in ["x^2/2", "x^4/4"] {
-        let stored: Value = c
-            .post(server.url("/api/v1/systems"))
-            .json(&json!({"coordinates": ["x"], "potential": potential}))
-            .send()
-            .await
-            .unwrap()
-            .json()
-            .await
-            .unwrap();
-        systems.push(
-            stored["id"]
-                .as_str()
-                .unwrap_or_else(|| panic!("{stored}"))
-                .to_string(),
-        );
-    }
-    // Every documented route answers (path parameters filled in).
-    for (method, path) in &documented {
-        let (recording, system) = match method.as_str() {
-            "delete" => (ids[1].clone(), &systems[1]),
-            _ => (format!("{}.rrd", ids[0]), &systems[0]),
-        };
-        let url = server.url(
-            &path
-                .replace("/systems/{id}", &format!("/systems/{system}"))
-                .replace("/methods/{id}", "/methods/rk4")
-                .replace(
-                    "/recordings/{id}/samples",
-                    &format!("/recordings/{}/samples", ids[0]),
-                )
-                .replace("/recordings/{id}", &format!("/recordings/{recording}")),
-        );
-        let body = match path.as_str() {
-            "/api/v1/stability" => json!({"methods": ["csv1"], "omega": 3.51,
-                "gamma": {"min": 0, "max": 3.5, "n": 5}, "h": {"min": 0, "max": 1, "n": 5}}),
-            "/api/v1/stability/point" => {
-                json!({"method": "csv1", "omega": 3.51, "gamma": 0.5, "h": 0.2})
-            }
-            "/api/v1/studies/work-precision" => json!({"system": "pendulum", "t_end": 10,
-                "runs": [{"method": "rk4", "h": [0.1]}]}),
-            "/api/v1/studies/energy-map" => json!({"nx": 3, "ny": 3, "t_max": 10}),
-            "/api/v1/studies/convergence" => json!({"system": "pendulum", "t_end": 1,
-                "methods": ["rk4"], "h": [0.1, 0.05]}),
-            "/api/v1/studies/sweep" => json!({"system": "pendulum", "t_end": 1, "h": 0.1,
-                "methods": ["rk4"], "axes": [{"name": "params.gamma", "min": 0, "max": 1, "n": 3}]}),
-            "/api/v1/systems" => definition.clone(),
-            _ => pendulum_request(),
-        };
-        let (status, expected) = match method.as_str() {
-            "get" => (c.get(url).send().await.unwrap().status(), 200),
-            "delete" => (c.delete(url).send().await.unwrap().status(), 204),
-            _ => (
-                c.post(url).json(&body).send().await.unwrap().status(),
-                // (The definition posted to /api/v1/systems is stored already: 200.)
-                if path == "/api/v1/recordings" {
-                    201
-                } else {
-                    200
-                },
-            ),
-        };
-        assert_eq!(status, expected, "{method} {path}");
-    }
-    let _ = std::fs::remove_dir_all(&server.state.config.data_dir);
-    let _ = std::fs::remove_dir_all(&server.state.config.systems_dir);
-    let schemas = doc["components"]["schemas"].as_object().unwrap();
-    for name in [
-        "SimulateRequest",
-        "SimulationDocument",
-        "RunDocument",
-        "StreamLine",
-        "ErrorBody",
-        "SystemEntry",
-        "MethodEntry",
-    ] {
-        assert!(schemas.contains_key(name), "{name} missing");
-    }
-    let properties: BTreeSet<&str> = schemas["SimulateRequest"]["properties"]
-        .as_object()
-        .unwrap()
-        .keys()
-        .map(String::as_str)
-        .collect();
-    let parsed: BTreeSet<&str> = geomint::api::simulate::REQUEST_FIELDS
-        .iter()
-        .copied()
-        .collect();
-    assert_eq!(
-        properties, parsed,
-        "the documented request fields are the parsed ones"
-    );
-    let simulate = &paths["/api/v1/simulate"]["post"];
-    let content = simulate["responses"]["200"]["content"].as_object().unwrap();
-    assert!(content.contains_key("application/json") && content.contains_key(NDJSON));
-    assert!(simulate["responses"]["503"]["headers"]["Retry-After"].is_object());
-}
-
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn compression_cors_and_request_ids() {
-    let server = start(Config {
-        cors_origins: vec!["http://app.example".into()],
-        ..config()
-    })
-    .await;
-    let c = client();
-    let response = c
-        .get(server.url("/api/v1/systems"))
-        .header("accept-encoding", "gzip")
-        .send()
-        .await
-        .unwrap();
-    assert_eq!(response.headers()["content-encoding"], "gzip");
-    assert!(response.headers().contains_key("x-request-id"));
-    let streamed = c
-        .post(server.url("/api/v1/simulate"))
-        .header("accept", NDJSON)
-        .header("accept-encoding", "gzip")
-        .json(&pendulum_request())
-        .send()
-        .await
-        .unwrap();
-    assert!(
-        !streamed.headers().contains_key("content-encoding"),
-        "streams are not compressed"
-    );
-    let lines = Lines::new(streamed).all().await;
-    assert_eq!(lines.last().unwrap()["type"], "end");
-
-    let allowed = c
-        .get(server.url("/healthz"))
-        .header("origin", "http://app.example")
-        .send()
-        .await
-        .unwrap();
-    assert_eq!(
-        allowed.headers()["access-control-allow-origin"],
-        "http://app.example"
-    );
-    let other = c
-        .get(server.url("/healthz"))
-        .header("origin", "http://other.example")
-        .send()
-        .await
-        .unwrap();
-    assert!(!other.headers().contains_key("access-control-allow-origin"));
-    let preflight = c
-        .request(reqwest::Method::OPTIONS, server.url("/api/v1/simulate"))
-        .header("origin", "http://app.example")
-        .header("access-control-request-method", "POST")
-        .send()
-        .await
-        .unwrap();
-    assert!(preflight.status().is_success());
-    assert!(preflight.headers()["access-control-allow-methods"]
-        .to_str()
-        .unwrap()
-        .contains("POST"));
-
-    // CORS is off by default.
-    let plain = start(config()).await;
-    let response = c
-        .get(plain.url("/healthz"))
-        .header("origin", "http://app.example")
-        .send()
-        .await
-        .unwrap();
-    assert!(!response
-        .headers()
-        .contains_key("access-control-allow-origin"));
-}
-
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn panics_in_blocking_work_become_500() {
-    let result = geomint::http::run_blocking(|| -> u32 { panic!("secret detail") }).await;
-    let error = result.unwrap_err();
-    assert_eq!(error.status_code(), 500);
-    assert_eq!(error.detail().code.as_str(), "internal");
-    assert!(!error.detail().message.contains("secret"));
-    assert_eq!(geomint::http::run_blocking(|| 6 * 7).await.unwrap(), 42);
-}
-
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn shutdown_cancels_running_simulations_after_the_grace_time() {
-    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
-    let addr = listener.local_addr().unwrap();
-    let state = AppState::new(Config {
-        shutdown_grace: Duration::from_millis(100),
-        ..long_config(2)
-    });
-    let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
-    let server = tokio::spawn(geomint::http::serve_on(listener, state.clone(), async {
-        let _ = stop_rx.await;
-    }));
-    let handle = Server {
-        base: format!("http://{addr}"),
-        addr,
-        state,
-    };
-    let mut stream = Lines::new(post_stream(&handle, &long_request()).await);
-    assert_eq!(stream.next().await.unwrap()["type"], "header");
-    let signalled = Instant::now();
-    stop_tx.send(()).unwrap();
-    let mut rest = Vec::new();
-    while let Some(line) = stream.next().await {
-        rest.push(line);
-    }
-    let summary = rest.iter().find(|l| l["type"] == "summary").unwrap();
-    assert_eq!(summary["stop"]["reason"], "cancelled");
-    assert_eq!(rest.last().unwrap()["type"], "end");
-    tokio::time::timeout(Duration::from_secs(5), server)
-        .await
-        .unwrap()
-        .unwrap()
-        .unwrap();
-    assert!(signalled.elapsed() < Duration::from_secs(3));
 }
