@@ -9,7 +9,8 @@ a geomint server, with the answers as numpy arrays (and xarray or pandas objects
 
 from ._version import __version__
 from .catalog import Chart, Definition, Facts, Method, Parameter, System
-from .client import DEFAULT_URL, Client
+from ._transport import DEFAULT_URL
+from .client import Client
 from .errors import GeomintError, OverloadedError, RefusedError, ServerError, ValidationError
 from .recording import Recording, RecordingInfo
 from .sections import (
