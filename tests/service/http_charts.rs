@@ -243,3 +243,29 @@ async fn bad_maps_get_errors_naming_the_field() {
         assert_eq!(err["error"]["code"], code, "{body}: {err}");
     }
 }
+
+/// Starts so far out that H₀ overflows are blown up at t = 0, and their start energy is `null`,
+/// as the published document says it may be.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_start_energy_that_overflows_is_null_as_documented() {
+    let server = start(config()).await;
+    let body = json!({"nx": 3, "ny": 4, "t_max": 10, "y": [-1.1, 5.679909810453618e272]});
+    let (status, doc) = post(&server, MAP, &body).await;
+    assert_eq!(status, 200, "{doc}");
+    let energy = doc["energy"].as_array().unwrap();
+    assert_eq!(energy.len(), 12);
+    // The first row (y₀ = −1.1) is finite, the others overflow.
+    assert!(energy[..3].iter().all(Value::is_f64), "{energy:?}");
+    assert!(energy[3..].iter().all(Value::is_null), "{energy:?}");
+    let openapi: Value = client()
+        .get(server.url("/api/v1/openapi.json"))
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    let items =
+        &openapi["components"]["schemas"]["EnergyMapDocument"]["properties"]["energy"]["items"];
+    assert_eq!(items["type"], json!(["number", "null"]), "{items}");
+}

@@ -221,7 +221,7 @@ class EnergyMapDocument(StudyOutcome):
     steps_per_run: int
     xs: List[float]
     ys: List[float]
-    energy: List[float]
+    energy: List[Optional[float]]
     epsilon_cartesian: List[Optional[float]]
     epsilon_polar: List[Optional[float]]
     difference: List[Optional[float]]

@@ -51,7 +51,9 @@ pub struct EnergyMapDocument {
     pub xs: Vec<f64>,
     /// Grid y₀ values.
     pub ys: Vec<f64>,
-    /// H at the start of each cell (p₀ = 0).
+    /// H at the start of each cell (p₀ = 0); `null` where it overflows (a start so far out that
+    /// the cell is blown up at t = 0).
+    #[cfg_attr(feature = "openapi", schema(value_type = Vec<Option<f64>>))]
     pub energy: Vec<f64>,
     /// ℓ² energy error of eq. (50) in Cartesian coordinates (`null`: diverged, or not run).
     pub epsilon_cartesian: Vec<Option<f64>>,
