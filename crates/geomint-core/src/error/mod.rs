@@ -586,6 +586,3 @@ impl CoreError {
         self
     }
 }
-
-#[cfg(test)]
-mod tests;

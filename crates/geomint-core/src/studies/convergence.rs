@@ -161,6 +161,12 @@ fn largest_divisor(n: u64, most: u64) -> u64 {
     (1..=most.min(n)).rev().find(|d| n % d == 0).unwrap_or(1)
 }
 
+/// The sample times a study takes when none are asked for: as many as divide every run's
+/// step count, at most [`MAX_SAMPLES`], so that every run is sampled at the same times.
+pub fn default_samples(step_counts: &[u64]) -> u64 {
+    largest_divisor(step_counts.iter().copied().fold(0, gcd), MAX_SAMPLES)
+}
+
 impl ConvergenceSpec {
     /// The charts to run in, each with the field that names it (`None`: the default chart).
     fn chart_list(&self) -> Result<Vec<(Option<&str>, Field)>, CoreError> {
@@ -250,7 +256,7 @@ impl ConvergenceSpec {
         }
         let samples = check_samples(match self.samples {
             Some(n) => n,
-            None => largest_divisor(steps.iter().copied().fold(0, gcd), MAX_SAMPLES),
+            None => default_samples(&steps),
         })?;
 
         let mut settings = Vec::with_capacity(count);
@@ -430,18 +436,4 @@ pub fn run<E: Executor>(
         points,
         series,
     })
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn default_samples_divide_every_step_count() {
-        assert_eq!(largest_divisor(250, 1000), 250);
-        assert_eq!(largest_divisor(8000, 1000), 1000);
-        assert_eq!(largest_divisor(1024 * 3, 1000), 768);
-        assert_eq!(largest_divisor(7, 1000), 7);
-        assert_eq!([250u64, 500, 1000].into_iter().fold(0, gcd), 250);
-    }
 }

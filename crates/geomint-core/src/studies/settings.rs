@@ -541,16 +541,3 @@ where
         .collect::<Result<Vec<_>, _>>()?;
     Ok((study.truth, points))
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn whole_steps_allow_round_off_only() {
-        assert_eq!(whole_steps(10.0, 0.04), Some(250));
-        assert_eq!(whole_steps(10.0, 0.04 / 32.0), Some(8000));
-        assert_eq!(whole_steps(10.0, 0.3), None);
-        assert_eq!(whole_steps(1.0, 3.0), None);
-    }
-}

@@ -27,3 +27,49 @@ pub use tangent::{LaneForces, TangentLanes};
 
 /// Steps between two looks at the budget (the one-cell path's interval).
 pub const CHECK_EVERY: u64 = 1024;
+
+/// The instruction set a batched stepper's code is built for. Lanes start with the widest the
+/// CPU has ([`Isa::detect`]); another one the CPU has may be chosen (`with_isa`), e.g.
+/// `Portable` to compute what a CPU without AVX2 computes: the numbers are the same bits in
+/// every one.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Isa {
+    /// What every CPU of the target has (f64×2 on x86-64).
+    Portable,
+    /// f64×4 registers.
+    Avx2,
+    /// f64×8 registers.
+    Avx512,
+}
+
+impl Isa {
+    /// The widest instruction set this CPU has.
+    pub fn detect() -> Self {
+        [Isa::Avx512, Isa::Avx2]
+            .into_iter()
+            .find(|isa| isa.available())
+            .unwrap_or(Isa::Portable)
+    }
+
+    /// Whether this CPU runs code built for this instruction set.
+    pub fn available(self) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        {
+            match self {
+                Isa::Portable => true,
+                Isa::Avx2 => std::arch::is_x86_feature_detected!("avx2"),
+                // Code built with AVX-512F may also use AVX2 and FMA instructions (rustc enables
+                // the features it implies), so all three must be there.
+                Isa::Avx512 => {
+                    std::arch::is_x86_feature_detected!("avx512f")
+                        && std::arch::is_x86_feature_detected!("avx2")
+                        && std::arch::is_x86_feature_detected!("fma")
+                }
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            self == Isa::Portable
+        }
+    }
+}

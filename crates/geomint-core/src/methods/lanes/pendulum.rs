@@ -24,7 +24,7 @@
 use std::sync::atomic::Ordering;
 use std::time::Instant;
 
-use super::CHECK_EVERY;
+use super::{Isa, CHECK_EVERY};
 use crate::diagnostics::DIVERGENCE;
 use crate::methods::{Method, MethodId};
 use crate::run::Budget;
@@ -138,6 +138,7 @@ pub struct LaneKernel {
     pendulum: PlanarSpring,
     chart: Chart,
     order: Order,
+    isa: Isa,
 }
 
 impl LaneKernel {
@@ -155,7 +156,14 @@ impl LaneKernel {
             pendulum: pendulum.clone(),
             chart,
             order,
+            isa: Isa::detect(),
         })
+    }
+
+    /// The same kernel built for `isa`, if this CPU has it (the numbers are the same bits; the
+    /// kernel has a portable build and an AVX2 one, which AVX-512 runs too).
+    pub fn with_isa(self, isa: Isa) -> Option<Self> {
+        isa.available().then_some(LaneKernel { isa, ..self })
     }
 
     /// `steps` steps of size `h` from the [`LANES`] starts, measured against H₀ at every step;
@@ -163,26 +171,15 @@ impl LaneKernel {
     pub fn tally(&self, start: &Start, h: f64, steps: u64, budget: Budget<'_>) -> Option<Tally> {
         let limit = start.energy.map(|e| DIVERGENCE * (1.0 + e.abs()));
         let c = Constants::new(&self.pendulum, h);
-        dispatch(&c, self.chart, self.order, start, steps, &limit, budget)
+        let (chart, order) = (self.chart, self.order);
+        #[cfg(target_arch = "x86_64")]
+        if self.isa != Isa::Portable {
+            // SAFETY: the CPU supports AVX2: `isa` is one it has (detected, or checked by
+            // `with_isa`), and both wider ones imply AVX2.
+            return unsafe { integrate_avx2(&c, chart, order, start, steps, &limit, budget) };
+        }
+        integrate(&c, chart, order, start, steps, &limit, budget)
     }
-}
-
-/// Picks the kernel, compiled for AVX2 when the CPU has it.
-fn dispatch(
-    c: &Constants,
-    chart: Chart,
-    order: Order,
-    start: &Start,
-    steps: u64,
-    limit: &Lane,
-    budget: Budget<'_>,
-) -> Option<Tally> {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU supports AVX2, checked just above.
-        return unsafe { integrate_avx2(c, chart, order, start, steps, limit, budget) };
-    }
-    integrate(c, chart, order, start, steps, limit, budget)
 }
 
 /// [`integrate`] compiled with AVX2 (f64×4 registers). Still no fused multiply-add, which would
@@ -494,6 +491,3 @@ impl<const MOMENTUM_FIRST: bool> Kernel for Polar<MOMENTUM_FIRST> {
         }
     }
 }
-
-#[cfg(test)]
-mod tests;

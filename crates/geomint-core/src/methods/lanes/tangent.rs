@@ -20,6 +20,8 @@ use nalgebra::DMatrix;
 use crate::chaos::frame;
 use crate::methods::splitting::SubFlow;
 
+use super::Isa;
+
 pub use crate::system::{Lane, LaneForces, LANES};
 
 /// The most degrees of freedom a lane system may have (a bound for the guard's scratch column).
@@ -71,37 +73,6 @@ pub struct TangentLanes<const N: usize> {
     isa: Isa,
 }
 
-/// The widest SIMD registers this CPU has, detected when the lanes are made.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Isa {
-    /// What every CPU of the target has (f64×2 on x86-64).
-    Portable,
-    /// f64×4.
-    Avx2,
-    /// f64×8.
-    Avx512,
-}
-
-impl Isa {
-    fn detect() -> Self {
-        #[cfg(target_arch = "x86_64")]
-        {
-            // Code built with AVX-512F may also use AVX2 and FMA instructions (rustc enables the
-            // features it implies), so all three must be there.
-            if std::arch::is_x86_feature_detected!("avx512f")
-                && std::arch::is_x86_feature_detected!("avx2")
-                && std::arch::is_x86_feature_detected!("fma")
-            {
-                return Isa::Avx512;
-            }
-            if std::arch::is_x86_feature_detected!("avx2") {
-                return Isa::Avx2;
-            }
-        }
-        Isa::Portable
-    }
-}
-
 impl<const N: usize> TangentLanes<N> {
     /// The lanes of the splitting `flows` at step `h` with `k` deviation vectors, all zero, on
     /// a system of damping rate `r`; the inverse mass matrix `minv` as the one-run path's
@@ -138,6 +109,15 @@ impl<const N: usize> TangentLanes<N> {
             grad_valid: false,
             force_evaluations: 0,
             isa: Isa::detect(),
+        })
+    }
+
+    /// The same lanes run by code built for `isa`, if this CPU has it (the numbers are the same
+    /// bits).
+    pub fn with_isa(mut self, isa: Isa) -> Option<Self> {
+        isa.available().then(|| {
+            self.isa = isa;
+            self
         })
     }
 
@@ -405,89 +385,6 @@ impl<const N: usize> TangentLanes<N> {
                 c.q[i][l] = jac[(i, col)];
                 c.p[i][l] = jac[(N + i, col)];
             }
-        }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::methods::splitting::VELOCITY_VERLET;
-    use crate::systems::HenonHeiles;
-
-    /// The portable build of the step (what a CPU without AVX2 runs) and each wider one this
-    /// CPU has give the same bits, escaping orbits and the range guard's flags included.
-    #[test]
-    fn every_build_of_the_step_agrees_bit_for_bit() {
-        let sys = HenonHeiles {
-            lambda: 1.0,
-            gamma: 0.0,
-        };
-        let identity = [[1.0, 0.0], [0.0, 1.0]];
-        let mut start = TangentLanes::<2>::new(VELOCITY_VERLET, 0.0, 0.05, identity, 2)
-            .expect("kicks and drifts");
-        // Per group of four lanes: two bound orbits, one near the escape energy, one far above
-        // it; each group a little further out than the one before.
-        let orbits = [
-            [0.0, -0.25, 0.42, 0.0],
-            [0.1, 0.2, 0.3, -0.2],
-            [0.0, 0.0, 0.57, 0.05],
-            [0.3, 0.9, 1.5, 0.8],
-        ];
-        for l in 0..LANES {
-            let [x, y, px, py] = orbits[l % 4];
-            let out = 1.0 + 0.01 * (l / 4) as f64;
-            start.q[0][l] = x * out;
-            start.q[1][l] = y * out;
-            start.p[0][l] = px * out;
-            start.p[1][l] = py;
-        }
-        for (c, column) in start.columns.iter_mut().enumerate() {
-            column.q[c] = [1.0; LANES];
-            column.p[1 - c] = [0.5; LANES];
-        }
-        let bits = |l: &TangentLanes<2>| {
-            let mut v: Vec<u64> =
-                l.q.iter()
-                    .chain(&l.p)
-                    .flatten()
-                    .map(|x| x.to_bits())
-                    .collect();
-            for c in &l.columns {
-                v.extend(c.q.iter().chain(&c.p).flatten().map(|x| x.to_bits()));
-            }
-            v
-        };
-        let detected = Isa::detect();
-        let wider = [Isa::Avx2, Isa::Avx512]
-            .into_iter()
-            .filter(|&isa| isa == Isa::Avx2 || detected == Isa::Avx512)
-            .filter(|_| detected != Isa::Portable);
-        for isa in wider {
-            let mut lanes = start.clone();
-            lanes.isa = isa;
-            let mut portable = start.clone();
-            portable.isa = Isa::Portable;
-            let all = [true; LANES];
-            let mut flagged = 0;
-            for _ in 0..400 {
-                let a = lanes.advance(&sys, 5, &[false; LANES]);
-                let b = portable.advance(&sys, 5, &[false; LANES]);
-                assert_eq!(bits(&lanes), bits(&portable), "{isa:?}");
-                assert_eq!(
-                    (a.not_finite, a.out_of_range),
-                    (b.not_finite, b.out_of_range)
-                );
-                flagged += usize::from(a.not_finite.iter().any(|&f| f));
-                let (a, b) = (
-                    lanes.advance(&sys, 1, &all),
-                    portable.advance(&sys, 1, &all),
-                );
-                assert_eq!(a.steps, b.steps);
-            }
-            assert!(flagged > 0, "the fast orbits escape");
-            assert!(lanes.finite(0) && !lanes.finite(3));
-            assert_eq!(lanes.force_evaluations(), portable.force_evaluations());
         }
     }
 }

@@ -1,5 +1,5 @@
-//! Tests of the error types: ranges and their messages, fields by variant.
-use super::*;
+//! The error types: ranges and their messages, fields by variant.
+use geomint_core::error::*;
 
 #[test]
 fn ranges_check_and_show_their_bounds() {
