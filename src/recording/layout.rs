@@ -317,34 +317,3 @@ fn blueprint_tree(layout: &Layout) -> Node {
 pub fn send_blueprint(rec: &RecordingStream, layout: &Layout) -> Result<(), RecordingError> {
     blueprint::send(rec, &blueprint_tree(layout))
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn path_blocks_cover_every_sample_once() {
-        assert_eq!(path_blocks(0), []);
-        assert_eq!(path_blocks(1), [PathBlock { start: 0, end: 0 }]);
-        let short = path_blocks(3);
-        assert_eq!(
-            short,
-            [
-                PathBlock { start: 0, end: 0 },
-                PathBlock { start: 0, end: 1 },
-                PathBlock { start: 1, end: 2 }
-            ]
-        );
-        let long = path_blocks(1_000_001);
-        assert_eq!(long.len(), MAX_PATH_ROWS + 1);
-        assert!(long.windows(2).all(|w| w[0].end == w[1].start));
-        assert_eq!(long.last().unwrap().end, 1_000_000);
-    }
-
-    #[test]
-    fn sample_steps_end_at_the_last_step() {
-        assert_eq!(sample_steps(4, 10, 25), [0, 10, 20, 25]);
-        assert_eq!(sample_steps(3, 10, 20), [0, 10, 20]);
-        assert_eq!(sample_steps(2, 10, 25), [0, 10]);
-    }
-}

@@ -74,7 +74,7 @@ fn invalid(message: impl Into<String>) -> ReadError {
 }
 
 /// The RRD header's four bytes as text when they are printable, else as hex.
-fn show_bytes(bytes: &[u8]) -> String {
+pub fn show_bytes(bytes: &[u8]) -> String {
     if !bytes.is_empty() && bytes.iter().all(|b| b.is_ascii_graphic() || *b == b' ') {
         format!("`{}`", String::from_utf8_lossy(bytes))
     } else {
@@ -564,16 +564,4 @@ fn columns_of(
         });
     }
     Ok(runs)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn header_bytes_are_shown_as_text_or_hex() {
-        assert_eq!(show_bytes(b"{\"a\""), "`{\"a\"`");
-        assert_eq!(show_bytes(&[0, 1, 0xAB, 0xFF]), "0x0001ABFF");
-        assert_eq!(show_bytes(b""), "0x");
-    }
 }

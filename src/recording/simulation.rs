@@ -571,20 +571,3 @@ pub fn write_rrd<W: Write + Send + 'static>(
 pub fn rrd_bytes(spec: &Spec, doc: &SimulationDocument) -> Result<Vec<u8>, RecordingError> {
     write_rrd(Vec::new(), spec, doc)
 }
-
-#[cfg(test)]
-mod tests {
-    use super::super::{entity_names, entity_part};
-
-    #[test]
-    fn entity_parts_are_plain_and_unique() {
-        assert_eq!(entity_part("modin_rks(rk4)"), "modin_rks_rk4");
-        assert_eq!(entity_part("reference(1e-10)"), "reference_1e-10");
-        assert_eq!(entity_part("L_z"), "L_z");
-        assert_eq!(entity_part("spec"), "m_spec");
-        assert_eq!(
-            entity_names(&["heun", "heun", "triple_jump(csv1)", "heun"]),
-            ["heun", "heun_2", "triple_jump_csv1", "heun_3"]
-        );
-    }
-}

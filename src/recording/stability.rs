@@ -235,22 +235,3 @@ pub fn write_rrd<W: Write + Send + 'static>(
 pub fn rrd_bytes(spec: &Spec, doc: &StabilityDocument) -> Result<Vec<u8>, RecordingError> {
     write_rrd(Vec::new(), spec, doc)
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn verdicts_mark_where_the_relation_disagrees() {
-        assert_eq!(Verdict::of(true, None), Verdict::Stable);
-        assert_eq!(Verdict::of(false, Some(false)), Verdict::Unstable);
-        assert_eq!(
-            Verdict::of(true, Some(false)),
-            Verdict::StableAnalyticUnstable
-        );
-        assert_eq!(
-            Verdict::of(false, Some(true)),
-            Verdict::UnstableAnalyticStable
-        );
-    }
-}

@@ -99,7 +99,7 @@ fn metrics(run: &RunColumns) -> Vec<(String, Vec<f64>, bool)> {
 
 /// The heatmap of `values` and its colour scale (the values at either end), or `None` where no
 /// value can be drawn.
-fn heatmap(values: &[f64], log: bool) -> (Vec<u8>, Option<(f64, f64)>) {
+pub fn heatmap(values: &[f64], log: bool) -> (Vec<u8>, Option<(f64, f64)>) {
     let shown = |v: f64| -> Option<f64> {
         match log {
             true if v > 0.0 && v.is_finite() => Some(v.log10()),
@@ -239,19 +239,4 @@ pub fn write_rrd<W: Write + Send + 'static>(
 /// The `.rrd` file of a sweep in memory (see [`write_rrd`]).
 pub fn rrd_bytes(doc: &SweepDocument) -> Result<Vec<u8>, RecordingError> {
     write_rrd(Vec::new(), doc)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_ramp_runs_from_its_first_to_its_last_anchor() {
-        assert_eq!(ramp(0.0), [68, 1, 84]);
-        assert_eq!(ramp(1.0), [253, 231, 37]);
-        assert_eq!(ramp(0.5), [33, 145, 140]);
-        let (pixels, scale) = heatmap(&[1e-3, f64::NAN, 1e-1], true);
-        assert_eq!(scale, Some((-3.0, -1.0)));
-        assert_eq!(pixels, [[68, 1, 84], [0, 0, 0], [253, 231, 37]].concat());
-    }
 }

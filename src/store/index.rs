@@ -7,8 +7,9 @@ use std::collections::BTreeMap;
 
 use super::recordings::{Owner, RecordingEntry, StoreError};
 
+/// The entries, with bytes in all and per owner.
 #[derive(Debug, Default)]
-pub(super) struct Index {
+pub struct Index {
     /// Entries with their insertion order (which breaks ties in creation time).
     pub(super) entries: BTreeMap<String, (u64, RecordingEntry)>,
     next_seq: u64,
@@ -18,7 +19,8 @@ pub(super) struct Index {
 }
 
 impl Index {
-    pub(super) fn insert(&mut self, entry: RecordingEntry) {
+    /// Adds an entry.
+    pub fn insert(&mut self, entry: RecordingEntry) {
         self.total += entry.bytes;
         *self.by_owner.entry(owner_key(&entry)).or_default() += entry.bytes;
         self.next_seq += 1;
@@ -26,7 +28,8 @@ impl Index {
             .insert(entry.id.clone(), (self.next_seq, entry));
     }
 
-    pub(super) fn remove(&mut self, id: &str) -> Option<RecordingEntry> {
+    /// Removes an entry.
+    pub fn remove(&mut self, id: &str) -> Option<RecordingEntry> {
         let (_, entry) = self.entries.remove(id)?;
         self.total -= entry.bytes;
         let key = owner_key(&entry);
@@ -39,8 +42,13 @@ impl Index {
         Some(entry)
     }
 
+    /// Bytes of every recording.
+    pub fn total(&self) -> u64 {
+        self.total
+    }
+
     /// Bytes of `owner`'s recordings.
-    pub(super) fn owned(&self, owner: &str) -> u64 {
+    pub fn owned(&self, owner: &str) -> u64 {
         self.by_owner.get(owner).copied().unwrap_or(0)
     }
 
@@ -58,7 +66,7 @@ impl Index {
     /// recordings while the owner is past its quota or the store past its cap, and past the cap
     /// then the oldest recordings without an owner; never another owner's. Returns those
     /// removed, or [`StoreError::FullOfOthers`] (removing nothing) when that is not enough.
-    pub(super) fn make_room(
+    pub fn make_room(
         &mut self,
         keep: &str,
         owner: &Owner,
@@ -115,74 +123,4 @@ impl Index {
 /// The key of an entry's owner in the index ("" for none).
 fn owner_key(entry: &RecordingEntry) -> String {
     entry.owner.clone().unwrap_or_default()
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn entry(id: &str, owner: Option<&str>, bytes: u64, at: u64) -> RecordingEntry {
-        RecordingEntry {
-            id: id.into(),
-            created: String::new(),
-            bytes,
-            spec: None,
-            origin: Default::default(),
-            application_id: None,
-            created_unix_ms: at,
-            owner: owner.map(String::from),
-        }
-    }
-
-    fn owner(name: &str, quota: Option<u64>) -> Owner {
-        Owner {
-            name: name.into(),
-            quota,
-        }
-    }
-
-    fn ids(evicted: &[RecordingEntry]) -> Vec<&str> {
-        evicted.iter().map(|e| e.id.as_str()).collect()
-    }
-
-    #[test]
-    fn room_comes_from_the_owners_own_then_the_unowned_never_others() {
-        let mut index = Index::default();
-        for (id, who, at) in [
-            ("old", None, 0),
-            ("b1", Some("bob"), 1),
-            ("a1", Some("alice"), 2),
-            ("a2", Some("alice"), 3),
-        ] {
-            index.insert(entry(id, who, 10, at));
-        }
-        // Past alice's quota of 25: her oldest goes, not bob's older one nor the unowned.
-        index.insert(entry("a3", Some("alice"), 10, 4));
-        let evicted = index
-            .make_room("a3", &owner("alice", Some(25)), 1000)
-            .unwrap();
-        assert_eq!(ids(&evicted), ["a1"]);
-        assert_eq!(
-            (index.owned("alice"), index.owned("bob"), index.total),
-            (20, 10, 40)
-        );
-        // Past the cap of 40: bob's new one takes his own oldest first, then the unowned.
-        index.insert(entry("b2", Some("bob"), 10, 5));
-        let evicted = index.make_room("b2", &owner("bob", None), 40).unwrap();
-        assert_eq!(ids(&evicted), ["b1"]);
-        index.insert(entry("b3", Some("bob"), 10, 6));
-        let evicted = index.make_room("b3", &owner("bob", None), 40).unwrap();
-        assert_eq!(ids(&evicted), ["b2"], "bob's own before the unowned");
-        index.insert(entry("b4", Some("bob"), 20, 7));
-        let evicted = index.make_room("b4", &owner("bob", None), 40).unwrap();
-        assert_eq!(ids(&evicted), ["b3", "old"]);
-        // Only alice's could make room for carol: refused, nothing removed.
-        index.insert(entry("c1", Some("carol"), 10, 8));
-        let before = index.total;
-        assert!(matches!(
-            index.make_room("c1", &owner("carol", None), 40),
-            Err(StoreError::FullOfOthers { .. })
-        ));
-        assert_eq!(index.total, before);
-    }
 }

@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 use super::recordings::{new_id, StoreError};
 
 /// Prefix of temporary files in the data directory.
-pub(crate) const TMP_PREFIX: &str = ".tmp-";
+pub const TMP_PREFIX: &str = ".tmp-";
 
 /// A temporary file in the data directory, locked by its writer for as long as it is open.
 #[derive(Debug)]

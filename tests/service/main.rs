@@ -1,7 +1,9 @@
 //! The service's integration tests, in one binary: the HTTP routes against the real server on an
 //! ephemeral port, the command line and the NATS executor as real processes, recordings decoded
 //! by Rerun's own readers (Rust and Python), the pinned answers, the fuzz targets, and the core
-//! behaviours that requests reach through the wire layer (definitions, method options, sweeps).
+//! behaviours that requests reach through the wire layer (definitions, method options, sweeps),
+//! and the library's building blocks one at a time (its unit tests are these: the library builds
+//! no test target of its own, which would compile the whole service a second time).
 
 #[path = "../../crates/geomint-core/tests/core/common.rs"]
 #[allow(dead_code)]
@@ -11,6 +13,7 @@ mod decoded;
 #[allow(dead_code)]
 mod server;
 
+mod blocks;
 mod chaos;
 mod definitions;
 mod definitions_compiled;
