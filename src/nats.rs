@@ -122,7 +122,10 @@ impl Queue {
             .await
             .map_err(|e| failed("cannot connect", url, e))?;
         let jetstream = jetstream::new(client.clone());
-        let stream = jetstream
+        // Workers and servers starting at the same moment (an array job, a test) may each find
+        // no stream and create it: the one whose create comes second is refused ("subjects
+        // overlap with an existing stream") and takes the stream the other made.
+        let stream = match jetstream
             .get_or_create_stream(stream::Config {
                 name: STREAM.into(),
                 subjects: vec![format!("{TASKS}.>")],
@@ -131,8 +134,19 @@ impl Queue {
                 ..Default::default()
             })
             .await
-            .map_err(|e| failed("cannot create the shard stream (is JetStream on?)", url, e))?;
-        stream
+        {
+            Ok(stream) => stream,
+            Err(create) => jetstream.get_stream(STREAM).await.map_err(|_| {
+                failed(
+                    "cannot create the shard stream (is JetStream on?)",
+                    url,
+                    create,
+                )
+            })?,
+        };
+        // The same for the consumer: if another process's create won, its consumer is found
+        // below.
+        let created = stream
             .get_or_create_consumer(
                 CONSUMER,
                 pull::Config {
@@ -144,12 +158,15 @@ impl Queue {
                 },
             )
             .await
-            .map_err(|e| failed("cannot create the workers' consumer", url, e))?;
+            .map(|_| ());
         // A consumer made before deliveries were bounded redelivers a poison shard for ever.
         let consumer: jetstream::consumer::PullConsumer = stream
             .get_consumer(CONSUMER)
             .await
-            .map_err(|e| failed("cannot find the workers' consumer", url, e))?;
+            .map_err(|e| match &created {
+                Err(create) => failed("cannot create the workers' consumer", url, create),
+                Ok(()) => failed("cannot find the workers' consumer", url, e),
+            })?;
         let config = consumer.cached_info().config.clone();
         if config.max_deliver <= 0 {
             let bounded = jetstream::consumer::Config {

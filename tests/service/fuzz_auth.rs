@@ -2,13 +2,14 @@
 //! included) with a tokens file: random bytes, random and malformed `Bearer` values, and near
 //! misses of a real token (a character changed, cut, lengthened, another token's digest as the
 //! token). The property: none passes (every answer is 401 in the error shape naming the
-//! header), none answers 5xx. 10⁴ cases by default (each is a few microseconds of work);
+//! header), none answers 5xx. 10⁴ cases by default (each goes through the router, built once);
 //! `PROPTEST_CASES` sets another count.
 
 use std::sync::OnceLock;
 
 use axum::body::Body;
 use axum::http::{HeaderValue, Request};
+use axum::Router;
 use geomint::access::tokens::{digest, digest_text};
 use geomint::access::{Anonymous, Quotas};
 use geomint::http::{app, AppState, Config};
@@ -20,9 +21,10 @@ use tower::ServiceExt;
 use crate::http_access::tokens_file;
 use crate::server;
 
-/// The service, and a valid token of it.
-fn service() -> &'static (AppState, String, tokio::runtime::Runtime) {
-    static SERVICE: OnceLock<(AppState, String, tokio::runtime::Runtime)> = OnceLock::new();
+/// The service (its router, built once: building it is most of a case's cost otherwise), and a
+/// valid token of it.
+fn service() -> &'static (Router, String, tokio::runtime::Runtime) {
+    static SERVICE: OnceLock<(Router, String, tokio::runtime::Runtime)> = OnceLock::new();
     SERVICE.get_or_init(|| {
         let dir = server::scratch_dir("fuzz-auth");
         let (file, secrets) = tokens_file(&dir, &[("admin", "admin", Quotas::default())]);
@@ -40,13 +42,13 @@ fn service() -> &'static (AppState, String, tokio::runtime::Runtime) {
             .enable_all()
             .build()
             .unwrap();
-        (state, secrets["admin"].clone(), runtime)
+        (app(state), secrets["admin"].clone(), runtime)
     })
 }
 
 /// Sends `values` as `Authorization` headers to a route; the status.
 fn send(path: &str, values: &[Vec<u8>]) -> Result<u16, TestCaseError> {
-    let (state, _, runtime) = service();
+    let (router, _, runtime) = service();
     let mut request = Request::builder().method("GET").uri(path);
     for value in values {
         let Ok(value) = HeaderValue::from_bytes(value) else {
@@ -56,7 +58,7 @@ fn send(path: &str, values: &[Vec<u8>]) -> Result<u16, TestCaseError> {
     }
     let request = request.body(Body::empty()).unwrap();
     let (status, bytes) = runtime.block_on(async {
-        let response = app(state.clone()).oneshot(request).await.unwrap();
+        let response = router.clone().oneshot(request).await.unwrap();
         let status = response.status().as_u16();
         (
             status,
@@ -139,14 +141,14 @@ fn no_malformed_or_wrong_authorization_passes() {
         })
         .unwrap();
     // The real token passes, so the refusals above are not of everything.
-    let (state, token, runtime) = service();
+    let (router, token, runtime) = service();
     let request = Request::builder()
         .uri("/api/v1/recordings")
         .header("authorization", format!("Bearer {token}"))
         .body(Body::empty())
         .unwrap();
     let status = runtime
-        .block_on(app(state.clone()).oneshot(request))
+        .block_on(router.clone().oneshot(request))
         .unwrap()
         .status();
     assert_eq!(status.as_u16(), 200);

@@ -13,6 +13,7 @@ use std::sync::OnceLock;
 
 use axum::body::Body;
 use axum::http::Request;
+use axum::Router;
 use geomint::core::simulation::Limits;
 use geomint::http::{app, AppState, Config};
 use proptest::prelude::*;
@@ -22,9 +23,10 @@ use tower::ServiceExt;
 
 use crate::server;
 
-/// A service with small limits, so that the valid requests mutation makes stay cheap.
-fn service() -> &'static (AppState, tokio::runtime::Runtime) {
-    static SERVICE: OnceLock<(AppState, tokio::runtime::Runtime)> = OnceLock::new();
+/// A service with small limits, so that the valid requests mutation makes stay cheap (its router,
+/// built once: building it costs more than most cases).
+fn service() -> &'static (Router, tokio::runtime::Runtime) {
+    static SERVICE: OnceLock<(Router, tokio::runtime::Runtime)> = OnceLock::new();
     SERVICE.get_or_init(|| {
         // The service is a static, never dropped: the next test process removes this folder.
         let dir = server::scratch_dir("fuzz-routes");
@@ -50,7 +52,7 @@ fn service() -> &'static (AppState, tokio::runtime::Runtime) {
             .enable_all()
             .build()
             .unwrap();
-        (state, runtime)
+        (app(state), runtime)
     })
 }
 
@@ -61,7 +63,7 @@ fn send(
     content_type: Option<&str>,
     body: Vec<u8>,
 ) -> Result<u16, TestCaseError> {
-    let (state, runtime) = service();
+    let (router, runtime) = service();
     let mut request = Request::builder().method(method).uri(uri);
     if let Some(ct) = content_type {
         request = request.header("content-type", ct);
@@ -70,7 +72,7 @@ fn send(
         return Ok(400); // not a request hyper would pass on (an invalid URI)
     };
     let (status, content_type, bytes) = runtime.block_on(async {
-        let response = app(state.clone()).oneshot(request).await.unwrap();
+        let response = router.clone().oneshot(request).await.unwrap();
         let status = response.status();
         let content_type = response
             .headers()

@@ -167,6 +167,30 @@ async fn post_sweep(base: &str) -> (u16, Value) {
     (status, geomint::api::json::parse_json(&bytes).unwrap())
 }
 
+/// Workers and a server starting at the same moment on a fresh NATS server may each find no
+/// stream and create it: every one of them comes up on the one stream and consumer, and a sweep
+/// gives the local executor's numbers.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn workers_and_a_server_starting_together_share_one_queue() {
+    let dir = scratch("together");
+    let (_nats, url) = nats_server(&dir);
+    let mut workers: Vec<Process> = (0..4).map(|_| worker(&url)).collect();
+    let (_server, base) = server(&url, &dir, 60);
+    let (status, doc) = post_sweep(&base).await;
+    assert_eq!(status, 200, "{}", doc["error"]);
+    let expected = tokio::task::spawn_blocking(local).await.unwrap();
+    assert!(
+        numbers(doc) == expected,
+        "the document differs from the local one"
+    );
+    for worker in &mut workers {
+        assert!(
+            worker.0.try_wait().unwrap().is_none(),
+            "a worker exited at start-up"
+        );
+    }
+}
+
 /// Shards waiting in the queue.
 async fn queued(url: &str) -> u64 {
     let client = async_nats::connect(url).await.unwrap();
