@@ -28,6 +28,19 @@ export const CHROMIUM_FLAGS = [
  */
 export const HEADLESS_GPU_ERROR = /^WebViewer failure: Failed to start failed to create wgpu surface: .*(webgl2 not available|adapter)/;
 
+/** POSTs a JSON body to an API path of the server under test; its status and parsed body. */
+export async function postJson(path, body) {
+  const response = await fetch(`${base}${path}`, {
+    method: 'POST',
+    headers: { 'content-type': 'application/json' },
+    body: JSON.stringify(body),
+  });
+  return { status: response.status, body: await response.json() };
+}
+
+/** The console line of an answer refused with 422, which some tests provoke on purpose. */
+export const LOGGED_422 = /Failed to load resource: the server responded with a status of 422/;
+
 /**
  * Waits (up to 30 s) until the server answers `/healthz`: every test file may be the first to talk
  * to it, whatever order the runner takes them in.

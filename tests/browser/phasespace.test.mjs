@@ -10,10 +10,8 @@ import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
 import { rm } from 'node:fs/promises';
 import { join } from 'node:path';
-import { artifacts, base, launch, openSection, waitForServer } from './harness.mjs';
+import { LOGGED_422, artifacts, base, launch, openSection, waitForServer } from './harness.mjs';
 
-/** The browser's log line for the refusal the test provokes on purpose. */
-const LOGGED_422 = /Failed to load resource: the server responded with a status of 422/;
 
 let context;
 let page;

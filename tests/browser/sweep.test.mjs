@@ -10,24 +10,15 @@ import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
 import { rm } from 'node:fs/promises';
 import { join } from 'node:path';
-import { artifacts, base, launch, openSection, waitForServer } from './harness.mjs';
+import {
+  LOGGED_422, artifacts, base, launch, openSection, postJson, waitForServer,
+} from './harness.mjs';
 
-/** The browser's log line for the refusal the test provokes on purpose. */
-const LOGGED_422 = /Failed to load resource: the server responded with a status of 422/;
 
 let context;
 let page;
 let profile;
 const consoleErrors = [];
-
-async function postJson(path, body) {
-  const response = await fetch(`${base}${path}`, {
-    method: 'POST',
-    headers: { 'content-type': 'application/json' },
-    body: JSON.stringify(body),
-  });
-  return { status: response.status, body: await response.json() };
-}
 
 async function settled(states, timeout = 60_000) {
   await page.waitForFunction((wanted) => wanted.includes(document.querySelector('#sweep').dataset.sweepState),

@@ -14,11 +14,11 @@ import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
 import { readFile, rm } from 'node:fs/promises';
 import { join } from 'node:path';
-import { artifacts, base, HEADLESS_GPU_ERROR, launch, openSection, waitForServer } from './harness.mjs';
+import {
+  HEADLESS_GPU_ERROR, LOGGED_422, artifacts, base, launch, openSection, postJson, waitForServer,
+} from './harness.mjs';
 import { EXAMPLES } from '../../static/js/examples.js';
 
-/** The browser's log line for a refusal the test provokes on purpose. */
-const LOGGED_422 = /Failed to load resource: the server responded with a status of 422/;
 
 const kepler = EXAMPLES.find((x) => x.id === 'kepler');
 const pendulum = EXAMPLES.find((x) => x.id === 'double-pendulum');
@@ -29,15 +29,6 @@ let profile;
 const consoleErrors = [];
 /** The simulate request and the page's point counts of the Kepler run (for the link test). */
 let keplerRun = null;
-
-async function postJson(path, body) {
-  const response = await fetch(`${base}${path}`, {
-    method: 'POST',
-    headers: { 'content-type': 'application/json' },
-    body: JSON.stringify(body),
-  });
-  return { status: response.status, body: await response.json() };
-}
 
 /** The section's state, once it is one of `states`. */
 async function settled(p, states, timeout = 30_000) {
