@@ -317,16 +317,9 @@ async fn simulate_answers_carry_the_indicators_in_json_and_ndjson() {
 
 #[tokio::test]
 async fn the_chaos_presets_run_and_mark_the_cells_off_the_energy_surface() {
-    use crate::server::{client, post_json, start};
+    use crate::server::{get_json, post_json, start};
     let server = start(config()).await;
-    let presets: Value = client()
-        .get(server.url("/api/v1/studies/sweep/presets"))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
+    let presets = get_json(&server, "/api/v1/studies/sweep/presets").await;
     let preset = |id: &str| {
         presets
             .as_array()

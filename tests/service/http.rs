@@ -12,7 +12,7 @@ use geomint::core::simulation::{ColumnSink, Columns, Limits, Simulation, Simulat
 
 use geomint::http::Config;
 use serde_json::{json, Value};
-use server::{client, start, Server};
+use server::{client, get_json, start, Server};
 
 pub(crate) const NDJSON: &str = "application/x-ndjson";
 
@@ -173,14 +173,7 @@ pub(crate) async fn wait_idle(server: &Server) -> Duration {
 async fn catalogs_match_the_core() {
     let server = start(config()).await;
     let c = client();
-    let systems: Value = c
-        .get(server.url("/api/v1/systems"))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
+    let systems = get_json(&server, "/api/v1/systems").await;
     assert_eq!(
         systems,
         serde_json::to_value(geomint::core::systems::catalog()).unwrap()
@@ -211,14 +204,7 @@ async fn catalogs_match_the_core() {
         (Some("omega"), Some("number"))
     );
 
-    let methods: Value = c
-        .get(server.url("/api/v1/methods"))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
+    let methods = get_json(&server, "/api/v1/methods").await;
     let core: Vec<_> = geomint::core::methods::MethodId::ALL
         .iter()
         .map(|m| m.info())
@@ -248,26 +234,12 @@ async fn catalogs_match_the_core() {
         json!(["separable_constant_mass", "conformal_damping"])
     );
 
-    let one: Value = c
-        .get(server.url("/api/v1/systems/nbody"))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
+    let one = get_json(&server, "/api/v1/systems/nbody").await;
     assert_eq!(
         one["invariants"],
         json!(["L_x", "L_y", "L_z", "L_conformal"])
     );
-    let rk4: Value = c
-        .get(server.url("/api/v1/methods/rk4"))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
+    let rk4 = get_json(&server, "/api/v1/methods/rk4").await;
     assert_eq!(rk4["order"], 4);
     let missing = c
         .get(server.url("/api/v1/methods/rk5"))
@@ -278,14 +250,7 @@ async fn catalogs_match_the_core() {
     let body: Value = missing.json().await.unwrap();
     assert_eq!(body["error"]["code"], "not_found");
 
-    let health: Value = c
-        .get(server.url("/healthz"))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
+    let health = get_json(&server, "/healthz").await;
     assert_eq!(health["status"], "ok");
     assert_eq!(health["runs_in_progress"], 0);
 }

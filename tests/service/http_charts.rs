@@ -14,7 +14,7 @@ use geomint::recording::energy_map::difference_color;
 use rerun::components::ImageBuffer;
 use rerun::{Image, SegmentationImage};
 use serde_json::{json, Value};
-use server::{client, post_json as post, start};
+use server::{client, get_json, post_json as post, start};
 
 const MAP: &str = "/api/v1/studies/energy-map";
 
@@ -257,14 +257,7 @@ async fn a_start_energy_that_overflows_is_null_as_documented() {
     // The first row (y₀ = −1.1) is finite, the others overflow.
     assert!(energy[..3].iter().all(Value::is_f64), "{energy:?}");
     assert!(energy[3..].iter().all(Value::is_null), "{energy:?}");
-    let openapi: Value = client()
-        .get(server.url("/api/v1/openapi.json"))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
+    let openapi = get_json(&server, "/api/v1/openapi.json").await;
     let items =
         &openapi["components"]["schemas"]["EnergyMapDocument"]["properties"]["energy"]["items"];
     assert_eq!(items["type"], json!(["number", "null"]), "{items}");

@@ -13,7 +13,7 @@ use decoded::Decoded;
 
 use geomint::http::Config;
 use serde_json::{json, Value};
-use server::{client, start, Server};
+use server::{client, get_json, start, Server};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 
 /// A scratch data directory of this test process.
@@ -175,14 +175,7 @@ async fn store_list_download_and_delete() {
         expected[1]
     );
     // The entry alone, as JSON.
-    let one: Value = c
-        .get(server.url(&format!("/api/v1/recordings/{id}")))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
+    let one = get_json(&server, &format!("/api/v1/recordings/{id}")).await;
     assert_eq!(one, entries[0]);
 
     // Deleted: gone from the list, the file and the disk; a second delete is 404.

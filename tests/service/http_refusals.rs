@@ -13,7 +13,7 @@ use crate::server;
 use geomint::api::system::NoStoredSystems;
 use geomint::http::Config;
 use serde_json::{json, Value};
-use server::{client, start, Server};
+use server::{client, get_json, start, Server};
 
 /// Posts raw bytes and returns (status, error object).
 async fn post_raw(
@@ -197,14 +197,7 @@ async fn overload_is_answered_503_with_retry_after() {
     )
     .await;
     assert_eq!(bad.status(), 422);
-    let health: Value = client()
-        .get(server.url("/healthz"))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
+    let health = get_json(&server, "/healthz").await;
     assert_eq!(health["runs_in_progress"], 1);
 
     drop(holder);

@@ -11,20 +11,13 @@ use crate::http::{
 use crate::server;
 use geomint::http::{AppState, Config};
 use serde_json::{json, Value};
-use server::{client, start, Server};
+use server::{client, get_json, start, Server};
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn openapi_lists_every_route() {
     let server = start(config()).await;
     let c = client();
-    let doc: Value = c
-        .get(server.url("/api/v1/openapi.json"))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
+    let doc = get_json(&server, "/api/v1/openapi.json").await;
     assert!(doc["openapi"].as_str().unwrap().starts_with("3."));
     let paths = doc["paths"].as_object().unwrap();
     let documented: BTreeSet<(String, String)> = paths

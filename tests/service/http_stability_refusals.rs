@@ -10,7 +10,7 @@ use geomint::core::simulation::Limits;
 
 use geomint::http::Config;
 use serde_json::{json, Value};
-use server::{client, post_json as post, start};
+use server::{client, get_json, post_json as post, start};
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn bad_inputs_get_clean_errors_naming_the_field() {
@@ -342,14 +342,7 @@ async fn a_busy_server_answers_maps_503_with_retry_after() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn openapi_documents_the_stability_routes() {
     let server = start(config()).await;
-    let doc: Value = client()
-        .get(server.url("/api/v1/openapi.json"))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
+    let doc = get_json(&server, "/api/v1/openapi.json").await;
     for path in [MAP, POINT] {
         let post = &doc["paths"][path]["post"];
         assert!(

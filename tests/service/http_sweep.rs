@@ -21,7 +21,7 @@ use rerun::{Image, Tensor};
 
 use geomint::http::Config;
 use serde_json::{json, Value};
-use server::{client, post_json, post_ndjson, start};
+use server::{client, get_json, post_json, post_ndjson, start};
 
 fn config() -> Config {
     Config {
@@ -182,14 +182,7 @@ async fn a_sweep_records_a_tensor_and_a_heatmap_per_run_and_metric() {
 #[tokio::test]
 async fn the_fig6_preset_equals_the_energy_map_route() {
     let server = start(config()).await;
-    let presets: Value = client()
-        .get(server.url("/api/v1/studies/sweep/presets"))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
+    let presets = get_json(&server, "/api/v1/studies/sweep/presets").await;
     let ids: Vec<&str> = presets
         .as_array()
         .unwrap()

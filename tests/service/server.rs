@@ -187,6 +187,18 @@ pub fn client() -> reqwest::Client {
     reqwest::Client::builder().no_proxy().build().unwrap()
 }
 
+/// GETs `path` and reads its answer as JSON.
+pub async fn get_json(server: &Server, path: &str) -> serde_json::Value {
+    client()
+        .get(server.url(path))
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap()
+}
+
 /// Posts `body` as JSON to `path`; returns the status and the JSON answer, read with correctly
 /// rounded floats so that numbers compare bit for bit.
 pub async fn post_json(
