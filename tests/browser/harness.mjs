@@ -82,6 +82,21 @@ export async function launch(viewport, errors) {
 }
 
 /**
+ * `launch` on the page at `/`, once its form is idle (after the server answers), with the paths
+ * of failed requests pushed to `failed`.
+ */
+export async function launchOnPage(viewport, errors, failed) {
+  await waitForServer();
+  const launched = await launch(viewport, errors);
+  launched.page.on('requestfailed', (request) => {
+    failed.push(`${new URL(request.url()).pathname} ${request.failure()?.errorText}`);
+  });
+  await launched.page.goto(`${base}/`);
+  await launched.page.waitForSelector('body[data-run-state="idle"]', { timeout: 15_000 });
+  return launched;
+}
+
+/**
  * Shows section `id` of the page the way a reader does, with its link in the header (the page
  * shows one section at a time), and waits until it is on show.
  */

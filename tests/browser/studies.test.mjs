@@ -10,9 +10,7 @@ import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
 import { readFile, rm } from 'node:fs/promises';
 import { join } from 'node:path';
-import {
-  LOGGED_422, artifacts, base, launch, openSection, postJson, waitForServer,
-} from './harness.mjs';
+import { LOGGED_422, artifacts, base, launchOnPage, openSection, postJson } from './harness.mjs';
 
 /** The stability section's defaults, as the page sends them. */
 const STABILITY = {
@@ -30,13 +28,7 @@ const failedRequests = [];
 
 before(async () => {
   assert.ok(base, 'set GEOMINT_URL to the server under test (scripts/test-browser does)');
-  await waitForServer();
-  ({ context, page, profile } = await launch({ width: 1280, height: 800 }, consoleErrors));
-  page.on('requestfailed', (request) => {
-    failedRequests.push(`${new URL(request.url()).pathname} ${request.failure()?.errorText}`);
-  });
-  await page.goto(`${base}/`);
-  await page.waitForSelector('body[data-run-state="idle"]', { timeout: 15_000 });
+  ({ context, page, profile } = await launchOnPage({ width: 1280, height: 800 }, consoleErrors, failedRequests));
 });
 
 after(async () => {
