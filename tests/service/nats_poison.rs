@@ -52,9 +52,15 @@ async fn a_panicking_shard_fails_its_study_after_max_deliver_and_the_others_comp
             (status, response.json::<Value>().await.unwrap())
         }
     };
-    let started = Instant::now();
-    let (poisoned, first, second) =
-        tokio::join!(post(sweep(POISON)), post(sweep("0.5")), post(sweep("1")));
+    // The poisoned study's own time, not that of the join: on a loaded machine the healthy
+    // studies beside it may take longer, which is not what the bound is about.
+    let poisoned = async {
+        let started = Instant::now();
+        let answer = post(sweep(POISON)).await;
+        (answer, started.elapsed())
+    };
+    let ((poisoned, elapsed), first, second) =
+        tokio::join!(poisoned, post(sweep("0.5")), post(sweep("1")));
     let (status, error) = poisoned;
     assert_eq!(status, 502, "{error}");
     assert_eq!(error["error"]["code"], "executor_unavailable");
@@ -64,11 +70,7 @@ async fn a_panicking_shard_fails_its_study_after_max_deliver_and_the_others_comp
         "{message}"
     );
     // Three attempts, each given back at once: far within the ack waits a lost worker costs.
-    assert!(
-        started.elapsed() < Duration::from_secs(30),
-        "{:?}",
-        started.elapsed()
-    );
+    assert!(elapsed < Duration::from_secs(30), "{elapsed:?}");
     for (status, doc) in [first, second] {
         assert_eq!(status, 200, "{doc}");
         assert_eq!(doc["cells"], 4, "{doc}");
