@@ -16,8 +16,8 @@
 //!   third of the ack wait, so a long shard is not handed out twice.
 //! - A shard that arrives twice (redelivered after a slow worker finished it after all) counts
 //!   once.
-//! - A study that its client cancels, or that passes its time limit, has its remaining tasks
-//!   purged from the stream: no worker starts them.
+//! - A study that its client cancels, or that passes its time limit, has the shards it still
+//!   waits for taken out of the stream ([`withdraw`]): no worker starts them.
 //! - A lost NATS server fails the study after [`DISCONNECTED_GRACE`] with a clear error rather
 //!   than waiting for the time limit.
 //! - A poison shard (one that panics or kills its worker) is delivered at most `max_deliver`
@@ -31,7 +31,9 @@ use std::collections::HashMap;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use async_nats::jetstream::{self, consumer::pull, stream, AckKind};
+use async_nats::jetstream::{
+    self, consumer::pull, stream, stream::DeleteMessageErrorKind, AckKind,
+};
 use futures_util::StreamExt;
 use serde::{Deserialize, Serialize};
 
@@ -231,9 +233,9 @@ impl Executor for Queue {
 
 /// Runs `study` (whose spec is `spec`) on the workers: publishes its shards, collects the
 /// parts, calls `done` for each cell of a part as it arrives, and returns every cell's result in
-/// order. Stops (purging what no worker has started) when the budget says so: at the deadline
-/// with the cells of the parts received so far (`None` for the others), on cancellation with an
-/// error. Fails when the NATS server is gone for [`DISCONNECTED_GRACE`], and when a shard was
+/// order. Stops (taking what no worker has answered out of the queue) when the budget says so:
+/// at the deadline with the cells of the parts received so far (`None` for the others), on
+/// cancellation with an error. Fails when the NATS server is gone for [`DISCONNECTED_GRACE`], and when a shard was
 /// delivered `max_deliver` times without a part ([`poison`]).
 async fn run<S: Study>(
     queue: &Queue,
@@ -285,24 +287,28 @@ async fn run<S: Study>(
         sequences.insert(stored.sequence, index);
     }
 
-    let purge = || async {
-        if let Err(e) = queue.stream.purge().filter(tasks.clone()).await {
-            tracing::warn!(study = %id, error = %e, "cannot purge the study's shards");
-        }
-    };
     let mut parts: Vec<Option<Part<S::Cell>>> = (0..count).map(|_| None).collect();
+    // The shards no part has answered yet leave the queue.
+    let withdraw_unanswered = |parts: &[Option<Part<S::Cell>>]| {
+        let unanswered: Vec<u64> = sequences
+            .iter()
+            .filter(|&(_, &shard)| parts.get(shard).is_some_and(Option::is_none))
+            .map(|(&sequence, _)| sequence)
+            .collect();
+        withdraw(queue, &id, unanswered)
+    };
     let mut missing = count;
     let mut disconnected_since: Option<Instant> = None;
     while missing > 0 {
         if budget.cancelled() {
-            purge().await;
+            withdraw_unanswered(&parts).await;
             return Err(CoreError::Cancelled {
                 what: name,
                 shutdown: true,
             });
         }
         if budget.expired() {
-            purge().await;
+            withdraw_unanswered(&parts).await;
             let mut cells: Vec<Option<S::Cell>> = (0..study.cells()).map(|_| None).collect();
             for part in parts.into_iter().flatten() {
                 let end = part.first_cell.saturating_add(part.cells.len());
@@ -339,7 +345,7 @@ async fn run<S: Study>(
         // A shard whose part came after all (from a slow worker) is done, whatever its copies did.
         if let Some((shard, error)) = poison::exhausted(name, &message, &sequences) {
             if parts.get(shard).is_some_and(Option::is_none) {
-                purge().await;
+                withdraw_unanswered(&parts).await;
                 return Err(error);
             }
         }
@@ -364,7 +370,7 @@ async fn run<S: Study>(
                 "a part that is not a shard of this study"
             ),
             Ok(Reply::Failed { shard, message }) => {
-                purge().await;
+                withdraw_unanswered(&parts).await;
                 return Err(CoreError::Executor {
                     message: format!(
                         "the {name} failed: a worker cannot run shard {shard}: {message}"
@@ -384,6 +390,27 @@ async fn run<S: Study>(
         .map_err(|e| CoreError::Executor {
             message: format!("the {name}'s parts do not fit together: {e}"),
         })
+}
+
+/// Takes a study's shards out of the queue by their stream sequences (`id`: the study, for the
+/// log). One by one rather than by a purge filtered on the study's subject: on NATS 2.9 such a
+/// purge moves the workers' consumer past every earlier message of the stream, so that another
+/// study queued before this one would never reach a worker. A shard already gone (answered, or
+/// taken by a worker) is no error.
+async fn withdraw(queue: &Queue, id: &str, sequences: Vec<u64>) {
+    futures_util::stream::iter(sequences)
+        .for_each_concurrent(32, |sequence| async move {
+            match queue.stream.delete_message(sequence).await {
+                Ok(_) => {}
+                Err(e) if matches!(e.kind(), DeleteMessageErrorKind::JetStream(_)) => {
+                    tracing::debug!(study = %id, sequence, error = %e, "a shard already left the queue");
+                }
+                Err(e) => {
+                    tracing::warn!(study = %id, sequence, error = %e, "cannot take a shard out of the queue");
+                }
+            }
+        })
+        .await;
 }
 
 /// Pulls shards one at a time and runs them, for as long as the process lives: a lost

@@ -2,9 +2,9 @@
 //! temporary directory on a loopback port it picks, two `geomint worker`s and a `geomint serve
 //! --nats`. The merged document equals the local executor's bit for bit; with one worker killed
 //! (SIGKILL) mid-study its shard is handed out again and the document is still the same; a
-//! client that goes away leaves no shard in the queue; a NATS server stopped mid-study fails the
-//! study with `executor_unavailable` well within the time limit; `serve --nats` without a
-//! server exits non-zero saying so.
+//! client that goes away leaves no shard in the queue, and takes no other study's with it; a NATS
+//! server stopped mid-study fails the study with `executor_unavailable` well within the time
+//! limit; `serve --nats` without a server exits non-zero saying so.
 //!
 //! `nats-server` is a Debian package that the test command installs.
 
@@ -88,7 +88,10 @@ pub(crate) fn server_with(
 ) -> (Process, String) {
     let mut command = geomint();
     command
-        .env("GEOMINT_LOG", SERVE_LOG)
+        .env(
+            "GEOMINT_LOG",
+            std::env::var("DBG_SERVE_LOG").unwrap_or(SERVE_LOG.into()),
+        )
         .args(["serve", "--addr", "127.0.0.1:0", "--nats", url])
         .args([
             "--nats-ack-wait-secs",
@@ -463,4 +466,66 @@ async fn every_study_on_nats_workers_equals_the_local_executor() {
         server::post_json_to(&base, "/api/v1/studies/work-precision", &request).await;
     assert_eq!(status, 200, "{doc}");
     assert_eq!(shards_published(&url).await, before);
+}
+
+/// A small sweep (4 cells, one shard) whose last γ tells it from the others.
+fn small_sweep(gamma_max: f64) -> Value {
+    json!({
+        "system": "pendulum", "methods": ["modin_3s"], "h": 0.1, "t_end": 20, "every": 5,
+        "axes": [{"name": "params.gamma", "min": 0.001, "max": gamma_max, "n": 4}]
+    })
+}
+
+async fn until_queued(url: &str, shards: u64) {
+    let until = Instant::now() + Duration::from_secs(10);
+    while queued(url).await != shards {
+        assert!(
+            Instant::now() < until,
+            "the queue never held {shards} shards"
+        );
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+}
+
+/// A study that leaves the queue (its client gone) takes only its own shards with it: a study
+/// queued before it still reaches the workers. Removing a study's shards by a filtered purge of
+/// its subject moved the workers' consumer past every earlier message of the stream on the NATS
+/// server this runs on (2.9), so the earlier study waited out its time limit with no part.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_study_that_leaves_the_queue_takes_only_its_own_shards() {
+    let dir = scratch("leaves");
+    let (_nats, url) = nats_server(&dir);
+    let (_server, base) = server(&url, &dir, 60);
+    let post = |body: Value| {
+        let url = format!("{base}/api/v1/studies/sweep");
+        async move {
+            let response = client().post(url).json(&body).send().await.unwrap();
+            let status = response.status().as_u16();
+            (status, response.json::<Value>().await.unwrap())
+        }
+    };
+    // No worker yet: the first study's shard waits in the queue, then the second's.
+    let first = tokio::spawn(post(small_sweep(0.5)));
+    until_queued(&url, 1).await;
+    let second = tokio::spawn(post(small_sweep(1.0)));
+    until_queued(&url, 2).await;
+    second.abort();
+    until_queued(&url, 1).await;
+    let _worker = worker(&url);
+    let (status, doc) = tokio::time::timeout(Duration::from_secs(20), first)
+        .await
+        .expect("the first study got no part within 20 s of a worker starting")
+        .unwrap();
+    assert_eq!(status, 200, "{doc}");
+    assert_eq!(doc["stop"], "finished", "{doc}");
+    assert!(
+        doc["unfinished_cells"].as_array().is_none_or(Vec::is_empty),
+        "{doc}"
+    );
+    assert_eq!(
+        doc["runs"][0]["steps"],
+        json!([200, 200, 200, 200]),
+        "{doc}"
+    );
+    assert_eq!(queued(&url).await, 0);
 }
