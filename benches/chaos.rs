@@ -10,7 +10,9 @@
 //! Then the same map of the same potential typed in as text on `GEOMINT_CHAOS_TYPED_GRID` × the
 //! same (101 by default; 0 skips it): in lanes, then cell by cell (the same numbers, checked),
 //! the ratio of the two, and how far its ⟨Y⟩ is from the built-in system's when the grids are
-//! the same.
+//! the same. Last, the same typed-in potential swept without indicators (energy errors against
+//! H₀ sampled every step, as sweeps sample by default, and every 100 steps), in lanes and cell by
+//! cell.
 
 use std::io::Write;
 use std::time::Instant;
@@ -20,7 +22,7 @@ use geomint::api::system::NoStoredSystems;
 use geomint::core::run::Budget;
 use geomint::core::studies::engine::Local;
 use geomint::core::studies::sweep::{self, SweepDocument, SweepLine};
-use serde_json::json;
+use serde_json::{json, Value};
 
 /// CPU time of the process so far, user and system, in seconds.
 fn cpu_seconds() -> f64 {
@@ -42,7 +44,7 @@ fn main() {
             .unwrap_or(default)
     };
     let n = grid("GEOMINT_CHAOS_GRID", 101);
-    let doc = megno_map(n, "built-in, in lanes", None, false);
+    let doc = megno_map(n, "MEGNO, built-in, in lanes", &|_| {}, false);
     let megno = &doc.runs[0].chaos.as_ref().expect("indicators").megno_mean;
     let path = format!("target/chaos-map-{n}.tsv");
     let mut out =
@@ -69,22 +71,9 @@ fn main() {
     if typed_n > 0 {
         let typed = json!({"coordinates": ["x", "y"], "mass": 1,
             "potential": "(x^2 + y^2)/2 + x^2*y - y^3/3"});
-        let wall = Instant::now();
-        let doc = megno_map(typed_n, "typed in, in lanes", Some(typed.clone()), false);
-        let in_lanes = wall.elapsed().as_secs_f64();
-        let wall = Instant::now();
-        let alone = megno_map(typed_n, "typed in, cell by cell", Some(typed), true);
-        let cell_by_cell = wall.elapsed().as_secs_f64();
-        assert_eq!(
-            serde_json::to_string(&doc.runs).expect("numbers"),
-            serde_json::to_string(&alone.runs).expect("numbers"),
-            "the lanes give the one-cell path's numbers"
-        );
-        println!(
-            "  typed in: the same numbers both ways; in lanes {:.1}× the cells per second of \
-             cell by cell",
-            cell_by_cell / in_lanes
-        );
+        let doc = both_ways(typed_n, "MEGNO, typed in", |request| {
+            request["system"] = typed.clone();
+        });
         if typed_n == n {
             // Chaotic orbits part at the first rounding that differs; regular ones stay close.
             let theirs = &doc.runs[0].chaos.as_ref().expect("indicators").megno_mean;
@@ -110,17 +99,51 @@ fn main() {
                 pairs.len()
             );
         }
+        // No indicators: the energy error against H₀ at every step (a sweep's default
+        // sampling), and every 100 steps.
+        for every in [1, 100] {
+            both_ways(
+                typed_n,
+                &format!("no indicators, sampled every {every}, typed in"),
+                |request| {
+                    request["system"] = typed.clone();
+                    request["every"] = json!(every);
+                    request
+                        .as_object_mut()
+                        .expect("an object")
+                        .remove("indicators");
+                },
+            );
+        }
     }
 }
 
-/// The preset's map on n × n cells, of the built-in system or of `system` typed in, in lanes
-/// where the sweep runs so or `one_by_one`; prints its times.
-fn megno_map(
-    n: usize,
-    label: &str,
-    system: Option<serde_json::Value>,
-    one_by_one: bool,
-) -> SweepDocument {
+/// The preset's map on n × n cells changed by `edit`, in lanes and then cell by cell: checks
+/// that both give the same numbers, prints the ratio of their wall times and returns the
+/// document.
+fn both_ways(n: usize, label: &str, edit: impl Fn(&mut Value)) -> SweepDocument {
+    let wall = Instant::now();
+    let doc = megno_map(n, &format!("{label}, in lanes"), &edit, false);
+    let in_lanes = wall.elapsed().as_secs_f64();
+    let wall = Instant::now();
+    let alone = megno_map(n, &format!("{label}, cell by cell"), &edit, true);
+    let cell_by_cell = wall.elapsed().as_secs_f64();
+    assert_eq!(
+        serde_json::to_string(&doc.runs).expect("numbers"),
+        serde_json::to_string(&alone.runs).expect("numbers"),
+        "the lanes give the one-cell path's numbers"
+    );
+    println!(
+        "  {label}: the same numbers both ways; in lanes {:.1}× the cells per second of cell by \
+         cell",
+        cell_by_cell / in_lanes
+    );
+    doc
+}
+
+/// The preset's map on n × n cells changed by `edit`, in lanes where the sweep runs so or
+/// `one_by_one`; prints its times.
+fn megno_map(n: usize, label: &str, edit: &dyn Fn(&mut Value), one_by_one: bool) -> SweepDocument {
     let mut request = presets()
         .into_iter()
         .find(|p| p.id == "henon_heiles_megno")
@@ -128,9 +151,7 @@ fn megno_map(
         .request;
     request["axes"][0]["n"] = json!(n);
     request["axes"][1]["n"] = json!(n);
-    if let Some(system) = system {
-        request["system"] = system;
-    }
+    edit(&mut request);
     let job = SweepRequest::from_value(&request)
         .map_err(|e| e.message)
         .and_then(|r| {
@@ -146,14 +167,25 @@ fn megno_map(
         sweep::run(&job, &Local, Budget::default(), &|_: SweepLine| true).expect("the map runs");
     let (wall, cpu) = (wall.elapsed().as_secs_f64(), cpu_seconds() - cpu);
     let run = &doc.runs[0];
-    let megno = &run.chaos.as_ref().expect("indicators").megno_mean;
-    let on: usize = megno.iter().filter(|m| m.is_some()).count();
-    let chaotic = megno.iter().filter(|m| m.is_some_and(|m| m > 4.0)).count();
     let steps: u64 = run.steps.iter().sum();
+    let cells = match &run.chaos {
+        Some(chaos) => {
+            let on = chaos.megno_mean.iter().filter(|m| m.is_some()).count();
+            let chaotic = chaos
+                .megno_mean
+                .iter()
+                .filter(|m| m.is_some_and(|m| m > 4.0))
+                .count();
+            format!("{on} cells on the surface, {chaotic} with ⟨Y⟩ > 4")
+        }
+        None => format!(
+            "{} cells on the surface",
+            run.errors.iter().filter(|e| e.is_none()).count()
+        ),
+    };
     println!(
-        "Hénon–Heiles MEGNO map {n} × {n} ({label}): {wall:.2} s wall, {cpu:.2} s CPU on {} \
-         threads, {:.1} ns per cell-step (CPU), {on} cells on the surface, {chaotic} with \
-         ⟨Y⟩ > 4, {steps} steps",
+        "Hénon–Heiles map {n} × {n} ({label}): {wall:.2} s wall, {cpu:.2} s CPU on {} threads, \
+         {:.1} ns per cell-step (CPU), {cells}, {steps} steps",
         rayon::current_num_threads(),
         cpu * 1e9 / steps.max(1) as f64,
     );

@@ -441,10 +441,17 @@ fn sweeps_of_the_maps_kind_run_in_lanes_with_the_numbers_of_cell_by_cell() {
     }
     println!("outcomes (failed, not finite, blown, finished): {outcomes:?}");
     assert!(outcomes.iter().all(|&n| n > 0), "outcomes {outcomes:?}");
-    // Not the maps' kind: sampled more sparsely, or another method.
+    // Sampled more sparsely: not the maps' kernel, but the lanes of plain runs (the Cartesian
+    // chart's; the polar chart's one by one in the same groups), with the same numbers.
     let mut sparse = energy_map_preset(&map_request());
     sparse["every"] = json!(2);
-    assert!(!job(&sparse).runs_in_lanes());
+    let sparse = job(&sparse);
+    assert!(sparse.runs_in_lanes());
+    assert_eq!(
+        numbers(&run(&sparse)).to_string(),
+        numbers(&run(&sparse.clone().cell_by_cell())).to_string()
+    );
+    // Not the maps' kind: another method.
     let mut other = energy_map_preset(&map_request());
     other["methods"] = json!(["rk4"]);
     assert!(!job(&other).runs_in_lanes());

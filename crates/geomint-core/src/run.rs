@@ -283,6 +283,16 @@ pub enum StopReason {
     Indicator(ThresholdStop),
 }
 
+impl StopReason {
+    /// Whether the budget stopped the run (cancelled, or at the time limit).
+    pub fn by_budget(&self) -> bool {
+        matches!(
+            self,
+            StopReason::Cancelled { .. } | StopReason::TimeLimit { .. }
+        )
+    }
+}
+
 /// Run statistics, shared by every output format.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 #[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]

@@ -1,10 +1,11 @@
 //! Runs of one simulation's method from up to [`LANES`] initial states, side by side in SIMD
-//! lanes (see [`crate::methods::lanes`]), with their chaos indicators: a chaos map's cells. For each
-//! run the driver does what [`integrate_tracked`](crate::run::integrate_tracked) does — the
-//! samples, the indicators' updates on their grid and their thresholds, divergence, the budget —
-//! and hands the samples to the same observer, so each run's samples and outcome are bit for
-//! bit the one-run path's (`tests/core/chaos_map.rs` compares them cell by cell). Runs the
-//! lanes cannot take go one by one.
+//! lanes (see [`crate::methods::lanes`]): a chaos map's cells with their indicators, or a sweep's
+//! plain runs. For each run the driver does what [`integrate_tracked`](crate::run::integrate_tracked)
+//! does — the samples, the indicators' updates on their grid and their thresholds, divergence, the
+//! budget, and for plain runs the stretches between samples with their fused seams — and hands
+//! the samples to the same observer, so each run's samples and outcome are bit for bit the
+//! one-run path's (`tests/core/chaos_map.rs` and `tests/core/sweep_lanes.rs` compare them cell by
+//! cell). Runs the lanes cannot take go one by one.
 
 use std::time::Instant;
 
@@ -13,7 +14,7 @@ use nalgebra::{DefaultAllocator, Dim};
 
 use super::run::{Outcome, SampleSink};
 use super::spec::Simulation;
-use crate::chaos::{OneVectorLanes, ThresholdStop, Tracker};
+use crate::chaos::{ChaosPlan, OneVectorLanes, ThresholdStop, Tracker};
 use crate::error::CoreError;
 use crate::methods::lanes::tangent::LANES;
 use crate::methods::lanes::{LaneForces, TangentLanes, CHECK_EVERY};
@@ -40,11 +41,11 @@ macro_rules! with_lane_system {
 }
 
 impl Simulation {
-    /// Whether runs of this simulation's first method go side by side in lanes: chaos
-    /// indicators asked for and nothing else (no section, event, reference run or Jacobian
-    /// defect), a composition of kicks and drifts, on an undamped autonomous system the lanes
-    /// evaluate (Hénon–Heiles, the planar and the 3-D elastic pendulum in Cartesian coordinates,
-    /// typed-in separable systems of one to three degrees of freedom).
+    /// Whether runs of this simulation's first method go side by side in lanes: nothing asked
+    /// for but samples and, if any, chaos indicators (no section, event, reference run or
+    /// Jacobian defect), a composition of kicks and drifts, on an undamped autonomous system the
+    /// lanes evaluate (Hénon–Heiles, the planar and the 3-D elastic pendulum in Cartesian
+    /// coordinates, typed-in separable systems of one to three degrees of freedom).
     pub fn runs_in_lanes(&self) -> bool {
         with_lane_system!(&self.system, sys => self.lanes(sys).is_some(), _ => false)
     }
@@ -55,7 +56,7 @@ impl Simulation {
         S: MechanicalSystem + LaneForces<N>,
         DefaultAllocator: Allocator<S::Dim>,
     {
-        let plan = self.chaos.as_ref()?;
+        let deviations = self.chaos.as_ref().map_or(0, |plan| plan.deviations);
         let plain = self.crossings.is_none() && !self.compare_to_reference && !self.jacobian_defect;
         let simple = sys.in_lanes()
             && sys.damping_rate() == 0.0
@@ -76,18 +77,20 @@ impl Simulation {
             }
         }
         let flows = stepper.splitting_flows()?;
-        TangentLanes::new(flows, sys.damping_rate(), h, minv, plan.deviations)
+        TangentLanes::new(flows, sys.damping_rate(), h, minv, deviations)
     }
 
     /// Runs the first method of each of `sims` (simulations that differ only in their initial
     /// states), each run's samples to its sink: [`LANES`] at a time in lanes where
     /// [`runs_in_lanes`](Self::runs_in_lanes), else one by one. `None` when the budget stopped
-    /// a run.
+    /// a run. A run given back (`Ok(None)`: a plain run whose state's components stayed finite
+    /// while their sum overflowed, after which the one-run path cuts its stretches where the
+    /// lanes do not) is to be run again on its own, with a fresh sink.
     pub fn run_side_by_side(
         sims: &[Simulation],
         budget: Budget<'_>,
         sinks: &mut [&mut dyn SampleSink],
-    ) -> Option<Vec<Result<Outcome, CoreError>>> {
+    ) -> Option<Vec<Result<Option<Outcome>, CoreError>>> {
         let mut outcomes = Vec::with_capacity(sims.len());
         for (group, sinks) in sims.chunks(LANES).zip(sinks.chunks_mut(LANES)) {
             let ran = with_lane_system!(
@@ -106,18 +109,14 @@ fn one_by_one(
     sims: &[Simulation],
     budget: Budget<'_>,
     sinks: &mut [&mut dyn SampleSink],
-) -> Option<Vec<Result<Outcome, CoreError>>> {
+) -> Option<Vec<Result<Option<Outcome>, CoreError>>> {
     let mut outcomes = Vec::with_capacity(sims.len());
     for (sim, sink) in sims.iter().zip(sinks) {
         let outcome = sim.run_method(0, None, budget, &mut **sink);
-        if let Ok(Outcome {
-            stop: StopReason::Cancelled { .. } | StopReason::TimeLimit { .. },
-            ..
-        }) = outcome
-        {
+        if outcome.as_ref().is_ok_and(|o| o.stop.by_budget()) {
             return None;
         }
-        outcomes.push(outcome);
+        outcomes.push(outcome.map(Some));
     }
     Some(outcomes)
 }
@@ -128,15 +127,139 @@ fn side_by_side<S, const N: usize>(
     sims: &[Simulation],
     budget: Budget<'_>,
     sinks: &mut [&mut dyn SampleSink],
-) -> Option<Vec<Result<Outcome, CoreError>>>
+) -> Option<Vec<Result<Option<Outcome>, CoreError>>>
 where
     S: MechanicalSystem + LaneForces<N>,
     DefaultAllocator: Allocator<S::Dim>,
 {
     let first = &sims[0];
-    let (Some(mut lanes), Some(plan)) = (first.lanes(sys), first.chaos.as_ref()) else {
+    let Some(lanes) = first.lanes(sys) else {
         return one_by_one(sims, budget, sinks);
     };
+    let outcomes = match first.chaos.as_ref() {
+        Some(plan) => tracked(sys, lanes, plan, sims, budget, sinks)?
+            .into_iter()
+            .map(Some)
+            .collect(),
+        None => plain(sys, lanes, sims, budget, sinks)?,
+    };
+    Some(outcomes.into_iter().map(Ok).collect())
+}
+
+/// Plain runs in lanes: the one-run driver's stretches (up to the next sample, look at the
+/// budget or the end), each taken as the one-run stepper takes it ([`TangentLanes::advance_runs`]).
+fn plain<S, const N: usize>(
+    sys: &S,
+    mut lanes: TangentLanes<N>,
+    sims: &[Simulation],
+    budget: Budget<'_>,
+    sinks: &mut [&mut dyn SampleSink],
+) -> Option<Vec<Option<Outcome>>>
+where
+    S: MechanicalSystem + LaneForces<N>,
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    let started = Instant::now();
+    let count = sims.len();
+    let schedule = sims[0].schedule;
+    let (h, steps, every) = (schedule.h, schedule.steps, schedule.every.max(1));
+    let starts: Vec<State<S::Dim>> = sims
+        .iter()
+        .map(|sim| State::at_time(sys, 0.0, &sim.q0, &sim.p0))
+        .collect();
+    let mut states = starts.clone();
+    let mut observers: Vec<_> = sims
+        .iter()
+        .zip(&starts)
+        .zip(sinks.iter_mut())
+        .map(|((sim, start), sink)| sim.observer(sys, start, None, &mut **sink, false))
+        .collect();
+    let mut running = [false; LANES];
+    for l in 0..count {
+        for i in 0..N {
+            lanes.q[i][l] = states[l].q[i];
+            lanes.p[i][l] = states[l].p[i];
+        }
+        running[l] = true;
+        observers[l].on_sample(0, 0.0, &states[l]);
+    }
+    // Per run: how it ended early (the stop, its steps and force evaluations), or given back.
+    let mut ended: Vec<Option<Option<(StopReason, u64, u64)>>> = vec![None; count];
+    let mut step = 0u64;
+    while step < steps && running.contains(&true) {
+        if step.is_multiple_of(CHECK_EVERY) && (budget.cancelled() || budget.expired()) {
+            return None;
+        }
+        let next = |m: u64| (step / m + 1) * m;
+        let until = next(CHECK_EVERY).min(next(every)).min(steps);
+        let stretch = lanes.advance_runs(sys, until - step, &running);
+        for (l, end) in stretch.iter().enumerate().take(count) {
+            let Some(end) = end.filter(|_| running[l]) else {
+                continue;
+            };
+            running[l] = false;
+            let at = step + end.steps;
+            ended[l] = Some(end.diverged.then_some((
+                StopReason::Diverged {
+                    step: at,
+                    t: at as f64 * h,
+                },
+                at,
+                end.force_evaluations,
+            )));
+        }
+        step = until;
+        if step.is_multiple_of(every) || step == steps {
+            let t = step as f64 * h;
+            for l in (0..count).filter(|&l| running[l]) {
+                for i in 0..N {
+                    states[l].q[i] = lanes.q[i][l];
+                    states[l].p[i] = lanes.p[i][l];
+                }
+                observers[l].on_sample(step, t, &states[l]);
+            }
+        }
+    }
+    let wall_time_ms = started.elapsed().as_secs_f64() * 1e3;
+    let finished = (StopReason::Finished, step, lanes.force_evaluations());
+    Some(
+        ended
+            .into_iter()
+            .map(|end| match end {
+                None => Some(outcome(finished, wall_time_ms)),
+                Some(None) => None,
+                Some(Some(end)) => Some(outcome(end, wall_time_ms)),
+            })
+            .collect(),
+    )
+}
+
+/// A run's outcome from how it ended: its stop, steps and force evaluations.
+fn outcome((stop, steps, force_evaluations): (StopReason, u64, u64), wall_time_ms: f64) -> Outcome {
+    Outcome {
+        stop,
+        stats: RunStats {
+            steps,
+            force_evaluations,
+            wall_time_ms,
+        },
+    }
+}
+
+/// Runs with their chaos indicators in lanes.
+fn tracked<S, const N: usize>(
+    sys: &S,
+    mut lanes: TangentLanes<N>,
+    plan: &ChaosPlan,
+    sims: &[Simulation],
+    budget: Budget<'_>,
+    sinks: &mut [&mut dyn SampleSink],
+) -> Option<Vec<Outcome>>
+where
+    S: MechanicalSystem + LaneForces<N>,
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    let first = &sims[0];
     let started = Instant::now();
     let count = sims.len();
     let schedule = first.schedule;
@@ -278,17 +401,7 @@ where
     Some(
         ended
             .into_iter()
-            .map(|end| {
-                let (stop, steps, force_evaluations) = end.unwrap_or(finished);
-                Ok(Outcome {
-                    stop,
-                    stats: RunStats {
-                        steps,
-                        force_evaluations,
-                        wall_time_ms,
-                    },
-                })
-            })
+            .map(|end| outcome(end.unwrap_or(finished), wall_time_ms))
             .collect(),
     )
 }

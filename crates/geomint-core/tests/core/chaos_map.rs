@@ -24,7 +24,7 @@ use geomint_core::systems::{params, AnySystem, HenonHeiles, ParamValue, SystemIn
 
 /// The Hénon–Heiles (y, p_y) section at x = 0 and energy `e`, n × n cells over [−0.5, 0.5]²,
 /// p_x solved from the energy, with `chaos`.
-fn section(e: f64, n: usize, t_end: f64, chaos: ChaosSpec) -> SweepSpec {
+pub(crate) fn section(e: f64, n: usize, t_end: f64, chaos: ChaosSpec) -> SweepSpec {
     let axis = |k: usize, target| Axis {
         target,
         min: -0.5,
@@ -177,19 +177,19 @@ fn a_surface_no_cell_reaches_is_refused_with_the_least_energy_of_the_grid() {
     assert_eq!(error.field().unwrap().as_str(), "energy_surface.solve_for");
 }
 
-fn run(job: &SweepJob) -> SweepDocument {
+pub(crate) fn run(job: &SweepJob) -> SweepDocument {
     sweep::run(job, &Local, Budget::default(), &|_: SweepLine| true).expect("runs")
 }
 
 /// The document as text without its wall time: the shortest decimals that read back to the
 /// same bits, −0 included.
-fn numbers(doc: &SweepDocument) -> String {
+pub(crate) fn numbers(doc: &SweepDocument) -> String {
     let mut v = serde_json::to_value(doc).unwrap();
     v.as_object_mut().unwrap().remove("wall_ms");
     v.to_string()
 }
 
-fn methods(methods: &[Method]) -> Vec<MethodAt> {
+pub(crate) fn methods(methods: &[Method]) -> Vec<MethodAt> {
     methods
         .iter()
         .enumerate()
@@ -399,29 +399,47 @@ fn chaos_maps_in_lanes_give_the_one_cell_paths_numbers_bit_for_bit() {
 
 /// Hénon–Heiles with λ a parameter, typed in, with the mass matrix [[1.5, 0.25], [0.25, 1]]
 /// (`full`) or 1.5 I.
-fn typed_in_henon_heiles(full: bool) -> Arc<SystemInfo> {
-    let expr = |name: &str, text: &str| Expression {
+pub(crate) fn typed_in_henon_heiles(full: bool) -> Arc<SystemInfo> {
+    let mass = if full {
+        Mass::Matrix(vec![
+            vec![expr("mass", "1.5"), expr("mass", "0.25")],
+            vec![expr("mass", "0.25"), expr("mass", "1")],
+        ])
+    } else {
+        Mass::Scalar(expr("mass", "1.5"))
+    };
+    typed_in_xy(
+        mass,
+        "(x^2 + y^2)/2 + lambda*(x^2*y - y^3/3)",
+        vec![("lambda".into(), 1.0)],
+    )
+}
+
+/// A member `name` of a definition.
+pub(crate) fn expr(name: &str, text: &str) -> Expression {
+    Expression {
         text: text.to_string(),
         field: Field::new("system").key(name),
-    };
+    }
+}
+
+/// An undamped separable system in x and y, typed in.
+pub(crate) fn typed_in_xy(
+    mass: Mass,
+    potential: &str,
+    parameters: Vec<(String, f64)>,
+) -> Arc<SystemInfo> {
     let definition = CustomDefinition {
         field: Field::new("system"),
         name: None,
         coordinates: vec!["x".into(), "y".into()],
         momenta: None,
         energy: Energy::Separable {
-            mass: if full {
-                Mass::Matrix(vec![
-                    vec![expr("mass", "1.5"), expr("mass", "0.25")],
-                    vec![expr("mass", "0.25"), expr("mass", "1")],
-                ])
-            } else {
-                Mass::Scalar(expr("mass", "1.5"))
-            },
-            potential: expr("potential", "(x^2 + y^2)/2 + lambda*(x^2*y - y^3/3)"),
+            mass,
+            potential: expr("potential", potential),
         },
         damping: None,
-        parameters: vec![("lambda".into(), 1.0)],
+        parameters,
         invariants: Vec::new(),
         positions: None,
         q0: None,

@@ -25,3 +25,4 @@ mod sections;
 mod stability;
 mod steps;
 mod structure;
+mod sweep_lanes;

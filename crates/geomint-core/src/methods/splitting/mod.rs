@@ -80,7 +80,7 @@ pub enum SubFlow {
 impl SubFlow {
     /// Whether this flow followed by `next` is one flow over the summed time: both of one kind,
     /// and that kind exact and autonomous with the other half of the state frozen.
-    const fn fuses_with(self, next: SubFlow) -> bool {
+    pub const fn fuses_with(self, next: SubFlow) -> bool {
         matches!(
             (self, next),
             (SubFlow::Drift, SubFlow::Drift)

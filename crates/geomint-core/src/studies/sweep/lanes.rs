@@ -4,8 +4,9 @@
 //! - energy maps ([`LaneKernel`]: symplectic Euler or its adjoint on the planar elastic
 //!   pendulum, the energy error against H₀ at every step; paper 001 Fig. 6's map is one), whose
 //!   metrics come out of the same [`Measure`] the one-cell path fills sample by sample;
-//! - chaos maps (runs with indicators that [`Simulation::runs_in_lanes`]), whose samples go to
-//!   the same observer and [`Measure`] as on the one-cell path.
+//! - chaos maps and plain sweeps (runs, with or without indicators, that
+//!   [`Simulation::runs_in_lanes`]), whose samples go to the same observer and [`Measure`] as on
+//!   the one-cell path.
 
 use std::ops::Range as Cells;
 
@@ -25,8 +26,9 @@ use crate::with_system;
 pub(super) enum LanePlan {
     /// An energy map's runs.
     Energy(EnergyLanes),
-    /// A chaos map's runs, each prepared per group of cells.
-    Chaos,
+    /// Runs that [`Simulation::runs_in_lanes`] (a chaos map's, or a plain sweep's), each
+    /// prepared per group of cells.
+    Runs,
 }
 
 impl LanePlan {
@@ -34,7 +36,7 @@ impl LanePlan {
     pub(super) fn group(&self) -> usize {
         match self {
             LanePlan::Energy(_) => LANES,
-            LanePlan::Chaos => crate::methods::lanes::tangent::LANES,
+            LanePlan::Runs => crate::methods::lanes::tangent::LANES,
         }
     }
 }
@@ -56,8 +58,8 @@ struct LaneRun {
 }
 
 impl SweepJob {
-    /// The plan, if the axes are over q₀ and p₀ only and the runs are those of a chaos map the
-    /// lanes take or of an energy map.
+    /// The plan, if the axes are over q₀ and p₀ only and the runs are those of an energy map, or
+    /// runs the lanes take (a chaos map's, a plain sweep's).
     pub(super) fn lane_plan(&self) -> Option<LanePlan> {
         let initial_state_only = self
             .grid
@@ -69,15 +71,17 @@ impl SweepJob {
             return None;
         }
         if self.tracks_chaos() {
-            return self.chaos_in_lanes().then_some(LanePlan::Chaos);
+            return self.some_run_in_lanes().then_some(LanePlan::Runs);
         }
-        self.energy_lanes().map(LanePlan::Energy)
+        self.energy_lanes()
+            .map(LanePlan::Energy)
+            .or_else(|| self.some_run_in_lanes().then_some(LanePlan::Runs))
     }
 
-    /// Whether some run of a chaos map goes side by side, judged at the grid's middle, first
-    /// and last cells (the first that can be prepared); the others then run one by one within
-    /// the same groups of cells.
-    fn chaos_in_lanes(&self) -> bool {
+    /// Whether some run goes side by side, judged at the grid's middle, first and last cells
+    /// (the first that can be prepared); the others then run one by one within the same groups
+    /// of cells.
+    fn some_run_in_lanes(&self) -> bool {
         let cells = self.cells();
         let probes = [cells / 2, 0, cells.saturating_sub(1)];
         self.against != EnergyReference::Reference
@@ -133,13 +137,13 @@ impl SweepJob {
     ) -> Vec<Option<Vec<RunMetrics>>> {
         match plan {
             LanePlan::Energy(plan) => self.energy_group(plan, cells, budget),
-            LanePlan::Chaos => self.chaos_group(cells, budget),
+            LanePlan::Runs => self.runs_group(cells, budget),
         }
     }
 
-    /// A chaos map's runs of `cells`, side by side: a run that cannot be prepared is that
-    /// run's result, as on the one-cell path.
-    fn chaos_group(&self, cells: Cells<usize>, budget: Budget<'_>) -> Vec<Option<Vec<RunMetrics>>> {
+    /// The runs of `cells`, side by side: a run that cannot be prepared is that run's result,
+    /// as on the one-cell path.
+    fn runs_group(&self, cells: Cells<usize>, budget: Budget<'_>) -> Vec<Option<Vec<RunMetrics>>> {
         let mut results: Vec<Option<Vec<RunMetrics>>> = vec![Some(Vec::new()); cells.len()];
         for k in 0..self.templates.len() {
             let mut sims = Vec::with_capacity(cells.len());
@@ -162,14 +166,24 @@ impl SweepJob {
             let Some(outcomes) = Simulation::run_side_by_side(&sims, budget, &mut sinks) else {
                 return vec![None; cells.len()];
             };
-            let mut metrics: Vec<RunMetrics> = measures
-                .into_iter()
-                .zip(outcomes)
-                .map(|(measure, outcome)| match outcome {
-                    Ok(outcome) => measure.finish(&outcome),
+            let mut metrics = Vec::with_capacity(sims.len());
+            for ((sim, measure), outcome) in sims.iter().zip(measures).zip(outcomes) {
+                metrics.push(match outcome {
+                    Ok(Some(outcome)) => measure.finish(&outcome),
+                    // Given back by the lanes: on its own, from the start.
+                    Ok(None) => {
+                        let mut measure = Measure::new(self.against);
+                        match sim.run_method(0, None, budget, &mut measure) {
+                            Ok(outcome) if outcome.stop.by_budget() => {
+                                return vec![None; cells.len()]
+                            }
+                            Ok(outcome) => measure.finish(&outcome),
+                            Err(e) => RunMetrics::failed(e.to_string()),
+                        }
+                    }
                     Err(e) => RunMetrics::failed(e.to_string()),
-                })
-                .collect();
+                });
+            }
             // The runs in cell order, each taken out of `metrics` once.
             for (result, run) in results.iter_mut().zip(prepared) {
                 let run = run.map_or_else(|failed| failed, |i| std::mem::take(&mut metrics[i]));

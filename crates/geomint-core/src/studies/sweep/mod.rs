@@ -29,7 +29,7 @@ pub use metrics::{ChaosMetrics, EnergyReference, RunMetrics};
 
 use crate::chaos::ChaosSpec;
 use crate::error::{CoreError, ErrorDetail, Field};
-use crate::run::{step_count, Budget, StopReason};
+use crate::run::{step_count, Budget};
 use crate::sections::SectionSpec;
 use crate::simulation::{
     EnergySurface, InitialCoordinates, Limits, MethodAt, Simulation, SimulationSpec, Watching,
@@ -296,10 +296,8 @@ impl SweepJob {
             };
             let mut measure = Measure::new(self.against);
             match sim.run_method(0, reference.as_deref(), budget, &mut measure) {
-                Ok(outcome) => match outcome.stop {
-                    StopReason::Cancelled { .. } | StopReason::TimeLimit { .. } => return Ok(None),
-                    _ => results.push(measure.finish(&outcome)),
-                },
+                Ok(outcome) if outcome.stop.by_budget() => return Ok(None),
+                Ok(outcome) => results.push(measure.finish(&outcome)),
                 Err(e) => results.push(RunMetrics::failed(e.to_string())),
             }
         }
