@@ -58,6 +58,12 @@ pub trait SampleSink {
 
     /// How the run's section went, once the run has ended (runs with a section only).
     fn on_section_end(&mut self, _summary: &SectionSummary) {}
+
+    /// Whether the samples should carry the bodies' coordinates of a system that draws them
+    /// (a sink that never reads them spares their evaluation at every sample).
+    fn wants_bodies(&self) -> bool {
+        true
+    }
 }
 
 /// How one method's run ended.
@@ -145,6 +151,7 @@ impl Simulation {
     {
         let n = self.q0.len();
         let crossings = self.crossings.as_deref().filter(|_| watch);
+        let bodies = sink.wants_bodies();
         Diagnose {
             watch: crossings.map(|c| Watch::new(sys, c, start)),
             sys,
@@ -154,7 +161,7 @@ impl Simulation {
             invariants: vec![0.0; sys.invariant_count()],
             cartesian: (!sys.is_cartesian()).then(|| (vec![0.0; n], vec![0.0; n])),
             drawing: match &self.world {
-                World::Drawn(drawing) => Some((&**drawing, Vec::new())),
+                World::Drawn(drawing) if bodies => Some((&**drawing, Vec::new())),
                 _ => None,
             },
             expected_det: (-sys.damping_rate() * self.schedule.h * n as f64).exp(),
@@ -217,6 +224,10 @@ struct EnergyLog(Vec<f64>);
 impl SampleSink for EnergyLog {
     fn on_sample(&mut self, sample: &Sample<'_>) {
         self.0.push(sample.energy);
+    }
+
+    fn wants_bodies(&self) -> bool {
+        false
     }
 }
 

@@ -71,6 +71,10 @@ impl SampleSink for Measure<'_> {
         let (q, p) = s.cartesian.unwrap_or((s.q, s.p));
         self.last = Some((q.to_vec(), p.to_vec()));
     }
+
+    fn wants_bodies(&self) -> bool {
+        false
+    }
 }
 
 /// Runs the setting `sim` once against the reference `energies` and measures it; also returns

@@ -268,6 +268,11 @@ impl SampleSink for Measure {
         }
     }
 
+    /// A sweep's metrics never read the bodies.
+    fn wants_bodies(&self) -> bool {
+        false
+    }
+
     fn on_section_end(&mut self, summary: &SectionSummary) {
         let section = self.section.get_or_insert_default();
         section.truncated = summary.truncated;

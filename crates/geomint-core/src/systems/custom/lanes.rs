@@ -26,6 +26,7 @@ macro_rules! lane_forces {
                 };
                 // `InverseMass::apply`'s arithmetic, vectorised where it is one division.
                 match inverse_mass {
+                    InverseMass::Unit => *v = *p,
                     InverseMass::Scalar(m) => {
                         for i in 0..$n {
                             for l in 0..LANES {

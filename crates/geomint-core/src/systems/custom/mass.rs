@@ -5,6 +5,8 @@ use super::damping::MassFactor;
 /// M⁻¹ of a constant mass matrix, in the cheapest form that represents it exactly.
 #[derive(Debug)]
 pub enum InverseMass {
+    /// M = I: M⁻¹p = p (the same bits as p / 1, without a division in the step's chain).
+    Unit,
     /// M = m I: M⁻¹p = p / m.
     Scalar(f64),
     /// A diagonal M: M⁻¹p = p_i / m_i.
@@ -18,7 +20,9 @@ impl InverseMass {
     pub(super) fn new(m: &[f64], factor: &MassFactor, n: usize) -> Self {
         let off_diagonal_zero = (0..n * n).all(|k| k / n == k % n || m[k] == 0.0);
         let diagonal: Vec<f64> = (0..n).map(|i| m[i * n + i]).collect();
-        if off_diagonal_zero && diagonal.iter().all(|&d| d == diagonal[0]) {
+        if off_diagonal_zero && diagonal.iter().all(|&d| d == 1.0) {
+            InverseMass::Unit
+        } else if off_diagonal_zero && diagonal.iter().all(|&d| d == diagonal[0]) {
             InverseMass::Scalar(diagonal[0])
         } else if off_diagonal_zero {
             InverseMass::Diagonal(diagonal)
@@ -31,6 +35,7 @@ impl InverseMass {
     #[inline]
     pub(crate) fn apply(&self, v: &[f64], out: &mut [f64]) {
         match self {
+            InverseMass::Unit => out.copy_from_slice(v),
             InverseMass::Scalar(m) => {
                 for (o, x) in out.iter_mut().zip(v) {
                     *o = x / m;
@@ -58,6 +63,8 @@ impl InverseMass {
     #[inline]
     pub(super) fn half_quadratic(&self, v: &[f64]) -> f64 {
         match self {
+            // (0.5 Σ x²) / 1 is 0.5 Σ x², to the bit.
+            InverseMass::Unit => 0.5 * v.iter().map(|x| x * x).sum::<f64>(),
             InverseMass::Scalar(m) => 0.5 * v.iter().map(|x| x * x).sum::<f64>() / m,
             InverseMass::Diagonal(d) => 0.5 * v.iter().zip(d).map(|(x, m)| x * x / m).sum::<f64>(),
             InverseMass::Full(inverse) => {

@@ -138,12 +138,13 @@ thread_local! {
     static SPARE: Cell<Vec<f64>> = const { Cell::new(Vec::new()) };
 }
 
-/// Runs `f` on a zeroed buffer of `len` numbers: on the stack for up to 8, else a per-thread
+/// Runs `f` on a zeroed buffer of `len` numbers: on the stack for up to 16, else a per-thread
 /// buffer that is allocated once.
 #[inline]
 fn with_buffer<R>(len: usize, f: impl FnOnce(&mut [f64]) -> R) -> R {
-    if len <= 8 {
-        let mut buffer = [0.0; 8];
+    // Up to a 4 × 4 matrix (a 3-D system's damping matrix is 9) on the stack.
+    if len <= 16 {
+        let mut buffer = [0.0; 16];
         f(&mut buffer[..len])
     } else {
         let mut buffer = SPARE.with(Cell::take);
@@ -195,6 +196,27 @@ impl<D: Dim> CustomSystem<D> {
     #[inline]
     fn dof(&self, len: usize) -> usize {
         self.model.clock.unwrap_or(len)
+    }
+
+    /// ∂H/∂p of a driven separable system or of a general H.
+    #[inline(never)]
+    fn dh_dp_otherwise(&self, q: &Vector<D>, p: &Vector<D>, out: &mut Vector<D>)
+    where
+        DefaultAllocator: Allocator<D>,
+    {
+        match &self.model.energy {
+            EnergyModel::Separable { inverse_mass, .. } => {
+                let n = self.dof(p.len());
+                inverse_mass.apply(&p.as_slice()[..n], &mut out.as_mut_slice()[..n]);
+                // ∂H̃/∂p_t = 1: the drift advances the clock.
+                if n < p.len() {
+                    out[n] = 1.0;
+                }
+            }
+            EnergyModel::General { dp, .. } => {
+                eval_on_phase(dp, q.as_slice(), p.as_slice(), out.as_mut_slice())
+            }
+        }
     }
 
     /// out = D(q) v (no mass factor); a driven system's clock momentum is not damped.
@@ -345,18 +367,12 @@ where
 
     #[inline]
     fn dh_dp(&self, q: &Vector<D>, p: &Vector<D>, out: &mut Vector<D>) {
-        match &self.model.energy {
-            EnergyModel::Separable { inverse_mass, .. } => match self.model.clock {
-                None => inverse_mass.apply(p.as_slice(), out.as_mut_slice()),
-                // ∂H̃/∂p_t = 1: the drift advances the clock.
-                Some(n) => {
-                    inverse_mass.apply(&p.as_slice()[..n], &mut out.as_mut_slice()[..n]);
-                    out[n] = 1.0;
-                }
-            },
-            EnergyModel::General { dp, .. } => {
-                eval_on_phase(dp, q.as_slice(), p.as_slice(), out.as_mut_slice())
+        // The autonomous separable case inline in the drift; the others out of line.
+        match (&self.model.energy, self.model.clock) {
+            (EnergyModel::Separable { inverse_mass, .. }, None) => {
+                inverse_mass.apply(p.as_slice(), out.as_mut_slice())
             }
+            _ => self.dh_dp_otherwise(q, p, out),
         }
     }
 
@@ -425,6 +441,7 @@ where
                 let n = self.dof(n);
                 for i in 0..n {
                     match inverse_mass {
+                        InverseMass::Unit => hpp[(i, i)] = 1.0,
                         InverseMass::Scalar(m) => hpp[(i, i)] = 1.0 / m,
                         InverseMass::Diagonal(d) => hpp[(i, i)] = 1.0 / d[i],
                         InverseMass::Full(inverse) => {
@@ -505,9 +522,10 @@ where
 
     #[inline]
     fn damp_flow(&self, q: &Vector<D>, p: &mut Vector<D>, tau: f64, c: f64, w: &mut Vector<D>) {
-        let general = self.general_flow(q.as_slice(), |flows, epsilon, d, n| {
-            flows.decay(epsilon, d, &mut p.as_mut_slice()[..n], tau)
-        });
+        let general = matches!(self.model.damping, DampingModel::General { .. })
+            && self.general_flow(q.as_slice(), |flows, epsilon, d, n| {
+                flows.decay(epsilon, d, &mut p.as_mut_slice()[..n], tau)
+            });
         if !general {
             projector::damp_flow(self, q, p, c, w);
         }
