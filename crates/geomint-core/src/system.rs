@@ -360,6 +360,17 @@ where
         None
     }
 
+    /// Native code for the splitting composer's fused stretches of `plan` on this system, if the
+    /// system compiles them (a typed-in system, whose forces the generic path reaches through a
+    /// pointer); `None` (the default) leaves them to the composer. The code must give the
+    /// composer's bits.
+    fn compile_stretch(
+        &self,
+        _plan: &crate::methods::splitting::compiled::StretchPlan,
+    ) -> Option<crate::methods::splitting::compiled::SharedStretch> {
+        None
+    }
+
     /// How many invariants (or conformal invariants) [`invariants`](Self::invariants) writes;
     /// their names are in the system's catalogue entry.
     fn invariant_count(&self) -> usize {

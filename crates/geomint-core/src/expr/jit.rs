@@ -13,10 +13,11 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::Mutex;
 
 use cranelift_codegen::ir::immediates::Ieee64;
-use cranelift_codegen::ir::{types, AbiParam, InstBuilder, MemFlagsData, Signature, Value};
+use cranelift_codegen::ir::{types, AbiParam, InstBuilder, MemFlagsData, SigRef, Signature, Value};
 use cranelift_codegen::settings::{self, Configurable};
 use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext};
-use cranelift_jit::{JITBuilder, JITModule};
+use cranelift_jit::JITBuilder;
+pub(crate) use cranelift_jit::JITModule;
 use cranelift_module::{default_libcall_names, Module};
 
 use crate::expr::ops::{entry, BinaryOp, UnaryOp};
@@ -27,9 +28,9 @@ pub(crate) type CompiledFn = unsafe extern "C" fn(*const f64, *mut f64);
 /// Native code for one program, and the module that owns its memory.
 pub(crate) struct JitFunction {
     code: CompiledFn,
-    /// Only touched on drop; the mutex makes the (`Send` but not `Sync`) module
-    /// shareable without any unsafe assertion.
-    module: Mutex<Option<JITModule>>,
+    /// Only touched on drop.
+    #[allow(dead_code)]
+    module: OwnedModule,
 }
 
 impl std::fmt::Debug for JitFunction {
@@ -46,20 +47,6 @@ impl JitFunction {
     }
 }
 
-impl Drop for JitFunction {
-    fn drop(&mut self) {
-        let module = match self.module.get_mut() {
-            Ok(slot) => slot.take(),
-            Err(poisoned) => poisoned.into_inner().take(),
-        };
-        if let Some(module) = module {
-            // SAFETY: `code` points into this module and is only reachable through
-            // `&self`; being dropped, nothing can be running it or call it again.
-            unsafe { module.free_memory() };
-        }
-    }
-}
-
 /// Compiles a program to native code, or says why it cannot.
 pub(crate) fn compile(program: &Program) -> Result<JitFunction, String> {
     // A failure inside the code generator must not take the caller down: the
@@ -68,7 +55,8 @@ pub(crate) fn compile(program: &Program) -> Result<JitFunction, String> {
         .unwrap_or_else(|_| Err("the code generator panicked".to_string()))
 }
 
-fn compile_inner(program: &Program) -> Result<JitFunction, String> {
+/// A JIT module for this CPU, with the settings every function here is built with.
+pub(crate) fn module() -> Result<JITModule, String> {
     let mut flags = settings::builder();
     for (name, value) in [
         // The program arrives value-numbered, folded and free of dead code, so the
@@ -85,15 +73,157 @@ fn compile_inner(program: &Program) -> Result<JitFunction, String> {
         .map_err(|e| e.to_string())?
         .finish(settings::Flags::new(flags))
         .map_err(|e| e.to_string())?;
-    let mut module = JITModule::new(JITBuilder::with_isa(isa, default_libcall_names()));
-    let pointer = module.target_config().pointer_type();
-    let call_conv = module.isa().default_call_conv();
+    Ok(JITModule::new(JITBuilder::with_isa(
+        isa,
+        default_libcall_names(),
+    )))
+}
 
+/// Emits programs' instructions into a function being built: arithmetic in registers, the
+/// other operations as calls to the `extern "C"` entry points in [`ops`](crate::expr::ops).
+pub(crate) struct Emitter {
+    pointer: types::Type,
+    unary: SigRef,
+    binary: SigRef,
+}
+
+impl Emitter {
+    /// An emitter for functions of `module` built by `b`.
+    pub(crate) fn new(module: &JITModule, b: &mut FunctionBuilder) -> Self {
+        let call_conv = module.isa().default_call_conv();
+        let float_signature = |params: usize| {
+            let mut sig = Signature::new(call_conv);
+            sig.params
+                .extend((0..params).map(|_| AbiParam::new(types::F64)));
+            sig.returns.push(AbiParam::new(types::F64));
+            sig
+        };
+        Emitter {
+            pointer: module.target_config().pointer_type(),
+            unary: b.import_signature(float_signature(1)),
+            binary: b.import_signature(float_signature(2)),
+        }
+    }
+
+    /// Emits `program`: its input `i` is `load(b, i)`, and each output `o` it computes goes to
+    /// `store(b, o, value)`, in the program's order.
+    pub(crate) fn emit(
+        &self,
+        b: &mut FunctionBuilder,
+        program: &Program,
+        load: &mut dyn FnMut(&mut FunctionBuilder, u32) -> Result<Value, String>,
+        store: &mut dyn FnMut(&mut FunctionBuilder, u32, Value) -> Result<(), String>,
+    ) -> Result<(), String> {
+        let mut regs: Vec<Option<Value>> = vec![None; program.registers()];
+        let get = |regs: &[Option<Value>], r: u32| regs[r as usize].ok_or("read before write");
+        for instr in program.instrs() {
+            let (dst, value) = match *instr {
+                Instr::Load { dst, input } => (dst, load(b, input)?),
+                Instr::Const { dst, value } => {
+                    (dst, b.ins().f64const(Ieee64::with_bits(value.to_bits())))
+                }
+                Instr::Unary { op, dst, a } => {
+                    let x = get(&regs, a)?;
+                    let value = match op {
+                        UnaryOp::Neg => b.ins().fneg(x),
+                        UnaryOp::Abs => b.ins().fabs(x),
+                        UnaryOp::Sqrt => b.ins().sqrt(x),
+                        other => {
+                            let callee = entry::unary(other);
+                            let address = b.ins().iconst(self.pointer, callee as usize as i64);
+                            let call = b.ins().call_indirect(self.unary, address, &[x]);
+                            b.inst_results(call)[0]
+                        }
+                    };
+                    (dst, value)
+                }
+                Instr::Binary { op, dst, a, b: rhs } => {
+                    let (x, y) = (get(&regs, a)?, get(&regs, rhs)?);
+                    let value = match op {
+                        BinaryOp::Add => b.ins().fadd(x, y),
+                        BinaryOp::Sub => b.ins().fsub(x, y),
+                        BinaryOp::Mul => b.ins().fmul(x, y),
+                        BinaryOp::Div => b.ins().fdiv(x, y),
+                        other => {
+                            let callee = entry::binary(other);
+                            let address = b.ins().iconst(self.pointer, callee as usize as i64);
+                            let call = b.ins().call_indirect(self.binary, address, &[x, y]);
+                            b.inst_results(call)[0]
+                        }
+                    };
+                    (dst, value)
+                }
+                Instr::Store { src, output } => {
+                    store(b, output, get(&regs, src)?)?;
+                    continue;
+                }
+            };
+            regs[dst as usize] = Some(value);
+        }
+        Ok(())
+    }
+}
+
+/// The byte offset of slot `index` of an f64 array.
+pub(crate) fn offset(index: u32) -> Result<i32, String> {
+    i32::try_from(u64::from(index) * 8).map_err(|_| "slot offset too large".to_string())
+}
+
+/// Defines the function built in `ctx` in `module` and returns its address and the module,
+/// which owns its memory.
+pub(crate) fn finish(
+    mut module: JITModule,
+    mut ctx: cranelift_codegen::Context,
+) -> Result<(*const u8, JITModule), String> {
+    let signature = ctx.func.signature.clone();
+    let id = module
+        .declare_anonymous_function(&signature)
+        .map_err(|e| e.to_string())?;
+    module
+        .define_function(id, &mut ctx)
+        .map_err(|e| e.to_string())?;
+    module.clear_context(&mut ctx);
+    module.finalize_definitions().map_err(|e| e.to_string())?;
+    Ok((module.get_finalized_function(id), module))
+}
+
+/// Frees a JIT module's code once nothing can call it.
+pub(crate) struct OwnedModule(Mutex<Option<JITModule>>);
+
+impl OwnedModule {
+    pub(crate) fn new(module: JITModule) -> Self {
+        OwnedModule(Mutex::new(Some(module)))
+    }
+}
+
+impl Drop for OwnedModule {
+    fn drop(&mut self) {
+        let module = match self.0.get_mut() {
+            Ok(slot) => slot.take(),
+            Err(poisoned) => poisoned.into_inner().take(),
+        };
+        if let Some(module) = module {
+            // SAFETY: the module's functions are reachable only through their owner, which is
+            // being dropped: nothing can be running them or call them again.
+            unsafe { module.free_memory() };
+        }
+    }
+}
+
+impl std::fmt::Debug for OwnedModule {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("OwnedModule").finish_non_exhaustive()
+    }
+}
+
+fn compile_inner(program: &Program) -> Result<JitFunction, String> {
+    let module = module()?;
+    let pointer = module.target_config().pointer_type();
     let mut signature = module.make_signature();
     signature.params.push(AbiParam::new(pointer));
     signature.params.push(AbiParam::new(pointer));
     let mut ctx = module.make_context();
-    ctx.func.signature = signature.clone();
+    ctx.func.signature = signature;
 
     let mut builder_ctx = FunctionBuilderContext::new();
     let mut b = FunctionBuilder::new(&mut ctx.func, &mut builder_ctx);
@@ -104,88 +234,24 @@ fn compile_inner(program: &Program) -> Result<JitFunction, String> {
     let (inputs, outputs) = (b.block_params(block)[0], b.block_params(block)[1]);
     // The slices are aligned and their lengths checked before the call.
     let trusted = MemFlagsData::trusted();
-
-    let float_signature = |params: usize| {
-        let mut sig = Signature::new(call_conv);
-        sig.params
-            .extend((0..params).map(|_| AbiParam::new(types::F64)));
-        sig.returns.push(AbiParam::new(types::F64));
-        sig
-    };
-    let unary_sig = b.import_signature(float_signature(1));
-    let binary_sig = b.import_signature(float_signature(2));
-
-    let offset = |index: u32| {
-        i32::try_from(u64::from(index) * 8).map_err(|_| "slot offset too large".to_string())
-    };
-    let mut regs: Vec<Option<Value>> = vec![None; program.registers()];
-    let get = |regs: &[Option<Value>], r: u32| regs[r as usize].ok_or("read before write");
-    for instr in program.instrs() {
-        let (dst, value) = match *instr {
-            Instr::Load { dst, input } => {
-                let at = offset(input)?;
-                (dst, b.ins().load(types::F64, trusted, inputs, at))
-            }
-            Instr::Const { dst, value } => {
-                (dst, b.ins().f64const(Ieee64::with_bits(value.to_bits())))
-            }
-            Instr::Unary { op, dst, a } => {
-                let x = get(&regs, a)?;
-                let value = match op {
-                    UnaryOp::Neg => b.ins().fneg(x),
-                    UnaryOp::Abs => b.ins().fabs(x),
-                    UnaryOp::Sqrt => b.ins().sqrt(x),
-                    other => {
-                        let callee = entry::unary(other);
-                        let address = b.ins().iconst(pointer, callee as usize as i64);
-                        let call = b.ins().call_indirect(unary_sig, address, &[x]);
-                        b.inst_results(call)[0]
-                    }
-                };
-                (dst, value)
-            }
-            Instr::Binary { op, dst, a, b: rhs } => {
-                let (x, y) = (get(&regs, a)?, get(&regs, rhs)?);
-                let value = match op {
-                    BinaryOp::Add => b.ins().fadd(x, y),
-                    BinaryOp::Sub => b.ins().fsub(x, y),
-                    BinaryOp::Mul => b.ins().fmul(x, y),
-                    BinaryOp::Div => b.ins().fdiv(x, y),
-                    other => {
-                        let callee = entry::binary(other);
-                        let address = b.ins().iconst(pointer, callee as usize as i64);
-                        let call = b.ins().call_indirect(binary_sig, address, &[x, y]);
-                        b.inst_results(call)[0]
-                    }
-                };
-                (dst, value)
-            }
-            Instr::Store { src, output } => {
-                let value = get(&regs, src)?;
-                let at = offset(output)?;
-                b.ins().store(trusted, value, outputs, at);
-                continue;
-            }
-        };
-        regs[dst as usize] = Some(value);
-    }
+    let emitter = Emitter::new(&module, &mut b);
+    emitter.emit(
+        &mut b,
+        program,
+        &mut |b, input| Ok(b.ins().load(types::F64, trusted, inputs, offset(input)?)),
+        &mut |b, output, value| {
+            b.ins().store(trusted, value, outputs, offset(output)?);
+            Ok(())
+        },
+    )?;
     b.ins().return_(&[]);
     b.finalize(module.target_config());
-
-    let id = module
-        .declare_anonymous_function(&signature)
-        .map_err(|e| e.to_string())?;
-    module
-        .define_function(id, &mut ctx)
-        .map_err(|e| e.to_string())?;
-    module.clear_context(&mut ctx);
-    module.finalize_definitions().map_err(|e| e.to_string())?;
-    let address = module.get_finalized_function(id);
+    let (address, module) = finish(module, ctx)?;
     // SAFETY: the function was just defined with the signature (pointer, pointer) -> ()
     // in the platform's default calling convention, which is the C one.
     let code = unsafe { std::mem::transmute::<*const u8, CompiledFn>(address) };
     Ok(JitFunction {
         code,
-        module: Mutex::new(Some(module)),
+        module: OwnedModule::new(module),
     })
 }

@@ -54,7 +54,7 @@ mod diff;
 mod display;
 mod error;
 mod graph;
-mod jit;
+pub(crate) mod jit;
 mod lex;
 pub mod ops;
 pub mod parse;

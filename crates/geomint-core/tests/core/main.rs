@@ -13,6 +13,7 @@ mod blocks;
 mod chaos;
 mod chaos_map;
 mod charts;
+mod compiled_stretch;
 mod compositions;
 mod driven;
 mod energy_map;

@@ -4,6 +4,7 @@
 use nalgebra::allocator::Allocator;
 use nalgebra::DefaultAllocator;
 
+use super::compiled::{CompiledStretch, SharedStretch, StretchPlan};
 use super::walk::{with_walk, Loop, Stages, Unrolled, Walk};
 use super::*;
 use crate::error::StepError;
@@ -27,6 +28,8 @@ where
     /// flow that fuses.
     seam: Option<(f64, (f64, f64))>,
     coeff_h: f64,
+    /// The system's compiled stretches for `coeff_h`, once asked for (`Some(None)`: it has none).
+    compiled: Option<Option<SharedStretch>>,
     work: Work<S>,
 }
 
@@ -59,6 +62,7 @@ where
             coefficients: vec![(0.0, 0.0); sequence.flows().len()],
             seam: None,
             coeff_h: f64::NAN,
+            compiled: None,
             sequence,
             work: Work {
                 inner,
@@ -108,6 +112,54 @@ where
             _ => None,
         };
         self.coeff_h = h;
+        self.compiled = None;
+    }
+
+    /// The system's compiled stretches of this splitting at the prepared h, asked for once.
+    fn compiled(&mut self, sys: &S, seam: (f64, (f64, f64))) -> Option<SharedStretch> {
+        let flows = self.sequence.flows();
+        let plan = StretchPlan {
+            flows,
+            coefficients: &self.coefficients[..flows.len()],
+            h: self.coeff_h,
+            seam,
+        };
+        self.compiled
+            .get_or_insert_with(|| sys.compile_stretch(&plan))
+            .clone()
+    }
+
+    /// [`Self::advance_fused`] through the system's compiled stretch: the same bits, and the same
+    /// rerun step by step of a stretch that diverges.
+    fn advance_compiled(
+        &mut self,
+        code: &CompiledStretch,
+        sys: &S,
+        z: &mut State<S::Dim>,
+        h: f64,
+        n: u64,
+    ) -> Advanced {
+        let work = &mut self.work;
+        work.start.q.copy_from(&z.q);
+        work.start.p.copy_from(&z.p);
+        work.start_grad.copy_from(&work.grad);
+        let (start_grad_valid, start_count) = (work.grad_valid, work.force_evaluations);
+        if code.run(
+            z.q.as_mut_slice(),
+            z.p.as_mut_slice(),
+            work.grad.as_mut_slice(),
+            &mut work.grad_valid,
+            &mut work.force_evaluations,
+            n,
+        ) {
+            return (n, Ok(()));
+        }
+        z.q.copy_from(&work.start.q);
+        z.p.copy_from(&work.start.p);
+        work.grad.copy_from(&work.start_grad);
+        work.grad_valid = start_grad_valid;
+        work.force_evaluations = start_count;
+        step_by_step(self, sys, z, h, n)
     }
 
     /// `n ≥ 2` steps with the last flow of each step and the first of the next applied as one
@@ -251,9 +303,10 @@ where
     fn advance(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64, n: u64) -> Advanced {
         self.prepare(sys, h);
         match self.seam {
-            Some(seam) if n >= 2 => {
-                with_walk!(self, W => self.advance_fused::<W>(sys, z, h, n, seam))
-            }
+            Some(seam) if n >= 2 => match self.compiled(sys, seam) {
+                Some(code) => self.advance_compiled(&code, sys, z, h, n),
+                None => with_walk!(self, W => self.advance_fused::<W>(sys, z, h, n, seam)),
+            },
             _ => step_by_step(self, sys, z, h, n),
         }
     }

@@ -30,6 +30,7 @@
 //! results by round-off only.
 
 mod catalogue;
+pub mod compiled;
 mod composer;
 mod walk;
 

@@ -21,6 +21,7 @@ mod lanes;
 mod mass;
 pub mod model;
 mod shapes;
+mod stretch;
 pub mod system;
 
 use std::borrow::Cow;

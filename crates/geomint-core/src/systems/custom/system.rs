@@ -6,15 +6,18 @@
 //! in a buffer kept per thread).
 
 use std::cell::Cell;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 use nalgebra::allocator::Allocator;
 use nalgebra::{DMatrix, DefaultAllocator, Dim};
 
 use super::damping::{Flows, MassFactor};
 pub use super::mass::InverseMass;
+use super::stretch;
 use super::DampingKind;
 use crate::expr::CompiledFunction;
+use crate::methods::splitting::compiled::{SharedStretch, StretchPlan};
+use crate::methods::splitting::SubFlow;
 use crate::system::{projector, MechanicalSystem, Structure, Vector};
 
 /// The energy's compiled functions.
@@ -130,6 +133,72 @@ pub struct Compiled {
     pub damping_derivative: Option<CompiledFunction>,
     /// The invariants, functions of (q, p).
     pub invariants: Option<CompiledFunction>,
+    /// The last compiled stretch and what it was compiled for (the cells of a sweep share it).
+    pub stretch: Mutex<Option<(Vec<u64>, Option<SharedStretch>)>>,
+}
+
+impl Compiled {
+    /// The compiled stretch of `plan`, compiled once per plan (`None` when the system or the
+    /// plan is one the stretches do not take).
+    fn stretch(&self, plan: &StretchPlan) -> Option<SharedStretch> {
+        let key: Vec<u64> = plan
+            .flows
+            .iter()
+            .flat_map(|&(flow, fraction)| [flow_code(flow), fraction.to_bits()])
+            .chain(plan.coefficients.iter().map(|&(c, _)| c.to_bits()))
+            .chain([
+                plan.h.to_bits(),
+                plan.seam.0.to_bits(),
+                plan.seam.1 .0.to_bits(),
+            ])
+            .collect();
+        if let Ok(last) = self.stretch.lock() {
+            if let Some((_, code)) = last.as_ref().filter(|(k, _)| *k == key) {
+                return code.clone();
+            }
+        }
+        let code = self.compile_stretch(plan);
+        if let Ok(mut last) = self.stretch.lock() {
+            *last = Some((key, code.clone()));
+        }
+        code
+    }
+
+    fn compile_stretch(&self, plan: &StretchPlan) -> Option<SharedStretch> {
+        let EnergyModel::Separable {
+            gradient,
+            inverse_mass,
+            ..
+        } = &self.energy
+        else {
+            return None;
+        };
+        let plain_damping = matches!(
+            self.damping,
+            DampingModel::None | DampingModel::Conformal { .. }
+        );
+        if self.clock.is_some() || !plain_damping || !gradient.is_jit() {
+            return None;
+        }
+        let parts = stretch::Parts {
+            n: self.n,
+            gradient: gradient.program(),
+            inverse_mass,
+        };
+        stretch::compile(plan, &parts).ok().map(Arc::new)
+    }
+}
+
+/// A flow's kind as a number, for the stretch's key.
+fn flow_code(flow: SubFlow) -> u64 {
+    match flow {
+        SubFlow::Drift => 1,
+        SubFlow::Kick => 2,
+        SubFlow::Damp => 3,
+        SubFlow::KickDamp => 4,
+        SubFlow::MomentumRk => 5,
+        SubFlow::DampedKick(theta) => 6 + theta.value().to_bits(),
+    }
 }
 
 thread_local! {
@@ -178,13 +247,26 @@ fn eval_on_phase(f: &CompiledFunction, q: &[f64], p: &[f64], out: &mut [f64]) {
 pub struct CustomSystem<D: Dim> {
     dim: D,
     model: Arc<Compiled>,
+    /// Whether splittings run compiled stretches on it (see [`Self::without_compiled_stretches`]).
+    stretches: bool,
 }
 
 impl<D: Dim> CustomSystem<D> {
     /// The system of `model`, whose dimension is `dim`.
     pub fn new(dim: D, model: Arc<Compiled>) -> Self {
         debug_assert_eq!(dim.value(), model.n);
-        CustomSystem { dim, model }
+        CustomSystem {
+            dim,
+            model,
+            stretches: true,
+        }
+    }
+
+    /// The same system, on which splittings take the generic composer's path instead of compiled
+    /// stretches (the same bits, which tests compare).
+    pub fn without_compiled_stretches(mut self) -> Self {
+        self.stretches = false;
+        self
     }
 
     /// The compiled model.
@@ -277,6 +359,7 @@ impl<D: Dim> Clone for CustomSystem<D> {
         CustomSystem {
             dim: self.dim,
             model: Arc::clone(&self.model),
+            stretches: self.stretches,
         }
     }
 }
@@ -475,6 +558,13 @@ where
 
     fn clock(&self) -> Option<usize> {
         self.model.clock
+    }
+
+    fn compile_stretch(&self, plan: &StretchPlan) -> Option<SharedStretch> {
+        if !self.stretches {
+            return None;
+        }
+        self.model.stretch(plan)
     }
 
     fn invariant_count(&self) -> usize {

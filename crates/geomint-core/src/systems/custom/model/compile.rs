@@ -155,6 +155,7 @@ impl CustomModel {
             damping_matrix,
             damping_derivative,
             invariants,
+            stretch: std::sync::Mutex::new(None),
         }))
     }
 

@@ -1,0 +1,91 @@
+//! Stretches of a splitting compiled to native code by the system that runs them: the composer's
+//! fused stretch between two samples (see `Splitting::advance`) as one function, with the
+//! system's forces written into the step rather than called through a pointer. A typed-in system
+//! compiles them (`systems::custom::stretch`); built-in systems are compiled with the program.
+//!
+//! The compiled stretch does the composer's arithmetic operation for operation (each flow's
+//! `axpy` as a product and a sum, no fused multiply-add, the force cache and its count), so it
+//! gives the same bits; a stretch whose state stops being finite is reported, and the composer
+//! runs it again step by step as it would have.
+
+use std::sync::Arc;
+
+use super::SubFlow;
+use crate::expr::jit::OwnedModule;
+
+/// What a stretch does: the flows of one step with their fractions of h, the per-flow
+/// coefficients for h (the damping's c = 1 − e^{−rτ}, and d), and the seam that fuses the last
+/// flow of a step with the first of the next (its time and coefficients).
+#[derive(Clone, Copy, Debug)]
+pub struct StretchPlan<'a> {
+    /// The flows of one step and their fractions of h.
+    pub flows: &'a [(SubFlow, f64)],
+    /// Per flow, its coefficients for this h.
+    pub coefficients: &'a [(f64, f64)],
+    /// The step.
+    pub h: f64,
+    /// The fused seam's time and coefficients.
+    pub seam: (f64, (f64, f64)),
+}
+
+/// `stretch(q, p, grad, counters, n)`: n ≥ 2 steps from (q, p) in place, with the force cache
+/// `grad` and `counters` = [whether `grad` holds ∇V(q) (0 or 1), force evaluations so far],
+/// both updated. Returns 1, or 0 if the state did not sum to a finite number after some step
+/// (the arrays then hold no meaningful state).
+pub type StretchFn = unsafe extern "C" fn(*mut f64, *mut f64, *mut f64, *mut u64, u64) -> u64;
+
+/// Native code for a system's stretches of one plan.
+#[derive(Debug)]
+pub struct CompiledStretch {
+    code: StretchFn,
+    dimension: usize,
+    /// Owns the code's memory.
+    _module: OwnedModule,
+}
+
+impl CompiledStretch {
+    /// Code built for states of `dimension` components, owned by `module`.
+    ///
+    /// # Safety
+    /// `code` must be a function of [`StretchFn`]'s contract that reads and writes `dimension`
+    /// components of its arrays, and live as long as `module`.
+    pub(crate) unsafe fn new(code: StretchFn, dimension: usize, module: OwnedModule) -> Self {
+        CompiledStretch {
+            code,
+            dimension,
+            _module: module,
+        }
+    }
+
+    /// Runs `n ≥ 2` steps in place; `false` if the state stopped being finite on the way.
+    pub fn run(
+        &self,
+        q: &mut [f64],
+        p: &mut [f64],
+        grad: &mut [f64],
+        grad_valid: &mut bool,
+        force_evaluations: &mut u64,
+        n: u64,
+    ) -> bool {
+        let d = self.dimension;
+        assert!(q.len() == d && p.len() == d && grad.len() == d && n >= 2);
+        let mut counters = [u64::from(*grad_valid), *force_evaluations];
+        // SAFETY: the arrays have the dimension the code was built for (checked above), and
+        // `self` keeps the code alive.
+        let finite = unsafe {
+            (self.code)(
+                q.as_mut_ptr(),
+                p.as_mut_ptr(),
+                grad.as_mut_ptr(),
+                counters.as_mut_ptr(),
+                n,
+            )
+        };
+        *grad_valid = counters[0] != 0;
+        *force_evaluations = counters[1];
+        finite != 0
+    }
+}
+
+/// A compiled stretch shared by the runs of one system and plan.
+pub type SharedStretch = Arc<CompiledStretch>;

@@ -1,0 +1,196 @@
+//! A typed-in system's compiled stretches give the generic composer's bits: every sample, the
+//! force evaluations and how the run stopped, over systems with each form of mass, with and
+//! without conformal damping, for the splittings and compositions the stretches take, with
+//! stretches of many lengths and runs that blow up inside one.
+
+use std::sync::Arc;
+
+use geomint_core::error::Field;
+use geomint_core::methods::composition::Scheme;
+use geomint_core::methods::splitting::compiled::StretchPlan;
+use geomint_core::methods::splitting::{CSV1, MODIN_3S, POSITION_VERLET};
+use geomint_core::methods::{Base, Method, MethodId};
+use geomint_core::run::{Budget, StopReason};
+use geomint_core::simulation::{Limits, Sample, SampleSink, Simulation, SimulationSpec};
+use geomint_core::system::MechanicalSystem;
+use geomint_core::systems::custom::{self, CustomDefinition, Damping, Energy, Mass};
+use geomint_core::systems::{AnySystem, SystemInfo, SystemRef};
+
+use crate::chaos_map::expr;
+
+/// Every sample's bits.
+#[derive(Default, PartialEq, Debug)]
+struct Bits(Vec<u64>);
+
+impl SampleSink for Bits {
+    fn on_sample(&mut self, s: &Sample<'_>) {
+        self.0.push(s.step);
+        self.0.extend(s.q.iter().chain(s.p).map(|x| x.to_bits()));
+        self.0.push(s.energy.to_bits());
+    }
+}
+
+fn system(
+    coordinates: &[&str],
+    mass: Mass,
+    potential: &str,
+    gamma: Option<f64>,
+) -> Arc<SystemInfo> {
+    let definition = CustomDefinition {
+        field: Field::new("system"),
+        name: None,
+        coordinates: coordinates.iter().map(|c| c.to_string()).collect(),
+        momenta: None,
+        energy: Energy::Separable {
+            mass,
+            potential: expr("potential", potential),
+        },
+        damping: gamma.map(|_| Damping::Conformal {
+            gamma: expr("damping", "gamma"),
+        }),
+        parameters: gamma
+            .map(|g| ("gamma".to_string(), g))
+            .into_iter()
+            .collect(),
+        invariants: Vec::new(),
+        positions: None,
+        q0: None,
+        p0: None,
+    };
+    custom::define(definition, "test").expect("a valid definition")
+}
+
+/// Runs `method` with the compiled stretches and with the generic composer, checks that the
+/// samples and the outcome are the same, and returns how the run stopped.
+fn both(
+    info: &Arc<SystemInfo>,
+    method: Method,
+    q0: &[f64],
+    p0: &[f64],
+    h: f64,
+    every: u64,
+) -> StopReason {
+    let mut spec =
+        SimulationSpec::new(SystemRef::Defined(info.clone()), &[method.clone()], h, 60.0);
+    spec.q0 = Some(q0.to_vec());
+    spec.p0 = Some(p0.to_vec());
+    spec.every = Some(every);
+    let compiled = Simulation::prepare(&spec, &Limits::default()).expect("a valid run");
+    let mut generic = Simulation::prepare(&spec, &Limits::default()).expect("a valid run");
+    generic.system = match generic.system {
+        AnySystem::Custom1(s) => AnySystem::Custom1(s.without_compiled_stretches()),
+        AnySystem::Custom2(s) => AnySystem::Custom2(s.without_compiled_stretches()),
+        AnySystem::Custom3(s) => AnySystem::Custom3(s.without_compiled_stretches()),
+        other => panic!("not a typed-in system: {other:?}"),
+    };
+    let run = |sim: &Simulation| {
+        let mut bits = Bits::default();
+        let outcome = sim
+            .run_method(0, None, Budget::default(), &mut bits)
+            .expect("runs");
+        (
+            bits,
+            outcome.stop,
+            outcome.stats.steps,
+            outcome.stats.force_evaluations,
+        )
+    };
+    let (a, b) = (run(&compiled), run(&generic));
+    assert_eq!(a, b, "{method:?} every {every} from {q0:?}, {p0:?}");
+    a.1
+}
+
+#[test]
+fn compiled_stretches_give_the_composers_bits() {
+    let gamma = Some(0.05);
+    let pendulum = system(&["q"], Mass::Scalar(expr("mass", "1")), "1 - cos(q)", gamma);
+    let heavy = system(
+        &["q"],
+        Mass::Scalar(expr("mass", "1.7")),
+        "1 - cos(q)",
+        None,
+    );
+    let henon_heiles = "(x^2 + y^2)/2 + x^2*y - y^3/3";
+    let diagonal = system(
+        &["x", "y"],
+        Mass::Matrix(vec![
+            vec![expr("mass", "1.5"), expr("mass", "0")],
+            vec![expr("mass", "0"), expr("mass", "0.75")],
+        ]),
+        henon_heiles,
+        gamma,
+    );
+    let full = system(
+        &["x", "y"],
+        Mass::Matrix(vec![
+            vec![expr("mass", "1.5"), expr("mass", "0.25")],
+            vec![expr("mass", "0.25"), expr("mass", "1")],
+        ]),
+        henon_heiles,
+        None,
+    );
+    let methods = [
+        Method::new(MethodId::Modin3s),
+        Method::new(MethodId::Csv1),
+        Method::composition(Scheme::KahanLi8, Base::Modin3s),
+        Method::triple_jump(Base::Csv1),
+    ];
+    for method in &methods {
+        for every in [1, 2, 37, 1000] {
+            both(&pendulum, method.clone(), &[2.0], &[0.5], 0.1, every);
+            both(&heavy, method.clone(), &[3.0], &[0.0], 0.07, every);
+            both(
+                &diagonal,
+                method.clone(),
+                &[0.1, -0.2],
+                &[0.3, 0.1],
+                0.05,
+                every,
+            );
+            both(&full, method.clone(), &[0.0, 0.3], &[0.2, 0.1], 0.05, every);
+            // Above the escape energy: the orbit leaves and blows up inside a stretch, which the
+            // composer then runs again step by step.
+            both(
+                &full,
+                method.clone(),
+                &[0.0, -1.0],
+                &[2.0, 2.0],
+                0.05,
+                every,
+            );
+        }
+    }
+}
+
+/// The stretches take drifts, kicks and conformal damping; a θ-kick (the Verlets' treatment of
+/// damping) is left to the composer.
+#[test]
+fn the_stretches_are_compiled_for_what_they_take() {
+    let info = system(
+        &["q"],
+        Mass::Scalar(expr("mass", "1")),
+        "1 - cos(q)",
+        Some(0.05),
+    );
+    let spec = SimulationSpec::new(
+        SystemRef::Defined(info),
+        &[Method::new(MethodId::Modin3s)],
+        0.1,
+        1.0,
+    );
+    let sim = Simulation::prepare(&spec, &Limits::default()).expect("a valid run");
+    let AnySystem::Custom1(sys) = &sim.system else {
+        panic!("a typed-in system of one degree of freedom");
+    };
+    let plan = |flows| StretchPlan {
+        flows,
+        coefficients: &[(0.0, 0.0); 5][..flows.len()],
+        h: 0.1,
+        seam: (0.1, (0.0, 0.0)),
+    };
+    assert!(sys.compile_stretch(&plan(MODIN_3S)).is_some());
+    assert!(sys.compile_stretch(&plan(CSV1)).is_some());
+    assert!(sys.compile_stretch(&plan(POSITION_VERLET)).is_none());
+    let generic = sys.clone().without_compiled_stretches();
+    assert!(generic.compile_stretch(&plan(MODIN_3S)).is_none());
+}
