@@ -371,6 +371,16 @@ where
         None
     }
 
+    /// Native code for steps of the explicit Runge–Kutta method `tableau` at step `h` on this
+    /// system, if the system compiles them (see [`compile_stretch`](Self::compile_stretch)).
+    fn compile_steps(
+        &self,
+        _tableau: &crate::methods::runge_kutta::Tableau,
+        _h: f64,
+    ) -> Option<crate::methods::splitting::compiled::SharedStretch> {
+        None
+    }
+
     /// How many invariants (or conformal invariants) [`invariants`](Self::invariants) writes;
     /// their names are in the system's catalogue entry.
     fn invariant_count(&self) -> usize {

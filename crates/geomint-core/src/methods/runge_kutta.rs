@@ -9,7 +9,8 @@ use super::sources::*;
 use super::{unroll, Citation, Group, Kind, Known, MethodInfo};
 use crate::error::StepError;
 use crate::flows;
-use crate::run::Stepper;
+use crate::methods::splitting::compiled::SharedStretch;
+use crate::run::{step_by_step, Advanced, Stepper};
 use crate::system::{MechanicalSystem, State, Vector};
 use crate::tangent::{mul_into, Tangent};
 
@@ -148,6 +149,8 @@ where
     stage_tangents: Vec<DMatrix<f64>>,
     tangent_arg: DMatrix<f64>,
     field: DMatrix<f64>,
+    /// The system's compiled steps for a step size, once asked for (see `advance`).
+    compiled: Option<(f64, Option<SharedStretch>)>,
 }
 
 impl<D: Dim, T: TableauSource> RungeKutta<D, T>
@@ -171,6 +174,7 @@ where
             stage_tangents: Vec::new(),
             tangent_arg: DMatrix::zeros(0, 0),
             field: DMatrix::zeros(0, 0),
+            compiled: None,
         }
     }
 }
@@ -203,6 +207,35 @@ where
         });
         self.force_evaluations += stages as u64;
         Ok(())
+    }
+
+    /// `n` steps, through the system's compiled steps where it has them (the same bits, and
+    /// the same stop after a step that leaves the state not finite).
+    fn advance(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64, n: u64) -> Advanced {
+        if n >= 2 {
+            let tableau = self.tableau.tableau();
+            let code = match &self.compiled {
+                Some((at, code)) if at.to_bits() == h.to_bits() => code.clone(),
+                _ => {
+                    let code = sys.compile_steps(tableau, h);
+                    self.compiled = Some((h, code.clone()));
+                    code
+                }
+            };
+            if let Some(code) = code {
+                // The compiled steps keep no force cache: the stage buffer stands in for one.
+                let taken = code.run(
+                    z.q.as_mut_slice(),
+                    z.p.as_mut_slice(),
+                    self.scratch.as_mut_slice(),
+                    &mut false,
+                    &mut self.force_evaluations,
+                    n,
+                );
+                return (taken, Ok(()));
+            }
+        }
+        step_by_step(self, sys, z, h, n)
     }
 
     fn force_evaluations(&self) -> u64 {

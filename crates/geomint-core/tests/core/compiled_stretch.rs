@@ -1,7 +1,8 @@
-//! A typed-in system's compiled stretches give the generic composer's bits: every sample, the
-//! force evaluations and how the run stopped, over systems with each form of mass, with and
-//! without conformal damping, for the splittings and compositions the stretches take, with
-//! stretches of many lengths and runs that blow up inside one.
+//! A typed-in system's compiled steps give the generic steppers' bits (the splitting composer's
+//! fused stretches, Runge–Kutta steps): every sample, the
+//! force evaluations and how the run stopped, over systems with each form of mass, undamped,
+//! with conformal damping and with a projector damping, for the splittings and compositions the
+//! stretches take, with stretches of many lengths and runs that blow up inside one.
 
 use std::sync::Arc;
 
@@ -36,6 +37,51 @@ fn system(
     potential: &str,
     gamma: Option<f64>,
 ) -> Arc<SystemInfo> {
+    let damping = gamma.map(|_| Damping::Conformal {
+        gamma: expr("damping", "gamma"),
+    });
+    let parameters = gamma
+        .map(|g| ("gamma".to_string(), g))
+        .into_iter()
+        .collect();
+    defined(coordinates, mass, potential, damping, parameters)
+}
+
+/// The planar elastic pendulum, typed in, its spring damped along the rod (a projector).
+fn elastic_pendulum() -> Arc<SystemInfo> {
+    let r2 = "(x^2 + y^2)";
+    let entry = |text: String| expr("damping", &text);
+    let damping = Damping::Rayleigh {
+        epsilon: expr("damping", "epsilon"),
+        matrix: vec![
+            vec![entry(format!("x^2/{r2}")), entry(format!("x*y/{r2}"))],
+            vec![entry(format!("x*y/{r2}")), entry(format!("y^2/{r2}"))],
+        ],
+    };
+    defined(
+        &["x", "y"],
+        Mass::Scalar(expr("mass", "m")),
+        "k/2*(sqrt(x^2 + y^2) - l)^2 - m*g*y",
+        Some(damping),
+        [
+            ("k", 1.0),
+            ("l", 1.0),
+            ("m", 1.3),
+            ("g", 0.2),
+            ("epsilon", 0.1),
+        ]
+        .map(|(name, value)| (name.to_string(), value))
+        .to_vec(),
+    )
+}
+
+fn defined(
+    coordinates: &[&str],
+    mass: Mass,
+    potential: &str,
+    damping: Option<Damping>,
+    parameters: Vec<(String, f64)>,
+) -> Arc<SystemInfo> {
     let definition = CustomDefinition {
         field: Field::new("system"),
         name: None,
@@ -45,13 +91,8 @@ fn system(
             mass,
             potential: expr("potential", potential),
         },
-        damping: gamma.map(|_| Damping::Conformal {
-            gamma: expr("damping", "gamma"),
-        }),
-        parameters: gamma
-            .map(|g| ("gamma".to_string(), g))
-            .into_iter()
-            .collect(),
+        damping,
+        parameters,
         invariants: Vec::new(),
         positions: None,
         q0: None,
@@ -129,6 +170,7 @@ fn compiled_stretches_give_the_composers_bits() {
         henon_heiles,
         None,
     );
+    let spring = elastic_pendulum();
     let methods = [
         Method::new(MethodId::Modin3s),
         Method::new(MethodId::Csv1),
@@ -150,7 +192,7 @@ fn compiled_stretches_give_the_composers_bits() {
             both(&full, method.clone(), &[0.0, 0.3], &[0.2, 0.1], 0.05, every);
             // Above the escape energy: the orbit leaves and blows up inside a stretch, which the
             // composer then runs again step by step.
-            both(
+            let stop = both(
                 &full,
                 method.clone(),
                 &[0.0, -1.0],
@@ -158,11 +200,56 @@ fn compiled_stretches_give_the_composers_bits() {
                 0.05,
                 every,
             );
+            assert!(matches!(stop, StopReason::Diverged { .. }), "{stop:?}");
+        }
+    }
+    // Runge–Kutta methods, on every system.
+    for id in [
+        MethodId::Rk4,
+        MethodId::Heun,
+        MethodId::Rk3,
+        MethodId::ExplicitEuler,
+    ] {
+        for every in [1, 2, 37, 1000] {
+            let method = Method::new(id);
+            both(&pendulum, method.clone(), &[2.0], &[0.5], 0.1, every);
+            both(&heavy, method.clone(), &[3.0], &[0.0], 0.07, every);
+            both(
+                &diagonal,
+                method.clone(),
+                &[0.1, -0.2],
+                &[0.3, 0.1],
+                0.05,
+                every,
+            );
+            both(
+                &spring,
+                method.clone(),
+                &[0.9, -0.6],
+                &[0.1, 0.4],
+                0.05,
+                every,
+            );
+            let stop = both(&full, method, &[0.0, -1.0], &[2.0, 2.0], 0.05, every);
+            assert!(matches!(stop, StopReason::Diverged { .. }), "{stop:?}");
+        }
+    }
+    // A projector damping (csv1 and its compositions take conformal damping only).
+    for method in [&methods[0], &methods[2]] {
+        for every in [1, 37, 1000] {
+            both(
+                &spring,
+                method.clone(),
+                &[0.9, -0.6],
+                &[0.1, 0.4],
+                0.05,
+                every,
+            );
         }
     }
 }
 
-/// The stretches take drifts, kicks and conformal damping; a θ-kick (the Verlets' treatment of
+/// The stretches take drifts, kicks and damping flows; a θ-kick (the Verlets' treatment of
 /// damping) is left to the composer.
 #[test]
 fn the_stretches_are_compiled_for_what_they_take() {

@@ -1,12 +1,14 @@
-//! Stretches of a splitting compiled to native code by the system that runs them: the composer's
-//! fused stretch between two samples (see `Splitting::advance`) as one function, with the
-//! system's forces written into the step rather than called through a pointer. A typed-in system
-//! compiles them (`systems::custom::stretch`); built-in systems are compiled with the program.
+//! Stretches of steps compiled to native code by the system that runs them: the splitting
+//! composer's fused stretch between two samples (see `Splitting::advance`), or a Runge–Kutta
+//! method's steps, as one function with the system's forces written into the step rather than
+//! called through a pointer. A typed-in system compiles them (`systems::custom::stretch`);
+//! built-in systems are compiled with the program.
 //!
-//! The compiled stretch does the composer's arithmetic operation for operation (each flow's
-//! `axpy` as a product and a sum, no fused multiply-add, the force cache and its count), so it
-//! gives the same bits; a stretch whose state stops being finite is reported, and the composer
-//! runs it again step by step as it would have.
+//! The compiled code does the stepper's arithmetic operation for operation (each `axpy` as a
+//! product and a sum, no fused multiply-add, the force cache and its count), so it gives the
+//! same bits. A splitting stretch whose state stops being finite is reported, and the composer
+//! runs it again step by step as it would have; Runge–Kutta steps stop after the first such step,
+//! as the stepper's do.
 
 use std::sync::Arc;
 
@@ -30,8 +32,9 @@ pub struct StretchPlan<'a> {
 
 /// `stretch(q, p, grad, counters, n)`: n ≥ 2 steps from (q, p) in place, with the force cache
 /// `grad` and `counters` = [whether `grad` holds ∇V(q) (0 or 1), force evaluations so far],
-/// both updated. Returns 1, or 0 if the state did not sum to a finite number after some step
-/// (the arrays then hold no meaningful state).
+/// both updated. Returns the steps taken: a splitting stretch n, or 0 if the state did not sum
+/// to a finite number after some step (the arrays then hold no meaningful state); Runge–Kutta
+/// steps up to and including the first whose state does not.
 pub type StretchFn = unsafe extern "C" fn(*mut f64, *mut f64, *mut f64, *mut u64, u64) -> u64;
 
 /// Native code for a system's stretches of one plan.
@@ -57,7 +60,7 @@ impl CompiledStretch {
         }
     }
 
-    /// Runs `n ≥ 2` steps in place; `false` if the state stopped being finite on the way.
+    /// Runs up to `n ≥ 2` steps in place and returns the steps taken ([`StretchFn`]).
     pub fn run(
         &self,
         q: &mut [f64],
@@ -66,13 +69,13 @@ impl CompiledStretch {
         grad_valid: &mut bool,
         force_evaluations: &mut u64,
         n: u64,
-    ) -> bool {
+    ) -> u64 {
         let d = self.dimension;
         assert!(q.len() == d && p.len() == d && grad.len() == d && n >= 2);
         let mut counters = [u64::from(*grad_valid), *force_evaluations];
         // SAFETY: the arrays have the dimension the code was built for (checked above), and
         // `self` keeps the code alive.
-        let finite = unsafe {
+        let taken = unsafe {
             (self.code)(
                 q.as_mut_ptr(),
                 p.as_mut_ptr(),
@@ -83,7 +86,7 @@ impl CompiledStretch {
         };
         *grad_valid = counters[0] != 0;
         *force_evaluations = counters[1];
-        finite != 0
+        taken
     }
 }
 

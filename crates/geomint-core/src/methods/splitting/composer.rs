@@ -144,14 +144,15 @@ where
         work.start.p.copy_from(&z.p);
         work.start_grad.copy_from(&work.grad);
         let (start_grad_valid, start_count) = (work.grad_valid, work.force_evaluations);
-        if code.run(
+        let taken = code.run(
             z.q.as_mut_slice(),
             z.p.as_mut_slice(),
             work.grad.as_mut_slice(),
             &mut work.grad_valid,
             &mut work.force_evaluations,
             n,
-        ) {
+        );
+        if taken == n {
             return (n, Ok(()));
         }
         z.q.copy_from(&work.start.q);

@@ -3,12 +3,14 @@
 //! registers and the potential's gradient program is written into every kick that evaluates it,
 //! where the generic path calls the compiled gradient through a pointer at each.
 //!
-//! Taken: autonomous separable systems (constant mass in any of its forms) without damping or
-//! with conformal damping, and sequences of drifts, kicks and damping flows (modin_3s, csv1,
-//! position Verlet, their compositions, …). Each flow is the composer's arithmetic:
+//! Taken: autonomous separable systems (constant mass in any of its forms) without damping, with
+//! conformal damping or with a projector damping r D(q) p, and sequences of drifts, kicks and
+//! damping flows (modin_3s, csv1, their compositions, …). Each flow is the composer's
+//! arithmetic:
 //! - drift: v = M⁻¹p as `InverseMass::apply` computes it, then q ← τv + q;
 //! - kick: ∇V(q) evaluated unless the cache holds it, then p ← (−τ)g + p;
-//! - damping: p ← (−c)p + p with c = 1 − e^{−rτ} (nothing when c = 0).
+//! - damping: w = D(q)p (w = p when conformal), then p ← (−c)w + p with c = 1 − e^{−rτ}
+//!   (nothing when c = 0).
 //!
 //! After each step the state's components are summed as the one-run path sums them (positions,
 //! then momenta, from 0) and the stretch reports a sum that is not finite.
@@ -22,6 +24,7 @@ use cranelift_module::Module;
 use super::mass::InverseMass;
 use crate::expr::jit::{self, Emitter, OwnedModule};
 use crate::expr::program::Program;
+use crate::methods::runge_kutta::Tableau;
 use crate::methods::splitting::compiled::{CompiledStretch, StretchFn, StretchPlan};
 use crate::methods::splitting::SubFlow;
 
@@ -33,6 +36,11 @@ pub(super) struct Parts<'a> {
     pub gradient: &'a Program,
     /// M⁻¹.
     pub inverse_mass: &'a InverseMass,
+    /// D(q) as a program of q (n² outputs, row-major) for a damping r D(q) p with D(q) a
+    /// projector; `None` for conformal damping (D = I) or none.
+    pub projector: Option<&'a Program>,
+    /// The damping rate r (0 undamped).
+    pub rate: f64,
 }
 
 /// Compiles `plan` for the system of `parts`, or says why not (a flow it does not take).
@@ -44,6 +52,27 @@ pub(super) fn compile(plan: &StretchPlan, parts: &Parts) -> Result<CompiledStret
     if !taken || plan.flows.len() < 2 || plan.coefficients.len() != plan.flows.len() {
         return Err("a flow the compiled stretch does not take".into());
     }
+    build(parts, |s| s.splitting(plan))
+}
+
+/// Compiles steps of the explicit Runge–Kutta method `tableau` at step `h` for the system of
+/// `parts`: the stepper's arithmetic (each stage's argument z + Σⱼ (h aᵢⱼ) kⱼ over the nonzero
+/// aᵢⱼ, the field (M⁻¹p, −(∇V + r P(q)p)), then z + Σᵢ (h bᵢ) kᵢ), and the count of one force
+/// evaluation per stage. The code stops after the first step whose state does not sum to a
+/// finite number, as the one-run path's steps do, and returns the steps taken.
+pub(super) fn compile_runge_kutta(
+    tableau: &Tableau,
+    h: f64,
+    parts: &Parts,
+) -> Result<CompiledStretch, String> {
+    build(parts, |s| s.runge_kutta(tableau, h))
+}
+
+/// A function of [`StretchFn`]'s signature whose loop `body` writes.
+fn build(
+    parts: &Parts,
+    body: impl FnOnce(&mut Stretch) -> Result<(), String>,
+) -> Result<CompiledStretch, String> {
     let module = jit::module()?;
     let pointer = module.target_config().pointer_type();
     let mut ctx = module.make_context();
@@ -56,7 +85,7 @@ pub(super) fn compile(plan: &StretchPlan, parts: &Parts) -> Result<CompiledStret
     let mut b = FunctionBuilder::new(&mut ctx.func, &mut builder_ctx);
     let emitter = Emitter::new(&module, &mut b);
     let mut s = Stretch::new(&mut b, parts, emitter)?;
-    s.body(plan)?;
+    body(&mut s)?;
     b.seal_all_blocks();
     b.finalize(module.target_config());
     let (address, module) = jit::finish(module, ctx)?;
@@ -146,9 +175,10 @@ impl<'a, 'b> Stretch<'a, 'b> {
         })
     }
 
-    /// The stretch: the first flow, then per step the middle flows and the seam (the whole last
-    /// flow at the end), the check of the state, the count of steps.
-    fn body(&mut self, plan: &StretchPlan) -> Result<(), String> {
+    /// The splitting's stretch: the first flow, then per step the middle flows and the seam
+    /// (the whole last flow at the end), the check of the state, the count of steps. Returns n,
+    /// or 0 when a step left the state not finite.
+    fn splitting(&mut self, plan: &StretchPlan) -> Result<(), String> {
         let m = plan.flows.len();
         let time = |k: usize| plan.flows[k].1 * plan.h;
         self.flow(plan.flows[0].0, time(0), plan.coefficients[0].0)?;
@@ -190,12 +220,98 @@ impl<'a, 'b> Stretch<'a, 'b> {
         self.b.ins().jump(step, &[]);
         self.b.switch_to_block(ended);
         self.store()?;
-        let yes = self.b.ins().iconst(types::I64, 1);
-        self.b.ins().return_(&[yes]);
+        self.b.ins().return_(&[n]);
         self.b.switch_to_block(diverged);
         let no = self.b.ins().iconst(types::I64, 0);
         self.b.ins().return_(&[no]);
         Ok(())
+    }
+
+    /// Runge–Kutta steps: each one's stages and update, the count, the check of the state.
+    fn runge_kutta(&mut self, t: &Tableau, h: f64) -> Result<(), String> {
+        let n = self.parts.n;
+        let step = self.b.create_block();
+        self.b.ins().jump(step, &[]);
+        self.b.switch_to_block(step);
+        let (zq, zp) = (self.values(&self.q.clone()), self.values(&self.p.clone()));
+        let (mut kq, mut kp): (Vec<Vec<Value>>, Vec<Vec<Value>>) = (Vec::new(), Vec::new());
+        for i in 0..t.stages() {
+            let (mut sq, mut sp) = (zq.clone(), zp.clone());
+            for (j, &a) in t.a[i].iter().enumerate() {
+                if a != 0.0 {
+                    let ha = self.constant(h * a);
+                    for c in 0..n {
+                        sq[c] = self.axpy(ha, kq[j][c], sq[c]);
+                    }
+                    for c in 0..n {
+                        sp[c] = self.axpy(ha, kp[j][c], sp[c]);
+                    }
+                }
+            }
+            let dq = self.velocity_of(&sp);
+            let gradient = self.program_of(self.parts.gradient, &sq, n)?;
+            let w = match self.parts.projector {
+                Some(matrix) => self.projected_of(matrix, &sq, &sp)?,
+                None => sp,
+            };
+            let r = self.constant(self.parts.rate);
+            let dp = gradient
+                .into_iter()
+                .zip(w)
+                .map(|(g, w)| {
+                    let force = self.b.ins().fmul(w, r);
+                    let sum = self.b.ins().fadd(g, force);
+                    self.b.ins().fneg(sum)
+                })
+                .collect();
+            kq.push(dq);
+            kp.push(dp);
+        }
+        let (mut q, mut p) = (zq, zp);
+        for i in 0..t.stages() {
+            let hb = self.constant(h * t.b[i]);
+            for c in 0..n {
+                q[c] = self.axpy(hb, kq[i][c], q[c]);
+            }
+            for c in 0..n {
+                p[c] = self.axpy(hb, kp[i][c], p[c]);
+            }
+        }
+        for c in 0..n {
+            self.b.def_var(self.q[c], q[c]);
+            self.b.def_var(self.p[c], p[c]);
+        }
+        let evaluations = self.b.use_var(self.evaluations);
+        let evaluations = self.b.ins().iadd_imm_s(evaluations, t.stages() as i64);
+        self.b.def_var(self.evaluations, evaluations);
+        // Stop after this step if it left the state not finite, or after the n-th.
+        let finite = self.finite();
+        let done = self.b.use_var(self.done);
+        let last = self.b.ins().icmp(IntCC::Equal, done, self.args[4]);
+        let (more, ended, next) = (
+            self.b.create_block(),
+            self.b.create_block(),
+            self.b.create_block(),
+        );
+        self.b.ins().brif(finite, more, &[], ended, &[]);
+        self.b.switch_to_block(more);
+        self.b.ins().brif(last, ended, &[], next, &[]);
+        self.b.switch_to_block(next);
+        let done = self.b.use_var(self.done);
+        let done = self.b.ins().iadd_imm_s(done, 1);
+        self.b.def_var(self.done, done);
+        self.b.ins().jump(step, &[]);
+        self.b.switch_to_block(ended);
+        self.store()?;
+        let done = self.b.use_var(self.done);
+        self.b.ins().return_(&[done]);
+        Ok(())
+    }
+
+    /// a·x + y, as `axpy(a, x, 1)` computes each component.
+    fn axpy(&mut self, a: Value, x: Value, y: Value) -> Value {
+        let ax = self.b.ins().fmul(a, x);
+        self.b.ins().fadd(ax, y)
     }
 
     fn constant(&mut self, x: f64) -> Value {
@@ -245,10 +361,14 @@ impl<'a, 'b> Stretch<'a, 'b> {
                 }
             }
             SubFlow::Damp => {
+                let w = match self.parts.projector {
+                    Some(matrix) => self.projected(matrix)?,
+                    None => (0..n).map(|i| self.b.use_var(self.p[i])).collect(),
+                };
                 let minus_c = self.b.ins().fneg(c);
-                for i in 0..n {
+                for (i, w) in w.into_iter().enumerate() {
                     let p = self.b.use_var(self.p[i]);
-                    let decay = self.b.ins().fmul(minus_c, p);
+                    let decay = self.b.ins().fmul(minus_c, w);
                     let p = self.b.ins().fadd(decay, p);
                     self.b.def_var(self.p[i], p);
                 }
@@ -258,10 +378,51 @@ impl<'a, 'b> Stretch<'a, 'b> {
         Ok(())
     }
 
-    /// M⁻¹p, as `InverseMass::apply` computes it.
-    fn velocity(&mut self) -> Vec<Value> {
+    /// D(q) p as the system's `damping_times` computes it: the matrix's program written here,
+    /// each row's products summed from the first.
+    fn projected(&mut self, matrix: &Program) -> Result<Vec<Value>, String> {
+        let (q, p) = (self.values(&self.q.clone()), self.values(&self.p.clone()));
+        self.projected_of(matrix, &q, &p)
+    }
+
+    /// D(q) p at the given positions and momenta.
+    fn projected_of(
+        &mut self,
+        matrix: &Program,
+        q: &[Value],
+        p: &[Value],
+    ) -> Result<Vec<Value>, String> {
         let n = self.parts.n;
-        let p: Vec<Value> = (0..n).map(|i| self.b.use_var(self.p[i])).collect();
+        let d = self.program_of(matrix, q, n * n)?;
+        let rows = d.chunks(n).map(|row| {
+            let mut sum: Option<Value> = None;
+            for (&a, &x) in row.iter().zip(p) {
+                let term = self.b.ins().fmul(a, x);
+                sum = Some(match sum {
+                    None => term,
+                    Some(s) => self.b.ins().fadd(s, term),
+                });
+            }
+            sum.ok_or_else(|| "an empty row".to_string())
+        });
+        rows.collect()
+    }
+
+    /// M⁻¹p at the current momenta.
+    fn velocity(&mut self) -> Vec<Value> {
+        let p = self.values(&self.p.clone());
+        self.velocity_of(&p)
+    }
+
+    /// The variables' current values.
+    fn values(&mut self, vars: &[Variable]) -> Vec<Value> {
+        vars.iter().map(|&var| self.b.use_var(var)).collect()
+    }
+
+    /// M⁻¹p, as `InverseMass::apply` computes it.
+    fn velocity_of(&mut self, p: &[Value]) -> Vec<Value> {
+        let n = self.parts.n;
+        let p = p.to_vec();
         match self.parts.inverse_mass {
             InverseMass::Unit => p,
             InverseMass::Scalar(m) => {
@@ -305,20 +466,11 @@ impl<'a, 'b> Stretch<'a, 'b> {
         let valid = self.b.use_var(self.valid);
         self.b.ins().brif(valid, after, &[], evaluate, &[]);
         self.b.switch_to_block(evaluate);
-        let (q, g) = (self.q.clone(), self.g.clone());
-        self.emitter.emit(
-            self.b,
-            self.parts.gradient,
-            &mut |b, input| {
-                let var = q.get(input as usize).ok_or("an input past q")?;
-                Ok(b.use_var(*var))
-            },
-            &mut |b, output, value| {
-                let var = g.get(output as usize).ok_or("an output past ∇V")?;
-                b.def_var(*var, value);
-                Ok(())
-            },
-        )?;
+        let q = self.values(&self.q.clone());
+        let g = self.program_of(self.parts.gradient, &q, self.parts.n)?;
+        for (i, value) in g.into_iter().enumerate() {
+            self.b.def_var(self.g[i], value);
+        }
         let evaluations = self.b.use_var(self.evaluations);
         let evaluations = self.b.ins().iadd_imm_s(evaluations, 1);
         self.b.def_var(self.evaluations, evaluations);
@@ -327,6 +479,35 @@ impl<'a, 'b> Stretch<'a, 'b> {
         self.b.ins().jump(after, &[]);
         self.b.switch_to_block(after);
         Ok(())
+    }
+
+    /// The `outputs` values of a program of q, written here with q = `q`.
+    fn program_of(
+        &mut self,
+        program: &Program,
+        q: &[Value],
+        outputs: usize,
+    ) -> Result<Vec<Value>, String> {
+        let mut out: Vec<Option<Value>> = vec![None; outputs];
+        self.emitter.emit(
+            self.b,
+            program,
+            &mut |_, input| {
+                q.get(input as usize)
+                    .copied()
+                    .ok_or_else(|| "an input past q".into())
+            },
+            &mut |_, output, value| {
+                let slot = out
+                    .get_mut(output as usize)
+                    .ok_or("an output past the program's")?;
+                *slot = Some(value);
+                Ok(())
+            },
+        )?;
+        out.into_iter()
+            .map(|v| v.ok_or_else(|| "an output never computed".to_string()))
+            .collect()
     }
 
     /// Whether Σq + Σp (each summed from 0, in order) is finite.

@@ -16,7 +16,8 @@ pub use super::mass::InverseMass;
 use super::stretch;
 use super::DampingKind;
 use crate::expr::CompiledFunction;
-use crate::methods::splitting::compiled::{SharedStretch, StretchPlan};
+use crate::methods::runge_kutta::Tableau;
+use crate::methods::splitting::compiled::{CompiledStretch, SharedStretch, StretchPlan};
 use crate::methods::splitting::SubFlow;
 use crate::system::{projector, MechanicalSystem, Structure, Vector};
 
@@ -152,19 +153,48 @@ impl Compiled {
                 plan.seam.1 .0.to_bits(),
             ])
             .collect();
+        self.cached(key, |parts| stretch::compile(plan, parts))
+    }
+
+    /// The compiled steps of `tableau` at step `h`, compiled once per tableau and h.
+    fn steps(&self, tableau: &Tableau, h: f64) -> Option<SharedStretch> {
+        let key: Vec<u64> = std::iter::once(0)
+            .chain(
+                tableau
+                    .a
+                    .iter()
+                    .flat_map(|row| row.iter().map(|a| a.to_bits())),
+            )
+            .chain(tableau.b.iter().map(|b| b.to_bits()))
+            .chain([h.to_bits()])
+            .collect();
+        self.cached(key, |parts| stretch::compile_runge_kutta(tableau, h, parts))
+    }
+
+    /// The code `compile` builds for the system's parts, kept for `key` until another key asks
+    /// (the cells of a sweep share it); `None` when the system is one the compiled steps do not
+    /// take (a driven system, a general H or damping) or the code cannot be built.
+    fn cached(
+        &self,
+        key: Vec<u64>,
+        compile: impl FnOnce(&stretch::Parts) -> Result<CompiledStretch, String>,
+    ) -> Option<SharedStretch> {
         if let Ok(last) = self.stretch.lock() {
             if let Some((_, code)) = last.as_ref().filter(|(k, _)| *k == key) {
                 return code.clone();
             }
         }
-        let code = self.compile_stretch(plan);
+        let code = self
+            .parts()
+            .and_then(|parts| compile(&parts).ok().map(Arc::new));
         if let Ok(mut last) = self.stretch.lock() {
             *last = Some((key, code.clone()));
         }
         code
     }
 
-    fn compile_stretch(&self, plan: &StretchPlan) -> Option<SharedStretch> {
+    /// What compiled steps need of the system, if it is one they take.
+    fn parts(&self) -> Option<stretch::Parts<'_>> {
         let EnergyModel::Separable {
             gradient,
             inverse_mass,
@@ -173,19 +203,21 @@ impl Compiled {
         else {
             return None;
         };
-        let plain_damping = matches!(
-            self.damping,
-            DampingModel::None | DampingModel::Conformal { .. }
-        );
-        if self.clock.is_some() || !plain_damping || !gradient.is_jit() {
+        let projector = match (&self.damping, &self.damping_matrix) {
+            (DampingModel::None | DampingModel::Conformal { .. }, _) => None,
+            (DampingModel::Projector { .. }, Some(matrix)) => Some(matrix.program()),
+            _ => return None,
+        };
+        if self.clock.is_some() {
             return None;
         }
-        let parts = stretch::Parts {
+        Some(stretch::Parts {
             n: self.n,
             gradient: gradient.program(),
             inverse_mass,
-        };
-        stretch::compile(plan, &parts).ok().map(Arc::new)
+            projector,
+            rate: self.damping.rate(),
+        })
     }
 }
 
@@ -247,7 +279,8 @@ fn eval_on_phase(f: &CompiledFunction, q: &[f64], p: &[f64], out: &mut [f64]) {
 pub struct CustomSystem<D: Dim> {
     dim: D,
     model: Arc<Compiled>,
-    /// Whether splittings run compiled stretches on it (see [`Self::without_compiled_stretches`]).
+    /// Whether splittings and Runge–Kutta methods run compiled steps on it (see
+    /// [`Self::without_compiled_stretches`]).
     stretches: bool,
 }
 
@@ -262,8 +295,8 @@ impl<D: Dim> CustomSystem<D> {
         }
     }
 
-    /// The same system, on which splittings take the generic composer's path instead of compiled
-    /// stretches (the same bits, which tests compare).
+    /// The same system, on which splittings and Runge–Kutta methods take the generic path instead
+    /// of compiled steps (the same bits, which tests compare).
     pub fn without_compiled_stretches(mut self) -> Self {
         self.stretches = false;
         self
@@ -561,10 +594,13 @@ where
     }
 
     fn compile_stretch(&self, plan: &StretchPlan) -> Option<SharedStretch> {
-        if !self.stretches {
-            return None;
-        }
-        self.model.stretch(plan)
+        self.stretches.then(|| self.model.stretch(plan)).flatten()
+    }
+
+    fn compile_steps(&self, tableau: &Tableau, h: f64) -> Option<SharedStretch> {
+        self.stretches
+            .then(|| self.model.steps(tableau, h))
+            .flatten()
     }
 
     fn invariant_count(&self) -> usize {
