@@ -362,21 +362,25 @@ where
 
     /// Native code for the splitting composer's fused stretches of `plan` on this system, if the
     /// system compiles them (a typed-in system, whose forces the generic path reaches through a
-    /// pointer); `None` (the default) leaves them to the composer. The code must give the
-    /// composer's bits.
+    /// pointer); `None` (the default) leaves them to the composer. `steps`: the steps the
+    /// asking run took on the generic path since it last asked; a system may build the code only
+    /// once its runs have taken enough of them to pay for it. The code must give the composer's
+    /// bits.
     fn compile_stretch(
         &self,
         _plan: &crate::methods::splitting::compiled::StretchPlan,
+        _steps: u64,
     ) -> Option<crate::methods::splitting::compiled::SharedStretch> {
         None
     }
 
     /// Native code for steps of the explicit Runge–Kutta method `tableau` at step `h` on this
-    /// system, if the system compiles them (see [`compile_stretch`](Self::compile_stretch)).
+    /// system, as [`compile_stretch`](Self::compile_stretch) for the splittings.
     fn compile_steps(
         &self,
         _tableau: &crate::methods::runge_kutta::Tableau,
         _h: f64,
+        _steps: u64,
     ) -> Option<crate::methods::splitting::compiled::SharedStretch> {
         None
     }

@@ -55,14 +55,15 @@ pub(crate) fn compile(program: &Program) -> Result<JitFunction, String> {
         .unwrap_or_else(|_| Err("the code generator panicked".to_string()))
 }
 
-/// A JIT module for this CPU, with the settings every function here is built with.
-pub(crate) fn module() -> Result<JITModule, String> {
+/// A JIT module for this CPU. A single program arrives value-numbered, folded and free of dead
+/// code, so the optimiser's e-graph pass finds nothing to do in it: skipping it (`optimise`
+/// false) halves compile time for large programs and measured no slower to run. Loops of whole
+/// steps (`optimise`) leave it constants to hoist and values to share across flows. Its rewrites
+/// of floating-point code are exact either way.
+pub(crate) fn module(optimise: bool) -> Result<JITModule, String> {
     let mut flags = settings::builder();
     for (name, value) in [
-        // The program arrives value-numbered, folded and free of dead code, so the
-        // optimiser's e-graph pass finds nothing to do; skipping it halves compile time
-        // for large programs and measured no slower to run.
-        ("opt_level", "none"),
+        ("opt_level", if optimise { "speed" } else { "none" }),
         // Required by cranelift-jit: absolute addresses, no colocated libcalls.
         ("use_colocated_libcalls", "false"),
         ("is_pic", "false"),
@@ -217,7 +218,7 @@ impl std::fmt::Debug for OwnedModule {
 }
 
 fn compile_inner(program: &Program) -> Result<JitFunction, String> {
-    let module = module()?;
+    let module = module(false)?;
     let pointer = module.target_config().pointer_type();
     let mut signature = module.make_signature();
     signature.params.push(AbiParam::new(pointer));

@@ -9,7 +9,7 @@ use super::sources::*;
 use super::{unroll, Citation, Group, Kind, Known, MethodInfo};
 use crate::error::StepError;
 use crate::flows;
-use crate::methods::splitting::compiled::SharedStretch;
+use crate::methods::splitting::compiled::LazyCode;
 use crate::run::{step_by_step, Advanced, Stepper};
 use crate::system::{MechanicalSystem, State, Vector};
 use crate::tangent::{mul_into, Tangent};
@@ -149,8 +149,9 @@ where
     stage_tangents: Vec<DMatrix<f64>>,
     tangent_arg: DMatrix<f64>,
     field: DMatrix<f64>,
-    /// The system's compiled steps for a step size, once asked for (see `advance`).
-    compiled: Option<(f64, Option<SharedStretch>)>,
+    /// The system's compiled steps for the step size `compiled_h` (see `advance`).
+    compiled: LazyCode,
+    compiled_h: f64,
 }
 
 impl<D: Dim, T: TableauSource> RungeKutta<D, T>
@@ -174,7 +175,8 @@ where
             stage_tangents: Vec::new(),
             tangent_arg: DMatrix::zeros(0, 0),
             field: DMatrix::zeros(0, 0),
-            compiled: None,
+            compiled: LazyCode::default(),
+            compiled_h: f64::NAN,
         }
     }
 }
@@ -214,14 +216,13 @@ where
     fn advance(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64, n: u64) -> Advanced {
         if n >= 2 {
             let tableau = self.tableau.tableau();
-            let code = match &self.compiled {
-                Some((at, code)) if at.to_bits() == h.to_bits() => code.clone(),
-                _ => {
-                    let code = sys.compile_steps(tableau, h);
-                    self.compiled = Some((h, code.clone()));
-                    code
-                }
-            };
+            if h.to_bits() != self.compiled_h.to_bits() {
+                self.compiled.reset();
+                self.compiled_h = h;
+            }
+            let code = self
+                .compiled
+                .get(n, |steps| sys.compile_steps(tableau, h, steps));
             if let Some(code) = code {
                 // The compiled steps keep no force cache: the stage buffer stands in for one.
                 let taken = code.run(

@@ -2,13 +2,14 @@
 //! fused stretches, Runge–Kutta steps): every sample, the
 //! force evaluations and how the run stopped, over systems with each form of mass, undamped,
 //! with conformal damping and with a projector damping, for the splittings and compositions the
-//! stretches take, with stretches of many lengths and runs that blow up inside one.
+//! stretches take, with stretches of many lengths and runs that blow up inside one (their code
+//! built by an earlier run of the same system, as a sweep's cells share it).
 
 use std::sync::Arc;
 
 use geomint_core::error::Field;
 use geomint_core::methods::composition::Scheme;
-use geomint_core::methods::splitting::compiled::StretchPlan;
+use geomint_core::methods::splitting::compiled::{StretchPlan, COMPILE_AFTER};
 use geomint_core::methods::splitting::{CSV1, MODIN_3S, POSITION_VERLET};
 use geomint_core::methods::{Base, Method, MethodId};
 use geomint_core::run::{Budget, StopReason};
@@ -101,6 +102,10 @@ fn defined(
     custom::define(definition, "test").expect("a valid definition")
 }
 
+/// Steps per run: past `COMPILE_AFTER`, so that a run builds its compiled code, and a later run
+/// of the same system, method and step (an escaping orbit) finds it from its first stretch.
+const STEPS: u64 = COMPILE_AFTER + 5_000;
+
 /// Runs `method` with the compiled stretches and with the generic composer, checks that the
 /// samples and the outcome are the same, and returns how the run stopped.
 fn both(
@@ -111,8 +116,12 @@ fn both(
     h: f64,
     every: u64,
 ) -> StopReason {
-    let mut spec =
-        SimulationSpec::new(SystemRef::Defined(info.clone()), &[method.clone()], h, 60.0);
+    let mut spec = SimulationSpec::new(
+        SystemRef::Defined(info.clone()),
+        &[method.clone()],
+        h,
+        STEPS as f64 * h,
+    );
     spec.q0 = Some(q0.to_vec());
     spec.p0 = Some(p0.to_vec());
     spec.every = Some(every);
@@ -230,6 +239,7 @@ fn compiled_stretches_give_the_composers_bits() {
                 0.05,
                 every,
             );
+            both(&full, method.clone(), &[0.0, 0.3], &[0.2, 0.1], 0.05, every);
             let stop = both(&full, method, &[0.0, -1.0], &[2.0, 2.0], 0.05, every);
             assert!(matches!(stop, StopReason::Diverged { .. }), "{stop:?}");
         }
@@ -275,9 +285,15 @@ fn the_stretches_are_compiled_for_what_they_take() {
         h: 0.1,
         seam: (0.1, (0.0, 0.0)),
     };
-    assert!(sys.compile_stretch(&plan(MODIN_3S)).is_some());
-    assert!(sys.compile_stretch(&plan(CSV1)).is_some());
-    assert!(sys.compile_stretch(&plan(POSITION_VERLET)).is_none());
+    assert!(sys
+        .compile_stretch(&plan(MODIN_3S), COMPILE_AFTER)
+        .is_some());
+    assert!(sys.compile_stretch(&plan(CSV1), COMPILE_AFTER).is_some());
+    assert!(sys
+        .compile_stretch(&plan(POSITION_VERLET), COMPILE_AFTER)
+        .is_none());
     let generic = sys.clone().without_compiled_stretches();
-    assert!(generic.compile_stretch(&plan(MODIN_3S)).is_none());
+    assert!(generic
+        .compile_stretch(&plan(MODIN_3S), COMPILE_AFTER)
+        .is_none());
 }

@@ -92,3 +92,49 @@ impl CompiledStretch {
 
 /// A compiled stretch shared by the runs of one system and plan.
 pub type SharedStretch = Arc<CompiledStretch>;
+
+/// Steps a system's runs take on the generic path before its compiled code is built: a build
+/// takes 0.25–0.75 ms per stepper (the `custom` bench), about what 2·10⁴ generic steps cost, so
+/// short work never pays for one. The code gives the generic path's bits, so a run may switch
+/// at any stretch.
+pub const COMPILE_AFTER: u64 = 20_000;
+
+/// How often a run without compiled code reports its generic steps to the system (and so asks
+/// again): rarely enough to cost nothing, often enough for short runs (a sweep's cells) to add
+/// up to [`COMPILE_AFTER`].
+const ASK_EVERY: u64 = 2_048;
+
+/// A run's compiled code, asked for as the run goes: at its first stretch (another run of the
+/// same system, a sweep's earlier cell, may have had it built), then every [`ASK_EVERY`] steps
+/// taken without it, until the system has it.
+#[derive(Clone, Debug, Default)]
+pub struct LazyCode {
+    code: Option<SharedStretch>,
+    asked: bool,
+    pending: u64,
+}
+
+impl LazyCode {
+    /// Forgets the code (the step size changed).
+    pub fn reset(&mut self) {
+        *self = LazyCode::default();
+    }
+
+    /// The code for a stretch of `n` steps, or `None`, in which case the generic path takes them.
+    /// `ask(steps)` asks the system, telling it the generic steps taken since the last ask.
+    pub fn get(
+        &mut self,
+        n: u64,
+        ask: impl FnOnce(u64) -> Option<SharedStretch>,
+    ) -> Option<SharedStretch> {
+        if self.code.is_none() && (!self.asked || self.pending >= ASK_EVERY) {
+            self.code = ask(self.pending);
+            self.asked = true;
+            self.pending = 0;
+        }
+        if self.code.is_none() {
+            self.pending = self.pending.saturating_add(n);
+        }
+        self.code.clone()
+    }
+}

@@ -4,7 +4,7 @@
 use nalgebra::allocator::Allocator;
 use nalgebra::DefaultAllocator;
 
-use super::compiled::{CompiledStretch, SharedStretch, StretchPlan};
+use super::compiled::{CompiledStretch, LazyCode, SharedStretch, StretchPlan};
 use super::walk::{with_walk, Loop, Stages, Unrolled, Walk};
 use super::*;
 use crate::error::StepError;
@@ -28,8 +28,8 @@ where
     /// flow that fuses.
     seam: Option<(f64, (f64, f64))>,
     coeff_h: f64,
-    /// The system's compiled stretches for `coeff_h`, once asked for (`Some(None)`: it has none).
-    compiled: Option<Option<SharedStretch>>,
+    /// The system's compiled stretches for `coeff_h`.
+    compiled: LazyCode,
     work: Work<S>,
 }
 
@@ -62,7 +62,7 @@ where
             coefficients: vec![(0.0, 0.0); sequence.flows().len()],
             seam: None,
             coeff_h: f64::NAN,
-            compiled: None,
+            compiled: LazyCode::default(),
             sequence,
             work: Work {
                 inner,
@@ -112,11 +112,12 @@ where
             _ => None,
         };
         self.coeff_h = h;
-        self.compiled = None;
+        self.compiled.reset();
     }
 
-    /// The system's compiled stretches of this splitting at the prepared h, asked for once.
-    fn compiled(&mut self, sys: &S, seam: (f64, (f64, f64))) -> Option<SharedStretch> {
+    /// The system's compiled stretch of this splitting at the prepared h for `n` steps, if it
+    /// has one by now ([`LazyCode`]).
+    fn compiled(&mut self, sys: &S, seam: (f64, (f64, f64)), n: u64) -> Option<SharedStretch> {
         let flows = self.sequence.flows();
         let plan = StretchPlan {
             flows,
@@ -125,8 +126,7 @@ where
             seam,
         };
         self.compiled
-            .get_or_insert_with(|| sys.compile_stretch(&plan))
-            .clone()
+            .get(n, |steps| sys.compile_stretch(&plan, steps))
     }
 
     /// [`Self::advance_fused`] through the system's compiled stretch: the same bits, and the same
@@ -304,7 +304,7 @@ where
     fn advance(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64, n: u64) -> Advanced {
         self.prepare(sys, h);
         match self.seam {
-            Some(seam) if n >= 2 => match self.compiled(sys, seam) {
+            Some(seam) if n >= 2 => match self.compiled(sys, seam, n) {
                 Some(code) => self.advance_compiled(&code, sys, z, h, n),
                 None => with_walk!(self, W => self.advance_fused::<W>(sys, z, h, n, seam)),
             },

@@ -73,7 +73,7 @@ fn build(
     parts: &Parts,
     body: impl FnOnce(&mut Stretch) -> Result<(), String>,
 ) -> Result<CompiledStretch, String> {
-    let module = jit::module()?;
+    let module = jit::module(true)?;
     let pointer = module.target_config().pointer_type();
     let mut ctx = module.make_context();
     for _ in 0..4 {

@@ -6,6 +6,7 @@
 //! in a buffer kept per thread).
 
 use std::cell::Cell;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 
 use nalgebra::allocator::Allocator;
@@ -17,7 +18,9 @@ use super::stretch;
 use super::DampingKind;
 use crate::expr::CompiledFunction;
 use crate::methods::runge_kutta::Tableau;
-use crate::methods::splitting::compiled::{CompiledStretch, SharedStretch, StretchPlan};
+use crate::methods::splitting::compiled::{
+    CompiledStretch, SharedStretch, StretchPlan, COMPILE_AFTER,
+};
 use crate::methods::splitting::SubFlow;
 use crate::system::{projector, MechanicalSystem, Structure, Vector};
 
@@ -136,59 +139,67 @@ pub struct Compiled {
     pub invariants: Option<CompiledFunction>,
     /// The last compiled stretch and what it was compiled for (the cells of a sweep share it).
     pub stretch: Mutex<Option<(Vec<u64>, Option<SharedStretch>)>>,
+    /// Steps the system's runs took on the generic path while their compiled code was missing.
+    pub generic_steps: AtomicU64,
 }
 
 impl Compiled {
-    /// The compiled stretch of `plan`, compiled once per plan (`None` when the system or the
-    /// plan is one the stretches do not take).
-    fn stretch(&self, plan: &StretchPlan) -> Option<SharedStretch> {
-        let key: Vec<u64> = plan
-            .flows
-            .iter()
-            .flat_map(|&(flow, fraction)| [flow_code(flow), fraction.to_bits()])
-            .chain(plan.coefficients.iter().map(|&(c, _)| c.to_bits()))
-            .chain([
-                plan.h.to_bits(),
-                plan.seam.0.to_bits(),
-                plan.seam.1 .0.to_bits(),
-            ])
-            .collect();
-        self.cached(key, |parts| stretch::compile(plan, parts))
+    /// The compiled stretch of `plan` (see [`Self::cached`]).
+    fn stretch(&self, plan: &StretchPlan, steps: u64) -> Option<SharedStretch> {
+        let key = || {
+            plan.flows
+                .iter()
+                .flat_map(|&(flow, fraction)| [flow_code(flow), fraction.to_bits()])
+                .chain(plan.coefficients.iter().map(|&(c, _)| c.to_bits()))
+                .chain([plan.h, plan.seam.0, plan.seam.1 .0].map(f64::to_bits))
+        };
+        self.cached(key, steps, |parts| stretch::compile(plan, parts))
     }
 
-    /// The compiled steps of `tableau` at step `h`, compiled once per tableau and h.
-    fn steps(&self, tableau: &Tableau, h: f64) -> Option<SharedStretch> {
-        let key: Vec<u64> = std::iter::once(0)
-            .chain(
-                tableau
-                    .a
-                    .iter()
-                    .flat_map(|row| row.iter().map(|a| a.to_bits())),
-            )
-            .chain(tableau.b.iter().map(|b| b.to_bits()))
-            .chain([h.to_bits()])
-            .collect();
-        self.cached(key, |parts| stretch::compile_runge_kutta(tableau, h, parts))
+    /// The compiled steps of `tableau` at step `h` (see [`Self::cached`]).
+    fn steps(&self, tableau: &Tableau, h: f64, steps: u64) -> Option<SharedStretch> {
+        let key = || {
+            std::iter::once(0)
+                .chain(
+                    tableau
+                        .a
+                        .iter()
+                        .flat_map(|row| row.iter().map(|a| a.to_bits())),
+                )
+                .chain(tableau.b.iter().map(|b| b.to_bits()))
+                .chain([h.to_bits()])
+        };
+        self.cached(key, steps, |parts| {
+            stretch::compile_runge_kutta(tableau, h, parts)
+        })
     }
 
     /// The code `compile` builds for the system's parts, kept for `key` until another key asks
-    /// (the cells of a sweep share it); `None` when the system is one the compiled steps do not
-    /// take (a driven system, a general H or damping) or the code cannot be built.
-    fn cached(
+    /// (the cells of a sweep share it). Without it, `steps` more steps were run on the generic
+    /// path, and the code is built once the system's runs have taken
+    /// [`COMPILE_AFTER`](crate::methods::splitting::compiled::COMPILE_AFTER) such steps. `None`
+    /// until then, and when the system is one the compiled steps do not take (a driven system,
+    /// a general H or damping) or the code cannot be built. A lookup allocates nothing.
+    fn cached<K: Iterator<Item = u64>>(
         &self,
-        key: Vec<u64>,
+        key: impl Fn() -> K,
+        steps: u64,
         compile: impl FnOnce(&stretch::Parts) -> Result<CompiledStretch, String>,
     ) -> Option<SharedStretch> {
         if let Ok(last) = self.stretch.lock() {
-            if let Some((_, code)) = last.as_ref().filter(|(k, _)| *k == key) {
+            if let Some((_, code)) = last.as_ref().filter(|(k, _)| k.iter().copied().eq(key())) {
                 return code.clone();
             }
+        }
+        let waited = self.generic_steps.fetch_add(steps, Ordering::Relaxed) + steps;
+        if waited < COMPILE_AFTER {
+            return None;
         }
         let code = self
             .parts()
             .and_then(|parts| compile(&parts).ok().map(Arc::new));
         if let Ok(mut last) = self.stretch.lock() {
-            *last = Some((key, code.clone()));
+            *last = Some((key().collect(), code.clone()));
         }
         code
     }
@@ -593,13 +604,15 @@ where
         self.model.clock
     }
 
-    fn compile_stretch(&self, plan: &StretchPlan) -> Option<SharedStretch> {
-        self.stretches.then(|| self.model.stretch(plan)).flatten()
+    fn compile_stretch(&self, plan: &StretchPlan, steps: u64) -> Option<SharedStretch> {
+        self.stretches
+            .then(|| self.model.stretch(plan, steps))
+            .flatten()
     }
 
-    fn compile_steps(&self, tableau: &Tableau, h: f64) -> Option<SharedStretch> {
+    fn compile_steps(&self, tableau: &Tableau, h: f64, steps: u64) -> Option<SharedStretch> {
         self.stretches
-            .then(|| self.model.steps(tableau, h))
+            .then(|| self.model.steps(tableau, h, steps))
             .flatten()
     }
 
