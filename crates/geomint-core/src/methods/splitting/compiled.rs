@@ -121,19 +121,22 @@ impl LazyCode {
     }
 
     /// The code for a stretch of `n` steps, or `None`, in which case the generic path takes them.
-    /// `ask(steps)` asks the system, telling it the generic steps taken since the last ask.
+    /// `ask(steps)` asks the system, telling it the generic steps taken since the last ask, this
+    /// stretch's included.
     pub fn get(
         &mut self,
         n: u64,
         ask: impl FnOnce(u64) -> Option<SharedStretch>,
     ) -> Option<SharedStretch> {
-        if self.code.is_none() && (!self.asked || self.pending >= ASK_EVERY) {
-            self.code = ask(self.pending);
-            self.asked = true;
-            self.pending = 0;
-        }
         if self.code.is_none() {
+            // This stretch counts as generic when the system is asked before it: a run shorter
+            // than ASK_EVERY then still reports its first stretch.
             self.pending = self.pending.saturating_add(n);
+            if !self.asked || self.pending >= ASK_EVERY {
+                self.code = ask(self.pending);
+                self.asked = true;
+                self.pending = 0;
+            }
         }
         self.code.clone()
     }

@@ -140,10 +140,7 @@ where
         n: u64,
     ) -> Advanced {
         let work = &mut self.work;
-        work.start.q.copy_from(&z.q);
-        work.start.p.copy_from(&z.p);
-        work.start_grad.copy_from(&work.grad);
-        let (start_grad_valid, start_count) = (work.grad_valid, work.force_evaluations);
+        let start = work.keep_start(z);
         let taken = code.run(
             z.q.as_mut_slice(),
             z.p.as_mut_slice(),
@@ -155,11 +152,7 @@ where
         if taken == n {
             return (n, Ok(()));
         }
-        z.q.copy_from(&work.start.q);
-        z.p.copy_from(&work.start.p);
-        work.grad.copy_from(&work.start_grad);
-        work.grad_valid = start_grad_valid;
-        work.force_evaluations = start_count;
+        work.back_to_start(z, start);
         step_by_step(self, sys, z, h, n)
     }
 
@@ -183,10 +176,7 @@ where
         let m = sequence.len();
         let coefficients = &self.coefficients[..m];
         let work = &mut self.work;
-        work.start.q.copy_from(&z.q);
-        work.start.p.copy_from(&z.p);
-        work.start_grad.copy_from(&work.grad);
-        let (start_grad_valid, start_count) = (work.grad_valid, work.force_evaluations);
+        let start = work.keep_start(z);
         let first = sequence[0];
         let last = W::kind(sequence, m - 1, W::START + W::period(sequence) - 1);
         let last_frac = sequence[m - 1].1;
@@ -208,14 +198,7 @@ where
                 return (n, Ok(()));
             }
         }
-        // Diverged: run the stretch again step by step from where it started, with the force
-        // cache and the count as they were, so that the stop step, the state and the count are
-        // those of single steps.
-        z.q.copy_from(&work.start.q);
-        z.p.copy_from(&work.start.p);
-        work.grad.copy_from(&work.start_grad);
-        work.grad_valid = start_grad_valid;
-        work.force_evaluations = start_count;
+        work.back_to_start(z, start);
         step_by_step(self, sys, z, h, n)
     }
 
@@ -242,6 +225,27 @@ impl<S: MechanicalSystem> Work<S>
 where
     DefaultAllocator: Allocator<S::Dim>,
 {
+    /// Keeps the state and the force cache at the start of a stretch; returns the cache's
+    /// validity and the count, for [`Self::back_to_start`].
+    #[inline(always)]
+    fn keep_start(&mut self, z: &State<S::Dim>) -> (bool, u64) {
+        self.start.q.copy_from(&z.q);
+        self.start.p.copy_from(&z.p);
+        self.start_grad.copy_from(&self.grad);
+        (self.grad_valid, self.force_evaluations)
+    }
+
+    /// A stretch that diverged goes back to where it started, with the force cache and the
+    /// count as they were, to be run again step by step: the stop step, the state and the count
+    /// are then those of single steps.
+    fn back_to_start(&mut self, z: &mut State<S::Dim>, (grad_valid, count): (bool, u64)) {
+        z.q.copy_from(&self.start.q);
+        z.p.copy_from(&self.start.p);
+        self.grad.copy_from(&self.start_grad);
+        self.grad_valid = grad_valid;
+        self.force_evaluations = count;
+    }
+
     /// Applies `flow` for time τ, with its h-dependent coefficients (c, d).
     #[inline(always)]
     fn apply(

@@ -17,7 +17,7 @@
 
 use cranelift_codegen::ir::condcodes::{FloatCC, IntCC};
 use cranelift_codegen::ir::immediates::Ieee64;
-use cranelift_codegen::ir::{types, AbiParam, InstBuilder, MemFlagsData, Value};
+use cranelift_codegen::ir::{types, AbiParam, Block, InstBuilder, MemFlagsData, Value};
 use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext, Variable};
 use cranelift_module::Module;
 
@@ -201,29 +201,43 @@ impl<'a, 'b> Stretch<'a, 'b> {
         if !(kind == SubFlow::Damp && seam_c == 0.0 && last_c == 0.0) {
             self.flow_with(kind, tau, c)?;
         }
+        self.end_of_step(step, false)
+    }
+
+    /// The end of a step of the loop that starts at `step`: the next step, or after the n-th
+    /// the state stored and n returned. A step that leaves the state not finite returns 0 when
+    /// `keep_at_stop` is false (the caller runs the stretch again), else stores the state and
+    /// returns the steps taken.
+    fn end_of_step(&mut self, step: Block, keep_at_stop: bool) -> Result<(), String> {
         let finite = self.finite();
-        let (more, ended, diverged) = (
+        let (more, next, ended, stopped) = (
+            self.b.create_block(),
             self.b.create_block(),
             self.b.create_block(),
             self.b.create_block(),
         );
-        let next = self.b.create_block();
-        self.b.ins().brif(finite, more, &[], diverged, &[]);
+        self.b.ins().brif(finite, more, &[], stopped, &[]);
         self.b.switch_to_block(more);
         let done = self.b.use_var(self.done);
-        let last = self.b.ins().icmp(IntCC::Equal, done, n);
+        let last = self.b.ins().icmp(IntCC::Equal, done, self.args[4]);
         self.b.ins().brif(last, ended, &[], next, &[]);
         self.b.switch_to_block(next);
-        let done = self.b.use_var(self.done);
         let done = self.b.ins().iadd_imm_s(done, 1);
         self.b.def_var(self.done, done);
         self.b.ins().jump(step, &[]);
         self.b.switch_to_block(ended);
         self.store()?;
-        self.b.ins().return_(&[n]);
-        self.b.switch_to_block(diverged);
-        let no = self.b.ins().iconst(types::I64, 0);
-        self.b.ins().return_(&[no]);
+        let done = self.b.use_var(self.done);
+        self.b.ins().return_(&[done]);
+        self.b.switch_to_block(stopped);
+        if keep_at_stop {
+            self.store()?;
+            let done = self.b.use_var(self.done);
+            self.b.ins().return_(&[done]);
+        } else {
+            let none = self.b.ins().iconst(types::I64, 0);
+            self.b.ins().return_(&[none]);
+        }
         Ok(())
     }
 
@@ -285,27 +299,7 @@ impl<'a, 'b> Stretch<'a, 'b> {
         let evaluations = self.b.ins().iadd_imm_s(evaluations, t.stages() as i64);
         self.b.def_var(self.evaluations, evaluations);
         // Stop after this step if it left the state not finite, or after the n-th.
-        let finite = self.finite();
-        let done = self.b.use_var(self.done);
-        let last = self.b.ins().icmp(IntCC::Equal, done, self.args[4]);
-        let (more, ended, next) = (
-            self.b.create_block(),
-            self.b.create_block(),
-            self.b.create_block(),
-        );
-        self.b.ins().brif(finite, more, &[], ended, &[]);
-        self.b.switch_to_block(more);
-        self.b.ins().brif(last, ended, &[], next, &[]);
-        self.b.switch_to_block(next);
-        let done = self.b.use_var(self.done);
-        let done = self.b.ins().iadd_imm_s(done, 1);
-        self.b.def_var(self.done, done);
-        self.b.ins().jump(step, &[]);
-        self.b.switch_to_block(ended);
-        self.store()?;
-        let done = self.b.use_var(self.done);
-        self.b.ins().return_(&[done]);
-        Ok(())
+        self.end_of_step(step, true)
     }
 
     /// a·x + y, as `axpy(a, x, 1)` computes each component.
