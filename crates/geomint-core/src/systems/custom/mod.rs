@@ -16,11 +16,13 @@
 //! points). A run then compiles the model for its parameter values ([`model::CustomModel`]'s
 //! `instantiate`), parameters folded into the machine code.
 
+mod buffers;
 pub mod damping;
 mod lanes;
 mod mass;
 pub mod model;
 mod shapes;
+mod steps;
 mod stretch;
 pub mod system;
 

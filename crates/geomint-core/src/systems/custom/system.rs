@@ -5,23 +5,19 @@
 //! caller's vectors, and the few intermediate buffers are on the stack (or, past 8 numbers,
 //! in a buffer kept per thread).
 
-use std::cell::Cell;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::AtomicU64;
 use std::sync::{Arc, Mutex};
 
 use nalgebra::allocator::Allocator;
 use nalgebra::{DMatrix, DefaultAllocator, Dim};
 
+use super::buffers::{eval_on_phase, with_buffer, with_phase};
 use super::damping::{Flows, MassFactor};
 pub use super::mass::InverseMass;
-use super::stretch;
 use super::DampingKind;
 use crate::expr::CompiledFunction;
 use crate::methods::runge_kutta::Tableau;
-use crate::methods::splitting::compiled::{
-    CompiledStretch, SharedStretch, StretchPlan, COMPILE_AFTER,
-};
-use crate::methods::splitting::SubFlow;
+use crate::methods::splitting::compiled::{SharedStretch, StretchPlan};
 use crate::system::{projector, MechanicalSystem, Structure, Vector};
 
 /// The energy's compiled functions.
@@ -141,149 +137,6 @@ pub struct Compiled {
     pub stretch: Mutex<Option<(Vec<u64>, Option<SharedStretch>)>>,
     /// Steps the system's runs took on the generic path while their compiled code was missing.
     pub generic_steps: AtomicU64,
-}
-
-impl Compiled {
-    /// The compiled stretch of `plan` (see [`Self::cached`]).
-    fn stretch(&self, plan: &StretchPlan, steps: u64) -> Option<SharedStretch> {
-        let key = || {
-            plan.flows
-                .iter()
-                .flat_map(|&(flow, fraction)| [flow_code(flow), fraction.to_bits()])
-                .chain(plan.coefficients.iter().map(|&(c, _)| c.to_bits()))
-                .chain([plan.h, plan.seam.0, plan.seam.1 .0].map(f64::to_bits))
-        };
-        self.cached(key, steps, |parts| stretch::compile(plan, parts))
-    }
-
-    /// The compiled steps of `tableau` at step `h` (see [`Self::cached`]).
-    fn steps(&self, tableau: &Tableau, h: f64, steps: u64) -> Option<SharedStretch> {
-        let key = || {
-            std::iter::once(0)
-                .chain(
-                    tableau
-                        .a
-                        .iter()
-                        .flat_map(|row| row.iter().map(|a| a.to_bits())),
-                )
-                .chain(tableau.b.iter().map(|b| b.to_bits()))
-                .chain([h.to_bits()])
-        };
-        self.cached(key, steps, |parts| {
-            stretch::compile_runge_kutta(tableau, h, parts)
-        })
-    }
-
-    /// The code `compile` builds for the system's parts, kept for `key` until another key asks
-    /// (the cells of a sweep share it). Without it, `steps` more steps were run on the generic
-    /// path, and the code is built once the system's runs have taken
-    /// [`COMPILE_AFTER`](crate::methods::splitting::compiled::COMPILE_AFTER) such steps. `None`
-    /// until then, and when the system is one the compiled steps do not take (a driven system,
-    /// a general H or damping) or the code cannot be built. A lookup allocates nothing.
-    fn cached<K: Iterator<Item = u64>>(
-        &self,
-        key: impl Fn() -> K,
-        steps: u64,
-        compile: impl FnOnce(&stretch::Parts) -> Result<CompiledStretch, String>,
-    ) -> Option<SharedStretch> {
-        if let Ok(last) = self.stretch.lock() {
-            if let Some((_, code)) = last.as_ref().filter(|(k, _)| k.iter().copied().eq(key())) {
-                return code.clone();
-            }
-        }
-        let waited = self.generic_steps.fetch_add(steps, Ordering::Relaxed) + steps;
-        if waited < COMPILE_AFTER {
-            return None;
-        }
-        let code = self
-            .parts()
-            .and_then(|parts| compile(&parts).ok().map(Arc::new));
-        if let Ok(mut last) = self.stretch.lock() {
-            *last = Some((key().collect(), code.clone()));
-        }
-        code
-    }
-
-    /// What compiled steps need of the system, if it is one they take.
-    fn parts(&self) -> Option<stretch::Parts<'_>> {
-        let EnergyModel::Separable {
-            gradient,
-            inverse_mass,
-            ..
-        } = &self.energy
-        else {
-            return None;
-        };
-        let projector = match (&self.damping, &self.damping_matrix) {
-            (DampingModel::None | DampingModel::Conformal { .. }, _) => None,
-            (DampingModel::Projector { .. }, Some(matrix)) => Some(matrix.program()),
-            _ => return None,
-        };
-        if self.clock.is_some() {
-            return None;
-        }
-        Some(stretch::Parts {
-            n: self.n,
-            gradient: gradient.program(),
-            inverse_mass,
-            projector,
-            rate: self.damping.rate(),
-        })
-    }
-}
-
-/// A flow's kind as a number, for the stretch's key.
-fn flow_code(flow: SubFlow) -> u64 {
-    match flow {
-        SubFlow::Drift => 1,
-        SubFlow::Kick => 2,
-        SubFlow::Damp => 3,
-        SubFlow::KickDamp => 4,
-        SubFlow::MomentumRk => 5,
-        SubFlow::DampedKick(theta) => 6 + theta.value().to_bits(),
-    }
-}
-
-thread_local! {
-    /// A buffer for intermediate values too long for the stack buffer (kept per thread, taken
-    /// while used, so a nested use gets its own).
-    static SPARE: Cell<Vec<f64>> = const { Cell::new(Vec::new()) };
-}
-
-/// Runs `f` on a zeroed buffer of `len` numbers: on the stack for up to 16, else a per-thread
-/// buffer that is allocated once.
-#[inline]
-fn with_buffer<R>(len: usize, f: impl FnOnce(&mut [f64]) -> R) -> R {
-    // Up to a 4 × 4 matrix (a 3-D system's damping matrix is 9) on the stack.
-    if len <= 16 {
-        let mut buffer = [0.0; 16];
-        f(&mut buffer[..len])
-    } else {
-        let mut buffer = SPARE.with(Cell::take);
-        buffer.clear();
-        buffer.resize(len, 0.0);
-        let result = f(&mut buffer);
-        SPARE.with(|spare| spare.set(buffer));
-        result
-    }
-}
-
-/// Runs `f` on (q, p) laid out as the compiled functions of both read them.
-#[inline]
-fn with_phase<R>(q: &[f64], p: &[f64], f: impl FnOnce(&[f64]) -> R) -> R {
-    let n = q.len();
-    with_buffer(2 * n, |x| {
-        x[..n].copy_from_slice(q);
-        x[n..].copy_from_slice(p);
-        f(x)
-    })
-}
-
-/// `f` at the phase point (q, p); out of line, so that the separable paths that call it only
-/// for a general H stay small enough to inline.
-#[inline(never)]
-fn eval_on_phase(f: &CompiledFunction, q: &[f64], p: &[f64], out: &mut [f64]) {
-    with_phase(q, p, |x| f.eval(x, out))
 }
 
 /// A user-defined system of dimension `D` (`U1`–`U3` on the stack, `Dyn` beyond).

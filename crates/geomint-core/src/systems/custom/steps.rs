@@ -1,0 +1,116 @@
+//! Which compiled steps a typed-in system has: its code for a splitting's stretches and for
+//! Runge–Kutta steps (`stretch.rs` builds it), kept per system for the plan last asked for, and
+//! built once the system's runs have taken
+//! [`COMPILE_AFTER`](crate::methods::splitting::compiled::COMPILE_AFTER) steps without it.
+
+use std::sync::atomic::Ordering;
+use std::sync::Arc;
+
+use super::stretch;
+use super::system::{Compiled, DampingModel, EnergyModel};
+use crate::methods::runge_kutta::Tableau;
+use crate::methods::splitting::compiled::{
+    CompiledStretch, SharedStretch, StretchPlan, COMPILE_AFTER,
+};
+use crate::methods::splitting::SubFlow;
+
+impl Compiled {
+    /// The compiled stretch of `plan` (see [`Self::cached`]).
+    pub(super) fn stretch(&self, plan: &StretchPlan, steps: u64) -> Option<SharedStretch> {
+        let key = || {
+            plan.flows
+                .iter()
+                .flat_map(|&(flow, fraction)| [flow_code(flow), fraction.to_bits()])
+                .chain(plan.coefficients.iter().map(|&(c, _)| c.to_bits()))
+                .chain([plan.h, plan.seam.0, plan.seam.1 .0].map(f64::to_bits))
+        };
+        self.cached(key, steps, |parts| stretch::compile(plan, parts))
+    }
+
+    /// The compiled steps of `tableau` at step `h` (see [`Self::cached`]).
+    pub(super) fn steps(&self, tableau: &Tableau, h: f64, steps: u64) -> Option<SharedStretch> {
+        let key = || {
+            std::iter::once(0)
+                .chain(
+                    tableau
+                        .a
+                        .iter()
+                        .flat_map(|row| row.iter().map(|a| a.to_bits())),
+                )
+                .chain(tableau.b.iter().map(|b| b.to_bits()))
+                .chain([h.to_bits()])
+        };
+        self.cached(key, steps, |parts| {
+            stretch::compile_runge_kutta(tableau, h, parts)
+        })
+    }
+
+    /// The code `compile` builds for the system's parts, kept for `key` until another key asks
+    /// (the cells of a sweep share it). Without it, `steps` more steps were run on the generic
+    /// path, and the code is built once the system's runs have taken
+    /// [`COMPILE_AFTER`](crate::methods::splitting::compiled::COMPILE_AFTER) such steps. `None`
+    /// until then, and when the system is one the compiled steps do not take (a driven system,
+    /// a general H or damping) or the code cannot be built. A lookup allocates nothing.
+    fn cached<K: Iterator<Item = u64>>(
+        &self,
+        key: impl Fn() -> K,
+        steps: u64,
+        compile: impl FnOnce(&stretch::Parts) -> Result<CompiledStretch, String>,
+    ) -> Option<SharedStretch> {
+        if let Ok(last) = self.stretch.lock() {
+            if let Some((_, code)) = last.as_ref().filter(|(k, _)| k.iter().copied().eq(key())) {
+                return code.clone();
+            }
+        }
+        let waited = self.generic_steps.fetch_add(steps, Ordering::Relaxed) + steps;
+        if waited < COMPILE_AFTER {
+            return None;
+        }
+        let code = self
+            .parts()
+            .and_then(|parts| compile(&parts).ok().map(Arc::new));
+        if let Ok(mut last) = self.stretch.lock() {
+            *last = Some((key().collect(), code.clone()));
+        }
+        code
+    }
+
+    /// What compiled steps need of the system, if it is one they take.
+    fn parts(&self) -> Option<stretch::Parts<'_>> {
+        let EnergyModel::Separable {
+            gradient,
+            inverse_mass,
+            ..
+        } = &self.energy
+        else {
+            return None;
+        };
+        let projector = match (&self.damping, &self.damping_matrix) {
+            (DampingModel::None | DampingModel::Conformal { .. }, _) => None,
+            (DampingModel::Projector { .. }, Some(matrix)) => Some(matrix.program()),
+            _ => return None,
+        };
+        if self.clock.is_some() {
+            return None;
+        }
+        Some(stretch::Parts {
+            n: self.n,
+            gradient: gradient.program(),
+            inverse_mass,
+            projector,
+            rate: self.damping.rate(),
+        })
+    }
+}
+
+/// A flow's kind as a number, for the stretch's key.
+fn flow_code(flow: SubFlow) -> u64 {
+    match flow {
+        SubFlow::Drift => 1,
+        SubFlow::Kick => 2,
+        SubFlow::Damp => 3,
+        SubFlow::KickDamp => 4,
+        SubFlow::MomentumRk => 5,
+        SubFlow::DampedKick(theta) => 6 + theta.value().to_bits(),
+    }
+}
