@@ -468,6 +468,19 @@ async fn every_study_on_nats_workers_equals_the_local_executor() {
     assert_eq!(shards_published(&url).await, before);
 }
 
+/// POSTs the sweep `body` to the server at `base`: its status and its JSON.
+pub(crate) fn post_study(
+    base: &str,
+    body: Value,
+) -> impl std::future::Future<Output = (u16, Value)> + Send + 'static {
+    let url = format!("{base}/api/v1/studies/sweep");
+    async move {
+        let response = client().post(url).json(&body).send().await.unwrap();
+        let status = response.status().as_u16();
+        (status, response.json::<Value>().await.unwrap())
+    }
+}
+
 /// A small sweep (4 cells, one shard) whose last γ tells it from the others.
 fn small_sweep(gamma_max: f64) -> Value {
     json!({
@@ -496,14 +509,7 @@ async fn a_study_that_leaves_the_queue_takes_only_its_own_shards() {
     let dir = scratch("leaves");
     let (_nats, url) = nats_server(&dir);
     let (_server, base) = server(&url, &dir, 60);
-    let post = |body: Value| {
-        let url = format!("{base}/api/v1/studies/sweep");
-        async move {
-            let response = client().post(url).json(&body).send().await.unwrap();
-            let status = response.status().as_u16();
-            (status, response.json::<Value>().await.unwrap())
-        }
-    };
+    let post = |body: Value| post_study(&base, body);
     // No worker yet: the first study's shard waits in the queue, then the second's.
     let first = tokio::spawn(post(small_sweep(0.5)));
     until_queued(&url, 1).await;

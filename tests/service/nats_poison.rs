@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 
 use serde_json::Value;
 
-use crate::nats::{geomint, nats_server, scratch, server_with};
+use crate::nats::{geomint, nats_server, post_study, scratch, server_with};
 use crate::server::{client, Process};
 
 /// The marker the worker panics on: a parameter value no other study uses.
@@ -44,14 +44,7 @@ async fn a_panicking_shard_fails_its_study_after_max_deliver_and_the_others_comp
             .unwrap(),
     );
     let (_server, base) = server_with(&url, &dir, 60, &["--nats-max-deliver", "3"]);
-    let post = |body: Value| {
-        let url = format!("{base}/api/v1/studies/sweep");
-        async move {
-            let response = client().post(url).json(&body).send().await.unwrap();
-            let status = response.status().as_u16();
-            (status, response.json::<Value>().await.unwrap())
-        }
-    };
+    let post = |body: Value| post_study(&base, body);
     // The poisoned study's own time, not that of the join: on a loaded machine the healthy
     // studies beside it may take longer, which is not what the bound is about.
     let poisoned = async {
