@@ -28,6 +28,8 @@
 //! compile time ([`Composition`]); between two samples, the last flow of a step and the first of
 //! the next are fused too when they are of one kind ([`Splitting::advance`](crate::run::Stepper::advance)), which changes
 //! results by round-off only.
+//! A system may compile those fused stretches whole ([`compiled`]: a typed-in system does), with
+//! the composer's bits.
 
 mod catalogue;
 pub mod compiled;
