@@ -12,7 +12,9 @@
 //! the ratio of the two, and how far its ⟨Y⟩ is from the built-in system's when the grids are
 //! the same. Last, the same typed-in potential swept without indicators (energy errors against
 //! H₀ sampled every step, as sweeps sample by default, and every 100 steps), in lanes and cell by
-//! cell.
+//! cell. Last, sweeps over parameters and the step on `GEOMINT_SWEEP_GRID` × the same (101 by
+//! default; 0 skips them), in lanes and cell by cell: the damped oscillator over (γ, h) and the
+//! damped 3-D elastic pendulum over (k, ε).
 
 use std::io::Write;
 use std::time::Instant;
@@ -21,7 +23,7 @@ use geomint::api::sweep::{presets, SweepRequest};
 use geomint::api::system::NoStoredSystems;
 use geomint::core::run::Budget;
 use geomint::core::studies::engine::Local;
-use geomint::core::studies::sweep::{self, SweepDocument, SweepLine};
+use geomint::core::studies::sweep::{self, SweepDocument, SweepJob, SweepLine};
 use serde_json::{json, Value};
 
 /// CPU time of the process so far, user and system, in seconds.
@@ -116,6 +118,10 @@ fn main() {
             );
         }
     }
+    let sweep_n = grid("GEOMINT_SWEEP_GRID", 101);
+    if sweep_n > 0 {
+        parameter_sweeps(sweep_n);
+    }
 }
 
 /// The preset's map on n × n cells changed by `edit`, in lanes and then cell by cell: checks
@@ -152,16 +158,7 @@ fn megno_map(n: usize, label: &str, edit: &dyn Fn(&mut Value), one_by_one: bool)
     request["axes"][0]["n"] = json!(n);
     request["axes"][1]["n"] = json!(n);
     edit(&mut request);
-    let job = SweepRequest::from_value(&request)
-        .map_err(|e| e.message)
-        .and_then(|r| {
-            r.to_spec(&NoStoredSystems)
-                .map_err(|e| e.message)?
-                .prepare(&Default::default())
-                .map_err(|e| e.to_string())
-        })
-        .expect("a valid sweep");
-    let job = if one_by_one { job.cell_by_cell() } else { job };
+    let job = sweep_job(&request, one_by_one);
     let (cpu, wall) = (cpu_seconds(), Instant::now());
     let doc =
         sweep::run(&job, &Local, Budget::default(), &|_: SweepLine| true).expect("the map runs");
@@ -190,4 +187,87 @@ fn megno_map(n: usize, label: &str, edit: &dyn Fn(&mut Value), one_by_one: bool)
         cpu * 1e9 / steps.max(1) as f64,
     );
     doc
+}
+
+/// The sweep `request` prepared, in lanes where it runs so or `one_by_one`.
+fn sweep_job(request: &Value, one_by_one: bool) -> SweepJob {
+    let job = SweepRequest::from_value(request)
+        .map_err(|e| e.message)
+        .and_then(|r| {
+            r.to_spec(&NoStoredSystems)
+                .map_err(|e| e.message)?
+                .prepare(&Default::default())
+                .map_err(|e| e.to_string())
+        })
+        .expect("a valid sweep");
+    assert!(job.runs_in_lanes(), "the sweep runs in lanes");
+    if one_by_one {
+        job.cell_by_cell()
+    } else {
+        job
+    }
+}
+
+/// Sweeps over parameters and the step (one system per lane; cells of one step share lanes),
+/// n × n cells, in lanes and then cell by cell: the same numbers, checked, and the ratio.
+fn parameter_sweeps(n: usize) {
+    let sweeps = [
+        (
+            "the csv1_stability preset's oscillator over (γ, h), T = 20000",
+            json!({
+                "system": "harmonic_oscillator",
+                "methods": ["csv1"],
+                "t_end": 20000,
+                "every": 100,
+                "axes": [
+                    {"name": "params.gamma", "min": 0.0, "max": 2.0, "n": n},
+                    {"name": "h", "min": 0.1, "max": 3.0, "n": n}
+                ]
+            }),
+        ),
+        (
+            "the damped 3-D elastic pendulum over (k, ε), modin_3s, h = 0.01, T = 100, \
+             energy against H₀",
+            json!({
+                "system": "elastic_pendulum_3d",
+                "methods": ["modin_3s"],
+                "q0": [0.3, 0.1, -1.2],
+                "p0": [0.0, 0.4, 0.1],
+                "h": 0.01,
+                "t_end": 100,
+                "every": 100,
+                "energy_reference": "initial",
+                "axes": [
+                    {"name": "params.k", "min": 0.5, "max": 40.0, "n": n},
+                    {"name": "params.epsilon", "min": 0.0, "max": 0.5, "n": n}
+                ]
+            }),
+        ),
+    ];
+    for (label, request) in sweeps {
+        let mut docs = Vec::new();
+        let mut walls = Vec::new();
+        for one_by_one in [false, true] {
+            let job = sweep_job(&request, one_by_one);
+            let wall = Instant::now();
+            docs.push(
+                sweep::run(&job, &Local, Budget::default(), &|_: SweepLine| true)
+                    .expect("the sweep runs"),
+            );
+            walls.push(wall.elapsed().as_secs_f64());
+        }
+        assert_eq!(
+            serde_json::to_string(&docs[0].runs).expect("numbers"),
+            serde_json::to_string(&docs[1].runs).expect("numbers"),
+            "the lanes give the one-cell path's numbers"
+        );
+        let steps: u64 = docs[0].runs[0].steps.iter().sum();
+        println!(
+            "{label}, {n} × {n}: in lanes {:.2} s, cell by cell {:.2} s, the same numbers; \
+             {:.1}× the cells per second ({steps} steps)",
+            walls[0],
+            walls[1],
+            walls[1] / walls[0]
+        );
+    }
 }

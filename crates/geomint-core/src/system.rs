@@ -159,6 +159,9 @@ pub trait LaneForces<const N: usize> {
     fn grad_lanes(&self, q: &[Lane; N], g: &mut [Lane; N]);
     /// ∇²V(q), row i and column j in `hess[i][j]`.
     fn hessian_lanes(&self, q: &[Lane; N], hess: &mut [[Lane; N]; N]);
+    /// The exact damping flow over τ, lane l's with the coefficient c[l] = 1 − e^{−r τ} of its
+    /// rate r, as the system's `damp_flow` (`methods::lanes::each::damp_each_lane`).
+    fn damp_lanes(&self, q: &[Lane; N], p: &mut [Lane; N], tau: f64, c: &Lane);
 }
 
 /// A Hamiltonian system with Rayleigh damping. See the module docs for the model.

@@ -1,6 +1,6 @@
-//! Runs of one simulation's method from up to [`LANES`] initial states, side by side in SIMD
-//! lanes (see [`crate::methods::lanes`]): a chaos map's cells with their indicators, or a sweep's
-//! plain runs. For each run the driver does what [`integrate_tracked`](crate::run::integrate_tracked)
+//! Runs of one method from up to [`LANES`] initial states, side by side in SIMD lanes (see
+//! [`crate::methods::lanes`]): a chaos map's cells with their indicators, or a sweep's plain runs,
+//! which may also differ in their system's parameters (one system per lane) but share the step. For each run the driver does what [`integrate_tracked`](crate::run::integrate_tracked)
 //! does — the samples, the indicators' updates on their grid and their thresholds, divergence, the
 //! budget, and for plain runs the stretches between samples with their fused seams — and hands
 //! the samples to the same observer, so each run's samples and outcome are bit for bit the
@@ -16,25 +16,46 @@ use super::run::{Outcome, SampleSink};
 use super::spec::Simulation;
 use crate::chaos::{ChaosPlan, OneVectorLanes, ThresholdStop, Tracker};
 use crate::error::CoreError;
+use crate::methods::lanes::each::{EachLane, PointForces};
+use crate::methods::lanes::runs::RunLanes;
 use crate::methods::lanes::tangent::LANES;
 use crate::methods::lanes::{LaneForces, TangentLanes, CHECK_EVERY};
+
+/// The lanes a simulation's runs take: with indicators, or plain.
+enum Lanes<const N: usize> {
+    Tracked(TangentLanes<N>),
+    Runs(RunLanes<N>),
+}
 use crate::methods::{self};
 use crate::run::{Budget, Observer, RunStats, StopReason};
 use crate::system::{MechanicalSystem, State};
 use crate::systems::AnySystem;
 use crate::tangent::Tangent;
 
-/// Runs `$body` with `$sys` bound to the system inside `$any` if the lanes evaluate it (it
-/// implements [`LaneForces`]), else `$other`. A system joins the lanes with an arm here.
-macro_rules! with_lane_system {
-    ($any:expr, $sys:ident => $body:expr, _ => $other:expr) => {
-        match $any {
-            AnySystem::HenonHeiles($sys) => $body,
-            AnySystem::PlanarCartesian($sys) => $body,
-            AnySystem::ElasticPendulum3d($sys) => $body,
-            AnySystem::Custom1($sys) => $body,
-            AnySystem::Custom2($sys) => $body,
-            AnySystem::Custom3($sys) => $body,
+/// Runs `$body` with `$systems` bound to the systems inside `$sims` (a slice of simulations) if
+/// the lanes evaluate them (they implement [`LaneForces`]) and all are of the first one's kind,
+/// else `$other`. A system joins the lanes with a variant here.
+macro_rules! with_lane_systems {
+    ($sims:expr, $systems:ident => $body:expr, _ => $other:expr) => {
+        with_lane_systems!(@kinds $sims, $systems, $body, $other;
+            HenonHeiles, PlanarCartesian, ElasticPendulum3d, HarmonicOscillator,
+            Custom1, Custom2, Custom3)
+    };
+    (@kinds $sims:expr, $systems:ident, $body:expr, $other:expr; $($kind:ident),*) => {
+        match &$sims[0].system {
+            $(AnySystem::$kind(_) => {
+                let of_kind: Option<Vec<_>> = $sims
+                    .iter()
+                    .map(|sim| match &sim.system {
+                        AnySystem::$kind(sys) => Some(sys),
+                        _ => None,
+                    })
+                    .collect();
+                match of_kind {
+                    Some($systems) => $body,
+                    None => $other,
+                }
+            })*
             _ => $other,
         }
     };
@@ -43,31 +64,67 @@ macro_rules! with_lane_system {
 impl Simulation {
     /// Whether runs of this simulation's first method go side by side in lanes: nothing asked
     /// for but samples and, if any, chaos indicators (no section, event, reference run or
-    /// Jacobian defect), a composition of kicks and drifts, on an undamped autonomous system the
-    /// lanes evaluate (Hénon–Heiles, the planar and the 3-D elastic pendulum in Cartesian
-    /// coordinates, typed-in separable systems of one to three degrees of freedom).
+    /// Jacobian defect), a composition of kicks and drifts (and, without indicators, exact
+    /// damping flows), on an autonomous system the lanes evaluate (Hénon–Heiles, the planar and
+    /// the 3-D elastic pendulum in Cartesian coordinates, the harmonic oscillator, typed-in
+    /// separable systems of one to three degrees of freedom), undamped when indicators are
+    /// asked for.
     pub fn runs_in_lanes(&self) -> bool {
-        with_lane_system!(&self.system, sys => self.lanes(sys).is_some(), _ => false)
+        with_lane_systems!(
+            std::slice::from_ref(self),
+            systems => self.lanes(&systems).is_some(),
+            _ => false
+        )
     }
 
-    /// The lanes for this simulation's first method on `sys`, if they can run it.
-    fn lanes<S, const N: usize>(&self, sys: &S) -> Option<TangentLanes<N>>
+    /// Whether `other` can share lanes with this simulation: the same method, schedule, kind of
+    /// system and indicators (its parameters and initial state may differ).
+    fn shares_lanes_with(&self, other: &Simulation) -> bool {
+        let (a, b) = (self.schedule, other.schedule);
+        (a.h, a.steps, a.every) == (b.h, b.steps, b.every)
+            && self.methods.first() == other.methods.first()
+            && std::mem::discriminant(&self.system) == std::mem::discriminant(&other.system)
+            && self.chaos.is_some() == other.chaos.is_some()
+    }
+
+    /// The lanes for this simulation's first method on `systems` (one per run, this one's
+    /// first), if they can run it: with indicators only on one undamped system.
+    fn lanes<S, const N: usize>(&self, systems: &[&S]) -> Option<Lanes<N>>
     where
-        S: MechanicalSystem + LaneForces<N>,
+        S: MechanicalSystem + LaneForces<N> + PartialEq,
         DefaultAllocator: Allocator<S::Dim>,
     {
-        let deviations = self.chaos.as_ref().map_or(0, |plan| plan.deviations);
+        let sys = *systems.first()?;
         let plain = self.crossings.is_none() && !self.compare_to_reference && !self.jacobian_defect;
-        let simple = sys.in_lanes()
-            && sys.damping_rate() == 0.0
-            && sys.clock().is_none()
-            && sys.structure().separable_constant_mass
-            && sys.dim().value() == N;
-        if !plain || !simple {
+        let simple = |sys: &S| {
+            sys.in_lanes()
+                && sys.clock().is_none()
+                && sys.structure().separable_constant_mass
+                && sys.dim().value() == N
+        };
+        let one_system = systems.iter().all(|s| *s == sys);
+        if !plain || !systems.iter().all(|s| simple(s)) || (self.chaos.is_some() && !one_system) {
             return None;
         }
         let h = self.schedule.h;
-        let stepper = methods::build(self.methods.first()?, sys, &self.system_label, h).ok()?;
+        let method = self.methods.first()?;
+        let stepper = methods::build(method, sys, &self.system_label, h).ok()?;
+        let flows = stepper.splitting_flows()?;
+        // Every lane's method must be the same sequence of flows (a method may choose its flows
+        // by the system's damping).
+        for other in systems.iter().filter(|s| **s != sys) {
+            let theirs = methods::build(method, *other, &self.system_label, h).ok()?;
+            if theirs.splitting_flows()? != flows {
+                return None;
+            }
+        }
+        let Some(plan) = &self.chaos else {
+            let rates: Vec<f64> = systems.iter().map(|s| s.damping_rate()).collect();
+            return RunLanes::new(flows, &rates, h).map(Lanes::Runs);
+        };
+        if sys.damping_rate() != 0.0 {
+            return None;
+        }
         let z = State::from_slices(sys.dim(), &self.q0, &self.p0);
         let tangent = Tangent::new(sys, &z);
         let mut minv = [[0.0; N]; N];
@@ -76,37 +133,64 @@ impl Simulation {
                 *m = tangent.minv[(i, j)];
             }
         }
-        let flows = stepper.splitting_flows()?;
-        TangentLanes::new(flows, sys.damping_rate(), h, minv, deviations)
+        TangentLanes::new(flows, sys.damping_rate(), h, minv, plan.deviations).map(Lanes::Tracked)
     }
 
-    /// Runs the first method of each of `sims` (simulations that differ only in their initial
-    /// states), each run's samples to its sink: [`LANES`] at a time in lanes where
-    /// [`runs_in_lanes`](Self::runs_in_lanes), else one by one. `None` when the budget stopped
-    /// a run. A run given back (`Ok(None)`: a plain run whose state's components stayed finite
-    /// while their sum overflowed, after which the one-run path cuts its stretches where the
-    /// lanes do not) is to be run again on its own, with a fresh sink.
+    /// Runs the first method of each of `sims`, each run's samples to its sink: runs that
+    /// [`share lanes`](Self::shares_lanes_with), [`LANES`] at a time (in the order they come),
+    /// in lanes where [`runs_in_lanes`](Self::runs_in_lanes) (one system per lane where their
+    /// parameters differ), else one by one; outcomes in the order of `sims`. `None` when the
+    /// budget stopped a run. A run given back (`Ok(None)`: a plain run whose state's components
+    /// stayed finite while their sum overflowed, after which the one-run path cuts its
+    /// stretches where the lanes do not) is to be run again on its own, with a fresh sink.
     pub fn run_side_by_side(
         sims: &[Simulation],
         budget: Budget<'_>,
         sinks: &mut [&mut dyn SampleSink],
     ) -> Option<Vec<Result<Option<Outcome>, CoreError>>> {
-        let mut outcomes = Vec::with_capacity(sims.len());
-        for (group, sinks) in sims.chunks(LANES).zip(sinks.chunks_mut(LANES)) {
-            let ran = with_lane_system!(
-                &group[0].system,
-                sys => side_by_side(sys, group, budget, sinks),
-                _ => one_by_one(group, budget, sinks)
-            );
-            outcomes.extend(ran?);
+        let mut groups: Vec<Vec<usize>> = Vec::new();
+        for (i, sim) in sims.iter().enumerate() {
+            let open = groups
+                .iter_mut()
+                .find(|g| g.len() < LANES && sims[g[0]].shares_lanes_with(sim));
+            match open {
+                Some(group) => group.push(i),
+                None => groups.push(vec![i]),
+            }
         }
-        Some(outcomes)
+        let mut sinks: Vec<Option<&mut &mut dyn SampleSink>> = sinks.iter_mut().map(Some).collect();
+        let mut outcomes: Vec<Option<Result<Option<Outcome>, CoreError>>> =
+            (0..sims.len()).map(|_| None).collect();
+        for group in groups {
+            let members: Vec<&Simulation> = group.iter().map(|&i| &sims[i]).collect();
+            let mut group_sinks: Vec<&mut dyn SampleSink> = Vec::with_capacity(group.len());
+            for &i in &group {
+                group_sinks.push(&mut **sinks[i].take().expect("each run in one group"));
+            }
+            let ran = match members.len() {
+                1 => one_by_one(&members, budget, &mut group_sinks),
+                _ => with_lane_systems!(
+                    members,
+                    systems => side_by_side(&systems, &members, budget, &mut group_sinks),
+                    _ => one_by_one(&members, budget, &mut group_sinks)
+                ),
+            };
+            for (i, outcome) in group.into_iter().zip(ran?) {
+                outcomes[i] = Some(outcome);
+            }
+        }
+        Some(
+            outcomes
+                .into_iter()
+                .map(|o| o.expect("every run ran"))
+                .collect(),
+        )
     }
 }
 
 /// Each run on its own, through the one-run path.
 fn one_by_one(
-    sims: &[Simulation],
+    sims: &[&Simulation],
     budget: Budget<'_>,
     sinks: &mut [&mut dyn SampleSink],
 ) -> Option<Vec<Result<Option<Outcome>, CoreError>>> {
@@ -121,42 +205,53 @@ fn one_by_one(
     Some(outcomes)
 }
 
-/// Up to [`LANES`] runs of `sims` on `sys` in lanes (one by one if the lanes cannot take them).
+/// Up to [`LANES`] runs of `sims`, run `l` on `systems[l]`, in lanes (one by one if the lanes
+/// cannot take them): the lanes evaluate one system for all when the systems are one, else
+/// each its own ([`EachLane`]).
 fn side_by_side<S, const N: usize>(
-    sys: &S,
-    sims: &[Simulation],
+    systems: &[&S],
+    sims: &[&Simulation],
     budget: Budget<'_>,
     sinks: &mut [&mut dyn SampleSink],
 ) -> Option<Vec<Result<Option<Outcome>, CoreError>>>
 where
-    S: MechanicalSystem + LaneForces<N>,
+    S: MechanicalSystem + LaneForces<N> + PointForces<N> + PartialEq + Clone,
     DefaultAllocator: Allocator<S::Dim>,
 {
     let first = &sims[0];
-    let Some(lanes) = first.lanes(sys) else {
-        return one_by_one(sims, budget, sinks);
-    };
-    let outcomes = match first.chaos.as_ref() {
-        Some(plan) => tracked(sys, lanes, plan, sims, budget, sinks)?
-            .into_iter()
-            .map(Some)
-            .collect(),
-        None => plain(sys, lanes, sims, budget, sinks)?,
+    let sys = systems[0];
+    let outcomes = match (first.lanes(systems), first.chaos.as_ref()) {
+        (Some(Lanes::Tracked(lanes)), Some(plan)) => {
+            tracked(sys, lanes, plan, sims, budget, sinks)?
+                .into_iter()
+                .map(Some)
+                .collect()
+        }
+        (Some(Lanes::Runs(lanes)), _) => match EachLane::new(systems) {
+            Some(each) if systems.iter().any(|s| *s != sys) => {
+                plain(systems, &each, lanes, sims, budget, sinks)?
+            }
+            _ => plain(systems, sys, lanes, sims, budget, sinks)?,
+        },
+        _ => return one_by_one(sims, budget, sinks),
     };
     Some(outcomes.into_iter().map(Ok).collect())
 }
 
 /// Plain runs in lanes: the one-run driver's stretches (up to the next sample, look at the
-/// budget or the end), each taken as the one-run stepper takes it ([`TangentLanes::advance_runs`]).
-fn plain<S, const N: usize>(
-    sys: &S,
-    mut lanes: TangentLanes<N>,
-    sims: &[Simulation],
+/// budget or the end), each taken as the one-run stepper takes it ([`RunLanes::advance`]),
+/// the lanes' forces from `forces` (`sys` for all, or one system each).
+fn plain<S, F, const N: usize>(
+    systems: &[&S],
+    forces: &F,
+    mut lanes: RunLanes<N>,
+    sims: &[&Simulation],
     budget: Budget<'_>,
     sinks: &mut [&mut dyn SampleSink],
 ) -> Option<Vec<Option<Outcome>>>
 where
-    S: MechanicalSystem + LaneForces<N>,
+    S: MechanicalSystem,
+    F: LaneForces<N>,
     DefaultAllocator: Allocator<S::Dim>,
 {
     let started = Instant::now();
@@ -165,21 +260,20 @@ where
     let (h, steps, every) = (schedule.h, schedule.steps, schedule.every.max(1));
     let starts: Vec<State<S::Dim>> = sims
         .iter()
-        .map(|sim| State::at_time(sys, 0.0, &sim.q0, &sim.p0))
+        .zip(systems)
+        .map(|(sim, sys)| State::at_time(*sys, 0.0, &sim.q0, &sim.p0))
         .collect();
     let mut states = starts.clone();
     let mut observers: Vec<_> = sims
         .iter()
+        .zip(systems)
         .zip(&starts)
         .zip(sinks.iter_mut())
-        .map(|((sim, start), sink)| sim.observer(sys, start, None, &mut **sink, false))
+        .map(|(((sim, sys), start), sink)| sim.observer(*sys, start, None, &mut **sink, false))
         .collect();
     let mut running = [false; LANES];
     for l in 0..count {
-        for i in 0..N {
-            lanes.q[i][l] = states[l].q[i];
-            lanes.p[i][l] = states[l].p[i];
-        }
+        lanes.set_state(l, states[l].q.as_slice(), states[l].p.as_slice());
         running[l] = true;
         observers[l].on_sample(0, 0.0, &states[l]);
     }
@@ -192,7 +286,7 @@ where
         }
         let next = |m: u64| (step / m + 1) * m;
         let until = next(CHECK_EVERY).min(next(every)).min(steps);
-        let stretch = lanes.advance_runs(sys, until - step, &running);
+        let stretch = lanes.advance(forces, until - step, &running);
         for (l, end) in stretch.iter().enumerate().take(count) {
             let Some(end) = end.filter(|_| running[l]) else {
                 continue;
@@ -212,10 +306,9 @@ where
         if step.is_multiple_of(every) || step == steps {
             let t = step as f64 * h;
             for l in (0..count).filter(|&l| running[l]) {
-                for i in 0..N {
-                    states[l].q[i] = lanes.q[i][l];
-                    states[l].p[i] = lanes.p[i][l];
-                }
+                let (q, p) = lanes.state(l);
+                states[l].q.copy_from_slice(&q);
+                states[l].p.copy_from_slice(&p);
                 observers[l].on_sample(step, t, &states[l]);
             }
         }
@@ -251,7 +344,7 @@ fn tracked<S, const N: usize>(
     sys: &S,
     mut lanes: TangentLanes<N>,
     plan: &ChaosPlan,
-    sims: &[Simulation],
+    sims: &[&Simulation],
     budget: Budget<'_>,
     sinks: &mut [&mut dyn SampleSink],
 ) -> Option<Vec<Outcome>>

@@ -11,6 +11,7 @@ use nalgebra::{DMatrix, U3};
 use std::borrow::Cow;
 
 use super::{AnySystem, Builder, ChartInfo, ParamSpec, ParamValues, SystemInfo, World};
+use crate::methods::lanes::each::{damp_each_lane, damp_point, PointForces};
 use crate::system::{Lane, LaneForces, LANES};
 use crate::system::{MechanicalSystem, Structure, Vector};
 
@@ -140,6 +141,27 @@ impl LaneForces<3> for ElasticPendulum3d {
                 }
             }
         }
+    }
+    #[inline(always)]
+    fn damp_lanes(&self, q: &[Lane; 3], p: &mut [Lane; 3], tau: f64, c: &Lane) {
+        damp_each_lane(|_| self, q, p, tau, c);
+    }
+}
+
+impl PointForces<3> for ElasticPendulum3d {
+    #[inline(always)]
+    fn velocity_at(&self, p: [f64; 3]) -> [f64; 3] {
+        self.velocity_of(&Vector::<U3>::from(p))
+    }
+
+    #[inline(always)]
+    fn grad_at(&self, q: [f64; 3]) -> [f64; 3] {
+        self.grad(&Vector::<U3>::from(q))
+    }
+
+    #[inline(always)]
+    fn damp_at(&self, q: [f64; 3], p: [f64; 3], tau: f64, c: f64) -> [f64; 3] {
+        damp_point(self, q, p, tau, c)
     }
 }
 

@@ -10,6 +10,7 @@ use nalgebra::{DMatrix, U2};
 use std::borrow::Cow;
 
 use super::{AnySystem, Builder, ChartInfo, ParamSpec, ParamValues, SystemInfo, World};
+use crate::methods::lanes::each::{damp_each_lane, damp_point, PointForces};
 use crate::system::{Lane, LaneForces, LANES};
 use crate::system::{MechanicalSystem, Structure, Vector};
 
@@ -101,6 +102,27 @@ impl LaneForces<2> for HenonHeiles {
             hess[1][0][l] = c;
             hess[1][1][l] = d;
         }
+    }
+    #[inline(always)]
+    fn damp_lanes(&self, q: &[Lane; 2], p: &mut [Lane; 2], tau: f64, c: &Lane) {
+        damp_each_lane(|_| self, q, p, tau, c);
+    }
+}
+
+impl PointForces<2> for HenonHeiles {
+    #[inline(always)]
+    fn velocity_at(&self, p: [f64; 2]) -> [f64; 2] {
+        p
+    }
+
+    #[inline(always)]
+    fn grad_at(&self, [x, y]: [f64; 2]) -> [f64; 2] {
+        self.grad(x, y)
+    }
+
+    #[inline(always)]
+    fn damp_at(&self, q: [f64; 2], p: [f64; 2], tau: f64, c: f64) -> [f64; 2] {
+        damp_point(self, q, p, tau, c)
     }
 }
 

@@ -6,7 +6,8 @@ use nalgebra::{DMatrix, U1};
 use std::borrow::Cow;
 
 use super::{AnySystem, Builder, ChartInfo, ParamSpec, ParamValues, SystemInfo, World};
-use crate::system::{MechanicalSystem, State, Structure, Vector};
+use crate::methods::lanes::each::{damp_each_lane, damp_point, PointForces};
+use crate::system::{Lane, LaneForces, MechanicalSystem, State, Structure, Vector, LANES};
 
 /// The damped harmonic oscillator.
 #[derive(Clone, Debug, PartialEq)]
@@ -90,6 +91,48 @@ impl MechanicalSystem for HarmonicOscillator {
     fn exact(&self, t: f64, start: &State<U1>) -> Option<State<U1>> {
         let (q, p) = self.solution(t, start.q[0], start.p[0]);
         Some(State::from_slices(U1, &[q], &[p]))
+    }
+}
+
+/// The velocity and force in lanes, with the arithmetic of `velocity` and `grad_potential`.
+impl LaneForces<1> for HarmonicOscillator {
+    #[inline(always)]
+    fn velocity_lanes(&self, p: &[Lane; 1], v: &mut [Lane; 1]) {
+        *v = *p;
+    }
+
+    #[inline(always)]
+    fn grad_lanes(&self, q: &[Lane; 1], g: &mut [Lane; 1]) {
+        for l in 0..LANES {
+            [g[0][l]] = self.grad_at([q[0][l]]);
+        }
+    }
+
+    #[inline(always)]
+    fn hessian_lanes(&self, _q: &[Lane; 1], hess: &mut [[Lane; 1]; 1]) {
+        hess[0][0] = [self.omega * self.omega; LANES];
+    }
+
+    #[inline(always)]
+    fn damp_lanes(&self, q: &[Lane; 1], p: &mut [Lane; 1], tau: f64, c: &Lane) {
+        damp_each_lane(|_| self, q, p, tau, c);
+    }
+}
+
+impl PointForces<1> for HarmonicOscillator {
+    #[inline(always)]
+    fn velocity_at(&self, p: [f64; 1]) -> [f64; 1] {
+        p
+    }
+
+    #[inline(always)]
+    fn grad_at(&self, [q]: [f64; 1]) -> [f64; 1] {
+        [self.omega * self.omega * q]
+    }
+
+    #[inline(always)]
+    fn damp_at(&self, q: [f64; 1], p: [f64; 1], tau: f64, c: f64) -> [f64; 1] {
+        damp_point(self, q, p, tau, c)
     }
 }
 

@@ -20,6 +20,7 @@ use nalgebra::{DMatrix, U2};
 use std::borrow::Cow;
 
 use super::{AnySystem, Builder, ChartInfo, ParamSpec, ParamValues, SystemInfo, World};
+use crate::methods::lanes::each::{damp_each_lane, damp_point, PointForces};
 use crate::system::{Lane, LaneForces, LANES};
 use crate::system::{MechanicalSystem, State, Structure, Vector};
 
@@ -202,6 +203,27 @@ impl LaneForces<2> for PlanarCartesian {
                 }
             }
         }
+    }
+    #[inline(always)]
+    fn damp_lanes(&self, q: &[Lane; 2], p: &mut [Lane; 2], tau: f64, c: &Lane) {
+        damp_each_lane(|_| self, q, p, tau, c);
+    }
+}
+
+impl PointForces<2> for PlanarCartesian {
+    #[inline(always)]
+    fn velocity_at(&self, [px, py]: [f64; 2]) -> [f64; 2] {
+        self.velocity_of(px, py)
+    }
+
+    #[inline(always)]
+    fn grad_at(&self, [x, y]: [f64; 2]) -> [f64; 2] {
+        self.grad(&Vector::<U2>::new(x, y))
+    }
+
+    #[inline(always)]
+    fn damp_at(&self, q: [f64; 2], p: [f64; 2], tau: f64, c: f64) -> [f64; 2] {
+        damp_point(self, q, p, tau, c)
     }
 }
 

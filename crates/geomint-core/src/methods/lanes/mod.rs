@@ -18,8 +18,13 @@
 //!   typed-in ones through their compiled functions), with deviation vectors advanced by the
 //!   method's own tangent map (chaos maps); sixteen runs, so that a step's chain of dependent
 //!   operations (drift, force, kick) has several registers of independent work to overlap.
+//! - [`runs`]: plain runs (no deviation vectors) of compositions of kicks, drifts and exact
+//!   damping flows, sixteen side by side, as the one-run stepper takes its stretches; with one
+//!   system per lane ([`each`]) for sweeps over parameters and the step.
 
+pub mod each;
 pub mod pendulum;
+pub mod runs;
 pub mod tangent;
 
 pub use pendulum::{Chart, LaneKernel, Order, Start, Tally};

@@ -72,34 +72,10 @@ pub struct Advanced {
     pub out_of_range: [bool; LANES],
 }
 
-/// How a lane's stretch of [`TangentLanes::advance_runs`] ended early: at the first step whose
-/// state does not sum to a finite number (the one-run path's test).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct End {
-    /// Steps taken in the stretch, that one included.
-    pub steps: u64,
-    /// Force evaluations of the lanes by then.
-    pub force_evaluations: u64,
-    /// Whether a component of the state is not finite (else only their sum overflows).
-    pub diverged: bool,
-}
-
-/// Per lane: `None` for a lane that took every step of the stretch.
-pub type Ended = [Option<End>; LANES];
-
-/// What a drive of the lanes gave: tracked steps' [`Advanced`] or plain runs' [`Ended`].
-enum Driven {
-    Tracked(Advanced),
-    Runs(Ended),
-}
-
 /// The runs of [`LANES`] cells and their deviation vectors.
 #[derive(Clone, Debug)]
 pub struct TangentLanes<const N: usize> {
     flows: Vec<Flow>,
-    /// The time of the last flow and the first of the next step applied as one, as the one-run
-    /// composer fuses them between samples (see [`Self::advance_runs`]).
-    seam: Option<f64>,
     minv: [[f64; N]; N],
     /// Positions.
     pub q: [Lane; N],
@@ -129,8 +105,7 @@ impl<const N: usize> TangentLanes<N> {
         if N > MAX_DIMENSION {
             return None;
         }
-        let flows_in = flows;
-        let flows = flows_in
+        let flows = flows
             .iter()
             .map(|&(flow, fraction)| match flow {
                 SubFlow::Drift => Some(Flow::Drift(fraction * h)),
@@ -139,19 +114,9 @@ impl<const N: usize> TangentLanes<N> {
                 _ => None,
             })
             .collect::<Option<Vec<_>>>()?;
-        // The composer's seam: the same kinds, and the same time (b + a)·h.
-        let seam = match (flows_in.first(), flows_in.last()) {
-            (Some(&(first, a)), Some(&(last, b)))
-                if flows_in.len() > 2 && last.fuses_with(first) =>
-            {
-                Some((b + a) * h)
-            }
-            _ => None,
-        };
         let zero = [[0.0; LANES]; N];
         Some(TangentLanes {
             flows,
-            seam,
             minv,
             q: zero,
             p: zero,
@@ -185,90 +150,39 @@ impl<const N: usize> TangentLanes<N> {
         steps: u64,
         watched: &[bool; LANES],
     ) -> Advanced {
-        match self.drive(sys, steps, watched, false) {
-            Driven::Tracked(advanced) => advanced,
-            Driven::Runs(_) => unreachable!("asked for tracked steps"),
-        }
-    }
-
-    /// Up to `n` steps of every lane (which carry no deviation vectors here), as the one-run
-    /// path's `Stepper::advance` takes a stretch between samples: with a seam and n ≥ 2, the last
-    /// flow of each step and the first of the next applied as one; a `watched` lane whose state
-    /// stops being finite within the stretch is taken again step by step from the stretch's
-    /// start, so that it ends at the step where single steps end it, while the others keep the
-    /// fused stretch. Lanes not watched are never looked at.
-    pub fn advance_runs<S: LaneForces<N>>(
-        &mut self,
-        sys: &S,
-        n: u64,
-        watched: &[bool; LANES],
-    ) -> Ended {
-        debug_assert!(self.columns.is_empty());
-        match self.drive(sys, n, watched, true) {
-            Driven::Runs(ended) => ended,
-            Driven::Tracked(_) => unreachable!("asked for plain runs"),
-        }
-    }
-
-    /// [`Self::advance_runs`] (`runs`) or [`Self::advance`], in the code built for the lanes'
-    /// instruction set.
-    fn drive<S: LaneForces<N>>(
-        &mut self,
-        sys: &S,
-        n: u64,
-        watched: &[bool; LANES],
-        runs: bool,
-    ) -> Driven {
         match self.isa {
             // SAFETY: the CPU supports AVX-512F, detected when the lanes were made.
             #[cfg(target_arch = "x86_64")]
-            Isa::Avx512 => unsafe { self.drive_avx512(sys, n, watched, runs) },
+            Isa::Avx512 => unsafe { self.advance_avx512(sys, steps, watched) },
             // SAFETY: the CPU supports AVX2, detected when the lanes were made.
             #[cfg(target_arch = "x86_64")]
-            Isa::Avx2 => unsafe { self.drive_avx2(sys, n, watched, runs) },
-            _ => self.drive_portable(sys, n, watched, runs),
+            Isa::Avx2 => unsafe { self.advance_avx2(sys, steps, watched) },
+            _ => self.advance_portable(sys, steps, watched),
         }
     }
 
-    /// [`Self::drive_portable`] compiled with AVX-512 (f64×8 registers).
+    /// [`Self::advance_portable`] compiled with AVX-512 (f64×8 registers).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f")]
-    fn drive_avx512<S: LaneForces<N>>(
+    fn advance_avx512<S: LaneForces<N>>(
         &mut self,
         sys: &S,
-        n: u64,
+        steps: u64,
         watched: &[bool; LANES],
-        runs: bool,
-    ) -> Driven {
-        self.drive_portable(sys, n, watched, runs)
+    ) -> Advanced {
+        self.advance_portable(sys, steps, watched)
     }
 
-    /// [`Self::drive_portable`] compiled with AVX2 (f64×4 registers).
+    /// [`Self::advance_portable`] compiled with AVX2 (f64×4 registers).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn drive_avx2<S: LaneForces<N>>(
+    fn advance_avx2<S: LaneForces<N>>(
         &mut self,
         sys: &S,
-        n: u64,
+        steps: u64,
         watched: &[bool; LANES],
-        runs: bool,
-    ) -> Driven {
-        self.drive_portable(sys, n, watched, runs)
-    }
-
-    #[inline(always)]
-    fn drive_portable<S: LaneForces<N>>(
-        &mut self,
-        sys: &S,
-        n: u64,
-        watched: &[bool; LANES],
-        runs: bool,
-    ) -> Driven {
-        if runs {
-            Driven::Runs(self.advance_runs_portable(sys, n, watched))
-        } else {
-            Driven::Tracked(self.advance_portable(sys, n, watched))
-        }
+    ) -> Advanced {
+        self.advance_portable(sys, steps, watched)
     }
 
     #[inline(always)]
@@ -297,92 +211,6 @@ impl<const N: usize> TangentLanes<N> {
             not_finite: [false; LANES],
             out_of_range: [false; LANES],
         }
-    }
-
-    #[inline(always)]
-    fn advance_runs_portable<S: LaneForces<N>>(
-        &mut self,
-        sys: &S,
-        n: u64,
-        watched: &[bool; LANES],
-    ) -> Ended {
-        let seam = match self.seam {
-            Some(tau) if n >= 2 => tau,
-            _ => return self.steps_ended(sys, n, watched, false),
-        };
-        let start = (self.q, self.p, self.grad, self.grad_valid);
-        let start_count = self.force_evaluations;
-        let m = self.flows.len();
-        let mut hessian = Hessian::new();
-        let mut left = [false; LANES];
-        self.apply(sys, self.flows[0], &mut hessian);
-        for done in 1..=n {
-            for f in 1..m - 1 {
-                self.apply(sys, self.flows[f], &mut hessian);
-            }
-            let last = match self.flows[m - 1] {
-                Flow::Drift(tau) => Flow::Drift(if done < n { seam } else { tau }),
-                Flow::Kick(tau) => Flow::Kick(if done < n { seam } else { tau }),
-            };
-            self.apply(sys, last, &mut hessian);
-            let (not_finite, _) = self.look();
-            for l in 0..LANES {
-                left[l] |= watched[l] & not_finite[l];
-            }
-        }
-        if !left.contains(&true) {
-            return [None; LANES];
-        }
-        // The lanes that left: step by step from the stretch's start. The others keep the
-        // stretch, with its force cache and count (those of single steps too, when they run to
-        // the end).
-        let fused = (self.q, self.p, self.grad, self.grad_valid);
-        let fused_count = self.force_evaluations;
-        (self.q, self.p, self.grad, self.grad_valid) = start;
-        self.force_evaluations = start_count;
-        let ended = self.steps_ended(sys, n, &left, true);
-        for l in (0..LANES).filter(|&l| !left[l]) {
-            for i in 0..N {
-                self.q[i][l] = fused.0[i][l];
-                self.p[i][l] = fused.1[i][l];
-                self.grad[i][l] = fused.2[i][l];
-            }
-        }
-        self.grad_valid = fused.3;
-        self.force_evaluations = fused_count;
-        ended
-    }
-
-    /// Up to `n` single steps; each `watched` lane ends at its first step whose state does not
-    /// sum to a finite number. With `until_all_ended`, stops once every watched lane has ended.
-    #[inline(always)]
-    fn steps_ended<S: LaneForces<N>>(
-        &mut self,
-        sys: &S,
-        n: u64,
-        watched: &[bool; LANES],
-        until_all_ended: bool,
-    ) -> Ended {
-        let mut ended = [None; LANES];
-        let mut open = *watched;
-        for done in 0..n {
-            self.step(sys);
-            let (not_finite, _) = self.look();
-            for l in 0..LANES {
-                if open[l] && not_finite[l] {
-                    open[l] = false;
-                    ended[l] = Some(End {
-                        steps: done + 1,
-                        force_evaluations: self.force_evaluations,
-                        diverged: !self.finite(l),
-                    });
-                }
-            }
-            if until_all_ended && !open.contains(&true) {
-                break;
-            }
-        }
-        ended
     }
 
     /// One step of every lane.

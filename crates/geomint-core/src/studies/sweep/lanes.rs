@@ -1,12 +1,13 @@
-//! Sweeps whose runs go a group at a time in SIMD lanes, with axes over the initial state only
-//! (the lanes share the parameters and the step), with the numbers of the one-cell path bit for
-//! bit:
-//! - energy maps ([`LaneKernel`]: symplectic Euler or its adjoint on the planar elastic
-//!   pendulum, the energy error against H₀ at every step; paper 001 Fig. 6's map is one), whose
-//!   metrics come out of the same [`Measure`] the one-cell path fills sample by sample;
-//! - chaos maps and plain sweeps (runs, with or without indicators, that
-//!   [`Simulation::runs_in_lanes`]), whose samples go to the same observer and [`Measure`] as on
-//!   the one-cell path.
+//! Sweeps whose runs go a group at a time in SIMD lanes, with the numbers of the one-cell path
+//! bit for bit:
+//! - energy maps over the initial state ([`LaneKernel`]: symplectic Euler or its adjoint on the
+//!   planar elastic pendulum, the energy error against H₀ at every step; paper 001 Fig. 6's map
+//!   is one), whose metrics come out of the same [`Measure`] the one-cell path fills sample by
+//!   sample;
+//! - chaos maps over the initial state and plain sweeps over any axes (runs, with or without
+//!   indicators, that [`Simulation::runs_in_lanes`]; cells of different parameters one system
+//!   per lane, cells of different steps in different groups), whose samples go to the same
+//!   observer and [`Measure`] as on the one-cell path.
 
 use std::ops::Range as Cells;
 
@@ -27,8 +28,13 @@ pub(super) enum LanePlan {
     /// An energy map's runs.
     Energy(EnergyLanes),
     /// Runs that [`Simulation::runs_in_lanes`] (a chaos map's, or a plain sweep's), each
-    /// prepared per group of cells.
-    Runs,
+    /// prepared per group of cells, `group` cells at a time.
+    Runs {
+        /// Cells per group: [`LANES`](crate::methods::lanes::tangent::LANES), times the step
+        /// axis's points when that axis varies fastest, so that each group holds a lane's worth
+        /// of cells of every step.
+        group: usize,
+    },
 }
 
 impl LanePlan {
@@ -36,7 +42,7 @@ impl LanePlan {
     pub(super) fn group(&self) -> usize {
         match self {
             LanePlan::Energy(_) => LANES,
-            LanePlan::Runs => crate::methods::lanes::tangent::LANES,
+            LanePlan::Runs { group } => *group,
         }
     }
 }
@@ -58,8 +64,10 @@ struct LaneRun {
 }
 
 impl SweepJob {
-    /// The plan, if the axes are over q₀ and p₀ only and the runs are those of an energy map, or
-    /// runs the lanes take (a chaos map's, a plain sweep's).
+    /// The plan, if the runs are those of an energy map over q₀ and p₀, or runs the lanes take:
+    /// a chaos map's over q₀ and p₀, a plain sweep's over any axes (cells that differ in their
+    /// parameters run one system per lane, and a group of cells shares lanes where it shares the
+    /// step).
     pub(super) fn lane_plan(&self) -> Option<LanePlan> {
         let initial_state_only = self
             .grid
@@ -67,15 +75,27 @@ impl SweepJob {
             .iter()
             .all(|a| matches!(a.target, Target::Q0(_) | Target::P0(_)));
         // The lanes watch no section.
-        if !initial_state_only || self.watching.is_some() {
+        if self.watching.is_some() {
             return None;
         }
         if self.tracks_chaos() {
-            return self.some_run_in_lanes().then_some(LanePlan::Runs);
+            return (initial_state_only && self.some_run_in_lanes()).then(|| self.runs_plan());
         }
-        self.energy_lanes()
+        initial_state_only
+            .then(|| self.energy_lanes())
+            .flatten()
             .map(LanePlan::Energy)
-            .or_else(|| self.some_run_in_lanes().then_some(LanePlan::Runs))
+            .or_else(|| self.some_run_in_lanes().then(|| self.runs_plan()))
+    }
+
+    /// The plan for runs in lanes (the grid's first axis varies fastest).
+    fn runs_plan(&self) -> LanePlan {
+        let lanes = crate::methods::lanes::tangent::LANES;
+        let group = match self.grid.axes.first() {
+            Some(axis) if axis.target == Target::Step => lanes * axis.n,
+            _ => lanes,
+        };
+        LanePlan::Runs { group }
     }
 
     /// Whether some run goes side by side, judged at the grid's middle, first and last cells
@@ -137,7 +157,7 @@ impl SweepJob {
     ) -> Vec<Option<Vec<RunMetrics>>> {
         match plan {
             LanePlan::Energy(plan) => self.energy_group(plan, cells, budget),
-            LanePlan::Runs => self.runs_group(cells, budget),
+            LanePlan::Runs { .. } => self.runs_group(cells, budget),
         }
     }
 

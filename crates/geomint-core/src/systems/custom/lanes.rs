@@ -10,6 +10,7 @@
 use nalgebra::{U1, U2, U3};
 
 use super::system::{CustomSystem, EnergyModel, InverseMass};
+use crate::methods::lanes::each::{damp_each_lane, damp_point, PointForces};
 use crate::system::{Lane, LaneForces, LANES};
 
 macro_rules! lane_forces {
@@ -72,6 +73,36 @@ macro_rules! lane_forces {
                         }
                     }
                 }
+            }
+
+            #[inline(always)]
+            fn damp_lanes(&self, q: &[Lane; $n], p: &mut [Lane; $n], tau: f64, c: &Lane) {
+                damp_each_lane(|_| self, q, p, tau, c);
+            }
+        }
+
+        impl PointForces<$n> for CustomSystem<$dim> {
+            #[inline(always)]
+            fn velocity_at(&self, p: [f64; $n]) -> [f64; $n] {
+                let mut v = [0.0; $n];
+                if let EnergyModel::Separable { inverse_mass, .. } = &self.model().energy {
+                    inverse_mass.apply(&p, &mut v);
+                }
+                v
+            }
+
+            #[inline(always)]
+            fn grad_at(&self, q: [f64; $n]) -> [f64; $n] {
+                let mut g = [0.0; $n];
+                if let EnergyModel::Separable { gradient, .. } = &self.model().energy {
+                    gradient.eval(&q, &mut g);
+                }
+                g
+            }
+
+            #[inline(always)]
+            fn damp_at(&self, q: [f64; $n], p: [f64; $n], tau: f64, c: f64) -> [f64; $n] {
+                damp_point(self, q, p, tau, c)
             }
         }
     )*};

@@ -1,0 +1,333 @@
+//! Plain runs (no deviation vectors) of a composition of kicks, drifts and exact damping flows
+//! (modin_3s, csv1, velocity Verlet and their compositions, …) on a separable system with
+//! constant mass, [`LANES`] runs side by side: a sweep's cells, which may differ in their
+//! initial states, their damping rates and, through one system per lane
+//! ([`EachLane`](super::each::EachLane)), any parameter.
+//!
+//! A stretch between samples goes as the one-run composer takes it (`Stepper::advance`): the
+//! last flow of each step and the first of the next applied as one where they fuse (the seam),
+//! the whole last step at the stretch's end, and a lane whose state stops being finite inside
+//! the stretch taken again step by step from the stretch's start, so that it ends at the step
+//! where single steps end it, while the others keep the fused stretch. Each flow does the
+//! composer's arithmetic in its order, and the force is evaluated again only after a drift (the
+//! composer's force cache), so the evaluations count the same.
+
+// Lanes and components are indexed side by side: loops over lane numbers are the form the
+// compiler vectorises.
+#![allow(clippy::needless_range_loop)]
+
+use crate::flows;
+use crate::methods::splitting::SubFlow;
+
+use super::Isa;
+
+pub use crate::system::{Lane, LaneForces, LANES};
+
+/// A flow of the sequence with its time τ = fraction · h.
+#[derive(Clone, Copy, Debug)]
+enum Flow {
+    Drift(f64),
+    Kick(f64),
+    /// The exact damping flow, with the lanes' coefficients c = 1 − e^{−rτ} at this index of
+    /// [`RunLanes::decay`].
+    Damp(f64, usize),
+}
+
+/// How a lane's stretch of [`RunLanes::advance`] ended early: at the first step whose state does
+/// not sum to a finite number (the one-run path's test).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct End {
+    /// Steps taken in the stretch, that one included.
+    pub steps: u64,
+    /// Force evaluations of the lanes by then.
+    pub force_evaluations: u64,
+    /// Whether a component of the state is not finite (else only their sum overflows).
+    pub diverged: bool,
+}
+
+/// Per lane: `None` for a lane that took every step of the stretch.
+pub type Ended = [Option<End>; LANES];
+
+/// The lanes' state: q, p, the force at q and whether it is valid, and the force evaluations
+/// so far. A stretch runs on a local copy, which the compiler may keep in registers across the
+/// flows (the fields of the lanes would go through memory at every flow).
+#[derive(Clone, Copy, Debug)]
+struct Phase<const N: usize> {
+    q: [Lane; N],
+    p: [Lane; N],
+    grad: [Lane; N],
+    grad_valid: bool,
+    force_evaluations: u64,
+}
+
+/// The plain runs of [`LANES`] cells.
+#[derive(Clone, Debug)]
+pub struct RunLanes<const N: usize> {
+    flows: Vec<Flow>,
+    /// The last flow and the first of the next step applied as one over their summed time.
+    seam: Option<Flow>,
+    /// Per damping flow (and fused seam of two), each lane's c = 1 − e^{−rτ}, computed as the
+    /// one-run composer computes it for that lane's rate.
+    decay: Vec<Lane>,
+    phase: Phase<N>,
+    isa: Isa,
+}
+
+impl<const N: usize> RunLanes<N> {
+    /// The lanes of the splitting `flows` at step `h` on systems of damping rates `rates` (one
+    /// per lane; lanes past the last take the first's), all at the origin. `None` unless every
+    /// flow is a kick, a drift or the exact damping flow: without damping (r = 0) a θ-kick is a
+    /// kick too, to the bit (its state update is the kick's).
+    pub fn new(flows: &[(SubFlow, f64)], rates: &[f64], h: f64) -> Option<Self> {
+        let first_rate = *rates.first()?;
+        if rates.len() > LANES {
+            return None;
+        }
+        let rate = |l: usize| rates.get(l).copied().unwrap_or(first_rate);
+        let undamped = rates.iter().all(|&r| r == 0.0);
+        let mut decay = Vec::new();
+        let mut lane_flow = |flow: SubFlow, tau: f64| match flow {
+            SubFlow::Drift => Some(Flow::Drift(tau)),
+            SubFlow::Kick => Some(Flow::Kick(tau)),
+            SubFlow::DampedKick(_) if undamped => Some(Flow::Kick(tau)),
+            SubFlow::Damp => {
+                // The composer's coefficient for each lane's rate.
+                let mut c = [0.0; LANES];
+                for (l, c) in c.iter_mut().enumerate() {
+                    *c = flows::damp_coefficient(rate(l), tau);
+                }
+                decay.push(c);
+                Some(Flow::Damp(tau, decay.len() - 1))
+            }
+            _ => None,
+        };
+        let sequence = flows
+            .iter()
+            .map(|&(flow, fraction)| lane_flow(flow, fraction * h))
+            .collect::<Option<Vec<_>>>()?;
+        // The composer's seam: the same kinds, and the same time (b + a)·h.
+        let seam = match (flows.first(), flows.last()) {
+            (Some(&(first, a)), Some(&(last, b))) if flows.len() > 2 && last.fuses_with(first) => {
+                Some(lane_flow(first, (b + a) * h)?)
+            }
+            _ => None,
+        };
+        let zero = [[0.0; LANES]; N];
+        Some(RunLanes {
+            flows: sequence,
+            seam,
+            decay,
+            phase: Phase {
+                q: zero,
+                p: zero,
+                grad: zero,
+                grad_valid: false,
+                force_evaluations: 0,
+            },
+            isa: Isa::detect(),
+        })
+    }
+
+    /// The same lanes run by code built for `isa`, if this CPU has it (the numbers are the same
+    /// bits).
+    pub fn with_isa(mut self, isa: Isa) -> Option<Self> {
+        isa.available().then(|| {
+            self.isa = isa;
+            self
+        })
+    }
+
+    /// Lane `l`'s state (q, p).
+    pub fn state(&self, l: usize) -> ([f64; N], [f64; N]) {
+        let mut state = ([0.0; N], [0.0; N]);
+        for i in 0..N {
+            state.0[i] = self.phase.q[i][l];
+            state.1[i] = self.phase.p[i][l];
+        }
+        state
+    }
+
+    /// Sets lane `l`'s state.
+    pub fn set_state(&mut self, l: usize, q: &[f64], p: &[f64]) {
+        for i in 0..N {
+            self.phase.q[i][l] = q[i];
+            self.phase.p[i][l] = p[i];
+        }
+        self.phase.grad_valid = false;
+    }
+
+    /// Force evaluations so far (every lane has taken the same).
+    pub fn force_evaluations(&self) -> u64 {
+        self.phase.force_evaluations
+    }
+
+    /// Up to `n` steps of every lane, as the one-run path's `Stepper::advance` takes a stretch
+    /// between samples (see the module docs). Lanes not `watched` are never looked at.
+    pub fn advance<S: LaneForces<N>>(&mut self, sys: &S, n: u64, watched: &[bool; LANES]) -> Ended {
+        match self.isa {
+            // SAFETY: the CPU supports AVX-512F, detected when the lanes were made.
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx512 => unsafe { self.advance_avx512(sys, n, watched) },
+            // SAFETY: the CPU supports AVX2, detected when the lanes were made.
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2 => unsafe { self.advance_avx2(sys, n, watched) },
+            _ => self.advance_portable(sys, n, watched),
+        }
+    }
+
+    /// [`Self::advance_portable`] compiled with AVX-512 (f64×8 registers).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    fn advance_avx512<S: LaneForces<N>>(
+        &mut self,
+        sys: &S,
+        n: u64,
+        watched: &[bool; LANES],
+    ) -> Ended {
+        self.advance_portable(sys, n, watched)
+    }
+
+    /// [`Self::advance_portable`] compiled with AVX2 (f64×4 registers).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn advance_avx2<S: LaneForces<N>>(
+        &mut self,
+        sys: &S,
+        n: u64,
+        watched: &[bool; LANES],
+    ) -> Ended {
+        self.advance_portable(sys, n, watched)
+    }
+
+    #[inline(always)]
+    fn advance_portable<S: LaneForces<N>>(
+        &mut self,
+        sys: &S,
+        n: u64,
+        watched: &[bool; LANES],
+    ) -> Ended {
+        let seam = match self.seam {
+            Some(seam) if n >= 2 => seam,
+            _ => return self.steps_ended(sys, n, watched, false),
+        };
+        let mut phase = self.phase;
+        let (flows, decay) = (&self.flows[..], &self.decay[..]);
+        let m = flows.len();
+        let mut left = [false; LANES];
+        phase.apply(sys, flows[0], decay);
+        for done in 1..=n {
+            for &flow in &flows[1..m - 1] {
+                phase.apply(sys, flow, decay);
+            }
+            phase.apply(sys, if done < n { seam } else { flows[m - 1] }, decay);
+            let not_finite = phase.not_finite();
+            for l in 0..LANES {
+                left[l] |= watched[l] & not_finite[l];
+            }
+        }
+        if !left.contains(&true) {
+            self.phase = phase;
+            return [None; LANES];
+        }
+        // The lanes that left: step by step from the stretch's start. The others keep the
+        // stretch, with its force cache and count (those of single steps too, when they run to
+        // the end).
+        let ended = self.steps_ended(sys, n, &left, true);
+        for l in (0..LANES).filter(|&l| !left[l]) {
+            for i in 0..N {
+                self.phase.q[i][l] = phase.q[i][l];
+                self.phase.p[i][l] = phase.p[i][l];
+                self.phase.grad[i][l] = phase.grad[i][l];
+            }
+        }
+        self.phase.grad_valid = phase.grad_valid;
+        self.phase.force_evaluations = phase.force_evaluations;
+        ended
+    }
+
+    /// Up to `n` single steps; each `watched` lane ends at its first step whose state does not
+    /// sum to a finite number. With `until_all_ended`, stops once every watched lane has ended.
+    #[inline(always)]
+    fn steps_ended<S: LaneForces<N>>(
+        &mut self,
+        sys: &S,
+        n: u64,
+        watched: &[bool; LANES],
+        until_all_ended: bool,
+    ) -> Ended {
+        let mut ended = [None; LANES];
+        let mut open = *watched;
+        let (flows, decay) = (&self.flows[..], &self.decay[..]);
+        let phase = &mut self.phase;
+        for done in 0..n {
+            for &flow in flows {
+                phase.apply(sys, flow, decay);
+            }
+            let not_finite = phase.not_finite();
+            for l in 0..LANES {
+                if open[l] && not_finite[l] {
+                    open[l] = false;
+                    ended[l] = Some(End {
+                        steps: done + 1,
+                        force_evaluations: phase.force_evaluations,
+                        diverged: !(0..N)
+                            .all(|i| phase.q[i][l].is_finite() && phase.p[i][l].is_finite()),
+                    });
+                }
+            }
+            if until_all_ended && !open.contains(&true) {
+                break;
+            }
+        }
+        ended
+    }
+}
+
+impl<const N: usize> Phase<N> {
+    /// One flow of every lane.
+    #[inline(always)]
+    fn apply<S: LaneForces<N>>(&mut self, sys: &S, flow: Flow, decay: &[Lane]) {
+        match flow {
+            Flow::Drift(tau) => {
+                let mut v = [[0.0; LANES]; N];
+                sys.velocity_lanes(&self.p, &mut v);
+                for i in 0..N {
+                    for l in 0..LANES {
+                        self.q[i][l] += tau * v[i][l];
+                    }
+                }
+                self.grad_valid = false;
+            }
+            Flow::Kick(tau) => {
+                if !self.grad_valid {
+                    sys.grad_lanes(&self.q, &mut self.grad);
+                    self.force_evaluations += 1;
+                    self.grad_valid = true;
+                }
+                for i in 0..N {
+                    for l in 0..LANES {
+                        self.p[i][l] += -tau * self.grad[i][l];
+                    }
+                }
+            }
+            // q, and with it the force, stays.
+            Flow::Damp(tau, k) => sys.damp_lanes(&self.q, &mut self.p, tau, &decay[k]),
+        }
+    }
+
+    /// Per lane: whether the state's components fail to sum to a finite number (summed as the
+    /// one-run path sums them, positions then momenta).
+    #[inline(always)]
+    fn not_finite(&self) -> [bool; LANES] {
+        let mut not_finite = [false; LANES];
+        for l in 0..LANES {
+            let (mut sq, mut sp) = (0.0, 0.0);
+            for i in 0..N {
+                sq += self.q[i][l];
+                sp += self.p[i][l];
+            }
+            not_finite[l] = !(sq + sp).is_finite();
+        }
+        not_finite
+    }
+}
