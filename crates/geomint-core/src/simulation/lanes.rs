@@ -1,7 +1,8 @@
 //! Runs of one method from up to [`LANES`] initial states, side by side in SIMD lanes (see
 //! [`crate::methods::lanes`]): a chaos map's cells with their indicators, or a sweep's plain runs,
-//! which may also differ in their system's parameters (one system per lane) but share the step. For each run the driver does what [`integrate_tracked`](crate::run::integrate_tracked)
-//! does — the samples, the indicators' updates on their grid and their thresholds, divergence, the
+//! which may also differ in their system's parameters (one system per lane) but share the step.
+//! For each run the driver does what [`integrate_tracked`](crate::run::integrate_tracked) does —
+//! the samples, the indicators' updates on their grid and their thresholds, divergence, the
 //! budget, and for plain runs the stretches between samples with their fused seams — and hands
 //! the samples to the same observer, so each run's samples and outcome are bit for bit the
 //! one-run path's (`tests/core/chaos_map.rs` and `tests/core/sweep_lanes.rs` compare them cell by
@@ -20,17 +21,17 @@ use crate::methods::lanes::each::{EachLane, PointForces};
 use crate::methods::lanes::runs::RunLanes;
 use crate::methods::lanes::tangent::LANES;
 use crate::methods::lanes::{LaneForces, TangentLanes, CHECK_EVERY};
+use crate::methods::{self};
+use crate::run::{Budget, Observer, RunStats, StopReason};
+use crate::system::{MechanicalSystem, State};
+use crate::systems::AnySystem;
+use crate::tangent::Tangent;
 
 /// The lanes a simulation's runs take: with indicators, or plain.
 enum Lanes<const N: usize> {
     Tracked(TangentLanes<N>),
     Runs(RunLanes<N>),
 }
-use crate::methods::{self};
-use crate::run::{Budget, Observer, RunStats, StopReason};
-use crate::system::{MechanicalSystem, State};
-use crate::systems::AnySystem;
-use crate::tangent::Tangent;
 
 /// Runs `$body` with `$systems` bound to the systems inside `$sims` (a slice of simulations) if
 /// the lanes evaluate them (they implement [`LaneForces`]) and all are of the first one's kind,

@@ -128,15 +128,6 @@ impl<const N: usize> RunLanes<N> {
         })
     }
 
-    /// The same lanes run by code built for `isa`, if this CPU has it (the numbers are the same
-    /// bits).
-    pub fn with_isa(mut self, isa: Isa) -> Option<Self> {
-        isa.available().then(|| {
-            self.isa = isa;
-            self
-        })
-    }
-
     /// Lane `l`'s state (q, p).
     pub fn state(&self, l: usize) -> ([f64; N], [f64; N]) {
         let mut state = ([0.0; N], [0.0; N]);
