@@ -170,7 +170,7 @@ fn compiled_steps(sys: &AnySystem) -> usize {
         flows: MODIN_3S,
         coefficients: &[(1e-3, 0.0); 5],
         h: common::H,
-        seam: (common::H, (1e-3, 0.0)),
+        seam: Some((common::H, (1e-3, 0.0))),
     };
     geomint::core::with_system!(sys, s => {
         usize::from(s.compile_stretch(&plan, COMPILE_AFTER).is_some())

@@ -10,13 +10,15 @@ use std::sync::Arc;
 use geomint_core::error::Field;
 use geomint_core::methods::composition::Scheme;
 use geomint_core::methods::splitting::compiled::{StretchPlan, COMPILE_AFTER};
-use geomint_core::methods::splitting::{CSV1, MODIN_3S, POSITION_VERLET};
+use geomint_core::methods::splitting::{
+    SubFlow, CSV1, MODIN_3S, MODIN_RKS, POSITION_VERLET, VELOCITY_VERLET,
+};
 use geomint_core::methods::{Base, Method, MethodId};
 use geomint_core::run::{Budget, StopReason};
 use geomint_core::simulation::{Limits, Sample, SampleSink, Simulation, SimulationSpec};
 use geomint_core::system::MechanicalSystem;
 use geomint_core::systems::custom::{self, CustomDefinition, Damping, Energy, Mass};
-use geomint_core::systems::{AnySystem, SystemInfo, SystemRef};
+use geomint_core::systems::{AnySystem, CustomSystem, SystemInfo, SystemRef};
 
 use crate::chaos_map::expr;
 
@@ -208,6 +210,14 @@ fn compiled_stretches_give_the_composers_bits() {
     for method in &methods {
         on_every_system(method, false);
     }
+    // The Verlets and their compositions: compiled on the undamped systems (whole steps for
+    // velocity Verlet, whose kicks do not fuse), left to the composer on the damped ones.
+    for base in [Base::VelocityVerlet, Base::PositionVerlet] {
+        on_every_system(&Method::composition(Scheme::KahanLi8, base), false);
+    }
+    for id in [MethodId::VelocityVerlet, MethodId::PositionVerlet] {
+        on_every_system(&Method::new(id), false);
+    }
     // Runge–Kutta methods, with the projector damping too.
     for id in [
         MethodId::Rk4,
@@ -232,41 +242,51 @@ fn compiled_stretches_give_the_composers_bits() {
     }
 }
 
-/// The stretches take drifts, kicks and damping flows; a θ-kick (the Verlets' treatment of
-/// damping) is left to the composer.
+/// The stretches take drifts, kicks and damping flows, and the Verlets' θ-kicks when nothing
+/// damps (plain kicks then); a θ-kick with damping is left to the composer.
 #[test]
 fn the_stretches_are_compiled_for_what_they_take() {
-    let info = system(
-        &["q"],
-        Mass::Scalar(expr("mass", "1")),
-        "1 - cos(q)",
-        Some(0.05),
-    );
-    let spec = SimulationSpec::new(
-        SystemRef::Defined(info),
-        &[Method::new(MethodId::Modin3s)],
-        0.1,
-        1.0,
-    );
-    let sim = Simulation::prepare(&spec, &Limits::default()).expect("a valid run");
-    let AnySystem::Custom1(sys) = &sim.system else {
-        panic!("a typed-in system of one degree of freedom");
+    let pendulum = |gamma| {
+        let info = system(&["q"], Mass::Scalar(expr("mass", "1")), "1 - cos(q)", gamma);
+        let spec = SimulationSpec::new(
+            SystemRef::Defined(info),
+            &[Method::new(MethodId::Modin3s)],
+            0.1,
+            1.0,
+        );
+        let sim = Simulation::prepare(&spec, &Limits::default()).expect("a valid run");
+        let AnySystem::Custom1(sys) = sim.system else {
+            panic!("a typed-in system of one degree of freedom");
+        };
+        sys
     };
-    let plan = |flows| StretchPlan {
-        flows,
-        coefficients: &[(0.0, 0.0); 5][..flows.len()],
-        h: 0.1,
-        seam: (0.1, (0.0, 0.0)),
-    };
-    assert!(sys
-        .compile_stretch(&plan(MODIN_3S), COMPILE_AFTER)
-        .is_some());
-    assert!(sys.compile_stretch(&plan(CSV1), COMPILE_AFTER).is_some());
-    assert!(sys
-        .compile_stretch(&plan(POSITION_VERLET), COMPILE_AFTER)
-        .is_none());
-    let generic = sys.clone().without_compiled_stretches();
-    assert!(generic
-        .compile_stretch(&plan(MODIN_3S), COMPILE_AFTER)
-        .is_none());
+    fn compiles(
+        sys: &CustomSystem<nalgebra::U1>,
+        flows: &[(SubFlow, f64)],
+        seam: Option<(f64, (f64, f64))>,
+    ) -> bool {
+        let plan = StretchPlan {
+            flows,
+            coefficients: &[(0.0, 0.0); 5][..flows.len()],
+            h: 0.1,
+            seam,
+        };
+        sys.compile_stretch(&plan, COMPILE_AFTER).is_some()
+    }
+    let fused = Some((0.1, (0.0, 0.0)));
+    let damped = pendulum(Some(0.05));
+    assert!(compiles(&damped, MODIN_3S, fused));
+    assert!(compiles(&damped, CSV1, fused));
+    assert!(compiles(&damped, MODIN_3S, None), "whole steps");
+    assert!(!compiles(&damped, POSITION_VERLET, fused));
+    assert!(!compiles(&damped, VELOCITY_VERLET, None));
+    let undamped = pendulum(None);
+    assert!(compiles(&undamped, POSITION_VERLET, fused));
+    assert!(compiles(&undamped, VELOCITY_VERLET, None));
+    assert!(
+        !compiles(&undamped, MODIN_RKS, fused),
+        "an inner Runge–Kutta method"
+    );
+    let generic = damped.clone().without_compiled_stretches();
+    assert!(!compiles(&generic, MODIN_3S, fused));
 }

@@ -17,7 +17,7 @@ use crate::expr::jit::OwnedModule;
 
 /// What a stretch does: the flows of one step with their fractions of h, the per-flow
 /// coefficients for h (the damping's c = 1 − e^{−rτ}, and d), and the seam that fuses the last
-/// flow of a step with the first of the next (its time and coefficients).
+/// flow of a step with the first of the next (its time and coefficients), if they fuse.
 #[derive(Clone, Copy, Debug)]
 pub struct StretchPlan<'a> {
     /// The flows of one step and their fractions of h.
@@ -26,11 +26,12 @@ pub struct StretchPlan<'a> {
     pub coefficients: &'a [(f64, f64)],
     /// The step.
     pub h: f64,
-    /// The fused seam's time and coefficients.
-    pub seam: (f64, (f64, f64)),
+    /// The fused seam's time and coefficients; `None` for a method whose last and first flows
+    /// do not fuse (velocity Verlet's kicks), whose steps are taken whole.
+    pub seam: Option<(f64, (f64, f64))>,
 }
 
-/// `stretch(q, p, grad, counters, n)`: n ≥ 2 steps from (q, p) in place, with the force cache
+/// `stretch(q, p, grad, counters, n)`: n ≥ 1 steps from (q, p) in place, with the force cache
 /// `grad` and `counters` = [whether `grad` holds ∇V(q) (0 or 1), force evaluations so far],
 /// both updated. Returns the steps taken: a splitting stretch n, or 0 if the state did not sum
 /// to a finite number after some step (the arrays then hold no meaningful state); Runge–Kutta
@@ -60,7 +61,9 @@ impl CompiledStretch {
         }
     }
 
-    /// Runs up to `n ≥ 2` steps in place and returns the steps taken ([`StretchFn`]).
+    /// Runs up to `n ≥ 1` steps in place and returns the steps taken ([`StretchFn`]). One step
+    /// of a splitting's stretch is a whole step, its last flow unfused, as the stepper's `step`
+    /// takes it: a run that watches every step takes them here too.
     pub fn run(
         &self,
         q: &mut [f64],
@@ -71,7 +74,7 @@ impl CompiledStretch {
         n: u64,
     ) -> u64 {
         let d = self.dimension;
-        assert!(q.len() == d && p.len() == d && grad.len() == d && n >= 2);
+        assert!(q.len() == d && p.len() == d && grad.len() == d && n >= 1);
         let mut counters = [u64::from(*grad_valid), *force_evaluations];
         // SAFETY: the arrays have the dimension the code was built for (checked above), and
         // `self` keeps the code alive.
@@ -127,7 +130,7 @@ impl LazyCode {
         &mut self,
         n: u64,
         ask: impl FnOnce(u64) -> Option<SharedStretch>,
-    ) -> Option<SharedStretch> {
+    ) -> Option<&SharedStretch> {
         if self.code.is_none() {
             // This stretch counts as generic when the system is asked before it: a run shorter
             // than ASK_EVERY then still reports its first stretch.
@@ -138,6 +141,7 @@ impl LazyCode {
                 self.pending = 0;
             }
         }
-        self.code.clone()
+        // Borrowed, not cloned: a run that watches every step asks at every step.
+        self.code.as_ref()
     }
 }

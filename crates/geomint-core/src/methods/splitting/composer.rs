@@ -4,7 +4,7 @@
 use nalgebra::allocator::Allocator;
 use nalgebra::DefaultAllocator;
 
-use super::compiled::{CompiledStretch, LazyCode, SharedStretch, StretchPlan};
+use super::compiled::{LazyCode, StretchPlan};
 use super::walk::{with_walk, Loop, Stages, Unrolled, Walk};
 use super::*;
 use crate::error::StepError;
@@ -115,30 +115,27 @@ where
         self.compiled.reset();
     }
 
-    /// The system's compiled stretch of this splitting at the prepared h for `n` steps, if it
-    /// has one by now ([`LazyCode`]).
-    fn compiled(&mut self, sys: &S, seam: (f64, (f64, f64)), n: u64) -> Option<SharedStretch> {
+    /// `n ≥ 1` steps through the system's compiled stretch of this splitting at the prepared h,
+    /// if it has one by now ([`LazyCode`]): the bits of [`Self::advance_fused`] (of whole steps
+    /// when the sequence has no seam, or for one step), and the same rerun step by step of a
+    /// stretch that diverges. `None` when the generic path is to take the steps.
+    fn advance_compiled(
+        &mut self,
+        sys: &S,
+        z: &mut State<S::Dim>,
+        h: f64,
+        n: u64,
+    ) -> Option<Advanced> {
         let flows = self.sequence.flows();
         let plan = StretchPlan {
             flows,
             coefficients: &self.coefficients[..flows.len()],
             h: self.coeff_h,
-            seam,
+            seam: self.seam,
         };
-        self.compiled
-            .get(n, |steps| sys.compile_stretch(&plan, steps))
-    }
-
-    /// [`Self::advance_fused`] through the system's compiled stretch: the same bits, and the same
-    /// rerun step by step of a stretch that diverges.
-    fn advance_compiled(
-        &mut self,
-        code: &CompiledStretch,
-        sys: &S,
-        z: &mut State<S::Dim>,
-        h: f64,
-        n: u64,
-    ) -> Advanced {
+        let code = self
+            .compiled
+            .get(n, |steps| sys.compile_stretch(&plan, steps))?;
         let work = &mut self.work;
         let start = work.keep_start(z);
         let taken = code.run(
@@ -150,10 +147,10 @@ where
             n,
         );
         if taken == n {
-            return (n, Ok(()));
+            return Some((n, Ok(())));
         }
         work.back_to_start(z, start);
-        step_by_step(self, sys, z, h, n)
+        Some(step_by_step(self, sys, z, h, n))
     }
 
     /// `n ≥ 2` steps with the last flow of each step and the first of the next applied as one
@@ -307,11 +304,13 @@ where
     #[inline]
     fn advance(&mut self, sys: &S, z: &mut State<S::Dim>, h: f64, n: u64) -> Advanced {
         self.prepare(sys, h);
+        if let Some(advanced) = self.advance_compiled(sys, z, h, n) {
+            return advanced;
+        }
         match self.seam {
-            Some(seam) if n >= 2 => match self.compiled(sys, seam, n) {
-                Some(code) => self.advance_compiled(&code, sys, z, h, n),
-                None => with_walk!(self, W => self.advance_fused::<W>(sys, z, h, n, seam)),
-            },
+            Some(seam) if n >= 2 => {
+                with_walk!(self, W => self.advance_fused::<W>(sys, z, h, n, seam))
+            }
             _ => step_by_step(self, sys, z, h, n),
         }
     }

@@ -22,7 +22,12 @@ impl Compiled {
                 .iter()
                 .flat_map(|&(flow, fraction)| [flow_code(flow), fraction.to_bits()])
                 .chain(plan.coefficients.iter().map(|&(c, _)| c.to_bits()))
-                .chain([plan.h, plan.seam.0, plan.seam.1 .0].map(f64::to_bits))
+                .chain([plan.h.to_bits()])
+                .chain(match plan.seam {
+                    // Only the seam's τ and c enter the code.
+                    Some((tau, (c, _))) => [1, tau.to_bits(), c.to_bits()],
+                    None => [0; 3],
+                })
         };
         self.cached(key, steps, |parts| stretch::compile(plan, parts))
     }

@@ -1,12 +1,13 @@
 //! A typed-in system's stretches of a splitting, compiled with Cranelift: the composer's fused
-//! stretch (see `methods::splitting::compiled`) as one loop in which the state lives in
-//! registers and the potential's gradient program is written into every kick that evaluates it,
-//! where the generic path calls the compiled gradient through a pointer at each.
+//! stretch (see `methods::splitting::compiled`), or its whole steps when the method's last and
+//! first flows do not fuse, as one loop in which the state lives in registers and the
+//! potential's gradient program is written into every kick that evaluates it, where the generic
+//! path calls the compiled gradient through a pointer at each.
 //!
 //! Taken: autonomous separable systems (constant mass in any of its forms) without damping, with
 //! conformal damping or with a projector damping r D(q) p, and sequences of drifts, kicks and
-//! damping flows (modin_3s, csv1, their compositions, …). Each flow is the composer's
-//! arithmetic:
+//! damping flows (modin_3s, csv1, their compositions, …); without damping also the Verlets'
+//! θ-kicks, which are then plain kicks. Each flow is the composer's arithmetic:
 //! - drift: v = M⁻¹p as `InverseMass::apply` computes it, then q ← τv + q;
 //! - kick: ∇V(q) evaluated unless the cache holds it, then p ← (−τ)g + p;
 //! - damping: w = D(q)p (w = p when conformal), then p ← (−c)w + p with c = 1 − e^{−rτ}
@@ -48,11 +49,22 @@ pub(super) fn compile(plan: &StretchPlan, parts: &Parts) -> Result<CompiledStret
     let taken = plan
         .flows
         .iter()
-        .all(|(flow, _)| matches!(flow, SubFlow::Drift | SubFlow::Kick | SubFlow::Damp));
+        .all(|&(flow, _)| kind(flow, parts).is_some());
     if !taken || plan.flows.len() < 2 || plan.coefficients.len() != plan.flows.len() {
         return Err("a flow the compiled stretch does not take".into());
     }
     build(parts, |s| s.splitting(plan))
+}
+
+/// The flow a stretch writes for `flow`, if it takes it: a θ-kick of an undamped system is the
+/// plain kick (`flows::kick_theta` with r = 0 is `flows::kick`, operation for operation), so
+/// velocity and position Verlet and their compositions compile when nothing damps.
+fn kind(flow: SubFlow, parts: &Parts) -> Option<SubFlow> {
+    match flow {
+        SubFlow::Drift | SubFlow::Kick | SubFlow::Damp => Some(flow),
+        SubFlow::DampedKick(_) if parts.rate == 0.0 => Some(SubFlow::Kick),
+        _ => None,
+    }
 }
 
 /// Compiles steps of the explicit Runge–Kutta method `tableau` at step `h` for the system of
@@ -113,6 +125,9 @@ struct Stretch<'a, 'b> {
     g: Vec<Variable>,
     /// Whether g holds ∇V(q), as 0 or 1.
     valid: Variable,
+    /// What the code being written knows of `valid` here: after a drift it is 0, after an
+    /// evaluation 1, and a kick then writes no test; at a loop's head it is unknown.
+    known_valid: Option<bool>,
     evaluations: Variable,
     /// Steps done, counting the one under way.
     done: Variable,
@@ -170,6 +185,7 @@ impl<'a, 'b> Stretch<'a, 'b> {
             p,
             g,
             valid,
+            known_valid: None,
             evaluations,
             done,
         })
@@ -181,20 +197,36 @@ impl<'a, 'b> Stretch<'a, 'b> {
     fn splitting(&mut self, plan: &StretchPlan) -> Result<(), String> {
         let m = plan.flows.len();
         let time = |k: usize| plan.flows[k].1 * plan.h;
-        self.flow(plan.flows[0].0, time(0), plan.coefficients[0].0)?;
+        let kinds = plan
+            .flows
+            .iter()
+            .map(|&(flow, _)| kind(flow, self.parts).ok_or("a flow the stretch does not take"))
+            .collect::<Result<Vec<_>, _>>()?;
+        let Some((seam_tau, (seam_c, _))) = plan.seam else {
+            // Whole steps, none fused with the next.
+            let step = self.b.create_block();
+            self.b.ins().jump(step, &[]);
+            self.b.switch_to_block(step);
+            self.known_valid = None;
+            for k in 0..m {
+                self.flow(kinds[k], time(k), plan.coefficients[k].0)?;
+            }
+            return self.end_of_step(step, false);
+        };
+        self.flow(kinds[0], time(0), plan.coefficients[0].0)?;
         let step = self.b.create_block();
         self.b.ins().jump(step, &[]);
         self.b.switch_to_block(step);
+        self.known_valid = None;
         for k in 1..m - 1 {
-            self.flow(plan.flows[k].0, time(k), plan.coefficients[k].0)?;
+            self.flow(kinds[k], time(k), plan.coefficients[k].0)?;
         }
         // The seam within the stretch, the last flow alone at its end.
-        let (seam_tau, (seam_c, _)) = plan.seam;
         let (last_tau, (last_c, _)) = (time(m - 1), plan.coefficients[m - 1]);
         let n = self.args[4];
         let done = self.b.use_var(self.done);
         let inside = self.b.ins().icmp(IntCC::UnsignedLessThan, done, n);
-        let kind = plan.flows[m - 1].0;
+        let kind = kinds[m - 1];
         let tau = self.choose(inside, seam_tau, last_tau);
         let c = self.choose(inside, seam_c, last_c);
         // A damping flow with c = 0 (no damping) does nothing, as in the composer.
@@ -343,6 +375,7 @@ impl<'a, 'b> Stretch<'a, 'b> {
                 }
                 let zero = self.b.ins().iconst(types::I64, 0);
                 self.b.def_var(self.valid, zero);
+                self.known_valid = Some(false);
             }
             SubFlow::Kick => {
                 self.ensure_gradient()?;
@@ -456,10 +489,17 @@ impl<'a, 'b> Stretch<'a, 'b> {
 
     /// ∇V(q) into g unless g holds it: the gradient's program written here, and counted.
     fn ensure_gradient(&mut self) -> Result<(), String> {
-        let (evaluate, after) = (self.b.create_block(), self.b.create_block());
-        let valid = self.b.use_var(self.valid);
-        self.b.ins().brif(valid, after, &[], evaluate, &[]);
-        self.b.switch_to_block(evaluate);
+        let after = match self.known_valid {
+            Some(true) => return Ok(()),
+            Some(false) => None,
+            None => {
+                let (evaluate, after) = (self.b.create_block(), self.b.create_block());
+                let valid = self.b.use_var(self.valid);
+                self.b.ins().brif(valid, after, &[], evaluate, &[]);
+                self.b.switch_to_block(evaluate);
+                Some(after)
+            }
+        };
         let q = self.values(&self.q.clone());
         let g = self.program_of(self.parts.gradient, &q, self.parts.n)?;
         for (i, value) in g.into_iter().enumerate() {
@@ -470,8 +510,11 @@ impl<'a, 'b> Stretch<'a, 'b> {
         self.b.def_var(self.evaluations, evaluations);
         let one = self.b.ins().iconst(types::I64, 1);
         self.b.def_var(self.valid, one);
-        self.b.ins().jump(after, &[]);
-        self.b.switch_to_block(after);
+        if let Some(after) = after {
+            self.b.ins().jump(after, &[]);
+            self.b.switch_to_block(after);
+        }
+        self.known_valid = Some(true);
         Ok(())
     }
 
