@@ -162,6 +162,16 @@ pub trait LaneForces<const N: usize> {
     /// The exact damping flow over τ, lane l's with the coefficient c[l] = 1 − e^{−r τ} of its
     /// rate r, as the system's `damp_flow` (`methods::lanes::each::damp_each_lane`).
     fn damp_lanes(&self, q: &[Lane; N], p: &mut [Lane; N], tau: f64, c: &Lane);
+    /// Native code for the plain runs' stretches of `plan` in lanes, once the system's runs
+    /// have taken `steps` more steps without it (see [`MechanicalSystem::compile_stretch`]);
+    /// built-in systems have none.
+    fn compile_lanes(
+        &self,
+        _plan: &crate::methods::splitting::compiled::StretchPlan,
+        _steps: u64,
+    ) -> Option<crate::methods::splitting::compiled::SharedStretch> {
+        None
+    }
 }
 
 /// A Hamiltonian system with Rayleigh damping. See the module docs for the model.

@@ -9,6 +9,7 @@ use std::sync::Arc;
 
 use geomint_core::error::Field;
 use geomint_core::methods::composition::Scheme;
+use geomint_core::methods::lanes::runs::{RunLanes, LANES};
 use geomint_core::methods::splitting::compiled::{StretchPlan, COMPILE_AFTER};
 use geomint_core::methods::splitting::{
     SubFlow, CSV1, MODIN_3S, MODIN_RKS, POSITION_VERLET, VELOCITY_VERLET,
@@ -289,4 +290,122 @@ fn the_stretches_are_compiled_for_what_they_take() {
     );
     let generic = damped.clone().without_compiled_stretches();
     assert!(!compiles(&generic, MODIN_3S, fused));
+}
+
+/// A typed-in system of two degrees of freedom, as a run prepares it.
+fn two_degrees(info: &Arc<SystemInfo>) -> CustomSystem<nalgebra::U2> {
+    let spec = SimulationSpec::new(
+        SystemRef::Defined(info.clone()),
+        &[Method::new(MethodId::Modin3s)],
+        0.1,
+        1.0,
+    );
+    let sim = Simulation::prepare(&spec, &Limits::default()).expect("a valid run");
+    let AnySystem::Custom2(sys) = sim.system else {
+        panic!("a typed-in system of two degrees of freedom");
+    };
+    sys
+}
+
+/// Four plain runs side by side, `steps` steps in stretches of `every`: after each stretch the
+/// lanes that ended, and the running lanes' states and the force count, as bits.
+fn lanes_run(
+    sys: &CustomSystem<nalgebra::U2>,
+    flows: &[(SubFlow, f64)],
+    rate: f64,
+    h: f64,
+    starts: &[([f64; 2], [f64; 2]); LANES],
+    (steps, every): (u64, u64),
+) -> Vec<u64> {
+    let mut lanes = RunLanes::<2>::new(flows, &[rate; LANES], h).expect("the lanes take it");
+    for (l, (q, p)) in starts.iter().enumerate() {
+        lanes.set_state(l, q, p);
+    }
+    let mut running = [true; LANES];
+    let mut bits = Vec::new();
+    for _ in 0..steps / every {
+        let ended = lanes.advance(sys, every, &running);
+        for (l, end) in ended.iter().enumerate() {
+            if let (true, Some(end)) = (running[l], end) {
+                running[l] = false;
+                bits.extend([l as u64, end.steps, end.force_evaluations]);
+                bits.push(u64::from(end.diverged));
+            }
+        }
+        for l in (0..LANES).filter(|&l| running[l]) {
+            let (q, p) = lanes.state(l);
+            bits.extend(q.iter().chain(&p).map(|x| x.to_bits()));
+        }
+        bits.push(lanes.force_evaluations());
+    }
+    bits
+}
+
+/// The plain runs' lanes through a typed-in system's compiled lanes give the generic lanes'
+/// bits: every stretch's states, the force count and the lanes that end (a lane above the escape
+/// energy blows up inside a stretch and is run again step by step), for fused stretches
+/// (modin_3s and csv1, undamped and with conformal damping; modin_3s with a projector damping;
+/// position Verlet) and whole steps (velocity Verlet), in stretches of 1, 37 and 1000 steps.
+#[test]
+fn compiled_lanes_give_the_generic_lanes_bits() {
+    let henon_heiles = "(x^2 + y^2)/2 + x^2*y - y^3/3";
+    let full = Mass::Matrix(vec![
+        vec![expr("mass", "1.5"), expr("mass", "0.25")],
+        vec![expr("mass", "0.25"), expr("mass", "1")],
+    ]);
+    let undamped = two_degrees(&system(&["x", "y"], full, henon_heiles, None));
+    let gamma = 0.05;
+    let damped = two_degrees(&system(
+        &["x", "y"],
+        Mass::Scalar(expr("mass", "1")),
+        henon_heiles,
+        Some(gamma),
+    ));
+    let spring = two_degrees(&elastic_pendulum());
+    // Bound orbits near the origin, and in lane 1 one above the escape energy.
+    let starts: [([f64; 2], [f64; 2]); LANES] = std::array::from_fn(|l| match l {
+        1 => ([0.0, -1.0], [2.0, 2.0]),
+        _ => {
+            let s = l as f64 / LANES as f64 - 0.5;
+            ([0.4 * s, -0.3 * s], [0.2 - 0.1 * s, 0.3 * s])
+        }
+    });
+    let springs: [([f64; 2], [f64; 2]); LANES] = std::array::from_fn(|l| {
+        let s = l as f64 / LANES as f64;
+        (
+            [0.9 - 0.5 * s, -0.6 - 0.3 * s],
+            [0.1 + 0.2 * s, 0.4 - 0.3 * s],
+        )
+    });
+    let cases: [(&CustomSystem<nalgebra::U2>, &[(SubFlow, f64)], f64, _); 7] = [
+        (&undamped, MODIN_3S, 0.0, starts),
+        (&undamped, CSV1, 0.0, starts),
+        (&undamped, VELOCITY_VERLET, 0.0, starts),
+        (&undamped, POSITION_VERLET, 0.0, starts),
+        (&damped, MODIN_3S, gamma, starts),
+        (&damped, CSV1, gamma, starts),
+        (&spring, MODIN_3S, 0.1, springs),
+    ];
+    for (sys, flows, rate, starts) in cases {
+        for every in [1, 37, 1000] {
+            let steps = (COMPILE_AFTER + 10_000) / every * every;
+            let h = 0.05;
+            // The first run builds the code once its steps pass COMPILE_AFTER; the second has
+            // it from its first stretch.
+            lanes_run(sys, flows, rate, h, &starts, (steps, every));
+            let compiled = lanes_run(sys, flows, rate, h, &starts, (steps, every));
+            let generic = sys.clone().without_compiled_stretches();
+            let generic = lanes_run(&generic, flows, rate, h, &starts, (steps, every));
+            assert!(
+                compiled == generic,
+                "{flows:?} every {every}: the compiled lanes differ from the generic ones"
+            );
+        }
+    }
+    // The code was built and taken: the system has it for the last plan.
+    assert!(spring
+        .model()
+        .lanes_stretch
+        .lock()
+        .is_ok_and(|s| s.as_ref().is_some_and(|(_, code)| code.is_some())));
 }

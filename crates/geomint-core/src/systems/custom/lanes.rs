@@ -11,6 +11,7 @@ use nalgebra::{U1, U2, U3};
 
 use super::system::{CustomSystem, EnergyModel, InverseMass};
 use crate::methods::lanes::each::{damp_each_lane, damp_point, PointForces};
+use crate::methods::splitting::compiled::{SharedStretch, StretchPlan};
 use crate::system::{Lane, LaneForces, LANES};
 
 macro_rules! lane_forces {
@@ -78,6 +79,10 @@ macro_rules! lane_forces {
             #[inline(always)]
             fn damp_lanes(&self, q: &[Lane; $n], p: &mut [Lane; $n], tau: f64, c: &Lane) {
                 damp_each_lane(|_| self, q, p, tau, c);
+            }
+
+            fn compile_lanes(&self, plan: &StretchPlan, steps: u64) -> Option<SharedStretch> {
+                self.compiled_lanes(plan, steps)
             }
         }
 

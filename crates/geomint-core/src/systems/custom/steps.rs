@@ -4,7 +4,7 @@
 //! [`COMPILE_AFTER`](crate::methods::splitting::compiled::COMPILE_AFTER) steps without it.
 
 use std::sync::atomic::Ordering;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 use super::stretch;
 use super::system::{Compiled, DampingModel, EnergyModel};
@@ -14,22 +14,35 @@ use crate::methods::splitting::compiled::{
 };
 use crate::methods::splitting::SubFlow;
 
+/// What a splitting's code is built from: its flows and fractions, the coefficients, h and the
+/// seam (only its τ and c enter the code).
+fn plan_key<'a>(plan: &'a StretchPlan<'a>) -> impl Iterator<Item = u64> + 'a {
+    plan.flows
+        .iter()
+        .flat_map(|&(flow, fraction)| [flow_code(flow), fraction.to_bits()])
+        .chain(plan.coefficients.iter().map(|&(c, _)| c.to_bits()))
+        .chain([plan.h.to_bits()])
+        .chain(match plan.seam {
+            Some((tau, (c, _))) => [1, tau.to_bits(), c.to_bits()],
+            None => [0; 3],
+        })
+}
+
 impl Compiled {
     /// The compiled stretch of `plan` (see [`Self::cached`]).
     pub(super) fn stretch(&self, plan: &StretchPlan, steps: u64) -> Option<SharedStretch> {
-        let key = || {
-            plan.flows
-                .iter()
-                .flat_map(|&(flow, fraction)| [flow_code(flow), fraction.to_bits()])
-                .chain(plan.coefficients.iter().map(|&(c, _)| c.to_bits()))
-                .chain([plan.h.to_bits()])
-                .chain(match plan.seam {
-                    // Only the seam's τ and c enter the code.
-                    Some((tau, (c, _))) => [1, tau.to_bits(), c.to_bits()],
-                    None => [0; 3],
-                })
-        };
-        self.cached(key, steps, |parts| stretch::compile(plan, parts))
+        let key = || plan_key(plan);
+        self.cached(&self.stretch, key, steps, |parts| {
+            stretch::compile(plan, parts)
+        })
+    }
+
+    /// The compiled stretch of `plan` over the plain runs' lanes (see [`Self::cached`]).
+    pub(super) fn lanes_stretch(&self, plan: &StretchPlan, steps: u64) -> Option<SharedStretch> {
+        let key = || plan_key(plan);
+        self.cached(&self.lanes_stretch, key, steps, |parts| {
+            stretch::compile_lanes(plan, parts)
+        })
     }
 
     /// The compiled steps of `tableau` at step `h` (see [`Self::cached`]).
@@ -45,7 +58,7 @@ impl Compiled {
                 .chain(tableau.b.iter().map(|b| b.to_bits()))
                 .chain([h.to_bits()])
         };
-        self.cached(key, steps, |parts| {
+        self.cached(&self.stretch, key, steps, |parts| {
             stretch::compile_runge_kutta(tableau, h, parts)
         })
     }
@@ -58,11 +71,12 @@ impl Compiled {
     /// a general H or damping) or the code cannot be built. A lookup allocates nothing.
     fn cached<K: Iterator<Item = u64>>(
         &self,
+        slot: &Mutex<Option<(Vec<u64>, Option<SharedStretch>)>>,
         key: impl Fn() -> K,
         steps: u64,
         compile: impl FnOnce(&stretch::Parts) -> Result<CompiledStretch, String>,
     ) -> Option<SharedStretch> {
-        if let Ok(last) = self.stretch.lock() {
+        if let Ok(last) = slot.lock() {
             if let Some((_, code)) = last.as_ref().filter(|(k, _)| k.iter().copied().eq(key())) {
                 return code.clone();
             }
@@ -74,7 +88,7 @@ impl Compiled {
         let code = self
             .parts()
             .and_then(|parts| compile(&parts).ok().map(Arc::new));
-        if let Ok(mut last) = self.stretch.lock() {
+        if let Ok(mut last) = slot.lock() {
             *last = Some((key().collect(), code.clone()));
         }
         code

@@ -26,8 +26,10 @@ use super::mass::InverseMass;
 use crate::expr::jit::{self, Emitter, OwnedModule};
 use crate::expr::program::Program;
 use crate::methods::runge_kutta::Tableau;
+use crate::methods::splitting::compiled::LANE_GROUP;
 use crate::methods::splitting::compiled::{CompiledStretch, StretchFn, StretchPlan};
 use crate::methods::splitting::SubFlow;
+use crate::system::LANES;
 
 /// The parts of a system a stretch needs.
 pub(super) struct Parts<'a> {
@@ -46,6 +48,25 @@ pub(super) struct Parts<'a> {
 
 /// Compiles `plan` for the system of `parts`, or says why not (a flow it does not take).
 pub(super) fn compile(plan: &StretchPlan, parts: &Parts) -> Result<CompiledStretch, String> {
+    check(plan, parts)?;
+    build(parts, (1, 1), |s| s.splitting(plan))
+}
+
+/// Compiles `plan` for [`LANES`] runs of the system of `parts` side by side (the plain runs'
+/// lanes, `methods::lanes::runs`): each lane's flows are [`compile`]'s, written one lane after
+/// the other flow by flow so that the processor overlaps the lanes' chains. The arrays hold
+/// component i of lane l at i·LANES + l. One call runs [`LANE_GROUP`] lanes from the arrays'
+/// starts (the caller offsets them for the next group: more lanes per call spill the state out
+/// of the 16 vector registers); every lane takes all n steps, and the code returns the mask of
+/// the group's lanes whose state did not sum to a finite number after some step (bit l for its
+/// lane l), which the lanes' engine runs again step by step.
+pub(super) fn compile_lanes(plan: &StretchPlan, parts: &Parts) -> Result<CompiledStretch, String> {
+    check(plan, parts)?;
+    build(parts, (LANE_GROUP, LANES), |s| s.splitting(plan))
+}
+
+/// Whether the stretches take `plan` on the system of `parts`.
+fn check(plan: &StretchPlan, parts: &Parts) -> Result<(), String> {
     let taken = plan
         .flows
         .iter()
@@ -53,7 +74,7 @@ pub(super) fn compile(plan: &StretchPlan, parts: &Parts) -> Result<CompiledStret
     if !taken || plan.flows.len() < 2 || plan.coefficients.len() != plan.flows.len() {
         return Err("a flow the compiled stretch does not take".into());
     }
-    build(parts, |s| s.splitting(plan))
+    Ok(())
 }
 
 /// The flow a stretch writes for `flow`, if it takes it: a θ-kick of an undamped system is the
@@ -77,12 +98,14 @@ pub(super) fn compile_runge_kutta(
     h: f64,
     parts: &Parts,
 ) -> Result<CompiledStretch, String> {
-    build(parts, |s| s.runge_kutta(tableau, h))
+    build(parts, (1, 1), |s| s.runge_kutta(tableau, h))
 }
 
-/// A function of [`StretchFn`]'s signature whose loop `body` writes.
+/// A function of [`StretchFn`]'s signature over `lanes` runs in arrays of `stride` lanes whose
+/// loop `body` writes.
 fn build(
     parts: &Parts,
+    (lanes, stride): (usize, usize),
     body: impl FnOnce(&mut Stretch) -> Result<(), String>,
 ) -> Result<CompiledStretch, String> {
     let module = jit::module(true)?;
@@ -96,7 +119,7 @@ fn build(
     let mut builder_ctx = FunctionBuilderContext::new();
     let mut b = FunctionBuilder::new(&mut ctx.func, &mut builder_ctx);
     let emitter = Emitter::new(&module, &mut b);
-    let mut s = Stretch::new(&mut b, parts, emitter)?;
+    let mut s = Stretch::new(&mut b, parts, (lanes, stride), emitter)?;
     body(&mut s)?;
     b.seal_all_blocks();
     b.finalize(module.target_config());
@@ -108,7 +131,8 @@ fn build(
         let code = std::mem::transmute::<*const u8, StretchFn>(address);
         Ok(CompiledStretch::new(
             code,
-            parts.n,
+            parts.n * stride,
+            lanes,
             OwnedModule::new(module),
         ))
     }
@@ -120,10 +144,17 @@ struct Stretch<'a, 'b> {
     parts: &'a Parts<'a>,
     emitter: Emitter,
     args: [Value; 5],
+    /// The lane being written: its positions, momenta and force (see [`Self::lane`]).
     q: Vec<Variable>,
     p: Vec<Variable>,
     g: Vec<Variable>,
-    /// Whether g holds ∇V(q), as 0 or 1.
+    /// Every lane's q, p and force (one lane for a single run).
+    lanes: Vec<[Vec<Variable>; 3]>,
+    /// Lanes in the arrays: component i of lane l is at i·stride + l.
+    stride: usize,
+    /// Lanes whose state was not finite after some step, as a mask (lanes only).
+    left: Variable,
+    /// Whether g holds ∇V(q), as 0 or 1 (the same for every lane: they take the same flows).
     valid: Variable,
     /// What the code being written knows of `valid` here: after a drift it is 0, after an
     /// evaluation 1, and a kick then writes no test; at a loop's head it is unknown.
@@ -131,6 +162,11 @@ struct Stretch<'a, 'b> {
     evaluations: Variable,
     /// Steps done, counting the one under way.
     done: Variable,
+}
+
+/// The index of component `i` of lane `lane` in arrays of `stride` lanes (i·stride + lane).
+fn slot(i: usize, lane: usize, stride: usize) -> Result<u32, String> {
+    u32::try_from(i * stride + lane).map_err(|_| "too many components".to_string())
 }
 
 /// The arrays are aligned and of the compiled length: the caller checks both.
@@ -143,6 +179,7 @@ impl<'a, 'b> Stretch<'a, 'b> {
     fn new(
         b: &'a mut FunctionBuilder<'b>,
         parts: &'a Parts<'a>,
+        (lanes, stride): (usize, usize),
         emitter: Emitter,
     ) -> Result<Self, String> {
         let entry = b.create_block();
@@ -150,21 +187,31 @@ impl<'a, 'b> Stretch<'a, 'b> {
         b.switch_to_block(entry);
         let params = b.block_params(entry);
         let args = [params[0], params[1], params[2], params[3], params[4]];
-        let vars = |b: &mut FunctionBuilder, array: Value| -> Result<Vec<Variable>, String> {
-            (0..parts.n)
-                .map(|i| {
-                    let var = b.declare_var(types::F64);
-                    let value = b
-                        .ins()
-                        .load(types::F64, trusted(), array, jit::offset(i as u32)?);
-                    b.def_var(var, value);
-                    Ok(var)
-                })
-                .collect()
-        };
-        let q = vars(b, args[0])?;
-        let p = vars(b, args[1])?;
-        let g = vars(b, args[2])?;
+        let vars =
+            |b: &mut FunctionBuilder, array: Value, lane: usize| -> Result<Vec<Variable>, String> {
+                (0..parts.n)
+                    .map(|i| {
+                        let var = b.declare_var(types::F64);
+                        let at = jit::offset(slot(i, lane, stride)?)?;
+                        let value = b.ins().load(types::F64, trusted(), array, at);
+                        b.def_var(var, value);
+                        Ok(var)
+                    })
+                    .collect()
+            };
+        let all = (0..lanes)
+            .map(|l| {
+                Ok([
+                    vars(b, args[0], l)?,
+                    vars(b, args[1], l)?,
+                    vars(b, args[2], l)?,
+                ])
+            })
+            .collect::<Result<Vec<_>, String>>()?;
+        let [q, p, g] = all[0].clone();
+        let left = b.declare_var(types::I64);
+        let none = b.ins().iconst(types::I64, 0);
+        b.def_var(left, none);
         let counter = |b: &mut FunctionBuilder, slot: i32| {
             let var = b.declare_var(types::I64);
             let value = b.ins().load(types::I64, trusted(), args[3], slot * 8);
@@ -184,6 +231,9 @@ impl<'a, 'b> Stretch<'a, 'b> {
             q,
             p,
             g,
+            lanes: all,
+            stride,
+            left,
             valid,
             known_valid: None,
             evaluations,
@@ -211,7 +261,7 @@ impl<'a, 'b> Stretch<'a, 'b> {
             for k in 0..m {
                 self.flow(kinds[k], time(k), plan.coefficients[k].0)?;
             }
-            return self.end_of_step(step, false);
+            return self.end_of_splitting_step(step);
         };
         self.flow(kinds[0], time(0), plan.coefficients[0].0)?;
         let step = self.b.create_block();
@@ -233,23 +283,36 @@ impl<'a, 'b> Stretch<'a, 'b> {
         if !(kind == SubFlow::Damp && seam_c == 0.0 && last_c == 0.0) {
             self.flow_with(kind, tau, c)?;
         }
-        self.end_of_step(step, false)
+        self.end_of_splitting_step(step)
     }
 
-    /// The end of a step of the loop that starts at `step`: the next step, or after the n-th
-    /// the state stored and n returned. A step that leaves the state not finite returns 0 when
-    /// `keep_at_stop` is false (the caller runs the stretch again), else stores the state and
-    /// returns the steps taken.
-    fn end_of_step(&mut self, step: Block, keep_at_stop: bool) -> Result<(), String> {
-        let finite = self.finite();
-        let (more, next, ended, stopped) = (
-            self.b.create_block(),
-            self.b.create_block(),
-            self.b.create_block(),
-            self.b.create_block(),
-        );
-        self.b.ins().brif(finite, more, &[], stopped, &[]);
-        self.b.switch_to_block(more);
+    /// The end of a splitting's step: a single run's stretch stops at a state that is not
+    /// finite (to be run again step by step); lanes go on, each marking the step in `left`.
+    fn end_of_splitting_step(&mut self, step: Block) -> Result<(), String> {
+        if self.lanes.len() == 1 {
+            return self.end_of_step(step, false);
+        }
+        let mut left = self.b.use_var(self.left);
+        let none = self.b.ins().iconst(types::I64, 0);
+        for l in 0..self.lanes.len() {
+            self.lane(l);
+            let finite = self.finite();
+            let bit = self.b.ins().iconst(types::I64, 1 << l);
+            let flag = self.b.ins().select(finite, none, bit);
+            left = self.b.ins().bor(left, flag);
+        }
+        self.b.def_var(self.left, left);
+        self.next_step(step);
+        self.store()?;
+        let left = self.b.use_var(self.left);
+        self.b.ins().return_(&[left]);
+        Ok(())
+    }
+
+    /// Counts the step and goes on to the next at `step`, or after the n-th into a new block,
+    /// where the caller ends the stretch.
+    fn next_step(&mut self, step: Block) {
+        let (next, ended) = (self.b.create_block(), self.b.create_block());
         let done = self.b.use_var(self.done);
         let last = self.b.ins().icmp(IntCC::Equal, done, self.args[4]);
         self.b.ins().brif(last, ended, &[], next, &[]);
@@ -258,6 +321,18 @@ impl<'a, 'b> Stretch<'a, 'b> {
         self.b.def_var(self.done, done);
         self.b.ins().jump(step, &[]);
         self.b.switch_to_block(ended);
+    }
+
+    /// The end of a step of the loop that starts at `step`: the next step, or after the n-th
+    /// the state stored and n returned. A step that leaves the state not finite returns 0 when
+    /// `keep_at_stop` is false (the caller runs the stretch again), else stores the state and
+    /// returns the steps taken.
+    fn end_of_step(&mut self, step: Block, keep_at_stop: bool) -> Result<(), String> {
+        let finite = self.finite();
+        let (more, stopped) = (self.b.create_block(), self.b.create_block());
+        self.b.ins().brif(finite, more, &[], stopped, &[]);
+        self.b.switch_to_block(more);
+        self.next_step(step);
         self.store()?;
         let done = self.b.use_var(self.done);
         self.b.ins().return_(&[done]);
@@ -362,7 +437,30 @@ impl<'a, 'b> Stretch<'a, 'b> {
         self.flow_with(kind, tau, c)
     }
 
+    /// A flow of every lane, one lane after the other.
     fn flow_with(&mut self, kind: SubFlow, tau: Value, c: Value) -> Result<(), String> {
+        if kind == SubFlow::Kick {
+            self.ensure_gradient()?;
+        }
+        for l in 0..self.lanes.len() {
+            self.lane(l);
+            self.lane_flow(kind, tau, c)?;
+        }
+        if kind == SubFlow::Drift {
+            let zero = self.b.ins().iconst(types::I64, 0);
+            self.b.def_var(self.valid, zero);
+            self.known_valid = Some(false);
+        }
+        Ok(())
+    }
+
+    /// Makes lane `l` the one `q`, `p` and `g` name.
+    fn lane(&mut self, l: usize) {
+        [self.q, self.p, self.g] = self.lanes[l].clone();
+    }
+
+    /// The flow's update of the current lane (a kick's force already evaluated).
+    fn lane_flow(&mut self, kind: SubFlow, tau: Value, c: Value) -> Result<(), String> {
         let n = self.parts.n;
         match kind {
             SubFlow::Drift => {
@@ -373,12 +471,8 @@ impl<'a, 'b> Stretch<'a, 'b> {
                     let q = self.b.ins().fadd(step, q);
                     self.b.def_var(self.q[i], q);
                 }
-                let zero = self.b.ins().iconst(types::I64, 0);
-                self.b.def_var(self.valid, zero);
-                self.known_valid = Some(false);
             }
             SubFlow::Kick => {
-                self.ensure_gradient()?;
                 let minus_tau = self.b.ins().fneg(tau);
                 for i in 0..n {
                     let (p, g) = (self.b.use_var(self.p[i]), self.b.use_var(self.g[i]));
@@ -500,10 +594,13 @@ impl<'a, 'b> Stretch<'a, 'b> {
                 Some(after)
             }
         };
-        let q = self.values(&self.q.clone());
-        let g = self.program_of(self.parts.gradient, &q, self.parts.n)?;
-        for (i, value) in g.into_iter().enumerate() {
-            self.b.def_var(self.g[i], value);
+        for l in 0..self.lanes.len() {
+            self.lane(l);
+            let q = self.values(&self.q.clone());
+            let g = self.program_of(self.parts.gradient, &q, self.parts.n)?;
+            for (i, value) in g.into_iter().enumerate() {
+                self.b.def_var(self.g[i], value);
+            }
         }
         let evaluations = self.b.use_var(self.evaluations);
         let evaluations = self.b.ins().iadd_imm_s(evaluations, 1);
@@ -565,16 +662,14 @@ impl<'a, 'b> Stretch<'a, 'b> {
 
     /// The state, the force cache and the counters back into the caller's arrays.
     fn store(&mut self) -> Result<(), String> {
-        for (vars, array) in [
-            (self.q.clone(), self.args[0]),
-            (self.p.clone(), self.args[1]),
-            (self.g.clone(), self.args[2]),
-        ] {
-            for (i, var) in vars.into_iter().enumerate() {
-                let value = self.b.use_var(var);
-                self.b
-                    .ins()
-                    .store(trusted(), value, array, jit::offset(i as u32)?);
+        let stride = self.stride;
+        for (l, vars) in self.lanes.clone().into_iter().enumerate() {
+            for (vars, &array) in vars.into_iter().zip(&self.args[..3]) {
+                for (i, var) in vars.into_iter().enumerate() {
+                    let value = self.b.use_var(var);
+                    let at = jit::offset(slot(i, l, stride)?)?;
+                    self.b.ins().store(trusted(), value, array, at);
+                }
             }
         }
         for (slot, var) in [(0, self.valid), (1, self.evaluations)] {

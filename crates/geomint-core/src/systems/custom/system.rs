@@ -135,6 +135,9 @@ pub struct Compiled {
     pub invariants: Option<CompiledFunction>,
     /// The last compiled stretch and what it was compiled for (the cells of a sweep share it).
     pub stretch: Mutex<Option<(Vec<u64>, Option<SharedStretch>)>>,
+    /// The same for the plain runs' lanes (a sweep's full groups; its last cells may run
+    /// alone, on `stretch`).
+    pub lanes_stretch: Mutex<Option<(Vec<u64>, Option<SharedStretch>)>>,
     /// Steps the system's runs took on the generic path while their compiled code was missing.
     pub generic_steps: AtomicU64,
 }
@@ -164,6 +167,13 @@ impl<D: Dim> CustomSystem<D> {
     pub fn without_compiled_stretches(mut self) -> Self {
         self.stretches = false;
         self
+    }
+
+    /// The plain runs' compiled stretch of `plan` in lanes (see `LaneForces::compile_lanes`).
+    pub(super) fn compiled_lanes(&self, plan: &StretchPlan, steps: u64) -> Option<SharedStretch> {
+        self.stretches
+            .then(|| self.model.lanes_stretch(plan, steps))
+            .flatten()
     }
 
     /// The compiled model.

@@ -156,6 +156,7 @@ impl CustomModel {
             damping_derivative,
             invariants,
             stretch: std::sync::Mutex::new(None),
+            lanes_stretch: std::sync::Mutex::new(None),
             generic_steps: Default::default(),
         }))
     }
