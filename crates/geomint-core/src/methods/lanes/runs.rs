@@ -23,7 +23,7 @@
 
 use crate::flows;
 use crate::methods::splitting::compiled::{LazyCode, StretchPlan};
-use crate::methods::splitting::SubFlow;
+use crate::methods::splitting::{self, SubFlow};
 
 use super::Isa;
 
@@ -96,25 +96,13 @@ struct Plan {
 impl Plan {
     /// The composer's coefficients and seam for `flows` at step `h` and damping rate `r`.
     fn new(flows: &[(SubFlow, f64)], r: f64, h: f64) -> Self {
-        let coefficients = |flow: SubFlow, tau: f64| match flow {
-            SubFlow::Damp => (flows::damp_coefficient(r, tau), 0.0),
-            SubFlow::KickDamp => flows::kick_damp_coefficients(r, tau),
-            _ => (0.0, 0.0),
-        };
-        let seam = match (flows.first(), flows.last()) {
-            (Some(&(first, a)), Some(&(last, b))) if flows.len() > 2 && last.fuses_with(first) => {
-                let tau = (b + a) * h;
-                Some((tau, coefficients(first, tau)))
-            }
-            _ => None,
-        };
         Plan {
             flows: flows.to_vec(),
             coefficients: flows
                 .iter()
-                .map(|&(flow, fraction)| coefficients(flow, fraction * h))
+                .map(|&(flow, fraction)| flow.coefficients(r, fraction * h))
                 .collect(),
-            seam,
+            seam: splitting::seam(flows, r, h),
             h,
         }
     }

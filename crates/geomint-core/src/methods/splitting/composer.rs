@@ -93,24 +93,11 @@ where
             return;
         }
         let r = sys.damping_rate();
-        let coefficients = |flow: SubFlow, tau: f64| match flow {
-            Damp => (flows::damp_coefficient(r, tau), 0.0),
-            KickDamp => flows::kick_damp_coefficients(r, tau),
-            _ => (0.0, 0.0),
-        };
         let sequence = self.sequence.flows();
         for (k, &(flow, frac)) in sequence.iter().enumerate() {
-            self.coefficients[k] = coefficients(flow, frac * h);
+            self.coefficients[k] = flow.coefficients(r, frac * h);
         }
-        self.seam = match (sequence.first(), sequence.last()) {
-            (Some(&(first, a)), Some(&(last, b)))
-                if sequence.len() > 2 && last.fuses_with(first) =>
-            {
-                let tau = (b + a) * h;
-                Some((tau, coefficients(first, tau)))
-            }
-            _ => None,
-        };
+        self.seam = seam(sequence, r, h);
         self.coeff_h = h;
         self.compiled.reset();
     }

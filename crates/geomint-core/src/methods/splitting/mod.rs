@@ -92,6 +92,31 @@ impl SubFlow {
                 | (SubFlow::KickDamp, SubFlow::KickDamp)
         )
     }
+
+    /// This flow's coefficients over τ at damping rate r, which depend on h only: the damping's
+    /// c = 1 − e^{−rτ}, the kick-and-damp's (c, d) (`flows::kick_damp_coefficients`); none for
+    /// the others.
+    #[inline]
+    pub fn coefficients(self, r: f64, tau: f64) -> (f64, f64) {
+        match self {
+            SubFlow::Damp => (crate::flows::damp_coefficient(r, tau), 0.0),
+            SubFlow::KickDamp => crate::flows::kick_damp_coefficients(r, tau),
+            _ => (0.0, 0.0),
+        }
+    }
+}
+
+/// The seam of `flows` at step h and damping rate r: the last flow of a step and the first of
+/// the next applied as one over their summed time (b + a)·h, with its coefficients, when the
+/// sequence ends and begins with one kind of flow that fuses (see `Splitting::advance`).
+pub fn seam(flows: &[(SubFlow, f64)], r: f64, h: f64) -> Option<(f64, (f64, f64))> {
+    match (flows.first(), flows.last()) {
+        (Some(&(first, a)), Some(&(last, b))) if flows.len() > 2 && last.fuses_with(first) => {
+            let tau = (b + a) * h;
+            Some((tau, first.coefficients(r, tau)))
+        }
+        _ => None,
+    }
 }
 
 /// A splitting method: sub-flows with their fractions of the step h.
