@@ -211,12 +211,18 @@ fn compiled_stretches_give_the_composers_bits() {
     for method in &methods {
         on_every_system(method, false);
     }
-    // The Verlets and their compositions: compiled on the undamped systems (whole steps for
-    // velocity Verlet, whose kicks do not fuse), left to the composer on the damped ones.
+    // The Verlets, symplectic Euler and compositions: compiled on the undamped systems (whole
+    // steps where a step's last flow and the next's first do not fuse), left to the composer
+    // on the damped ones.
     for base in [Base::VelocityVerlet, Base::PositionVerlet] {
         on_every_system(&Method::composition(Scheme::KahanLi8, base), false);
     }
-    for id in [MethodId::VelocityVerlet, MethodId::PositionVerlet] {
+    for id in [
+        MethodId::VelocityVerlet,
+        MethodId::PositionVerlet,
+        MethodId::SymplecticEuler,
+        MethodId::SymplecticEulerAdjoint,
+    ] {
         on_every_system(&Method::new(id), false);
     }
     // Runge–Kutta methods, with the projector damping too.

@@ -79,7 +79,7 @@ fn check(plan: &StretchPlan, parts: &Parts) -> Result<(), String> {
 
 /// The flow a stretch writes for `flow`, if it takes it: a θ-kick of an undamped system is the
 /// plain kick (`flows::kick_theta` with r = 0 is `flows::kick`, operation for operation), so
-/// velocity and position Verlet and their compositions compile when nothing damps.
+/// the Verlets, symplectic Euler and their compositions compile when nothing damps.
 fn kind(flow: SubFlow, parts: &Parts) -> Option<SubFlow> {
     match flow {
         SubFlow::Drift | SubFlow::Kick | SubFlow::Damp => Some(flow),
