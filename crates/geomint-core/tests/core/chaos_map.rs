@@ -20,7 +20,9 @@ use geomint_core::studies::sweep::{
 };
 use geomint_core::system::MechanicalSystem;
 use geomint_core::systems::custom::{self, CustomDefinition, Energy, Expression, Mass};
-use geomint_core::systems::{params, AnySystem, HenonHeiles, ParamValue, SystemInfo, SystemRef};
+use geomint_core::systems::{
+    params, AnySystem, HenonHeiles, ParamValue, SystemInfo, SystemRef, World,
+};
 
 /// The Hénon–Heiles (y, p_y) section at x = 0 and energy `e`, n × n cells over [−0.5, 0.5]²,
 /// p_x solved from the energy, with `chaos`.
@@ -451,17 +453,17 @@ pub(crate) fn typed_in_xy(
 /// The cells of a sweep over initial states share one compilation of a typed-in system: the
 /// same parameter values give the same compiled functions, others their own.
 #[test]
-fn a_typed_in_system_is_compiled_once_for_the_same_parameter_values() {
+fn a_typed_in_system_and_its_drawing_are_compiled_once_for_the_same_parameter_values() {
     let info = typed_in_henon_heiles(false);
     let chart = info.chart(None, &Field::new("chart")).expect("the chart");
     let field = Field::new("params");
-    let with = |lambda: f64| {
+    let params = |lambda: f64| {
         let given = [("lambda".to_string(), ParamValue::Number(lambda))].into();
-        let params = params::resolve(&info, &given, &field).expect("valid parameters");
-        match info.build(&params, chart, 0.05).expect("compiles") {
-            AnySystem::Custom2(sys) => sys,
-            _ => panic!("two degrees of freedom"),
-        }
+        params::resolve(&info, &given, &field).expect("valid parameters")
+    };
+    let with = |lambda: f64| match info.build(&params(lambda), chart, 0.05).expect("compiles") {
+        AnySystem::Custom2(sys) => sys,
+        _ => panic!("two degrees of freedom"),
     };
     let (a, b, c) = (with(1.0), with(1.0), with(0.5));
     assert!(std::ptr::eq(a.model(), b.model()));
@@ -475,6 +477,14 @@ fn a_typed_in_system_is_compiled_once_for_the_same_parameter_values() {
     // ∇V = (x + 2λxy, y + λ(x² − y²)).
     assert!((grad(&b) - nalgebra::Vector2::new(0.18, -0.15)).amax() < 1e-15);
     assert!((grad(&c) - nalgebra::Vector2::new(0.24, -0.175)).amax() < 1e-15);
+    // The drawing of its bodies, which every run prepares, is compiled once too.
+    let drawing = |lambda: f64| match info.world(&params(lambda)).expect("compiles") {
+        World::Drawn(drawing) => drawing,
+        other => panic!("a typed-in system is drawn: {other:?}"),
+    };
+    let (a, b, c) = (drawing(1.0), drawing(1.0), drawing(0.5));
+    assert!(Arc::ptr_eq(&a, &b));
+    assert!(!Arc::ptr_eq(&a, &c));
 }
 
 #[test]

@@ -72,25 +72,9 @@ impl CustomModel {
     pub fn instantiate(&self, params: &ParamValues) -> Result<AnySystem, CoreError> {
         let values = self.values(params);
         let numbers = self.numbers(&values, &Field::new("params"))?;
-        let key: Vec<u64> = values.iter().map(|v| v.to_bits()).collect();
-        // The same values compile to the same code: a poisoned lock only loses the cache.
-        let cached = match self.last.lock() {
-            Ok(last) => last
-                .as_ref()
-                .filter(|(k, _)| *k == key)
-                .map(|(_, c)| c.clone()),
-            Err(_) => None,
-        };
-        let compiled = match cached {
-            Some(compiled) => compiled,
-            None => {
-                let compiled = self.compile_system(&values, numbers)?;
-                if let Ok(mut last) = self.last.lock() {
-                    *last = Some((key, compiled.clone()));
-                }
-                compiled
-            }
-        };
+        let compiled = self
+            .last
+            .get(&values, || self.compile_system(&values, numbers))?;
         Ok(match compiled.n {
             1 => AnySystem::Custom1(CustomSystem::new(nalgebra::U1, compiled)),
             2 => AnySystem::Custom2(CustomSystem::new(nalgebra::U2, compiled)),
@@ -165,14 +149,16 @@ impl CustomModel {
     /// them its first one to three coordinates.
     pub fn world(&self, params: &ParamValues) -> Result<World, CoreError> {
         let values = self.values(params);
-        let (dims, nodes) = match &self.positions {
-            Some((dims, nodes)) => (*dims, nodes.clone()),
-            None => {
-                let shown = &self.coordinate_nodes[..self.n.min(3)];
-                (shown.len().max(2), shown.to_vec())
-            }
-        };
-        let function = self.compile_with(&nodes, false, false, &values)?;
-        Ok(World::Drawn(Arc::new(Drawing::new(function, dims))))
+        self.last_world.get(&values, || {
+            let (dims, nodes) = match &self.positions {
+                Some((dims, nodes)) => (*dims, nodes.clone()),
+                None => {
+                    let shown = &self.coordinate_nodes[..self.n.min(3)];
+                    (shown.len().max(2), shown.to_vec())
+                }
+            };
+            let function = self.compile_with(&nodes, false, false, &values)?;
+            Ok(World::Drawn(Arc::new(Drawing::new(function, dims))))
+        })
     }
 }

@@ -16,7 +16,7 @@ use super::{MAX_COORDINATES, MAX_NAMES};
 use crate::error::{CoreError, Field, Range};
 use crate::expr::{ExprError, Graph, NodeId, Scope, Var};
 use crate::system::Structure;
-use crate::systems::ParamValues;
+use crate::systems::{ParamValues, World};
 use checks::uses;
 
 /// The graph nodes of the energy.
@@ -73,9 +73,42 @@ pub struct CustomModel {
     /// The structure and damping rate at the default parameter values (what the methods
     /// require), and the damping's form.
     at_defaults: (Structure, f64, DampingKind),
-    /// The last compilation and its parameter values' bits: the cells of a sweep over initial
-    /// states share one compilation rather than each compiling the same code again.
-    last: Mutex<Option<(Vec<u64>, Arc<Compiled>)>>,
+    /// The last compilation and the last drawing of the bodies, each with its parameter values'
+    /// bits: the cells of a sweep over initial states share them rather than each compiling the
+    /// same code again.
+    last: LastCompiled<Arc<Compiled>>,
+    last_world: LastCompiled<World>,
+}
+
+/// The last thing compiled for some parameter values, kept for the next run with the same.
+#[derive(Debug)]
+struct LastCompiled<T>(Mutex<Option<(Vec<u64>, T)>>);
+
+impl<T: Clone> LastCompiled<T> {
+    fn new() -> Self {
+        LastCompiled(Mutex::new(None))
+    }
+
+    /// The value kept for `values`, or the one `compile` makes, then kept. The same values
+    /// compile to the same code: a poisoned lock only loses the cache.
+    fn get<E>(&self, values: &[f64], compile: impl FnOnce() -> Result<T, E>) -> Result<T, E> {
+        let key: Vec<u64> = values.iter().map(|v| v.to_bits()).collect();
+        let kept = match self.0.lock() {
+            Ok(last) => last
+                .as_ref()
+                .filter(|(k, _)| *k == key)
+                .map(|(_, value)| value.clone()),
+            Err(_) => None,
+        };
+        if let Some(value) = kept {
+            return Ok(value);
+        }
+        let value = compile()?;
+        if let Ok(mut last) = self.0.lock() {
+            *last = Some((key, value.clone()));
+        }
+        Ok(value)
+    }
 }
 
 /// The time of a driven definition as extended phase space sees it: t a coordinate after the
@@ -311,7 +344,8 @@ impl CustomModel {
                 0.0,
                 DampingKind::None,
             ),
-            last: Mutex::new(None),
+            last: LastCompiled::new(),
+            last_world: LastCompiled::new(),
         };
         model.check_states()?;
         // The numbers the default parameters fix: checked now, so that a definition that can
