@@ -5,7 +5,9 @@
 //! `fsub`, `fmul`, `fdiv`, `fneg`, `fabs` and `sqrt` in registers, stores to `outputs`.
 //! Everything else (`sin`, `exp`, `pow`, `atan2`, …) is a call to the `extern "C"`
 //! entry points in [`ops`](crate::expr::ops), which run the same Rust code as the
-//! interpreter. Cranelift never contracts a multiply and an add into a fused
+//! interpreter. An [`Emitter`] also writes programs over vectors of f64 lanes (the compiled
+//! lanes of `systems::custom::stretch`): the same arithmetic lane by lane, a call per lane for
+//! the rest. Cranelift never contracts a multiply and an add into a fused
 //! multiply-add, and its rewrites of floating-point code are exact, so the native code
 //! computes exactly what the interpreter does.
 
@@ -86,11 +88,19 @@ pub(crate) struct Emitter {
     pointer: types::Type,
     unary: SigRef,
     binary: SigRef,
+    /// The values' type: `F64`, or a vector of f64 lanes, each computed as the scalar code
+    /// computes it (the vector arithmetic is lane by lane IEEE, the calls are made per lane).
+    ty: types::Type,
 }
 
 impl Emitter {
-    /// An emitter for functions of `module` built by `b`.
+    /// An emitter of scalar code for functions of `module` built by `b`.
     pub(crate) fn new(module: &JITModule, b: &mut FunctionBuilder) -> Self {
+        Self::of_type(module, b, types::F64)
+    }
+
+    /// An emitter whose values are of `ty`, `F64` or a vector of f64 lanes.
+    pub(crate) fn of_type(module: &JITModule, b: &mut FunctionBuilder, ty: types::Type) -> Self {
         let call_conv = module.isa().default_call_conv();
         let float_signature = |params: usize| {
             let mut sig = Signature::new(call_conv);
@@ -103,7 +113,46 @@ impl Emitter {
             pointer: module.target_config().pointer_type(),
             unary: b.import_signature(float_signature(1)),
             binary: b.import_signature(float_signature(2)),
+            ty,
         }
+    }
+
+    /// The scalar `x` in every lane of the values' type.
+    pub(crate) fn broadcast(&self, b: &mut FunctionBuilder, x: Value) -> Value {
+        if self.ty.is_vector() {
+            b.ins().splat(self.ty, x)
+        } else {
+            x
+        }
+    }
+
+    /// The entry point `callee` of signature `signature` applied to `args`, lane by lane.
+    fn call(
+        &self,
+        b: &mut FunctionBuilder,
+        signature: SigRef,
+        callee: usize,
+        args: &[Value],
+    ) -> Value {
+        let address = b.ins().iconst(self.pointer, callee as i64);
+        let apply = |b: &mut FunctionBuilder, args: &[Value]| {
+            let call = b.ins().call_indirect(signature, address, args);
+            b.inst_results(call)[0]
+        };
+        if !self.ty.is_vector() {
+            return apply(b, args);
+        }
+        let mut result = None;
+        for lane in 0..self.ty.lane_count() as u8 {
+            let lane_args: Vec<Value> =
+                args.iter().map(|&a| b.ins().extractlane(a, lane)).collect();
+            let value = apply(b, &lane_args);
+            result = Some(match result {
+                None => b.ins().splat(self.ty, value),
+                Some(vector) => b.ins().insertlane(vector, value, lane),
+            });
+        }
+        result.expect("a vector has lanes")
     }
 
     /// Emits `program`: its input `i` is `load(b, i)`, and each output `o` it computes goes to
@@ -121,7 +170,8 @@ impl Emitter {
             let (dst, value) = match *instr {
                 Instr::Load { dst, input } => (dst, load(b, input)?),
                 Instr::Const { dst, value } => {
-                    (dst, b.ins().f64const(Ieee64::with_bits(value.to_bits())))
+                    let scalar = b.ins().f64const(Ieee64::with_bits(value.to_bits()));
+                    (dst, self.broadcast(b, scalar))
                 }
                 Instr::Unary { op, dst, a } => {
                     let x = get(&regs, a)?;
@@ -129,12 +179,7 @@ impl Emitter {
                         UnaryOp::Neg => b.ins().fneg(x),
                         UnaryOp::Abs => b.ins().fabs(x),
                         UnaryOp::Sqrt => b.ins().sqrt(x),
-                        other => {
-                            let callee = entry::unary(other);
-                            let address = b.ins().iconst(self.pointer, callee as usize as i64);
-                            let call = b.ins().call_indirect(self.unary, address, &[x]);
-                            b.inst_results(call)[0]
-                        }
+                        other => self.call(b, self.unary, entry::unary(other) as usize, &[x]),
                     };
                     (dst, value)
                 }
@@ -145,12 +190,7 @@ impl Emitter {
                         BinaryOp::Sub => b.ins().fsub(x, y),
                         BinaryOp::Mul => b.ins().fmul(x, y),
                         BinaryOp::Div => b.ins().fdiv(x, y),
-                        other => {
-                            let callee = entry::binary(other);
-                            let address = b.ins().iconst(self.pointer, callee as usize as i64);
-                            let call = b.ins().call_indirect(self.binary, address, &[x, y]);
-                            b.inst_results(call)[0]
-                        }
+                        other => self.call(b, self.binary, entry::binary(other) as usize, &[x, y]),
                     };
                     (dst, value)
                 }

@@ -348,10 +348,11 @@ fn lanes_run(
 }
 
 /// The plain runs' lanes through a typed-in system's compiled lanes give the generic lanes'
-/// bits: every stretch's states, the force count and the lanes that end (a lane above the escape
-/// energy blows up inside a stretch and is run again step by step), for fused stretches
-/// (modin_3s and csv1, undamped and with conformal damping; modin_3s with a projector damping;
-/// position Verlet) and whole steps (velocity Verlet), in stretches of 1, 37 and 1000 steps.
+/// bits: every stretch's states, the force count and the lanes that end (lanes above the escape
+/// energy blow up inside a stretch and are run again step by step), for fused stretches
+/// (modin_3s and csv1, undamped and with conformal damping; modin_3s with a projector damping
+/// and with a force that calls functions; position Verlet) and whole steps (velocity Verlet), in
+/// stretches of 1, 37 and 1000 steps.
 #[test]
 fn compiled_lanes_give_the_generic_lanes_bits() {
     let henon_heiles = "(x^2 + y^2)/2 + x^2*y - y^3/3";
@@ -368,9 +369,17 @@ fn compiled_lanes_give_the_generic_lanes_bits() {
         Some(gamma),
     ));
     let spring = two_degrees(&elastic_pendulum());
-    // Bound orbits near the origin, and in lane 1 one above the escape energy.
+    // A force that calls functions (cos, sin and pow), which vector lanes call lane by lane.
+    let pendulums = two_degrees(&system(
+        &["x", "y"],
+        Mass::Scalar(expr("mass", "1")),
+        "-cos(x) - cos(y) + 0.1*(1 + (x - y)^2)^1.5",
+        None,
+    ));
+    // Bound orbits near the origin, and in lanes 1, 6 and 11 one above the escape energy: with
+    // two lanes to a vector, the upper and lower halves of three different vectors.
     let starts: [([f64; 2], [f64; 2]); LANES] = std::array::from_fn(|l| match l {
-        1 => ([0.0, -1.0], [2.0, 2.0]),
+        1 | 6 | 11 => ([0.0, -1.0], [2.0, 2.0 + l as f64 / 10.0]),
         _ => {
             let s = l as f64 / LANES as f64 - 0.5;
             ([0.4 * s, -0.3 * s], [0.2 - 0.1 * s, 0.3 * s])
@@ -383,8 +392,9 @@ fn compiled_lanes_give_the_generic_lanes_bits() {
             [0.1 + 0.2 * s, 0.4 - 0.3 * s],
         )
     });
-    let cases: [(&CustomSystem<nalgebra::U2>, &[(SubFlow, f64)], f64, _); 7] = [
+    let cases: [(&CustomSystem<nalgebra::U2>, &[(SubFlow, f64)], f64, _); 8] = [
         (&undamped, MODIN_3S, 0.0, starts),
+        (&pendulums, MODIN_3S, 0.0, starts),
         (&undamped, CSV1, 0.0, starts),
         (&undamped, VELOCITY_VERLET, 0.0, starts),
         (&undamped, POSITION_VERLET, 0.0, starts),

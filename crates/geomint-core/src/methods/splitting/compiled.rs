@@ -45,7 +45,7 @@ pub type StretchFn = unsafe extern "C" fn(*mut f64, *mut f64, *mut f64, *mut u64
 pub struct CompiledStretch {
     code: StretchFn,
     dimension: usize,
-    /// Runs one call takes: 1, or [`LANE_GROUP`] lanes of arrays of [`LANES`].
+    /// Runs one call takes: 1, or a group of lanes of arrays of [`LANES`] (a divisor of it).
     lanes: usize,
     /// Owns the code's memory.
     _module: OwnedModule,
@@ -131,18 +131,19 @@ impl CompiledStretch {
     ) -> [bool; LANES] {
         let d = self.dimension;
         assert!(q.len() == d && p.len() == d && grad.len() == d && n >= 1);
-        assert!(self.lanes == LANE_GROUP && d.is_multiple_of(LANES));
+        let group_lanes = self.lanes;
+        assert!(group_lanes > 1 && LANES.is_multiple_of(group_lanes) && d.is_multiple_of(LANES));
         let mut counters = [0; 2];
         let mut left = [false; LANES];
-        for group in (0..LANES).step_by(LANE_GROUP) {
+        for group in (0..LANES).step_by(group_lanes) {
             // Each group starts from the same cache and count; all end with the same.
             counters = [u64::from(*grad_valid), *force_evaluations];
             // SAFETY: the code reads and writes the group's lanes, `group` to `group` +
-            // LANE_GROUP − 1, of arrays of LANES lanes and `dimension` components (checked
+            // group_lanes − 1, of arrays of LANES lanes and `dimension` components (checked
             // above).
             let mask =
                 unsafe { self.call([&mut *q, &mut *p, &mut *grad], group, &mut counters, n) };
-            for l in 0..LANE_GROUP {
+            for l in 0..group_lanes {
                 left[group + l] = mask & (1 << l) != 0;
             }
         }
@@ -151,11 +152,6 @@ impl CompiledStretch {
         left
     }
 }
-
-/// Lanes one call of a lanes' stretch runs side by side: four chains of a step's flows overlap
-/// in the processor, and their state fits the 16 vector registers Cranelift allocates (16
-/// lanes in one call spilled: 12.3 ns per cell-step on the typed-in Hénon–Heiles sweep).
-pub const LANE_GROUP: usize = 4;
 
 /// A compiled stretch shared by the runs of one system and plan.
 pub type SharedStretch = Arc<CompiledStretch>;
