@@ -37,7 +37,8 @@ pub struct StretchPlan<'a> {
 /// `grad` and `counters` = [whether `grad` holds ∇V(q) (0 or 1), force evaluations so far],
 /// both updated. Returns the steps taken: a splitting stretch n, or 0 if the state did not sum
 /// to a finite number after some step (the arrays then hold no meaningful state); Runge–Kutta
-/// steps up to and including the first whose state does not.
+/// steps up to and including the first whose state does not. Code for lanes returns instead the
+/// mask of its lanes whose state did not (see [`CompiledStretch::run_lanes`]).
 pub type StretchFn = unsafe extern "C" fn(*mut f64, *mut f64, *mut f64, *mut u64, u64) -> u64;
 
 /// Native code for a system's stretches of one plan.

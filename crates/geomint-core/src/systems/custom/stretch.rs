@@ -13,8 +13,9 @@
 //! - damping: w = D(q)p (w = p when conformal), then p ← (−c)w + p with c = 1 − e^{−rτ}
 //!   (nothing when c = 0).
 //!
-//! After each step the state's components are summed as the one-run path sums them (positions,
-//! then momenta) and the stretch reports a sum that is not finite.
+//! After each step the state's components are summed in the one-run path's order (positions,
+//! then momenta), less its leading 0 +, which cannot change whether the sum is finite, and the
+//! stretch reports a sum that is not finite.
 
 use cranelift_codegen::ir::condcodes::{FloatCC, IntCC};
 use cranelift_codegen::ir::immediates::Ieee64;
@@ -53,12 +54,11 @@ pub(super) fn compile(plan: &StretchPlan, parts: &Parts) -> Result<CompiledStret
 
 /// Compiles `plan` for [`LANES`] runs of the system of `parts` side by side (the plain runs'
 /// lanes, `methods::lanes::runs`): each lane's flows are [`compile`]'s, two lanes to a vector
-/// where the target has f64×2 vectors ([`Layout::LANES`]), the vectors written one after the
-/// other flow by flow so that the processor overlaps their chains. The arrays hold component i
-/// of lane l at i·LANES + l. One call runs a group of lanes from the arrays' starts (the caller
-/// offsets them for the next group); every lane takes all n steps, and the code returns the mask
-/// of the group's lanes whose state did not sum to a finite number after some step (bit l for
-/// its lane l), which the lanes' engine runs again step by step.
+/// where the target has f64×2 vectors ([`Layout::LANES`]), independent chains that the processor
+/// overlaps. The arrays hold component i of lane l at i·LANES + l. One call runs
+/// [`Layout::LANES`]'s lanes from the arrays' starts (all of them); every lane takes all n
+/// steps, and the code returns the mask of the lanes whose state did not sum to a finite number
+/// after some step (bit l for lane l), which the lanes' engine runs again step by step.
 pub(super) fn compile_lanes(plan: &StretchPlan, parts: &Parts) -> Result<CompiledStretch, String> {
     check(plan, parts)?;
     build(parts, Layout::LANES, |s| s.splitting(plan))
@@ -85,10 +85,10 @@ impl Layout {
 
     /// The plain runs' lanes. Cranelift lowers f64×2 arithmetic on x86-64 (SSE2, or AVX's
     /// encodings) and AArch64 (Neon), and vectors no wider than 128 bits; elsewhere the lanes
-    /// are scalars. All the lanes in one call, eight chains of vectors that the processor
-    /// overlaps: in one build of `cargo bench --bench chaos`, the typed-in Hénon–Heiles sweep
-    /// took 7.2–7.8 ns per cell-step so, against 7.6–8.4 with eight lanes to a call (whose state
-    /// would fit the 16 registers Cranelift allocates) and 10.7 with four.
+    /// are scalars. All the lanes in one call, eight independent chains of vectors: in one build
+    /// of `cargo bench --bench chaos`, the typed-in Hénon–Heiles sweep took 7.2–7.8 ns per
+    /// cell-step with them, against 7.6–8.4 with eight lanes to a call and 10.7 with four (the
+    /// state spills out of the 16 registers Cranelift allocates either way).
     const LANES: Layout = Layout {
         lanes: LANES,
         width: if cfg!(any(target_arch = "x86_64", target_arch = "aarch64")) {
@@ -340,7 +340,7 @@ impl<'a, 'b> Stretch<'a, 'b> {
     /// The end of a splitting's step: a single run's stretch stops at a state that is not
     /// finite (to be run again step by step); lanes go on, each marking the step in `left`.
     fn end_of_splitting_step(&mut self, step: Block) -> Result<(), String> {
-        if self.lanes.len() == 1 {
+        if self.layout.lanes == 1 {
             return self.end_of_step(step, false);
         }
         let mut left = self.b.use_var(self.left);

@@ -90,24 +90,27 @@ impl<T: Clone> LastCompiled<T> {
     }
 
     /// The value kept for `values`, or the one `compile` makes, then kept. The same values
-    /// compile to the same code: a poisoned lock only loses the cache.
+    /// compile to the same code, and a value is stored whole, so a poisoned lock holds a valid
+    /// one.
     fn get<E>(&self, values: &[f64], compile: impl FnOnce() -> Result<T, E>) -> Result<T, E> {
         let key: Vec<u64> = values.iter().map(|v| v.to_bits()).collect();
-        let kept = match self.0.lock() {
-            Ok(last) => last
-                .as_ref()
-                .filter(|(k, _)| *k == key)
-                .map(|(_, value)| value.clone()),
-            Err(_) => None,
-        };
+        let kept = self
+            .lock()
+            .as_ref()
+            .filter(|(k, _)| *k == key)
+            .map(|(_, v)| v.clone());
         if let Some(value) = kept {
             return Ok(value);
         }
         let value = compile()?;
-        if let Ok(mut last) = self.0.lock() {
-            *last = Some((key, value.clone()));
-        }
+        *self.lock() = Some((key, value.clone()));
         Ok(value)
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, Option<(Vec<u64>, T)>> {
+        self.0
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
     }
 }
 
