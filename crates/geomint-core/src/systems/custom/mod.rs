@@ -16,7 +16,7 @@
 //! points). A run then compiles the model for its parameter values ([`model::CustomModel`]'s
 //! `instantiate`), parameters folded into the machine code.
 //! Its long runs then compile whole stretches of splitting steps and Runge–Kutta steps too
-//! (`stretch.rs`, kept per system by `steps.rs`), with the generic steppers' bits.
+//! (`stretch/`, kept per system by `steps.rs`), with the generic steppers' bits.
 
 mod buffers;
 pub mod damping;

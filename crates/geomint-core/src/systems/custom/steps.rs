@@ -1,5 +1,5 @@
 //! Which compiled steps a typed-in system has: its code for a splitting's stretches and for
-//! Runge–Kutta steps (`stretch.rs` builds it), kept per system for the plan last asked for, and
+//! Runge–Kutta steps (`stretch/` builds it), kept per system for the plan last asked for, and
 //! built once the system's runs have taken
 //! [`COMPILE_AFTER`](crate::methods::splitting::compiled::COMPILE_AFTER) steps without it.
 
