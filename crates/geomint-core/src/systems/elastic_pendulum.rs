@@ -15,6 +15,12 @@ use crate::methods::lanes::each::{damp_each_lane, damp_point, PointForces};
 use crate::system::{Lane, LaneForces, LANES};
 use crate::system::{MechanicalSystem, Structure, Vector};
 
+/// a·b, summed in index order.
+#[inline(always)]
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
 /// The damped elastic 3-D pendulum.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ElasticPendulum3d {
@@ -61,10 +67,42 @@ impl MechanicalSystem for ElasticPendulum3d {
     }
     #[inline]
     fn project_damped(&self, q: &Vector<U3>, v: &Vector<U3>, out: &mut Vector<U3>) {
+        // Divided by |q|² last: the damping flow follows a drift, so q is the late input and
+        // q·v and |q|² are computed side by side (unlike the kick below).
         let c = q.dot(v) / q.norm_squared();
         out[0] = c * q[0];
         out[1] = c * q[1];
         out[2] = c * q[2];
+    }
+    /// r P(q) p through [`Self::projection_row`]: in a Runge–Kutta stage q and p arrive
+    /// together, and the division then runs beside the force's square root (rk4 on this system:
+    /// 84 → 57 ns per step).
+    #[inline]
+    fn damping_force(&self, q: &Vector<U3>, p: &Vector<U3>, out: &mut Vector<U3>) {
+        let c = self.damping_rate() * dot(Self::projection_row(q), [p[0], p[1], p[2]]);
+        out[0] = c * q[0];
+        out[1] = c * q[1];
+        out[2] = c * q[2];
+    }
+    /// The default's p ← p − τ g + P(q)(−c p + d g), written out without scratch vectors. Here
+    /// the late input is g (it waits for the force at q), so the projector goes through
+    /// [`Self::projection_row`], whose division depends on q alone.
+    #[inline]
+    fn kick_damp_flow(
+        &self,
+        q: &Vector<U3>,
+        p: &mut Vector<U3>,
+        g: &Vector<U3>,
+        tau: f64,
+        (c, d): (f64, f64),
+        _w: &mut Vector<U3>,
+        _pw: &mut Vector<U3>,
+    ) {
+        let w = [0, 1, 2].map(|i| d * g[i] - c * p[i]);
+        let s = dot(Self::projection_row(q), w);
+        for i in 0..3 {
+            p[i] = (p[i] - tau * g[i]) + s * q[i];
+        }
     }
     fn projector_derivative(&self, q: &Vector<U3>, v: &Vector<U3>, out: &mut DMatrix<f64>) -> bool {
         spring_projector_derivative([q[0], q[1], q[2]], v, [true, true, true], out);
@@ -96,10 +134,25 @@ impl ElasticPendulum3d {
         [p[0] * inv_m, p[1] * inv_m, p[2] * inv_m]
     }
 
+    /// q/|q|², the row of the projector P(q) = q qᵀ/|q|² = q (q/|q|²)ᵀ. It depends on q alone,
+    /// so its division runs while the force is computed, instead of after q·w as in
+    /// (q·w)/|q|², where it would wait for w (which waits for the force).
+    #[inline(always)]
+    fn projection_row(q: &Vector<U3>) -> [f64; 3] {
+        let inverse = 1.0 / q.norm_squared();
+        [q[0] * inverse, q[1] * inverse, q[2] * inverse]
+    }
+
+    /// ∇V = k(1 − l/r) q + m g e_z, with l/r computed as (l/r²)·r: the division by r² runs beside
+    /// the square root instead of after it. A long run's step is bound by the chain of latencies
+    /// from one stage to the next (drift, force, kick), not by throughput, and this takes a
+    /// division's latency off it. It rounds once more than l/r: the pinned snapshots of this
+    /// system changed with it.
     #[inline(always)]
     fn grad(&self, q: &Vector<U3>) -> [f64; 3] {
-        let r = q.norm();
-        let c = self.k * (1.0 - self.l / r);
+        let r2 = q.norm_squared();
+        let l_over_r2 = self.l / r2;
+        let c = self.k * (1.0 - l_over_r2 * r2.sqrt());
         [c * q[0], c * q[1], c * q[2] + self.m * self.g]
     }
 
