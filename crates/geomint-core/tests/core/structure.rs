@@ -336,7 +336,10 @@ fn the_elastic_pendulums_rearranged_arithmetic_agrees_with_the_textbook_formulas
         let mut damping = q;
         sys.damping_force(&q, &p, &mut damping);
         let textbook = q * (sys.damping_rate() * q.dot(&p) / q.norm_squared());
-        worst_damping = nan_max(worst_damping, (damping - textbook).amax() / scale(&textbook));
+        worst_damping = nan_max(
+            worst_damping,
+            (damping - textbook).amax() / scale(&textbook),
+        );
 
         let (c, d) = flows::kick_damp_coefficients(sys.damping_rate(), 0.3);
         let (mut w, mut pw) = (q, q);
@@ -361,9 +364,21 @@ fn the_elastic_pendulums_rearranged_arithmetic_agrees_with_the_textbook_formulas
         worst_damping / ulp,
         worst_flow / ulp
     );
-    assert!(worst_force <= 4.0 * ulp, "force: {:.2} ulp", worst_force / ulp);
-    assert!(worst_damping <= 4.0 * ulp, "damping: {:.2} ulp", worst_damping / ulp);
-    assert!(worst_flow <= 4.0 * ulp, "kick-and-damp: {:.2} ulp", worst_flow / ulp);
+    assert!(
+        worst_force <= 4.0 * ulp,
+        "force: {:.2} ulp",
+        worst_force / ulp
+    );
+    assert!(
+        worst_damping <= 4.0 * ulp,
+        "damping: {:.2} ulp",
+        worst_damping / ulp
+    );
+    assert!(
+        worst_flow <= 4.0 * ulp,
+        "kick-and-damp: {:.2} ulp",
+        worst_flow / ulp
+    );
     // The rearrangement does change bits: the comparison is not vacuous.
     assert!(worst_force > 0.0 && worst_flow > 0.0);
 }
