@@ -1,6 +1,7 @@
 //! Long horizons with weak damping: the wall time each method needs to reach a max energy error
 //! of 1e-6 and 1e-8 over [0, T], the protocol of the peers' long-horizon experiment
-//! (`run_long.sh` beside the project): 50 sample times t_k = kT/50, error max_k |H(t_k) − H_ref(t_k)|.
+//! (`run_long.sh` beside the project): 50 sample times t_k = kT/50, error
+//! max_k |H(t_k) − H_ref(t_k)|.
 //!
 //! Problems: P2' the elastic 3-D pendulum (paper 000 Sec. 6.2; m = k = l = g = 1, radial damping
 //! ε ∈ {1e-3, 1e-4}, q0 = (0, 1.55884573, −0.6), p0 = (1.34164079, 0, 0)) and P1' the damped
@@ -9,12 +10,12 @@
 //! Methods: geomint's compositions of modin_3s (orders 2, 4, 6, 8) and the sixth- and
 //! eighth-order ones (Kahan–Li's, and Blanes–Casas–Murua's processed one) of modin_2s too, at
 //! fixed steps that divide T/50, its rk4, and its adaptive reference integrator (DOP853, one
-//! segment per sample interval) at tolerances 1e-7 … 1e-13. Wall time is the whole sampled run: building the stepper, the
-//! steps and the 50 energy evaluations; runs under 50 ms take the median of 5, under 1.5 s the
-//! median of 3. The equal-accuracy time is found as the peers find it: settings sorted by time,
-//! each error replaced by the worst error of that and every more expensive setting, then log–log
-//! interpolation between the last setting that misses the target and the first that meets it
-//! (`<x`: the cheapest setting meets it already; `-`: none does).
+//! segment per sample interval) at tolerances 1e-7 … 1e-13. Wall time is the whole sampled run:
+//! building the stepper, the steps and the 50 energy evaluations; runs under 50 ms take the
+//! median of 5, under 1.5 s the median of 3. The equal-accuracy time is found as the peers find
+//! it: settings sorted by time, each error replaced by the worst error of that and every more
+//! expensive setting, then log–log interpolation between the last setting that misses the target
+//! and the first that meets it (`<x`: the cheapest setting meets it already; `-`: none does).
 //!
 //! Reference energies: kahan_li_8(modin_3s) at h = 0.025 (error ≈ round-off, bounded in time),
 //! checked against the same at h = 0.05 and against the adaptive DOP853 at tolerance 1e-13.
