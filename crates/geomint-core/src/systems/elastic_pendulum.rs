@@ -84,25 +84,33 @@ impl MechanicalSystem for ElasticPendulum3d {
         out[1] = c * q[1];
         out[2] = c * q[2];
     }
-    /// The default's p ← p − τ g + P(q)(−c p + d g), written out without scratch vectors. Here
-    /// the late input is g (it waits for the force at q), so the projector goes through
-    /// [`Self::projection_row`], whose division depends on q alone.
+    /// The default's p ← p − τ g + P(q)(−c p + d g), rearranged so that only two operations
+    /// follow the force's latency. With g = c_r q + m g e_z (c_r = k(1 − l/r), see
+    /// [`Self::radial_coefficient`]) and q·q/|q|² = 1,
+    /// P(q)(d g − c p) = (d c_r + (d m g q_z − c q·p)/|q|²) q, so
+    /// p ← (p − τ m g e_z) + ((d − τ) c_r + (d m g q_z − c q·p)/|q|²) q,
+    /// where everything but c_r is ready before the force is. `g` is ∇V(q), as the kick's force
+    /// always is, and c_r is taken from q instead: the compiler merges it with the force
+    /// computed just before, and a cached force gives the same bits as a fresh one.
     #[inline]
     fn kick_damp_flow(
         &self,
         q: &Vector<U3>,
         p: &mut Vector<U3>,
-        g: &Vector<U3>,
+        _g: &Vector<U3>,
         tau: f64,
         (c, d): (f64, f64),
         _w: &mut Vector<U3>,
         _pw: &mut Vector<U3>,
     ) {
-        let w = [0, 1, 2].map(|i| d * g[i] - c * p[i]);
-        let s = dot(Self::projection_row(q), w);
-        for i in 0..3 {
-            p[i] = (p[i] - tau * g[i]) + s * q[i];
-        }
+        let q = [q[0], q[1], q[2]];
+        let weight = self.m * self.g;
+        let inverse = 1.0 / dot(q, q);
+        let early = (d * weight * q[2] - c * dot(q, [p[0], p[1], p[2]])) * inverse;
+        let along = (d - tau) * self.radial_coefficient(q) + early;
+        p[0] += along * q[0];
+        p[1] += along * q[1];
+        p[2] = (p[2] - tau * weight) + along * q[2];
     }
     fn projector_derivative(&self, q: &Vector<U3>, v: &Vector<U3>, out: &mut DMatrix<f64>) -> bool {
         spring_projector_derivative([q[0], q[1], q[2]], v, [true, true, true], out);
@@ -135,25 +143,30 @@ impl ElasticPendulum3d {
     }
 
     /// q/|q|², the row of the projector P(q) = q qᵀ/|q|² = q (q/|q|²)ᵀ. It depends on q alone,
-    /// so its division runs while the force is computed, instead of after q·w as in
-    /// (q·w)/|q|², where it would wait for w (which waits for the force).
+    /// so in a Runge–Kutta stage its division runs while the force is computed.
     #[inline(always)]
     fn projection_row(q: &Vector<U3>) -> [f64; 3] {
         let inverse = 1.0 / q.norm_squared();
         [q[0] * inverse, q[1] * inverse, q[2] * inverse]
     }
 
-    /// ∇V = k(1 − l/r) q + m g e_z, with l/r computed as (l/r²)·r: the division by r² runs beside
-    /// the square root instead of after it. A long run's step is bound by the chain of latencies
+    /// ∇V = c_r q + m g e_z with the radial coefficient c_r of [`Self::radial_coefficient`].
+    #[inline(always)]
+    fn grad(&self, q: &Vector<U3>) -> [f64; 3] {
+        let c = self.radial_coefficient([q[0], q[1], q[2]]);
+        [c * q[0], c * q[1], c * q[2] + self.m * self.g]
+    }
+
+    /// c_r = k(1 − l/r), with l/r computed as (l/r²)·r: the division by r² runs beside the
+    /// square root instead of after it. A long run's step is bound by the chain of latencies
     /// from one stage to the next (drift, force, kick), not by throughput, and this takes a
     /// division's latency off it. It rounds once more than l/r: the pinned snapshots of this
     /// system changed with it.
     #[inline(always)]
-    fn grad(&self, q: &Vector<U3>) -> [f64; 3] {
-        let r2 = q.norm_squared();
+    fn radial_coefficient(&self, q: [f64; 3]) -> f64 {
+        let r2 = dot(q, q);
         let l_over_r2 = self.l / r2;
-        let c = self.k * (1.0 - l_over_r2 * r2.sqrt());
-        [c * q[0], c * q[1], c * q[2] + self.m * self.g]
+        self.k * (1.0 - l_over_r2 * r2.sqrt())
     }
 
     /// ∇V = k(1 − l/r) q + m g e_z, so ∇²V = k(1 − l/r) I + k l q qᵀ / r³.

@@ -303,10 +303,10 @@ fn modin_2s_linear_momentum_flow_is_exact_also_for_singular_damping() {
 }
 
 /// The elastic pendulum's force, damping force and kick-and-damp are written for a short chain
-/// of latencies ((l/r²)·r for l/r, the projector's row q/|q|² formed from q alone); they must
-/// agree with the textbook formulas (k(1 − l/r) q + m g e_z, r (q·p/|q|²) q, and the default
-/// projector flow) to a few units in the last place, over states near and far from the rest
-/// length.
+/// of latencies ((l/r²)·r for l/r, the projector's row q/|q|² formed from q alone, the kick as
+/// one multiple of q with P(q)g = c_r q + (m g q_z/|q|²) q); they must agree with the textbook
+/// formulas (k(1 − l/r) q + m g e_z, r (q·p/|q|²) q, and the default projector flow) to a few
+/// units in the last place, over states near and far from the rest length.
 #[test]
 fn the_elastic_pendulums_rearranged_arithmetic_agrees_with_the_textbook_formulas() {
     let sys = ElasticPendulum3d {
