@@ -94,6 +94,11 @@ pub(crate) struct Emitter {
 }
 
 impl Emitter {
+    /// The target's pointer type.
+    pub(crate) fn pointer(&self) -> types::Type {
+        self.pointer
+    }
+
     /// An emitter of scalar code for functions of `module` built by `b`.
     pub(crate) fn new(module: &JITModule, b: &mut FunctionBuilder) -> Self {
         Self::of_type(module, b, types::F64)

@@ -255,6 +255,15 @@ impl Program {
         self.registers
     }
 
+    /// Whether the program calls an operation (`sin`, `exp`, `pow`, …) instead of computing
+    /// with arithmetic instructions only; native code keeps no value in a register across a
+    /// call.
+    pub fn makes_calls(&self) -> bool {
+        self.steps
+            .iter()
+            .any(|s| matches!(s, Step::Call1(..) | Step::Call2(..)))
+    }
+
     /// The number of instructions that compute something (loads, constants and
     /// operations; not stores).
     pub fn operation_count(&self) -> usize {

@@ -23,7 +23,10 @@
 
 use cranelift_codegen::ir::condcodes::{FloatCC, IntCC};
 use cranelift_codegen::ir::immediates::Ieee64;
-use cranelift_codegen::ir::{types, AbiParam, Block, InstBuilder, MemFlagsData, Type, Value};
+use cranelift_codegen::ir::{
+    types, AbiParam, Block, InstBuilder, MemFlagsData, StackSlot, StackSlotData, StackSlotKind,
+    Type, Value,
+};
 use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext, Variable};
 use cranelift_module::Module;
 
@@ -427,7 +430,63 @@ impl<'a, 'b> Stretch<'a, 'b> {
     }
 
     /// The `outputs` values of a program of q, written here with q = `q`.
+    ///
+    /// A value live across a call is kept in memory by the register allocator, and for the
+    /// state's variables, which the loop carries from step to step, it kept them there for the
+    /// whole loop: a step's last update of p was stored and loaded again before the next step's
+    /// drift, on the chain of every step. Around a program that calls, the state is therefore
+    /// stored before it and its variables loaded again after it, so that the loop carries them
+    /// in registers (P1 typed in, modin_3s: 19.0 → 17.1 ns per step, the built-in system's
+    /// 17.2).
     fn program_of(
+        &mut self,
+        program: &Program,
+        q: &[Value],
+        outputs: usize,
+    ) -> Result<Vec<Value>, String> {
+        let kept = program.makes_calls().then(|| self.keep_state());
+        let out = self.emit_program(program, q, outputs)?;
+        if let Some(kept) = kept {
+            self.reload_state(kept);
+        }
+        Ok(out)
+    }
+
+    /// Every lane's q and p stored in a stack slot of their own.
+    fn keep_state(&mut self) -> (StackSlot, Vec<(Variable, i32)>) {
+        let (pointer, ty) = (self.emitter.pointer(), self.layout.value_type());
+        let vars: Vec<Variable> = (self.lanes.iter())
+            .flat_map(|[q, p, _]| q.iter().chain(p).copied())
+            .collect();
+        let bytes = ty.bytes();
+        let size = bytes * vars.len() as u32;
+        let slot = self.b.create_sized_stack_slot(StackSlotData::new(
+            StackSlotKind::ExplicitSlot,
+            size,
+            ty.bytes().trailing_zeros() as u8,
+        ));
+        let places = (vars.into_iter().enumerate())
+            .map(|(k, var)| {
+                let offset = (k as u32 * bytes) as i32;
+                let value = self.b.use_var(var);
+                self.b.ins().stack_store(pointer, value, slot, offset);
+                (var, offset)
+            })
+            .collect();
+        (slot, places)
+    }
+
+    /// The variables [`Self::keep_state`] stored, loaded again.
+    fn reload_state(&mut self, (slot, places): (StackSlot, Vec<(Variable, i32)>)) {
+        let (pointer, ty) = (self.emitter.pointer(), self.layout.value_type());
+        for (var, offset) in places {
+            let value = self.b.ins().stack_load(pointer, ty, slot, offset);
+            self.b.def_var(var, value);
+        }
+    }
+
+    /// [`Self::program_of`]'s program, written as it is.
+    fn emit_program(
         &mut self,
         program: &Program,
         q: &[Value],
