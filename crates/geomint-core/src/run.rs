@@ -90,6 +90,14 @@ where
         Ok(false)
     }
 
+    /// Whether [`post_process`](Self::post_process) may be given any kernel state the run has
+    /// passed through, not only the current one: true when the output map depends on nothing
+    /// the steps carry. A watched run then forms output states only near a surface (see
+    /// [`Observer::step_is_clear`]). The default, false, suits methods without processing.
+    fn processes_any_state(&self) -> bool {
+        false
+    }
+
     /// Advances `z` by one step and multiplies `tangent.jac` by the step's Jacobian ∂Φ/∂z.
     fn step_tangent(
         &mut self,
@@ -139,6 +147,9 @@ where
         out: &mut State<S::Dim>,
     ) -> Result<bool, StepError> {
         (**self).post_process(sys, z, h, out)
+    }
+    fn processes_any_state(&self) -> bool {
+        (**self).processes_any_state()
     }
     fn step_tangent(
         &mut self,
@@ -330,6 +341,20 @@ where
         ControlFlow::Continue(())
     }
 
+    /// For a method whose output map may be applied late
+    /// ([`Stepper::processes_any_state`]): whether the step that ended at the kernel state `z`
+    /// (time `t`) certainly crossed no watched surface, judged from the kernel states alone. The
+    /// driver then forms no output state for it and skips [`on_step`](Self::on_step); it is
+    /// asked after every such step. The default, false, sees every output state.
+    fn step_is_clear(&mut self, _t: f64, _z: &State<D>) -> bool {
+        false
+    }
+
+    /// The output state `z` at time `t` of the last step that was [clear](Self::step_is_clear),
+    /// formed because the step after it is not: the state the next [`on_step`](Self::on_step)
+    /// continues from.
+    fn on_clear_step(&mut self, _t: f64, _z: &State<D>) {}
+
     /// The chaos indicators at the sample that follows (only when asked for).
     fn on_indicators(&mut self, _values: &IndicatorValues) {}
 }
@@ -429,12 +454,23 @@ where
     // The post-processed state of the last sample, and that sample's step.
     let mut processed = z.clone();
     let mut processed_at = None;
+    // A watched run of a method whose output map may be applied late forms output states only
+    // near a surface: the kernel state of the last step it skipped, and that step.
+    let lazy = watch && stepper.processes_any_state();
+    let mut skipped = z.clone();
+    let mut skipped_at = None;
     let mut stop = StopReason::Finished;
     let mut step = 0u64;
+    // The next multiples of `check_every` and `every` at or after `step`, kept as counters: no
+    // stretch ends past one (each ends at the nearer), so `step` meets each multiple, and a
+    // watched run's step costs no division.
+    let mut check_at = 0u64;
+    let mut sample_at = every;
     while step < schedule.steps {
         // Also before the first step: work started after the deadline (a run after a reference
         // that used up the time, a sweep's cell) stops at once.
-        if step.is_multiple_of(check_every) {
+        if step == check_at {
+            check_at = check_at.saturating_add(check_every);
             if budget.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
                 stop = StopReason::Cancelled { step };
                 break;
@@ -450,12 +486,10 @@ where
             stepper.pre_process(sys, z, h).map_err(|e| fail(0, e))?;
         }
         // Steps up to the next sample, the next budget check or the end.
-        let next_sample = ((step / every) + 1) * every;
-        let next_check = ((step / check_every) + 1) * check_every;
         let until = if watch {
             step + 1
         } else {
-            next_sample.min(next_check).min(schedule.steps)
+            sample_at.min(check_at).min(schedule.steps)
         };
         match (&mut tracking, jacobian.as_mut()) {
             (Tracking::Determinant, Some(tg)) => {
@@ -514,9 +548,22 @@ where
         }
         // A chaos indicator past its threshold ends the run with a last sample.
         let indicator_stop = matches!(stop, StopReason::Indicator(_));
-        let due = step % every == 0 || step == schedule.steps || indicator_stop;
+        let sampled = step == sample_at;
+        if sampled {
+            sample_at = sample_at.saturating_add(every);
+        }
+        let due = sampled || step == schedule.steps || indicator_stop;
         let mut event = false;
-        if watch || due {
+        if lazy && observer.step_is_clear(step as f64 * h, z) && !due {
+            skipped.clone_from(z);
+            skipped_at = Some(step);
+        } else if watch || due {
+            if let Some(at) = skipped_at.take() {
+                stepper
+                    .post_process(sys, &skipped, h, &mut processed)
+                    .map_err(|e| fail(at.saturating_sub(1), e))?;
+                observer.on_clear_step(at as f64 * h, &processed);
+            }
             let is_processed = stepper
                 .post_process(sys, z, h, &mut processed)
                 .map_err(|e| fail(step.saturating_sub(1), e))?;

@@ -182,6 +182,9 @@ where
     ) -> Result<bool, StepError> {
         with_stepper!(self, st => st.post_process(sys, z, h, out))
     }
+    fn processes_any_state(&self) -> bool {
+        with_stepper!(self, st => Stepper::<S>::processes_any_state(st))
+    }
     fn step_tangent(
         &mut self,
         sys: &S,

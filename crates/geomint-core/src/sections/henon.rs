@@ -4,7 +4,9 @@
 //! Sec. II.10): one step of size level − s₀, split into m equal sub-steps when its embedded
 //! error estimate (HNW's combination of the fifth- and third-order estimates, as the adaptive
 //! reference uses it) exceeds [`TOLERANCE`], then one more step of size −(S(z*) − level) that
-//! leaves the surface's residue at round-off. Buffers are allocated once per run.
+//! leaves the surface's residue at round-off: an Euler step, since that residue is the first
+//! step's error (about TOLERANCE · |level − s₀|) and Euler's error its square, unless the residue
+//! is above 1e-6 · |level − s₀|. Buffers are allocated once per run.
 
 use nalgebra::allocator::Allocator;
 use nalgebra::{DefaultAllocator, Dim};
@@ -18,6 +20,8 @@ pub const TOLERANCE: f64 = 1e-14;
 /// Most sub-steps a located point may take (a crossing this close to tangent is refused).
 pub const MAX_SUBSTEPS: usize = 1024;
 const STAGES: usize = 12;
+/// The largest residue, relative to the step in s, that an Euler step removes (module docs).
+const EULER_RESIDUE: f64 = 1e-6;
 
 /// A point of extended phase space with its time: (z, t).
 struct Point<D: Dim>
@@ -156,6 +160,10 @@ pub enum Unlocated {
     Singular,
     /// Even [`MAX_SUBSTEPS`] sub-steps did not meet the tolerance.
     Tangent,
+    /// The point reached moves across the surface against the direction the step crossed it
+    /// in: near a tangency, the method's steps crossed where the exact flow from either end of
+    /// the step turns back, and what was reached is the crossing on the way back.
+    Reversed,
 }
 
 impl<D: Dim> Henon<D>
@@ -263,6 +271,19 @@ where
         Some(ds.abs() * e5 * (1.0 / (denominator * count)).sqrt())
     }
 
+    /// One Euler step of size `ds` from `self.y`, which it advances; `None` where σ vanished
+    /// or a value is not finite.
+    fn euler<S: MechanicalSystem<Dim = D>>(
+        &mut self,
+        sys: &S,
+        surface: &Surface,
+        ds: f64,
+    ) -> Option<()> {
+        let ok = self.eval.field(sys, surface, &self.y, &mut self.k[0]);
+        self.y.add_scaled(&self.k[0], ds);
+        (ok && self.y.components().all(f64::is_finite)).then_some(())
+    }
+
     /// Integrates from (z₀, t₀), whose surface value is `s0`, to the surface value `level`;
     /// writes the point reached into `out` and returns its time.
     pub fn locate<S: MechanicalSystem<Dim = D>>(
@@ -295,12 +316,20 @@ where
             let more = (1.25 * worst.powf(0.125)).ceil().max(2.0) as usize;
             m = (m * more).min(MAX_SUBSTEPS);
         }
-        // The step's residue on the surface, removed by one more step (whose own error is of
-        // the residue's ninth power).
+        // The step's residue on the surface, removed by one more step. The residue is the
+        // step's error, about TOLERANCE relative to ds: an Euler step then errs by the
+        // residue's square (relative to the step's own scale, about 1e-28), below round-off,
+        // at one evaluation of the field; a residue that is not that small takes an eighth-order
+        // step, whose error is of its ninth power.
         let residue = self.eval.value(surface, &self.y.z, self.y.t) - level;
         if residue != 0.0 && residue.is_finite() {
-            self.step(sys, surface, -residue)
-                .ok_or(Unlocated::Singular)?;
+            if residue.abs() <= EULER_RESIDUE * ds.abs() {
+                self.euler(sys, surface, -residue)
+                    .ok_or(Unlocated::Singular)?;
+            } else {
+                self.step(sys, surface, -residue)
+                    .ok_or(Unlocated::Singular)?;
+            }
         }
         copy(out, &self.y.z);
         Ok(self.y.t)

@@ -21,6 +21,10 @@ pub enum Surface {
         gradient: CompiledFunction,
         /// Degrees of freedom.
         n: usize,
+        /// For S a coordinate or a momentum alone, its index in (q, p): S and σ are then read
+        /// off the state and its velocity, the numbers the compiled functions give (σ sums
+        /// zeros and one product by 1).
+        component: Option<usize>,
     },
     /// S = t, crossed at its levels φ + kT.
     Clock {
@@ -69,24 +73,37 @@ impl Surface {
         };
         let compile =
             |outputs: &[_]| CompiledFunction::new(&graph, outputs, &options).map_err(error);
+        let component = names
+            .find(text.trim())
+            .map(|(momentum, i)| if momentum { n + i } else { i });
         Ok(Surface::Expression {
             text: text.to_string(),
             value: compile(&[s])?,
             gradient: compile(&[[s].as_slice(), &gradient].concat())?,
             n,
+            component,
         })
+    }
+
+    /// Whether `other` is the same expression (so of the same values everywhere): a clock is
+    /// never taken for another.
+    pub fn same_as(&self, other: &Surface) -> bool {
+        match (self, other) {
+            (Surface::Expression { text: a, .. }, Surface::Expression { text: b, .. }) => a == b,
+            _ => false,
+        }
     }
 
     /// S at (q, p, t), with `inputs` a buffer of 2n + 1 numbers.
     #[inline]
     pub fn value(&self, q: &[f64], p: &[f64], t: f64, inputs: &mut [f64]) -> f64 {
         match self {
-            Surface::Expression { value, n, .. } => {
-                load(inputs, q, p, t, *n);
-                let mut s = [0.0];
-                value.eval(inputs, &mut s);
-                s[0]
-            }
+            Surface::Expression {
+                component: Some(i),
+                n,
+                ..
+            } => component(q, p, *i, *n),
+            Surface::Expression { value, n, .. } => evaluate(value, q, p, t, inputs, *n),
             Surface::Clock { .. } => t,
         }
     }
@@ -102,6 +119,11 @@ impl Surface {
         outputs: &mut [f64],
     ) -> (f64, f64) {
         match self {
+            Surface::Expression {
+                component: Some(i),
+                n,
+                ..
+            } => (component(q, p, *i, *n), component(dq, dp, *i, *n)),
             Surface::Expression { gradient, n, .. } => {
                 let n = *n;
                 load(inputs, q, p, t, n);
@@ -119,6 +141,33 @@ impl Surface {
     /// The buffers [`value`](Self::value) and [`rate`](Self::rate) need: inputs, outputs.
     pub fn buffers(n: usize) -> (Vec<f64>, Vec<f64>) {
         (vec![0.0; 2 * n + 1], vec![0.0; 2 * n + 2])
+    }
+}
+
+/// S through its compiled function: out of line, so that [`Surface::value`]'s other cases,
+/// asked at every step of a watched run, inline into the watch.
+#[inline(never)]
+fn evaluate(
+    value: &CompiledFunction,
+    q: &[f64],
+    p: &[f64],
+    t: f64,
+    inputs: &mut [f64],
+    n: usize,
+) -> f64 {
+    load(inputs, q, p, t, n);
+    let mut s = [0.0];
+    value.eval(inputs, &mut s);
+    s[0]
+}
+
+/// The `i`-th number of (q, p), with `n` degrees of freedom.
+#[inline]
+fn component(q: &[f64], p: &[f64], i: usize, n: usize) -> f64 {
+    if i < n {
+        q[i]
+    } else {
+        p[i - n]
     }
 }
 

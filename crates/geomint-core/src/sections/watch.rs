@@ -3,6 +3,15 @@
 //! ([`super::henon`]) from the last state before it, on a copy: the run goes on from its own
 //! state. Located points go to the caller as [`Crossing`]s; an event's last crossing ends the
 //! run.
+//!
+//! A processed method's output state costs a composition of its own per step. Where the output
+//! map may be applied late, the watch first judges each step from the kernel states
+//! ([`Watch::step_is_clear`]). If no values within a margin of the surface's values at the
+//! step's two kernel states can cross in the surface's direction, the step crossed nothing that
+//! counts, and no output state is formed for it. The margin is [`SAFETY`] times the largest
+//! difference between a surface's value at a kernel state and at its output state seen so far,
+//! after [`CALIBRATION`] steps seen both ways. Every other step is watched on output states as
+//! before, so the points located are the same.
 
 use std::ops::ControlFlow;
 
@@ -14,6 +23,13 @@ use super::henon::{copy, Henon, Unlocated};
 use super::spec::Direction;
 use super::surface::{Crossings, Surface};
 use crate::system::{MechanicalSystem, State};
+
+/// Steps whose kernel and output states are both seen before any step is judged from the
+/// kernel alone.
+pub const CALIBRATION: u64 = 64;
+/// The margin of a step judged from the kernel alone, in multiples of the largest difference
+/// seen between a surface's value at a kernel state and at its output state.
+pub const SAFETY: f64 = 16.0;
 
 /// Which surface a crossing is of.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -50,11 +66,15 @@ pub struct SectionSummary {
     /// Whether crossings after `max_points` went uncollected.
     pub truncated: bool,
     /// Crossings seen whose point could not be located (tangent to the surface within
-    /// round-off); none is reported.
+    /// round-off), or whose point moves across the surface against the section's direction (a
+    /// near-tangent crossing of the method's steps that the exact flow from either end of the
+    /// step turns back from); none is reported.
     #[serde(skip_serializing_if = "is_zero")]
     pub unlocated: u64,
     /// The least and greatest value of the surface's S over the run's steps (expressions
-    /// only).
+    /// only). For a processed method, the steps judged clear from the kernel (module docs)
+    /// count with S at their kernel state, which differs from the output's by a processor's
+    /// small correction.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub surface_range: Option<[f64; 2]>,
     /// Why there are no points, when there are none.
@@ -80,6 +100,10 @@ struct Tracker {
     range: [f64; 2],
     /// The next stroboscopic level's index.
     next: u64,
+    /// S (t for the clock) at the last kernel state judged.
+    kernel: f64,
+    /// The largest |S(output) − S(kernel)| seen at one state.
+    deviation: f64,
 }
 
 /// The watch over one run: the surfaces, the last state, the locator's buffers.
@@ -95,6 +119,11 @@ where
     point: State<S::Dim>,
     /// The located point in Cartesian coordinates, for a chart that is not.
     cartesian: Option<(Vec<f64>, Vec<f64>)>,
+    /// The time of the last kernel state judged, and whether the step being watched was.
+    kernel_t: f64,
+    kernel_judged: bool,
+    /// Steps seen at both their kernel and their output state.
+    calibrated: u64,
 }
 
 impl<'a, S: MechanicalSystem> Watch<'a, S>
@@ -114,6 +143,8 @@ where
             last: f64::NAN,
             range: [f64::INFINITY, f64::NEG_INFINITY],
             next: 0,
+            kernel: f64::NAN,
+            deviation: 0.0,
         };
         let trackers = [
             crossings
@@ -136,6 +167,9 @@ where
             last_t: 0.0,
             point: start.clone(),
             cartesian: (!sys.is_cartesian()).then(|| (vec![0.0; n], vec![0.0; n])),
+            kernel_t: f64::NAN,
+            kernel_judged: false,
+            calibrated: 0,
         };
         watch.restart(sys, start, 0.0);
         watch
@@ -170,6 +204,56 @@ where
         }
     }
 
+    /// Whether the step that ended at the kernel state `z` (driver time `t`) certainly crossed
+    /// no surface (module docs): no values within the margin of each surface's value there and
+    /// at the last kernel state cross in its direction; each stroboscopic level is more than the
+    /// margin and a step ahead. Judges every step, so that the next one has its values.
+    pub fn step_is_clear(&mut self, sys: &S, t: f64, z: &State<S::Dim>) -> bool {
+        let t_now = state_time(sys, z, t);
+        let step = (t_now - self.kernel_t).abs();
+        self.kernel_t = t_now;
+        self.kernel_judged = true;
+        let mut clear = self.calibrated >= CALIBRATION;
+        for i in 0..self.trackers.len() {
+            let surface = self.surface(self.trackers[i].kind);
+            let s = match surface {
+                Surface::Clock { .. } => t_now,
+                Surface::Expression { .. } => self.henon.value(surface, z, t_now),
+            };
+            let tracker = &mut self.trackers[i];
+            let before = std::mem::replace(&mut tracker.kernel, s);
+            let margin = SAFETY * tracker.deviation;
+            // NaN compares false: a value that is not a number is never clear.
+            clear &= tracker.truncated
+                || match *surface {
+                    Surface::Clock { period, phase } => {
+                        phase + tracker.next as f64 * period - s > margin + step
+                    }
+                    Surface::Expression { .. } => tracker.direction.cannot_cross(before, s, margin),
+                };
+        }
+        if clear {
+            for tracker in &mut self.trackers {
+                let s = tracker.kernel;
+                tracker.range = [s.min(tracker.range[0]), s.max(tracker.range[1])];
+            }
+        }
+        clear
+    }
+
+    /// Takes the output state `z` at driver time `t` of a step judged clear as the last state,
+    /// without looking for crossings (there are none).
+    pub fn resume(&mut self, sys: &S, t: f64, z: &State<S::Dim>) {
+        copy(&mut self.last, z);
+        self.last_t = state_time(sys, z, t);
+        for i in 0..self.trackers.len() {
+            let surface = self.surface(self.trackers[i].kind);
+            if let Surface::Expression { .. } = surface {
+                self.trackers[i].last = self.henon.value(surface, z, self.last_t);
+            }
+        }
+    }
+
     /// After a step to `z` at driver time `t`: locates the crossings since the last state,
     /// hands each to `emit`, and ends the run at the event's last one.
     pub fn step(
@@ -181,10 +265,19 @@ where
     ) -> ControlFlow<f64> {
         let t_now = state_time(sys, z, t);
         let mut flow = ControlFlow::Continue(());
+        let judged = std::mem::take(&mut self.kernel_judged);
+        self.calibrated += u64::from(judged);
+        // The crossing located at this step and whose surface it was on: a section and an
+        // event on the same surface (a run ended at its n-th point) share it.
+        let mut located_here: Option<(&Surface, Result<(f64, f64), Unlocated>)> = None;
         for i in 0..self.trackers.len() {
             let kind = self.trackers[i].kind;
             let surface = self.surface(kind);
             let s = self.henon.value(surface, z, t_now);
+            if judged {
+                let tracker = &mut self.trackers[i];
+                tracker.deviation = tracker.deviation.max((s - tracker.kernel).abs());
+            }
             if let Surface::Clock { period, phase } = *surface {
                 loop {
                     let tracker = &self.trackers[i];
@@ -213,7 +306,18 @@ where
                 tracker.last = s;
                 if tracker.direction.crossed(before, s) && !tracker.truncated && flow.is_continue()
                 {
-                    let located = self.locate(sys, surface, (before, s), z, t_now);
+                    let located = match located_here {
+                        Some((other, located)) if other.same_as(surface) => located,
+                        _ => self.locate(sys, surface, (before, s), z, t_now),
+                    };
+                    located_here = Some((surface, located));
+                    let direction = self.trackers[i].direction;
+                    let located = located.and_then(|(t, sigma)| {
+                        direction
+                            .admits(sigma)
+                            .then_some(t)
+                            .ok_or(Unlocated::Reversed)
+                    });
                     flow = self.found(sys, i, located, emit);
                 }
             }
@@ -225,7 +329,8 @@ where
 
     /// Locates the crossing of S = 0 between the last state (S = `before`) and `z` (S =
     /// `after`): from the last state when S moves there in the direction it crossed in, else
-    /// back from `z`; from the other end when the first attempt fails.
+    /// back from `z`; from the other end when the first attempt fails. Returns the point's time
+    /// and the rate σ at which S changes there.
     fn locate(
         &mut self,
         sys: &S,
@@ -233,7 +338,7 @@ where
         (before, after): (f64, f64),
         z: &State<S::Dim>,
         t_now: f64,
-    ) -> Result<f64, Unlocated> {
+    ) -> Result<(f64, f64), Unlocated> {
         let rising = after > before;
         let sigma = self.henon.rate(sys, surface, &self.last, self.last_t);
         let from_last = (sigma > 0.0) == rising && sigma != 0.0;
@@ -242,10 +347,11 @@ where
         let first = self
             .henon
             .locate(sys, surface, ends[order[0]], 0.0, &mut self.point);
-        first.or_else(|_| {
+        let t = first.or_else(|_| {
             self.henon
                 .locate(sys, surface, ends[order[1]], 0.0, &mut self.point)
-        })
+        })?;
+        Ok((t, self.henon.rate(sys, surface, &self.point, t)))
     }
 
     /// Reports a located crossing (or counts an unlocated one); the event's last ends the run.

@@ -312,6 +312,19 @@ where
         }
     }
 
+    fn step_is_clear(&mut self, t: f64, z: &State<S::Dim>) -> bool {
+        let sys = self.sys;
+        self.watch
+            .as_mut()
+            .is_some_and(|watch| watch.step_is_clear(sys, t, z))
+    }
+
+    fn on_clear_step(&mut self, t: f64, z: &State<S::Dim>) {
+        if let Some(watch) = self.watch.as_mut() {
+            watch.resume(self.sys, t, z);
+        }
+    }
+
     fn on_indicators(&mut self, values: &IndicatorValues) {
         self.indicators = Some(values.clone());
     }

@@ -105,7 +105,9 @@ where
     /// `n ≥ 1` steps through the system's compiled stretch of this splitting at the prepared h,
     /// if it has one by now ([`LazyCode`]): the bits of [`Self::advance_fused`] (of whole steps
     /// when the sequence has no seam, or for one step), and the same rerun step by step of a
-    /// stretch that diverges. `None` when the generic path is to take the steps.
+    /// stretch that diverges. `None` when the generic path is to take the steps. Inlined into
+    /// its one caller: returned through memory, its result stalled a watched run's every step.
+    #[inline(always)]
     fn advance_compiled(
         &mut self,
         sys: &S,

@@ -114,9 +114,21 @@ pub fn simulation(
     (q0, p0): (&[f64], &[f64]),
     watching: Watching,
 ) -> Simulation {
+    sampled_simulation(system, method, (h, t_end, None), (q0, p0), watching)
+}
+
+/// [`simulation`] with a sample every `every` steps (`None`: the default spacing).
+pub fn sampled_simulation(
+    system: impl Into<SystemRef>,
+    method: Method,
+    (h, t_end, every): (f64, f64, Option<u64>),
+    (q0, p0): (&[f64], &[f64]),
+    watching: Watching,
+) -> Simulation {
     let mut spec = SimulationSpec::new(system, &[method], h, t_end);
     spec.q0 = Some(q0.to_vec());
     spec.p0 = Some(p0.to_vec());
+    spec.every = every;
     let limits = Limits {
         max_steps: 100_000_000,
         max_samples: 1_000_000,

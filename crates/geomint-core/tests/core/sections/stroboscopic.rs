@@ -3,7 +3,8 @@
 //! histogram) agree with a long run of the adaptive reference. And the events: the n-th
 //! crossing's time against the exact one.
 
-use super::{duffing, event, run, simulation, stroboscopic};
+use super::henon_heiles::assert_same_points;
+use super::{duffing, event, run, sampled_simulation, simulation, stroboscopic};
 use geomint_core::methods::composition::Scheme;
 use geomint_core::methods::{Base, Method, MethodId};
 use geomint_core::run::StopReason;
@@ -111,6 +112,38 @@ fn the_strange_attractor_has_the_reference_runs_statistics() {
 }
 
 #[test]
+fn a_processed_method_forms_output_states_only_near_the_stroboscopic_times() {
+    // The strange attractor through a processed method, whose clock the processor moves too:
+    // sampled at every step, and sparsely (output states formed only near t = kT), the same
+    // points bit for bit.
+    let period = 2.0 * PI / OMEGA;
+    let method = Method::composition(Scheme::BlanesCasasMurua8, Base::Modin3s);
+    let run_sampled = |every| {
+        let sim = sampled_simulation(
+            duffing(0.3, 0.5, OMEGA),
+            method.clone(),
+            (period / 50.0, 500.5 * period, every),
+            (&[1.0], &[0.0]),
+            strobe(500),
+        );
+        run(&sim)
+    };
+    let (lazy, lazy_outcome) = run_sampled(None);
+    let (eager, eager_outcome) = run_sampled(Some(1));
+    assert_eq!(lazy.section.len(), 500);
+    assert_same_points(&lazy, &eager);
+    let (few, all) = (
+        lazy_outcome.stats.force_evaluations as f64,
+        eager_outcome.stats.force_evaluations as f64,
+    );
+    println!(
+        "stroboscopic: {few:.3e} force evaluations against {all:.3e} ({:.2})",
+        few / all
+    );
+    assert!(few <= 0.5 * all, "{few:e} of {all:e}");
+}
+
+#[test]
 fn the_third_crossing_ends_the_run_at_its_exact_time() {
     // The damped oscillator q″ + 2γq′ + ω²q = 0 from q = 0, p = 1: q = e^{−γt} sin(ω_d t)/ω_d
     // vanishes at t = kπ/ω_d. The run stops at its third crossing of q = 0.
@@ -156,4 +189,46 @@ fn the_third_crossing_ends_the_run_at_its_exact_time() {
     assert!((ours - exact).abs() <= 1e-10);
     assert!((reference - exact).abs() <= 1e-10);
     assert!((ours - reference).abs() <= 1e-10);
+}
+
+#[test]
+fn a_crossing_the_exact_flow_turns_back_from_is_counted_not_reported_the_wrong_way() {
+    // The oscillator q = sin t (ω = 1) and the level q = a just below its amplitude. Velocity
+    // Verlet at a coarse step keeps a modified energy whose level curve bulges past the unit
+    // circle: some steps cross q = a upwards where the exact flow from either end of the step
+    // turns back short of it (from the later end, forwards, it reaches q = a on the way down).
+    // Such a crossing is counted unlocated; every point reported moves upwards.
+    let mut unlocated = 0;
+    let mut points = 0;
+    for k in 0..42 {
+        let a = 1.0 + 0.0008 * f64::from(k);
+        let mut spec = geomint_core::simulation::SimulationSpec::new(
+            "harmonic_oscillator",
+            &[Method::new(MethodId::VelocityVerlet)],
+            0.5,
+            2000.0,
+        )
+        .param("omega", 1.0)
+        .param("gamma", 0.0);
+        spec.q0 = Some(vec![0.0]);
+        spec.p0 = Some(vec![1.0]);
+        let sim = geomint_core::simulation::Simulation::prepare(&spec, &Default::default())
+            .unwrap()
+            .watching(&Watching {
+                section: Some(super::section(&format!("q - {a}"), Direction::Up, 10_000)),
+                ..Watching::default()
+            })
+            .unwrap();
+        let (out, _) = run(&sim);
+        let summary = out.summary.unwrap();
+        assert!(
+            out.section.p.iter().all(|p| p[0] > 0.0),
+            "a = {a}: {:?}",
+            out.section.p
+        );
+        unlocated += summary.unlocated;
+        points += summary.points;
+    }
+    println!("{points} points located, {unlocated} crossings turned back from");
+    assert!(unlocated > 0 && points > 0);
 }
