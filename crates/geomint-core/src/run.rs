@@ -343,17 +343,19 @@ where
 
     /// For a method whose output map may be applied late
     /// ([`Stepper::processes_any_state`]): whether the step that ended at the kernel state `z`
-    /// (time `t`) certainly crossed no watched surface, judged from the kernel states alone. The
-    /// driver then forms no output state for it and skips [`on_step`](Self::on_step); it is
-    /// asked after every such step. The default, false, sees every output state.
+    /// (time `t`) crossed no watched surface, judged from the kernel states alone. The driver
+    /// then forms no output state for it and skips [`on_step`](Self::on_step); it is asked
+    /// after every such step. The default, false, sees every output state.
     fn step_is_clear(&mut self, _t: f64, _z: &State<D>) -> bool {
         false
     }
 
     /// The output state `z` at time `t` of the last step that was [clear](Self::step_is_clear),
-    /// formed because the step after it is not: the state the next [`on_step`](Self::on_step)
-    /// continues from.
-    fn on_clear_step(&mut self, _t: f64, _z: &State<D>) {}
+    /// formed because the step after it is not: watched from the last output state seen, like
+    /// [`on_step`](Self::on_step) (`Break(t_event)` ends the run after the step being taken).
+    fn on_clear_step(&mut self, _t: f64, _z: &State<D>) -> ControlFlow<f64> {
+        ControlFlow::Continue(())
+    }
 
     /// The chaos indicators at the sample that follows (only when asked for).
     fn on_indicators(&mut self, _values: &IndicatorValues) {}
@@ -455,7 +457,8 @@ where
     let mut processed = z.clone();
     let mut processed_at = None;
     // A watched run of a method whose output map may be applied late forms output states only
-    // near a surface: the kernel state of the last step it skipped, and that step.
+    // near a surface (an output map that would fail at a skipped step is not run there): the
+    // kernel state of the last step it skipped, and that step.
     let lazy = watch && stepper.processes_any_state();
     let mut skipped = z.clone();
     let mut skipped_at = None;
@@ -562,13 +565,16 @@ where
                 stepper
                     .post_process(sys, &skipped, h, &mut processed)
                     .map_err(|e| fail(at.saturating_sub(1), e))?;
-                observer.on_clear_step(at as f64 * h, &processed);
+                if let ControlFlow::Break(t) = observer.on_clear_step(at as f64 * h, &processed) {
+                    stop = StopReason::Event { step, t };
+                    event = true;
+                }
             }
             let is_processed = stepper
                 .post_process(sys, z, h, &mut processed)
                 .map_err(|e| fail(step.saturating_sub(1), e))?;
             let output = if is_processed { &processed } else { &*z };
-            if watch {
+            if watch && !event {
                 if let ControlFlow::Break(t) = observer.on_step(step, step as f64 * h, output) {
                     stop = StopReason::Event { step, t };
                     event = true;

@@ -6,7 +6,7 @@
 //! reference uses it) exceeds [`TOLERANCE`], then one more step of size −(S(z*) − level) that
 //! leaves the surface's residue at round-off: an Euler step, since that residue is the first
 //! step's error (about TOLERANCE · |level − s₀|) and Euler's error its square, unless the residue
-//! is above 1e-6 · |level − s₀|. Buffers are allocated once per run.
+//! is above 1e-10 · |level − s₀|. Buffers are allocated once per run.
 
 use nalgebra::allocator::Allocator;
 use nalgebra::{DefaultAllocator, Dim};
@@ -21,7 +21,7 @@ pub const TOLERANCE: f64 = 1e-14;
 pub const MAX_SUBSTEPS: usize = 1024;
 const STAGES: usize = 12;
 /// The largest residue, relative to the step in s, that an Euler step removes (module docs).
-const EULER_RESIDUE: f64 = 1e-6;
+const EULER_RESIDUE: f64 = 1e-10;
 
 /// A point of extended phase space with its time: (z, t).
 struct Point<D: Dim>

@@ -46,19 +46,10 @@ impl Direction {
         }
     }
 
-    /// Whether a point where S changes at the rate `sigma` is a crossing in this direction.
-    #[inline]
-    pub fn admits(self, sigma: f64) -> bool {
-        match self {
-            Direction::Up => sigma > 0.0,
-            Direction::Down => sigma < 0.0,
-            Direction::Both => true,
-        }
-    }
-
     /// Whether no values within `margin` (exclusive) of `before` and `after` can make a
     /// crossing that counts: an upward one needs the value before below zero and the one after
-    /// at or above it, a downward one the reverse. False when either is not a number.
+    /// at or above it, a downward one the reverse. A value that is not a number is never beyond
+    /// the margin.
     #[inline]
     pub fn cannot_cross(self, before: f64, after: f64, margin: f64) -> bool {
         let no_up = before > margin || after < -margin;

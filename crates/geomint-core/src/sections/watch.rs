@@ -7,11 +7,18 @@
 //! A processed method's output state costs a composition of its own per step. Where the output
 //! map may be applied late, the watch first judges each step from the kernel states
 //! ([`Watch::step_is_clear`]). If no values within a margin of the surface's values at the
-//! step's two kernel states can cross in the surface's direction, the step crossed nothing that
-//! counts, and no output state is formed for it. The margin is [`SAFETY`] times the largest
-//! difference between a surface's value at a kernel state and at its output state seen so far,
-//! after [`CALIBRATION`] steps seen both ways. Every other step is watched on output states as
-//! before, so the points located are the same.
+//! step's two kernel states can cross in the surface's direction, the step is taken to cross
+//! nothing that counts, and no output state is formed for it. The margin is the larger of
+//! [`SAFETY`] times the largest difference between a surface's value at a kernel state and at
+//! its output state seen so far, and [`STEP_FRACTION`] of the largest change of S over one step;
+//! no step is judged before [`CALIBRATION`] steps seen both ways. Every other step is watched on
+//! output states as before, so the points located are the same wherever the processor moves S
+//! by less than the margin: a heuristic, not a bound (the processor's change of S is not known
+//! without forming the output state), which holds for steps well inside the method's accuracy;
+//! the tests compare with runs that form every output state. The output state formed after
+//! skipped steps is watched from the last one formed, so a crossing the margin missed whose
+//! output stays past the surface is still found (located from that earlier state), and the
+//! difference seen there widens the margin.
 
 use std::ops::ControlFlow;
 
@@ -30,6 +37,21 @@ pub const CALIBRATION: u64 = 64;
 /// The margin of a step judged from the kernel alone, in multiples of the largest difference
 /// seen between a surface's value at a kernel state and at its output state.
 pub const SAFETY: f64 = 16.0;
+/// The least margin, as a fraction of the largest change of S over one step seen: the
+/// differences seen may all come from where the processor is nearly the identity (a free
+/// particle), and it moves S by a fraction of a step's change elsewhere (about hω of it).
+pub const STEP_FRACTION: f64 = 0.25;
+
+/// Which kernel state's S a watched output state is compared with.
+#[derive(Clone, Copy)]
+enum Kernel {
+    /// The last judged (the step just taken).
+    Last,
+    /// The one before it (the last step skipped, formed late).
+    BeforeLast,
+    /// None: the step was not judged.
+    None,
+}
 
 /// Which surface a crossing is of.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -100,10 +122,13 @@ struct Tracker {
     range: [f64; 2],
     /// The next stroboscopic level's index.
     next: u64,
-    /// S (t for the clock) at the last kernel state judged.
+    /// S (t for the clock) at the last kernel state judged, and at the one before it.
     kernel: f64,
+    kernel_before: f64,
     /// The largest |S(output) − S(kernel)| seen at one state.
     deviation: f64,
+    /// The largest change of S over one kernel step seen.
+    step_change: f64,
 }
 
 /// The watch over one run: the surfaces, the last state, the locator's buffers.
@@ -144,7 +169,9 @@ where
             range: [f64::INFINITY, f64::NEG_INFINITY],
             next: 0,
             kernel: f64::NAN,
+            kernel_before: f64::NAN,
             deviation: 0.0,
+            step_change: 0.0,
         };
         let trackers = [
             crossings
@@ -204,8 +231,8 @@ where
         }
     }
 
-    /// Whether the step that ended at the kernel state `z` (driver time `t`) certainly crossed
-    /// no surface (module docs): no values within the margin of each surface's value there and
+    /// Whether the step that ended at the kernel state `z` (driver time `t`) crossed no surface,
+    /// judged from the kernel with the margin (module docs): no values within the margin of each surface's value there and
     /// at the last kernel state cross in its direction; each stroboscopic level is more than the
     /// margin and a step ahead. Judges every step, so that the next one has its values.
     pub fn step_is_clear(&mut self, sys: &S, t: f64, z: &State<S::Dim>) -> bool {
@@ -222,7 +249,12 @@ where
             };
             let tracker = &mut self.trackers[i];
             let before = std::mem::replace(&mut tracker.kernel, s);
-            let margin = SAFETY * tracker.deviation;
+            tracker.kernel_before = before;
+            let change = (s - before).abs();
+            if change.is_finite() && !matches!(surface, Surface::Clock { .. }) {
+                tracker.step_change = tracker.step_change.max(change);
+            }
+            let margin = (SAFETY * tracker.deviation).max(STEP_FRACTION * tracker.step_change);
             // NaN compares false: a value that is not a number is never clear.
             clear &= tracker.truncated
                 || match *surface {
@@ -241,17 +273,19 @@ where
         clear
     }
 
-    /// Takes the output state `z` at driver time `t` of a step judged clear as the last state,
-    /// without looking for crossings (there are none).
-    pub fn resume(&mut self, sys: &S, t: f64, z: &State<S::Dim>) {
-        copy(&mut self.last, z);
-        self.last_t = state_time(sys, z, t);
-        for i in 0..self.trackers.len() {
-            let surface = self.surface(self.trackers[i].kind);
-            if let Surface::Expression { .. } = surface {
-                self.trackers[i].last = self.henon.value(surface, z, self.last_t);
-            }
-        }
+    /// The output state `z` at driver time `t` of the last step judged clear, formed because
+    /// the step after it is not: watched like any step, from the last output state formed. It
+    /// crosses nothing when the margin held; if it did not (the processor moved S by more than
+    /// the margin somewhere in the steps skipped), a crossing they hid is still found, located
+    /// by Hénon's step from that earlier state, and the difference seen widens the margin.
+    pub fn resume(
+        &mut self,
+        sys: &S,
+        t: f64,
+        z: &State<S::Dim>,
+        emit: &mut dyn FnMut(&Crossing<'_>),
+    ) -> ControlFlow<f64> {
+        self.watch(sys, t, z, Kernel::BeforeLast, emit)
     }
 
     /// After a step to `z` at driver time `t`: locates the crossings since the last state,
@@ -263,10 +297,27 @@ where
         z: &State<S::Dim>,
         emit: &mut dyn FnMut(&Crossing<'_>),
     ) -> ControlFlow<f64> {
+        let kernel = if std::mem::take(&mut self.kernel_judged) {
+            self.calibrated += 1;
+            Kernel::Last
+        } else {
+            Kernel::None
+        };
+        self.watch(sys, t, z, kernel, emit)
+    }
+
+    /// [`step`](Self::step) and [`resume`](Self::resume): the crossings between the last state
+    /// and `z`, and the difference between S at `z` and at its kernel state, when judged.
+    fn watch(
+        &mut self,
+        sys: &S,
+        t: f64,
+        z: &State<S::Dim>,
+        kernel: Kernel,
+        emit: &mut dyn FnMut(&Crossing<'_>),
+    ) -> ControlFlow<f64> {
         let t_now = state_time(sys, z, t);
         let mut flow = ControlFlow::Continue(());
-        let judged = std::mem::take(&mut self.kernel_judged);
-        self.calibrated += u64::from(judged);
         // The crossing located at this step and whose surface it was on: a section and an
         // event on the same surface (a run ended at its n-th point) share it.
         let mut located_here: Option<(&Surface, Result<(f64, f64), Unlocated>)> = None;
@@ -274,10 +325,13 @@ where
             let kind = self.trackers[i].kind;
             let surface = self.surface(kind);
             let s = self.henon.value(surface, z, t_now);
-            if judged {
-                let tracker = &mut self.trackers[i];
-                tracker.deviation = tracker.deviation.max((s - tracker.kernel).abs());
-            }
+            let tracker = &mut self.trackers[i];
+            let judged = match kernel {
+                Kernel::Last => tracker.kernel,
+                Kernel::BeforeLast => tracker.kernel_before,
+                Kernel::None => s,
+            };
+            tracker.deviation = tracker.deviation.max((s - judged).abs());
             if let Surface::Clock { period, phase } = *surface {
                 loop {
                     let tracker = &self.trackers[i];
@@ -311,12 +365,10 @@ where
                         _ => self.locate(sys, surface, (before, s), z, t_now),
                     };
                     located_here = Some((surface, located));
-                    let direction = self.trackers[i].direction;
+                    // The point must move across the surface the way the steps did.
                     let located = located.and_then(|(t, sigma)| {
-                        direction
-                            .admits(sigma)
-                            .then_some(t)
-                            .ok_or(Unlocated::Reversed)
+                        let along = if s > before { sigma > 0.0 } else { sigma < 0.0 };
+                        along.then_some(t).ok_or(Unlocated::Reversed)
                     });
                     flow = self.found(sys, i, located, emit);
                 }
@@ -402,7 +454,8 @@ where
         let range = (expression && tracker.range[0] <= tracker.range[1]).then_some(tracker.range);
         let note = (tracker.count == 0).then(|| match (range, tracker.unlocated) {
             (_, u) if u > 0 => format!(
-                "the surface was crossed {u} times, each time too close to tangent to locate"
+                "the surface was crossed {u} times, each time too close to tangent to locate \
+                 the point or turned back from short of it"
             ),
             (Some([lo, hi]), _) => format!(
                 "the surface was never crossed{}: S stayed in [{lo:e}, {hi:e}]",

@@ -319,9 +319,11 @@ where
             .is_some_and(|watch| watch.step_is_clear(sys, t, z))
     }
 
-    fn on_clear_step(&mut self, t: f64, z: &State<S::Dim>) {
-        if let Some(watch) = self.watch.as_mut() {
-            watch.resume(self.sys, t, z);
+    fn on_clear_step(&mut self, t: f64, z: &State<S::Dim>) -> ControlFlow<f64> {
+        let sink = &mut self.sink;
+        match self.watch.as_mut() {
+            Some(watch) => watch.resume(self.sys, t, z, &mut |c| sink.on_crossing(c)),
+            None => ControlFlow::Continue(()),
         }
     }
 

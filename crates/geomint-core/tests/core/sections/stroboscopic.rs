@@ -197,38 +197,45 @@ fn a_crossing_the_exact_flow_turns_back_from_is_counted_not_reported_the_wrong_w
     // Verlet at a coarse step keeps a modified energy whose level curve bulges past the unit
     // circle: some steps cross q = a upwards where the exact flow from either end of the step
     // turns back short of it (from the later end, forwards, it reaches q = a on the way down).
-    // Such a crossing is counted unlocated; every point reported moves upwards.
-    let mut unlocated = 0;
-    let mut points = 0;
+    // Such a crossing is counted unlocated; every point reported moves the way its step
+    // crossed: upwards in an upward section, and in a section both ways the downward crossing
+    // is not reported twice (once for each step).
+    let mut unlocated = [0, 0];
+    let mut points = [0, 0];
     for k in 0..42 {
         let a = 1.0 + 0.0008 * f64::from(k);
-        let mut spec = geomint_core::simulation::SimulationSpec::new(
-            "harmonic_oscillator",
-            &[Method::new(MethodId::VelocityVerlet)],
-            0.5,
-            2000.0,
-        )
-        .param("omega", 1.0)
-        .param("gamma", 0.0);
-        spec.q0 = Some(vec![0.0]);
-        spec.p0 = Some(vec![1.0]);
-        let sim = geomint_core::simulation::Simulation::prepare(&spec, &Default::default())
-            .unwrap()
-            .watching(&Watching {
-                section: Some(super::section(&format!("q - {a}"), Direction::Up, 10_000)),
-                ..Watching::default()
-            })
-            .unwrap();
-        let (out, _) = run(&sim);
-        let summary = out.summary.unwrap();
-        assert!(
-            out.section.p.iter().all(|p| p[0] > 0.0),
-            "a = {a}: {:?}",
-            out.section.p
-        );
-        unlocated += summary.unlocated;
-        points += summary.points;
+        for (j, direction) in [Direction::Up, Direction::Both].into_iter().enumerate() {
+            let mut spec = geomint_core::simulation::SimulationSpec::new(
+                "harmonic_oscillator",
+                &[Method::new(MethodId::VelocityVerlet)],
+                0.5,
+                2000.0,
+            )
+            .param("omega", 1.0)
+            .param("gamma", 0.0);
+            spec.q0 = Some(vec![0.0]);
+            spec.p0 = Some(vec![1.0]);
+            let sim = geomint_core::simulation::Simulation::prepare(&spec, &Default::default())
+                .unwrap()
+                .watching(&Watching {
+                    section: Some(super::section(&format!("q - {a}"), direction, 10_000)),
+                    ..Watching::default()
+                })
+                .unwrap();
+            let (out, _) = run(&sim);
+            let summary = out.summary.unwrap();
+            let p: Vec<f64> = out.section.p.iter().map(|p| p[0]).collect();
+            if direction == Direction::Up {
+                assert!(p.iter().all(|&p| p > 0.0), "a = {a}: {p:?}");
+            } else {
+                // No point twice: the times increase.
+                let t = &out.section.t;
+                assert!(t.windows(2).all(|w| w[0] < w[1]), "a = {a}: {t:?}");
+            }
+            unlocated[j] += summary.unlocated;
+            points[j] += summary.points;
+        }
     }
-    println!("{points} points located, {unlocated} crossings turned back from");
-    assert!(unlocated > 0 && points > 0);
+    println!("up, both: {points:?} points located, {unlocated:?} crossings turned back from");
+    assert!(unlocated.iter().all(|&u| u > 0) && points.iter().all(|&p| p > 0));
 }
