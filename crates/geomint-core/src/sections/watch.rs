@@ -232,9 +232,10 @@ where
     }
 
     /// Whether the step that ended at the kernel state `z` (driver time `t`) crossed no surface,
-    /// judged from the kernel with the margin (module docs): no values within the margin of each surface's value there and
-    /// at the last kernel state cross in its direction; each stroboscopic level is more than the
-    /// margin and a step ahead. Judges every step, so that the next one has its values.
+    /// judged from the kernel with the margin (module docs): no values within the margin of
+    /// each surface's value there and at the last kernel state cross in its direction; each
+    /// stroboscopic level is more than the margin and a step ahead. Judges every step, so that
+    /// the next one has its values.
     pub fn step_is_clear(&mut self, sys: &S, t: f64, z: &State<S::Dim>) -> bool {
         let t_now = state_time(sys, z, t);
         let step = (t_now - self.kernel_t).abs();
@@ -327,11 +328,13 @@ where
             let s = self.henon.value(surface, z, t_now);
             let tracker = &mut self.trackers[i];
             let judged = match kernel {
-                Kernel::Last => tracker.kernel,
-                Kernel::BeforeLast => tracker.kernel_before,
-                Kernel::None => s,
+                Kernel::Last => Some(tracker.kernel),
+                Kernel::BeforeLast => Some(tracker.kernel_before),
+                Kernel::None => None,
             };
-            tracker.deviation = tracker.deviation.max((s - judged).abs());
+            if let Some(k) = judged {
+                tracker.deviation = tracker.deviation.max((s - k).abs());
+            }
             if let Surface::Clock { period, phase } = *surface {
                 loop {
                     let tracker = &self.trackers[i];
