@@ -176,6 +176,19 @@ async fn simulations_are_pinned() {
         .await
     );
     assert_json_snapshot!(
+        "undamped_velocity_verlet_compositions",
+        pin(
+            &s,
+            sim,
+            json!({"system": "henon_heiles", "q0": [-0.2, 0.0], "p0": [0.1, 0.45],
+            "methods": [{"id": "triple_jump", "base": "velocity_verlet"},
+                {"id": "kahan_li_8", "base": "velocity_verlet"},
+                {"id": "blanes_casas_murua_8", "base": "velocity_verlet"}],
+            "h": 0.1, "t_end": 20, "output": {"every": 40}})
+        )
+        .await
+    );
+    assert_json_snapshot!(
         "nbody_lennard_jones",
         pin(
             &s,
