@@ -309,7 +309,14 @@ where
     DefaultAllocator: Allocator<S::Dim>,
 {
     let weights = weights.to_vec();
-    match (sequence(base.id()), base) {
+    let sequence = match base {
+        // Its kicks are exact kicks there, and fuse from stage to stage.
+        Base::VelocityVerlet if sys.damping_rate() == 0.0 => {
+            Some(splitting::UNDAMPED_VELOCITY_VERLET)
+        }
+        _ => sequence(base.id()),
+    };
+    match (sequence, base) {
         (Some(seq), _) => AnyStepper::Splitting(Splitting::new(
             sys,
             splitting::Composition::new(seq, &weights),

@@ -15,6 +15,26 @@ fn section(e: f64, y: f64, py: f64) -> ([f64; 2], [f64; 2]) {
     ([0.0, y], [px, py])
 }
 
+/// The Hénon–Heiles orbit from (q0, p0) of triple_jump(velocity_verlet) at h = 0.05 to
+/// `t_end`, sampled every `every` steps, with the indicators of `chaos`.
+fn henon_heiles_orbit(
+    (q0, p0): &([f64; 2], [f64; 2]),
+    t_end: f64,
+    every: u64,
+    chaos: &ChaosSpec,
+) -> (Columns, geomint_core::simulation::Outcome) {
+    chaos_run(
+        &spec(
+            "henon_heiles",
+            serde_json::json!({}),
+            Method::triple_jump(Base::VelocityVerlet),
+            (q0, p0),
+            (0.05, t_end, every),
+        ),
+        chaos,
+    )
+}
+
 #[test]
 fn megno_tends_to_zero_for_the_oscillator_to_two_for_a_libration_and_grows_like_half_lambda_for_chaos(
 ) {
@@ -47,33 +67,33 @@ fn megno_tends_to_zero_for_the_oscillator_to_two_for_a_libration_and_grows_like_
     eprintln!("⟨Y⟩ at T = 10⁴: oscillator {oscillator:e}, pendulum libration {libration}");
     assert!(oscillator.abs() < 1e-6, "{oscillator}");
     assert!((libration - 2.0).abs() < 0.01, "{libration}");
-    // A chaotic orbit at E = 1/6: ⟨Y⟩ grows like λ_max t/2; the slope of a least-squares line
-    // through the second half against λ_max(T)/2.
+    // Chaotic orbits at E = 1/6: ⟨Y⟩ grows like λ_max t/2, so 2⟨Y⟩(T)/T tends to the
+    // finite-time λ_max(T) over the same [0, T]. The relation is asymptotic, and one orbit is a
+    // noisy measure of it: the orbits stick near islands for a while, and the round-off of the
+    // method decides when (from y = −0.25, 2⟨Y⟩/(λ_max t) at t = T/2 measured 0.83 to 1.05 under
+    // three roundings of the same method). So four orbits, each within 15 % at T, and their
+    // mean within 5 %: measured 0.90–1.09 per orbit and means 0.97–1.02 under those roundings.
     let both = ChaosSpec::new(&[Indicator::Megno, Indicator::Lyapunov]);
-    let (q0, p0) = section(1.0 / 6.0, -0.25, 0.0);
-    let (c, _) = chaos_run(
-        &spec(
-            "henon_heiles",
-            serde_json::json!({}),
-            Method::triple_jump(Base::VelocityVerlet),
-            (&q0, &p0),
-            (0.05, 1e4, 200),
-        ),
-        &both,
-    );
-    let n = c.t.len();
-    let (t, y) = (&c.t[n / 2..], &c.megno_mean.as_ref().unwrap()[n / 2..]);
-    let (slope, _) = geomint_core::diagnostics::fit_line(t, y).unwrap();
-    let lambda = c.lyapunov.as_ref().unwrap()[n - 1][0];
-    eprintln!(
-        "chaotic orbit: ⟨Y⟩ slope {slope}, λ_max/2 = {}",
-        lambda / 2.0
-    );
-    assert!(
-        (slope / (lambda / 2.0) - 1.0).abs() < 0.1,
-        "slope {slope}, λ/2 {}",
-        lambda / 2.0
-    );
+    let mut ratios = Vec::new();
+    for (y, py) in [(-0.25, 0.0), (0.3, 0.1), (-0.1, 0.2), (0.2, -0.2)] {
+        let (q0, p0) = section(1.0 / 6.0, y, py);
+        let (c, _) = henon_heiles_orbit(&(q0, p0), 1e4, 200, &both);
+        let (t, megno) = (*c.t.last().unwrap(), last(&c));
+        let lambda = c.lyapunov.as_ref().unwrap().last().unwrap()[0];
+        let ratio = 2.0 * megno / t / lambda;
+        eprintln!(
+            "chaotic orbit from (y, p_y) = ({y}, {py}): 2⟨Y⟩/T {}, λ_max {lambda}",
+            ratio * lambda
+        );
+        assert!(lambda > 0.05, "({y}, {py}): λ_max {lambda}");
+        assert!(
+            (ratio - 1.0).abs() < 0.15,
+            "({y}, {py}): 2⟨Y⟩/(λ_max T) = {ratio}"
+        );
+        ratios.push(ratio);
+    }
+    let mean = ratios.iter().sum::<f64>() / ratios.len() as f64;
+    assert!((mean - 1.0).abs() < 0.05, "mean 2⟨Y⟩/(λ_max T) = {mean}");
 }
 
 #[test]
@@ -97,16 +117,7 @@ fn fli_sali_and_megno_classify_orbits_alike() {
             if !p0[0].is_finite() {
                 continue;
             }
-            let (c, _) = chaos_run(
-                &spec(
-                    "henon_heiles",
-                    serde_json::json!({}),
-                    Method::triple_jump(Base::VelocityVerlet),
-                    (&q0, &p0),
-                    (0.05, t_end, 40000),
-                ),
-                &all,
-            );
+            let (c, _) = henon_heiles_orbit(&(q0, p0), t_end, 40000, &all);
             let fli = *c.fli.as_ref().unwrap().last().unwrap();
             let sali = *c.sali.as_ref().unwrap().last().unwrap();
             let megno = *c.megno_mean.as_ref().unwrap().last().unwrap();
@@ -144,19 +155,7 @@ fn indicators_do_not_depend_on_sampling_and_stay_finite_however_rarely_renormali
         ])
     };
     let (q0, p0) = section(1.0 / 6.0, -0.25, 0.0);
-    let run = |every: u64, chaos: &ChaosSpec| {
-        chaos_run(
-            &spec(
-                "henon_heiles",
-                serde_json::json!({}),
-                Method::triple_jump(Base::VelocityVerlet),
-                (&q0, &p0),
-                (0.05, 1e3, every),
-            ),
-            chaos,
-        )
-        .0
-    };
+    let run = |every: u64, chaos: &ChaosSpec| henon_heiles_orbit(&(q0, p0), 1e3, every, chaos).0;
     let (dense, sparse) = (run(1, &all), run(7, &all));
     for (k, t) in sparse.t.iter().enumerate() {
         let j = (t / 0.05).round() as usize;
@@ -211,16 +210,7 @@ fn a_threshold_stops_the_run_with_its_indicator_and_last_sample() {
         ..ChaosSpec::new(&[Indicator::Megno])
     };
     let (q0, p0) = section(1.0 / 6.0, -0.25, 0.0);
-    let (c, outcome) = chaos_run(
-        &spec(
-            "henon_heiles",
-            serde_json::json!({}),
-            Method::triple_jump(Base::VelocityVerlet),
-            (&q0, &p0),
-            (0.05, 1e4, 1000),
-        ),
-        &chaos,
-    );
+    let (c, outcome) = henon_heiles_orbit(&(q0, p0), 1e4, 1000, &chaos);
     let StopReason::Indicator(ThresholdStop {
         step,
         t,

@@ -55,6 +55,8 @@ pub enum ComposedBase {
     PositionVerlet,
     /// [`VELOCITY_VERLET`].
     VelocityVerlet,
+    /// [`UNDAMPED_VELOCITY_VERLET`].
+    UndampedVelocityVerlet,
 }
 
 impl ComposedBase {
@@ -66,6 +68,10 @@ impl ComposedBase {
             (ComposedBase::Csv1, CSV1),
             (ComposedBase::PositionVerlet, POSITION_VERLET),
             (ComposedBase::VelocityVerlet, VELOCITY_VERLET),
+            (
+                ComposedBase::UndampedVelocityVerlet,
+                UNDAMPED_VELOCITY_VERLET,
+            ),
         ]
         .into_iter()
         .find(|(_, known)| *known == sequence)
@@ -216,6 +222,10 @@ macro_rules! with_walk {
                 }
                 Some(ComposedBase::VelocityVerlet) => {
                     type $walk = Stages<VelocityVerlet>;
+                    $call
+                }
+                Some(ComposedBase::UndampedVelocityVerlet) => {
+                    type $walk = Stages<UndampedVelocityVerlet>;
                     $call
                 }
                 None => {
