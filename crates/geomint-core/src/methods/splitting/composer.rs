@@ -86,12 +86,18 @@ where
     }
 
     /// Recomputes the h-dependent coefficients when the step size changes (once per fixed-step
-    /// run; compositions of splittings are flattened into one sequence, so they too).
-    #[inline]
+    /// run; compositions of splittings are flattened into one sequence, so they too). The test
+    /// is inlined into every step, the recomputation kept out of it.
+    #[inline(always)]
     fn prepare(&mut self, sys: &S, h: f64) {
-        if h == self.coeff_h {
-            return;
+        if h != self.coeff_h {
+            self.recompute(sys, h);
         }
+    }
+
+    #[cold]
+    #[inline(never)]
+    fn recompute(&mut self, sys: &S, h: f64) {
         let r = sys.damping_rate();
         let sequence = self.sequence.flows();
         for (k, &(flow, frac)) in sequence.iter().enumerate() {
