@@ -212,8 +212,9 @@ fn compiled_stretches_give_the_composers_bits() {
         on_every_system(method, false);
     }
     // The Verlets, symplectic Euler and compositions: compiled on the undamped systems (whole
-    // steps where a step's last flow and the next's first do not fuse), left to the composer
-    // on the damped ones.
+    // steps where a step's last flow and the next's first do not fuse: the plain Verlets and
+    // symplectic Euler; compositions of velocity Verlet fuse their kicks there), left to the
+    // composer on the damped ones.
     for base in [Base::VelocityVerlet, Base::PositionVerlet] {
         on_every_system(&Method::composition(Scheme::KahanLi8, base), false);
     }

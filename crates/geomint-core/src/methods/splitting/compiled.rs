@@ -29,7 +29,7 @@ pub struct StretchPlan<'a> {
     /// The step.
     pub h: f64,
     /// The fused seam's time and coefficients; `None` for a method whose last and first flows
-    /// do not fuse (velocity Verlet's kicks), whose steps are taken whole.
+    /// do not fuse (velocity Verlet's θ-kicks, of a damped system), whose steps are taken whole.
     pub seam: Option<(f64, (f64, f64))>,
 }
 
