@@ -65,6 +65,8 @@ pub mod paths {
     pub const METHOD: &str = "/api/v1/methods/{id}";
     /// Simulations.
     pub const SIMULATE: &str = "/api/v1/simulate";
+    /// Which points of a section's plane can start an orbit at an energy.
+    pub const ALLOWED_REGION: &str = "/api/v1/simulate/allowed-region";
     /// Stability maps.
     pub const STABILITY: &str = "/api/v1/stability";
     /// Stability at one point.
@@ -100,6 +102,7 @@ pub fn routes(config: &Config) -> OpenApiRouter<AppState> {
         .routes(routes!(handlers::list_methods))
         .routes(routes!(handlers::get_method))
         .routes(routes!(simulate::simulate))
+        .routes(routes!(simulate::allowed_region))
         .routes(routes!(stability::stability_map))
         .routes(routes!(stability::stability_point))
         .routes(routes!(studies::work_precision))

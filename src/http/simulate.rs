@@ -7,6 +7,9 @@
 //! Runs stop early, keeping their samples, when the request's time limit passes (`stop` =
 //! `time_limit`, status 200), when the client goes away (the computation is cancelled and its
 //! slots freed), or when the server shuts down (`cancelled`).
+//!
+//! `POST /api/v1/simulate/allowed-region` answers, for the same request with an energy level and
+//! a plane, which points of the plane an orbit can start from (see [`allowed_region`]).
 
 use std::collections::BTreeMap;
 
@@ -19,10 +22,11 @@ use super::error::{ApiError, ErrorBody, JsonRefusals, SlotsBusy};
 use super::extract::ApiJson;
 use super::paths;
 use super::recordings::RrdFile;
-use super::state::{AppState, Cost};
+use super::state::{run_blocking, AppState, Cost};
+use crate::api::allowed::AllowedRegionRequest;
 use crate::api::SimulateRequest;
 use crate::core::simulation::stream::StreamError;
-use crate::core::simulation::{SimulationDocument, StreamLine};
+use crate::core::simulation::{AllowedRegion, SimulationDocument, StreamLine};
 use crate::recording;
 
 /// Runs a simulation: the system with its parameters and initial state, one or more methods in
@@ -90,4 +94,35 @@ pub async fn simulate(
         })
         .await?;
     Ok(format.respond(bytes, "geomint.rrd"))
+}
+
+/// Which points of a section's plane can start an orbit at an energy: the energetically allowed
+/// region.
+///
+/// The body is the simulation request an orbit launched on the plane would send (with `energy`),
+/// and `plane`: two of the system's coordinates or momenta, each sampled at `points` values.
+/// Each grid point's state is the request's initial state with the plane's two names set to the
+/// point; the energy's momentum is solved there as for a run. `allowed` says where it has a
+/// value (the point lies on the energy surface), `lowest` the energy with that momentum at 0,
+/// the least an orbit from the point can have. Nothing is integrated: the answer costs at most
+/// 200 × 200 solves and takes no simulation slot.
+#[utoipa::path(post, path = paths::ALLOWED_REGION, tag = "simulation",
+    request_body(content = AllowedRegionRequest, content_type = "application/json"),
+    responses(
+        (status = 200, description = "The plane's grid, row by row from the first value up",
+            body = AllowedRegion),
+        (status = 422, description = "A field is unknown, missing, of the wrong type or out of range \
+            (as for a simulation; `energy` and `plane` are required); an axis that is not one of the \
+            system's names, is the solved momentum, or repeats the other; more than 200 points on \
+            an axis", body = ErrorBody),
+        JsonRefusals,
+    ))]
+pub async fn allowed_region(
+    State(state): State<AppState>,
+    ApiJson(body): ApiJson,
+) -> Result<axum::Json<AllowedRegion>, ApiError> {
+    let request = AllowedRegionRequest::from_value(&body)?;
+    let (sim, level, plane) = request.prepare(&state.config.limits, &*state.systems)?;
+    let region = run_blocking(move || sim.allowed_region(&level, &plane)).await??;
+    Ok(axum::Json(region))
 }

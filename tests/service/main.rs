@@ -22,6 +22,7 @@ mod fuzz_definitions;
 mod fuzz_routes;
 mod http;
 mod http_access;
+mod http_allowed;
 mod http_access_log;
 mod http_charts;
 mod http_cli;

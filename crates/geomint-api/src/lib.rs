@@ -3,6 +3,7 @@
 //! floats exact — and turned into the core's specs; and the NDJSON encoding of the lines the
 //! core streams. The OpenAPI schemas of the requests are derived from the same types.
 //!
+//! - [`allowed`]: which points of a section's plane can start an orbit at an energy.
 //! - [`chaos`]: chaos indicators, thresholds and energy surfaces.
 //! - [`crossings`]: a simulation's section, `stop_when` and energy level.
 //! - [`json`]: JSON text into a value, and the field-by-field reader.
@@ -18,6 +19,7 @@
 // same in both crates.
 use geomint_core as core;
 
+pub mod allowed;
 pub mod chaos;
 pub mod crossings;
 pub mod json;

@@ -11,9 +11,11 @@
 //! - [`crossings`]: a run's Poincaré section, event and energy level, as the stream and the
 //!   document carry them.
 //! - [`surface`]: an initial state on an energy surface, one momentum solved from H = E.
+//! - [`allowed`]: which points of a section's plane can start an orbit at an energy.
 //! - `lanes`: runs from up to four initial states side by side in SIMD lanes, with their chaos
 //!   indicators ([`Simulation::run_side_by_side`]).
 
+pub mod allowed;
 pub mod crossings;
 pub mod document;
 mod lanes;
@@ -22,6 +24,7 @@ pub mod spec;
 pub mod stream;
 pub mod surface;
 
+pub use allowed::{AllowedRegion, Plane, PlaneAxis, PLANE_POINTS};
 pub use crossings::{CrossingColumns, SurfaceInfo, Watching};
 pub use document::{
     ColumnSink, Columns, DivergedAt, RunDocument, RunOutcome, ScheduleSummary, SimulationDocument,
