@@ -553,6 +553,16 @@ pub fn recording_name<S: AsRef<str>>(system: &str, labels: &[S]) -> String {
     format!("{system}: {}", methods.join(", "))
 }
 
+/// The system as a recording names it: a definition's own `name` where the spec's `system` has
+/// one (a typed-in system's id, `sys-5b5d…`, says nothing to a reader), else `id`.
+pub fn system_label(spec: &Spec, id: &str) -> String {
+    serde_json::from_str::<serde_json::Value>(spec.json())
+        .ok()
+        .and_then(|v| Some(v.get("system")?.get("name")?.as_str()?.trim().to_string()))
+        .filter(|name| !name.is_empty())
+        .unwrap_or_else(|| id.to_string())
+}
+
 /// Writes the `.rrd` file of a simulation to `writer`: the spec, every run of `doc`, and the
 /// default blueprint. Returns the writer once the stream is complete (footer included).
 pub fn write_rrd<W: Write + Send + 'static>(
@@ -561,7 +571,8 @@ pub fn write_rrd<W: Write + Send + 'static>(
     doc: &SimulationDocument,
 ) -> Result<W, RecordingError> {
     let labels: Vec<&str> = doc.runs.iter().map(|r| r.method.as_str()).collect();
-    encode::write(writer, recording_name(&doc.system.id, &labels), |rec| {
+    let system = system_label(spec, &doc.system.id);
+    encode::write(writer, recording_name(&system, &labels), |rec| {
         log_simulation(rec, spec, doc)?;
         send_blueprint(rec, &Layout::of(doc))
     })
@@ -570,4 +581,26 @@ pub fn write_rrd<W: Write + Send + 'static>(
 /// The `.rrd` file of a simulation in memory (see [`write_rrd`]).
 pub fn rrd_bytes(spec: &Spec, doc: &SimulationDocument) -> Result<Vec<u8>, RecordingError> {
     write_rrd(Vec::new(), spec, doc)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_definition_is_named_by_its_name_and_a_built_in_system_by_its_id() {
+        let typed = Spec::of(&serde_json::json!({
+            "system": {"name": " Hénon–Heiles ", "coordinates": ["x", "y"], "potential": "x^2"},
+            "method": "rk4"
+        }));
+        assert_eq!(system_label(&typed, "sys-5b5d6f70"), "Hénon–Heiles");
+        let unnamed = Spec::of(&serde_json::json!({"system": {"coordinates": ["x"], "potential": "x^2"}}));
+        assert_eq!(system_label(&unnamed, "sys-5b5d6f70"), "sys-5b5d6f70");
+        let built_in = Spec::of(&serde_json::json!({"system": "pendulum"}));
+        assert_eq!(system_label(&built_in, "pendulum"), "pendulum");
+        assert_eq!(
+            recording_name(&system_label(&typed, "sys-5b5d6f70"), &["rk4", "heun"]),
+            "Hénon–Heiles: rk4, heun"
+        );
+    }
 }
