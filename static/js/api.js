@@ -185,6 +185,14 @@ export async function simulateJson(request, signal) {
 }
 
 /**
+ * Which points of a section's plane can start an orbit at the request's energy
+ * (POST /api/v1/simulate/allowed-region): the body is an orbit's request with `plane`.
+ */
+export async function allowedRegion(body, signal) {
+  return (await post('api/v1/simulate/allowed-region', body, { signal })).json();
+}
+
+/**
  * An energy-error map (POST /api/v1/studies/energy-map) streamed as NDJSON: `progress` lines,
  * then `result` (the map document) and `end`, or an `error` line.
  */

@@ -95,3 +95,37 @@ export function chaosMetrics(run) {
   }
   return out;
 }
+
+/**
+ * The colour scale a chaos map opens with, on the indicator's own meaning: MEGNO's ⟨Y⟩ (and Y)
+ * from 0 to 8 with 2 — regular motion on a torus — marked, larger values (chaos, growing like
+ * λt/2) clipped to the top colour; λ_max from 0 (regular orbits tend to 0 like ln t / t) to the
+ * largest value; the FLI from its least to its largest value. `values` are a map's finite values;
+ * null for a metric that is not an indicator (its scale comes from the data).
+ */
+export function chaosScale(metric, values) {
+  const top = values.length ? Math.max(...values) : 1;
+  const bottom = values.length ? Math.min(...values) : 0;
+  switch (metric) {
+    case 'megno_mean':
+    case 'megno':
+      return { lo: 0, hi: 8, marks: [[2, '2 regular']], clipped: true };
+    case 'lyapunov_max':
+      return { lo: 0, hi: top > 0 ? top : 1, marks: [], clipped: false };
+    case 'fli':
+      return { lo: bottom, hi: top > bottom ? top : bottom + 1, marks: [], clipped: false };
+    default:
+      return null;
+  }
+}
+
+/** What an indicator's value says of the orbit, in words (empty for other metrics). */
+export function chaosMeaning(metric, value) {
+  if (value == null || !Number.isFinite(value)) return '';
+  if (metric === 'megno_mean') {
+    if (value < 1.5) return 'below 2: periodic or isochronous motion';
+    if (value <= 2.5) return 'about 2: regular, on a torus';
+    return 'above 2: chaotic';
+  }
+  return '';
+}

@@ -2,8 +2,8 @@
 // chart, the grid, h, t_max, g) whose map, POST /api/v1/studies/energy-map, streams as NDJSON with
 // a progress bar and can be cancelled; the answer drawn as a heatmap of log10(ε(x,y)/ε(r,θ)) with
 // the recording's colours (white at equal errors, blue where the Cartesian run is more accurate,
-// red where the polar one is, saturating at a factor 100, black where a run diverged), y growing
-// downwards along gravity, the analytic boundary r = 2l + 2mg/k·cos θ dashed over it, a colour
+// red where the polar one is, saturating at the map's largest ratio either way, black where a run
+// diverged), y growing downwards along gravity, the analytic boundary r = 2l + 2mg/k·cos θ dashed over it, a colour
 // legend, a readout of the cell under the pointer (or the keyboard cursor), the summary counts,
 // and downloads of the map as JSON and as a Rerun recording. The section's state is
 // `data-map-state` (idle, running, done, cancelled, error), for tests.
@@ -11,7 +11,7 @@
 import { energyMapStream, energyMapRrd, ApiError } from './api.js';
 import { StudyStream, OUTCOME } from './study-stream.js';
 import { downloadRecording, el, fmt, parseCount, parseNumber, saveBlob } from './common.js';
-import { GridMap, RATIO_RANGE, bindCursor, drawScaleBar, ratioColour } from './heatmap.js';
+import { GridMap, bindCursor, dataRatioRange, drawScaleBar, ratioColour, ratioTicks } from './heatmap.js';
 
 /** Where a run diverged (or the pivot, where the polar chart does not exist). */
 export const DIVERGED_COLOUR = [0, 0, 0];
@@ -20,13 +20,21 @@ const DIVERGED_CSS = `rgb(${DIVERGED_COLOUR.join(',')})`;
 const DEFAULT_METHOD = 'symplectic_euler';
 
 /**
- * The RGB colour of a cell from its two errors, as `difference_color` of the recording: white at
- * equal errors, saturating to blue (Cartesian better) or red (polar better) at a factor
- * 10^RATIO_RANGE; black where either run diverged (an error is null).
+ * The RGB colour of a cell from its two errors: white at equal errors, saturating to blue
+ * (Cartesian better) or red (polar better) at a factor 10^`range` (the map's largest ratio
+ * either way, see `ratioRangeOf`); black where either run diverged (an error is null).
  */
-export function differenceColour(cartesian, polar) {
+export function differenceColour(cartesian, polar, range) {
   if (cartesian == null || polar == null) return DIVERGED_COLOUR;
-  return ratioColour(cartesian > 0 && polar > 0 ? Math.log10(cartesian / polar) : 0);
+  return ratioColour(cartesian > 0 && polar > 0 ? Math.log10(cartesian / polar) : 0, range);
+}
+
+/** The scale of a map scaled to its data: the largest |log₁₀ ε(x,y)/ε(r,θ)| over its cells. */
+export function ratioRangeOf(doc) {
+  return dataRatioRange(doc.epsilon_cartesian.map((c, k) => {
+    const p = doc.epsilon_polar[k];
+    return c > 0 && p > 0 ? Math.log10(c / p) : null;
+  }));
 }
 
 /** Whether a method runs on the polar chart's non-separable Hamiltonian with fixed steps. */
@@ -40,11 +48,12 @@ class EnergyMap extends GridMap {
   constructor(canvas, doc) {
     const nx = doc.xs.length;
     const axis = (values, label) => ({ min: values[0], max: values[values.length - 1], n: values.length, label });
+    const range = ratioRangeOf(doc);
     super(canvas, {
       x: axis(doc.xs, 'x₀'),
       y: axis(doc.ys, 'y₀ ↓'),
       yDown: true,
-      colour: (c, r) => differenceColour(doc.epsilon_cartesian[r * nx + c], doc.epsilon_polar[r * nx + c]),
+      colour: (c, r) => differenceColour(doc.epsilon_cartesian[r * nx + c], doc.epsilon_polar[r * nx + c], range),
       // Equal scales on both axes, the plot area at most 560 px high.
       height: (width, area) => {
         const span = (a) => (a.n > 1 ? ((a.max - a.min) * a.n) / (a.n - 1) : 1);
@@ -53,6 +62,7 @@ class EnergyMap extends GridMap {
       },
     });
     this.doc = doc;
+    this.range = range;
     this.boundary = [doc.boundary.map(([x, y]) => this.cellUnits(x, y))];
   }
 
@@ -299,14 +309,21 @@ export class EnergyMapPanel {
       this.pending = false;
       if (!this.map) return;
       this.map.resize();
+      const range = this.map.range;
+      const ticks = ratioTicks(range);
       drawScaleBar(this.scaleBar, {
-        lo: -RATIO_RANGE,
-        hi: RATIO_RANGE,
-        colourAt: ratioColour,
-        ticks: [[-2, '1/100'], [-1, '1/10'], [0, '1'], [1, '10'], [2, '100']],
-        label: 'Colour scale of ε(x,y)/ε(r,θ) on a log axis from 1/100 to 100: blue where the Cartesian run is ' +
-          'more accurate, white where the errors agree, red where the polar run is more accurate.',
+        lo: -range,
+        hi: range,
+        colourAt: (e) => ratioColour(e, range),
+        ticks,
+        label: `Colour scale of ε(x,y)/ε(r,θ) on a log axis scaled to this map: from ${ticks[0][1]} to ${ticks[4][1]}, ` +
+          'the largest ratio either way among its cells. Blue where the Cartesian run is more accurate, white where ' +
+          'the errors agree, red where the polar run is more accurate.',
       });
+      this.scaleBar.dataset.range = String(range);
+      this.root.querySelector('#em-scale-caption').textContent = `ε(x,y)/ε(r,θ), log scale scaled to this map's ` +
+        `cells, symmetric about 1: from ${ticks[0][1]} (deepest blue: the Cartesian run more accurate) to ` +
+        `${ticks[4][1]} (deepest red: the polar run more accurate), white where they agree.`;
     });
   }
 

@@ -12,6 +12,8 @@ import { el, fmt } from './common.js';
 /** Margins of the plot area inside the canvas, in CSS pixels. */
 const MARGIN = { left: 48, right: 10, top: 8, bottom: 38 };
 const FONT = '11px system-ui, sans-serif';
+/** The tallest plot area of a map drawn in its axes' true aspect, in CSS pixels. */
+const ASPECT_MAX_HEIGHT = 560;
 const LABEL_FONT = 'italic 13px system-ui, sans-serif';
 
 const STABLE_STOPS = ['#c6dbef', '#9ecae1', '#6baed6', '#3182bd', '#08519c', '#08306b'];
@@ -64,12 +66,31 @@ export const RATIO_RANGE = 2;
 
 /**
  * The colour of `e`, the log₁₀ of a ratio of two errors: white at 1, blue below, red above,
- * saturated at ±RATIO_RANGE.
+ * saturated at ±`range` (decades; RATIO_RANGE unless given).
  */
-export function ratioColour(e) {
-  const ratio = Math.min(1, Math.max(-1, e / RATIO_RANGE));
+export function ratioColour(e, range = RATIO_RANGE) {
+  const ratio = Math.min(1, Math.max(-1, e / range));
   const fade = Math.round(255 * (1 - Math.abs(ratio)));
   return ratio < 0 ? [fade, fade, 255] : [255, fade, fade];
+}
+
+/**
+ * The range of a ratio map scaled to its data: the largest |log₁₀ ratio| among `logs` (the
+ * finite ones), symmetric about 1, at least `floor` decades (a map of equal errors).
+ */
+export function dataRatioRange(logs, floor = 1e-3) {
+  let most = 0;
+  for (const e of logs) if (Number.isFinite(e) && Math.abs(e) > most) most = Math.abs(e);
+  return Math.max(floor, most);
+}
+
+/**
+ * About five ticks of a ratio scale of ±`range` decades: [log₁₀ r, text], the text the ratio
+ * itself (`1.08`, `1/1.08`, `1`).
+ */
+export function ratioTicks(range) {
+  const text = (e) => (e === 0 ? '1' : e > 0 ? fmt(10 ** e, 3) : `1/${fmt(10 ** -e, 3)}`);
+  return [-range, -range / 2, 0, range / 2, range].map((e) => [e, text(e)]);
 }
 
 /** The RGB colour of a cell: its spectral radius and the numerical verdict. */
@@ -127,8 +148,11 @@ export class GridMap {
    * @param {(col: number, row: number) => number[]} options.colour a cell's RGB colour
    * @param {boolean} [options.yDown] row 0 at the top
    * @param {(width: number, area: {w: number}) => number} [options.height] CSS height for a width
+   * @param {number|null} [options.aspect] the plot area's height over its width, when the axes
+   *   share a unit and the cells are drawn in their true shape (the canvas then narrows if the
+   *   height would pass ASPECT_MAX_HEIGHT)
    */
-  constructor(canvas, { x, y, colour, yDown = false, height = null }) {
+  constructor(canvas, { x, y, colour, yDown = false, height = null, aspect = null }) {
     this.canvas = canvas;
     this.xAxis = x;
     this.yAxis = y;
@@ -136,6 +160,7 @@ export class GridMap {
     this.rows = y.n;
     this.yDown = yDown;
     this.colourOf = colour;
+    this.aspect = aspect;
     this.heightFor = height || ((width) => Math.round(Math.min(340, Math.max(200, width * 0.66))));
     /** The cursor cell {col, row} or null. */
     this.cursor = null;
@@ -181,6 +206,16 @@ export class GridMap {
 
   /** Sets the size from the canvas's CSS width and draws. */
   resize() {
+    if (this.aspect) {
+      const room = Math.max(160, Math.floor(this.canvas.parentElement.clientWidth)) - MARGIN.left - MARGIN.right;
+      const h = Math.min(ASPECT_MAX_HEIGHT, room * this.aspect);
+      const w = h / this.aspect;
+      this.cssWidth = Math.round(w + MARGIN.left + MARGIN.right);
+      this.cssHeight = Math.round(h + MARGIN.top + MARGIN.bottom);
+      this.canvas.style.width = `${this.cssWidth}px`;
+      this.draw();
+      return;
+    }
     const width = Math.max(160, Math.floor(this.canvas.clientWidth || this.canvas.parentElement.clientWidth));
     this.cssWidth = width;
     this.cssHeight = this.heightFor(width, { w: width - MARGIN.left - MARGIN.right });

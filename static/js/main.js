@@ -111,11 +111,24 @@ async function init() {
   const workPrecision = new WorkPrecisionPanel($('#work-precision'));
   const convergence = new ConvergencePanel($('#convergence'));
   const energyMap = new EnergyMapPanel($('#energy-map'), cats.methods);
-  const sweep = new SweepPanel($('#sweep'));
+  const sweep = new SweepPanel($('#sweep'), cats.systems);
   library = new RecordingsPanel($('#recordings'), cats.systems);
   const phaseSpace = new PhaseSpacePanel($('#phase-space'), cats.systems);
+  // The chaos map of a section's plane runs in Sweeps; a click on one of its cells launches that
+  // orbit on the section.
+  phaseSpace.onChaosMap = (body) => {
+    window.location.hash = '#sweep';
+    sweep.runFromPlane(body, (x, y) => {
+      window.location.hash = '#phase-space';
+      phaseSpace.launch(x, y);
+    });
+  };
   for (const button of ui.presets.querySelectorAll('button')) button.disabled = false;
   ui.run.disabled = false;
+  // "Skip to Run" (the page's second Tab stop) puts the focus on Run, so Enter runs.
+  document.querySelector('a.skip[href="#run"]')?.addEventListener('click', () => {
+    requestAnimationFrame(() => ui.run.focus());
+  });
   ui.form.addEventListener('submit', (event) => {
     event.preventDefault();
     start();

@@ -1,7 +1,8 @@
 // The plane of the Phase-space section: a canvas with two labelled axes over the ranges the form
 // gives, the section's points of every orbit drawn as dots in the orbit's colour, a cursor the
 // arrow keys move, and the conversions between pointer pixels and plane coordinates. It draws
-// incrementally: new points are added to the picture without redrawing the old ones.
+// incrementally: new points are added to the picture without redrawing the old ones. Behind the
+// points, the part of the plane outside the energy surface (where no orbit can start) is grey.
 
 import { colour } from './charts.js';
 import { fmt } from './common.js';
@@ -9,6 +10,8 @@ import { niceTicks } from './heatmap.js';
 
 /** Space around the plot area for the axes, in CSS pixels. */
 const MARGIN = { left: 58, right: 12, top: 10, bottom: 40 };
+/** The shade of the plane's points outside the energy surface. */
+export const FORBIDDEN = '#d4d4d4';
 
 /** A value taken into [-period/2, period/2) (an angle's axis), or as it is. */
 export function wrap(value, period) {
@@ -31,6 +34,13 @@ export class PhasePlot {
     this.cssHeight = 0;
     /** Every orbit's plane points, to redraw after a resize. */
     this.orbits = [];
+    /**
+     * The allowed region ({x, y, allowed} of POST /api/v1/simulate/allowed-region), or null: its
+     * forbidden points are shaded grey behind the orbits.
+     */
+    this.region = null;
+    /** The colour of orbit k, when not the palette's k-th. */
+    this.colourOf = null;
   }
 
   /** The plot area in CSS pixels. */
@@ -84,6 +94,7 @@ export class PhasePlot {
     const a = this.area;
     ctx.fillStyle = '#ffffff';
     ctx.fillRect(a.x, a.y, a.w, a.h);
+    this.shadeForbidden(ctx);
     ctx.strokeStyle = '#8a8a8a';
     ctx.lineWidth = 1;
     ctx.strokeRect(a.x + 0.5, a.y + 0.5, a.w - 1, a.h - 1);
@@ -119,6 +130,44 @@ export class PhasePlot {
     }
   }
 
+  /**
+   * Shades the grid points of the region where no orbit can start, each as the cell around it
+   * (half a grid step to either side), clipped to the plot area.
+   */
+  shadeForbidden(ctx) {
+    const r = this.region;
+    if (!r) return;
+    const a = this.area;
+    // The grid is even: half a step across and up.
+    const dx = (r.x[r.x.length - 1] - r.x[0]) / (r.x.length - 1) / 2;
+    const dy = (r.y[r.y.length - 1] - r.y[0]) / (r.y.length - 1) / 2;
+    ctx.save();
+    ctx.beginPath();
+    ctx.rect(a.x, a.y, a.w, a.h);
+    ctx.clip();
+    ctx.fillStyle = FORBIDDEN;
+    r.allowed.forEach((row, j) => {
+      row.forEach((ok, i) => {
+        if (ok) return;
+        const [x0, y0] = this.px(r.x[i] - dx, r.y[j] + dy);
+        const [x1, y1] = this.px(r.x[i] + dx, r.y[j] - dy);
+        ctx.fillRect(x0, y0, x1 - x0 + 0.5, y1 - y0 + 0.5);
+      });
+    });
+    ctx.restore();
+  }
+
+  /** Whether plane point (x, y) lies in a shaded cell: {forbidden, i, j} of the nearest grid point, or null. */
+  regionAt(x, y) {
+    const r = this.region;
+    if (!r || r.x.length < 2 || r.y.length < 2) return null;
+    const nearest = (v, t) => Math.round(((t - v[0]) / (v[v.length - 1] - v[0])) * (v.length - 1));
+    const i = nearest(r.x, x);
+    const j = nearest(r.y, y);
+    if (i < 0 || j < 0 || i >= r.x.length || j >= r.y.length) return null;
+    return { forbidden: !r.allowed[j][i], i, j };
+  }
+
   /** Draws points `from…` of orbit `k`, clipped to the plot area. */
   dots(ctx, k, points, from) {
     const a = this.area;
@@ -126,7 +175,7 @@ export class PhasePlot {
     ctx.beginPath();
     ctx.rect(a.x, a.y, a.w, a.h);
     ctx.clip();
-    ctx.fillStyle = colour(k);
+    ctx.fillStyle = this.colourOf ? this.colourOf(k) : colour(k);
     for (let i = from; i < points.length; i++) {
       const [x, y] = this.px(...points[i]);
       ctx.fillRect(x - 1, y - 1, 2.2, 2.2);

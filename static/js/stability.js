@@ -366,7 +366,9 @@ export class StabilityPanel {
     const legend = this.halfTraceBox.querySelector('#halftrace-legend');
     legend.replaceChildren(
       ...runs.map((r, i) => el('li', { 'data-method': r.method },
-        el('span', { class: 'swatch', style: `background:${colour(i)}`, 'aria-hidden': 'true' }),
+        el('span', i % 2
+          ? { class: 'swatch line dashed', style: `border-top-color:${colour(i)}`, 'aria-hidden': 'true' }
+          : { class: 'swatch', style: `background:${colour(i)}`, 'aria-hidden': 'true' }),
         `${r.method}${r.slope == null ? '' : `: slope ${r.slope.toFixed(2)}`}`)),
       el('li', {}, el('span', { class: 'swatch line dashed', style: 'border-top-color:#777', 'aria-hidden': 'true' }), '∝ h⁴'));
     const gaps = runs.filter((r) => r.gaps.length).map((r) => `${r.method}: ${r.gaps[0]}`);
@@ -389,11 +391,12 @@ export class StabilityPanel {
       axes: [{ ...axis('h'), size: 32 }, axis('|½tr error|')],
       series: [
         { label: 'h' },
-        // Wider lines and points under narrower ones: methods whose errors nearly coincide (csv1
-        // and csv2) stay visible as a core on a halo.
+        // Methods whose errors nearly coincide (csv1 and csv2) stay visible both: every second
+        // method is dashed with hollow points, so the line drawn first shows through its gaps,
+        // and earlier methods' points are larger.
         ...runs.map((r, i) => ({
-          label: r.method, stroke: colour(i), width: Math.max(1, 3 - 0.75 * i), spanGaps: false,
-          points: { show: true, size: Math.max(3, 9 - 2 * i), fill: colour(i) },
+          label: r.method, stroke: colour(i), width: i % 2 ? 2 : 2.5, dash: i % 2 ? [7, 5] : [], spanGaps: false,
+          points: { show: true, size: Math.max(5, 10 - 2 * i), fill: i % 2 ? '#ffffff' : colour(i), width: 1.5 },
         })),
         { label: '∝ h⁴', stroke: '#777', width: 1, dash: [5, 4], points: { show: false } },
       ],

@@ -6,14 +6,19 @@
 // the first is smaller, red where it is larger). A caption says what the colour bar shows and on
 // which scale; a legend names the cells without a value (NO_VALUE). A readout gives the cell
 // under the pointer (or the keyboard cursor); the sweep downloads as JSON and as a
-// Rerun recording. The section's state is `data-sweep-state` (idle, running, done, cancelled,
-// error), for tests.
+// Rerun recording. A chaos map's indicators open on their own scales (MEGNO's ⟨Y⟩ from 0 to 8
+// with 2, regular motion, marked; λ_max from 0), and the reader may set the colour range. A map
+// over two components of the initial state is drawn in the axes' true aspect, the axes named by
+// the system's coordinates (`y (q0[1])`), and its cells outside the energy surface are light
+// grey. The chaos map of a Phase-space plane launches a clicked cell's orbit on that section.
+// The section's state is `data-sweep-state` (idle, running, done, cancelled, error), for tests.
 
 import { ApiError, sweepPresets, sweepRrd, sweepStream } from './api.js';
 import { StudyStream, OUTCOME } from './study-stream.js';
 import { downloadRecording, el, fmt, plural, saveBlob } from './common.js';
 import { GridMap, RATIO_RANGE, bindCursor, drawScaleBar, ratioColour } from './heatmap.js';
-import { chaosMetrics } from './chaos.js';
+import { chaosMeaning, chaosMetrics, chaosScale } from './chaos.js';
+import { stateNames } from './phasespace.js';
 
 /**
  * The colours of cells without a value on the scale, and what the legend says of them. On an
@@ -26,8 +31,11 @@ export const NO_VALUE = {
   diverged: { rgb: [0, 0, 0], text: 'diverged: no error to show' },
   never: { rgb: [255, 255, 255], text: 'did not diverge before t_end' },
   none: { rgb: [143, 143, 143], text: 'no value: the cell did not run, the time limit stopped it, or its value is 0 (no logarithm)' },
+  outside: { rgb: [212, 212, 212], text: 'outside the energy surface: no value of the solved momentum gives H = E there, so no orbit starts' },
   noRatio: { rgb: [143, 143, 143], text: 'no ratio: a run has no value there, or a value is 0' },
 };
+/** The error of a cell whose initial state is not on the energy surface (the core's words). */
+const OUTSIDE_SURFACE = /no state here has H = /;
 /** The readout before a cell is chosen. */
 const READOUT_PROMPT = 'Point at the map, or focus it and use the arrow keys, to read a cell.';
 /** Anchors of the value scale, least to most (the recording's ramp). */
@@ -74,9 +82,23 @@ function shown(v, log) {
   return v > 0 ? Math.log10(v) : null;
 }
 
+/** Whether a sweep axis is a component of the initial state (`q0[1]`, `p0[0]`). */
+const STATE_AXIS = /^[qp]0\[(\d+)\]$/;
+
+/**
+ * The plot area's height over its width when both axes are components of the initial state on
+ * linear scales (a section's plane: one unit both ways, cells drawn in their true shape); else null.
+ */
+export function trueAspect(axes) {
+  if (axes.length !== 2 || !axes.every((a) => STATE_AXIS.test(a.name) && a.scale !== 'log' && a.n > 1 && a.max > a.min)) return null;
+  // The plot reaches half a cell beyond the first and last values.
+  const span = (a) => ((a.max - a.min) * a.n) / (a.n - 1);
+  return span(axes[1]) / span(axes[0]);
+}
+
 /** The heatmap of one metric (or of the ratio of two runs' values) over the sweep's grid. */
 class SweepMap extends GridMap {
-  constructor(canvas, doc, view) {
+  constructor(canvas, doc, view, labelOf) {
     const axis = (a, label) => (a.scale === 'log'
       ? { min: Math.log10(a.min), max: Math.log10(a.max), n: a.n, label: `log₁₀ ${label}` }
       : { min: a.min, max: a.max, n: a.n, label });
@@ -87,14 +109,22 @@ class SweepMap extends GridMap {
       if (e == null) return NO_VALUE[view.cellKind(k)].rgb;
       return view.compare ? ratioColour(e) : rampColour(view.hi > view.lo ? (e - view.lo) / (view.hi - view.lo) : 0.5);
     };
-    super(canvas, { x: axis(doc.axes[0], doc.axes[0].name), y: axis(second, second.name), colour });
+    super(canvas, {
+      x: axis(doc.axes[0], labelOf(doc.axes[0].name)), y: axis(second, labelOf(second.name)), colour,
+      aspect: trueAspect(doc.axes),
+    });
   }
 }
 
 /** The sweep section. */
 export class SweepPanel {
-  constructor(root) {
+  /**
+   * @param {HTMLElement} root the section
+   * @param {object[]} [systems] the system catalogue, for the names of the initial state's components
+   */
+  constructor(root, systems = []) {
     this.root = root;
+    this.systems = systems;
     const $ = (id) => root.querySelector(`#sw-${id}`);
     this.spec = $('spec');
     this.presetSelect = $('preset');
@@ -126,11 +156,25 @@ export class SweepPanel {
 
     root.querySelector('#sw-form').addEventListener('submit', (event) => {
       event.preventDefault();
+      this.planeLaunch = null;
       this.run();
     });
+    /** With a chaos map of a Phase-space plane: launches the orbit of a clicked cell there. */
+    this.planeLaunch = null;
     this.presetSelect.addEventListener('change', () => this.loadPreset(this.presetSelect.value));
     for (const select of [this.runSelect, this.metricSelect, this.compareSelect]) {
-      select.addEventListener('change', () => this.redraw());
+      select.addEventListener('change', () => {
+        this.scaleEdited = false;
+        this.redraw();
+      });
+    }
+    this.scaleLo = $('scale-lo');
+    this.scaleHi = $('scale-hi');
+    for (const input of [this.scaleLo, this.scaleHi]) {
+      input.addEventListener('input', () => {
+        this.scaleEdited = true;
+        this.redraw();
+      });
     }
     this.jsonButton.addEventListener('click', () => this.downloadJson());
     this.rrdButton.addEventListener('click', () => this.downloadRrd());
@@ -189,6 +233,22 @@ export class SweepPanel {
     this.runner.setState('done');
   }
 
+  /**
+   * Runs `body`, the chaos map of a Phase-space section's plane; a click on a cell of its map
+   * then calls `launch(x, y)` with the cell's values of the two axes.
+   */
+  async runFromPlane(body, launch) {
+    this.spec.value = JSON.stringify(body, null, 2);
+    this.planeLaunch = launch;
+    this.planeBody = this.spec.value;
+    await this.run();
+  }
+
+  /** Whether the map on show is a Phase-space plane's, whose cells launch orbits there. */
+  get launchesOrbits() {
+    return Boolean(this.planeLaunch && this.last && JSON.stringify(this.last.body, null, 2) === this.planeBody);
+  }
+
   /** The last progress line of the last run (for tests). */
   get lastProgress() {
     return this.runner.lastProgress;
@@ -205,8 +265,9 @@ export class SweepPanel {
     this.figure.hidden = false;
     this.jsonButton.disabled = false;
     this.rrdButton.disabled = false;
-    // The cursor and the readout belonged to the last sweep's grid.
+    // The cursor, the readout and a colour range set by hand belonged to the last sweep.
     this.cursor = null;
+    this.scaleEdited = false;
     this.readout.textContent = READOUT_PROMPT;
     for (const key of Object.keys(this.readout.dataset)) delete this.readout.dataset[key];
     this.redraw();
@@ -230,13 +291,18 @@ export class SweepPanel {
     const unfinished = new Set(doc.unfinished_cells ?? []);
     /** Why cell k has no value on the scale: a key of NO_VALUE. */
     view.cellKind = (k) => {
+      if (OUTSIDE_SURFACE.test(run.errors[k] ?? '')) return 'outside';
       if (b) return 'noRatio';
       if (run.errors[k] || unfinished.has(k)) return 'none';
       if (metric === 'diverged_at') return 'never';
       return run.diverged_at[k] != null ? 'diverged' : 'none';
     };
     const values = a.values.map((_, k) => view.cellValue(k)).filter((v) => v != null);
-    if (metric === 'diverged_at' && !b) {
+    view.indicator = b ? null : chaosScale(metric, values);
+    if (view.indicator) {
+      view.lo = view.indicator.lo;
+      view.hi = view.indicator.hi;
+    } else if (metric === 'diverged_at' && !b) {
       // Times of divergence on the sweep's whole time span: runs found diverged at nearly the
       // same (sampled) time look alike instead of stretching the colours over a few steps.
       view.lo = 0;
@@ -245,6 +311,21 @@ export class SweepPanel {
       view.lo = values.length ? Math.min(...values) : 0;
       view.hi = values.length ? Math.max(...values) : 1;
     }
+    // The colour range as the reader set it (in the metric's units), else the default's.
+    if (!b) {
+      const shownOf = (text) => shown(Number(text), a.log);
+      const [lo, hi] = [shownOf(this.scaleLo.value), shownOf(this.scaleHi.value)];
+      if (this.scaleEdited && lo != null && hi != null && hi > lo && this.scaleLo.value.trim() && this.scaleHi.value.trim()) {
+        view.lo = lo;
+        view.hi = hi;
+      } else if (!this.scaleEdited) {
+        const unit = (e) => (a.log ? 10 ** e : e);
+        this.scaleLo.value = String(+unit(view.lo).toPrecision(3));
+        this.scaleHi.value = String(+unit(view.hi).toPrecision(3));
+      }
+    }
+    this.scaleLo.disabled = Boolean(b);
+    this.scaleHi.disabled = Boolean(b);
     view.kinds = new Set(a.values.map((_, k) => k).filter((k) => view.cellValue(k) == null).map(view.cellKind));
     return view;
   }
@@ -254,15 +335,53 @@ export class SweepPanel {
     const doc = this.last.doc;
     this.currentViewState = this.currentView();
     const canvas = this.canvas.cloneNode(false);
+    canvas.style.width = '';
     this.canvas.replaceWith(canvas);
     this.canvas = canvas;
-    this.map = new SweepMap(canvas, doc, this.currentViewState);
+    this.map = new SweepMap(canvas, doc, this.currentViewState, (name) => this.axisLabel(name));
     bindCursor(this.map, { get: () => this.cursor, set: (cell) => this.setCursor(cell) });
+    const launch = (cell) => {
+      if (!cell || !this.launchesOrbits) return;
+      const [x, y] = doc.axes;
+      this.planeLaunch(x.values[cell.col], y.values[cell.row]);
+    };
+    canvas.addEventListener('click', (event) => launch(this.map.cellAt(event.offsetX, event.offsetY)));
+    canvas.addEventListener('keydown', (event) => {
+      if (event.key === 'Enter') launch(this.cursor);
+    });
+    this.root.querySelector('#sw-plane-note').hidden = !this.launchesOrbits;
     this.canvas.setAttribute('aria-label', `Sweep heatmap of ${this.currentViewState.a.label}: ` +
-      `${doc.axes[0].name} across${doc.axes[1] ? `, ${doc.axes[1].name} upwards` : ''}. Arrow keys move the cursor cell.`);
+      `${this.axisLabel(doc.axes[0].name)} across${doc.axes[1] ? `, ${this.axisLabel(doc.axes[1].name)} upwards` : ''}. ` +
+      'Arrow keys move the cursor cell.');
     if (this.cursor && (this.cursor.col >= this.map.cols || this.cursor.row >= this.map.rows)) this.cursor = null;
     if (this.cursor) this.setCursor(this.cursor);
     this.layout();
+  }
+
+  /**
+   * The names of the initial state's components in the sweep's system: the definition's, or the
+   * catalogue's for the chart the initial state is given in.
+   */
+  stateNamesOf() {
+    const { body, doc } = this.last;
+    const system = body.system;
+    if (typeof system !== 'string') return stateNames(system, this.systems);
+    const entry = this.systems.find((x) => x.id === system);
+    const run = doc.runs[Number(this.runSelect.value)] ?? doc.runs[0];
+    const chart = body.initial_coordinates === 'cartesian' ? null : entry?.charts?.find((c) => c.id === run?.chart);
+    if (chart?.coordinates) {
+      return { coordinates: chart.coordinates, momenta: chart.coordinates.map((c) => `p_${c}`) };
+    }
+    return stateNames(system, this.systems);
+  }
+
+  /** An axis's label: `y (q0[1])` for a component of the initial state, else its name. */
+  axisLabel(name) {
+    const m = STATE_AXIS.exec(name);
+    if (!m || !this.last) return name;
+    const names = this.stateNamesOf();
+    const word = (name.startsWith('q') ? names.coordinates : names.momenta)[Number(m[1])];
+    return word ? `${word} (${name})` : name;
   }
 
   setCursor(cell) {
@@ -273,14 +392,24 @@ export class SweepPanel {
     const doc = this.last.doc;
     const view = this.currentViewState;
     const k = cell.row * doc.axes[0].n + cell.col;
-    const where = doc.axes.map((a, i) => `${a.name} = ${fmt(a.values[i === 0 ? cell.col : cell.row])}`).join(', ');
+    const where = doc.axes.map((a, i) => {
+      const label = this.axisLabel(a.name);
+      return `${STATE_AXIS.test(a.name) ? label.split(' (')[0] : label} = ${fmt(a.values[i === 0 ? cell.col : cell.row])}`;
+    }).join(', ');
     const run = doc.runs[Number(this.runSelect.value)];
     const a = view.a.values[k];
-    const value = a == null && view.cellValue(k) == null ? `— (${NO_VALUE[view.cellKind(k)].text})` : fmt(a, 3);
-    let text = `${where}: ${view.a.label} ${value}`;
-    if (view.b) text += ` against ${fmt(view.b.values[k], 3)}, ratio ${fmt(view.cellValue(k) == null ? null : 10 ** view.cellValue(k), 3)}`;
-    if (run.diverged_at[k] != null) text += `; diverged at t = ${fmt(run.diverged_at[k])}`;
-    if (run.errors[k]) text += `; could not run: ${run.errors[k]}`;
+    const kind = view.cellKind(k);
+    const meaning = view.b ? '' : chaosMeaning(view.metric, a);
+    let text;
+    if (kind === 'outside') {
+      text = `${where}: ${NO_VALUE.outside.text}`;
+    } else {
+      const value = a == null && view.cellValue(k) == null ? `— (${NO_VALUE[kind].text})` : fmt(a, 3);
+      text = `${where}: ${view.a.label} ${value}${meaning ? ` (${meaning})` : ''}`;
+      if (view.b) text += ` against ${fmt(view.b.values[k], 3)}, ratio ${fmt(view.cellValue(k) == null ? null : 10 ** view.cellValue(k), 3)}`;
+      if (run.diverged_at[k] != null) text += `; diverged at t = ${fmt(run.diverged_at[k])}`;
+      if (run.errors[k]) text += `; could not run: ${run.errors[k]}`;
+    }
     this.readout.textContent = `${text}.`;
     Object.assign(this.readout.dataset, {
       col: String(cell.col), row: String(cell.row), cell: String(k),
@@ -316,6 +445,18 @@ export class SweepPanel {
     }
     const hi = view.hi > view.lo ? view.hi : view.lo + 1;
     const colourAt = (e) => rampColour((e - view.lo) / (hi - view.lo));
+    if (view.indicator) {
+      const marks = view.indicator.marks.filter(([v]) => v > view.lo && v < hi);
+      const ticks = [[view.lo, fmt(view.lo, 3)], ...marks, [hi, `${view.indicator.clipped ? '≥ ' : ''}${fmt(hi, 3)}`]];
+      const mark = marks.map(([v, text]) => ` ${fmt(v, 3)} is marked (${text.replace(/^\S+ /, '')} motion).`).join('');
+      return {
+        lo: view.lo, hi, colourAt, ticks,
+        label: `Colour scale: ${a.label}, from ${fmt(view.lo, 3)} (dark blue) to ${fmt(hi, 3)} (yellow)` +
+          `${view.indicator.clipped ? '; larger values take the top colour' : ''}.${mark}` +
+          (view.metric === 'megno_mean' ? ' ⟨Y⟩ ≈ 2 on tori (regular), grows like λt/2 in chaos.' : '') +
+          ' Set the range above the bar.',
+      };
+    }
     if (a.log) {
       return {
         lo: view.lo, hi, colourAt, ticks: decadeTicks(view.lo, hi),

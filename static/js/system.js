@@ -110,6 +110,7 @@ export class SystemPanel {
 
   /** Shows an error in the section's alert (empty text hides it). */
   alert(text) {
+    if (text) this.forgetCopied();
     this.ui.alert.textContent = text || '';
     this.ui.alert.hidden = !text;
   }
@@ -420,6 +421,7 @@ export class SystemPanel {
 
   /** Runs the definition (checked first, when it changed since its last check). */
   async run() {
+    this.forgetCopied();
     const read = this.read();
     if (!read) return;
     const definition = this.checked?.json === JSON.stringify(read.definition)
@@ -440,21 +442,44 @@ export class SystemPanel {
     return { definition: this.readDefinition().definition, run };
   }
 
-  /** Copies the link to the definition and run (and shows it, for browsers that do not copy). */
+  /** Takes back the status that a link was copied, once anything else has happened since. */
+  forgetCopied() {
+    if (this.copiedStatus && this.view.ui.status.textContent === this.copiedStatus) this.view.setStatus('');
+    this.copiedStatus = null;
+  }
+
+  /**
+   * Copies the link to the definition and run (and shows it, for browsers that do not copy). A
+   * definition without coordinates or without its energy (a potential, or a Hamiltonian) makes no
+   * link: the link would open on the server's refusal.
+   */
   async copyLink() {
     let link;
     try {
-      link = systemLink(this.linkState());
+      const state = this.linkState();
+      const d = state.definition;
+      if (!d.coordinates?.length) throw new DefinitionProblem('coordinates', 'coordinates: give the coordinates\' names, e.g. x, y');
+      if (!d.potential && !d.hamiltonian) {
+        const general = this.choice('energy') === 'general';
+        throw new DefinitionProblem(general ? 'hamiltonian' : 'potential',
+          general ? 'hamiltonian: give H(q, p), e.g. p_x^2/2 + x^2/2' : 'potential: give V(q), e.g. x^2/2');
+      }
+      link = systemLink(state);
     } catch (problem) {
       if (!(problem instanceof DefinitionProblem)) throw problem;
-      this.read();
+      this.clearErrors();
+      this.forgetCopied();
+      this.showError(problem)?.focus();
+      this.ui.linkBox.hidden = true;
+      this.view.setStatus(`No link: the definition is not complete (${problem.message}).`);
       return;
     }
     this.ui.link.value = link;
     this.ui.linkBox.hidden = false;
     try {
       await navigator.clipboard.writeText(link);
-      this.view.setStatus('Copied the link to this system and run.');
+      this.copiedStatus = 'Copied the link to this system and run.';
+      this.view.setStatus(this.copiedStatus);
     } catch {
       this.ui.link.focus();
       this.ui.link.select();
@@ -521,6 +546,7 @@ export class SystemPanel {
    * Returns the input to focus, if any.
    */
   showError(error) {
+    this.forgetCopied();
     const target = this.locate(error.field);
     const top = (error.field ?? '').replace(/^system\./, '').split(/[.[]/)[0];
     const slot = target?.error ?? (DEFINITION_FIELDS.has(top) ? this.ui.definitionError : this.ui.formError);
@@ -550,9 +576,13 @@ export class SystemPanel {
     const after = chars.slice(position + 1).join('');
     const from = start + before.length;
     input.setSelectionRange(from, from + at.length);
+    // People count characters from 1: the server's 0-based position, said so.
+    slot.textContent = slot.textContent.replace(/\bat character (\d+)/, (_, n) => `at character ${Number(n) + 1}`);
     slot.after(el('p', { class: 'expr-where', 'data-position': position },
       el('code', {}, before,
-        el('mark', { class: at ? null : 'end', title: at ? `character ${position}` : 'the end' }, at || '\u00a0'),
-        after)));
+        el('mark', { class: at ? null : 'end', title: at ? `character ${position + 1}` : 'the end' }, at || '\u00a0'),
+        after),
+      el('code', { class: 'caret', 'aria-hidden': 'true' }, `${'\u00a0'.repeat(chars.slice(0, position).length)}^`),
+      ` character ${position + 1}${at ? ` (“${at}”)` : ', the end'}`));
   }
 }

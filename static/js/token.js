@@ -29,7 +29,7 @@ export function setupTokenField(input, status, onChange = () => {}) {
   if (!input) return;
   input.value = token();
   const show = () => {
-    status.textContent = token() ? 'kept in this browser' : '';
+    status.textContent = token() ? 'kept in this browser' : 'only for a server that asks for one';
   };
   input.addEventListener('change', () => {
     try {

@@ -66,6 +66,7 @@ function shownError(p, id) {
       position: where ? Number(where.dataset.position) : null,
       marked: where?.querySelector('mark').textContent ?? null,
       before: where ? where.querySelector('code').firstChild.textContent : null,
+      caret: where?.querySelector('code.caret')?.textContent ?? null,
       others: [...document.querySelectorAll('#sys-form .field-error')]
         .filter((n) => n.id !== `err-${inputId}` && n.textContent.trim() !== '').map((n) => n.id),
     };
@@ -122,7 +123,12 @@ test('an example fills the definition; expression errors are shown at their fiel
   assert.equal(await settled(page, ['invalid']), 'invalid');
 
   let shown = await shownError(page, 'sys-matrix');
-  assert.equal(shown.message, refused.answer.error.message);
+  // The server counts characters from 0, the page from 1 as people do, and draws a caret.
+  const fromOne = (message) => message.replace(/at character (\d+)/, (_, n) => `at character ${Number(n) + 1}`);
+  assert.match(refused.answer.error.message, new RegExp(`at character ${refused.answer.error.position}\\b`));
+  assert.equal(shown.message, fromOne(refused.answer.error.message));
+  assert.match(shown.message, new RegExp(`at character ${refused.answer.error.position + 1}\\b`));
+  assert.equal(shown.caret, `${'\u00a0'.repeat(refused.answer.error.position)}^`);
   assert.equal(shown.invalid, 'true');
   assert.equal(shown.focused, true);
   assert.equal(shown.position, refused.answer.error.position);
@@ -148,7 +154,7 @@ test('an example fills the definition; expression errors are shown at their fiel
   assert.equal(second.answer.error.position, position);
   await settled(page, ['invalid']);
   shown = await shownError(page, 'sys-potential');
-  assert.equal(shown.message, second.answer.error.message);
+  assert.equal(shown.message, fromOne(second.answer.error.message));
   assert.equal(shown.invalid, 'true');
   assert.equal(shown.position, position);
   assert.equal(shown.marked, 'z');
@@ -429,4 +435,27 @@ test('a damped system without exact solution says how to get an energy error, an
   assert.deepEqual(consoleErrors.slice(before), [], 'console errors');
   await page.locator('#sys-results').screenshot({ path: join(artifacts, 'system-duffing-reference.png') });
   await page.uncheck('#sys-compare');
+});
+
+test('a link is made only of a complete definition, and “Copied” gives way to a later failure', async () => {
+  await context.grantPermissions(['clipboard-read', 'clipboard-write'], { origin: base });
+  await page.selectOption('#sys-example', 'example:kepler');
+  const potential = await page.inputValue('#sys-potential');
+  // Without a potential: no link, the field named (a link would open on the server's refusal).
+  await page.fill('#sys-potential', '');
+  await page.click('#sys-copy-link');
+  assert.equal(await page.isHidden('#sys-link-box'), true);
+  assert.match(await page.textContent('#err-sys-potential'), /^potential: give V\(q\)/);
+  assert.match(await page.textContent('#sys-status'), /^No link: the definition is not complete/);
+
+  // Complete: copied; then a refused check takes the word back.
+  await page.fill('#sys-potential', potential);
+  await page.click('#sys-copy-link');
+  await page.waitForSelector('#sys-link-box:not([hidden])');
+  assert.equal(await page.textContent('#sys-status'), 'Copied the link to this system and run.');
+  await page.fill('#sys-potential', `${potential} + *`);
+  await page.click('#sys-check');
+  await settled(page, ['invalid']);
+  assert.notEqual(await page.textContent('#sys-status'), 'Copied the link to this system and run.');
+  await page.fill('#sys-potential', potential);
 });
