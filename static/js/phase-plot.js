@@ -157,7 +157,11 @@ export class PhasePlot {
     ctx.restore();
   }
 
-  /** Whether plane point (x, y) lies in a shaded cell: {forbidden, i, j} of the nearest grid point, or null. */
+  /**
+   * Whether plane point (x, y) lies inside the shaded region: {forbidden, i, j} of the nearest
+   * grid point, or null off the grid. Near the boundary (an allowed grid point next to the
+   * nearest) the grid cannot tell, and the point does not count as forbidden: the server decides.
+   */
   regionAt(x, y) {
     const r = this.region;
     if (!r || r.x.length < 2 || r.y.length < 2) return null;
@@ -165,7 +169,13 @@ export class PhasePlot {
     const i = nearest(r.x, x);
     const j = nearest(r.y, y);
     if (i < 0 || j < 0 || i >= r.x.length || j >= r.y.length) return null;
-    return { forbidden: !r.allowed[j][i], i, j };
+    let forbidden = true;
+    for (let dj = -1; dj <= 1; dj++) {
+      for (let di = -1; di <= 1; di++) {
+        if (r.allowed[j + dj]?.[i + di]) forbidden = false;
+      }
+    }
+    return { forbidden, i, j };
   }
 
   /** Draws points `from…` of orbit `k`, clipped to the plot area. */

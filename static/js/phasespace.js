@@ -230,7 +230,8 @@ export class PhaseSpacePanel {
     } else {
       request.section = { period: s.period, phase: s.phase, max_points: s.points };
     }
-    if (s.chaos) request.indicators = ['megno', 'lyapunov'];
+    // At one energy only: the tangent maps of a driven system's clock are not offered here.
+    if (s.chaos && s.kind === 'energy') request.indicators = ['megno', 'lyapunov'];
     // Samples are not drawn here: as few as the server allows.
     request.output = { every: Math.max(1, Math.ceil((s.t_end ?? 0) / (s.h || 1))) };
     return request;

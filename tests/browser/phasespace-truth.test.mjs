@@ -189,7 +189,8 @@ test('the chaos map of the plane runs in Sweeps, and a click on a cell launches 
   // A cell inside the energy surface: its orbit starts on the section from the cell's values.
   const doc = await page.evaluate(() => window.geomint.sweep.last.doc);
   const nx = doc.axes[0].n;
-  const k = doc.runs[0].megno_mean.findIndex((v, i) => v != null && Math.abs(doc.axes[0].values[i % nx]) < 0.3);
+  const k = doc.runs[0].megno_mean.findIndex((v, i) => v != null && Math.abs(doc.axes[0].values[i % nx]) < 0.3
+    && Math.abs(doc.axes[1].values[Math.floor(i / nx)]) < 0.3);
   const [col, row] = [k % nx, Math.floor(k / nx)];
   await page.evaluate(() => new Promise((done) => requestAnimationFrame(() => requestAnimationFrame(done))));
   await page.locator('#sw-canvas').scrollIntoViewIfNeeded();
