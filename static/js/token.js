@@ -29,7 +29,7 @@ export function setupTokenField(input, status, onChange = () => {}) {
   if (!input) return;
   input.value = token();
   const show = () => {
-    status.textContent = token() ? 'kept in this browser' : 'only for a server that asks for one';
+    status.textContent = token() ? 'kept in this browser' : '';
   };
   input.addEventListener('change', () => {
     try {
