@@ -2,7 +2,7 @@
 // chart, the grid, h, t_max, g) whose map, POST /api/v1/studies/energy-map, streams as NDJSON with
 // a progress bar and can be cancelled; the answer drawn as a heatmap of log10(ε(x,y)/ε(r,θ)) with
 // the recording's colours (white at equal errors, blue where the Cartesian run is more accurate,
-// red where the polar one is, saturating at the map's largest ratio either way, black where a run
+// red where the polar one is, saturating at the ratio 98 % of its cells stay within, black where a run
 // diverged), y growing downwards along gravity, the analytic boundary r = 2l + 2mg/k·cos θ dashed over it, a colour
 // legend, a readout of the cell under the pointer (or the keyboard cursor), the summary counts,
 // and downloads of the map as JSON and as a Rerun recording. The section's state is
@@ -11,7 +11,7 @@
 import { energyMapStream, energyMapRrd, ApiError } from './api.js';
 import { StudyStream, OUTCOME } from './study-stream.js';
 import { downloadRecording, el, fmt, parseCount, parseNumber, saveBlob } from './common.js';
-import { GridMap, bindCursor, dataRatioRange, drawScaleBar, ratioColour, ratioTicks } from './heatmap.js';
+import { GridMap, RATIO_SHARE, bindCursor, dataRatioRange, drawScaleBar, ratioColour, ratioTicks } from './heatmap.js';
 
 /** Where a run diverged (or the pivot, where the polar chart does not exist). */
 export const DIVERGED_COLOUR = [0, 0, 0];
@@ -29,7 +29,7 @@ export function differenceColour(cartesian, polar, range) {
   return ratioColour(cartesian > 0 && polar > 0 ? Math.log10(cartesian / polar) : 0, range);
 }
 
-/** The scale of a map scaled to its data: the largest |log₁₀ ε(x,y)/ε(r,θ)| over its cells. */
+/** The scale of a map scaled to its data: the |log₁₀ ε(x,y)/ε(r,θ)| that 98 % of its cells stay within. */
 export function ratioRangeOf(doc) {
   return dataRatioRange(doc.epsilon_cartesian.map((c, k) => {
     const p = doc.epsilon_polar[k];
@@ -317,13 +317,14 @@ export class EnergyMapPanel {
         colourAt: (e) => ratioColour(e, range),
         ticks,
         label: `Colour scale of ε(x,y)/ε(r,θ) on a log axis scaled to this map: from ${ticks[0][1]} to ${ticks[4][1]}, ` +
-          'the largest ratio either way among its cells. Blue where the Cartesian run is more accurate, white where ' +
-          'the errors agree, red where the polar run is more accurate.',
+          `which holds ${Math.round(100 * RATIO_SHARE)} % of its cells (the others take the deepest colours). Blue where ` +
+          'the Cartesian run is more accurate, white where the errors agree, red where the polar run is more accurate.',
       });
       this.scaleBar.dataset.range = String(range);
       this.root.querySelector('#em-scale-caption').textContent = `ε(x,y)/ε(r,θ), log scale scaled to this map's ` +
         `cells, symmetric about 1: from ${ticks[0][1]} (deepest blue: the Cartesian run more accurate) to ` +
-        `${ticks[4][1]} (deepest red: the polar run more accurate), white where they agree.`;
+        `${ticks[4][1]} (deepest red: the polar run more accurate), white where they agree; the range holds ` +
+        `${Math.round(100 * RATIO_SHARE)} % of the cells, the rest take the deepest colours.`;
     });
   }
 

@@ -74,14 +74,18 @@ export function ratioColour(e, range = RATIO_RANGE) {
   return ratio < 0 ? [fade, fade, 255] : [255, fade, fade];
 }
 
+/** The share of a ratio map's cells its scale holds; the others take the deepest colours. */
+export const RATIO_SHARE = 0.98;
+
 /**
- * The range of a ratio map scaled to its data: the largest |log₁₀ ratio| among `logs` (the
- * finite ones), symmetric about 1, at least `floor` decades (a map of equal errors).
+ * The range of a ratio map scaled to its data: the |log₁₀ ratio| that RATIO_SHARE of the finite
+ * `logs` stay within (a few outliers do not wash the rest out to white), symmetric about 1, at
+ * least `floor` decades (a map of equal errors).
  */
 export function dataRatioRange(logs, floor = 1e-3) {
-  let most = 0;
-  for (const e of logs) if (Number.isFinite(e) && Math.abs(e) > most) most = Math.abs(e);
-  return Math.max(floor, most);
+  const sizes = logs.filter(Number.isFinite).map(Math.abs).sort((a, b) => a - b);
+  if (!sizes.length) return floor;
+  return Math.max(floor, sizes[Math.floor(RATIO_SHARE * (sizes.length - 1))]);
 }
 
 /**

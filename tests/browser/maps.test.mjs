@@ -2,7 +2,7 @@
 // drawn in its axes' true aspect with the coordinates' names, ⟨Y⟩ on a 0–8 scale with 2 marked
 // (regular and chaotic cells far apart in colour) that the reader can change, cells outside the
 // energy surface named as such, and readouts in words; the energy map's colour bar spans the
-// map's own ratios, symmetric about 1. Screenshots go to artifacts/.
+// ratios 98 % of its cells stay within, symmetric about 1. Screenshots go to artifacts/.
 
 import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
@@ -123,18 +123,21 @@ test('the energy map’s colour bar spans its own ratios, symmetric about 1', as
   await page.waitForSelector('#energy-map[data-map-state="done"]', { timeout: 60_000 });
   await page.evaluate(() => new Promise((done) => requestAnimationFrame(() => requestAnimationFrame(done))));
   const { body: api } = await postJson('/api/v1/studies/energy-map', body);
-  let most = 0;
+  // The scale holds 98 % of the cells: one outlier (a cell near the pivot) does not wash the map out.
+  const sizes = [];
   api.epsilon_cartesian.forEach((c, k) => {
     const p = api.epsilon_polar[k];
-    if (c > 0 && p > 0) most = Math.max(most, Math.abs(Math.log10(c / p)));
+    if (c > 0 && p > 0) sizes.push(Math.abs(Math.log10(c / p)));
   });
-  assert.ok(most > 0, `largest ratio 10^${most}`);
+  sizes.sort((a, b) => a - b);
+  const most = sizes[Math.floor(0.98 * (sizes.length - 1))];
+  assert.ok(most > 0, `98 % within 10^${most}, largest 10^${sizes[sizes.length - 1]}`);
   const range = Number(await page.getAttribute('#em-scale-bar', 'data-range'));
   assert.equal(range, most);
   const label = await page.getAttribute('#em-scale-bar', 'aria-label');
   const ratio = (10 ** most).toPrecision(3);
   assert.ok(label.includes(`from 1/${+ratio} to ${+ratio}`), label);
-  assert.match(await page.textContent('#em-scale-caption'), /scaled to this map's cells, symmetric about 1/);
+  assert.match(await page.textContent('#em-scale-caption'), /scaled to this map's cells, symmetric about 1.*holds 98 % of the cells/);
   await page.locator('#energy-map').screenshot({ path: join(artifacts, 'energy-map-scaled.png') });
   assert.deepEqual(consoleErrors, []);
 });
