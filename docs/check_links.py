@@ -55,9 +55,17 @@ def parse(path, cache={}):
     return cache[path]
 
 
+def shown(path):
+    """A path as a message shows it: from the repository's root where it is inside."""
+    try:
+        return path.relative_to(ROOT)
+    except ValueError:
+        return path
+
+
 def check_target(source, target, fragment, problems, what):
     if not target.exists():
-        problems.append(f"{source}: {what} names {target}, which does not exist")
+        problems.append(f"{source}: {what} names {shown(target)}, which does not exist")
         return
     if fragment and target.suffix == ".html":
         if urllib.parse.unquote(fragment) not in parse(target).ids:
