@@ -5,12 +5,43 @@ asked for; a missing quantity that says why."""
 
 from __future__ import annotations
 
+import json
+from typing import List
+
+import httpx
 import numpy as np
 import pytest
 
 import geomint
 
 ENERGY = 0.125
+
+
+def test_names_become_the_requests_forms_with_the_catalogue_read_once() -> None:
+    entry = {"id": "hh", "name": "HH", "description": "", "degrees_of_freedom": 2, "params": [],
+             "charts": [{"id": "cartesian", "coordinates": ["x", "y"], "separable": True, "description": ""}],
+             "q0": [0, 0], "p0": [0, 0], "invariants": [], "exact_solution": False, "conformal_damping": False}
+    sent: List[httpx.Request] = []
+
+    def answer(request: httpx.Request) -> httpx.Response:
+        sent.append(request)
+        if request.method == "GET":
+            return httpx.Response(200, json=entry)
+        return httpx.Response(422, json={"error": {"code": "invalid_value", "message": "enough"}})
+
+    with geomint.Client("http://geomint.invalid", transport=httpx.MockTransport(answer)) as c:
+        with pytest.raises(geomint.RefusedError):
+            c.sweep("hh", "velocity_verlet", [("y", 0, 1, 2), ("p_y", 0, 1, 2)], 1, h=0.1, energy=(ENERGY, "p_x"))
+        body = json.loads(sent[-1].content)
+        assert [a["name"] for a in body["axes"]] == ["q0[1]", "p0[1]"]
+        assert body["energy_surface"] == {"energy": ENERGY, "solve_for": "p0[0]"}
+        with pytest.raises(geomint.RefusedError):
+            c.simulate("hh", "velocity_verlet", h=0.1, t_end=1, energy=(ENERGY, "p0[1]"))
+        assert json.loads(sent[-1].content)["energy"] == {"value": ENERGY, "momentum": "p_y"}
+        with pytest.raises(geomint.ValidationError) as refused:
+            c.sweep("hh", "velocity_verlet", [("yy", 0, 1, 2)], 1, h=0.1)
+        assert refused.value.field == "axes[0].name" and "did you mean 'y'" in str(refused.value)
+    assert [r.method for r in sent] == ["GET", "POST", "POST"]
 
 
 def test_an_energy_level_names_its_momentum_either_way(client: geomint.Client) -> None:
