@@ -103,3 +103,12 @@ def test_the_maps_are_tables_too(client: geomint.Client) -> None:
     cells = emap.to_pandas()
     assert len(cells) == 12 and cells["x"].iloc[4] == emap.x[1] and cells["y"].iloc[4] == emap.y[0]
     assert np.array_equal(cells["epsilon_polar"].to_numpy(), emap.epsilon_polar.ravel(), equal_nan=True)
+
+
+def test_a_notebook_kernel_counts_as_watched(monkeypatch: pytest.MonkeyPatch) -> None:
+    ipython = pytest.importorskip("IPython")
+    monkeypatch.setattr(sys, "stderr", io.StringIO())
+    monkeypatch.setattr(ipython, "get_ipython", lambda: types.SimpleNamespace(kernel=object()))
+    assert _progress.in_notebook() and _progress.interactive()
+    monkeypatch.setattr(ipython, "get_ipython", lambda: types.SimpleNamespace())  # IPython in a terminal
+    assert not _progress.in_notebook() and not _progress.interactive()

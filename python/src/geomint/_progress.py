@@ -10,11 +10,12 @@ from . import _optional
 
 
 def in_notebook() -> bool:
-    """Whether this process is a Jupyter kernel (IPython's ZMQ shell)."""
+    """Whether this process is a Jupyter kernel: an IPython shell with a kernel (Jupyter's,
+    VS Code's, Colab's), not IPython in a terminal."""
     ipython = sys.modules.get("IPython")
     get = getattr(ipython, "get_ipython", None) if ipython is not None else None
     shell = get() if callable(get) else None
-    return shell is not None and type(shell).__name__ == "ZMQInteractiveShell"
+    return getattr(shell, "kernel", None) is not None
 
 
 def interactive() -> bool:
