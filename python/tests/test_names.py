@@ -89,7 +89,7 @@ def test_a_typed_in_system_names_its_own_momenta(client: geomint.Client) -> None
     assert sweep.request is not None and sweep.request["energy_surface"]["solve_for"] == "p0[0]"
     assert sweep.to_xarray()["energy_error_max"].dims == ("run", "v", "pv")
     with pytest.raises(geomint.ValidationError) as refused:
-        client.sweep(definition, "velocity_verlet", [("w", 0, 1, 2)], 1, h=0.1, progress=False)
+        client.sweep(definition, "velocity_verlet", [("vv", 0, 1, 2)], 1, h=0.1, progress=False)
     assert refused.value.field == "axes[0].name" and "did you mean 'v'" in str(refused.value)
 
 
