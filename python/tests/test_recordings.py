@@ -117,6 +117,6 @@ def test_show_sends_the_recording_to_the_notebook_viewer(
 
     monkeypatch.setattr(notebook.Viewer, "send_rrd", send_rrd)
     recording = client.recording(client.simulate("pendulum", ["modin_3s", "heun"], h=0.1, t_end=20))
-    viewer = recording.show(width=640, height=360)
-    assert isinstance(viewer, notebook.Viewer)
+    shown = recording.show(width=640, height=360)
+    assert isinstance(shown.viewer, notebook.Viewer)
     assert sent == [recording.data]

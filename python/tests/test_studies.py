@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import geomint
+from geomint import _progress
 from conftest import post_text
 from test_simulate import assert_same_bits, literal_floats
 
@@ -218,7 +219,10 @@ def test_study_results_match_the_plain_json_answer(client: geomint.Client, raw: 
         assert plain[key] == streamed[key], key
 
 
-def test_progress_of_a_study(client: geomint.Client, capsys: pytest.CaptureFixture[str]) -> None:
+def test_progress_of_a_study(
+    client: geomint.Client, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(_progress, "interactive", lambda: True)  # as on a terminal
     client.energy_map(nx=9, ny=9, t_max=200, progress=True)
     err = capsys.readouterr().err
     assert "81/81" in err

@@ -5,14 +5,24 @@ a geomint server, with the answers as numpy arrays (and xarray or pandas objects
 >>> client = geomint.Client("http://127.0.0.1:8080")                 # doctest: +SKIP
 >>> sim = client.simulate("pendulum", ["modin_3s", "heun"], h=0.1, t_end=200)  # doctest: +SKIP
 >>> sim["modin_3s"].energy                                           # doctest: +SKIP
+
+Without a server, :func:`geomint.local.simulate` runs the same request in this process.
 """
 
 from ._version import __version__
 from .catalog import Chart, Definition, Facts, Method, Parameter, System
 from ._transport import DEFAULT_URL
 from .client import Client
-from .errors import GeomintError, OverloadedError, RefusedError, ServerError, ValidationError
-from .recording import Recording, RecordingInfo
+from .errors import (
+    GeomintError,
+    MissingError,
+    OverloadedError,
+    RefusedError,
+    ServerError,
+    UnreachableError,
+    ValidationError,
+)
+from .recording import Recording, RecordingInfo, Shown
 from .sections import (
     Crossings,
     SectionSummary,
@@ -60,6 +70,7 @@ __all__ = [
     "Facts",
     "GeomintError",
     "Indicators",
+    "MissingError",
     "Method",
     "OrderFit",
     "OverloadedError",
@@ -69,6 +80,7 @@ __all__ = [
     "RefusedError",
     "Run",
     "Schedule",
+    "Shown",
     "SectionSummary",
     "ServerError",
     "Simulation",
@@ -83,6 +95,7 @@ __all__ = [
     "SweepRun",
     "SystemState",
     "System",
+    "UnreachableError",
     "ValidationError",
     "WorkPrecision",
     "WorkPrecisionRun",

@@ -6,21 +6,17 @@ from __future__ import annotations
 
 import math
 from typing import (
-    TYPE_CHECKING,
     Any,
+    Callable,
     Dict,
     List,
     Mapping,
     Optional,
     Sequence,
     Tuple,
-    TypedDict,
     Union,
     cast,
 )
-
-if TYPE_CHECKING:  # the keyword arguments' types (typing.Unpack from Python 3.11 on)
-    from typing_extensions import Unpack
 
 import numpy as np
 
@@ -50,6 +46,7 @@ from ._wire import (
     WorkPrecisionResultLine,
 )
 from .catalog import Definition, System
+from ._names import WIRE, StateNames, is_wire
 from .errors import ValidationError
 from .simulation import Simulation
 from .maps import (
@@ -87,12 +84,14 @@ together (whichever comes first)."""
 Indicators = Union[Indicator, Sequence[Indicator]]
 """One chaos indicator (``lyapunov``, ``megno``, ``fli``, ``sali``, ``gali``) or several."""
 EnergySurfaceLike = Union[EnergySurfaceRequest, Tuple[float, str]]
-"""A sweep's energy surface: ``{"energy": E, "solve_for": "p0[i]"}`` or ``(E, "p0[i]")``."""
+"""A sweep's energy surface: ``{"energy": E, "solve_for": "p_x"}`` or ``(E, "p_x")``, the
+momentum by name or as ``p0[i]`` (a simulation's ``{"value", "momentum"}`` is taken too)."""
 
 THRESHOLDS = ("lyapunov_max", "megno", "megno_mean", "fli", "sali", "gali")
 INDICATOR_NAMES = ("lyapunov", "megno", "fli", "sali", "gali")
 EnergyLike = Union[EnergyRequest, Tuple[float, str]]
-"""An energy level: ``{"value": E, "momentum": name}`` or ``(E, name)``."""
+"""An energy level: ``{"value": E, "momentum": name}`` or ``(E, name)``, the momentum by name
+(``p_x``) or as ``p0[i]`` (a sweep's ``{"energy", "solve_for"}`` is taken too)."""
 Result = Union[Simulation, Sweep, StabilityMaps, EnergyMap, WorkPrecision]
 AnyStudyLine = Union[SweepLine, MapLine, ConvergenceLine, StudyLine]
 StudyResult = Union[SweepResultLine, MapResultLine, ConvergenceResultLine, WorkPrecisionResultLine]
@@ -160,7 +159,9 @@ def _system(system: SystemLike) -> SystemRequest:
                           code="invalid_type")
 
 
-def _axis(axis: AxisLike, where: str) -> AxisRequest:
+def _axis(axis: AxisLike, where: str, names: Optional[StateNames] = None) -> AxisRequest:
+    """A sweep axis as the request has it; with ``names``, a coordinate or momentum given by
+    name (``y``, ``p_y``) becomes ``q0[i]``/``p0[i]`` and a bare parameter ``params.<name>``."""
     if isinstance(axis, Axis):
         out: AxisRequest = {"name": axis.name, "min": axis.min, "max": axis.max, "n": axis.n,
                             "scale": axis.scale}
@@ -177,6 +178,8 @@ def _axis(axis: AxisLike, where: str) -> AxisRequest:
         if key not in out:
             raise ValidationError(f"{where}.{key}", "is missing", code="missing_field")
     _count(out["n"], f"{where}.n")
+    if names is not None and isinstance(out["name"], str) and not is_wire(out["name"]):
+        out["name"] = names.axis(out["name"], f"{where}.name")
     return cast(AxisRequest, _plain(out, where))
 
 
@@ -255,38 +258,57 @@ def _indicators(indicators: Indicators) -> List[Indicator]:
     return cast(List[Indicator], items)
 
 
-def _energy_surface(surface: EnergySurfaceLike) -> EnergySurfaceRequest:
-    if isinstance(surface, tuple) and len(surface) == 2:
-        out: Dict[str, Any] = {"energy": surface[0], "solve_for": surface[1]}
-    elif isinstance(surface, Mapping):
-        out = dict(surface)
-    else:
-        raise ValidationError("energy_surface", "an energy surface is {'energy', 'solve_for'} or (energy, 'p0[i]')",
-                              code="invalid_type")
-    for key in ("energy", "solve_for"):
-        if key not in out:
-            raise ValidationError(f"energy_surface.{key}", "is missing", code="missing_field")
-    if not isinstance(out["solve_for"], str):
-        raise ValidationError("energy_surface.solve_for", "give the momentum to solve for as `p0[i]`",
-                              code="invalid_type")
-    return cast(EnergySurfaceRequest, _plain(out, "energy_surface"))
-
-
-def _energy(energy: EnergyLike) -> EnergyRequest:
+def _energy_members(energy: Union[EnergyLike, EnergySurfaceLike], where: str) -> Tuple[Any, Any]:
+    """The energy and the momentum of an energy level in any of its spellings: ``(E, name)``,
+    ``{"value": E, "momentum": name}`` (a simulation's) or ``{"energy": E, "solve_for": name}``
+    (a sweep's)."""
     if isinstance(energy, tuple) and len(energy) == 2:
-        out: Dict[str, Any] = {"value": energy[0], "momentum": energy[1]}
-    elif isinstance(energy, Mapping):
-        out = dict(energy)
-    else:
-        raise ValidationError("energy", "an energy level is {'value', 'momentum'} or (value, momentum)",
+        return energy[0], energy[1]
+    if not isinstance(energy, Mapping):
+        raise ValidationError(where, "an energy level is (E, momentum), {'value': E, 'momentum': name} or "
+                              "{'energy': E, 'solve_for': name}", code="invalid_type")
+    members = cast(Mapping[str, Any], energy)
+    for value_key, momentum_key in (("value", "momentum"), ("energy", "solve_for")):
+        if value_key in members or momentum_key in members:
+            for key in (value_key, momentum_key):
+                if key not in members:
+                    raise ValidationError(f"{where}.{key}", "is missing", code="missing_field")
+            extra = sorted(set(members) - {value_key, momentum_key})
+            if extra:
+                raise ValidationError(f"{where}.{extra[0]}", f"is not a member of an energy level "
+                                      f"(it has `{value_key}` and `{momentum_key}`)", code="unknown_field")
+            return members[value_key], members[momentum_key]
+    raise ValidationError(f"{where}.value", "is missing", code="missing_field")
+
+
+def _energy_surface(surface: Union[EnergyLike, EnergySurfaceLike], names: Optional[StateNames],
+                    where: str = "energy_surface") -> EnergySurfaceRequest:
+    """A sweep's energy surface; the momentum by name (``p_x``, when ``names`` are known) or as
+    ``p0[i]``."""
+    energy, momentum = _energy_members(surface, where)
+    if not isinstance(momentum, str):
+        raise ValidationError(f"{where}.solve_for", "give the momentum to solve for by name ('p_x') or as `p0[i]`",
                               code="invalid_type")
-    for key in ("value", "momentum"):
-        if key not in out:
-            raise ValidationError(f"energy.{key}", "is missing", code="missing_field")
-    if not isinstance(out["momentum"], str):
+    if names is not None:
+        momentum = names.momentum_wire(momentum, f"{where}.solve_for")
+    return cast(EnergySurfaceRequest, _plain({"energy": energy, "solve_for": momentum}, where))
+
+
+def _energy(energy: Union[EnergyLike, EnergySurfaceLike],
+            names: Optional[Callable[[], Optional[StateNames]]] = None) -> EnergyRequest:
+    """A simulation's energy level; the momentum by name, or as ``p0[i]`` when ``names`` can
+    name it (the server takes names)."""
+    value, momentum = _energy_members(energy, "energy")
+    if not isinstance(momentum, str):
         raise ValidationError("energy.momentum", "give the name of one of the system's momenta",
                               code="invalid_type")
-    return cast(EnergyRequest, _plain(out, "energy"))
+    if WIRE.fullmatch(momentum):
+        known = names() if names is not None else None
+        if known is None:
+            raise ValidationError("energy.momentum", f"give the momentum by its name, not as {momentum!r} "
+                                  "(this system's names are not known here)")
+        momentum = known.momentum_name(momentum, "energy.momentum")
+    return cast(EnergyRequest, _plain({"value": value, "momentum": momentum}, "energy"))
 
 
 def _is_error_body(body: object) -> bool:
@@ -314,40 +336,32 @@ def _put_indicators(
         body["qr_every"] = _count(qr_every, "qr_every")
 
 
-class SimulateOptions(TypedDict, total=False):
-    """A simulation's options beside its system, methods, ``h`` and ``t_end``, as
-    :meth:`Client.simulate` and :func:`geomint.local.simulate` take them (``None``: not given)."""
-
-    params: Optional[Mapping[str, ParamValue]]
-    q0: Optional[Vector]
-    p0: Optional[Vector]
-    chart: Optional[str]
-    initial_coordinates: Optional[str]
-    every: Optional[int]
-    compare_to_reference: Optional[bool]
-    jacobian_defect: Optional[bool]
-    section: Optional[SectionLike]
-    stop_when: Optional[StopWhenLike]
-    energy: Optional[EnergyLike]
-    indicators: Optional[Indicators]
-    deviations: Optional[int]
-    qr_every: Optional[int]
-
-
 def simulate_request(
     system: SystemLike,
     methods: Methods,
     *,
     h: float,
     t_end: float,
-    **options: Unpack[SimulateOptions],
+    params: Optional[Mapping[str, ParamValue]] = None,
+    q0: Optional[Vector] = None,
+    p0: Optional[Vector] = None,
+    chart: Optional[str] = None,
+    initial_coordinates: Optional[str] = None,
+    every: Optional[int] = None,
+    compare_to_reference: Optional[bool] = None,
+    jacobian_defect: Optional[bool] = None,
+    section: Optional[SectionLike] = None,
+    stop_when: Optional[StopWhenLike] = None,
+    energy: Optional[EnergyLike] = None,
+    indicators: Optional[Indicators] = None,
+    deviations: Optional[int] = None,
+    qr_every: Optional[int] = None,
+    names: Optional[Callable[[], Optional[StateNames]]] = None,
 ) -> SimulateRequest:
     """The body of ``POST /api/v1/simulate`` for :meth:`Client.simulate`'s arguments (and
-    :func:`geomint.local.simulate`'s), checked as far as the client can check it."""
-    every, section = options.get("every"), options.get("section")
-    stop_when, energy = options.get("stop_when"), options.get("energy")
-    indicators, deviations = options.get("indicators"), options.get("deviations")
-    qr_every = options.get("qr_every")
+    :func:`geomint.local.simulate`'s), checked as far as the client can check it. ``names``
+    gives the system's state names when an energy level's momentum is written ``p0[i]`` (the
+    server takes momenta by name)."""
     body: SimulateRequest = {
         "system": _system(system),
         "methods": _method_list(methods),
@@ -356,21 +370,21 @@ def simulate_request(
     }
     if len(body["methods"]) > 16:
         raise ValidationError("methods", f"at most 16 methods, not {len(body['methods'])}")
-    _put(body, "params", options.get("params"))
-    _put(body, "q0", options.get("q0"))
-    _put(body, "p0", options.get("p0"))
-    _put(body, "chart", options.get("chart"))
-    _put(body, "initial_coordinates", options.get("initial_coordinates"))
+    _put(body, "params", params)
+    _put(body, "q0", q0)
+    _put(body, "p0", p0)
+    _put(body, "chart", chart)
+    _put(body, "initial_coordinates", initial_coordinates)
     if every is not None:
         output: OutputOptions = {"every": _count(every, "output.every")}
         body["output"] = output
-    _put(body, "compare_to_reference", options.get("compare_to_reference"))
-    _put(body, "jacobian_defect", options.get("jacobian_defect"))
+    _put(body, "compare_to_reference", compare_to_reference)
+    _put(body, "jacobian_defect", jacobian_defect)
     if section is not None:
         body["section"] = _section(section)
     if stop_when is not None:
         body["stop_when"] = _stop_when(stop_when)
     if energy is not None:
-        body["energy"] = _energy(energy)
+        body["energy"] = _energy(energy, names)
     _put_indicators(body, indicators, deviations, qr_every)
     return body

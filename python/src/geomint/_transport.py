@@ -14,7 +14,7 @@ from ._arguments import AnyStudyLine, StudyResult, _is_error_body
 from ._progress import Progress
 from ._version import __version__
 from ._wire import JSON, NDJSON, ROUTES, RRD, ErrorBody, ErrorDetail, Route
-from .errors import GeomintError, ServerError
+from .errors import GeomintError, ServerError, UnreachableError
 from .recording import Recording
 
 DEFAULT_URL = "http://127.0.0.1:8080"
@@ -37,6 +37,8 @@ class Transport:
         headers = {"user-agent": f"geomint-python/{__version__}"}
         if token is not None:
             headers["authorization"] = f"Bearer {token}"
+        # Catalogue entries by system id, fetched when a request names state components.
+        self._entries: Dict[str, Any] = {}
         self._http = httpx.Client(
             base_url=self.url,
             headers=headers,
@@ -61,7 +63,10 @@ class Transport:
     ) -> httpx.Response:
         route = ROUTES[name]
         request = self._request(route, body=body, content=content, accept=accept, query=query, ids=ids)
-        response = self._http.send(request)
+        try:
+            response = self._http.send(request)
+        except (httpx.ConnectError, httpx.ConnectTimeout) as e:
+            raise self._unreachable(e) from e
         if response.status_code >= 400:
             raise self._error(response)
         return response
@@ -84,6 +89,18 @@ class Transport:
         elif content is not None:
             headers["content-type"] = route.request_media
         return self._http.build_request(route.method, path, content=content, headers=headers, params=query)
+
+    def _unreachable(self, cause: Exception) -> UnreachableError:
+        """The error for a server that did not answer at :attr:`url`."""
+        source = "the GEOMINT_URL environment variable" if os.environ.get("GEOMINT_URL") else "the default URL"
+        return UnreachableError(
+            "unreachable",
+            f"no geomint server answered at {self.url} ({cause or type(cause).__name__}). Start one with "
+            "`scripts/serve` in the repository (or `geomint serve`; GEOMINT_ADDR sets its address), then "
+            f"give its URL as Client(url) or in the GEOMINT_URL environment variable (this client took {source}). "
+            "Simulations can also run without a server, in this process: geomint.local.simulate(...) "
+            "takes the same arguments.",
+        )
 
     @staticmethod
     def _error(response: httpx.Response) -> GeomintError:
@@ -115,7 +132,10 @@ class Transport:
         connection is closed before the exception goes on, and the server stops computing.
         """
         request = self._request(ROUTES[name], body=body, accept=NDJSON)
-        response = self._http.send(request, stream=True)
+        try:
+            response = self._http.send(request, stream=True)
+        except (httpx.ConnectError, httpx.ConnectTimeout) as e:
+            raise self._unreachable(e) from e
         try:
             if response.status_code >= 400:
                 raise self._error(response)

@@ -5,7 +5,6 @@ from __future__ import annotations
 import os
 from pathlib import Path
 from typing import (
-    TYPE_CHECKING,
     Any,
     Callable,
     Dict,
@@ -18,18 +17,16 @@ from typing import (
     cast,
 )
 
-if TYPE_CHECKING:  # the keyword arguments' types (typing.Unpack from Python 3.11 on)
-    from typing_extensions import Unpack
-
 from ._arguments import (
     AxisLike,
+    EnergyLike,
     EnergySurfaceLike,
     GridAxis,
     Indicators,
     Methods,
     Result,
     SectionLike,
-    SimulateOptions,
+    StopWhenLike,
     SystemLike,
     Vector,
     _axis,
@@ -46,6 +43,8 @@ from ._arguments import (
     _thresholds,
     simulate_request,
 )
+from ._keywords import checked
+from ._names import StateNames
 from ._transport import DEFAULT_URL, Transport
 from ._progress import Progress
 from ._wire import (
@@ -75,7 +74,7 @@ from ._wire import (
     WorkPrecisionResultLine,
 )
 from .catalog import Definition, Method, System
-from .errors import GeomintError, ValidationError
+from .errors import GeomintError, RefusedError, ValidationError
 from .recording import RRD_MAGIC, Recording, RecordingInfo
 from .simulation import Simulation, StreamAssembler
 from .maps import (
@@ -135,6 +134,7 @@ class Client(Transport):
         """Every method: order, kind, properties, requirements, citation."""
         return [Method.from_json(m) for m in self._json("list_methods")]
 
+    @checked
     def define(
         self,
         definition: Optional[SystemDefinition] = None,
@@ -168,10 +168,30 @@ class Client(Transport):
             positions=positions, q0=q0, p0=p0, name=name,
         ).id
 
-    def store_system(self, definition: Optional[SystemDefinition] = None, **members: Any) -> Definition:
+    @checked
+    def store_system(
+        self,
+        definition: Optional[SystemDefinition] = None,
+        *,
+        coordinates: Optional[Sequence[str]] = None,
+        potential: Optional[str] = None,
+        mass: Optional[MassEntry] = None,
+        hamiltonian: Optional[str] = None,
+        momenta: Optional[Sequence[str]] = None,
+        damping: Optional[DampingEntry] = None,
+        parameters: Optional[Mapping[str, float]] = None,
+        invariants: Optional[Mapping[str, str]] = None,
+        positions: Optional[Sequence[Sequence[Union[float, str]]]] = None,
+        q0: Optional[Vector] = None,
+        p0: Optional[Vector] = None,
+        name: Optional[str] = None,
+    ) -> Definition:
         """As :meth:`define`, returning the stored entry with the facts the server derived
         (dimension, separable or not, the damping's form, the methods that apply)."""
         body: Dict[str, Any] = dict(definition or {})
+        members = {"coordinates": coordinates, "potential": potential, "mass": mass, "hamiltonian": hamiltonian,
+                   "momenta": momenta, "damping": damping, "parameters": parameters, "invariants": invariants,
+                   "positions": positions, "q0": q0, "p0": p0, "name": name}
         for key, value in members.items():
             _put(body, key, value)
         coordinates = body.get("coordinates")
@@ -188,6 +208,7 @@ class Client(Transport):
     # ----------------------------------------------------------------------------------------
     # Simulations
 
+    @checked
     def simulate(
         self,
         system: SystemLike,
@@ -195,10 +216,23 @@ class Client(Transport):
         *,
         h: float,
         t_end: float,
+        params: Optional[Mapping[str, ParamValue]] = None,
+        q0: Optional[Vector] = None,
+        p0: Optional[Vector] = None,
+        chart: Optional[str] = None,
+        initial_coordinates: Optional[str] = None,
+        every: Optional[int] = None,
+        compare_to_reference: Optional[bool] = None,
+        jacobian_defect: Optional[bool] = None,
+        section: Optional[SectionLike] = None,
+        stop_when: Optional[StopWhenLike] = None,
+        energy: Optional[EnergyLike] = None,
+        indicators: Optional[Indicators] = None,
+        deviations: Optional[int] = None,
+        qr_every: Optional[int] = None,
         stream: bool = False,
         progress: bool = True,
         on_line: Optional[Callable[[StreamLine], None]] = None,
-        **options: Unpack[SimulateOptions],
     ) -> Simulation:
         """Runs ``methods`` on ``system`` with step ``h`` to ``t_end`` and returns every run's
         samples as numpy arrays.
@@ -217,9 +251,11 @@ class Client(Transport):
         :attr:`Run.section_summary`. ``stop_when`` ends each run at an event, the ``count``-th
         crossing of a surface (``{"where": "y", "direction": "up", "count": 3}``; a string is its
         first crossing either way): its stop reason is then ``event`` and the crossings are
-        :attr:`Run.events`. ``energy`` starts on an energy level: ``{"value": E, "momentum":
-        "py"}`` (or ``(E, "py")``) replaces that initial momentum with the non-negative one for
-        which H(q0, p0) = E (the state used is :attr:`Simulation.system`).
+        :attr:`Run.events`. ``energy`` starts on an energy level: ``(E, "p_y")`` (or
+        ``{"value": E, "momentum": "p_y"}``, or a sweep's ``{"energy": E, "solve_for": "p_y"}``)
+        replaces that initial momentum with the non-negative one for which H(q0, p0) = E (the
+        state used is :attr:`Simulation.system`); the momentum by name (``p_<coordinate>``
+        unless a definition names its momenta) or as ``p0[i]``.
 
         ``indicators`` asks each run for chaos indicators, from ``deviations`` tangent vectors
         (k, 1 to 2n; the server's default is 2n with ``lyapunov`` or ``gali``, 2 with ``sali``,
@@ -235,9 +271,16 @@ class Client(Transport):
         they are computed, with a progress bar (tqdm, when installed and ``progress`` is true);
         ``on_line`` is called with every line as it arrives. Interrupting a stream (Ctrl-C, or
         the notebook's stop button) closes the connection, which stops the server's run. Both
-        ways give the same numbers, bit for bit.
+        ways give the same numbers, bit for bit. A keyword this method does not take raises
+        TypeError naming the nearest one (``param=`` → ``params``).
         """
-        body = simulate_request(system, methods, h=h, t_end=t_end, **options)
+        body = simulate_request(
+            system, methods, h=h, t_end=t_end, params=params, q0=q0, p0=p0, chart=chart,
+            initial_coordinates=initial_coordinates, every=every, compare_to_reference=compare_to_reference,
+            jacobian_defect=jacobian_defect, section=section, stop_when=stop_when, energy=energy,
+            indicators=indicators, deviations=deviations, qr_every=qr_every,
+            names=lambda: self._state_names(system, chart=chart),
+        )
         if not stream:
             return Simulation.from_json(self._json("simulate", body=body), body)
 
@@ -259,11 +302,77 @@ class Client(Transport):
             self._stream("simulate", body, handle)
         return assembler.simulation()
 
-    def stream(self, system: SystemLike, methods: Methods, **options: Any) -> Simulation:
+    @checked
+    def stream(
+        self,
+        system: SystemLike,
+        methods: Methods,
+        *,
+        h: float,
+        t_end: float,
+        params: Optional[Mapping[str, ParamValue]] = None,
+        q0: Optional[Vector] = None,
+        p0: Optional[Vector] = None,
+        chart: Optional[str] = None,
+        initial_coordinates: Optional[str] = None,
+        every: Optional[int] = None,
+        compare_to_reference: Optional[bool] = None,
+        jacobian_defect: Optional[bool] = None,
+        section: Optional[SectionLike] = None,
+        stop_when: Optional[StopWhenLike] = None,
+        energy: Optional[EnergyLike] = None,
+        indicators: Optional[Indicators] = None,
+        deviations: Optional[int] = None,
+        qr_every: Optional[int] = None,
+        progress: bool = True,
+        on_line: Optional[Callable[[StreamLine], None]] = None,
+    ) -> Simulation:
         """:meth:`simulate` over the NDJSON stream, with a progress bar, ``Ctrl-C`` cancelling the
-        server's run; it takes :meth:`simulate`'s keyword arguments (``h``, ``t_end``, …,
-        ``progress``, ``on_line``)."""
-        return self.simulate(system, methods, stream=True, **options)
+        server's run; it takes :meth:`simulate`'s keyword arguments."""
+        return self.simulate(
+            system, methods, h=h, t_end=t_end, params=params, q0=q0, p0=p0, chart=chart,
+            initial_coordinates=initial_coordinates, every=every, compare_to_reference=compare_to_reference,
+            jacobian_defect=jacobian_defect, section=section, stop_when=stop_when, energy=energy,
+            indicators=indicators, deviations=deviations, qr_every=qr_every, stream=True, progress=progress,
+            on_line=on_line,
+        )
+
+    def _state_names(
+        self,
+        system: SystemLike,
+        *,
+        chart: Optional[str] = None,
+        charts: Optional[Sequence[str]] = None,
+        initial_coordinates: Optional[str] = None,
+    ) -> Optional[StateNames]:
+        """The names of ``system``'s coordinates and momenta in the chart a request runs in
+        (``None`` when they are not known: an unknown id, or charts that name them differently):
+        from a definition, or from the catalogue entry (fetched once per id)."""
+        if isinstance(system, Mapping):
+            return StateNames.of_definition(system)
+        if isinstance(system, Definition):
+            return StateNames.of_definition(system.definition)
+        if isinstance(system, System):
+            entry = system
+        else:
+            if system not in self._entries:
+                try:
+                    self._entries[system] = self._json("get_system", ids={"id": system})
+                except RefusedError:
+                    return None  # the request itself will say what is wrong with the id
+            doc = self._entries[system]
+            if isinstance(doc.get("definition"), Mapping):
+                return StateNames.of_definition(doc["definition"])
+            entry = System.from_json(doc)
+        asked: List[Optional[str]] = [None]
+        if initial_coordinates == "cartesian":
+            asked = ["cartesian"]
+        elif chart:
+            asked = [chart]
+        elif charts:
+            asked = list(charts)
+        found = {StateNames.of_entry(entry, c) for c in asked}
+        return found.pop() if len(found) == 1 else None
 
     # ----------------------------------------------------------------------------------------
     # Recordings
@@ -327,6 +436,7 @@ class Client(Transport):
         presets: List[Preset] = self._json("sweep_presets")
         return {p["id"]: p for p in presets}
 
+    @checked
     def sweep(
         self,
         system: SystemLike,
@@ -348,24 +458,30 @@ class Client(Transport):
         stop_when: Optional[Mapping[str, float]] = None,
         energy_surface: Optional[EnergySurfaceLike] = None,
         section: Optional[SectionLike] = None,
+        energy: Optional[EnergyLike] = None,
         progress: bool = True,
     ) -> Sweep:
         """Runs ``methods`` (in each of ``charts``) over a grid of one or two axes and returns
         per-cell metrics as arrays on the grid (:meth:`Sweep.to_xarray` gives a Dataset with the
         axes as named coordinates).
 
-        An axis is ``params.<name>``, ``h``, or ``q0[i]``/``p0[i]``, with ``min``, ``max``, ``n``
-        and an optional ``scale`` (``linear`` or ``log``): ``("params.gamma", 0, 2, 21)``.
+        An axis is a parameter (``params.<name>``, or its bare name), ``h``, or a component of
+        the initial state by name (``"y"``, ``"p_y"``; momenta are ``p_<coordinate>`` unless a
+        definition names them) or as ``q0[i]``/``p0[i]``, with ``min``, ``max``, ``n`` and an
+        optional ``scale`` (``linear`` or ``log``): ``("params.gamma", 0, 2, 21)``,
+        ``("y", -0.3, 0.6, 50)``. :meth:`Sweep.to_xarray` names each axis's dimension after the
+        component (``y``, ``p_y``).
         ``h`` is the step size unless an axis varies it; ``every`` the sampling; ``energy_reference``
         ``exact``, ``initial`` or ``reference``. Interrupting it stops the server's sweep.
 
         Chaos maps: ``indicators`` (with ``deviations`` and ``qr_every``, as in
         :meth:`simulate`) gives every run's last values per cell (:attr:`SweepRun.megno_mean`,
         …; variables of :meth:`Sweep.to_xarray`), ``stop_when`` thresholds (``{"megno_mean":
-        8}``) stop a cell's run early (:attr:`SweepRun.stopped_at`), and ``energy_surface``
-        (``{"energy": E, "solve_for": "p0[0]"}`` or ``(E, "p0[0]")``) solves that momentum per
-        cell so that H = E while the axes vary the rest of the state (cells where no momentum
-        reaches E have an entry in ``errors``).
+        8}``) stop a cell's run early (:attr:`SweepRun.stopped_at`), and ``energy``, as in
+        :meth:`simulate` (``(E, "p_x")``, ``{"value": E, "momentum": "p_x"}``; or
+        ``energy_surface``, ``{"energy": E, "solve_for": "p0[0]"}``: the same, either spelling
+        in either keyword), solves that momentum per cell so that H = E while the axes vary the
+        rest of the state (cells where no momentum reaches E have an entry in ``errors``).
 
         ``section`` (as in :meth:`simulate`) collects each cell's section points, up to its
         ``max_points`` per run (:attr:`SweepRun.sections`): a grid of orbits as one result.
@@ -374,11 +490,12 @@ class Client(Transport):
             axes = [cast(AxisLike, axes)]
         if not 1 <= len(axes) <= 2:
             raise ValidationError("axes", f"a sweep has one or two axes, not {len(axes)}")
+        names = self._state_names(system, charts=charts, initial_coordinates=initial_coordinates)
         body: SweepRequest = {
             "system": _system(system),
             "methods": _method_list(methods),
             "t_end": _positive(t_end, "t_end"),
-            "axes": [_axis(a, f"axes[{i}]") for i, a in enumerate(axes)],
+            "axes": [_axis(a, f"axes[{i}]", names) for i, a in enumerate(axes)],
         }
         if h is not None:
             body["h"] = _positive(h, "h")
@@ -395,13 +512,18 @@ class Client(Transport):
         _put_indicators(body, indicators, deviations, qr_every)
         if stop_when is not None:
             body["stop_when"] = _thresholds(stop_when)
-        if energy_surface is not None:
-            body["energy_surface"] = _energy_surface(energy_surface)
+        if energy is not None and energy_surface is not None:
+            raise ValidationError("energy", "give the energy level once: `energy` or `energy_surface`, not both")
+        if energy is not None:
+            body["energy_surface"] = _energy_surface(energy, names, "energy")
+        elif energy_surface is not None:
+            body["energy_surface"] = _energy_surface(energy_surface, names)
         if section is not None:
             body["section"] = _section(section)
         line = cast(SweepResultLine, self._study("sweep", body, progress, "cells"))
-        return Sweep.from_json(line, body)
+        return Sweep.from_json(line, body, names)
 
+    @checked
     def stability(
         self,
         methods: Methods,
@@ -421,6 +543,7 @@ class Client(Transport):
         }
         return StabilityMaps.from_json(self._json("stability_map", body=body), body)
 
+    @checked
     def stability_point(self, method: MethodSpec, *, omega: float, gamma: float, h: float) -> StabilityPoint:
         """The stability analysis of one method at one (ω, γ, h): its one-step matrix, spectrum
         and the exact flow's."""
@@ -428,6 +551,7 @@ class Client(Transport):
                               "h": _plain(h, "h"), "method": _method_list(method, "method")[0]}
         return StabilityPoint.from_json(self._json("stability_point", body=body))
 
+    @checked
     def energy_map(
         self,
         *,
@@ -461,6 +585,7 @@ class Client(Transport):
         line = cast(MapResultLine, self._study("energy_map", body, progress, "cells"))
         return EnergyMap.from_json(line, body)
 
+    @checked
     def convergence(
         self,
         system: SystemLike,
@@ -501,6 +626,7 @@ class Client(Transport):
         line = cast(ConvergenceResultLine, self._study("convergence", body, progress, "settings"))
         return Convergence.from_json(line, body)
 
+    @checked
     def work_precision(
         self,
         system: SystemLike,

@@ -87,5 +87,21 @@ class OverloadedError(GeomintError):
     """Every simulation slot was busy (503); ``retry_after`` says when to try again, in seconds."""
 
 
+class UnreachableError(GeomintError):
+    """No geomint server answered at the client's URL (the connection was refused, the name did
+    not resolve, or connecting timed out): the message names the URL and how to start a server."""
+
+
 class ServerError(GeomintError):
     """The server failed (5xx other than 503), or answered in a way the client cannot read."""
+
+
+class MissingError(AttributeError):
+    """A quantity the answer does not hold, asked for by its attribute: the message says why it is
+    missing and how to ask for it (an AttributeError, so ``hasattr`` and ``getattr(…, default)``
+    treat it as absent)."""
+
+    def __init__(self, name: str, reason: str) -> None:
+        super().__init__(f"{name}: {reason}")
+        self.name = name
+        self.reason = reason

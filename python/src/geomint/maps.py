@@ -114,6 +114,22 @@ class StabilityMaps:
         }
         return xr.Dataset(data, coords=coords, attrs={"omega": self.omega, "stop": self.stop})
 
+    def to_pandas(self) -> Any:
+        """One row per method and grid point: ``method``, ``h``, ``gamma``, ``spectral_radius``,
+        ``stable``, and ``analytic``/``printed`` where the method has them."""
+        pd = _optional.pandas()
+        h, gamma = np.meshgrid(self.h, self.gamma, indexing="ij")
+        frames = []
+        for m in self.maps:
+            columns: Dict[str, Any] = {"method": m.method, "h": h.ravel(), "gamma": gamma.ravel(),
+                                       "spectral_radius": m.spectral_radius.ravel(), "stable": m.stable.ravel()}
+            for name in ("analytic", "printed"):
+                verdict = getattr(m, name)
+                if verdict is not None:
+                    columns[name] = verdict.ravel()
+            frames.append(pd.DataFrame(columns))
+        return pd.concat(frames, ignore_index=True)
+
 
 @dataclass(frozen=True, eq=False)
 class Spectrum:
@@ -260,3 +276,14 @@ class EnergyMap:
                                  "stop": self.stop, **{f"param_{k}": v for k, v in self.params.items()}}
         attrs.update(self.summary)
         return xr.Dataset(data, coords={"x": self.x, "y": self.y}, attrs=attrs)
+
+    def to_pandas(self) -> Any:
+        """One row per cell: ``x``, ``y`` and the per-cell arrays (the boundary and the summary
+        are :attr:`boundary` and :attr:`summary`)."""
+        pd = _optional.pandas()
+        x, y = np.meshgrid(self.x, self.y, indexing="ij")
+        columns: Dict[str, Any] = {"x": x.ravel(), "y": y.ravel()}
+        for name in ("energy", "epsilon_cartesian", "epsilon_polar", "difference", "cartesian_diverged_at",
+                     "polar_diverged_at", "predicted_divergent"):
+            columns[name] = getattr(self, name).ravel()
+        return pd.DataFrame(columns)

@@ -35,8 +35,10 @@ class Recording:
         target.write_bytes(self.data)
         return target
 
-    def show(self, width: Union[int, str] = "auto", height: Union[int, str] = "auto") -> Any:
-        """Shows the recording in Rerun's viewer inside the notebook and returns the viewer.
+    def show(self, width: Union[int, str] = "auto", height: Union[int, str] = "auto") -> "Shown":
+        """Shows the recording in Rerun's viewer inside the notebook, once, and returns a
+        :class:`Shown` handle on the viewer (``.viewer``), which displays nothing more when it is
+        a cell's last value.
 
         Needs ``pip install 'geomint[rerun]'`` (rerun-sdk 0.33 with its notebook viewer); the
         recording is sent to the viewer from memory, so the notebook's browser need not reach
@@ -47,7 +49,27 @@ class Recording:
         viewer = notebook.Viewer(width=width, height=height)
         display.display(viewer)
         viewer.send_rrd(self.data)
-        return viewer
+        return Shown(viewer, len(self.data))
+
+
+class Shown:
+    """Rerun's notebook viewer that :meth:`Recording.show` displayed: ``viewer`` is the viewer
+    itself (its other attributes are reached through this handle too). IPython's display of it
+    is a no-op (:meth:`_ipython_display_`), so ``recording.show()`` as a cell's last line shows
+    the viewer once, not a second time as the cell's value."""
+
+    def __init__(self, viewer: Any, size: int) -> None:
+        self.viewer = viewer
+        self._size = size
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.viewer, name)
+
+    def __repr__(self) -> str:
+        return f"<Rerun viewer showing a recording of {self._size} bytes>"
+
+    def _ipython_display_(self) -> None:
+        """Nothing: the viewer was displayed where :meth:`Recording.show` was called."""
 
 
 @dataclass(frozen=True)

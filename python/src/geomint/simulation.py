@@ -32,7 +32,7 @@ from ._wire import (
     SummaryLine,
     SystemSummary,
 )
-from .errors import ServerError
+from .errors import MissingError, ServerError
 from .sections import Crossings, SectionSummary, Surface
 
 
@@ -134,6 +134,14 @@ def _optional_floats(values: Optional[Sequence[Optional[float]]]) -> Optional[Fl
     return None if values is None else _arrays.floats(values)
 
 
+ENERGY_ERROR_MISSING = (
+    "the server measured no energy error for this run: there is one against the exact solution "
+    "(a system that has it), against H at t = 0 (a system that nothing damps or drives, whose exact "
+    "flow keeps H), or against an adaptive reference run when asked for (compare_to_reference=True); "
+    "this system has neither of the first two (it is damped or driven, as the built-in pendulum is by "
+    "default), so pass compare_to_reference=True, or look at run.energy itself"
+)
+
 INDICATORS = ("lyapunov", "megno", "fli", "sali", "gali")
 """The chaos indicators, in the order the server reports them."""
 
@@ -184,8 +192,10 @@ class Run:
 
     ``t``, ``energy`` and ``energy_error`` have one entry per sample; ``q`` and ``p`` are
     (samples, degrees of freedom); ``invariants`` maps each invariant's name to its values.
-    ``energy_error`` is ``None`` unless measured (against what:
-    :attr:`Simulation.energy_reference`); ``cartesian_q``/``cartesian_p`` come with a
+    ``energy_error`` is there when the server measured it (against what:
+    :attr:`Simulation.energy_reference`); asking for it otherwise raises
+    :class:`~geomint.MissingError` (an AttributeError) saying why, and :attr:`has_energy_error`
+    says which; ``cartesian_q``/``cartesian_p`` come with a
     non-Cartesian chart, ``bodies`` with a defined system (per sample, every body's position one
     after the other), ``jacobian_defect`` when asked for, ``dissipation_drift`` (``t``, ``d``)
     for 1-DOF conformally damped systems.
@@ -208,7 +218,7 @@ class Run:
     invariants: Mapping[str, FloatArray]
     stop: Optional[Stop]
     stats: Optional[Stats]
-    energy_error: Optional[FloatArray] = None
+    _energy_error: Optional[FloatArray] = field(default=None, repr=False)
     cartesian_q: Optional[FloatArray] = None
     cartesian_p: Optional[FloatArray] = None
     bodies: Optional[FloatArray] = None
@@ -230,6 +240,32 @@ class Run:
     def samples(self) -> int:
         """The number of samples."""
         return int(self.t.shape[0])
+
+    @property
+    def energy_error(self) -> FloatArray:
+        """H − H_ref per sample, H_ref as :attr:`Simulation.energy_reference` says; raises
+        :class:`~geomint.MissingError` saying why when the server measured none."""
+        if self._energy_error is None:
+            raise MissingError("energy_error", ENERGY_ERROR_MISSING)
+        return self._energy_error
+
+    @property
+    def has_energy_error(self) -> bool:
+        """Whether the server measured :attr:`energy_error` for this run."""
+        return self._energy_error is not None
+
+    def __repr__(self) -> str:
+        span = f"t={self.t[0]:g}…{self.t[-1]:g}" if self.samples else "no samples"
+        parts = [repr(self.method), f"{self.samples} samples", span, f"dof={self.q.shape[1]}"]
+        if self.stop is not None:
+            parts.append(f"stop={self.stop.reason!r}")
+        extras = ["energy_error"] if self.has_energy_error else []
+        extras += [name for name in ("cartesian_q", "bodies", "jacobian_defect", "dissipation_drift", "section",
+                                     "events") if getattr(self, name) is not None]
+        extras += list(self.indicators)
+        if extras:
+            parts.append("with " + ", ".join(extras))
+        return f"Run({', '.join(parts)})"
 
     @classmethod
     def _from_columns(
@@ -262,7 +298,7 @@ class Run:
             invariants={k: _arrays.floats(v) for k, v in columns["invariants"].items()},
             stop=stop,
             stats=stats,
-            energy_error=_optional_floats(columns.get("energy_error")),
+            _energy_error=_optional_floats(columns.get("energy_error")),
             cartesian_q=_arrays.optional_rows(columns.get("cartesian_q"), cartesian_width),
             cartesian_p=_arrays.optional_rows(columns.get("cartesian_p"), cartesian_width),
             bodies=None if bodies is None else _arrays.rows(bodies, len(bodies[0]) if bodies else 0),
@@ -325,8 +361,8 @@ class Run:
         for i in range(self.p.shape[1]):
             out[f"p{i}"] = self.p[:, i]
         out["energy"] = self.energy
-        if self.energy_error is not None:
-            out["energy_error"] = self.energy_error
+        if self._energy_error is not None:
+            out["energy_error"] = self._energy_error
         out.update(self.invariants)
         for name, values in (("cartesian_q", self.cartesian_q), ("cartesian_p", self.cartesian_p)):
             if values is not None:
@@ -416,7 +452,16 @@ class Simulation:
         return iter(self.runs)
 
     def __getitem__(self, key: Union[int, str]) -> Run:
+        """A run by position, by its label (``yoshida_6(modin_3s)``) or by the method as it was
+        asked for (``yoshida_6``; a KeyError if several runs were asked for by that name)."""
         return pick(self.runs, key, lambda r: (r.method,), "run")
+
+    def __repr__(self) -> str:
+        lines = [f"Simulation({self.system.id} in {self.system.chart}, h={self.schedule.h:g}, "
+                 f"t_end={self.schedule.t_end:g}, every={self.schedule.every}, "
+                 f"energy_reference={self.energy_reference!r}, {len(self.runs)} runs:"]
+        lines += [f"  {run!r}" for run in self.runs]
+        return "\n".join(lines) + ")"
 
     def to_pandas(self) -> Any:
         """Every run's samples in one long DataFrame with a ``method`` column."""
@@ -460,7 +505,7 @@ class Simulation:
             "p": (("run", time, "dof"), stack(lambda r: r.p)),
             "energy": (("run", time), stack(lambda r: r.energy)),
         }
-        energy_error = stack(lambda r: r.energy_error)
+        energy_error = stack(lambda r: r._energy_error)
         if energy_error is not None:
             data["energy_error"] = (("run", time), energy_error)
         if self.invariants:

@@ -26,6 +26,7 @@ from ._wire import (
     WorkPrecisionDocument,
     WorkPrecisionRequest,
 )
+from ._names import StateNames
 from .sections import Crossings
 from .simulation import SystemState
 
@@ -54,11 +55,14 @@ class Axis:
     n: int
     scale: str = "linear"
     values: Optional[FloatArray] = field(default=None, compare=False)
+    component: Optional[str] = field(default=None, compare=False)
 
     @property
     def dim(self) -> str:
-        """The dimension name (see :func:`dimension_name`)."""
-        return dimension_name(self.name)
+        """The dimension name: the state component's name when the client knows it
+        (``component``: ``q0[1]`` of Hénon–Heiles is ``y``, ``p0[1]`` is ``p_y``), else
+        :func:`dimension_name`'s."""
+        return self.component or dimension_name(self.name)
 
 
 CHAOS_COLUMNS = ("lyapunov_max", "megno", "megno_mean", "fli", "sali", "gali", "stopped_at")
@@ -148,6 +152,13 @@ class Sweep:
     stop: str
     unfinished_cells: IntArray
     request: Optional[SweepRequest] = field(default=None, repr=False)
+    names: Optional[StateNames] = field(default=None, repr=False)
+
+    def __repr__(self) -> str:
+        axes = " × ".join(f"{a.dim} {a.n} ({a.min:g}…{a.max:g})" for a in self.axes)
+        runs = ", ".join(r.label for r in self.runs)
+        return (f"Sweep({self.system}: {axes}; {len(self.runs)} runs: {runs}; {self.cells} cells, "
+                f"stop {self.stop!r})")
 
     @property
     def shape(self) -> Tuple[int, ...]:
@@ -162,9 +173,14 @@ class Sweep:
         return pick(self.runs, key, lambda r: (r.label, r.method, (r.method, r.chart)), "run")
 
     @classmethod
-    def from_json(cls, doc: SweepDocument, request: Optional[SweepRequest] = None) -> "Sweep":
+    def from_json(
+        cls, doc: SweepDocument, request: Optional[SweepRequest] = None, names: Optional[StateNames] = None
+    ) -> "Sweep":
+        """The sweep of its result line; ``names`` (the system's state names, when the client
+        knows them) name the axes' dimensions after the state components."""
         axes = tuple(
-            Axis(a["name"], a["min"], a["max"], a["n"], a["scale"], _arrays.floats(a["values"]))
+            Axis(a["name"], a["min"], a["max"], a["n"], a["scale"], _arrays.floats(a["values"]),
+                 None if names is None else names.component(a["name"]))
             for a in doc["axes"]
         )
         shape = tuple(a.n for a in axes)
@@ -218,12 +234,39 @@ class Sweep:
             stop=doc["stop"],
             unfinished_cells=_arrays.ints(doc["unfinished_cells"]),
             request=request,
+            names=names,
         )
 
+    def to_pandas(self) -> Any:
+        """One row per run and cell: ``method``, ``chart``, one column per axis (named as its
+        dimension, :attr:`Axis.dim`), then the per-cell numbers: the energy errors,
+        ``diverged_at``, ``steps``, ``force_evaluations``, ``errors``, each invariant's drift
+        (``drift_<name>``) and, with indicators, the chaos maps. Cells run in the server's order
+        (the first axis fastest)."""
+        pd = _optional.pandas()
+        frames = []
+        grids = np.meshgrid(*[a.values if a.values is not None else np.arange(a.n) for a in self.axes],
+                            indexing="ij")
+        for run in self.runs:
+            columns: Dict[str, Any] = {"method": run.method, "chart": run.chart}
+            for axis, grid in zip(self.axes, grids, strict=True):
+                columns[axis.dim] = grid.ravel(order="F")
+            for name in ("energy_error_final", "energy_error_max", "energy_error_l2", "diverged_at",
+                         "steps", "force_evaluations", "errors") + CHAOS_COLUMNS:
+                values = getattr(run, name)
+                if values is not None:
+                    columns[name] = values.ravel(order="F")
+            for name, drift in run.invariant_drift.items():
+                columns[f"drift_{name}"] = drift.ravel(order="F")
+            frames.append(pd.DataFrame(columns))
+        return pd.concat(frames, ignore_index=True)
+
     def to_xarray(self) -> Any:
-        """The sweep as an xarray Dataset: dimensions ``run`` and one per axis, named as
-        :func:`dimension_name` says, with the axes' points as coordinates (the request's axis
-        name in each coordinate's ``axis`` attribute). ``run`` has the coordinates ``method``
+        """The sweep as an xarray Dataset: dimensions ``run`` and one per axis, named after the
+        state component when the client knows the system's names (``y``, ``p_y``; the request's
+        ``q0_1``, ``p0_1`` stay as coordinates along them), else as :func:`dimension_name` says,
+        with the axes' points as coordinates (the request's axis name in each coordinate's
+        ``axis`` attribute). ``run`` has the coordinates ``method``
         and ``chart``. Variables: ``energy_error_final``, ``energy_error_max``,
         ``energy_error_l2``, ``diverged_at``, ``steps``, ``force_evaluations``, ``errors``,
         ``final_q`` and ``final_p`` (with a ``dof`` dimension) and ``invariant_drift`` (with an
@@ -267,6 +310,12 @@ class Sweep:
         }
         for dim, axis in zip(dims, self.axes, strict=True):
             coords[dim] = xr.Variable(dim, axis.values, attrs={"axis": axis.name, "scale": axis.scale})
+            wire = dimension_name(axis.name)
+            if wire != dim and wire not in dims:
+                coords[wire] = xr.Variable(dim, axis.values, attrs={"axis": axis.name, "scale": axis.scale})
+        if "final_q" in data and self.names is not None and len(self.names.coordinates) == width:
+            coords["coordinate"] = ("dof", list(self.names.coordinates))
+            coords["momentum"] = ("dof", list(self.names.momenta))
         if self.invariants:
             coords["invariant"] = list(self.invariants)
         attrs = {"system": self.system, "energy_reference": self.energy_reference, "digest": self.digest,
