@@ -38,8 +38,7 @@ pub use layout::{
 };
 pub use live::{connect_viewer, viewer_url, LiveRecording, StreamRecorder};
 pub use simulation::{
-    log_simulation, recording_name, rrd_bytes, system_label, write_rrd, RunLogger,
-    SimulationLogger,
+    log_simulation, recording_name, rrd_bytes, system_label, write_rrd, RunLogger, SimulationLogger,
 };
 
 /// The request a recording keeps in `/spec`, as pretty JSON: whatever request the recording was

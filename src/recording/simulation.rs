@@ -594,7 +594,8 @@ mod tests {
             "method": "rk4"
         }));
         assert_eq!(system_label(&typed, "sys-5b5d6f70"), "Hénon–Heiles");
-        let unnamed = Spec::of(&serde_json::json!({"system": {"coordinates": ["x"], "potential": "x^2"}}));
+        let unnamed =
+            Spec::of(&serde_json::json!({"system": {"coordinates": ["x"], "potential": "x^2"}}));
         assert_eq!(system_label(&unnamed, "sys-5b5d6f70"), "sys-5b5d6f70");
         let built_in = Spec::of(&serde_json::json!({"system": "pendulum"}));
         assert_eq!(system_label(&built_in, "pendulum"), "pendulum");

@@ -386,7 +386,7 @@ impl StoredSystem {
         let info = definition.check(&Field::default())?;
         let facts = info
             .custom_model()
-            .map(geomint_core::methods::facts)
+            .map(geomint_core::systems::custom::facts)
             .ok_or_else(|| {
                 ErrorDetail::new(ErrorCode::Internal, "a definition without its model")
             })?;

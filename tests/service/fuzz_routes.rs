@@ -340,10 +340,12 @@ fn recordings() {
 fn allowed_region() {
     fuzz(
         "/api/v1/simulate/allowed-region",
-        vec![json!({"system": "henon_heiles", "method": "rk4", "h": 0.1, "t_end": 1,
+        vec![
+            json!({"system": "henon_heiles", "method": "rk4", "h": 0.1, "t_end": 1,
             "q0": [0, 0], "p0": [0, 0], "energy": {"value": 0.125, "momentum": "p_x"},
             "plane": {"x": {"name": "y", "min": -0.5, "max": 0.5, "points": 4},
-                      "y": {"name": "p_y", "min": -0.5, "max": 0.5, "points": 3}}})],
+                      "y": {"name": "p_y", "min": -0.5, "max": 0.5, "points": 3}}}),
+        ],
     );
 }
 

@@ -186,10 +186,12 @@ async fn every_route_answers_each_caller_as_its_scope_says() {
         (
             Method::POST,
             "/api/v1/simulate/allowed-region",
-            Body::Json(json!({"system": "henon_heiles", "method": "rk4", "h": 0.1, "t_end": 1,
+            Body::Json(
+                json!({"system": "henon_heiles", "method": "rk4", "h": 0.1, "t_end": 1,
                 "energy": {"value": 0.125, "momentum": "p_x"},
                 "plane": {"x": {"name": "y", "min": -0.5, "max": 0.5, "points": 3},
-                          "y": {"name": "p_y", "min": -0.5, "max": 0.5, "points": 3}}})),
+                          "y": {"name": "p_y", "min": -0.5, "max": 0.5, "points": 3}}}),
+            ),
             &["run"],
         ),
         (

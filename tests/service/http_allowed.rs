@@ -40,8 +40,12 @@ fn plane() -> Value {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_allowed_region_is_the_disc_of_the_energy_and_runs_start_only_there() {
     let server = start(config()).await;
-    let (status, doc) =
-        post_json(&server, "/api/v1/simulate/allowed-region", &henon_heiles(plane())).await;
+    let (status, doc) = post_json(
+        &server,
+        "/api/v1/simulate/allowed-region",
+        &henon_heiles(plane()),
+    )
+    .await;
     assert_eq!(status, 200, "{doc}");
     let xs: Vec<f64> = serde_json::from_value(doc["x"].clone()).unwrap();
     let ys: Vec<f64> = serde_json::from_value(doc["y"].clone()).unwrap();
@@ -52,7 +56,10 @@ async fn the_allowed_region_is_the_disc_of_the_energy_and_runs_start_only_there(
         for (i, &x) in xs.iter().enumerate() {
             let lowest = doc["lowest"][j][i].as_f64().unwrap();
             let expected = (x * x + px * px) / 2.0;
-            assert!((lowest - expected).abs() <= 1e-15, "H({x}, {px}) = {lowest}");
+            assert!(
+                (lowest - expected).abs() <= 1e-15,
+                "H({x}, {px}) = {lowest}"
+            );
             // Points on the circle itself are left out: round-off decides them.
             if (expected - 0.125).abs() > 1e-9 {
                 assert_eq!(doc["allowed"][j][i], json!(expected < 0.125), "({x}, {px})");
@@ -82,13 +89,30 @@ async fn bad_planes_are_refused_naming_the_field() {
     let server = start(config()).await;
     let mut cases: Vec<(Value, &str)> = vec![
         (json!({"y": plane()["y"]}), "plane.x"),
-        (json!({"x": {"name": "z", "min": 0, "max": 1}, "y": plane()["y"]}), "plane.x.name"),
-        (json!({"x": {"name": "p_y", "min": 0, "max": 1}, "y": plane()["y"]}), "plane.x.name"),
-        (json!({"x": plane()["x"], "y": {"name": "x", "min": 0, "max": 1}}), "plane.y.name"),
-        (json!({"x": {"name": "x", "min": 1, "max": 0}, "y": plane()["y"]}), "plane.x.max"),
-        (json!({"x": plane()["x"], "y": {"name": "p_x", "min": 0, "max": 1, "points": 201}}),
-            "plane.y.points"),
-        (json!({"x": plane()["x"], "y": plane()["y"], "z": 1}), "plane.z"),
+        (
+            json!({"x": {"name": "z", "min": 0, "max": 1}, "y": plane()["y"]}),
+            "plane.x.name",
+        ),
+        (
+            json!({"x": {"name": "p_y", "min": 0, "max": 1}, "y": plane()["y"]}),
+            "plane.x.name",
+        ),
+        (
+            json!({"x": plane()["x"], "y": {"name": "x", "min": 0, "max": 1}}),
+            "plane.y.name",
+        ),
+        (
+            json!({"x": {"name": "x", "min": 1, "max": 0}, "y": plane()["y"]}),
+            "plane.x.max",
+        ),
+        (
+            json!({"x": plane()["x"], "y": {"name": "p_x", "min": 0, "max": 1, "points": 201}}),
+            "plane.y.points",
+        ),
+        (
+            json!({"x": plane()["x"], "y": plane()["y"], "z": 1}),
+            "plane.z",
+        ),
     ];
     let mut no_plane = henon_heiles(Value::Null);
     no_plane.as_object_mut().unwrap().remove("plane");

@@ -7,7 +7,7 @@ use common::request;
 use geomint::api::method::read_method;
 use geomint::core::error::CoreError;
 use geomint::core::error::Field;
-use geomint::core::flows;
+use geomint::core::methods::state_flows;
 use geomint::core::methods::{Base, Method, MethodId};
 use geomint::core::simulation::{Limits, MethodAt, Simulation, SimulationSpec};
 use geomint::core::system::{MechanicalSystem, State};
@@ -293,7 +293,7 @@ proptest! {
         prop_assume!(z.q.norm() > 1e-3);
         let before = sys.energy(&z.q, &z.p);
         let mut w = z.q;
-        flows::damp(&sys, &mut z, tau, &mut w);
+        state_flows::damp(&sys, &mut z, tau, &mut w);
         prop_assert!(sys.energy(&z.q, &z.p) <= before + 1e-15);
         // The damping flow leaves the tangential momentum, and so J₃, unchanged.
         prop_assert!(((z.q[0] * z.p[1] - z.q[1] * z.p[0]) - (q[0] * p[1] - q[1] * p[0])).abs() < 1e-12);

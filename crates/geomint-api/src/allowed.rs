@@ -67,14 +67,12 @@ pub const DEFAULT_PLANE_POINTS: u64 = 101;
 fn read_axis(v: &Value, field: &Field) -> Result<PlaneAxisRequest, ErrorDetail> {
     let o = Obj::new(v, field.clone(), &["name", "min", "max", "points"])?;
     Ok(PlaneAxisRequest {
-        name: o.required(
-            "name",
-            "a coordinate or momentum, e.g. \"x\"",
-            string,
-        )?,
+        name: o.required("name", "a coordinate or momentum, e.g. \"x\"", string)?,
         min: o.required("min", "the first value", number)?,
         max: o.required("max", "the last value", number)?,
-        points: o.optional("points", |v, f| count(v, f, "a whole number of grid points"))?,
+        points: o.optional("points", |v, f| {
+            count(v, f, "a whole number of grid points")
+        })?,
     })
 }
 

@@ -8,7 +8,9 @@
 //!
 //! - [`system`] and [`systems`]: what a mechanical system is, and the catalogue of them
 //!   (with users' definitions, compiled from [`expr`]).
-//! - [`flows`] and [`methods`]: exact sub-flows, and the methods built from them;
+//! - [`flows`]: the kernel — the exact sub-flows written once over the number a step computes
+//!   with (one `f64`, a pack of SIMD lanes, or a value of compiled code), the Butcher tableau
+//!   and the plan of a compiled stretch; [`methods`]: the methods built from them;
 //!   [`tangent`]: their tangent maps.
 //! - [`run`]: the driver loop.
 //! - [`simulation`]: a simulation from its spec to its stream of samples and its document.

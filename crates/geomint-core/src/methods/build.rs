@@ -15,9 +15,9 @@ use super::splitting::{self, KnownSequence, Splitting, SubFlow};
 use super::symplectic_euler::{GeneralSymplecticEuler, Variant};
 use super::{Base, Known, Method, MethodId};
 use crate::error::{CoreError, Field, StepError};
-use crate::flows::Tangent;
 use crate::run::{Advanced, Stepper};
 use crate::system::{MechanicalSystem, State};
+use crate::tangent::Tangent;
 
 /// The Butcher tableau of an explicit Runge–Kutta method (`None` for the other methods).
 pub fn tableau(id: MethodId) -> Option<&'static Tableau> {
@@ -273,11 +273,12 @@ pub fn no_time(method: &Method, damping_rate: f64) -> Option<&'static str> {
     let (base, _) = stages(method);
     match base {
         MethodId::Csv2 | MethodId::Cimp if damping_rate != 0.0 => Some(
-            "it scales the positions by the conformal factor, and would scale the time t with              them; use csv1 or modin_3s (or their compositions) for a driven damped system",
+            "it scales the positions by the conformal factor, and would scale the time t with \
+             them; use csv1 or modin_3s (or their compositions) for a driven damped system",
         ),
-        MethodId::Rowlands => Some(
-            "its modified potential and processors are derived for an autonomous Hamiltonian",
-        ),
+        MethodId::Rowlands => {
+            Some("its modified potential and processors are derived for an autonomous Hamiltonian")
+        }
         _ => None,
     }
 }

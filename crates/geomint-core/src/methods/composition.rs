@@ -43,9 +43,9 @@ use nalgebra::DefaultAllocator;
 use super::sources::*;
 use super::{Citation, Group, Kind, MethodId, MethodInfo, MethodOption};
 use crate::error::StepError;
-use crate::flows::Tangent;
 use crate::run::{Advanced, Stepper};
 use crate::system::{MechanicalSystem, State};
+use crate::tangent::Tangent;
 
 /// A symmetric composition scheme.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

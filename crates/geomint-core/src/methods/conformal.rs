@@ -20,9 +20,9 @@ use nalgebra::DefaultAllocator;
 use super::sources::*;
 use super::{Citation, Group, Kind, MethodInfo, Requirement};
 use crate::error::StepError;
-use crate::flows::Tangent;
 use crate::run::Stepper;
 use crate::system::{MechanicalSystem, State, Vector};
+use crate::tangent::Tangent;
 
 /// The csv2 stepper; keeps ∇V(qⁿ⁺¹) for the next step.
 pub struct Csv2<S: MechanicalSystem>

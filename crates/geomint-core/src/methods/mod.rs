@@ -18,13 +18,14 @@ pub mod reference;
 pub mod rowlands;
 pub mod runge_kutta;
 pub mod splitting;
+pub mod state_flows;
 pub mod symplectic_euler;
 
 use serde::{Serialize, Serializer};
 
 pub use crate::system::Requirement;
 
-pub use applicable::{applicable, facts};
+pub use applicable::applicable;
 pub use build::{build, AnyStepper};
 pub use method::{Method, TOLERANCE_RANGE};
 

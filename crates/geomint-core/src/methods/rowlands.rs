@@ -58,9 +58,9 @@ use serde::{Deserialize, Serialize};
 use super::sources::*;
 use super::{Citation, Group, Kind, MethodInfo, MethodOption, Requirement};
 use crate::error::StepError;
-use crate::flows::Tangent;
 use crate::run::Stepper;
 use crate::system::{MechanicalSystem, State, Vector};
+use crate::tangent::Tangent;
 
 /// The processor of a `rowlands` run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]

@@ -9,23 +9,11 @@ use super::sources::*;
 use super::{unroll, Citation, Group, Kind, Known, MethodInfo};
 use crate::error::StepError;
 use crate::flows;
-use crate::methods::splitting::compiled::LazyCode;
+use crate::flows::compiled::LazyCode;
+pub use crate::flows::Tableau;
 use crate::run::{step_by_step, Advanced, Stepper};
 use crate::system::{MechanicalSystem, State, Vector};
 use crate::tangent::{mul_into, Tangent};
-
-/// An explicit Butcher tableau: stage i uses `a[i][j]` for j < i.
-#[derive(Debug)]
-pub struct Tableau {
-    /// Lower-triangular coefficients, row i of length i.
-    pub a: &'static [&'static [f64]],
-    /// Weights.
-    pub b: &'static [f64],
-    /// Nodes (c_i = Σ_j a_ij).
-    pub c: &'static [f64],
-    /// Classical order.
-    pub order: u32,
-}
 
 /// Forward Euler.
 pub const EXPLICIT_EULER: Tableau = Tableau {
@@ -59,27 +47,6 @@ pub const RK4: Tableau = Tableau {
     c: &[0.0, 0.5, 0.5, 1.0],
     order: 4,
 };
-
-impl Tableau {
-    /// Number of stages.
-    pub fn stages(&self) -> usize {
-        self.b.len()
-    }
-
-    /// The stability function R(x) = 1 + x bᵀ(I − xA)⁻¹𝟙 and the forcing weight S(x) of one step
-    /// of y' = x y − 1 (from y0 = 0): returns (R(x), −y1). Used for tangent maps of linear flows.
-    fn linear_response(&self, x: f64) -> (f64, f64) {
-        let run = |y0: f64, forcing: f64| {
-            let mut k = [0.0f64; 8];
-            for i in 0..self.stages() {
-                let yi = y0 + self.a[i].iter().zip(&k).map(|(a, k)| a * k).sum::<f64>();
-                k[i] = x * yi - forcing;
-            }
-            y0 + self.b.iter().zip(&k).map(|(b, k)| b * k).sum::<f64>()
-        };
-        (run(1.0, 0.0), -run(0.0, 1.0))
-    }
-}
 
 /// Where a Runge–Kutta stepper's tableau comes from: a reference chosen at run time, or a
 /// tableau known when the program is compiled ([`Known`]), whose stage loops then unroll with the
@@ -317,13 +284,6 @@ pub enum InnerRk {
     ImplicitMidpoint,
 }
 
-impl PartialEq for Tableau {
-    fn eq(&self, other: &Self) -> bool {
-        std::ptr::eq(self, other)
-    }
-}
-impl Eq for Tableau {}
-
 /// Work space of the momentum Runge–Kutta sub-flow.
 pub struct MomentumRk<D: Dim>
 where
@@ -383,7 +343,7 @@ where
             }
             // On a field linear in p the implicit midpoint rule is the trapezoidal rule.
             InnerRk::ImplicitMidpoint => {
-                flows::kick_theta(sys, z, tau, 0.5, g, &mut self.projected)
+                crate::methods::state_flows::kick_theta(sys, z, tau, 0.5, g, &mut self.projected)
             }
         }
     }

@@ -110,7 +110,12 @@ impl Simulation {
         plane: &Plane,
     ) -> Result<AllowedRegion, CoreError> {
         let names = StateNames::of(&self.info, &self.chart, &self.params, self.q0.len());
-        let known: Vec<String> = names.coordinates.iter().chain(&names.momenta).cloned().collect();
+        let known: Vec<String> = names
+            .coordinates
+            .iter()
+            .chain(&names.momenta)
+            .cloned()
+            .collect();
         let solved = match names.find(&level.momentum) {
             Some((true, i)) => i,
             _ => {
@@ -125,12 +130,14 @@ impl Simulation {
         let mut slots = Vec::with_capacity(2);
         for axis in [&plane.x, &plane.y] {
             let at = axis.field.key("name");
-            let slot = names.find(&axis.name).ok_or_else(|| CoreError::UnknownName {
-                field: at.clone(),
-                what: "coordinate or momentum".into(),
-                value: axis.name.clone(),
-                known: known.clone(),
-            })?;
+            let slot = names
+                .find(&axis.name)
+                .ok_or_else(|| CoreError::UnknownName {
+                    field: at.clone(),
+                    what: "coordinate or momentum".into(),
+                    value: axis.name.clone(),
+                    known: known.clone(),
+                })?;
             if slot == (true, solved) {
                 return Err(CoreError::Unsupported {
                     field: at,

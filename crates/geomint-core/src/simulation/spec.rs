@@ -427,7 +427,8 @@ impl Simulation {
         // differentiate is refused here, by the stepper itself, rather than at the first step.
         for (method, field) in self.methods.iter().zip(&self.method_fields) {
             let refused = with_system!(&self.system, s => {
-                let mut z = State::from_slices(s.dim(), &self.q0, &self.p0);
+                // A driven system's state carries its clock (extended phase space).
+                let mut z = State::at_time(s, 0.0, &self.q0, &self.p0);
                 let mut tangent = Tangent::with_columns(s, &z, chaos::frame::start(z.q.len(), 1));
                 methods::build(method, s, &self.system_label, self.schedule.h)
                     .ok()

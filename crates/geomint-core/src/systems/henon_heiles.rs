@@ -10,7 +10,7 @@ use nalgebra::{DMatrix, U2};
 use std::borrow::Cow;
 
 use super::{AnySystem, Builder, ChartInfo, ParamSpec, ParamValues, SystemInfo, World};
-use crate::methods::lanes::each::{damp_each_lane, damp_point, PointForces};
+use crate::system::lanes::{damp_each_lane, damp_point, PointForces};
 use crate::system::{Lane, LaneForces, LANES};
 use crate::system::{MechanicalSystem, Structure, Vector};
 

@@ -6,7 +6,7 @@ use nalgebra::{DMatrix, U1};
 use std::borrow::Cow;
 
 use super::{AnySystem, Builder, ChartInfo, ParamSpec, ParamValues, SystemInfo, World};
-use crate::methods::lanes::each::{damp_each_lane, damp_point, PointForces};
+use crate::system::lanes::{damp_each_lane, damp_point, PointForces};
 use crate::system::{Lane, LaneForces, MechanicalSystem, State, Structure, Vector, LANES};
 
 /// The damped harmonic oscillator.

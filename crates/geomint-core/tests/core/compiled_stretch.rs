@@ -8,9 +8,9 @@
 use std::sync::Arc;
 
 use geomint_core::error::Field;
+use geomint_core::flows::compiled::{StretchPlan, COMPILE_AFTER};
 use geomint_core::methods::composition::Scheme;
 use geomint_core::methods::lanes::runs::{RunLanes, LANES};
-use geomint_core::methods::splitting::compiled::{StretchPlan, COMPILE_AFTER};
 use geomint_core::methods::splitting::{
     SubFlow, CSV1, MODIN_3S, MODIN_RKS, POSITION_VERLET, VELOCITY_VERLET,
 };

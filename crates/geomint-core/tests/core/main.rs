@@ -19,6 +19,7 @@ mod driven;
 mod energy_map;
 mod expr;
 mod indicators;
+mod layers;
 mod order_conditions;
 mod orders;
 mod reference;

@@ -54,9 +54,9 @@ fn force_evaluations_are_counted_and_reused_across_steps() {
 
 #[test]
 fn propagated_step_jacobians_equal_finite_differences_of_the_step() {
-    use geomint_core::flows::Tangent;
     use geomint_core::methods;
     use geomint_core::run::Stepper;
+    use geomint_core::tangent::Tangent;
     // rowlands has no tangent map (and needs an undamped system); tests/core_rowlands.rs checks
     // that it says so.
     let choices: Vec<_> = common::every_fixed_step_choice()

@@ -6,6 +6,7 @@ use crate::common;
 
 use common::{request, run_all};
 use geomint_core::flows;
+use geomint_core::methods::state_flows;
 use geomint_core::simulation::{Columns, Limits, Simulation, SimulationSpec};
 use geomint_core::system::{MechanicalSystem, State};
 use geomint_core::systems::{ElasticPendulum3d, HarmonicOscillator};
@@ -280,7 +281,7 @@ fn modin_2s_linear_momentum_flow_is_exact_also_for_singular_damping() {
         let mut g = z.q;
         sys.grad_potential(&z.q, &mut g);
         let (mut w1, mut w2) = (z.q, z.q);
-        flows::kick_damp(&sys, &mut exact, tau, &g, &mut w1, &mut w2);
+        state_flows::kick_damp(&sys, &mut exact, tau, &g, &mut w1, &mut w2);
         assert!(
             (exact.p - fine.p).amax() < 1e-13,
             "tau {tau}: {:e}",
@@ -298,7 +299,7 @@ fn modin_2s_linear_momentum_flow_is_exact_also_for_singular_damping() {
     let mut exact = z.clone();
     let g = nalgebra::Vector1::new(1.5 * 1.5 * 0.7);
     let (mut w1, mut w2) = (z.q, z.q);
-    flows::kick_damp(&osc, &mut exact, 0.5, &g, &mut w1, &mut w2);
+    state_flows::kick_damp(&osc, &mut exact, 0.5, &g, &mut w1, &mut w2);
     assert!((exact.p[0] - fine.p[0]).abs() < 1e-14);
 }
 

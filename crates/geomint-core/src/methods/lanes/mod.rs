@@ -11,8 +11,6 @@
 //! twice: rustc never contracts a·b + c into one (only `mul_add` does), whatever the target
 //! features.
 //!
-//! - [`pendulum`]: symplectic Euler and its adjoint on the planar elastic pendulum in either
-//!   chart, with the energy error at every step (paper 001's Fig. 6 map); four runs.
 //! - [`tangent`]: any composition of kicks and drifts on a separable system that evaluates its
 //!   forces and their Hessian in lanes ([`LaneForces`]: built-in systems with their formulas,
 //!   typed-in ones through their compiled functions), with deviation vectors advanced by the
@@ -20,14 +18,11 @@
 //!   operations (drift, force, kick) has several registers of independent work to overlap.
 //! - [`runs`]: plain runs (no deviation vectors) of compositions of kicks, drifts and exact
 //!   damping flows, sixteen side by side, as the one-run stepper takes its stretches; with one
-//!   system per lane ([`each`]) for sweeps over parameters and the step.
+//!   system per lane (`system::lanes::EachLane`) for sweeps over parameters and the step.
 
-pub mod each;
-pub mod pendulum;
 pub mod runs;
 pub mod tangent;
 
-pub use pendulum::{Chart, LaneKernel, Order, Start, Tally};
 pub use tangent::{LaneForces, TangentLanes};
 
 /// Steps between two looks at the budget (the one-cell path's interval).

@@ -21,9 +21,10 @@
 // compiler vectorises.
 #![allow(clippy::needless_range_loop)]
 
-use crate::flows;
-use crate::methods::splitting::compiled::{LazyCode, StretchPlan};
-use crate::methods::splitting::{self, SubFlow};
+use crate::flows::compiled::{LazyCode, StretchPlan};
+use crate::flows::SubFlow;
+use crate::flows::{self, Pack};
+use crate::methods::splitting;
 
 use super::Isa;
 
@@ -375,11 +376,7 @@ impl<const N: usize> Phase<N> {
             Flow::Drift(tau) => {
                 let mut v = [[0.0; LANES]; N];
                 sys.velocity_lanes(&self.p, &mut v);
-                for i in 0..N {
-                    for l in 0..LANES {
-                        self.q[i][l] += tau * v[i][l];
-                    }
-                }
+                flows::drift(Pack::of_mut(&mut self.q), Pack::of(&v), Pack::splat(tau));
                 self.grad_valid = false;
             }
             Flow::Kick(tau) => {
@@ -388,11 +385,11 @@ impl<const N: usize> Phase<N> {
                     self.force_evaluations += 1;
                     self.grad_valid = true;
                 }
-                for i in 0..N {
-                    for l in 0..LANES {
-                        self.p[i][l] += -tau * self.grad[i][l];
-                    }
-                }
+                flows::kick(
+                    Pack::of_mut(&mut self.p),
+                    Pack::of(&self.grad),
+                    Pack::splat(tau),
+                );
             }
             // q, and with it the force, stays.
             Flow::Damp(tau, k) => sys.damp_lanes(&self.q, &mut self.p, tau, &decay[k]),

@@ -18,7 +18,8 @@
 use nalgebra::DMatrix;
 
 use crate::chaos::frame;
-use crate::methods::splitting::SubFlow;
+use crate::flows::SubFlow;
+use crate::flows::{self, Pack};
 
 use super::Isa;
 
@@ -251,11 +252,7 @@ impl<const N: usize> TangentLanes<N> {
                 }
                 let mut v = [[0.0; LANES]; N];
                 sys.velocity_lanes(&self.p, &mut v);
-                for i in 0..N {
-                    for l in 0..LANES {
-                        self.q[i][l] += tau * v[i][l];
-                    }
-                }
+                flows::drift(Pack::of_mut(&mut self.q), Pack::of(&v), Pack::splat(tau));
                 self.grad_valid = false;
                 hessian.valid = false;
             }
@@ -291,11 +288,11 @@ impl<const N: usize> TangentLanes<N> {
                     self.force_evaluations += 1;
                     self.grad_valid = true;
                 }
-                for i in 0..N {
-                    for l in 0..LANES {
-                        self.p[i][l] += -tau * self.grad[i][l];
-                    }
-                }
+                flows::kick(
+                    Pack::of_mut(&mut self.p),
+                    Pack::of(&self.grad),
+                    Pack::splat(tau),
+                );
             }
         }
     }

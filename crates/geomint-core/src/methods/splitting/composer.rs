@@ -10,6 +10,7 @@ use super::*;
 use crate::error::StepError;
 use crate::flows;
 use crate::methods::runge_kutta::MomentumRk;
+use crate::methods::state_flows;
 use crate::methods::unroll;
 use crate::run::{finite, step_by_step, Advanced, Stepper};
 use crate::system::{MechanicalSystem, State, Vector};
@@ -250,18 +251,18 @@ where
     ) {
         match flow {
             Drift => {
-                flows::drift(sys, z, tau, &mut self.w1);
+                state_flows::drift(sys, z, tau, &mut self.w1);
                 self.grad_valid = false;
             }
             Kick => {
                 self.ensure_grad(sys, &z.q);
-                flows::kick(z, tau, &self.grad);
+                state_flows::kick(z, tau, &self.grad);
             }
             DampedKick(theta) => {
                 self.ensure_grad(sys, &z.q);
-                flows::kick_theta(sys, z, tau, theta.value(), &self.grad, &mut self.w1);
+                state_flows::kick_theta(sys, z, tau, theta.value(), &self.grad, &mut self.w1);
             }
-            Damp => flows::damp_with(sys, z, tau, c, &mut self.w1),
+            Damp => state_flows::damp_with(sys, z, tau, c, &mut self.w1),
             KickDamp if self.grad_valid => self.kick_damp(sys, z, tau, (c, d)),
             KickDamp => {
                 // A fresh force and the kick after it are one straight line of code, in which
@@ -283,7 +284,7 @@ where
     /// The kick-and-damp with the cached force.
     #[inline(always)]
     fn kick_damp(&mut self, sys: &S, z: &mut State<S::Dim>, tau: f64, (c, d): (f64, f64)) {
-        flows::kick_damp_with(sys, z, tau, c, d, &self.grad, &mut self.w1, &mut self.w2);
+        state_flows::kick_damp_with(sys, z, tau, c, d, &self.grad, &mut self.w1, &mut self.w2);
     }
 
     #[inline]

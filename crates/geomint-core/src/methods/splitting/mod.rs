@@ -32,7 +32,7 @@
 //! the composer's bits.
 
 mod catalogue;
-pub mod compiled;
+pub use crate::flows::compiled;
 mod composer;
 mod walk;
 
@@ -40,84 +40,7 @@ pub use catalogue::*;
 pub use composer::Splitting;
 pub use walk::{ComposedBase, Composition, Flows, KnownSequence};
 
-/// The implicitness θ of a damped kick.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Theta {
-    /// θ = 0, forward Euler.
-    Explicit,
-    /// θ = ½, the trapezoidal rule.
-    Trapezoid,
-    /// θ = 1, backward Euler.
-    Implicit,
-}
-
-impl Theta {
-    /// θ as a number.
-    pub fn value(self) -> f64 {
-        match self {
-            Theta::Explicit => 0.0,
-            Theta::Trapezoid => 0.5,
-            Theta::Implicit => 1.0,
-        }
-    }
-}
-
-/// One exact (or, for `DampedKick` and `MomentumRk`, approximate) sub-flow.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum SubFlow {
-    /// q ← q + τ M⁻¹p.
-    Drift,
-    /// p ← p − τ ∇V(q).
-    Kick,
-    /// A θ-method step of the damped momentum field p' = −∇V − r P p (see `flows::kick_theta`),
-    /// θ in {0, ½, 1}.
-    DampedKick(Theta),
-    /// Exact damping decay.
-    Damp,
-    /// Exact linear kick-and-damp (modin_2s's middle flow).
-    KickDamp,
-    /// A Runge–Kutta step of the damped momentum field with q frozen (modin_rks).
-    MomentumRk,
-}
-
-impl SubFlow {
-    /// Whether this flow followed by `next` is one flow over the summed time: both of one kind,
-    /// and that kind exact and autonomous with the other half of the state frozen.
-    pub const fn fuses_with(self, next: SubFlow) -> bool {
-        matches!(
-            (self, next),
-            (SubFlow::Drift, SubFlow::Drift)
-                | (SubFlow::Kick, SubFlow::Kick)
-                | (SubFlow::Damp, SubFlow::Damp)
-                | (SubFlow::KickDamp, SubFlow::KickDamp)
-        )
-    }
-
-    /// This flow's coefficients over τ at damping rate r, which depend on h only: the damping's
-    /// c = 1 − e^{−rτ}, the kick-and-damp's (c, d) (`flows::kick_damp_coefficients`); none for
-    /// the others.
-    #[inline]
-    pub fn coefficients(self, r: f64, tau: f64) -> (f64, f64) {
-        match self {
-            SubFlow::Damp => (crate::flows::damp_coefficient(r, tau), 0.0),
-            SubFlow::KickDamp => crate::flows::kick_damp_coefficients(r, tau),
-            _ => (0.0, 0.0),
-        }
-    }
-}
-
-/// The seam of `flows` at step h and damping rate r: the last flow of a step and the first of
-/// the next applied as one over their summed time (b + a)·h, with its coefficients, when the
-/// sequence ends and begins with one kind of flow that fuses (see `Splitting::advance`).
-pub fn seam(flows: &[(SubFlow, f64)], r: f64, h: f64) -> Option<(f64, (f64, f64))> {
-    match (flows.first(), flows.last()) {
-        (Some(&(first, a)), Some(&(last, b))) if flows.len() > 2 && last.fuses_with(first) => {
-            let tau = (b + a) * h;
-            Some((tau, first.coefficients(r, tau)))
-        }
-        _ => None,
-    }
-}
+pub use crate::flows::{seam, SubFlow, Theta};
 
 /// A splitting method: sub-flows with their fractions of the step h.
 pub type Sequence = &'static [(SubFlow, f64)];

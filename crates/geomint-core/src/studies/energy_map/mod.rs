@@ -41,6 +41,7 @@ use crate::system::MechanicalSystem;
 use crate::systems::{self, ParamValue, PlanarCartesian, PlanarKind, PlanarPolar, PlanarSpring};
 
 mod document;
+pub mod lanes;
 
 pub use document::{run, EnergyMapDocument, MapLine, MapParams, MapSummary};
 

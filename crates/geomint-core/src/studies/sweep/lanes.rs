@@ -13,10 +13,9 @@ use std::ops::Range as Cells;
 
 use super::metrics::{EnergyReference, Measure, RunMetrics};
 use super::{SweepJob, Target};
-use crate::methods::lanes::pendulum::LANES;
-use crate::methods::lanes::{LaneKernel, Start, Tally};
 use crate::run::Budget;
 use crate::simulation::{SampleSink, Simulation};
+use crate::studies::energy_map::lanes::{LaneKernel, Start, Tally, PENDULUM_LANES as LANES};
 use crate::studies::engine::Study;
 use crate::system::{MechanicalSystem, State};
 use crate::systems::AnySystem;

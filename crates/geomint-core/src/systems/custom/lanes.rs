@@ -10,8 +10,8 @@
 use nalgebra::{U1, U2, U3};
 
 use super::system::{CustomSystem, EnergyModel, InverseMass};
-use crate::methods::lanes::each::{damp_each_lane, damp_point, PointForces};
-use crate::methods::splitting::compiled::{SharedStretch, StretchPlan};
+use crate::flows::compiled::{SharedStretch, StretchPlan};
+use crate::system::lanes::{damp_each_lane, damp_point, PointForces};
 use crate::system::{Lane, LaneForces, LANES};
 
 macro_rules! lane_forces {

@@ -139,7 +139,7 @@ pub enum DampingKind {
     Rayleigh,
 }
 
-/// What a definition is, derived from it (by [`crate::methods::facts`], which adds the methods
+/// What a definition is, derived from it (by [`facts`], which adds the methods
 /// that apply).
 #[derive(Clone, Debug, PartialEq, Serialize)]
 #[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
@@ -227,4 +227,26 @@ pub fn define(definition: CustomDefinition, id: &str) -> Result<Arc<SystemInfo>,
         build: Builder::Custom(Arc::new(model)),
     };
     Ok(Arc::new(info))
+}
+
+/// What a typed-in system's definition is, at its default parameter values: its dimension,
+/// structure and damping, and the methods that apply (for a driven system, those that can take
+/// the time t).
+pub fn facts(model: &CustomModel) -> Facts {
+    use crate::methods::{applicable, build, Method, MethodId};
+    let (structure, rate) = model.structure_at_defaults();
+    let time_dependent = model.time_dependent();
+    let mut methods = applicable(structure, rate);
+    if time_dependent {
+        methods.retain(|id| {
+            MethodId::parse(id).is_some_and(|m| build::no_time(&Method::new(m), rate).is_none())
+        });
+    }
+    Facts {
+        dimension: model.dimension(),
+        separable: structure.separable_constant_mass,
+        damping: model.damping_kind(),
+        methods,
+        time_dependent,
+    }
 }

@@ -1,18 +1,16 @@
 //! Which compiled steps a typed-in system has: its code for a splitting's stretches and for
 //! Runge–Kutta steps (`stretch/` builds it), kept per system for the plan last asked for, and
 //! built once the system's runs have taken
-//! [`COMPILE_AFTER`](crate::methods::splitting::compiled::COMPILE_AFTER) steps without it.
+//! [`COMPILE_AFTER`](crate::flows::compiled::COMPILE_AFTER) steps without it.
 
 use std::sync::atomic::Ordering;
 use std::sync::{Arc, Mutex};
 
 use super::stretch;
 use super::system::{Compiled, DampingModel, EnergyModel};
-use crate::methods::runge_kutta::Tableau;
-use crate::methods::splitting::compiled::{
-    CompiledStretch, SharedStretch, StretchPlan, COMPILE_AFTER,
-};
-use crate::methods::splitting::SubFlow;
+use crate::flows::compiled::{CompiledStretch, SharedStretch, StretchPlan, COMPILE_AFTER};
+use crate::flows::SubFlow;
+use crate::flows::Tableau;
 
 /// What a splitting's code is built from: its flows and fractions, the coefficients, h and the
 /// seam (only its τ and c enter the code).
@@ -66,7 +64,7 @@ impl Compiled {
     /// The code `compile` builds for the system's parts, kept for `key` until another key asks
     /// (the cells of a sweep share it). Without it, `steps` more steps were run on the generic
     /// path, and the code is built once the system's runs have taken
-    /// [`COMPILE_AFTER`](crate::methods::splitting::compiled::COMPILE_AFTER) such steps. `None`
+    /// [`COMPILE_AFTER`](crate::flows::compiled::COMPILE_AFTER) such steps. `None`
     /// until then, and when the system is one the compiled steps do not take (a driven system,
     /// a general H or damping) or the code cannot be built. A lookup allocates nothing.
     fn cached<K: Iterator<Item = u64>>(

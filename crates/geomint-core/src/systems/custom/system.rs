@@ -16,8 +16,8 @@ use super::damping::{Flows, MassFactor};
 pub use super::mass::InverseMass;
 use super::DampingKind;
 use crate::expr::CompiledFunction;
-use crate::methods::runge_kutta::Tableau;
-use crate::methods::splitting::compiled::{SharedStretch, StretchPlan};
+use crate::flows::compiled::{SharedStretch, StretchPlan};
+use crate::flows::Tableau;
 use crate::system::{projector, MechanicalSystem, Structure, Vector};
 
 /// The energy's compiled functions.

@@ -2,12 +2,13 @@
 //! lane stops where a run of its own would.
 
 use geomint_core::methods::lanes::tangent::LANES;
-use geomint_core::methods::lanes::{
-    pendulum, Chart, Isa, LaneKernel, Order, Start, Tally, TangentLanes, CHECK_EVERY,
-};
+use geomint_core::methods::lanes::{Isa, TangentLanes, CHECK_EVERY};
 use geomint_core::methods::splitting::VELOCITY_VERLET;
 use geomint_core::methods::{Method, MethodId};
 use geomint_core::run::Budget;
+use geomint_core::studies::energy_map::lanes::{
+    self as pendulum, Chart, EulerOrder as Order, LaneKernel, Start, Tally,
+};
 use geomint_core::systems::{
     AnySystem, HenonHeiles, PlanarCartesian, PlanarKind, PlanarPolar, PlanarSpring,
 };
@@ -47,7 +48,7 @@ fn the_portable_kernels_give_the_bits_of_the_dispatched_ones() {
         q: [[0.3, 1.9, 2.6, 0.0], [1.2, -0.4, 0.5, 0.0]],
         p: [[0.0, 0.1, 20.0, 0.0], [0.0, -0.2, 20.0, 0.0]],
         energy: [0.4, 1.1, 0.3, 0.3],
-        idle: [false; pendulum::LANES],
+        idle: [false; pendulum::PENDULUM_LANES],
     };
     let bits = |t: &Tally| {
         let [q0, q1, p0, p1] = [t.q[0], t.q[1], t.p[0], t.p[1]];
@@ -105,9 +106,9 @@ fn a_stopped_lane_ends_with_the_state_of_the_step_before() {
             for order in [Order::MomentumFirst, Order::PositionFirst] {
                 let start = Start {
                     q: [[1.5, 2.0, 1e-3, 0.4], [0.3, -1.0, 1.2, 1.1]],
-                    p: [[0.0; pendulum::LANES]; 2],
-                    energy: [0.0; pendulum::LANES],
-                    idle: [false; pendulum::LANES],
+                    p: [[0.0; pendulum::PENDULUM_LANES]; 2],
+                    energy: [0.0; pendulum::PENDULUM_LANES],
+                    idle: [false; pendulum::PENDULUM_LANES],
                 };
                 let run = |steps| {
                     let budget = Budget::default();
@@ -116,7 +117,7 @@ fn a_stopped_lane_ends_with_the_state_of_the_step_before() {
                         .unwrap()
                 };
                 let full = run(steps);
-                for i in 0..pendulum::LANES {
+                for i in 0..pendulum::PENDULUM_LANES {
                     let stopped = full.non_finite[i];
                     if stopped == f64::INFINITY {
                         continue;

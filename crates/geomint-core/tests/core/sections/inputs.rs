@@ -145,6 +145,15 @@ fn methods_that_cannot_take_time_are_refused_naming_the_method() {
                 let detail = ErrorDetail::from(&e);
                 assert_eq!(detail.field.as_deref(), Some("methods[0]"));
                 assert_eq!(detail.code, ErrorCode::UnmetRequirement);
+                // The reason reads as one sentence (no run of spaces from a wrapped string).
+                let message = e.to_string();
+                assert!(!message.contains("  "), "{id}: {message}");
+                if id == MethodId::Csv2 {
+                    assert!(
+                        message.contains("would scale the time t with them"),
+                        "{message}"
+                    );
+                }
             }
             Err(e) => panic!("{id}: {e}"),
             Ok(_) => assert!(!refused, "{id} ran"),
@@ -162,7 +171,8 @@ fn methods_that_cannot_take_time_are_refused_naming_the_method() {
     let e = Simulation::prepare(&spec, &Limits::default()).unwrap_err();
     assert!(matches!(e, CoreError::TimeDependent { .. }), "{e}");
     // The definition says so: the methods it lists take time.
-    let facts = geomint_core::methods::facts(duffing(0.3, 0.5, 1.2).custom_model().unwrap());
+    let facts =
+        geomint_core::systems::custom::facts(duffing(0.3, 0.5, 1.2).custom_model().unwrap());
     assert!(facts.time_dependent);
     assert!(!facts.methods.contains(&"csv2") && facts.methods.contains(&"csv1"));
 }

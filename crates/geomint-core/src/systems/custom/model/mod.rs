@@ -379,7 +379,7 @@ impl CustomModel {
     }
 
     /// The structure and damping rate at the default parameter values: what the methods'
-    /// requirements are checked against ([`crate::methods::facts`] lists the methods that apply).
+    /// requirements are checked against ([`super::facts`] lists the methods that apply).
     pub fn structure_at_defaults(&self) -> (Structure, f64) {
         (self.at_defaults.0, self.at_defaults.1)
     }

@@ -1,5 +1,5 @@
 //! A typed-in system's stretches of a splitting, compiled with Cranelift: the composer's fused
-//! stretch (see `methods::splitting::compiled`), or its whole steps when the method's last and
+//! stretch (see `flows::compiled`), or its whole steps when the method's last and
 //! first flows do not fuse, as one loop in which the state lives in registers and the
 //! potential's gradient program is written into every kick that evaluates it, where the generic
 //! path calls the compiled gradient through a pointer at each.
@@ -33,9 +33,9 @@ use cranelift_module::Module;
 use super::mass::InverseMass;
 use crate::expr::jit::{self, Emitter, OwnedModule};
 use crate::expr::program::Program;
-use crate::methods::runge_kutta::Tableau;
-use crate::methods::splitting::compiled::{CompiledStretch, StretchFn, StretchPlan};
-use crate::methods::splitting::SubFlow;
+use crate::flows::compiled::{CompiledStretch, StretchFn, StretchPlan};
+use crate::flows::SubFlow;
+use crate::flows::Tableau;
 use crate::system::LANES;
 
 mod runge_kutta;

@@ -4,7 +4,7 @@
 use cranelift_codegen::ir::{InstBuilder, Value};
 
 use super::Stretch;
-use crate::methods::runge_kutta::Tableau;
+use crate::flows::Tableau;
 
 impl Stretch<'_, '_> {
     /// Runge–Kutta steps: each one's stages and update, the count, the check of the state.

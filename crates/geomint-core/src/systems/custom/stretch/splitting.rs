@@ -6,8 +6,10 @@ use cranelift_codegen::ir::immediates::Ieee64;
 use cranelift_codegen::ir::{types, Block, InstBuilder, Value};
 
 use super::{kind, Stretch};
-use crate::methods::splitting::compiled::StretchPlan;
-use crate::methods::splitting::SubFlow;
+use crate::flows;
+use crate::flows::compiled::StretchPlan;
+use crate::flows::emit::{self, Jit};
+use crate::flows::SubFlow;
 
 impl Stretch<'_, '_> {
     /// The splitting's stretch: the first flow, then per step the middle flows and the seam
@@ -125,42 +127,48 @@ impl Stretch<'_, '_> {
         [self.q, self.p, self.g] = self.lanes[k].clone();
     }
 
-    /// The flow's update of the current lane (a kick's force already evaluated).
+    /// The flow's update of the current lane (a kick's force already evaluated): the kernel's
+    /// flow (`flows::drift`, `kick`, `decay`) run over the lane's values, which writes its code.
     fn lane_flow(&mut self, kind: SubFlow, tau: Value, c: Value) -> Result<(), String> {
-        let n = self.parts.n;
-        match kind {
+        let (q, p, g) = (
+            self.values(&self.q.clone()),
+            self.values(&self.p.clone()),
+            self.values(&self.g.clone()),
+        );
+        let (target, updated) = match kind {
             SubFlow::Drift => {
                 let v = self.velocity();
-                for i in 0..n {
-                    let q = self.b.use_var(self.q[i]);
-                    let step = self.b.ins().fmul(tau, v[i]);
-                    let q = self.b.ins().fadd(step, q);
-                    self.b.def_var(self.q[i], q);
-                }
+                let q = emit::write(self.b, |w| {
+                    let mut q = emit::values(&q, w);
+                    flows::drift(&mut q, &emit::values(&v, w), Jit::new(tau, w));
+                    emit::of(&q)
+                });
+                (self.q.clone(), q)
             }
             SubFlow::Kick => {
-                let minus_tau = self.b.ins().fneg(tau);
-                for i in 0..n {
-                    let (p, g) = (self.b.use_var(self.p[i]), self.b.use_var(self.g[i]));
-                    let kick = self.b.ins().fmul(minus_tau, g);
-                    let p = self.b.ins().fadd(kick, p);
-                    self.b.def_var(self.p[i], p);
-                }
+                let p = emit::write(self.b, |w| {
+                    let mut p = emit::values(&p, w);
+                    flows::kick(&mut p, &emit::values(&g, w), Jit::new(tau, w));
+                    emit::of(&p)
+                });
+                (self.p.clone(), p)
             }
             SubFlow::Damp => {
-                let w = match self.parts.projector {
+                let projected = match self.parts.projector {
                     Some(matrix) => self.projected(matrix)?,
-                    None => (0..n).map(|i| self.b.use_var(self.p[i])).collect(),
+                    None => p.clone(),
                 };
-                let minus_c = self.b.ins().fneg(c);
-                for (i, w) in w.into_iter().enumerate() {
-                    let p = self.b.use_var(self.p[i]);
-                    let decay = self.b.ins().fmul(minus_c, w);
-                    let p = self.b.ins().fadd(decay, p);
-                    self.b.def_var(self.p[i], p);
-                }
+                let p = emit::write(self.b, |w| {
+                    let mut p = emit::values(&p, w);
+                    flows::decay(&mut p, &emit::values(&projected, w), Jit::new(c, w));
+                    emit::of(&p)
+                });
+                (self.p.clone(), p)
             }
             _ => return Err("a flow the compiled stretch does not take".into()),
+        };
+        for (var, value) in target.into_iter().zip(updated) {
+            self.b.def_var(var, value);
         }
         Ok(())
     }

@@ -14,8 +14,8 @@
 use std::sync::Arc;
 
 use super::SubFlow;
+use super::LANES;
 use crate::expr::jit::OwnedModule;
-use crate::system::LANES;
 
 /// What a stretch does: the flows of one step with their fractions of h, the per-flow
 /// coefficients for h (the damping's c = 1 − e^{−rτ}, and d), and the seam that fuses the last

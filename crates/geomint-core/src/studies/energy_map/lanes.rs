@@ -24,16 +24,16 @@
 use std::sync::atomic::Ordering;
 use std::time::Instant;
 
-use super::{Isa, CHECK_EVERY};
 use crate::diagnostics::DIVERGENCE;
+use crate::methods::lanes::{Isa, CHECK_EVERY};
 use crate::methods::{Method, MethodId};
 use crate::run::Budget;
 use crate::systems::{AnySystem, PlanarCartesian, PlanarKind, PlanarPolar, PlanarSpring};
 
 /// Cells integrated side by side.
-pub const LANES: usize = 4;
+pub const PENDULUM_LANES: usize = 4;
 /// One value per lane.
-pub type Lane = [f64; LANES];
+pub type FourLanes = [f64; PENDULUM_LANES];
 
 /// The chart a lane kernel works in.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -46,35 +46,35 @@ pub enum Chart {
 
 /// Which symplectic Euler: 001 eqs. (42)–(43) (momentum first) or its adjoint (position first).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Order {
+pub enum EulerOrder {
     /// p₁ from (q, p₁), then q₁ from (q, p₁).
     MomentumFirst,
     /// q₁ from (q₁, p), then p₁ from (q₁, p).
     PositionFirst,
 }
 
-impl Order {
+impl EulerOrder {
     /// The order of `method`, if the lanes run it.
-    pub fn of(method: &Method) -> Option<Order> {
+    pub fn of(method: &Method) -> Option<EulerOrder> {
         match method {
-            Method::Plain(MethodId::SymplecticEuler) => Some(Order::MomentumFirst),
-            Method::Plain(MethodId::SymplecticEulerAdjoint) => Some(Order::PositionFirst),
+            Method::Plain(MethodId::SymplecticEuler) => Some(EulerOrder::MomentumFirst),
+            Method::Plain(MethodId::SymplecticEulerAdjoint) => Some(EulerOrder::PositionFirst),
             _ => None,
         }
     }
 }
 
-/// The starting states of [`LANES`] cells in one chart, and which lanes hold a cell.
+/// The starting states of [`PENDULUM_LANES`] cells in one chart, and which lanes hold a cell.
 #[derive(Clone, Copy, Debug)]
 pub struct Start {
     /// q₀, component by component.
-    pub q: [Lane; 2],
+    pub q: [FourLanes; 2],
     /// p₀, component by component.
-    pub p: [Lane; 2],
+    pub p: [FourLanes; 2],
     /// H(q₀, p₀) as the one-cell path computes it.
-    pub energy: Lane,
+    pub energy: FourLanes,
     /// Lanes without a cell (the padding of the last group, the pivot in polar coordinates).
-    pub idle: [bool; LANES],
+    pub idle: [bool; PENDULUM_LANES],
 }
 
 /// The pendulum's constants, combined as the one-cell path combines them.
@@ -116,20 +116,20 @@ impl Constants {
 #[derive(Clone, Copy, Debug)]
 pub struct Tally {
     /// Σ (H − H₀)² over the samples, the first included.
-    pub sum: Lane,
+    pub sum: FourLanes,
     /// The first step whose energy left the band.
-    pub blown: Lane,
+    pub blown: FourLanes,
     /// The first step whose state is not finite (0 for an idle lane).
-    pub non_finite: Lane,
+    pub non_finite: FourLanes,
     /// The largest |H − H₀| (sweeps only).
-    pub max: Lane,
+    pub max: FourLanes,
     /// The last H − H₀ (sweeps only).
-    pub last: Lane,
+    pub last: FourLanes,
     /// The last finite state before the lane stopped, as the one-cell path's last sample
     /// (sweeps only).
-    pub q: [Lane; 2],
+    pub q: [FourLanes; 2],
     /// Its momenta.
-    pub p: [Lane; 2],
+    pub p: [FourLanes; 2],
 }
 
 /// A method on a system that the lanes run.
@@ -137,7 +137,7 @@ pub struct Tally {
 pub struct LaneKernel {
     pendulum: PlanarSpring,
     chart: Chart,
-    order: Order,
+    order: EulerOrder,
     isa: Isa,
 }
 
@@ -146,7 +146,7 @@ impl LaneKernel {
     /// on the planar elastic pendulum (not the free particle, whose runs report invariants and
     /// errors against its exact solution), in either chart.
     pub fn of(method: &Method, system: &AnySystem) -> Option<LaneKernel> {
-        let order = Order::of(method)?;
+        let order = EulerOrder::of(method)?;
         let (pendulum, chart) = match system {
             AnySystem::PlanarCartesian(PlanarCartesian(s)) => (s, Chart::Cartesian),
             AnySystem::PlanarPolar(PlanarPolar(s)) => (s, Chart::Polar),
@@ -166,7 +166,7 @@ impl LaneKernel {
         isa.available().then_some(LaneKernel { isa, ..self })
     }
 
-    /// `steps` steps of size `h` from the [`LANES`] starts, measured against H₀ at every step;
+    /// `steps` steps of size `h` from the [`PENDULUM_LANES`] starts, measured against H₀ at every step;
     /// `None` when the budget stopped the run.
     pub fn tally(&self, start: &Start, h: f64, steps: u64, budget: Budget<'_>) -> Option<Tally> {
         let limit = start.energy.map(|e| DIVERGENCE * (1.0 + e.abs()));
@@ -190,10 +190,10 @@ impl LaneKernel {
 fn integrate_avx2(
     c: &Constants,
     chart: Chart,
-    order: Order,
+    order: EulerOrder,
     start: &Start,
     steps: u64,
-    limit: &Lane,
+    limit: &FourLanes,
     budget: Budget<'_>,
 ) -> Option<Tally> {
     integrate(c, chart, order, start, steps, limit, budget)
@@ -204,23 +204,23 @@ fn integrate_avx2(
 fn integrate(
     c: &Constants,
     chart: Chart,
-    order: Order,
+    order: EulerOrder,
     start: &Start,
     steps: u64,
-    limit: &Lane,
+    limit: &FourLanes,
     budget: Budget<'_>,
 ) -> Option<Tally> {
     match (chart, order) {
-        (Chart::Cartesian, Order::MomentumFirst) => {
+        (Chart::Cartesian, EulerOrder::MomentumFirst) => {
             lanes(c, start, steps, limit, budget, Cartesian::<true>)
         }
-        (Chart::Cartesian, Order::PositionFirst) => {
+        (Chart::Cartesian, EulerOrder::PositionFirst) => {
             lanes(c, start, steps, limit, budget, Cartesian::<false>)
         }
-        (Chart::Polar, Order::MomentumFirst) => {
+        (Chart::Polar, EulerOrder::MomentumFirst) => {
             lanes(c, start, steps, limit, budget, Polar::<true>)
         }
-        (Chart::Polar, Order::PositionFirst) => {
+        (Chart::Polar, EulerOrder::PositionFirst) => {
             lanes(c, start, steps, limit, budget, Polar::<false>)
         }
     }
@@ -229,10 +229,10 @@ fn integrate(
 /// The state of the lanes and what the last energy left for the next step.
 #[derive(Clone, Copy)]
 struct Cells {
-    q: [Lane; 2],
-    p: [Lane; 2],
+    q: [FourLanes; 2],
+    p: [FourLanes; 2],
     /// |q| (Cartesian) or (sin θ, cos θ) (polar) at the current q.
-    shared: [Lane; 2],
+    shared: [FourLanes; 2],
 }
 
 /// One chart's step on all lanes, and its energy. Each operation is a loop over the lanes with
@@ -241,7 +241,7 @@ trait Kernel {
     /// `shared` for the state as it starts.
     fn prime(&self, z: &mut Cells);
     /// One step of every lane; H at the new states into `energy`.
-    fn step(&self, c: &Constants, z: &mut Cells, energy: &mut Lane);
+    fn step(&self, c: &Constants, z: &mut Cells, energy: &mut FourLanes);
 }
 
 /// The loop: every lane one step, its energy deviation summed, the first blow-up noted; the
@@ -252,26 +252,26 @@ fn lanes<K: Kernel>(
     c: &Constants,
     start: &Start,
     steps: u64,
-    limit: &Lane,
+    limit: &FourLanes,
     budget: Budget<'_>,
     kernel: K,
 ) -> Option<Tally> {
     let mut z = Cells {
         q: start.q,
         p: start.p,
-        shared: [[0.0; LANES]; 2],
+        shared: [[0.0; PENDULUM_LANES]; 2],
     };
     kernel.prime(&mut z);
     let mut tally = Tally {
-        sum: [0.0; LANES],
-        blown: [f64::INFINITY; LANES],
-        non_finite: [f64::INFINITY; LANES],
-        max: [0.0; LANES],
-        last: [0.0; LANES],
+        sum: [0.0; PENDULUM_LANES],
+        blown: [f64::INFINITY; PENDULUM_LANES],
+        non_finite: [f64::INFINITY; PENDULUM_LANES],
+        max: [0.0; PENDULUM_LANES],
+        last: [0.0; PENDULUM_LANES],
         q: start.q,
         p: start.p,
     };
-    for i in 0..LANES {
+    for i in 0..PENDULUM_LANES {
         // The first sample, H₀ − H₀: zero, or NaN where H₀ is not finite.
         #[allow(clippy::eq_op)]
         let d = start.energy[i] - start.energy[i];
@@ -285,7 +285,7 @@ fn lanes<K: Kernel>(
             tally.non_finite[i] = 0.0;
         }
     }
-    let mut energy = [0.0; LANES];
+    let mut energy = [0.0; PENDULUM_LANES];
     let mut step = 0u64;
     while step < steps {
         // Before the budget: lanes that are all done (diverged or idle) have their outcome.
@@ -305,7 +305,7 @@ fn lanes<K: Kernel>(
             step += 1;
             kernel.step(c, &mut z, &mut energy);
             let at = step as f64;
-            for i in 0..LANES {
+            for i in 0..PENDULUM_LANES {
                 // `&`, not `&&`: no branches in the lane loop.
                 let finite = (z.q[0][i].abs() < f64::INFINITY)
                     & (z.q[1][i].abs() < f64::INFINITY)
@@ -337,11 +337,11 @@ fn lanes<K: Kernel>(
             // A lane whose state stopped being finite in this block ends, as the one-cell path
             // does, with the state of the step before: run again from the block's start up to
             // that step (the lanes do not touch each other, so its bits are the ones it had).
-            for i in 0..LANES {
+            for i in 0..PENDULUM_LANES {
                 let stopped = tally.non_finite[i];
                 if stopped > block as f64 && stopped <= until as f64 {
                     let mut again = at_block;
-                    let mut scratch = [0.0; LANES];
+                    let mut scratch = [0.0; PENDULUM_LANES];
                     for _ in block + 1..stopped as u64 {
                         kernel.step(c, &mut again, &mut scratch);
                     }
@@ -355,7 +355,7 @@ fn lanes<K: Kernel>(
     }
     {
         // The others end where the run ends.
-        for i in 0..LANES {
+        for i in 0..PENDULUM_LANES {
             if tally.non_finite[i] == f64::INFINITY {
                 for k in 0..2 {
                     tally.q[k][i] = z.q[k][i];
@@ -375,14 +375,14 @@ struct Cartesian<const KICK_FIRST: bool>;
 impl<const KICK_FIRST: bool> Cartesian<KICK_FIRST> {
     #[inline(always)]
     fn norm(z: &mut Cells) {
-        for i in 0..LANES {
+        for i in 0..PENDULUM_LANES {
             z.shared[0][i] = (z.q[0][i] * z.q[0][i] + z.q[1][i] * z.q[1][i]).sqrt();
         }
     }
 
     #[inline(always)]
     fn kick(c: &Constants, z: &mut Cells) {
-        for i in 0..LANES {
+        for i in 0..PENDULUM_LANES {
             let factor = if c.k == 0.0 {
                 0.0
             } else {
@@ -395,7 +395,7 @@ impl<const KICK_FIRST: bool> Cartesian<KICK_FIRST> {
 
     #[inline(always)]
     fn drift(c: &Constants, z: &mut Cells) {
-        for i in 0..LANES {
+        for i in 0..PENDULUM_LANES {
             z.q[0][i] += c.h * (z.p[0][i] * c.inv_m);
             z.q[1][i] += c.h * (z.p[1][i] * c.inv_m);
         }
@@ -410,7 +410,7 @@ impl<const KICK_FIRST: bool> Kernel for Cartesian<KICK_FIRST> {
     }
 
     #[inline(always)]
-    fn step(&self, c: &Constants, z: &mut Cells, energy: &mut Lane) {
+    fn step(&self, c: &Constants, z: &mut Cells, energy: &mut FourLanes) {
         if KICK_FIRST {
             Self::kick(c, z);
             Self::drift(c, z);
@@ -418,7 +418,7 @@ impl<const KICK_FIRST: bool> Kernel for Cartesian<KICK_FIRST> {
             Self::drift(c, z);
             Self::kick(c, z);
         }
-        for i in 0..LANES {
+        for i in 0..PENDULUM_LANES {
             let (px, py) = (z.p[0][i], z.p[1][i]);
             let kinetic = 0.5 * (px * px + py * py) / c.m;
             let stretch = z.shared[0][i] - c.l;
@@ -436,7 +436,7 @@ impl<const MOMENTUM_FIRST: bool> Polar<MOMENTUM_FIRST> {
     /// sin θ, cos θ: the library's, lane by lane.
     #[inline(always)]
     fn turn(z: &mut Cells) {
-        for i in 0..LANES {
+        for i in 0..PENDULUM_LANES {
             (z.shared[0][i], z.shared[1][i]) = z.q[1][i].sin_cos();
         }
     }
@@ -449,11 +449,11 @@ impl<const MOMENTUM_FIRST: bool> Kernel for Polar<MOMENTUM_FIRST> {
     }
 
     #[inline(always)]
-    fn step(&self, c: &Constants, z: &mut Cells, energy: &mut Lane) {
+    fn step(&self, c: &Constants, z: &mut Cells, energy: &mut FourLanes) {
         if MOMENTUM_FIRST {
             // p_θ first (∂H/∂θ holds no p), p_r with the new p_θ, then q with the new p and the
             // old r.
-            for i in 0..LANES {
+            for i in 0..PENDULUM_LANES {
                 let (r, pr, pt) = (z.q[0][i], z.p[0][i], z.p[1][i]);
                 let (sin, cos) = (z.shared[0][i], z.shared[1][i]);
                 let pt1 = pt - c.hmg * r * sin;
@@ -467,13 +467,13 @@ impl<const MOMENTUM_FIRST: bool> Kernel for Polar<MOMENTUM_FIRST> {
             Self::turn(z);
         } else {
             // r first (ṙ holds no q), θ with the new r, then p from ∂H/∂q at the new q.
-            for i in 0..LANES {
+            for i in 0..PENDULUM_LANES {
                 let r1 = z.q[0][i] + c.h * z.p[0][i] / c.m;
                 z.q[0][i] = r1;
                 z.q[1][i] += c.h * z.p[1][i] / (c.m * r1 * r1);
             }
             Self::turn(z);
-            for i in 0..LANES {
+            for i in 0..PENDULUM_LANES {
                 let (r1, pt) = (z.q[0][i], z.p[1][i]);
                 let (sin, cos) = (z.shared[0][i], z.shared[1][i]);
                 let mut dh_dr = c.k * (r1 - c.l) - c.mg * cos;
@@ -483,7 +483,7 @@ impl<const MOMENTUM_FIRST: bool> Kernel for Polar<MOMENTUM_FIRST> {
                 z.p[1][i] += -c.h * dh_dth;
             }
         }
-        for i in 0..LANES {
+        for i in 0..PENDULUM_LANES {
             let (r, pr, pt, cos) = (z.q[0][i], z.p[0][i], z.p[1][i], z.shared[1][i]);
             let kinetic = 0.5 * (pr * pr + pt * pt / (r * r)) / c.m;
             let stretch = r - c.l;

@@ -1,3 +1,6 @@
+//! A system in SIMD lanes: [`LaneForces`], the velocity, force, Hessian and damping of
+//! [`LANES`] points at once, which the lanes of `methods::lanes` step with.
+//!
 //! Lanes whose runs differ in more than their initial states: one system per lane, so that a
 //! sweep over a parameter (or over the step, a group of cells at a time sharing it) runs side by
 //! side. Each lane evaluates its own system one point at a time ([`PointForces`]), with the
@@ -13,7 +16,34 @@
 use nalgebra::allocator::Allocator;
 use nalgebra::{DefaultAllocator, U1};
 
-use crate::system::{Lane, LaneForces, MechanicalSystem, Vector, LANES};
+use super::{Lane, MechanicalSystem, Vector, LANES};
+use crate::flows::compiled::{SharedStretch, StretchPlan};
+
+/// A separable system with constant mass whose velocity, force and Hessian the lanes evaluate,
+/// each lane with exactly the arithmetic of the system's own `velocity`, `grad_potential` and
+/// `hess_potential` (an exact Hessian, which costs no gradient evaluations).
+pub trait LaneForces<const N: usize> {
+    /// Whether this instance evaluates in lanes (a system type may do so only for some of its
+    /// instances).
+    fn in_lanes(&self) -> bool {
+        true
+    }
+    /// v = M⁻¹p.
+    fn velocity_lanes(&self, p: &[Lane; N], v: &mut [Lane; N]);
+    /// ∇V(q).
+    fn grad_lanes(&self, q: &[Lane; N], g: &mut [Lane; N]);
+    /// ∇²V(q), row i and column j in `hess[i][j]`.
+    fn hessian_lanes(&self, q: &[Lane; N], hess: &mut [[Lane; N]; N]);
+    /// The exact damping flow over τ, lane l's with the coefficient c[l] = 1 − e^{−r τ} of its
+    /// rate r, as the system's `damp_flow` ([`damp_each_lane`]).
+    fn damp_lanes(&self, q: &[Lane; N], p: &mut [Lane; N], tau: f64, c: &Lane);
+    /// Native code for the plain runs' stretches of `plan` in lanes, once the system's runs
+    /// have taken `steps` more steps without it (see [`MechanicalSystem::compile_stretch`]);
+    /// built-in systems have none.
+    fn compile_lanes(&self, _plan: &StretchPlan, _steps: u64) -> Option<SharedStretch> {
+        None
+    }
+}
 
 /// A separable system with constant mass, one point at a time: what [`LaneForces`] evaluates for
 /// sixteen points of one system, for one point of one lane's system.

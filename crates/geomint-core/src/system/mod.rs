@@ -132,47 +132,10 @@ impl Requirement {
     }
 }
 
-// Lanes: a study runs many cells of one system side by side (`methods::lanes`); a system whose
-// forces can be evaluated for all of them at once says so by implementing `LaneForces`.
+pub mod lanes;
 
-/// Runs side by side: four registers of four with AVX2, two of eight with AVX-512. One register
-/// of four would leave the CPU waiting on each operation's latency along the step's chain
-/// (drift, force, kick); with several independent registers per operation it overlaps them.
-/// On the Hénon–Heiles MEGNO map sixteen lanes (AVX-512) with the one-vector sums in lanes took
-/// 8.2 ns per cell-step against 16.2 ns for four (README, chaos maps).
-pub const LANES: usize = 16;
-/// One value per lane.
-pub type Lane = [f64; LANES];
-
-/// A separable system with constant mass whose velocity, force and Hessian the lanes evaluate,
-/// each lane with exactly the arithmetic of the system's own `velocity`, `grad_potential` and
-/// `hess_potential` (an exact Hessian, which costs no gradient evaluations).
-pub trait LaneForces<const N: usize> {
-    /// Whether this instance evaluates in lanes (a system type may do so only for some of its
-    /// instances).
-    fn in_lanes(&self) -> bool {
-        true
-    }
-    /// v = M⁻¹p.
-    fn velocity_lanes(&self, p: &[Lane; N], v: &mut [Lane; N]);
-    /// ∇V(q).
-    fn grad_lanes(&self, q: &[Lane; N], g: &mut [Lane; N]);
-    /// ∇²V(q), row i and column j in `hess[i][j]`.
-    fn hessian_lanes(&self, q: &[Lane; N], hess: &mut [[Lane; N]; N]);
-    /// The exact damping flow over τ, lane l's with the coefficient c[l] = 1 − e^{−r τ} of its
-    /// rate r, as the system's `damp_flow` (`methods::lanes::each::damp_each_lane`).
-    fn damp_lanes(&self, q: &[Lane; N], p: &mut [Lane; N], tau: f64, c: &Lane);
-    /// Native code for the plain runs' stretches of `plan` in lanes, once the system's runs
-    /// have taken `steps` more steps without it (see [`MechanicalSystem::compile_stretch`]);
-    /// built-in systems have none.
-    fn compile_lanes(
-        &self,
-        _plan: &crate::methods::splitting::compiled::StretchPlan,
-        _steps: u64,
-    ) -> Option<crate::methods::splitting::compiled::SharedStretch> {
-        None
-    }
-}
+pub use crate::flows::{Lane, LANES};
+pub use lanes::LaneForces;
 
 /// A Hamiltonian system with Rayleigh damping. See the module docs for the model.
 pub trait MechanicalSystem: Sync
@@ -381,9 +344,9 @@ where
     /// bits.
     fn compile_stretch(
         &self,
-        _plan: &crate::methods::splitting::compiled::StretchPlan,
+        _plan: &crate::flows::compiled::StretchPlan,
         _steps: u64,
-    ) -> Option<crate::methods::splitting::compiled::SharedStretch> {
+    ) -> Option<crate::flows::compiled::SharedStretch> {
         None
     }
 
@@ -391,10 +354,10 @@ where
     /// system, as [`compile_stretch`](Self::compile_stretch) for the splittings.
     fn compile_steps(
         &self,
-        _tableau: &crate::methods::runge_kutta::Tableau,
+        _tableau: &crate::flows::Tableau,
         _h: f64,
         _steps: u64,
-    ) -> Option<crate::methods::splitting::compiled::SharedStretch> {
+    ) -> Option<crate::flows::compiled::SharedStretch> {
         None
     }
 
@@ -518,7 +481,7 @@ pub mod projector {
             return;
         }
         sys.project_damped(q, p, w);
-        p.axpy(-c, w, 1.0);
+        crate::flows::decay(p.as_mut_slice(), w.as_slice(), c);
     }
 
     /// p ← p − τ g + P(q)(−c p + d g), with c = 1 − e^{−rτ} and d = τ(1 − φ₁(−rτ)).
@@ -536,12 +499,9 @@ pub mod projector {
     ) where
         DefaultAllocator: Allocator<S::Dim>,
     {
-        w.copy_from(p);
-        *w *= -c;
-        w.axpy(d, g, 1.0);
+        crate::flows::kick_damp_increment(p.as_slice(), g.as_slice(), (c, d), w.as_mut_slice());
         sys.project_damped(q, w, pw);
-        p.axpy(-tau, g, 1.0);
-        *p += &*pw;
+        crate::flows::kick_damp(p.as_mut_slice(), g.as_slice(), tau, pw.as_slice());
     }
 
     /// p ← (I + aP)⁻¹ p = p − a/(1 + a) P p with a = θ r τ.
