@@ -81,6 +81,8 @@ pub mod paths {
     pub const SWEEP: &str = "/api/v1/studies/sweep";
     /// Ready-made sweeps.
     pub const SWEEP_PRESETS: &str = "/api/v1/studies/sweep/presets";
+    /// Basin maps.
+    pub const BASINS: &str = "/api/v1/studies/basins";
     /// The OpenAPI document.
     pub const OPENAPI: &str = "/api/v1/openapi.json";
     /// Stored recordings.
@@ -110,6 +112,7 @@ pub fn routes(config: &Config) -> OpenApiRouter<AppState> {
         .routes(routes!(studies::convergence))
         .routes(routes!(studies::sweep))
         .routes(routes!(studies::sweep_presets))
+        .routes(routes!(studies::basins))
         .routes(routes!(handlers::openapi_json))
         .routes(routes!(recordings::list_recordings))
         .routes(routes!(

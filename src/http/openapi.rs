@@ -10,6 +10,7 @@ use super::answer::{AnyFormat, RecordFormat, StreamFormat};
 use super::error::ErrorBody;
 use super::handlers;
 use super::recordings::{ListedRecording, RecordingCreated};
+use crate::api::basins::BasinsRequest;
 use crate::api::stability::{PointRequest, StabilityRequest};
 use crate::api::studies::{ConvergenceRequest, EnergyMapRequest, WorkPrecisionRequest};
 use crate::api::sweep::{Preset, SweepRequest};
@@ -17,6 +18,7 @@ use crate::api::system::SystemDefinition;
 use crate::api::SimulateRequest;
 use crate::core::methods::MethodInfo;
 use crate::core::simulation::{SimulationDocument, StreamLine};
+use crate::core::studies::basins::{BasinsDocument, BasinsLine};
 use crate::core::studies::convergence::{ConvergenceDocument, ConvergenceLine};
 use crate::core::studies::energy_map::{EnergyMapDocument, MapLine};
 use crate::core::studies::stability::{PointDocument, StabilityDocument};
@@ -57,6 +59,9 @@ use crate::store::systems::{StoredSystem, SystemEntry};
         SweepRequest,
         SweepDocument,
         SweepLine,
+        BasinsRequest,
+        BasinsDocument,
+        BasinsLine,
         Preset,
         SystemInfo,
         SystemEntry,

@@ -1,5 +1,5 @@
 //! The study routes: `POST /api/v1/studies/work-precision`, `/convergence`, `/energy-map` and
-//! `/sweep`, and `GET /api/v1/studies/sweep/presets` (see [`crate::core::studies`]).
+//! `/sweep` and `/basins`, and `GET /api/v1/studies/sweep/presets` (see [`crate::core::studies`]).
 //!
 //! A study is validated first (cheap), then takes its simulation slots — one for a
 //! work–precision study, whose settings run one after another so that their wall times compare;
@@ -24,10 +24,12 @@ use super::extract::ApiJson;
 use super::paths;
 use super::recordings::RrdFile;
 use super::state::{AppState, Cost};
+use crate::api::basins::BasinsRequest;
 use crate::api::studies::{ConvergenceRequest, EnergyMapRequest, WorkPrecisionRequest};
 use crate::api::sweep::{self as presets, Preset, SweepRequest};
 use crate::core::error::{CoreError, ErrorDetail};
 use crate::core::run::Budget;
+use crate::core::studies::basins::{self, BasinsDocument, BasinsLine};
 use crate::core::studies::convergence::{self, ConvergenceDocument, ConvergenceLine};
 use crate::core::studies::energy_map::{self, EnergyMapDocument, MapLine};
 use crate::core::studies::engine::{Order, Study};
@@ -334,4 +336,62 @@ pub async fn sweep(
     responses((status = 200, description = "The presets", body = Vec<Preset>)))]
 pub async fn sweep_presets() -> axum::Json<Vec<Preset>> {
     axum::Json(presets::presets())
+}
+
+/// Runs a basin map: over a grid of initial states, where each orbit ends up — the well a damped
+/// orbit settles in (decided by the energy argument once its energy is below the lowest saddle),
+/// the periodic orbit of a driven system's stroboscopic map it locks onto, the exit it leaves
+/// through — with per run one label per cell, the time it was decided, the attractors' table,
+/// each basin's share, the basin entropy, the boundary basin entropy and the uncertainty
+/// exponent. Each cell stops as soon as its outcome is decided.
+#[utoipa::path(post, path = paths::BASINS, tag = "studies",
+    request_body(content = BasinsRequest, content_type = "application/json"),
+    params(("Accept" = Option<String>, Header,
+        description = "`application/x-ndjson` streams progress lines (see BasinsLine)"),
+        ("format" = Option<StreamFormat>, Query,
+        description = "`ndjson` as the Accept header; `json` (default)")),
+    responses(
+        (status = 200, description = "The map",
+            content((BasinsDocument = "application/json"), (BasinsLine = "application/x-ndjson"))),
+        (status = 422, description = "A field is unknown, missing, of the wrong type or out of range \
+            (e.g. `axes[0].name` is not a component of the initial state, `exits[1].where` does not \
+            parse, `recognition.period` is missing for a driven system); an unknown system, chart or \
+            method; more than 401 points per axis or 2·10¹⁰ steps in all", body = ErrorBody),
+        JsonRefusals, SlotsBusy,
+    ))]
+pub async fn basins(
+    State(state): State<AppState>,
+    headers: HeaderMap,
+    Query(query): Query<BTreeMap<String, String>>,
+    client: Client,
+    ApiJson(body): ApiJson,
+) -> Result<Response, ApiError> {
+    let format = Format::requested(&query, &headers, &[Format::Json, Format::Ndjson])?;
+    let (request, sweep) = BasinsRequest::from_value(&body)?;
+    let job = request
+        .to_spec(&sweep, &*state.systems)?
+        .prepare(&state.config.limits)?;
+    let work = Work::admit(&state, slots(&state, &job), Cost::Study, client).await?;
+    tracing::info!(
+        cells = job.cells(),
+        runs = job.runs().len(),
+        distributed = state.executor.distributes(&job),
+        "basin map started"
+    );
+    let executor = state.executor.clone();
+    answer(
+        work,
+        format,
+        move |budget, emit: &(dyn Fn(BasinsLine) -> bool + Sync)| {
+            basins::run(&job, &executor, budget, emit)
+        },
+        (
+            |doc: BasinsDocument| BasinsLine::Result(Box::new(doc)),
+            |error| BasinsLine::Error { error },
+            || BasinsLine::End,
+        ),
+        |doc: &BasinsDocument| serde_json::to_vec(doc).map_err(ApiError::internal),
+        "geomint-basins.rrd",
+    )
+    .await
 }

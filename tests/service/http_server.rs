@@ -31,7 +31,7 @@ async fn openapi_lists_every_route() {
         .collect();
     // The router and the document come from one registration (`http::routes`); every
     // documented route must answer below.
-    assert_eq!(documented.len(), 22, "{documented:?}");
+    assert_eq!(documented.len(), 23, "{documented:?}");
     // Two stored recordings: one to download, one to delete.
     let mut ids = Vec::new();
     for _ in 0..2 {
@@ -101,6 +101,8 @@ async fn openapi_lists_every_route() {
                 "methods": ["rk4"], "h": [0.1, 0.05]}),
             "/api/v1/studies/sweep" => json!({"system": "pendulum", "t_end": 1, "h": 0.1,
                 "methods": ["rk4"], "axes": [{"name": "params.gamma", "min": 0, "max": 1, "n": 3}]}),
+            "/api/v1/studies/basins" => json!({"system": "pendulum", "t_end": 10, "h": 0.1,
+                "methods": ["modin_3s"], "axes": [{"name": "q0[0]", "min": -1, "max": 1, "n": 3}]}),
             "/api/v1/systems" => definition.clone(),
             _ => pendulum_request(),
         };

@@ -24,6 +24,7 @@ mod http;
 mod http_access;
 mod http_access_log;
 mod http_allowed;
+mod http_basins;
 mod http_charts;
 mod http_cli;
 mod http_convergence;

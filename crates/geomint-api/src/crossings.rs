@@ -141,7 +141,7 @@ pub const STOP_FIELDS: &[&str] = &[
 const ENERGY_FIELDS: &[&str] = &["value", "momentum"];
 
 /// `up`, `down` or `both`.
-fn direction(v: &Value, field: &Field) -> Result<String, ErrorDetail> {
+pub(crate) fn direction(v: &Value, field: &Field) -> Result<String, ErrorDetail> {
     let name = string(v, field)?;
     match Direction::parse(&name) {
         Some(_) => Ok(name),

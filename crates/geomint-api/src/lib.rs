@@ -4,6 +4,7 @@
 //! core streams. The OpenAPI schemas of the requests are derived from the same types.
 //!
 //! - [`allowed`]: which points of a section's plane can start an orbit at an energy.
+//! - [`basins`]: basin maps (a sweep's grid with exits and recognition settings).
 //! - [`chaos`]: chaos indicators, thresholds and energy surfaces.
 //! - [`crossings`]: a simulation's section, `stop_when` and energy level.
 //! - [`json`]: JSON text into a value, and the field-by-field reader.
@@ -20,6 +21,7 @@
 use geomint_core as core;
 
 pub mod allowed;
+pub mod basins;
 pub mod chaos;
 pub mod crossings;
 pub mod json;

@@ -8,6 +8,9 @@
 //!   state), per cell and run energy errors, invariant drift and divergence.
 //! - [`energy_map`]: energy-error maps of the planar elastic pendulum, Cartesian against polar
 //!   coordinates (paper 001 Fig. 6): a sweep, and its document.
+//! - [`basins`]: where each orbit of a grid of initial states ends up (an equilibrium, a
+//!   periodic orbit of a driven system, an exit), decided cell by cell as early as it can be,
+//!   with the basin entropy and the uncertainty exponent.
 //! - [`stability`]: linear stability maps over (γ, h), a cell per row, and the analysis at one
 //!   point (paper 003 Ch. 3).
 //! - [`convergence`]: errors at t_end against the step size, per method and chart, with the
@@ -25,6 +28,7 @@
 //! [`StudyStop::TimeLimit`], rather than failing: the time limit depends on the machine's load,
 //! and the finished part is the client's.
 
+pub mod basins;
 pub mod convergence;
 pub mod energy_map;
 pub mod engine;
@@ -59,4 +63,6 @@ pub enum StudySpec {
     Convergence(convergence::ConvergenceSpec),
     /// A work–precision study.
     WorkPrecision(work_precision::WorkPrecisionSpec),
+    /// A basin map.
+    Basins(basins::BasinsSpec),
 }

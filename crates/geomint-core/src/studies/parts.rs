@@ -8,6 +8,7 @@ use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 
+use super::basins::outcome::CellOutcome;
 use super::convergence::{self, ConvergencePoint};
 use super::engine::{Executor, Local, Study};
 use super::sweep::RunMetrics;
@@ -201,6 +202,8 @@ pub enum AnyPart {
     Convergence(Part<ConvergencePoint>),
     /// A work–precision study's settings.
     WorkPrecision(Part<WorkPrecisionPoint>),
+    /// A basin map's cells.
+    Basins(Part<Vec<CellOutcome>>),
 }
 
 impl AnyPart {
@@ -211,6 +214,7 @@ impl AnyPart {
             AnyPart::Stability(p) => p.cells.len(),
             AnyPart::Convergence(p) => p.cells.len(),
             AnyPart::WorkPrecision(p) => p.cells.len(),
+            AnyPart::Basins(p) => p.cells.len(),
         }
     }
 
@@ -248,6 +252,10 @@ pub fn run_part(
             let job = s.prepare(limits)?;
             let study = work_precision::study(&job, job.truth(Budget::default())?);
             AnyPart::WorkPrecision(run_shard(&study, spec.clone(), shard, &|i, _| tick(i))?)
+        }
+        StudySpec::Basins(s) => {
+            let job = s.prepare(limits)?;
+            AnyPart::Basins(run_shard(&job, spec.clone(), shard, &|i, _| tick(i))?)
         }
     })
 }

@@ -8,6 +8,7 @@
 #[allow(dead_code)]
 mod common;
 
+mod basins;
 mod blanes_moan;
 mod blocks;
 mod chaos;

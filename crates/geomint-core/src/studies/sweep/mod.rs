@@ -158,7 +158,11 @@ impl SweepJob {
 
     /// Run `run` at the grid point `point`, prepared: on the energy surface, with the
     /// indicators, against the reference run when the sweep measures against it.
-    fn cell_simulation(&self, run: usize, point: &[f64]) -> Result<Simulation, CoreError> {
+    pub(crate) fn cell_simulation(
+        &self,
+        run: usize,
+        point: &[f64],
+    ) -> Result<Simulation, CoreError> {
         let spec = self.cell_spec_on_surface(run, point)?;
         let mut sim = self.with_extras(Simulation::prepare(&spec, &self.limits)?)?;
         sim.compare_to_reference = self.against == EnergyReference::Reference;
@@ -323,6 +327,22 @@ impl SweepJob {
         document
     }
 
+    /// The grid's axes as documents show them.
+    pub fn axis_documents(&self) -> Vec<AxisDocument> {
+        self.grid
+            .axes
+            .iter()
+            .map(|a| AxisDocument {
+                name: a.target.name(),
+                min: a.min,
+                max: a.max,
+                n: a.n,
+                scale: a.scale,
+                values: a.values(),
+            })
+            .collect()
+    }
+
     /// The document of the sweep from every cell's results, in cell order.
     pub fn document(&self, cells: Vec<Vec<RunMetrics>>, wall_ms: f64) -> SweepDocument {
         let names = self.invariant_names();
@@ -344,19 +364,7 @@ impl SweepJob {
         }
         SweepDocument {
             system: self.info.id.to_string(),
-            axes: self
-                .grid
-                .axes
-                .iter()
-                .map(|a| AxisDocument {
-                    name: a.target.name(),
-                    min: a.min,
-                    max: a.max,
-                    n: a.n,
-                    scale: a.scale,
-                    values: a.values(),
-                })
-                .collect(),
+            axes: self.axis_documents(),
             cells: self.cells(),
             energy_reference: self.against,
             invariants: names,

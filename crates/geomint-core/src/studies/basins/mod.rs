@@ -1,0 +1,754 @@
+//! Basins: where each orbit of a grid of initial states ends up — the well a damped orbit
+//! settles in, the periodic response a driven one locks onto, the exit an open system's orbit
+//! leaves through — and how finely those outcomes are interleaved ([`metrics`]).
+//!
+//! A basin map is a sweep over initial-state axes ([`super::sweep`]: the same body, grid, energy
+//! surface and cell order) whose cells end their runs as soon as their outcome is decided
+//! ([`outcome`]); the criteria are exact where the physics allows (the energy argument of
+//! [`landscape`] for systems nothing drives, located crossings of the exits) and a recurrence
+//! test on the stroboscopic map for driven systems. Labels are given after all cells are done,
+//! in the order outcomes first appear in cell order, so the document is the same bit for bit
+//! on any executor, in shards or on NATS workers.
+
+pub mod landscape;
+pub mod metrics;
+pub mod outcome;
+
+use std::ops::Range;
+use std::sync::Arc;
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{CoreError, ErrorDetail, Field};
+use crate::methods;
+use crate::run::{integrate, Budget, Schedule, StopReason};
+use crate::sections::names::StateNames;
+use crate::sections::{Direction, Surface};
+use crate::simulation::{Limits, Simulation};
+use crate::studies::engine::{self, Executor, Finished, Progress, Study};
+use crate::studies::sweep::{AxisDocument, RunLabel, SweepJob, SweepSpec, Target};
+use crate::studies::{StudySpec, StudyStop};
+use crate::system::{MechanicalSystem, State};
+use crate::{with_stepper, with_system};
+use landscape::{CriticalPoint, Landscape};
+use metrics::{basin_metrics, BasinMetrics};
+use outcome::{CellOutcome, Criteria, Decide, Exit, Outcome, Stroboscope};
+
+/// Most exits.
+pub const MAX_EXITS: usize = 16;
+/// Most distinct outcomes one run of a map may have (labels past it would not fit a legend,
+/// and mean the recognition's tolerance is too tight for the attractor).
+pub const MAX_ATTRACTORS: usize = 64;
+/// The longest period looked for on a stroboscopic map, at most.
+pub const MAX_PERIOD: usize = 64;
+
+/// An exit surface as asked for.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ExitSpec {
+    /// Its name (unique).
+    pub name: String,
+    /// S(q, p, t), in the section language.
+    pub text: String,
+    /// Which crossings of S = 0 leave.
+    pub direction: Direction,
+    /// Where the request gave it (`exits[i]`).
+    pub field: Field,
+}
+
+/// How attractors are recognised.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Recognition {
+    /// The driving period T of a driven system (its stroboscopic map samples t = kT); required
+    /// for one, refused for a system nothing drives.
+    pub period: Option<f64>,
+    /// The longest period looked for on the stroboscopic map, in driving periods (default 8).
+    pub max_period: usize,
+    /// How close points one period apart must be, in every component (default 1e-6).
+    pub tolerance: f64,
+    /// A component beyond this has escaped to infinity (default 1e6).
+    pub escape_radius: f64,
+    /// Where the request gave it (`recognition`).
+    pub field: Field,
+}
+
+impl Default for Recognition {
+    fn default() -> Self {
+        Recognition {
+            period: None,
+            max_period: 8,
+            tolerance: 1e-6,
+            escape_radius: 1e6,
+            field: Field::new("recognition"),
+        }
+    }
+}
+
+/// A basin map as asked for.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BasinsSpec {
+    /// The grid, system and methods, as a sweep's (no indicators, section or energy reference).
+    pub sweep: SweepSpec,
+    /// The exits, if any.
+    pub exits: Vec<ExitSpec>,
+    /// How attractors are recognised.
+    pub recognition: Recognition,
+}
+
+/// A validated basin map.
+pub struct BasinsJob {
+    sweep: SweepJob,
+    criteria: Arc<Criteria>,
+    exit_names: Vec<String>,
+    spec: BasinsSpec,
+}
+
+impl BasinsSpec {
+    /// Validates the map and prepares what every cell looks for: the landscape of a system
+    /// nothing drives, the exits compiled, the stroboscope of a driven one. Errors name the
+    /// field.
+    pub fn prepare(&self, limits: &Limits) -> Result<BasinsJob, CoreError> {
+        if self.sweep.charts.len() > 1 {
+            return Err(CoreError::Unsupported {
+                field: Field::new("charts"),
+                reason: "a basin map runs in one chart: its exits and equilibria are in that \
+                         chart's coordinates",
+            });
+        }
+        if self.exits.len() > MAX_EXITS {
+            return Err(CoreError::Count {
+                field: Field::new("exits"),
+                got: self.exits.len() as u64,
+                min: 0,
+                max: MAX_EXITS as u64,
+                what: "exits",
+            });
+        }
+        for (i, exit) in self.exits.iter().enumerate() {
+            if self.exits[..i].iter().any(|e| e.name == exit.name) {
+                return Err(CoreError::Duplicate {
+                    field: exit.field.key("name"),
+                    value: exit.name.clone(),
+                });
+            }
+        }
+        let sweep = self.sweep.prepare(limits)?;
+        for axis in &sweep.grid.axes {
+            if !matches!(axis.target, Target::Q0(_) | Target::P0(_)) {
+                return Err(CoreError::Unsupported {
+                    field: axis.field.key("name"),
+                    reason: "a basin map's axes are components of the initial state (`q0[i]`, \
+                             `p0[i]`): its landscape and attractors belong to one system at one \
+                             step size",
+                });
+            }
+        }
+        let recognition = &self.recognition;
+        let r = &recognition.field;
+        crate::error::Range::POSITIVE.check(recognition.tolerance, &r.key("tolerance"))?;
+        crate::error::Range::POSITIVE.check(recognition.escape_radius, &r.key("escape_radius"))?;
+        crate::error::Range::closed(1.0, false, MAX_PERIOD as f64)
+            .check(recognition.max_period as f64, &r.key("max_period"))?;
+        // The system as every cell has it (the axes move only the initial state).
+        let sim = some_simulation(&sweep)?;
+        let names = StateNames::of(&sim.info, &sim.chart, &sim.params, sim.q0.len());
+        let exits = self
+            .exits
+            .iter()
+            .map(|e| {
+                Ok(Exit {
+                    name: e.name.clone(),
+                    surface: Surface::expression(&e.text, &names, &e.field.key("where"))?,
+                    direction: e.direction,
+                })
+            })
+            .collect::<Result<Vec<_>, CoreError>>()?;
+        let (clock, damped) = with_system!(&sim.system, s => (s.clock(), s.damping_rate() != 0.0));
+        let stroboscope = match (clock, recognition.period) {
+            (Some(_), None) => {
+                return Err(CoreError::Unsupported {
+                    field: r.key("period"),
+                    reason: "a driven system's attractors are recognised on its stroboscopic \
+                             map: give the driving period T",
+                })
+            }
+            (None, Some(_)) => {
+                return Err(CoreError::Unsupported {
+                    field: r.key("period"),
+                    reason: "nothing drives this system: its attractors are found from its \
+                             energy, and there is no driving period",
+                })
+            }
+            (None, None) => None,
+            (Some(_), Some(period)) => {
+                let at = r.key("period");
+                crate::error::Range::POSITIVE.check(period, &at)?;
+                let h = sim.schedule.h;
+                let steps = (period / h).round();
+                if steps < 1.0 || ((steps * h - period) / period).abs() > 1e-9 {
+                    return Err(CoreError::NotADivisor {
+                        field: Field::new("h"),
+                        h,
+                        span: period,
+                        span_name: "recognition.period",
+                        purpose: "so that the stroboscopic map's points are step endpoints",
+                        show_ratio: true,
+                    });
+                }
+                Some(Stroboscope {
+                    steps: steps as u64,
+                    max_period: recognition.max_period,
+                    tolerance: recognition.tolerance,
+                })
+            }
+        };
+        if clock.is_none() && !damped && exits.is_empty() {
+            return Err(CoreError::Unsupported {
+                field: Field::new("exits"),
+                reason: "an undamped system that nothing drives settles nowhere: give exits to \
+                         map where its orbits leave, or damping",
+            });
+        }
+        let landscape = match clock {
+            Some(_) => None,
+            None => Some(
+                search_box(&sweep, &sim)
+                    .map(|(lo, hi)| with_system!(&sim.system, s => Landscape::find(s, &lo, &hi)))?,
+            ),
+        };
+        let criteria = Criteria {
+            exits,
+            landscape,
+            damped,
+            stroboscope,
+            escape_radius: recognition.escape_radius,
+            clock,
+        };
+        Ok(BasinsJob {
+            exit_names: self.exits.iter().map(|e| e.name.clone()).collect(),
+            sweep,
+            criteria: Arc::new(criteria),
+            spec: self.clone(),
+        })
+    }
+}
+
+/// A cell's simulation, the centre's if it starts an orbit (it may lie off the energy surface),
+/// else the first cell's that does; the centre's error when none does.
+fn some_simulation(sweep: &SweepJob) -> Result<Simulation, CoreError> {
+    let cells = sweep.grid.cells();
+    let centre = sweep.cell_simulation(0, &sweep.grid.point(cells / 2));
+    match centre {
+        Ok(sim) => Ok(sim),
+        Err(e) => (0..cells)
+            .find_map(|cell| sweep.cell_simulation(0, &sweep.grid.point(cell)).ok())
+            .ok_or(e),
+    }
+}
+
+/// The box of positions the map starts from: the chart's positions at the grid's corners and
+/// centre.
+fn search_box(sweep: &SweepJob, centre: &Simulation) -> Result<(Vec<f64>, Vec<f64>), CoreError> {
+    let mut lo = centre.q0.clone();
+    let mut hi = centre.q0.clone();
+    let axes = &sweep.grid.axes;
+    for corner in 0..(1usize << axes.len()) {
+        let point: Vec<f64> = axes
+            .iter()
+            .enumerate()
+            .map(|(k, a)| if corner >> k & 1 == 0 { a.min } else { a.max })
+            .collect();
+        // A corner off the energy surface or outside the chart starts no orbit.
+        let Ok(sim) = sweep.cell_simulation(0, &point) else {
+            continue;
+        };
+        for (i, &x) in sim.q0.iter().enumerate() {
+            lo[i] = lo[i].min(x);
+            hi[i] = hi[i].max(x);
+        }
+    }
+    Ok((lo, hi))
+}
+
+impl BasinsJob {
+    /// The runs (method × chart), as a sweep's.
+    pub fn runs(&self) -> &[RunLabel] {
+        &self.sweep.runs
+    }
+
+    /// The landscape the energy argument uses, for a system nothing drives.
+    pub fn landscape(&self) -> Option<&Landscape> {
+        self.criteria.landscape.as_ref()
+    }
+
+    /// Run `run` of the cell at `point`, to its outcome; `None` when the budget stopped it.
+    fn run_cell(&self, run: usize, point: &[f64], budget: Budget<'_>) -> Option<CellOutcome> {
+        let failed = |e: CoreError| CellOutcome {
+            outcome: Outcome::Failed {
+                error: e.to_string(),
+            },
+            decided_at: None,
+            steps: 0,
+            energy_margin: None,
+        };
+        let sim = match self.sweep.cell_simulation(run, point) {
+            Ok(sim) => sim,
+            Err(e) => return Some(failed(e)),
+        };
+        let result = with_system!(&sim.system, sys => {
+            self.decide(sys, &sim, budget)
+        });
+        match result {
+            Ok(cell) => cell,
+            Err(e) => Some(failed(e)),
+        }
+    }
+
+    fn decide<S: MechanicalSystem>(
+        &self,
+        sys: &S,
+        sim: &Simulation,
+        budget: Budget<'_>,
+    ) -> Result<Option<CellOutcome>, CoreError>
+    where
+        nalgebra::DefaultAllocator: nalgebra::allocator::Allocator<S::Dim>,
+    {
+        let start = State::at_time(sys, 0.0, &sim.q0, &sim.p0);
+        let mut decide = Decide::new(sys, &self.criteria, &start, sim.q0.len());
+        let mut steps = 0;
+        let mut stop = StopReason::Finished;
+        let t_end = sim.schedule.steps as f64 * sim.schedule.h;
+        if decide.decided.is_none() {
+            let mut stepper =
+                methods::build(&sim.methods[0], sys, &sim.system_label, sim.schedule.h)?;
+            let mut z = start.clone();
+            // One sample, at the end: the observer watches every step itself.
+            let schedule = Schedule {
+                every: sim.schedule.steps.max(1),
+                ..sim.schedule
+            };
+            let (why, stats) = with_stepper!(&mut stepper, st => {
+                integrate(sys, st, &mut z, schedule, budget, false, &mut decide)
+            })?;
+            steps = stats.steps;
+            stop = why;
+        }
+        let (outcome, decided_at, energy_margin) = match (decide.decided.take(), stop) {
+            (Some((outcome, t, margin)), _) => (outcome, Some(t), margin),
+            (None, StopReason::Cancelled { .. } | StopReason::TimeLimit { .. }) => return Ok(None),
+            (None, StopReason::Diverged { t, .. }) => (Outcome::Diverged, Some(t), None),
+            (None, _) if !self.criteria.exits.is_empty() => (Outcome::Stayed, Some(t_end), None),
+            (None, _) => (
+                Outcome::Undecided {
+                    reason: self.undecided_reason().into(),
+                },
+                None,
+                None,
+            ),
+        };
+        Ok(Some(CellOutcome {
+            outcome,
+            decided_at,
+            steps,
+            energy_margin,
+        }))
+    }
+
+    fn undecided_reason(&self) -> &'static str {
+        match (&self.criteria.landscape, self.criteria.stroboscope) {
+            (Some(l), _) if l.barrier.is_some() => {
+                "the energy stayed above the lowest saddle (less the margin) until t_end"
+            }
+            (Some(_), _) => "the orbit did not come near a minimum the search found by t_end",
+            (None, Some(_)) => {
+                "no periodic orbit of the stroboscopic map within the tolerance and the longest \
+                 period by t_end: a quasi-periodic or chaotic attractor, or a long transient"
+            }
+            (None, None) => "nothing decided it by t_end",
+        }
+    }
+
+    /// The document of the map from what its cells came to.
+    pub fn document_of(&self, finished: Finished<Vec<CellOutcome>>) -> BasinsDocument {
+        let unfinished_cells = finished.unfinished();
+        let not_run = CellOutcome {
+            outcome: Outcome::Undecided {
+                reason: "not run: the map reached its time limit".into(),
+            },
+            decided_at: None,
+            steps: 0,
+            energy_margin: None,
+        };
+        let runs = (0..self.sweep.runs.len())
+            .map(|r| {
+                let cells: Vec<&CellOutcome> = finished
+                    .cells
+                    .iter()
+                    .map(|c| c.as_ref().map_or(&not_run, |c| &c[r]))
+                    .collect();
+                self.run_document(r, &cells)
+            })
+            .collect();
+        BasinsDocument {
+            system: self.sweep.info.id.to_string(),
+            axes: self.sweep.axis_documents(),
+            cells: self.cells(),
+            exits: self.exit_names.clone(),
+            equilibria: self.criteria.landscape.as_ref().map(|l| l.points.clone()),
+            lowest_saddle_energy: self.criteria.landscape.as_ref().and_then(|l| l.barrier),
+            runs,
+            digest: self.sweep.digest.clone(),
+            wall_ms: finished.wall_ms,
+            stop: finished.stop,
+            unfinished_cells,
+        }
+    }
+
+    /// One run's labels, attractors and metrics.
+    fn run_document(&self, run: usize, cells: &[&CellOutcome]) -> BasinRun {
+        let mut attractors: Vec<Attractor> = Vec::new();
+        let mut labels = Vec::with_capacity(cells.len());
+        let mut undecided = Vec::new();
+        let mut decided_by = DecidedBy::default();
+        let mut largest_margin: Option<f64> = None;
+        for (i, cell) in cells.iter().enumerate() {
+            match &cell.outcome {
+                Outcome::Equilibrium { .. } | Outcome::Well { .. } => decided_by.energy += 1,
+                Outcome::Exit { .. } => decided_by.exit += 1,
+                Outcome::Cycle { .. } => decided_by.recurrence += 1,
+                Outcome::Diverged => decided_by.divergence += 1,
+                Outcome::Stayed => decided_by.t_end += 1,
+                Outcome::Undecided { .. } | Outcome::Failed { .. } => decided_by.undecided += 1,
+            }
+            if let Some(m) = cell.energy_margin {
+                largest_margin = Some(largest_margin.map_or(m, |l: f64| l.max(m)));
+            }
+            let label = match &cell.outcome {
+                Outcome::Undecided { reason } => {
+                    undecided.push(UndecidedCell {
+                        cell: i,
+                        reason: reason.clone(),
+                    });
+                    -1
+                }
+                Outcome::Failed { error } => {
+                    undecided.push(UndecidedCell {
+                        cell: i,
+                        reason: error.clone(),
+                    });
+                    -1
+                }
+                outcome => match attractors.iter().position(|a| a.matches(outcome)) {
+                    Some(k) => k as i64,
+                    None if attractors.len() < MAX_ATTRACTORS => {
+                        attractors.push(self.attractor(attractors.len(), outcome));
+                        attractors.len() as i64 - 1
+                    }
+                    None => {
+                        undecided.push(UndecidedCell {
+                            cell: i,
+                            reason: format!(
+                                "more than {MAX_ATTRACTORS} distinct outcomes: this one has no \
+                                 label (loosen recognition.tolerance)"
+                            ),
+                        });
+                        -1
+                    }
+                },
+            };
+            if label >= 0 {
+                attractors[label as usize].cells += 1;
+            }
+            labels.push(label);
+        }
+        let total = cells.len().max(1) as f64;
+        let fractions = attractors.iter().map(|a| a.cells as f64 / total).collect();
+        let shape: Vec<usize> = self.sweep.grid.axes.iter().map(|a| a.n).collect();
+        BasinRun {
+            label: self.sweep.runs[run].clone(),
+            metrics: basin_metrics(&labels, &shape),
+            undecided_fraction: undecided.len() as f64 / total,
+            decided_at: cells.iter().map(|c| c.decided_at).collect(),
+            labels,
+            attractors,
+            fractions,
+            undecided,
+            decided_by,
+            largest_energy_margin: largest_margin,
+            steps: cells.iter().map(|c| c.steps).sum(),
+        }
+    }
+
+    /// The table entry of a new outcome, label `label`.
+    fn attractor(&self, label: usize, outcome: &Outcome) -> Attractor {
+        let point = |i: usize| {
+            self.criteria
+                .landscape
+                .as_ref()
+                .map(|l| l.points[i].clone())
+        };
+        let (kind, name, equilibrium, points) = match outcome {
+            Outcome::Equilibrium { point: i } => (
+                Kind::Equilibrium,
+                format!("equilibrium {}", i + 1),
+                point(*i),
+                Vec::new(),
+            ),
+            Outcome::Well { point: i } => {
+                (Kind::Well, format!("well {}", i + 1), point(*i), Vec::new())
+            }
+            Outcome::Exit { exit } => {
+                (Kind::Exit, self.exit_names[*exit].clone(), None, Vec::new())
+            }
+            Outcome::Cycle { points } => (
+                Kind::Periodic,
+                format!("period-{} orbit", points.len()),
+                None,
+                points.clone(),
+            ),
+            Outcome::Diverged => (Kind::Diverged, "diverged".into(), None, Vec::new()),
+            _ => (Kind::Stayed, "stayed".into(), None, Vec::new()),
+        };
+        Attractor {
+            label: label as i64,
+            kind,
+            name,
+            period: (kind == Kind::Periodic).then_some(points.len()),
+            equilibrium,
+            points,
+            cells: 0,
+            outcome: outcome.clone(),
+        }
+    }
+}
+
+/// What kind of outcome a label stands for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+#[serde(rename_all = "snake_case")]
+pub enum Kind {
+    /// A damped orbit settles at a minimum of V (the equilibrium, p = 0).
+    Equilibrium,
+    /// An undamped orbit is trapped in a minimum's well for good.
+    Well,
+    /// A periodic orbit of the driven system's stroboscopic map.
+    Periodic,
+    /// The orbit left through an exit.
+    Exit,
+    /// The orbit escaped to infinity without an exit.
+    Diverged,
+    /// The orbit was still inside at t_end (a map with exits).
+    Stayed,
+}
+
+/// One label's entry.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+pub struct Attractor {
+    /// The label cells carry.
+    pub label: i64,
+    /// Its kind.
+    pub kind: Kind,
+    /// Its name in words (`equilibrium 2`, an exit's name, `period-3 orbit`).
+    pub name: String,
+    /// The period, in driving periods, of a periodic orbit.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub period: Option<usize>,
+    /// The critical point of V (position, energy, Hessian eigenvalues) of an equilibrium or a
+    /// well.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "openapi", schema(value_type = Option<Object>))]
+    pub equilibrium: Option<CriticalPoint>,
+    /// The stroboscopic points of a periodic orbit, each (q, p) without the clock.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub points: Vec<Vec<f64>>,
+    /// Cells with this label.
+    pub cells: usize,
+    #[serde(skip)]
+    outcome: Outcome,
+}
+
+impl Attractor {
+    /// Whether `outcome` is this attractor: the same well, exit or kind, or a periodic orbit of
+    /// the same period whose points lie within 10⁻³ (relative) of these.
+    fn matches(&self, outcome: &Outcome) -> bool {
+        match (&self.outcome, outcome) {
+            (Outcome::Cycle { points: a }, Outcome::Cycle { points: b }) => {
+                a.len() == b.len()
+                    && (0..b.len()).any(|shift| {
+                        a.iter().enumerate().all(|(j, x)| {
+                            let y = &b[(j + shift) % b.len()];
+                            x.iter()
+                                .zip(y)
+                                .all(|(u, v)| (u - v).abs() <= 1e-3 * (1.0 + u.abs()))
+                        })
+                    })
+            }
+            (a, b) => a == b,
+        }
+    }
+}
+
+/// A cell without a label, and why.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+pub struct UndecidedCell {
+    /// The cell.
+    pub cell: usize,
+    /// Why it has no label.
+    pub reason: String,
+}
+
+/// How many cells each criterion decided.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+pub struct DecidedBy {
+    /// The energy argument (an equilibrium's or a well's).
+    pub energy: usize,
+    /// A located exit crossing.
+    pub exit: usize,
+    /// Recurrence on the stroboscopic map.
+    pub recurrence: usize,
+    /// Divergence.
+    pub divergence: usize,
+    /// Reaching t_end inside (a map with exits).
+    pub t_end: usize,
+    /// Nothing: undecided or failed.
+    pub undecided: usize,
+}
+
+/// One run's map.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+pub struct BasinRun {
+    /// The method and chart.
+    pub label: RunLabel,
+    /// One label per cell in cell order (the first axis fastest); −1 where undecided.
+    pub labels: Vec<i64>,
+    /// When each cell's outcome was decided (null where undecided).
+    pub decided_at: Vec<Option<f64>>,
+    /// The labels' entries, in label order.
+    pub attractors: Vec<Attractor>,
+    /// Each label's share of the cells.
+    pub fractions: Vec<f64>,
+    /// The undecided cells' share.
+    pub undecided_fraction: f64,
+    /// The undecided cells and why.
+    pub undecided: Vec<UndecidedCell>,
+    /// Cells per criterion.
+    pub decided_by: DecidedBy,
+    /// The largest energy margin the energy argument used (twice the method's largest energy
+    /// rise on the orbit before it decided).
+    pub largest_energy_margin: Option<f64>,
+    /// Basin entropy, boundary basin entropy, uncertainty exponent.
+    #[serde(flatten)]
+    pub metrics: BasinMetrics,
+    /// Steps over all cells.
+    pub steps: u64,
+}
+
+/// A basin map.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+pub struct BasinsDocument {
+    /// The system's id.
+    pub system: String,
+    /// The axes.
+    pub axes: Vec<AxisDocument>,
+    /// Cells in all.
+    pub cells: usize,
+    /// The exits' names, in exit order.
+    pub exits: Vec<String>,
+    /// The critical points of V the search found (systems nothing drives), minima first.
+    #[cfg_attr(feature = "openapi", schema(value_type = Option<Vec<Object>>))]
+    pub equilibria: Option<Vec<CriticalPoint>>,
+    /// The lowest critical value that is not a minimum: below it (less the margin) the energy
+    /// argument decides.
+    pub lowest_saddle_energy: Option<f64>,
+    /// One map per method and chart.
+    pub runs: Vec<BasinRun>,
+    /// The request's identity.
+    pub digest: String,
+    /// Wall time in milliseconds.
+    pub wall_ms: f64,
+    /// Whether every cell was run.
+    pub stop: StudyStop,
+    /// The cells the time limit left unrun.
+    pub unfinished_cells: Vec<usize>,
+}
+
+/// What a basin map's progress stream carries.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+#[serde(tag = "type", rename_all = "snake_case")]
+pub enum BasinsLine {
+    /// Cells done so far (sent at most about 100 times per map).
+    Progress {
+        /// Cells done.
+        done: usize,
+        /// Cells in all.
+        total: usize,
+    },
+    /// The map.
+    Result(Box<BasinsDocument>),
+    /// A failure.
+    Error {
+        /// What went wrong.
+        error: ErrorDetail,
+    },
+    /// The last line of a complete stream.
+    End,
+}
+
+impl Study for BasinsJob {
+    type Cell = Vec<CellOutcome>;
+
+    fn name(&self) -> &'static str {
+        "basin map"
+    }
+
+    fn cells(&self) -> usize {
+        self.sweep.grid.cells()
+    }
+
+    fn run_cells(
+        &self,
+        cells: Range<usize>,
+        budget: Budget<'_>,
+    ) -> Result<Vec<Option<Vec<CellOutcome>>>, CoreError> {
+        Ok(cells
+            .map(|cell| {
+                let point = self.sweep.grid.point(cell);
+                (0..self.sweep.runs.len())
+                    .map(|run| self.run_cell(run, &point, budget))
+                    .collect::<Option<Vec<_>>>()
+            })
+            .collect())
+    }
+
+    fn fits(&self, cell: &Vec<CellOutcome>) -> bool {
+        cell.len() == self.sweep.runs.len()
+    }
+
+    fn spec(&self) -> Option<StudySpec> {
+        Some(StudySpec::Basins(self.spec.clone()))
+    }
+
+    fn steps(&self) -> u64 {
+        self.sweep.total_steps
+    }
+}
+
+/// Runs the map on `executor`, reporting progress through `emit`.
+pub fn run<E: Executor + ?Sized>(
+    job: &BasinsJob,
+    executor: &E,
+    budget: Budget<'_>,
+    emit: &(dyn Fn(BasinsLine) -> bool + Sync),
+) -> Result<BasinsDocument, CoreError> {
+    let report = |done, total| {
+        emit(BasinsLine::Progress { done, total });
+    };
+    let progress = Progress::new(job.cells(), &report);
+    let finished = engine::run(job, executor, budget, &|_, _| progress.add(1))?;
+    Ok(job.document_of(finished))
+}

@@ -1,0 +1,333 @@
+//! Where one orbit ends up, decided while it runs: an observer of every step that ends the run
+//! as soon as the outcome is known, so a cell costs the time to decide rather than `t_end`.
+//!
+//! The criteria, in the order each step looks at them:
+//! 1. **Divergence**: a component (the clock left out) beyond the escape radius, or not finite.
+//! 2. **Exits**: the step crossed an exit surface in its direction; the crossing is located by
+//!    Hénon's step, as a section's points are, and the earliest exit crossed in the step wins.
+//! 3. **The energy argument** (systems nothing drives; see [`super::landscape`]): the energy,
+//!    lowered by a margin, is below the lowest saddle, and the segment from the position to a
+//!    minimum stays below that level. The margin is twice the largest rise of the energy above its
+//!    lowest value so far: the exact flow's energy never rises, so every rise is the method's
+//!    own energy error, measured on this orbit as it goes.
+//! 4. **Recurrence on the stroboscopic map** (driven systems): the points at t = kT repeat with
+//!    some period m ≤ `max_period` within `tolerance`, over two whole periods.
+//!
+//! A run that reaches `t_end` undecided stayed (when the map has exits) or is undecided.
+
+use std::collections::VecDeque;
+use std::ops::ControlFlow;
+
+use nalgebra::allocator::Allocator;
+use nalgebra::DefaultAllocator;
+use serde::{Deserialize, Serialize};
+
+use super::landscape::Landscape;
+use crate::run::Observer;
+use crate::sections::henon::{copy, Henon};
+use crate::sections::{Direction, Surface};
+use crate::system::{MechanicalSystem, State, Vector};
+
+/// An exit of the map, compiled.
+#[derive(Debug)]
+pub struct Exit {
+    /// Its name.
+    pub name: String,
+    /// S(q, p, t).
+    pub surface: Surface,
+    /// Which crossings of S = 0 leave.
+    pub direction: Direction,
+}
+
+/// The stroboscopic map of a driven system.
+#[derive(Clone, Copy, Debug)]
+pub struct Stroboscope {
+    /// Steps per driving period.
+    pub steps: u64,
+    /// The longest period looked for, in driving periods.
+    pub max_period: usize,
+    /// How close (largest component difference) points of one period must come back.
+    pub tolerance: f64,
+}
+
+/// What every cell's run looks for.
+#[derive(Debug)]
+pub struct Criteria {
+    /// The exits.
+    pub exits: Vec<Exit>,
+    /// The landscape, for the energy argument (systems nothing drives).
+    pub landscape: Option<Landscape>,
+    /// Whether the system is damped (an orbit trapped in a well settles at its floor).
+    pub damped: bool,
+    /// The stroboscopic map, for driven systems.
+    pub stroboscope: Option<Stroboscope>,
+    /// A component beyond this (in absolute value) has escaped to infinity.
+    pub escape_radius: f64,
+    /// The driven system's clock coordinate, left out of distances.
+    pub clock: Option<usize>,
+}
+
+/// Where an orbit ended up.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum Outcome {
+    /// Trapped in the well of critical point `point` (an index into the landscape), where the
+    /// damping settles it.
+    Equilibrium {
+        /// The minimum.
+        point: usize,
+    },
+    /// Trapped in the well of critical point `point` of an undamped system.
+    Well {
+        /// The minimum.
+        point: usize,
+    },
+    /// Left through exit `exit`.
+    Exit {
+        /// The exit's index.
+        exit: usize,
+    },
+    /// Locked onto a periodic orbit of the stroboscopic map.
+    Cycle {
+        /// The orbit's points, (q, p) without the clock, starting from the least (in
+        /// lexicographic order).
+        points: Vec<Vec<f64>>,
+    },
+    /// Escaped to infinity (or left the finite numbers) without an exit.
+    Diverged,
+    /// Reached t_end without leaving through an exit.
+    Stayed,
+    /// Nothing was decided by t_end.
+    Undecided {
+        /// Why not, in words.
+        reason: String,
+    },
+    /// The cell's run could not start or failed.
+    Failed {
+        /// The error.
+        error: String,
+    },
+}
+
+/// One cell's result.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CellOutcome {
+    /// Where it ended up.
+    pub outcome: Outcome,
+    /// When that was decided (None for an undecided or failed cell).
+    pub decided_at: Option<f64>,
+    /// Steps taken.
+    pub steps: u64,
+    /// The energy margin in use when the energy argument decided the cell.
+    pub energy_margin: Option<f64>,
+}
+
+/// The observer of one cell's run.
+pub struct Decide<'a, S: MechanicalSystem>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    sys: &'a S,
+    criteria: &'a Criteria,
+    henon: Henon<S::Dim>,
+    /// The state after the last step, and its time.
+    last: State<S::Dim>,
+    last_t: f64,
+    /// Each exit's S at the last state.
+    last_s: Vec<f64>,
+    point: State<S::Dim>,
+    scratch: Vector<S::Dim>,
+    lowest_energy: f64,
+    largest_rise: f64,
+    /// Steps to wait before the segment test again, after one failed.
+    segment_wait: u64,
+    strobe: VecDeque<Vec<f64>>,
+    /// What was decided, when, and the energy margin of an energy decision.
+    pub decided: Option<(Outcome, f64, Option<f64>)>,
+}
+
+impl<'a, S: MechanicalSystem> Decide<'a, S>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    /// The observer of a run from `start` at t = 0, with `dof` degrees of freedom.
+    pub fn new(sys: &'a S, criteria: &'a Criteria, start: &State<S::Dim>, dof: usize) -> Self {
+        let mut henon = Henon::new(sys.dim(), dof);
+        let last_s = criteria
+            .exits
+            .iter()
+            .map(|e| henon.value(&e.surface, start, 0.0))
+            .collect();
+        let mut decide = Decide {
+            sys,
+            criteria,
+            henon,
+            last: start.clone(),
+            last_t: 0.0,
+            last_s,
+            point: start.clone(),
+            scratch: start.q.clone(),
+            lowest_energy: f64::INFINITY,
+            largest_rise: 0.0,
+            segment_wait: 0,
+            strobe: VecDeque::new(),
+            decided: None,
+        };
+        // The energy argument may decide at once: the start's energy is exact.
+        if let ControlFlow::Break(_) = decide.look(0, 0.0, start, false) {
+            return decide;
+        }
+        if decide.criteria.stroboscope.is_some() {
+            decide.strobe.push_back(decide.components(start));
+        }
+        decide
+    }
+
+    /// The state's components without the clock's.
+    fn components(&self, z: &State<S::Dim>) -> Vec<f64> {
+        let skip = self.criteria.clock;
+        z.q.iter()
+            .enumerate()
+            .chain(z.p.iter().enumerate())
+            .filter(|(i, _)| Some(*i) != skip)
+            .map(|(_, &x)| x)
+            .collect()
+    }
+
+    fn decide(&mut self, outcome: Outcome, t: f64, margin: Option<f64>) -> ControlFlow<f64> {
+        self.decided = Some((outcome, t, margin));
+        ControlFlow::Break(t)
+    }
+
+    /// Divergence and the energy argument at the state `z` after `step` (time `t`).
+    fn look(&mut self, step: u64, t: f64, z: &State<S::Dim>, stepped: bool) -> ControlFlow<f64> {
+        let skip = self.criteria.clock;
+        let radius = self.criteria.escape_radius;
+        let beyond = |v: &Vector<S::Dim>| {
+            v.iter()
+                .enumerate()
+                .any(|(i, x)| Some(i) != skip && !(x.abs() <= radius))
+        };
+        if beyond(&z.q) || beyond(&z.p) {
+            return self.decide(Outcome::Diverged, t, None);
+        }
+        let Some(landscape) = &self.criteria.landscape else {
+            return ControlFlow::Continue(());
+        };
+        let energy = self.sys.energy(&z.q, &z.p);
+        self.lowest_energy = self.lowest_energy.min(energy);
+        self.largest_rise = self.largest_rise.max(energy - self.lowest_energy);
+        let margin = 2.0 * self.largest_rise;
+        let level = landscape.barrier.unwrap_or(f64::INFINITY) - margin;
+        if !(energy < level) || (stepped && step < self.segment_wait) {
+            return ControlFlow::Continue(());
+        }
+        match landscape.well_of(self.sys, &z.q, level.min(f64::MAX), &mut self.scratch) {
+            Some(point) => {
+                let outcome = if self.criteria.damped {
+                    Outcome::Equilibrium { point }
+                } else {
+                    Outcome::Well { point }
+                };
+                self.decide(outcome, t, Some(margin))
+            }
+            None => {
+                // The segment test costs about 64 potentials per minimum: not at every step.
+                self.segment_wait = step + 16;
+                ControlFlow::Continue(())
+            }
+        }
+    }
+
+    /// The earliest exit the step from the last state to `z` (time `t`) crossed, located.
+    fn exit_crossed(&mut self, t: f64, z: &State<S::Dim>) -> Option<(usize, f64)> {
+        let mut first: Option<(usize, f64)> = None;
+        for i in 0..self.criteria.exits.len() {
+            let exit = &self.criteria.exits[i];
+            let s = self.henon.value(&exit.surface, z, t);
+            let before = self.last_s[i];
+            self.last_s[i] = s;
+            if !exit.direction.crossed(before, s) {
+                continue;
+            }
+            // Hénon's step from the state before, else from the one after; if neither locates
+            // it, the linear interpolation of S over the step.
+            let from_before = self.henon.locate(
+                self.sys,
+                &exit.surface,
+                (&self.last, self.last_t, before),
+                0.0,
+                &mut self.point,
+            );
+            let located = from_before.or_else(|_| {
+                self.henon
+                    .locate(self.sys, &exit.surface, (z, t, s), 0.0, &mut self.point)
+            });
+            let at = located
+                .ok()
+                .filter(|at| (self.last_t..=t).contains(at))
+                .unwrap_or(self.last_t + (t - self.last_t) * before / (before - s));
+            if first.is_none_or(|(_, earliest)| at < earliest) {
+                first = Some((i, at));
+            }
+        }
+        first
+    }
+
+    /// A periodic orbit of the stroboscopic map ending at the newest point, if the last points
+    /// repeat.
+    fn cycle(&self, tolerance: f64, max_period: usize) -> Option<Vec<Vec<f64>>> {
+        let n = self.strobe.len();
+        let close = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| (x - y).abs() <= tolerance);
+        let period = (1..=max_period).take_while(|m| 2 * m < n + 1).find(|&m| {
+            (0..m).all(|j| close(&self.strobe[n - 1 - j], &self.strobe[n - 1 - j - m]))
+        })?;
+        let mut points: Vec<Vec<f64>> = self.strobe.range(n - period..).cloned().collect();
+        let least = (0..period)
+            .min_by(|&a, &b| {
+                points[a]
+                    .iter()
+                    .zip(&points[b])
+                    .fold(std::cmp::Ordering::Equal, |o, (x, y)| {
+                        o.then(x.total_cmp(y))
+                    })
+            })
+            .unwrap_or(0);
+        points.rotate_left(least);
+        Some(points)
+    }
+}
+
+impl<S: MechanicalSystem> Observer<S::Dim> for Decide<'_, S>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    fn on_sample(&mut self, _step: u64, _t: f64, _z: &State<S::Dim>) {}
+
+    fn watches_steps(&self) -> bool {
+        true
+    }
+
+    fn on_step(&mut self, step: u64, t: f64, z: &State<S::Dim>) -> ControlFlow<f64> {
+        if let Some((exit, at)) = self.exit_crossed(t, z) {
+            return self.decide(Outcome::Exit { exit }, at, None);
+        }
+        if let ControlFlow::Break(at) = self.look(step, t, z, true) {
+            return ControlFlow::Break(at);
+        }
+        if let Some(strobe) = self.criteria.stroboscope {
+            if step % strobe.steps == 0 {
+                if self.strobe.len() == 2 * strobe.max_period + 1 {
+                    self.strobe.pop_front();
+                }
+                self.strobe.push_back(self.components(z));
+                if let Some(points) = self.cycle(strobe.tolerance, strobe.max_period) {
+                    return self.decide(Outcome::Cycle { points }, t, None);
+                }
+            }
+        }
+        copy(&mut self.last, z);
+        self.last_t = t;
+        ControlFlow::Continue(())
+    }
+}

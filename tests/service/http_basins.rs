@@ -1,0 +1,177 @@
+//! `POST /api/v1/studies/basins`: the damped double well typed in, over (x₀, p₀); Hénon–Heiles
+//! escapes through three named exits; the NDJSON stream; bad input a 422 naming its field.
+
+use std::time::Duration;
+
+use geomint::http::Config;
+use serde_json::{json, Value};
+
+use crate::server::{self, post_json, post_ndjson, start};
+
+const PATH: &str = "/api/v1/studies/basins";
+
+fn config() -> Config {
+    Config {
+        request_timeout: Duration::from_secs(60),
+        data_dir: server::scratch_dir("http-basins"),
+        systems_dir: server::scratch_dir("http-basins-systems"),
+        ..Config::default()
+    }
+}
+
+/// x″ + δx′ − x + x³ = 0 with δ = 2γ = 0.25, over (x₀, p₀) ∈ [−2, 2]².
+fn double_well(n: u64) -> Value {
+    json!({
+        "system": {"name": "double well", "coordinates": ["x"], "mass": 1,
+                   "potential": "-x^2/2 + x^4/4", "damping": {"gamma": "gamma"},
+                   "parameters": {"gamma": 0.125}},
+        "methods": ["csv2", "rk4"], "h": 0.05, "t_end": 200,
+        "axes": [{"name": "q0[0]", "min": -2, "max": 2, "n": n},
+                 {"name": "p0[0]", "min": -2, "max": 2, "n": n}]
+    })
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_double_well_splits_into_two_basins_by_the_energy_argument() {
+    let server = start(config()).await;
+    let (status, doc) = post_json(&server, PATH, &double_well(20)).await;
+    assert_eq!(status, 200, "{doc}");
+    assert_eq!(doc["cells"], 400);
+    assert_eq!(doc["lowest_saddle_energy"], 0.0);
+    let equilibria = doc["equilibria"].as_array().unwrap();
+    assert_eq!(equilibria.len(), 3);
+    for run in doc["runs"].as_array().unwrap() {
+        let labels: Vec<i64> = serde_json::from_value(run["labels"].clone()).unwrap();
+        assert_eq!(labels.len(), 400);
+        assert!(labels.iter().all(|&l| l == 0 || l == 1), "{labels:?}");
+        assert_eq!(run["decided_by"]["energy"], 400);
+        let attractors = run["attractors"].as_array().unwrap();
+        assert_eq!(attractors.len(), 2);
+        for a in attractors {
+            assert_eq!(a["kind"], "equilibrium");
+            let x = a["equilibrium"]["q"][0].as_f64().unwrap();
+            assert!((x.abs() - 1.0).abs() <= 1e-14, "{a}");
+        }
+        // Symmetric under (x, p) → (−x, −p): equal shares.
+        assert_eq!(run["fractions"][0], run["fractions"][1]);
+        let entropy = run["basin_entropy"].as_f64().unwrap();
+        assert!(entropy > 0.0 && entropy < 2f64.ln(), "{entropy}");
+        // Decided long before t_end: each decision time is on the step grid below it.
+        let decided: Vec<f64> = serde_json::from_value(run["decided_at"].clone()).unwrap();
+        assert!(decided.iter().all(|&t| (0.0..200.0).contains(&t)));
+    }
+    // The same request, the same bits.
+    let (_, again) = post_json(&server, PATH, &double_well(20)).await;
+    assert_eq!(doc["runs"], again["runs"]);
+    assert_eq!(doc["digest"], again["digest"]);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn henon_heiles_escapes_through_three_named_exits_and_streams_its_progress() {
+    let server = start(config()).await;
+    let body = json!({
+        "system": "henon_heiles", "methods": ["velocity_verlet"], "h": 0.01, "t_end": 100,
+        "q0": [0, 0], "p0": [0, 0],
+        "energy_surface": {"energy": 0.25, "solve_for": "p0[0]"},
+        "axes": [{"name": "q0[1]", "min": -0.6, "max": 1.0, "n": 12},
+                 {"name": "p0[1]", "min": -0.6, "max": 0.6, "n": 12}],
+        "exits": [
+            {"name": "up", "where": "y - 2", "direction": "up"},
+            {"name": "left", "where": "-sqrt(3)/2*x - y/2 - 2", "direction": "up"},
+            {"name": "right", "where": "sqrt(3)/2*x - y/2 - 2", "direction": "up"}
+        ]
+    });
+    let (status, content_type, lines) =
+        post_ndjson(&server, PATH, "application/x-ndjson", &body).await;
+    assert_eq!(status, 200);
+    assert_eq!(content_type, "application/x-ndjson");
+    assert_eq!(lines.last().unwrap()["type"], "end");
+    let progress: Vec<&Value> = lines.iter().filter(|l| l["type"] == "progress").collect();
+    assert_eq!(progress.last().unwrap()["done"], 144);
+    let doc = &lines.iter().find(|l| l["type"] == "result").unwrap();
+    let run = &doc["runs"][0];
+    let mut names: Vec<&str> = run["attractors"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|a| a["kind"] == "exit")
+        .map(|a| a["name"].as_str().unwrap())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["left", "right", "up"]);
+    // Cells off the energy surface are undecided, each with its reason.
+    for u in run["undecided"].as_array().unwrap() {
+        assert!(u["reason"].as_str().unwrap().contains("energy"), "{u}");
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn bad_basin_maps_are_422s_naming_the_field() {
+    let server = start(config()).await;
+    let cases: Vec<(Value, &str)> = vec![
+        (
+            {
+                let mut b = double_well(4);
+                b["axes"][0]["name"] = json!("params.gamma");
+                b["axes"][0]["min"] = json!(0.1);
+                b["axes"][0]["max"] = json!(0.2);
+                b
+            },
+            "axes[0].name",
+        ),
+        (
+            {
+                let mut b = double_well(4);
+                b["exits"] = json!([{"name": "right", "where": "x - * 2"}]);
+                b
+            },
+            "exits[0].where",
+        ),
+        (
+            {
+                let mut b = double_well(4);
+                b["exits"] = json!([{"name": "right", "where": "x - 2", "direction": "sideways"}]);
+                b
+            },
+            "exits[0].direction",
+        ),
+        (
+            {
+                let mut b = double_well(4);
+                b["recognition"] = json!({"period": 6.283185307179586});
+                b
+            },
+            "recognition.period",
+        ),
+        (
+            {
+                let mut b = double_well(4);
+                b["recognition"] = json!({"tolerance": -1});
+                b
+            },
+            "recognition.tolerance",
+        ),
+        (
+            {
+                let mut b = double_well(4);
+                b["indicators"] = json!(["megno"]);
+                b
+            },
+            "indicators",
+        ),
+        (
+            {
+                let mut b = double_well(4);
+                b["exits"] =
+                    json!([{"name": "a", "where": "x - 2"}, {"name": "a", "where": "x + 2"}]);
+                b
+            },
+            "exits[1].name",
+        ),
+    ];
+    for (body, field) in cases {
+        let (status, error) = post_json(&server, PATH, &body).await;
+        assert_eq!(status, 422, "{field}: {error}");
+        assert_eq!(error["error"]["field"], field, "{error}");
+    }
+}
