@@ -83,6 +83,8 @@ pub mod paths {
     pub const SWEEP_PRESETS: &str = "/api/v1/studies/sweep/presets";
     /// Basin maps.
     pub const BASINS: &str = "/api/v1/studies/basins";
+    /// Ready-made basin maps.
+    pub const BASINS_PRESETS: &str = "/api/v1/studies/basins/presets";
     /// The OpenAPI document.
     pub const OPENAPI: &str = "/api/v1/openapi.json";
     /// Stored recordings.
@@ -113,6 +115,7 @@ pub fn routes(config: &Config) -> OpenApiRouter<AppState> {
         .routes(routes!(studies::sweep))
         .routes(routes!(studies::sweep_presets))
         .routes(routes!(studies::basins))
+        .routes(routes!(studies::basins_presets))
         .routes(routes!(handlers::openapi_json))
         .routes(routes!(recordings::list_recordings))
         .routes(routes!(

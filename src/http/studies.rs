@@ -24,7 +24,7 @@ use super::extract::ApiJson;
 use super::paths;
 use super::recordings::RrdFile;
 use super::state::{AppState, Cost};
-use crate::api::basins::BasinsRequest;
+use crate::api::basins::{self as basin_presets, BasinsRequest};
 use crate::api::studies::{ConvergenceRequest, EnergyMapRequest, WorkPrecisionRequest};
 use crate::api::sweep::{self as presets, Preset, SweepRequest};
 use crate::core::error::{CoreError, ErrorDetail};
@@ -394,4 +394,12 @@ pub async fn basins(
         "geomint-basins.rrd",
     )
     .await
+}
+
+/// Ready-made basin maps: the damped double well, the forced damped Duffing oscillator, and
+/// Hénon–Heiles's escapes at E = 0.25 without and with weak damping.
+#[utoipa::path(get, path = paths::BASINS_PRESETS, tag = "studies",
+    responses((status = 200, description = "The presets", body = Vec<Preset>)))]
+pub async fn basins_presets() -> axum::Json<Vec<Preset>> {
+    axum::Json(basin_presets::presets())
 }

@@ -175,3 +175,44 @@ async fn bad_basin_maps_are_422s_naming_the_field() {
         assert_eq!(error["error"]["field"], field, "{error}");
     }
 }
+
+/// Every preset runs (on a coarse grid and a shorter time, which keep its shape) and finds what
+/// its title says.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn every_preset_runs_and_finds_its_attractors() {
+    let server = start(config()).await;
+    let presets = server::get_json(&server, "/api/v1/studies/basins/presets").await;
+    let presets = presets.as_array().unwrap();
+    assert_eq!(presets.len(), 4);
+    for preset in presets {
+        let id = preset["id"].as_str().unwrap();
+        let mut body = preset["request"].clone();
+        for axis in body["axes"].as_array_mut().unwrap() {
+            axis["n"] = json!(9);
+        }
+        let (status, doc) = post_json(&server, PATH, &body).await;
+        assert_eq!(status, 200, "{id}: {doc}");
+        let run = &doc["runs"][0];
+        let kinds: Vec<&str> = run["attractors"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|a| a["kind"].as_str().unwrap())
+            .collect();
+        let count = |kind: &str| kinds.iter().filter(|&&k| k == kind).count();
+        match id {
+            // The two minima, and the saddle at the centre cell, which starts at rest on it.
+            "double_well" => {
+                assert_eq!(count("equilibrium"), 3, "{id}: {kinds:?}");
+                assert_eq!(run["undecided_fraction"], 0.0);
+            }
+            "forced_duffing" => assert_eq!(count("periodic"), 2, "{id}: {kinds:?}"),
+            "henon_heiles_escapes" => assert_eq!(count("exit"), 3, "{id}: {kinds:?}"),
+            "henon_heiles_escapes_damped" => {
+                assert!(count("exit") >= 2 && count("equilibrium") == 1, "{id}: {kinds:?}")
+            }
+            other => panic!("an unknown preset {other}"),
+        }
+        println!("{id}: {kinds:?}, decided by {}", run["decided_by"]);
+    }
+}

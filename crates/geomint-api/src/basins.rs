@@ -1,13 +1,14 @@
 //! Basin-map requests — the body of `POST /api/v1/studies/basins`: a sweep's grid, system and
 //! methods over initial-state axes, with the exits of an open system and the settings that
 //! recognise attractors; read strictly into the core's
-//! [`BasinsSpec`](crate::core::studies::basins::BasinsSpec).
+//! [`BasinsSpec`](crate::core::studies::basins::BasinsSpec); and the presets that reproduce
+//! published pictures.
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
 use serde::Serialize;
-use serde_json::Value;
+use serde_json::{json, Value};
 use sha2::{Digest, Sha256};
 use utoipa::ToSchema;
 
@@ -16,7 +17,7 @@ use super::crossings::direction;
 use super::json::{self, count, list, string, Obj};
 use super::method::MethodSpec;
 use super::simulate::initial_coordinates;
-use super::sweep::{AxisRequest, SweepRequest, SWEEP_FIELDS};
+use super::sweep::{AxisRequest, Preset, SweepRequest, SWEEP_FIELDS};
 use super::system::{StoredSystems, SystemRequest};
 use crate::core::error::{ErrorDetail, Field};
 use crate::core::sections::Direction;
@@ -247,4 +248,85 @@ impl BasinsRequest {
             },
         })
     }
+}
+
+/// The exits of Hénon–Heiles: two units out along its three channels, beyond the saddles at
+/// 90°, 210° and 330° (Aguirre, Vallejo & Sanjuán, Phys. Rev. E 64 (2001) 066208).
+fn henon_heiles_exits() -> Value {
+    json!([
+        {"name": "up", "where": "y - 2", "direction": "up"},
+        {"name": "left", "where": "-sqrt(3)/2*x - y/2 - 2", "direction": "up"},
+        {"name": "right", "where": "sqrt(3)/2*x - y/2 - 2", "direction": "up"}
+    ])
+}
+
+/// The (y, p_y) plane of Hénon–Heiles at x = 0, p_x ≥ 0 from the energy E.
+fn henon_heiles_plane(energy: f64) -> (Value, Value) {
+    (
+        json!({"energy": energy, "solve_for": "p0[0]"}),
+        json!([
+            {"name": "q0[1]", "min": -0.6, "max": 1.0, "n": 101},
+            {"name": "p0[1]", "min": -0.6, "max": 0.6, "n": 101}
+        ]),
+    )
+}
+
+/// Ready-made basin maps that reproduce published pictures.
+pub fn presets() -> Vec<Preset> {
+    let (surface, plane) = henon_heiles_plane(0.25);
+    vec![
+        Preset {
+            id: "double_well",
+            title: "The damped double well x″ + δx′ − x + x³ = 0 (δ = 0.25): two interleaved \
+                    spiral basins, every cell decided by the energy argument",
+            request: json!({
+                "system": {"name": "damped double well", "coordinates": ["x"], "mass": 1,
+                           "potential": "-x^2/2 + x^4/4", "damping": {"gamma": "delta/2"},
+                           "parameters": {"delta": 0.25}},
+                "methods": ["csv2"], "h": 0.05, "t_end": 500,
+                "axes": [{"name": "q0[0]", "min": -2, "max": 2, "n": 101},
+                         {"name": "p0[0]", "min": -2, "max": 2, "n": 101}]
+            }),
+        },
+        Preset {
+            id: "forced_duffing",
+            title: "The forced damped Duffing oscillator x″ + 0.5x′ − x + x³ = 0.1 cos t: a \
+                    period-1 orbit in each well, found on the stroboscopic map",
+            request: json!({
+                "system": {"name": "forced damped Duffing", "coordinates": ["x"], "mass": 1,
+                           "potential": "-x^2/2 + x^4/4 - A*x*cos(omega*t)",
+                           "damping": {"gamma": "delta/2"},
+                           "parameters": {"delta": 0.5, "A": 0.1, "omega": 1}},
+                "methods": ["csv1"], "h": std::f64::consts::TAU / 64.0,
+                "t_end": 200.0 * std::f64::consts::TAU,
+                "recognition": {"period": std::f64::consts::TAU},
+                "axes": [{"name": "q0[0]", "min": -1.8, "max": 1.8, "n": 61},
+                         {"name": "p0[0]", "min": -1.0, "max": 1.0, "n": 61}]
+            }),
+        },
+        Preset {
+            id: "henon_heiles_escapes",
+            title: "Hénon–Heiles at E = 0.25, above the escape energy 1/6: which of the three \
+                    exits each orbit of the (y, p_y) section leaves through (Wada basins)",
+            request: json!({
+                "system": "henon_heiles",
+                "methods": [{"id": "triple_jump", "base": "velocity_verlet"}],
+                "h": 0.01, "t_end": 200, "q0": [0.0, 0.0], "p0": [0.0, 0.0],
+                "energy_surface": surface, "axes": plane, "exits": henon_heiles_exits()
+            }),
+        },
+        Preset {
+            id: "henon_heiles_escapes_damped",
+            title: "The same with weak conformal damping (γ = 0.01): some orbits lose their energy \
+                    before they find an exit and settle at the origin (Blesa, Seoane, Barrio & \
+                    Sanjuán 2012)",
+            request: json!({
+                "system": {"name": "damped Hénon–Heiles", "coordinates": ["x", "y"], "mass": 1,
+                           "potential": "(x^2 + y^2)/2 + x^2*y - y^3/3",
+                           "damping": {"gamma": "gamma"}, "parameters": {"gamma": 0.01}},
+                "methods": ["csv2"], "h": 0.01, "t_end": 500, "q0": [0.0, 0.0], "p0": [0.0, 0.0],
+                "energy_surface": surface, "axes": plane, "exits": henon_heiles_exits()
+            }),
+        },
+    ]
 }

@@ -487,12 +487,14 @@ impl BasinsJob {
                 .map(|l| l.points[i].clone())
         };
         let (kind, name, equilibrium, points) = match outcome {
-            Outcome::Equilibrium { point: i } => (
-                Kind::Equilibrium,
-                format!("equilibrium {}", i + 1),
-                point(*i),
-                Vec::new(),
-            ),
+            Outcome::Equilibrium { point: i } => {
+                let shape = match point(*i) {
+                    Some(p) if !p.is_minimum() => "saddle",
+                    _ => "minimum",
+                };
+                let name = format!("equilibrium {} ({shape})", i + 1);
+                (Kind::Equilibrium, name, point(*i), Vec::new())
+            }
             Outcome::Well { point: i } => {
                 (Kind::Well, format!("well {}", i + 1), point(*i), Vec::new())
             }
@@ -526,7 +528,8 @@ impl BasinsJob {
 #[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 #[serde(rename_all = "snake_case")]
 pub enum Kind {
-    /// A damped orbit settles at a minimum of V (the equilibrium, p = 0).
+    /// A damped orbit settles at a minimum of V (the equilibrium, p = 0), or an orbit starts at
+    /// rest on a critical point.
     Equilibrium,
     /// An undamped orbit is trapped in a minimum's well for good.
     Well,

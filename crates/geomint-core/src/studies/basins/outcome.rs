@@ -13,6 +13,7 @@
 //! 4. **Recurrence on the stroboscopic map** (driven systems): the points at t = kT repeat with
 //!    some period m ≤ `max_period` within `tolerance`, over two whole periods.
 //!
+//! A start at rest on a critical point of V (a saddle's included) is that equilibrium at once.
 //! A run that reaches `t_end` undecided stayed (when the map has exits) or is undecided.
 
 use std::collections::VecDeque;
@@ -72,9 +73,9 @@ pub struct Criteria {
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum Outcome {
     /// Trapped in the well of critical point `point` (an index into the landscape), where the
-    /// damping settles it.
+    /// damping settles it; or started at rest on that critical point.
     Equilibrium {
-        /// The minimum.
+        /// The critical point.
         point: usize,
     },
     /// Trapped in the well of critical point `point` of an undamped system.
@@ -173,6 +174,11 @@ where
             strobe: VecDeque::new(),
             decided: None,
         };
+        // A start at rest on a critical point (a saddle's included) stays there.
+        if let Some(point) = decide.resting_on(start) {
+            decide.decided = Some((Outcome::Equilibrium { point }, 0.0, None));
+            return decide;
+        }
         // The energy argument may decide at once: the start's energy is exact.
         if let ControlFlow::Break(_) = decide.look(0, 0.0, start, false) {
             return decide;
@@ -181,6 +187,20 @@ where
             decide.strobe.push_back(decide.components(start));
         }
         decide
+    }
+
+    /// The critical point `z` rests on: p = 0 and q one of the landscape's points to the last
+    /// bit or two.
+    fn resting_on(&self, z: &State<S::Dim>) -> Option<usize> {
+        let landscape = self.criteria.landscape.as_ref()?;
+        if z.p.iter().any(|&p| p != 0.0) {
+            return None;
+        }
+        landscape.points.iter().position(|c| {
+            c.q.iter()
+                .enumerate()
+                .all(|(i, &x)| (x - z.q[i]).abs() <= 4.0 * f64::EPSILON * (1.0 + x.abs()))
+        })
     }
 
     /// The state's components without the clock's.
