@@ -75,6 +75,7 @@ pub fn run(cli: Cli) -> ExitCode {
         Command::Run(args) => run::run_spec(&args),
         Command::Study(args) => match args.kind {
             StudyKind::Sweep => sweep::run_sweep(&args),
+            StudyKind::Basins => sweep::run_basins(&args),
             StudyKind::Merge => sweep::run_merge(&args),
             _ => study::run_study(&args),
         },

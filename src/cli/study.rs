@@ -1,5 +1,5 @@
 //! `geomint study KIND spec.json`: a work–precision or convergence study or an energy-error map
-//! (sweeps and merges: [`super::sweep`]), without a server, with progress on standard error; the
+//! (sweeps, basin maps and merges: [`super::sweep`]), without a server, with progress on standard error; the
 //! document as JSON, or as a Rerun recording for an output file ending in `.rrd` (work–precision
 //! studies and maps).
 
@@ -30,7 +30,11 @@ pub enum StudyKind {
     EnergyMap,
     /// Any system over one or two axes, on all cores; with `--shard` one part of it.
     Sweep,
-    /// The parts of a sweep (`--shard` outputs, every shard once) into its document.
+    /// Where each orbit of a grid of initial states ends up (attractors, exits), on all cores;
+    /// with `--shard` one part of it.
+    Basins,
+    /// The parts of a sweep or a basin map (`--shard` outputs, every shard once) into its
+    /// document.
     Merge,
 }
 
@@ -44,7 +48,7 @@ pub struct StudyArgs {
     pub spec: PathBuf,
     /// For `merge`: the other parts.
     pub parts: Vec<PathBuf>,
-    /// For `sweep`: run shard `i/n` only (cells in a fixed order, so parts from any machines
+    /// For `sweep` and `basins`: run shard `i/n` only (cells in a fixed order, so parts from any machines
     /// merge to the whole sweep bit for bit), or `auto` for the index of a Slurm array task
     /// (`SLURM_ARRAY_TASK_ID`) or a Kubernetes Indexed Job (`JOB_COMPLETION_INDEX`) and the
     /// count from `SLURM_ARRAY_TASK_COUNT` or `GEOMINT_SHARDS`.
@@ -85,8 +89,8 @@ pub(crate) fn run_study(args: &StudyArgs) -> ExitCode {
         eprintln!("error: one spec file only (several files are for `merge`)");
         return ExitCode::from(BAD_INPUT);
     }
-    if args.shard.is_some() && args.kind != StudyKind::Sweep {
-        eprintln!("error: --shard is for `sweep` only");
+    if args.shard.is_some() && !matches!(args.kind, StudyKind::Sweep | StudyKind::Basins) {
+        eprintln!("error: --shard is for `sweep` and `basins` only");
         return ExitCode::from(BAD_INPUT);
     }
     let stored = args.systems.open();
@@ -174,8 +178,8 @@ pub(crate) fn run_study(args: &StudyArgs) -> ExitCode {
             )
         }
         StudyKind::EnergyMap => run_energy_map(args, &source, &text),
-        StudyKind::Sweep | StudyKind::Merge => {
-            unreachable!("`geomint study sweep|merge` runs in cli::sweep")
+        StudyKind::Sweep | StudyKind::Basins | StudyKind::Merge => {
+            unreachable!("`geomint study sweep|basins|merge` runs in cli::sweep")
         }
     }
 }

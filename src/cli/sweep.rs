@@ -1,8 +1,8 @@
-//! `geomint study sweep spec.json [--shard i/n|auto] [-o out.json]` and
-//! `geomint study merge part-*.json [-o result.json]`: a sweep on all cores, whole or one shard
-//! of it (an array task of Slurm or a Kubernetes Indexed Job takes its index from
+//! `geomint study sweep|basins spec.json [--shard i/n|auto] [-o out.json]` and
+//! `geomint study merge part-*.json [-o result.json]`: a sweep or a basin map on all cores, whole
+//! or one shard of it (an array task of Slurm or a Kubernetes Indexed Job takes its index from
 //! `SLURM_ARRAY_TASK_ID` or `JOB_COMPLETION_INDEX`), and the merge of the parts into the document
-//! the whole sweep gives, bit for bit.
+//! the whole study gives, bit for bit.
 
 use std::path::Path;
 use std::process::ExitCode;
@@ -14,9 +14,11 @@ use crate::api::system::StoredSystems;
 use crate::core::error::ErrorDetail;
 use crate::core::run::Budget;
 use crate::core::simulation::Limits;
-use crate::core::studies::engine::{Local, Progress, Study};
+use crate::api::basins::BasinsRequest;
+use crate::core::studies::basins::{BasinsDocument, BasinsJob};
+use crate::core::studies::engine::{self, CellLine, Documented, Local, Progress};
 use crate::core::studies::parts::{self, Part, Shard};
-use crate::core::studies::sweep::{self, RunMetrics, SweepJob, SweepLine, SweepSpec};
+use crate::core::studies::sweep::{SweepDocument, SweepJob, SweepSpec};
 use crate::core::studies::StudySpec;
 
 /// Reads a sweep request and prepares it: the spec and the job.
@@ -69,15 +71,43 @@ pub fn shard_of(given: &str, env: impl Fn(&str) -> Option<String>) -> Result<Sha
     Shard::parse(&format!("{index}/{count}")).map_err(|e| e.to_string())
 }
 
+/// A study the command line runs whole or shard by shard: its spec as it travels, and the job.
+type Prepared<S> = Result<(StudySpec, S), ErrorDetail>;
+
+/// How a whole study's document is written as a Rerun recording, for kinds that have one.
+type Recorder<D> = fn(std::fs::File, &D) -> Result<(), String>;
+
 /// `geomint study sweep`: the whole sweep, or with `--shard` one part of it.
 pub(crate) fn run_sweep(args: &StudyArgs) -> ExitCode {
+    run_cells(args, |value, limits, stored| {
+        let (spec, job) = prepare(value, limits, stored)?;
+        Ok((StudySpec::Sweep(spec), job))
+    })
+}
+
+/// `geomint study basins`: the whole basin map, or with `--shard` one part of it.
+pub(crate) fn run_basins(args: &StudyArgs) -> ExitCode {
+    run_cells(args, |value, limits, stored| {
+        let (request, sweep) = BasinsRequest::from_value(value)?;
+        let spec = request.to_spec(&sweep, stored)?;
+        let job = spec.prepare(limits)?;
+        Ok((StudySpec::Basins(spec), job))
+    })
+}
+
+/// Reads the spec file with `read` and runs the study it gives on all cores, whole or the shard
+/// `--shard` names, with progress on standard error.
+fn run_cells<S: Recorded>(
+    args: &StudyArgs,
+    read: impl FnOnce(&serde_json::Value, &Limits, &dyn StoredSystems) -> Prepared<S>,
+) -> ExitCode {
     let limits = &args.limits();
     let (source, text) = match read_spec(&args.spec) {
         Ok(spec) => spec,
         Err(code) => return code,
     };
     let stored = args.systems.open();
-    let parsed = crate::api::json::parse_json(&text).and_then(|v| prepare(&v, limits, &stored));
+    let parsed = crate::api::json::parse_json(&text).and_then(|v| read(&v, limits, &stored));
     let (spec, job) = match parsed {
         Ok(parsed) => parsed,
         Err(e) => {
@@ -106,11 +136,11 @@ pub(crate) fn run_sweep(args: &StudyArgs) -> ExitCode {
         }
     };
     eprintln!(
-        "{} of {} cells × {} runs ({} steps in all for the whole sweep) on {} threads",
+        "{} of {} cells of the {} (at most {} steps in all for the whole of it) on {} threads",
         cells.len(),
         job.cells(),
-        job.runs.len(),
-        job.total_steps,
+        job.name(),
+        job.steps(),
         rayon::current_num_threads()
     );
     let report = |done: usize, total: usize| {
@@ -121,31 +151,16 @@ pub(crate) fn run_sweep(args: &StudyArgs) -> ExitCode {
     };
     let progress = Progress::new(cells.len(), &report);
     let written = match shard {
-        Some(shard) => {
-            parts::run_shard(&job, StudySpec::Sweep(spec), shard, &|_, _| progress.add(1)).map(
-                |part| {
-                    eprintln!("{:.1} s", part.wall_ms / 1e3);
-                    write_document(
-                        args,
-                        false,
-                        &part,
-                        None::<NoRecording<Part<Vec<RunMetrics>>>>,
-                    )
-                },
-            )
-        }
-        None => {
-            let emit = |line: SweepLine| {
-                if let SweepLine::Progress { done, total } = line {
-                    report(done, total);
-                }
-                true
-            };
-            sweep::run(&job, &Local, Budget::default(), &emit).map(|doc| {
-                eprintln!("{:.1} s", doc.wall_ms / 1e3);
-                whole(args, &doc)
-            })
-        }
+        Some(shard) => parts::run_shard(&job, spec, shard, &|_, _| progress.add(1)).map(|part| {
+            eprintln!("{:.1} s", part.wall_ms / 1e3);
+            write_document(args, false, &part, None::<Recorder<Part<S::Cell>>>)
+        }),
+        None => engine::run(&job, &Local, Budget::default(), &|_, _| progress.add(1)).map(
+            |finished| {
+                eprintln!("{:.1} s", finished.wall_ms / 1e3);
+                whole(args, &job.document_of(finished), S::recorder())
+            },
+        ),
     };
     written.unwrap_or_else(|e| {
         eprintln!("error: {source}: {e}");
@@ -153,21 +168,85 @@ pub(crate) fn run_sweep(args: &StudyArgs) -> ExitCode {
     })
 }
 
-type NoRecording<D> = fn(std::fs::File, &D) -> Result<(), String>;
-
-/// Reads a part file.
-fn read_part(path: &Path) -> Result<Part<Vec<RunMetrics>>, String> {
-    let text = std::fs::read(path).map_err(|e| format!("cannot read it: {e}"))?;
-    serde_json::from_slice(&text).map_err(|e| format!("not a part of a sweep: {e}"))
+/// A study the command line runs in cells, and how its whole document is recorded.
+trait Recorded: Documented {
+    /// The recorder of its document, for kinds that have one.
+    fn recorder() -> Option<Recorder<<Self::Line as CellLine>::Document>>;
 }
 
-/// `geomint study merge`: the parts of a sweep (every shard exactly once) into its document.
+impl Recorded for SweepJob {
+    fn recorder() -> Option<Recorder<SweepDocument>> {
+        Some(|f, doc| {
+            crate::recording::sweep::write_rrd(std::io::BufWriter::new(f), doc)
+                .map_err(|e| e.to_string())
+                .and_then(|mut w| std::io::Write::flush(&mut w).map_err(|e| e.to_string()))
+        })
+    }
+}
+
+impl Recorded for BasinsJob {
+    fn recorder() -> Option<Recorder<BasinsDocument>> {
+        None
+    }
+}
+
+/// Reads a part file as one of a study whose cells are `C`.
+fn read_part<C: serde::de::DeserializeOwned>(path: &Path) -> Result<Part<C>, String> {
+    let text = std::fs::read(path).map_err(|e| format!("cannot read it: {e}"))?;
+    serde_json::from_slice(&text).map_err(|e| format!("not a part of a sweep or basin map: {e}"))
+}
+
+/// The spec a part file carries, read before its cells (whose type depends on it).
+fn spec_of_part(path: &Path) -> Result<StudySpec, String> {
+    #[derive(serde::Deserialize)]
+    struct SpecOnly {
+        spec: StudySpec,
+    }
+    let text = std::fs::read(path).map_err(|e| format!("cannot read it: {e}"))?;
+    serde_json::from_slice::<SpecOnly>(&text)
+        .map(|p| p.spec)
+        .map_err(|e| format!("not a part of a sweep or basin map: {e}"))
+}
+
+/// `geomint study merge`: the parts of a sweep or a basin map (every shard exactly once) into
+/// its document.
 pub(crate) fn run_merge(args: &StudyArgs) -> ExitCode {
     let limits = &args.limits();
+    let first = args.spec.display().to_string();
+    let spec = match spec_of_part(&args.spec) {
+        Ok(spec) => spec,
+        Err(e) => {
+            eprintln!("error: {first}: {e}");
+            return ExitCode::from(BAD_INPUT);
+        }
+    };
+    match &spec {
+        StudySpec::Sweep(sweep) => match sweep.prepare(limits) {
+            Ok(job) => merge_parts(args, &job, &spec),
+            Err(e) => spec_error(&first, e),
+        },
+        StudySpec::Basins(map) => match map.prepare(limits) {
+            Ok(job) => merge_parts(args, &job, &spec),
+            Err(e) => spec_error(&first, e),
+        },
+        _ => {
+            eprintln!("error: {first}: not a part of a sweep or basin map");
+            ExitCode::from(BAD_INPUT)
+        }
+    }
+}
+
+fn spec_error(first: &str, e: crate::core::error::CoreError) -> ExitCode {
+    eprintln!("error: {first}: its spec: {e}");
+    ExitCode::from(BAD_INPUT)
+}
+
+/// Reads every part as one of `job` (whose spec is `spec`) and writes the merged document.
+fn merge_parts<S: Recorded>(args: &StudyArgs, job: &S, spec: &StudySpec) -> ExitCode {
     let mut parts = Vec::new();
     for path in std::iter::once(&args.spec).chain(&args.parts) {
         let name = path.display().to_string();
-        match read_part(path) {
+        match read_part::<S::Cell>(path) {
             Ok(part) => parts.push((name, part)),
             Err(e) => {
                 eprintln!("error: {name}: {e}");
@@ -175,20 +254,7 @@ pub(crate) fn run_merge(args: &StudyArgs) -> ExitCode {
             }
         }
     }
-    let (first, part) = &parts[0];
-    let spec = part.spec.clone();
-    let prepared = match &spec {
-        StudySpec::Sweep(sweep) => sweep.prepare(limits).map_err(|e| e.to_string()),
-        _ => Err("not a sweep".into()),
-    };
-    let job = match prepared {
-        Ok(job) => job,
-        Err(e) => {
-            eprintln!("error: {first}: its spec: {e}");
-            return ExitCode::from(BAD_INPUT);
-        }
-    };
-    let (cells, wall_ms) = match parts::merge(&job, &spec, parts) {
+    let (cells, wall_ms) = match parts::merge(job, spec, parts) {
         Ok(merged) => merged,
         Err(e) => {
             eprintln!("error: {e}");
@@ -196,16 +262,11 @@ pub(crate) fn run_merge(args: &StudyArgs) -> ExitCode {
         }
     };
     eprintln!("merged {} cells", cells.len());
-    whole(args, &job.document(cells, wall_ms))
+    whole(args, &engine::document_of_parts(job, cells, wall_ms), S::recorder())
 }
 
-/// Writes a whole sweep's document: a Rerun recording for an output file ending in `.rrd`, JSON
-/// otherwise.
-fn whole(args: &StudyArgs, doc: &sweep::SweepDocument) -> ExitCode {
-    let record = |f: std::fs::File, doc: &sweep::SweepDocument| {
-        crate::recording::sweep::write_rrd(std::io::BufWriter::new(f), doc)
-            .map_err(|e| e.to_string())
-            .and_then(|mut w| std::io::Write::flush(&mut w).map_err(|e| e.to_string()))
-    };
-    write_document(args, wants_rrd(args), doc, Some(record))
+/// Writes a whole study's document: a Rerun recording for an output file ending in `.rrd` (for
+/// kinds that have one), JSON otherwise.
+fn whole<D: serde::Serialize>(args: &StudyArgs, doc: &D, record: Option<Recorder<D>>) -> ExitCode {
+    write_document(args, wants_rrd(args), doc, record)
 }

@@ -29,12 +29,12 @@ use crate::api::studies::{ConvergenceRequest, EnergyMapRequest, WorkPrecisionReq
 use crate::api::sweep::{self as presets, Preset, SweepRequest};
 use crate::core::error::{CoreError, ErrorDetail};
 use crate::core::run::Budget;
-use crate::core::studies::basins::{self, BasinsDocument, BasinsLine};
+use crate::core::studies::basins::{BasinsDocument, BasinsLine};
 use crate::core::studies::convergence::{self, ConvergenceDocument, ConvergenceLine};
 use crate::core::studies::energy_map::{self, EnergyMapDocument, MapLine};
-use crate::core::studies::engine::{Order, Study};
+use crate::core::studies::engine::{self, CellLine, Documented, Order, Study};
 use crate::core::studies::settings::{ProgressLine, StudyJob};
-use crate::core::studies::sweep::{self, SweepDocument, SweepLine};
+use crate::core::studies::sweep::{SweepDocument, SweepLine};
 use crate::core::studies::work_precision::{self, StudyLine, WorkPrecisionDocument};
 use crate::executor::StudyExecutor;
 use crate::recording;
@@ -87,6 +87,39 @@ fn slots<S: Study>(state: &AppState, study: &S) -> usize {
     } else {
         state.config.max_concurrent
     }
+}
+
+/// Answers a study whose document is made from its cells (a sweep, a basin map) once it is
+/// admitted: its slots taken, its cells run on the service's executor, its progress lines
+/// streamed or its document encoded by `encode` (`file` names a `.rrd` attachment).
+async fn answer_cells<S: Documented + Send + 'static>(
+    state: AppState,
+    client: Client,
+    format: Format,
+    job: S,
+    encode: fn(Format, &<S::Line as CellLine>::Document) -> Result<Vec<u8>, ApiError>,
+    file: &'static str,
+) -> Result<Response, ApiError> {
+    let work = Work::admit(&state, slots(&state, &job), Cost::Study, client).await?;
+    tracing::info!(
+        study = job.name(),
+        cells = job.cells(),
+        steps = job.steps(),
+        distributed = state.executor.distributes(&job),
+        "study started"
+    );
+    let executor = state.executor.clone();
+    answer(
+        work,
+        format,
+        move |budget, emit: &(dyn Fn(S::Line) -> bool + Sync)| {
+            engine::run_documented(&job, &executor, budget, emit)
+        },
+        (S::Line::result, S::Line::error, S::Line::end),
+        move |doc| encode(format, doc),
+        file,
+    )
+    .await
 }
 
 /// Answers a settings study (`job`, run by `run` on the service's executor).
@@ -304,30 +337,8 @@ pub async fn sweep(
     let job = request
         .to_spec(&*state.systems)?
         .prepare(&state.config.limits)?;
-    let work = Work::admit(&state, slots(&state, &job), Cost::Study, client).await?;
-    tracing::info!(
-        cells = job.cells(),
-        runs = job.runs.len(),
-        steps = job.total_steps,
-        distributed = state.executor.distributes(&job),
-        "sweep started"
-    );
-    let executor = state.executor.clone();
-    answer(
-        work,
-        format,
-        move |budget, emit: &(dyn Fn(SweepLine) -> bool + Sync)| {
-            sweep::run(&job, &executor, budget, emit)
-        },
-        (
-            |doc: SweepDocument| SweepLine::Result(Box::new(doc)),
-            |error| SweepLine::Error { error },
-            || SweepLine::End,
-        ),
-        move |doc: &SweepDocument| format.encode(doc, recording::sweep::rrd_bytes),
-        "geomint-sweep.rrd",
-    )
-    .await
+    let encode = |format: Format, doc: &SweepDocument| format.encode(doc, recording::sweep::rrd_bytes);
+    answer_cells(state, client, format, job, encode, "geomint-sweep.rrd").await
 }
 
 /// Ready-made sweeps: paper 001 Fig. 6's energy-error map (its numbers equal the energy-map
@@ -371,29 +382,8 @@ pub async fn basins(
     let job = request
         .to_spec(&sweep, &*state.systems)?
         .prepare(&state.config.limits)?;
-    let work = Work::admit(&state, slots(&state, &job), Cost::Study, client).await?;
-    tracing::info!(
-        cells = job.cells(),
-        runs = job.runs().len(),
-        distributed = state.executor.distributes(&job),
-        "basin map started"
-    );
-    let executor = state.executor.clone();
-    answer(
-        work,
-        format,
-        move |budget, emit: &(dyn Fn(BasinsLine) -> bool + Sync)| {
-            basins::run(&job, &executor, budget, emit)
-        },
-        (
-            |doc: BasinsDocument| BasinsLine::Result(Box::new(doc)),
-            |error| BasinsLine::Error { error },
-            || BasinsLine::End,
-        ),
-        |doc: &BasinsDocument| serde_json::to_vec(doc).map_err(ApiError::internal),
-        "geomint-basins.rrd",
-    )
-    .await
+    let encode = |_: Format, doc: &BasinsDocument| serde_json::to_vec(doc).map_err(ApiError::internal);
+    answer_cells(state, client, format, job, encode, "geomint-basins.rrd").await
 }
 
 /// Ready-made basin maps: the damped double well, the forced damped Duffing oscillator, and

@@ -216,3 +216,56 @@ async fn every_preset_runs_and_finds_its_attractors() {
         println!("{id}: {kinds:?}, decided by {}", run["decided_by"]);
     }
 }
+
+/// `geomint study basins`: the whole map from the command line is the route's, bit for bit, and
+/// its shards merge to it with `geomint study merge`, in any order.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_command_line_map_and_its_merged_shards_equal_the_routes() {
+    let server = start(config()).await;
+    let body = double_well(7);
+    let (status, routed) = post_json(&server, PATH, &body).await;
+    assert_eq!(status, 200, "{routed}");
+    let dir = server::scratch_dir("cli-basins");
+    std::fs::create_dir_all(&dir).unwrap();
+    let spec = dir.join("spec.json");
+    std::fs::write(&spec, serde_json::to_vec(&body).unwrap()).unwrap();
+    let geomint = |args: &[&std::ffi::OsStr]| {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_geomint"))
+            .args(args)
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    };
+    let read = |p: &std::path::Path| -> Value {
+        geomint::api::json::parse_json(&std::fs::read(p).unwrap()).unwrap()
+    };
+    let whole = dir.join("whole.json");
+    geomint(&["study".as_ref(), "basins".as_ref(), spec.as_os_str(), "-o".as_ref(), whole.as_os_str()]);
+    let whole = read(&whole);
+    assert_eq!(whole["runs"], routed["runs"]);
+    assert_eq!(whole["digest"], routed["digest"]);
+    let parts: Vec<std::path::PathBuf> = (0..3).map(|i| dir.join(format!("part-{i}.json"))).collect();
+    for (i, part) in parts.iter().enumerate() {
+        let shard = format!("{i}/3");
+        geomint(&[
+            "study".as_ref(),
+            "basins".as_ref(),
+            spec.as_os_str(),
+            "--shard".as_ref(),
+            shard.as_ref(),
+            "-o".as_ref(),
+            part.as_os_str(),
+        ]);
+    }
+    let merged = dir.join("merged.json");
+    geomint(&[
+        "study".as_ref(),
+        "merge".as_ref(),
+        parts[2].as_os_str(),
+        parts[0].as_os_str(),
+        parts[1].as_os_str(),
+        "-o".as_ref(),
+        merged.as_os_str(),
+    ]);
+    assert_eq!(read(&merged)["runs"], routed["runs"]);
+}

@@ -22,7 +22,7 @@ use serde::de::DeserializeOwned;
 use serde::Serialize;
 
 use super::{StudySpec, StudyStop};
-use crate::error::CoreError;
+use crate::error::{CoreError, ErrorDetail};
 use crate::run::Budget;
 
 /// How a study's cells may run.
@@ -217,4 +217,57 @@ impl<'a> Progress<'a> {
             }
         }
     }
+}
+
+/// The lines of the progress stream of a study whose document is made from its cells alone
+/// (sweeps, basin maps): progress, the result, an error, the end.
+pub trait CellLine: Serialize + Send + 'static {
+    /// The study's document.
+    type Document: Serialize + Send + 'static;
+    /// Cells done so far.
+    fn progress(done: usize, total: usize) -> Self;
+    /// The document.
+    fn result(document: Self::Document) -> Self;
+    /// A failure.
+    fn error(error: ErrorDetail) -> Self;
+    /// The last line of a complete stream.
+    fn end() -> Self;
+}
+
+/// A study whose document is made from what its cells came to: the route, the command-line
+/// verb, its shards and their merge are the same for every such study.
+pub trait Documented: Study {
+    /// Its progress lines.
+    type Line: CellLine;
+    /// The document of the study from its cells (the unfinished ones marked so).
+    fn document_of(&self, finished: Finished<Self::Cell>) -> <Self::Line as CellLine>::Document;
+}
+
+/// The document of `study` from the cells of its merged parts (every cell finished).
+pub fn document_of_parts<S: Documented>(
+    study: &S,
+    cells: Vec<S::Cell>,
+    wall_ms: f64,
+) -> <S::Line as CellLine>::Document {
+    study.document_of(Finished {
+        cells: cells.into_iter().map(Some).collect(),
+        stop: StudyStop::Finished,
+        wall_ms,
+    })
+}
+
+/// Runs every cell of `study` on `executor`, reporting progress (about every 1 %) through
+/// `emit`, to its document.
+pub fn run_documented<S: Documented, E: Executor + ?Sized>(
+    study: &S,
+    executor: &E,
+    budget: Budget<'_>,
+    emit: &(dyn Fn(S::Line) -> bool + Sync),
+) -> Result<<S::Line as CellLine>::Document, CoreError> {
+    let report = |done, total| {
+        emit(S::Line::progress(done, total));
+    };
+    let progress = Progress::new(study.cells(), &report);
+    let finished = run(study, executor, budget, &|_, _| progress.add(1))?;
+    Ok(study.document_of(finished))
 }

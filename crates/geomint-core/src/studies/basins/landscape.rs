@@ -33,6 +33,7 @@ const SEGMENT_POINTS: usize = 64;
 
 /// A critical point of V.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct CriticalPoint {
     /// Its position (p = 0 there).
     pub q: Vec<f64>,

@@ -14,7 +14,9 @@
 //!   dimension is D − α for a map of D axes). α near 1 is a smooth boundary, near 0 a riddled
 //!   one.
 //!
-//! An undecided cell (label −1) counts as one more outcome in both.
+//! An undecided cell (label −1) counts as one more outcome in both. A cell that starts no orbit
+//! (off the energy surface, outside the chart) is left out: so is every box holding one, and
+//! every pair of cells ε apart that holds one.
 
 use serde::{Deserialize, Serialize};
 
@@ -43,7 +45,7 @@ pub struct BasinMetrics {
     pub boundary_basin_entropy: Option<f64>,
     /// The boxes on a boundary, of all boxes.
     pub boundary_boxes: usize,
-    /// Whole boxes.
+    /// Whole boxes whose every cell starts an orbit.
     pub boxes: usize,
     /// α; `None` when fewer than three ε have uncertain cells.
     pub uncertainty_exponent: Option<f64>,
@@ -51,20 +53,25 @@ pub struct BasinMetrics {
     pub uncertain_fractions: Vec<Uncertain>,
 }
 
-/// The metrics of `labels` on a grid of `shape` cells per axis (the first axis fastest).
-pub fn basin_metrics(labels: &[i64], shape: &[usize]) -> BasinMetrics {
+/// The metrics of `labels` on a grid of `shape` cells per axis (the first axis fastest), the
+/// cells where `started` is false left out.
+pub fn basin_metrics(labels: &[i64], started: &[bool], shape: &[usize]) -> BasinMetrics {
     let (nx, ny) = match shape {
         [nx] => (*nx, 1),
         [nx, ny] => (*nx, *ny),
         _ => (labels.len(), 1),
     };
     let label = |x: usize, y: usize| labels[x + nx * y];
+    let counts_here = |x: usize, y: usize| started[x + nx * y];
     let (bx, by) = (BOX, if ny == 1 { 1 } else { BOX });
     let mut entropies = Vec::new();
     let mut counts: Vec<(i64, usize)> = Vec::new();
     for y0 in (0..ny / by).map(|k| k * by) {
         for x0 in (0..nx / bx).map(|k| k * bx) {
             counts.clear();
+            if !(y0..y0 + by).all(|y| (x0..x0 + bx).all(|x| counts_here(x, y))) {
+                continue;
+            }
             for y in y0..y0 + by {
                 for x in x0..x0 + bx {
                     let l = label(x, y);
@@ -94,18 +101,22 @@ pub fn basin_metrics(labels: &[i64], shape: &[usize]) -> BasinMetrics {
         let (mut cells, mut uncertain) = (0usize, 0usize);
         for y in 0..ny {
             for x in 0..nx {
+                if !counts_here(x, y) {
+                    continue;
+                }
                 let mut neighbours = Vec::with_capacity(4);
                 if x >= eps && x + eps < nx {
-                    neighbours.extend([label(x - eps, y), label(x + eps, y)]);
+                    neighbours.extend([(x - eps, y), (x + eps, y)]);
                 }
                 if ny > 1 && y >= eps && y + eps < ny {
-                    neighbours.extend([label(x, y - eps), label(x, y + eps)]);
+                    neighbours.extend([(x, y - eps), (x, y + eps)]);
                 }
+                neighbours.retain(|&(x, y)| counts_here(x, y));
                 if neighbours.is_empty() {
                     continue;
                 }
                 cells += 1;
-                if neighbours.iter().any(|&l| l != label(x, y)) {
+                if neighbours.iter().any(|&(u, v)| label(u, v) != label(x, y)) {
                     uncertain += 1;
                 }
             }

@@ -25,7 +25,7 @@ use crate::run::{integrate, Budget, Schedule, StopReason};
 use crate::sections::names::StateNames;
 use crate::sections::{Direction, Surface};
 use crate::simulation::{Limits, Simulation};
-use crate::studies::engine::{self, Executor, Finished, Progress, Study};
+use crate::studies::engine::{self, CellLine, Documented, Executor, Finished, Study};
 use crate::studies::sweep::{AxisDocument, RunLabel, SweepJob, SweepSpec, Target};
 use crate::studies::{StudySpec, StudyStop};
 use crate::system::{MechanicalSystem, State};
@@ -440,7 +440,7 @@ impl BasinsJob {
                 outcome => match attractors.iter().position(|a| a.matches(outcome)) {
                     Some(k) => k as i64,
                     None if attractors.len() < MAX_ATTRACTORS => {
-                        attractors.push(self.attractor(attractors.len(), outcome));
+                        attractors.push(self.attractor(&attractors, outcome));
                         attractors.len() as i64 - 1
                     }
                     None => {
@@ -460,13 +460,19 @@ impl BasinsJob {
             }
             labels.push(label);
         }
-        let total = cells.len().max(1) as f64;
+        let started: Vec<bool> = cells
+            .iter()
+            .map(|c| !matches!(c.outcome, Outcome::Failed { .. }))
+            .collect();
+        let not_started = started.iter().filter(|&&s| !s).count();
+        let total = (cells.len() - not_started).max(1) as f64;
         let fractions = attractors.iter().map(|a| a.cells as f64 / total).collect();
         let shape: Vec<usize> = self.sweep.grid.axes.iter().map(|a| a.n).collect();
         BasinRun {
             label: self.sweep.runs[run].clone(),
-            metrics: basin_metrics(&labels, &shape),
-            undecided_fraction: undecided.len() as f64 / total,
+            metrics: basin_metrics(&labels, &started, &shape),
+            undecided_fraction: (undecided.len() - not_started) as f64 / total,
+            not_started,
             decided_at: cells.iter().map(|c| c.decided_at).collect(),
             labels,
             attractors,
@@ -478,8 +484,9 @@ impl BasinsJob {
         }
     }
 
-    /// The table entry of a new outcome, label `label`.
-    fn attractor(&self, label: usize, outcome: &Outcome) -> Attractor {
+    /// The table entry of a new outcome, after the `known` ones.
+    fn attractor(&self, known: &[Attractor], outcome: &Outcome) -> Attractor {
+        let label = known.len();
         let point = |i: usize| {
             self.criteria
                 .landscape
@@ -501,12 +508,14 @@ impl BasinsJob {
             Outcome::Exit { exit } => {
                 (Kind::Exit, self.exit_names[*exit].clone(), None, Vec::new())
             }
-            Outcome::Cycle { points } => (
-                Kind::Periodic,
-                format!("period-{} orbit", points.len()),
-                None,
-                points.clone(),
-            ),
+            Outcome::Cycle { points } => {
+                let same_period = known
+                    .iter()
+                    .filter(|a| a.period == Some(points.len()))
+                    .count();
+                let name = format!("period-{} orbit {}", points.len(), same_period + 1);
+                (Kind::Periodic, name, None, points.clone())
+            }
             Outcome::Diverged => (Kind::Diverged, "diverged".into(), None, Vec::new()),
             _ => (Kind::Stayed, "stayed".into(), None, Vec::new()),
         };
@@ -551,7 +560,7 @@ pub struct Attractor {
     pub label: i64,
     /// Its kind.
     pub kind: Kind,
-    /// Its name in words (`equilibrium 2`, an exit's name, `period-3 orbit`).
+    /// Its name in words (`equilibrium 2 (minimum)`, an exit's name, `period-3 orbit 1`).
     pub name: String,
     /// The period, in driving periods, of a periodic orbit.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -559,7 +568,6 @@ pub struct Attractor {
     /// The critical point of V (position, energy, Hessian eigenvalues) of an equilibrium or a
     /// well.
     #[serde(skip_serializing_if = "Option::is_none")]
-    #[cfg_attr(feature = "openapi", schema(value_type = Option<Object>))]
     pub equilibrium: Option<CriticalPoint>,
     /// The stroboscopic points of a periodic orbit, each (q, p) without the clock.
     #[serde(skip_serializing_if = "Vec::is_empty")]
@@ -631,11 +639,14 @@ pub struct BasinRun {
     pub decided_at: Vec<Option<f64>>,
     /// The labels' entries, in label order.
     pub attractors: Vec<Attractor>,
-    /// Each label's share of the cells.
+    /// Each label's share of the cells that start an orbit.
     pub fractions: Vec<f64>,
-    /// The undecided cells' share.
+    /// The share of the cells that start an orbit left undecided.
     pub undecided_fraction: f64,
-    /// The undecided cells and why.
+    /// Cells that start no orbit (off the energy surface, outside the chart): label −1, their
+    /// reason in `undecided`, left out of the shares and the metrics.
+    pub not_started: usize,
+    /// The cells without a label and why.
     pub undecided: Vec<UndecidedCell>,
     /// Cells per criterion.
     pub decided_by: DecidedBy,
@@ -662,7 +673,6 @@ pub struct BasinsDocument {
     /// The exits' names, in exit order.
     pub exits: Vec<String>,
     /// The critical points of V the search found (systems nothing drives), minima first.
-    #[cfg_attr(feature = "openapi", schema(value_type = Option<Vec<Object>>))]
     pub equilibria: Option<Vec<CriticalPoint>>,
     /// The lowest critical value that is not a minimum: below it (less the margin) the energy
     /// argument decides.
@@ -748,10 +758,33 @@ pub fn run<E: Executor + ?Sized>(
     budget: Budget<'_>,
     emit: &(dyn Fn(BasinsLine) -> bool + Sync),
 ) -> Result<BasinsDocument, CoreError> {
-    let report = |done, total| {
-        emit(BasinsLine::Progress { done, total });
-    };
-    let progress = Progress::new(job.cells(), &report);
-    let finished = engine::run(job, executor, budget, &|_, _| progress.add(1))?;
-    Ok(job.document_of(finished))
+    engine::run_documented(job, executor, budget, emit)
+}
+
+impl Documented for BasinsJob {
+    type Line = BasinsLine;
+
+    fn document_of(&self, finished: Finished<Vec<CellOutcome>>) -> BasinsDocument {
+        BasinsJob::document_of(self, finished)
+    }
+}
+
+impl CellLine for BasinsLine {
+    type Document = BasinsDocument;
+
+    fn progress(done: usize, total: usize) -> Self {
+        BasinsLine::Progress { done, total }
+    }
+
+    fn result(document: BasinsDocument) -> Self {
+        BasinsLine::Result(Box::new(document))
+    }
+
+    fn error(error: ErrorDetail) -> Self {
+        BasinsLine::Error { error }
+    }
+
+    fn end() -> Self {
+        BasinsLine::End
+    }
 }

@@ -34,7 +34,7 @@ use crate::sections::SectionSpec;
 use crate::simulation::{
     EnergySurface, InitialCoordinates, Limits, MethodAt, Simulation, SimulationSpec, Watching,
 };
-use crate::studies::engine::{self, Executor, Finished, Progress, Study};
+use crate::studies::engine::{self, CellLine, Documented, Executor, Finished, Study};
 use crate::studies::{StudySpec, StudyStop};
 use crate::system::MechanicalSystem;
 use crate::systems::{ParamValue, SystemInfo, SystemRef};
@@ -448,10 +448,33 @@ pub fn run<E: Executor + ?Sized>(
     budget: Budget<'_>,
     emit: &(dyn Fn(SweepLine) -> bool + Sync),
 ) -> Result<SweepDocument, CoreError> {
-    let report = |done, total| {
-        emit(SweepLine::Progress { done, total });
-    };
-    let progress = Progress::new(job.cells(), &report);
-    let finished = engine::run(job, executor, budget, &|_, _| progress.add(1))?;
-    Ok(job.document_of(finished))
+    engine::run_documented(job, executor, budget, emit)
+}
+
+impl Documented for SweepJob {
+    type Line = SweepLine;
+
+    fn document_of(&self, finished: Finished<Vec<RunMetrics>>) -> SweepDocument {
+        SweepJob::document_of(self, finished)
+    }
+}
+
+impl CellLine for SweepLine {
+    type Document = SweepDocument;
+
+    fn progress(done: usize, total: usize) -> Self {
+        SweepLine::Progress { done, total }
+    }
+
+    fn result(document: SweepDocument) -> Self {
+        SweepLine::Result(Box::new(document))
+    }
+
+    fn error(error: ErrorDetail) -> Self {
+        SweepLine::Error { error }
+    }
+
+    fn end() -> Self {
+        SweepLine::End
+    }
 }
