@@ -39,13 +39,16 @@ export function basinColour(label) {
   return label < 0 ? UNDECIDED_RGB : BASIN_COLOURS[label % BASIN_COLOURS.length];
 }
 
-/** What an attractor's kind means, in words. */
+/** Whether an equilibrium is a minimum of V (its Hessian's eigenvalues all positive). */
+const isMinimum = (a) => a.equilibrium?.hessian_eigenvalues.every((e) => e > 0);
+
+/** What an attractor is, in a few words: its kind and what it means. */
 function kindText(a) {
   switch (a.kind) {
-    case 'equilibrium': return 'equilibrium the damped orbits settle at';
-    case 'well': return 'well the orbits stay in (energy below the lowest saddle)';
-    case 'periodic': return `periodic orbit (period ${a.period ?? '?'} of the stroboscopic map)`;
-    case 'exit': return 'exit the orbits leave through';
+    case 'equilibrium': return isMinimum(a) ? 'equilibrium: the damped orbits settle here' : 'equilibrium: only a start on it stays there';
+    case 'well': return 'well: below the lowest saddle the orbits stay in it';
+    case 'periodic': return `periodic orbit of period ${a.period ?? '?'} on the stroboscopic map`;
+    case 'exit': return 'exit: the orbits leave through it';
     case 'diverged': return 'diverged to infinity';
     case 'stayed': return 'stayed inside until t_end';
     default: return a.kind;
@@ -55,8 +58,11 @@ function kindText(a) {
 /** A percentage with three significant figures. */
 const percent = (share) => `${fmt(100 * share, 3)} %`;
 
-/** A point or vector as `(a, b)`. */
-const tuple = (xs) => (xs.length === 1 ? fmt(xs[0], 4) : `(${xs.map((x) => fmt(x, 4)).join(', ')})`);
+/** A point or vector as `(a, b)`, round-off below 1e-12 shown as 0 (a critical point found by Newton). */
+const tuple = (xs) => {
+  const text = (x) => fmt(Math.abs(x) < 1e-12 ? 0 : x, 4);
+  return xs.length === 1 ? text(xs[0]) : `(${xs.map(text).join(', ')})`;
+};
 
 /**
  * Each attractor's name as the legend shows it: the server's, with where it is when two share a
@@ -292,8 +298,10 @@ export class BasinsPanel {
         ? `background: repeating-linear-gradient(45deg, rgb(${UNDECIDED_RGB.join(',')}) 0 3px, #fff 3px 4px)`
         : `background: rgb(${basinColour(label).join(',')})`,
     });
+    const { coordinates } = this.stateNamesOf();
+    const q = coordinates.length === 1 ? coordinates[0] : coordinates.length ? `(${coordinates.join(', ')})` : 'q';
     const where = (a) => {
-      if (a.equilibrium) return `at q = ${tuple(a.equilibrium.q)}, V = ${fmt(a.equilibrium.energy, 4)}`;
+      if (a.equilibrium) return `at ${q} = ${tuple(a.equilibrium.q)}, V = ${tuple([a.equilibrium.energy])}`;
       if (a.points?.length) return `stroboscopic point${a.points.length > 1 ? 's' : ''} ${a.points.map(tuple).join(', ')}`;
       return '';
     };
@@ -301,14 +309,14 @@ export class BasinsPanel {
       swatch(a.label),
       el('span', {},
         el('strong', { class: 'attractor-name', text: names.get(a.label) }),
-        ` — ${kindText(a)}: `,
+        ` — ${kindText(a)}; `,
         el('span', { class: 'share', text: percent(run.fractions[a.label]) }),
         ` (${plural(a.cells, 'cell')})`,
         where(a) ? el('small', { text: where(a) }) : null)));
     if (run.undecided.length) {
       items.push(el('li', { 'data-label': '-1', 'data-kind': 'undecided' }, swatch(-1),
         el('span', {}, el('strong', { class: 'attractor-name', text: 'undecided' }),
-          ' — no criterion decided these cells (reasons below): ',
+          ' — no criterion decided these cells (reasons below); ',
           el('span', { class: 'share', text: percent(run.undecided_fraction) }),
           ` (${plural(run.undecided.length, 'cell')})`)));
     }
@@ -332,7 +340,7 @@ export class BasinsPanel {
   renderMetrics(doc, run) {
     const row = (key, term, value, note = '') => [
       el('dt', { text: term }),
-      el('dd', { 'data-metric': key }, el('strong', { text: value }), note ? ` ${note}` : ''),
+      el('dd', { 'data-metric': key }, el('strong', { text: value }), note ? el('small', { text: note }) : null),
     ];
     const ln2 = Math.log(2);
     const bb = run.boundary_basin_entropy;
@@ -341,9 +349,9 @@ export class BasinsPanel {
     this.metrics.replaceChildren(
       ...row('basin_entropy', 'Basin entropy S_b', fmt(run.basin_entropy, 4), `over ${plural(run.boxes, 'box', 'boxes')} of 5 × 5 cells`),
       ...row('boundary_basin_entropy', 'Boundary basin entropy S_bb', fmt(bb, 4),
-        bb > ln2 ? `> ln 2 = ${fmt(ln2, 4)}: the boundary is fractal` : `≤ ln 2 = ${fmt(ln2, 4)}: this test does not say the boundary is fractal`),
+        bb > ln2 ? `> ln 2 = ${fmt(ln2, 4)}: the boundary is fractal` : `≤ ln 2 = ${fmt(ln2, 4)}: this test cannot tell whether the boundary is fractal`),
       ...row('uncertainty_exponent', 'Uncertainty exponent α', fmt(run.uncertainty_exponent, 3),
-        `fitted to the share f(ε) of cells with a differently labelled cell ε cells away${fractions ? `: ${fractions}` : ''}; α near 0 means a fractal boundary, α = 1 a smooth one`),
+        `fitted to f(ε), the share of cells with another label ε cells away${fractions ? ` (${fractions})` : ''}; near 0: a fractal boundary, 1: a smooth one`),
       ...row('decided_by', 'Decided by', decided || '—', '(cells per criterion)'),
       ...row('lowest_saddle_energy', 'Lowest saddle', doc.lowest_saddle_energy == null ? 'none found' : `E = ${fmt(doc.lowest_saddle_energy, 6)}`,
         `(${plural(doc.equilibria.length, 'critical point')} of V)`),
@@ -369,7 +377,7 @@ export class BasinsPanel {
       const reason = run.undecided.find((u) => u.cell === k)?.reason ?? 'no reason given';
       text += `undecided — ${reason}`;
     } else {
-      text += `${name} (${attractor.kind}), decided at t = ${fmt(decidedAt, 4)}`;
+      text += `${name} — ${attractor.kind}, decided at t = ${fmt(decidedAt, 4)}`;
     }
     this.readout.textContent = `${text}.`;
     Object.assign(this.readout.dataset, {
@@ -460,7 +468,8 @@ export class BasinsPanel {
     const name = label < 0 ? 'undecided' : attractorNames(run.attractors).get(label);
     note.dataset.orbitState = 'done';
     note.dataset.samples = String(samples.t.length);
-    note.textContent = `Orbit from ${this.where(cell)} (q = ${tuple(answer.system.q0)}, p = ${tuple(answer.system.p0)}), ` +
+    const start = this.last.body.energy_surface ? ` (q = ${tuple(answer.system.q0)}, p = ${tuple(answer.system.p0)} on the energy surface)` : '';
+    note.textContent = `Orbit from ${this.where(cell)}${start}, ` +
       `${samples.method} to t = ${fmt(samples.t[last], 4)}: ends at q = ${tuple(samples.q[last])}, p = ${tuple(samples.p[last])}; ` +
       `the map says ${name}${run.decided_at[k] == null ? '' : `, decided at t = ${fmt(run.decided_at[k], 4)}`}.` +
       (points ? ' Drawn over the map in its plane (white dot: the start).' : '');
