@@ -353,8 +353,9 @@ export class BasinsPanel {
       ...row('uncertainty_exponent', 'Uncertainty exponent α', fmt(run.uncertainty_exponent, 3),
         `fitted to f(ε), the share of cells with another label ε cells away${fractions ? ` (${fractions})` : ''}; near 0: a fractal boundary, 1: a smooth one`),
       ...row('decided_by', 'Decided by', decided || '—', '(cells per criterion)'),
-      ...row('lowest_saddle_energy', 'Lowest saddle', doc.lowest_saddle_energy == null ? 'none found' : `E = ${fmt(doc.lowest_saddle_energy, 6)}`,
-        `(${plural(doc.equilibria.length, 'critical point')} of V)`),
+      // A driven system has no critical points searched (`equilibria` null): nothing to say.
+      ...(doc.equilibria ? row('lowest_saddle_energy', 'Lowest saddle', doc.lowest_saddle_energy == null ? 'none found' : `E = ${fmt(doc.lowest_saddle_energy, 6)}`,
+        `(${plural(doc.equilibria.length, 'critical point')} of V)`) : []),
       ...row('steps', 'Steps', (run.steps ?? 0).toLocaleString('en'), '(each cell stops once decided)'),
     );
   }
@@ -401,7 +402,7 @@ export class BasinsPanel {
     const run = this.currentRun;
     const k = cell.row * doc.axes[0].n + cell.col;
     const names = stateNames(body.system, this.systems);
-    const dimension = Math.max(names.coordinates.length, body.q0?.length ?? 0, doc.equilibria[0]?.q.length ?? 0, 1);
+    const dimension = Math.max(names.coordinates.length, body.q0?.length ?? 0, doc.equilibria?.[0]?.q.length ?? 0, 1);
     const q0 = [...(body.q0 ?? [])];
     const p0 = [...(body.p0 ?? [])];
     while (q0.length < dimension) q0.push(0);

@@ -5,8 +5,9 @@
 // cell), names them in the legend with their shares, reads a cell's attractor and decision time
 // under the pointer and by keyboard, and draws a clicked cell's orbit, which ends in the well its
 // label names; cut short, the map's undecided cells are grey and say why; the Hénon–Heiles escape
-// map names its exits up, left and right, and its cells off the energy surface say so. Screenshots
-// at desktop and phone widths go to artifacts/.
+// map names its exits up, left and right, and its cells off the energy surface say so; the forced
+// Duffing oscillator's two period-1 orbits get names of their own. Screenshots at desktop and
+// phone widths go to artifacts/.
 
 import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
@@ -230,6 +231,26 @@ test('Hénon–Heiles escapes: the legend names the exits up, left and right; of
   assert.ok(Math.abs(energy - 0.25) < 1e-12, `H = ${energy}`);
   await page.locator('#basins').screenshot({ path: join(artifacts, 'basins-henon-heiles.png') });
   assert.deepEqual(consoleErrors.filter((e) => !LOGGED_422.test(e)), []);
+});
+
+test('the forced Duffing oscillator: two period-1 orbits, told apart by their stroboscopic points', async () => {
+  await page.selectOption('#ba-preset', 'forced_duffing');
+  const doc = await runRequest(smallPreset('forced_duffing', 7));
+  const run = doc.runs[0];
+  assert.equal(doc.equilibria, null, 'a driven system has no critical points searched');
+  const entries = await legend();
+  assert.equal(entries.length, 2, JSON.stringify(entries));
+  for (const e of entries) {
+    const a = run.attractors.find((x) => x.label === e.label);
+    assert.equal(e.kind, 'periodic');
+    // The API names both `period-1 orbit`; the legend adds where each one's stroboscopic point is.
+    assert.equal(a.name, 'period-1 orbit');
+    assert.ok(e.name.startsWith('period-1 orbit at ('), e.name);
+    assert.ok(Math.abs(e.share - 100 * run.fractions[e.label]) < 0.05);
+  }
+  assert.notEqual(entries[0].name, entries[1].name);
+  assert.equal(await page.$('#ba-metrics [data-metric="lowest_saddle_energy"]'), null);
+  assert.match(await page.textContent('#ba-metrics [data-metric="decided_by"] strong'), new RegExp(`recurrence ${run.decided_by.recurrence}`));
 });
 
 test('on a phone the map, legend and metrics stack within the screen', async () => {
