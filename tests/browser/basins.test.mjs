@@ -6,8 +6,8 @@
 // under the pointer and by keyboard, and draws a clicked cell's orbit, which ends in the well its
 // label names; cut short, the map's undecided cells are grey and say why; the Hénon–Heiles escape
 // map names its exits up, left and right, and its cells off the energy surface say so; the forced
-// Duffing oscillator's two period-1 orbits get names of their own. Screenshots at desktop and
-// phone widths go to artifacts/.
+// Duffing oscillator's two period-1 orbits get names of their own; a full-size map shows its
+// progress and Cancel stops it. Screenshots at desktop and phone widths go to artifacts/.
 
 import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
@@ -251,6 +251,21 @@ test('the forced Duffing oscillator: two period-1 orbits, told apart by their st
   assert.notEqual(entries[0].name, entries[1].name);
   assert.equal(await page.$('#ba-metrics [data-metric="lowest_saddle_energy"]'), null);
   assert.match(await page.textContent('#ba-metrics [data-metric="decided_by"] strong'), new RegExp(`recurrence ${run.decided_by.recurrence}`));
+});
+
+test('a running map shows its progress and Cancel stops it', async () => {
+  await page.selectOption('#ba-preset', 'henon_heiles_escapes');
+  const request = { ...smallPreset('henon_heiles_escapes', 101), t_end: 2000 };
+  await page.fill('#ba-spec', JSON.stringify(request));
+  await page.click('#ba-run');
+  await page.waitForFunction(() => (window.geomint.basins.lastProgress?.done ?? 0) > 0, null, { timeout: 30_000 });
+  const bar = await page.$eval('#ba-progress', (p) => ({ value: p.value, max: p.max, hidden: p.hidden }));
+  assert.equal(bar.max, 101 * 101);
+  assert.ok(!bar.hidden && bar.value > 0, JSON.stringify(bar));
+  assert.match(await page.textContent('#ba-status'), /^Running: \d+ of 10201 cells/);
+  await page.click('#ba-cancel');
+  assert.equal(await settled(['cancelled', 'done']), 'cancelled');
+  assert.equal(await page.textContent('#ba-status'), 'Cancelled.');
 });
 
 test('on a phone the map, legend and metrics stack within the screen', async () => {
