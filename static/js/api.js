@@ -4,7 +4,8 @@
 // as a Rerun recording (?format=rrd, POST /api/v1/recordings), the stored recordings (list, entry,
 // samples read back, upload of an .rrd file, delete), the stability analysis
 // (POST /api/v1/stability, /api/v1/stability/point) and the studies (POST
-// /api/v1/studies/work-precision, /convergence and /energy-map, the map also as a recording).
+// /api/v1/studies/work-precision, /convergence and /energy-map, the map also as a recording, and
+// /basins).
 // Every request carries the header's bearer token, if the user gave one (token.js). Errors in
 // the service's shape, {"error": {"code", "message", "field", "position"}}, become
 // ApiError objects that keep the field path and, for an expression, the character position.
@@ -177,6 +178,16 @@ async function post(path, body, { accept = 'application/json', signal } = {}) {
   });
   if (!response.ok) throw await errorFrom(response);
   return response;
+}
+
+/** A basin map (POST /api/v1/studies/basins) as NDJSON lines: progress, then the result. */
+export async function basinsStream(body, onLine, signal) {
+  return ndjsonStream('api/v1/studies/basins', body, onLine, signal);
+}
+
+/** The server's ready-made basin maps: [{id, title, request}]. */
+export async function basinsPresets() {
+  return getJson('api/v1/studies/basins/presets');
 }
 
 /** The simulation of `request` as one JSON document (the whole run at once). */

@@ -4,11 +4,11 @@
 // a progress bar, cancellable with the Cancel button or Esc, the finished run as JSON or a Rerun
 // recording); sets up the Your-system section (system.js), the stability section (stability.js),
 // the work–precision section (workprecision.js), the convergence section (convergence.js), the
-// energy-error map section (energymap.js), the sweeps (sweep.js), the Poincaré sections
-// (phasespace.js) and the recordings library (library.js), which plots recordings with the same
-// charts. For tests it exposes `window.geomint` (the uPlot instances and their point counts, and
-// the sections) and the run's state as `data-run-state` on <body> (loading, idle, running, done,
-// cancelled, error).
+// energy-error map section (energymap.js), the sweeps (sweep.js), the basin maps (basins.js), the
+// Poincaré sections (phasespace.js) and the recordings library (library.js), which plots
+// recordings with the same charts. For tests it exposes `window.geomint` (the uPlot instances and
+// their point counts, and the sections) and the run's state as `data-run-state` on <body>
+// (loading, idle, running, done, cancelled, error).
 
 import { catalogues } from './api.js';
 import { setupTokenField } from './token.js';
@@ -24,6 +24,7 @@ import { WorkPrecisionPanel } from './workprecision.js';
 import { ConvergencePanel } from './convergence.js';
 import { EnergyMapPanel } from './energymap.js';
 import { SweepPanel } from './sweep.js';
+import { BasinsPanel } from './basins.js';
 import { RecordingsPanel } from './library.js';
 import { PhaseSpacePanel } from './phasespace.js';
 
@@ -112,6 +113,7 @@ async function init() {
   const convergence = new ConvergencePanel($('#convergence'));
   const energyMap = new EnergyMapPanel($('#energy-map'), cats.methods);
   const sweep = new SweepPanel($('#sweep'), cats.systems);
+  const basins = new BasinsPanel($('#basins'), cats.systems);
   library = new RecordingsPanel($('#recordings'), cats.systems);
   const phaseSpace = new PhaseSpacePanel($('#phase-space'), cats.systems);
   // The chaos map of a section's plane runs in Sweeps; a click on one of its cells launches that
@@ -149,11 +151,12 @@ async function init() {
     convergence,
     energyMap,
     sweep,
+    basins,
     library,
     phaseSpace,
   };
   setState('idle');
-  await Promise.all([system.followLink(), phaseSpace.followLink(), sweep.init(), workPrecision.init(), (async () => {
+  await Promise.all([system.followLink(), phaseSpace.followLink(), sweep.init(), basins.init(), workPrecision.init(), (async () => {
     await library.refresh();
     await library.followLink();
   })()]);
