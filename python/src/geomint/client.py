@@ -549,23 +549,18 @@ class Client(Transport):
         energy_surface: Optional[EnergySurfaceLike] = None,
         progress: bool = True,
     ) -> BasinMap:
-        """Where each orbit of a grid of initial states ends up: the well a damped orbit settles
-        in, the periodic orbit a driven one locks onto, the exit an open system's orbit leaves
-        through; one :class:`~geomint.BasinRun` per method, with its labels on the grid
-        (:meth:`BasinMap.to_xarray` names the dimensions after the state components), the time
-        each cell was decided, the attractors' table, the shares and the metrics (basin entropy,
-        boundary basin entropy, uncertainty exponent). Each cell's run stops once decided;
-        ``t_end`` is the longest it runs.
+        """A basin map: where each orbit of a grid of initial states ends up (a damped orbit's
+        well, a driven one's periodic orbit, an open system's exit), each cell run until decided
+        (``t_end`` at most). Returns a :class:`~geomint.BasinMap`: per method the labels and
+        decision times on the grid, the attractors' table, the shares and the metrics (basin
+        entropy, boundary basin entropy, uncertainty exponent).
 
-        The axes (one or two) vary components of the initial state, by name (``"y"``,
-        ``"p_y"``) or as ``q0[i]``/``p0[i]``, as a sweep's: ``("y", -0.6, 1, 101)``. ``exits``
-        are surfaces an open system is left through, ``{"name": "up", "where": "y - 2",
-        "direction": "up"}`` or ``("up", "y - 2", "up")``; ``recognition`` says how attractors
-        are recognised (``period``: a driven system's driving period, a whole number of steps;
-        ``max_period``, ``tolerance``, ``escape_radius``). ``energy``/``energy_surface`` put
-        every cell on an energy level, as in :meth:`sweep`. The other arguments are
-        :meth:`simulate`'s (one ``chart``). A progress bar counts the cells; interrupting it
-        stops the server's map."""
+        The one or two axes vary the initial state, by name (``("y", -0.6, 1, 101)``, ``"p_y"``)
+        or as ``q0[i]``/``p0[i]``; ``energy``/``energy_surface`` are :meth:`sweep`'s. ``exits``:
+        ``{"name": "up", "where": "y - 2", "direction": "up"}`` or ``("up", "y - 2", "up")``;
+        ``recognition``: ``period`` (a driven system's, a whole number of steps),
+        ``max_period``, ``tolerance``, ``escape_radius``. The rest are :meth:`simulate`'s (one
+        ``chart``). A progress bar counts the cells; interrupting it stops the server's map."""
         names = self._state_names(system, chart=chart, initial_coordinates=initial_coordinates)
         body = basins_request(
             system, methods, axes, t_end, h=h, names=names, exits=exits, recognition=recognition, params=params,
