@@ -18,9 +18,9 @@ EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 NOTEBOOKS: List[Path] = sorted(EXAMPLES.glob("*.ipynb"))
 
 
-def test_there_are_notebooks_for_every_paper_and_a_typed_in_system() -> None:
-    names = {p.name.split("_")[0] for p in NOTEBOOKS}
-    assert {"000", "001", "003", "typed"} <= names, names
+def test_there_are_notebooks_for_every_paper_a_typed_in_system_and_basin_maps() -> None:
+    names = {p.stem.split("_")[0] for p in NOTEBOOKS}
+    assert {"000", "001", "003", "typed", "basins"} <= names, names
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)

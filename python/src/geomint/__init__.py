@@ -12,6 +12,7 @@ Without a server, :func:`geomint.local.simulate` runs the same request in this p
 from ._version import __version__
 from .catalog import Chart, Definition, Facts, Method, Parameter, System
 from ._transport import DEFAULT_URL
+from .basins import Attractor, BasinMap, BasinRun, CriticalPoint, Undecided
 from .client import Client
 from .errors import (
     GeomintError,
@@ -58,11 +59,15 @@ from .studies import (
 
 __all__ = [
     "DEFAULT_URL",
+    "Attractor",
     "Axis",
+    "BasinMap",
+    "BasinRun",
     "Chart",
     "Client",
     "Convergence",
     "ConvergenceSeries",
+    "CriticalPoint",
     "Crossings",
     "Definition",
     "DivergedAt",
@@ -95,6 +100,7 @@ __all__ = [
     "SweepRun",
     "SystemState",
     "System",
+    "Undecided",
     "UnreachableError",
     "ValidationError",
     "WorkPrecision",

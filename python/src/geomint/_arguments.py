@@ -23,6 +23,9 @@ import numpy as np
 from ._wire import (
     JSON,
     AxisRequest,
+    BasinsLine,
+    BasinsRequest,
+    BasinsResultLine,
     AxisSpec,
     ConvergenceLine,
     ConvergenceResultLine,
@@ -32,9 +35,11 @@ from ._wire import (
     MethodSpec,
     OutputOptions,
     ParamValue,
+    RecognitionRequest,
     SectionRequest,
     SimulateRequest,
     EnergySurfaceRequest,
+    ExitRequest,
     Indicator,
     StopWhenRequest,
     StopWhenThresholds,
@@ -93,8 +98,12 @@ EnergyLike = Union[EnergyRequest, Tuple[float, str]]
 """An energy level: ``{"value": E, "momentum": name}`` or ``(E, name)``, the momentum by name
 (``p_x``) or as ``p0[i]`` (a sweep's ``{"energy", "solve_for"}`` is taken too)."""
 Result = Union[Simulation, Sweep, StabilityMaps, EnergyMap, WorkPrecision]
-AnyStudyLine = Union[SweepLine, MapLine, ConvergenceLine, StudyLine]
-StudyResult = Union[SweepResultLine, MapResultLine, ConvergenceResultLine, WorkPrecisionResultLine]
+AnyStudyLine = Union[SweepLine, MapLine, ConvergenceLine, StudyLine, BasinsLine]
+StudyResult = Union[SweepResultLine, MapResultLine, ConvergenceResultLine, WorkPrecisionResultLine,
+                    BasinsResultLine]
+ExitLike = Union[ExitRequest, Tuple[str, str], Tuple[str, str, str]]
+"""An exit of a basin map: ``{"name", "where", "direction"}``, or ``(name, where)`` with an
+optional direction (``up``, ``down``, ``both``)."""
 
 
 def _plain(value: Any, where: str) -> Any:
@@ -183,6 +192,16 @@ def _axis(axis: AxisLike, where: str, names: Optional[StateNames] = None) -> Axi
     return cast(AxisRequest, _plain(out, where))
 
 
+def _axes(axes: Union[AxisLike, Sequence[AxisLike]], names: Optional[StateNames], study: str) -> List[AxisRequest]:
+    """The one or two axes of a sweep or a basin map (one axis may be given alone)."""
+    if isinstance(axes, (Axis, Mapping)) or (isinstance(axes, tuple) and axes and isinstance(axes[0], str)):
+        axes = [cast(AxisLike, axes)]
+    items = list(cast(Sequence[AxisLike], axes))
+    if not 1 <= len(items) <= 2:
+        raise ValidationError("axes", f"{study} has one or two axes, not {len(items)}")
+    return [_axis(a, f"axes[{i}]", names) for i, a in enumerate(items)]
+
+
 def _grid_axis(axis: GridAxis, where: str) -> AxisSpec:
     if isinstance(axis, Mapping):
         out = cast(AxisSpec, dict(axis))
@@ -213,6 +232,49 @@ def _section(section: SectionLike) -> SectionRequest:
     if "period" in out:
         _positive(out["period"], "section.period")
     return out
+
+
+def _exits(exits: Union[ExitLike, Sequence[ExitLike]]) -> List[ExitRequest]:
+    """A basin map's exits: each a surface S = 0 with its name and the direction it is left in."""
+    if isinstance(exits, Mapping) or (isinstance(exits, tuple) and exits and isinstance(exits[0], str)):
+        exits = [cast(ExitLike, exits)]
+    out: List[ExitRequest] = []
+    for i, exit in enumerate(cast(Sequence[ExitLike], exits)):
+        where = f"exits[{i}]"
+        if isinstance(exit, tuple) and len(exit) in (2, 3):
+            members: Dict[str, Any] = {"name": exit[0], "where": exit[1]}
+            if len(exit) == 3:
+                members["direction"] = exit[2]
+        elif isinstance(exit, Mapping):
+            members = dict(exit)
+        else:
+            raise ValidationError(where, "an exit is {'name', 'where', 'direction'} or (name, where[, direction])",
+                                  code="invalid_type")
+        for key in ("name", "where"):
+            if key not in members:
+                raise ValidationError(f"{where}.{key}", "is missing", code="missing_field")
+        for key in ("name", "where", "direction"):
+            if key in members and not isinstance(members[key], str):
+                raise ValidationError(f"{where}.{key}", f"must be a string, not {members[key]!r}",
+                                      code="invalid_type")
+        if members.get("direction", "both") not in ("up", "down", "both"):
+            raise ValidationError(f"{where}.direction", f"is up, down or both, not {members['direction']!r}")
+        out.append(cast(ExitRequest, _plain(members, where)))
+    return out
+
+
+def _recognition(recognition: RecognitionRequest) -> RecognitionRequest:
+    """A basin map's ``recognition``: ``period``, ``max_period``, ``tolerance``, ``escape_radius``."""
+    if not isinstance(recognition, Mapping):
+        raise ValidationError("recognition", "give {'period', 'max_period', 'tolerance', 'escape_radius'}",
+                              code="invalid_type")
+    members = cast(Mapping[str, Any], recognition)
+    for key in ("period", "tolerance", "escape_radius"):
+        if key in members:
+            _positive(members[key], f"recognition.{key}")
+    if "max_period" in members:
+        _count(members["max_period"], "recognition.max_period")
+    return cast(RecognitionRequest, _plain(members, "recognition"))
 
 
 def _stop_when(stop_when: StopWhenLike) -> StopWhenRequest:
@@ -387,4 +449,50 @@ def simulate_request(
     if energy is not None:
         body["energy"] = _energy(energy, names)
     _put_indicators(body, indicators, deviations, qr_every)
+    return body
+
+
+def basins_request(
+    system: SystemLike,
+    methods: Methods,
+    axes: Union[AxisLike, Sequence[AxisLike]],
+    t_end: float,
+    *,
+    h: float,
+    names: Optional[StateNames] = None,
+    exits: Optional[Union[ExitLike, Sequence[ExitLike]]] = None,
+    recognition: Optional[RecognitionRequest] = None,
+    params: Optional[Mapping[str, ParamValue]] = None,
+    q0: Optional[Vector] = None,
+    p0: Optional[Vector] = None,
+    chart: Optional[str] = None,
+    initial_coordinates: Optional[str] = None,
+    energy: Optional[EnergyLike] = None,
+    energy_surface: Optional[EnergySurfaceLike] = None,
+) -> BasinsRequest:
+    """The body of ``POST /api/v1/studies/basins`` for :meth:`Client.basins`'s arguments, checked
+    as far as the client can check it; with ``names``, axes and the energy level's momentum may
+    name state components (``y``, ``p_y``)."""
+    body: BasinsRequest = {
+        "system": _system(system),
+        "methods": _method_list(methods),
+        "h": _positive(h, "h"),
+        "t_end": _positive(t_end, "t_end"),
+        "axes": _axes(axes, names, "a basin map"),
+    }
+    _put(body, "params", params)
+    _put(body, "chart", chart)
+    _put(body, "initial_coordinates", initial_coordinates)
+    _put(body, "q0", q0)
+    _put(body, "p0", p0)
+    if energy is not None and energy_surface is not None:
+        raise ValidationError("energy", "give the energy level once: `energy` or `energy_surface`, not both")
+    if energy is not None:
+        body["energy_surface"] = _energy_surface(energy, names, "energy")
+    elif energy_surface is not None:
+        body["energy_surface"] = _energy_surface(energy_surface, names)
+    if exits is not None:
+        body["exits"] = _exits(exits)
+    if recognition is not None:
+        body["recognition"] = _recognition(recognition)
     return body

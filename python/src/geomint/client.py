@@ -21,6 +21,7 @@ from ._arguments import (
     AxisLike,
     EnergyLike,
     EnergySurfaceLike,
+    ExitLike,
     GridAxis,
     Indicators,
     Methods,
@@ -29,7 +30,7 @@ from ._arguments import (
     StopWhenLike,
     SystemLike,
     Vector,
-    _axis,
+    _axes,
     _count,
     _energy_surface,
     _grid_axis,
@@ -41,6 +42,7 @@ from ._arguments import (
     _section,
     _system,
     _thresholds,
+    basins_request,
     simulate_request,
 )
 from ._keywords import checked
@@ -49,6 +51,7 @@ from ._transport import DEFAULT_URL, Transport
 from ._progress import Progress
 from ._wire import (
     NDJSON,
+    BasinsResultLine,
     RRD,
     ConvergenceRequest,
     ConvergenceResultLine,
@@ -61,6 +64,7 @@ from ._wire import (
     ParamValue,
     PointRequest,
     Preset,
+    RecognitionRequest,
     RecordingCreated,
     ReferenceRun,
     RunSpec,
@@ -82,8 +86,8 @@ from .maps import (
     StabilityMaps,
     StabilityPoint,
 )
+from .basins import BasinMap
 from .studies import (
-    Axis,
     Convergence,
     Sweep,
     WorkPrecision,
@@ -486,16 +490,12 @@ class Client(Transport):
         ``section`` (as in :meth:`simulate`) collects each cell's section points, up to its
         ``max_points`` per run (:attr:`SweepRun.sections`): a grid of orbits as one result.
         """
-        if isinstance(axes, (Axis, Mapping)) or (isinstance(axes, tuple) and axes and isinstance(axes[0], str)):
-            axes = [cast(AxisLike, axes)]
-        if not 1 <= len(axes) <= 2:
-            raise ValidationError("axes", f"a sweep has one or two axes, not {len(axes)}")
         names = self._state_names(system, charts=charts, initial_coordinates=initial_coordinates)
         body: SweepRequest = {
             "system": _system(system),
             "methods": _method_list(methods),
             "t_end": _positive(t_end, "t_end"),
-            "axes": [_axis(a, f"axes[{i}]", names) for i, a in enumerate(axes)],
+            "axes": _axes(axes, names, "a sweep"),
         }
         if h is not None:
             body["h"] = _positive(h, "h")
@@ -522,6 +522,53 @@ class Client(Transport):
             body["section"] = _section(section)
         line = cast(SweepResultLine, self._study("sweep", body, progress, "cells"))
         return Sweep.from_json(line, body, names)
+
+    def basin_presets(self) -> Dict[str, Preset]:
+        """The server's ready-made basin maps by id; ``client.basins(**preset["request"])`` runs
+        one."""
+        presets: List[Preset] = self._json("basins_presets")
+        return {p["id"]: p for p in presets}
+
+    @checked
+    def basins(
+        self,
+        system: SystemLike,
+        methods: Methods,
+        axes: Union[AxisLike, Sequence[AxisLike]],
+        t_end: float,
+        *,
+        h: float,
+        exits: Optional[Union[ExitLike, Sequence[ExitLike]]] = None,
+        recognition: Optional[RecognitionRequest] = None,
+        params: Optional[Mapping[str, ParamValue]] = None,
+        q0: Optional[Vector] = None,
+        p0: Optional[Vector] = None,
+        chart: Optional[str] = None,
+        initial_coordinates: Optional[str] = None,
+        energy: Optional[EnergyLike] = None,
+        energy_surface: Optional[EnergySurfaceLike] = None,
+        progress: bool = True,
+    ) -> BasinMap:
+        """A basin map: where each orbit of a grid of initial states ends up (a damped orbit's
+        well, a driven one's periodic orbit, an open system's exit), each cell run until decided
+        (``t_end`` at most). Returns a :class:`~geomint.BasinMap`: per method the labels and
+        decision times on the grid, the attractors' table, the shares and the metrics (basin
+        entropy, boundary basin entropy, uncertainty exponent).
+
+        The one or two axes vary the initial state, by name (``("y", -0.6, 1, 101)``, ``"p_y"``)
+        or as ``q0[i]``/``p0[i]``; ``energy``/``energy_surface`` are :meth:`sweep`'s. ``exits``:
+        ``{"name": "up", "where": "y - 2", "direction": "up"}`` or ``("up", "y - 2", "up")``;
+        ``recognition``: ``period`` (a driven system's, a whole number of steps),
+        ``max_period``, ``tolerance``, ``escape_radius``. The rest are :meth:`simulate`'s (one
+        ``chart``). A progress bar counts the cells; interrupting it stops the server's map."""
+        names = self._state_names(system, chart=chart, initial_coordinates=initial_coordinates)
+        body = basins_request(
+            system, methods, axes, t_end, h=h, names=names, exits=exits, recognition=recognition, params=params,
+            q0=q0, p0=p0, chart=chart, initial_coordinates=initial_coordinates, energy=energy,
+            energy_surface=energy_surface,
+        )
+        line = cast(BasinsResultLine, self._study("basins", body, progress, "cells"))
+        return BasinMap.from_json(line, body, names)
 
     @checked
     def stability(

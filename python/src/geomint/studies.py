@@ -18,6 +18,7 @@ from . import _arrays, _optional
 from ._lookup import pick
 from ._arrays import BoolArray, FloatArray, IntArray, ObjectArray
 from ._wire import (
+    AxisDocument,
     CellSection,
     ConvergenceDocument,
     ConvergenceRequest,
@@ -63,6 +64,41 @@ class Axis:
         (``component``: ``q0[1]`` of Hénon–Heiles is ``y``, ``p0[1]`` is ``p_y``), else
         :func:`dimension_name`'s."""
         return self.component or dimension_name(self.name)
+
+
+def axes_of(docs: Sequence[AxisDocument], names: Optional[StateNames] = None) -> Tuple[Axis, ...]:
+    """A study's axes from its document, each named after the state component it varies when
+    ``names`` (the system's state names) are known."""
+    return tuple(
+        Axis(a["name"], a["min"], a["max"], a["n"], a["scale"], _arrays.floats(a["values"]),
+             None if names is None else names.component(a["name"]))
+        for a in docs
+    )
+
+
+def axis_columns(axes: Sequence[Axis]) -> Dict[str, Any]:
+    """Each axis's point at every cell, in cell order (the first axis fastest), by dimension
+    name: the axis columns of a study's ``to_pandas()``."""
+    grids = np.meshgrid(*[a.values if a.values is not None else np.arange(a.n) for a in axes], indexing="ij")
+    return {axis.dim: grid.ravel(order="F") for axis, grid in zip(axes, grids, strict=True)}
+
+
+def axis_coordinates(axes: Sequence[Axis]) -> Tuple[Tuple[str, ...], Dict[str, Any]]:
+    """The dimensions of a study's grid and their coordinates for xarray: one dimension per axis,
+    named :attr:`Axis.dim` (the request's names where two would clash), with the axis's points
+    (the request's axis name and scale in attributes); where the dimension is a component's name
+    (``y``), the request's form (``q0_1``) is a second coordinate along it."""
+    xr = _optional.xarray()
+    dims = tuple(a.dim for a in axes)
+    if len(set(dims)) != len(dims):
+        dims = tuple(a.name for a in axes)
+    coords: Dict[str, Any] = {}
+    for dim, axis in zip(dims, axes, strict=True):
+        coords[dim] = xr.Variable(dim, axis.values, attrs={"axis": axis.name, "scale": axis.scale})
+        wire = dimension_name(axis.name)
+        if wire != dim and wire not in dims:
+            coords[wire] = xr.Variable(dim, axis.values, attrs={"axis": axis.name, "scale": axis.scale})
+    return dims, coords
 
 
 CHAOS_COLUMNS = ("lyapunov_max", "megno", "megno_mean", "fli", "sali", "gali", "stopped_at")
@@ -178,11 +214,7 @@ class Sweep:
     ) -> "Sweep":
         """The sweep of its result line; ``names`` (the system's state names, when the client
         knows them) name the axes' dimensions after the state components."""
-        axes = tuple(
-            Axis(a["name"], a["min"], a["max"], a["n"], a["scale"], _arrays.floats(a["values"]),
-                 None if names is None else names.component(a["name"]))
-            for a in doc["axes"]
-        )
+        axes = axes_of(doc["axes"], names)
         shape = tuple(a.n for a in axes)
 
         def on_grid(values: Sequence[Optional[float]]) -> FloatArray:
@@ -245,12 +277,9 @@ class Sweep:
         (the first axis fastest)."""
         pd = _optional.pandas()
         frames = []
-        grids = np.meshgrid(*[a.values if a.values is not None else np.arange(a.n) for a in self.axes],
-                            indexing="ij")
+        points = axis_columns(self.axes)
         for run in self.runs:
-            columns: Dict[str, Any] = {"method": run.method, "chart": run.chart}
-            for axis, grid in zip(self.axes, grids, strict=True):
-                columns[axis.dim] = grid.ravel(order="F")
+            columns: Dict[str, Any] = {"method": run.method, "chart": run.chart, **points}
             for name in ("energy_error_final", "energy_error_max", "energy_error_l2", "diverged_at",
                          "steps", "force_evaluations", "errors") + CHAOS_COLUMNS:
                 values = getattr(run, name)
@@ -276,9 +305,7 @@ class Sweep:
         method's label, followed by `` [chart]`` when the sweep has several charts:
         ``ds.sel(run="csv1")``."""
         xr = _optional.xarray()
-        dims = tuple(a.dim for a in self.axes)
-        if len(set(dims)) != len(dims):
-            dims = tuple(a.name for a in self.axes)
+        dims, axis_coords = axis_coordinates(self.axes)
         cell = ("run",) + dims
 
         def stacked(name: str) -> np.ndarray[Any, Any]:
@@ -308,11 +335,7 @@ class Sweep:
             "method": ("run", [r.method for r in self.runs]),
             "chart": ("run", [r.chart for r in self.runs]),
         }
-        for dim, axis in zip(dims, self.axes, strict=True):
-            coords[dim] = xr.Variable(dim, axis.values, attrs={"axis": axis.name, "scale": axis.scale})
-            wire = dimension_name(axis.name)
-            if wire != dim and wire not in dims:
-                coords[wire] = xr.Variable(dim, axis.values, attrs={"axis": axis.name, "scale": axis.scale})
+        coords.update(axis_coords)
         if "final_q" in data and self.names is not None and len(self.names.coordinates) == width:
             coords["coordinate"] = ("dof", list(self.names.coordinates))
             coords["momentum"] = ("dof", list(self.names.momenta))

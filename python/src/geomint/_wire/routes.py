@@ -35,6 +35,7 @@ from .studies import (
     StudyLine,
     SweepLine,
 )
+from .basins import BasinsLine, BasinsRequest
 
 
 JSON = "application/json"
@@ -103,6 +104,8 @@ ROUTES: Dict[str, Route] = {
         query={"format": ["rrd"]},
     ),
     "sweep_presets": Route("GET", "/api/v1/studies/sweep/presets", {JSON: List[Preset]}),
+    "basins": Route("POST", "/api/v1/studies/basins", {NDJSON: BasinsLine}, BasinsRequest),
+    "basins_presets": Route("GET", "/api/v1/studies/basins/presets", {JSON: List[Preset]}),
     "energy_map": Route(
         "POST",
         "/api/v1/studies/energy-map",
