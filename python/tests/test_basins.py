@@ -147,9 +147,9 @@ def test_the_forced_duffing_oscillator_locks_onto_a_periodic_orbit_in_each_well(
     run = basins[0]
     assert basins.equilibria is None and basins.lowest_saddle_energy is None
     assert [(a.kind, a.period) for a in run.attractors] == [("periodic", 1), ("periodic", 1)]
-    # Two orbits of the same name, told apart by label and by their stroboscopic point.
-    with pytest.raises(KeyError, match="give the label"):
-        run.attractor("period-1 orbit")
+    # Two orbits of period 1, each with its own name.
+    assert sorted(a.name for a in run.attractors) == ["period-1 orbit 1", "period-1 orbit 2"]
+    assert run.attractor("period-1 orbit 2").label in (0, 1)
     points = [a.points for a in run.attractors]
     assert all(p is not None and p.shape == (1, 2) for p in points)
     assert sorted(np.sign(p[0, 0]) for p in points if p is not None) == [-1, 1]

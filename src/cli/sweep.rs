@@ -9,12 +9,12 @@ use std::process::ExitCode;
 
 use super::study::{wants_rrd, write_document, StudyArgs};
 use super::{read_spec, BAD_INPUT};
+use crate::api::basins::BasinsRequest;
 use crate::api::sweep::SweepRequest;
 use crate::api::system::StoredSystems;
 use crate::core::error::ErrorDetail;
 use crate::core::run::Budget;
 use crate::core::simulation::Limits;
-use crate::api::basins::BasinsRequest;
 use crate::core::studies::basins::{BasinsDocument, BasinsJob};
 use crate::core::studies::engine::{self, CellLine, Documented, Local, Progress};
 use crate::core::studies::parts::{self, Part, Shard};
@@ -155,12 +155,12 @@ fn run_cells<S: Recorded>(
             eprintln!("{:.1} s", part.wall_ms / 1e3);
             write_document(args, false, &part, None::<Recorder<Part<S::Cell>>>)
         }),
-        None => engine::run(&job, &Local, Budget::default(), &|_, _| progress.add(1)).map(
-            |finished| {
+        None => {
+            engine::run(&job, &Local, Budget::default(), &|_, _| progress.add(1)).map(|finished| {
                 eprintln!("{:.1} s", finished.wall_ms / 1e3);
                 whole(args, &job.document_of(finished), S::recorder())
-            },
-        ),
+            })
+        }
     };
     written.unwrap_or_else(|e| {
         eprintln!("error: {source}: {e}");
@@ -262,7 +262,11 @@ fn merge_parts<S: Recorded>(args: &StudyArgs, job: &S, spec: &StudySpec) -> Exit
         }
     };
     eprintln!("merged {} cells", cells.len());
-    whole(args, &engine::document_of_parts(job, cells, wall_ms), S::recorder())
+    whole(
+        args,
+        &engine::document_of_parts(job, cells, wall_ms),
+        S::recorder(),
+    )
 }
 
 /// Writes a whole study's document: a Rerun recording for an output file ending in `.rrd` (for

@@ -337,7 +337,8 @@ pub async fn sweep(
     let job = request
         .to_spec(&*state.systems)?
         .prepare(&state.config.limits)?;
-    let encode = |format: Format, doc: &SweepDocument| format.encode(doc, recording::sweep::rrd_bytes);
+    let encode =
+        |format: Format, doc: &SweepDocument| format.encode(doc, recording::sweep::rrd_bytes);
     answer_cells(state, client, format, job, encode, "geomint-sweep.rrd").await
 }
 
@@ -382,7 +383,8 @@ pub async fn basins(
     let job = request
         .to_spec(&sweep, &*state.systems)?
         .prepare(&state.config.limits)?;
-    let encode = |_: Format, doc: &BasinsDocument| serde_json::to_vec(doc).map_err(ApiError::internal);
+    let encode =
+        |_: Format, doc: &BasinsDocument| serde_json::to_vec(doc).map_err(ApiError::internal);
     answer_cells(state, client, format, job, encode, "geomint-basins.rrd").await
 }
 

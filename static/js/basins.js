@@ -64,18 +64,9 @@ const tuple = (xs) => {
   return xs.length === 1 ? text(xs[0]) : `(${xs.map(text).join(', ')})`;
 };
 
-/**
- * Each attractor's name as the legend shows it: the server's, with where it is when two share a
- * name (two period-1 orbits of the forced Duffing oscillator, one in each well).
- */
+/** Each attractor's name by its label (the server names each one uniquely). */
 export function attractorNames(attractors) {
-  const count = new Map();
-  for (const a of attractors) count.set(a.name, (count.get(a.name) ?? 0) + 1);
-  return new Map(attractors.map((a) => {
-    if (count.get(a.name) === 1) return [a.label, a.name];
-    const where = a.points?.[0] ?? a.equilibrium?.q;
-    return [a.label, where ? `${a.name} at ${tuple(where)}` : `${a.name} ${a.label}`];
-  }));
+  return new Map(attractors.map((a) => [a.label, a.name]));
 }
 
 /**

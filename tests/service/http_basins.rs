@@ -209,7 +209,10 @@ async fn every_preset_runs_and_finds_its_attractors() {
             "forced_duffing" => assert_eq!(count("periodic"), 2, "{id}: {kinds:?}"),
             "henon_heiles_escapes" => assert_eq!(count("exit"), 3, "{id}: {kinds:?}"),
             "henon_heiles_escapes_damped" => {
-                assert!(count("exit") >= 2 && count("equilibrium") == 1, "{id}: {kinds:?}")
+                assert!(
+                    count("exit") >= 2 && count("equilibrium") == 1,
+                    "{id}: {kinds:?}"
+                )
             }
             other => panic!("an unknown preset {other}"),
         }
@@ -234,17 +237,28 @@ async fn the_command_line_map_and_its_merged_shards_equal_the_routes() {
             .args(args)
             .output()
             .unwrap();
-        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
     };
     let read = |p: &std::path::Path| -> Value {
         geomint::api::json::parse_json(&std::fs::read(p).unwrap()).unwrap()
     };
     let whole = dir.join("whole.json");
-    geomint(&["study".as_ref(), "basins".as_ref(), spec.as_os_str(), "-o".as_ref(), whole.as_os_str()]);
+    geomint(&[
+        "study".as_ref(),
+        "basins".as_ref(),
+        spec.as_os_str(),
+        "-o".as_ref(),
+        whole.as_os_str(),
+    ]);
     let whole = read(&whole);
     assert_eq!(whole["runs"], routed["runs"]);
     assert_eq!(whole["digest"], routed["digest"]);
-    let parts: Vec<std::path::PathBuf> = (0..3).map(|i| dir.join(format!("part-{i}.json"))).collect();
+    let parts: Vec<std::path::PathBuf> =
+        (0..3).map(|i| dir.join(format!("part-{i}.json"))).collect();
     for (i, part) in parts.iter().enumerate() {
         let shard = format!("{i}/3");
         geomint(&[

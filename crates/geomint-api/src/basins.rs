@@ -317,7 +317,8 @@ pub fn presets() -> Vec<Preset> {
         },
         Preset {
             id: "henon_heiles_escapes_damped",
-            title: "The same with weak conformal damping (γ = 0.01): some orbits lose their energy \
+            title:
+                "The same with weak conformal damping (γ = 0.01): some orbits lose their energy \
                     before they find an exit and settle at the origin (Blesa, Seoane, Barrio & \
                     Sanjuán 2012)",
             request: json!({

@@ -58,7 +58,8 @@ class Attractor:
     ``well`` (an undamped system's, which the orbit never leaves), ``periodic`` (a driven
     system's periodic orbit), ``exit``, ``diverged`` or ``stayed`` (inside until t_end, in a map
     with exits); ``name`` says which in words (``equilibrium 2 (minimum)``, an exit's name,
-    ``period-1 orbit``). ``cells`` and ``fraction`` are its share of the run's grid.
+    ``period-1 orbit 2``). ``cells`` counts its cells and ``fraction`` is their share of the
+    cells that start an orbit.
     ``equilibrium`` is the critical point of an equilibrium or a well; ``period`` (in driving
     periods) and ``points`` (one row of q then p per stroboscopic point) those of a periodic
     orbit."""
@@ -180,18 +181,16 @@ class BasinRun:
         return {UNDECIDED: "undecided", **{a.label: a.name for a in self.attractors}}
 
     def attractor(self, key: Union[int, str]) -> Attractor:
-        """An attractor by label, or by name (``"up"``); a name several attractors share (two
-        ``period-1 orbit``s) raises a KeyError listing them."""
+        """An attractor by label, or by its name (``"up"``, ``"period-1 orbit 2"``): the server
+        names each one uniquely."""
         if isinstance(key, int):
             for a in self.attractors:
                 if a.label == key:
                     return a
             raise KeyError(f"no label {key}; there are {[a.label for a in self.attractors]}")
-        found = [a for a in self.attractors if a.name == key]
-        if len(found) == 1:
-            return found[0]
-        if found:
-            raise KeyError(f"{key!r} names labels {[a.label for a in found]}; give the label")
+        for a in self.attractors:
+            if a.name == key:
+                return a
         raise KeyError(f"no attractor {key!r}; there are {[a.name for a in self.attractors]}")
 
     def to_xarray(self) -> Any:
