@@ -4,6 +4,8 @@
 //! `SLURM_ARRAY_TASK_ID` or `JOB_COMPLETION_INDEX`), and the merge of the parts into the document
 //! the whole study gives, bit for bit.
 
+use std::fs::File;
+use std::io::{BufWriter, Write};
 use std::path::Path;
 use std::process::ExitCode;
 
@@ -20,6 +22,7 @@ use crate::core::studies::engine::{self, CellLine, Documented, Local, Progress};
 use crate::core::studies::parts::{self, Part, Shard};
 use crate::core::studies::sweep::{SweepDocument, SweepJob, SweepSpec};
 use crate::core::studies::StudySpec;
+use crate::recording::RecordingError;
 
 /// Reads a sweep request and prepares it: the spec and the job.
 pub fn prepare(
@@ -75,7 +78,7 @@ pub fn shard_of(given: &str, env: impl Fn(&str) -> Option<String>) -> Result<Sha
 type Prepared<S> = Result<(StudySpec, S), ErrorDetail>;
 
 /// How a whole study's document is written as a Rerun recording, for kinds that have one.
-type Recorder<D> = fn(std::fs::File, &D) -> Result<(), String>;
+type Recorder<D> = fn(File, &D) -> Result<(), String>;
 
 /// `geomint study sweep`: the whole sweep, or with `--shard` one part of it.
 pub(crate) fn run_sweep(args: &StudyArgs) -> ExitCode {
@@ -174,19 +177,26 @@ trait Recorded: Documented {
     fn recorder() -> Option<Recorder<<Self::Line as CellLine>::Document>>;
 }
 
+/// Writes `doc` into `file` through the buffered recording writer `write`, flushed.
+fn flushed<D>(
+    write: fn(BufWriter<File>, &D) -> Result<BufWriter<File>, RecordingError>,
+    file: File,
+    doc: &D,
+) -> Result<(), String> {
+    write(BufWriter::new(file), doc)
+        .map_err(|e| e.to_string())
+        .and_then(|mut w| w.flush().map_err(|e| e.to_string()))
+}
+
 impl Recorded for SweepJob {
     fn recorder() -> Option<Recorder<SweepDocument>> {
-        Some(|f, doc| {
-            crate::recording::sweep::write_rrd(std::io::BufWriter::new(f), doc)
-                .map_err(|e| e.to_string())
-                .and_then(|mut w| std::io::Write::flush(&mut w).map_err(|e| e.to_string()))
-        })
+        Some(|f, doc| flushed(crate::recording::sweep::write_rrd, f, doc))
     }
 }
 
 impl Recorded for BasinsJob {
     fn recorder() -> Option<Recorder<BasinsDocument>> {
-        None
+        Some(|f, doc| flushed(crate::recording::basins::write_rrd, f, doc))
     }
 }
 

@@ -360,11 +360,12 @@ pub async fn sweep_presets() -> axum::Json<Vec<Preset>> {
     request_body(content = BasinsRequest, content_type = "application/json"),
     params(("Accept" = Option<String>, Header,
         description = "`application/x-ndjson` streams progress lines (see BasinsLine)"),
-        ("format" = Option<StreamFormat>, Query,
-        description = "`ndjson` as the Accept header; `json` (default)")),
+        ("format" = Option<AnyFormat>, Query,
+        description = "`ndjson` as the Accept header; `rrd` the map's Rerun recording (per run the labels as a segmentation image whose classes name the attractors, the decision times); `json` (default)")),
     responses(
         (status = 200, description = "The map",
-            content((BasinsDocument = "application/json"), (BasinsLine = "application/x-ndjson"))),
+            content((BasinsDocument = "application/json"), (BasinsLine = "application/x-ndjson"),
+                (RrdFile = "application/octet-stream"))),
         (status = 422, description = "A field is unknown, missing, of the wrong type or out of range \
             (e.g. `axes[0].name` is not a component of the initial state, `exits[1].where` does not \
             parse, `recognition.period` is missing for a driven system); an unknown system, chart or \
@@ -378,13 +379,13 @@ pub async fn basins(
     client: Client,
     ApiJson(body): ApiJson,
 ) -> Result<Response, ApiError> {
-    let format = Format::requested(&query, &headers, &[Format::Json, Format::Ndjson])?;
+    let format = Format::requested(&query, &headers, Format::ALL)?;
     let (request, sweep) = BasinsRequest::from_value(&body)?;
     let job = request
         .to_spec(&sweep, &*state.systems)?
         .prepare(&state.config.limits)?;
     let encode =
-        |_: Format, doc: &BasinsDocument| serde_json::to_vec(doc).map_err(ApiError::internal);
+        |format: Format, doc: &BasinsDocument| format.encode(doc, recording::basins::rrd_bytes);
     answer_cells(state, client, format, job, encode, "geomint-basins.rrd").await
 }
 

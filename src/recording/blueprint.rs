@@ -217,3 +217,14 @@ pub(super) fn send(rec: &RecordingStream, root: &Node) -> Result<(), RecordingEr
     );
     Ok(())
 }
+
+/// A map study's layout: its views in a grid, beside the summary at `/summary`.
+pub(super) fn grid_beside_summary(views: Vec<Node>) -> Node {
+    Node::container(
+        ContainerKind::Horizontal,
+        vec![
+            Node::container(ContainerKind::Grid, views),
+            Node::view("TextDocument", "summary", vec!["/summary".to_string()]),
+        ],
+    )
+}

@@ -10,6 +10,9 @@
 //! - [`work_precision`]: a work–precision study as a log–log diagram in a 2-D view.
 //! - [`energy_map`]: an energy-error map as images, a segmentation of its divergences and
 //!   tensors.
+//! - [`sweep`]: a sweep's metrics as tensors and heatmaps.
+//! - [`basins`]: a basin map's labels as a segmentation image whose classes name the
+//!   attractors, and its decision times.
 //! - [`read`]: recordings read back with Rerun's decoder: uploads checked, a simulation's
 //!   samples recovered for the page's charts.
 //!
@@ -17,6 +20,7 @@
 //! own thread while the next columns are built. The blueprint ([`blueprint`]) is written as
 //! Rerun's blueprint records, since the 0.33 Rust blueprint API cannot set visible time ranges.
 
+pub mod basins;
 mod blueprint;
 mod encode;
 pub mod energy_map;

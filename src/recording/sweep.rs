@@ -15,7 +15,6 @@
 
 use std::io::Write;
 
-use rerun::external::re_sdk_types::blueprint::components::ContainerKind;
 use rerun::external::re_sdk_types::datatypes::{TensorBuffer, TensorData};
 use rerun::{Image, RecordingStream, Tensor, TextDocument};
 
@@ -214,13 +213,7 @@ fn blueprint_tree(doc: &SweepDocument) -> Node {
             })
         })
         .collect();
-    Node::container(
-        ContainerKind::Horizontal,
-        vec![
-            Node::container(ContainerKind::Grid, views),
-            Node::view("TextDocument", "summary", vec!["/summary".to_string()]),
-        ],
-    )
+    blueprint::grid_beside_summary(views)
 }
 
 /// Writes the `.rrd` file of a sweep to `writer`; returns the writer once the stream is

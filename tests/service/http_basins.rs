@@ -283,3 +283,69 @@ async fn the_command_line_map_and_its_merged_shards_equal_the_routes() {
     ]);
     assert_eq!(read(&merged)["runs"], routed["runs"]);
 }
+
+/// `?format=rrd`: the map's recording, read back with Rerun's own decoder: per run the labels
+/// as a segmentation image (label + 1 per cell) whose classes name the attractors.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_recording_holds_the_labels_as_a_segmentation_named_by_the_attractors() {
+    use rerun::components::{ImageBuffer, ImageFormat};
+    use rerun::{AnnotationContext, SegmentationImage};
+
+    let server = start(config()).await;
+    let body = double_well(6);
+    let (_, doc) = post_json(&server, PATH, &body).await;
+    let response = server::client()
+        .post(server.url(&format!("{PATH}?format=rrd")))
+        .json(&body)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), 200);
+    assert_eq!(
+        response.headers()["content-type"],
+        "application/octet-stream"
+    );
+    let d = crate::decoded::Decoded::of(&response.bytes().await.unwrap());
+    let paths = d.entity_paths();
+    for run in ["csv2_cartesian", "rk4_cartesian"] {
+        for part in ["", "/labels", "/decided_at", "/decided_at/heatmap"] {
+            assert!(
+                paths.contains(&format!("/{run}{part}")),
+                "{run}{part}: {paths:?}"
+            );
+        }
+    }
+    assert!(paths.contains("/summary"));
+    let run = &doc["runs"][0];
+    let labels: Vec<i64> = serde_json::from_value(run["labels"].clone()).unwrap();
+    let buffers: Vec<ImageBuffer> = d.static_batch(
+        "/csv2_cartesian/labels",
+        SegmentationImage::descriptor_buffer().component,
+    );
+    let bytes: &[u8] = &buffers[0].0;
+    let ids: Vec<u16> = bytes
+        .chunks(2)
+        .map(|b| u16::from_le_bytes([b[0], b[1]]))
+        .collect();
+    let expected: Vec<u16> = labels.iter().map(|&l| (l + 1) as u16).collect();
+    assert_eq!(ids, expected);
+    let formats: Vec<ImageFormat> = d.static_batch(
+        "/csv2_cartesian/labels",
+        SegmentationImage::descriptor_format().component,
+    );
+    assert_eq!((formats[0].0.width, formats[0].0.height), (6, 6));
+    let contexts: Vec<rerun::components::AnnotationContext> = d.static_batch(
+        "/csv2_cartesian",
+        AnnotationContext::descriptor_context().component,
+    );
+    let names: Vec<String> = contexts[0]
+        .0
+        .iter()
+        .map(|c| c.class_description.info.label.as_ref().unwrap().to_string())
+        .collect();
+    let mut expected_names = vec!["undecided".to_string()];
+    for a in run["attractors"].as_array().unwrap() {
+        expected_names.push(a["name"].as_str().unwrap().to_string());
+    }
+    assert_eq!(names, expected_names);
+}
