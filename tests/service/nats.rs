@@ -451,6 +451,19 @@ async fn every_study_on_nats_workers_equals_the_local_executor() {
                 "axes": [{"name": "q0[1]", "min": -0.45, "max": 0.65, "n": 9},
                          {"name": "p0[1]", "min": -0.5, "max": 0.5, "n": 7}]}),
         ),
+        // A basin map: Hénon–Heiles's escapes through three exits, each cell stopped as it
+        // leaves.
+        (
+            "/api/v1/studies/basins",
+            json!({"system": "henon_heiles", "methods": ["velocity_verlet"],
+                "q0": [0.0, 0.0], "p0": [0.0, 0.0], "h": 0.01, "t_end": 100,
+                "energy_surface": {"energy": 0.25, "solve_for": "p0[0]"},
+                "axes": [{"name": "q0[1]", "min": -0.6, "max": 1.0, "n": 9},
+                         {"name": "p0[1]", "min": -0.6, "max": 0.6, "n": 7}],
+                "exits": [{"name": "up", "where": "y - 2", "direction": "up"},
+                          {"name": "left", "where": "-sqrt(3)/2*x - y/2 - 2", "direction": "up"},
+                          {"name": "right", "where": "sqrt(3)/2*x - y/2 - 2", "direction": "up"}]}),
+        ),
     ];
     for (path, request) in studies {
         let before = shards_published(&url).await;
