@@ -122,6 +122,8 @@ def test_arrays_table_and_metrics_equal_the_document(
     assert run.metrics == {name: expected[name] for name in geomint.basins.METRICS}
     assert run.largest_energy_margin is None and run.basin_entropy is not None and run.basin_entropy > 0
     assert run.uncertain_fractions == {u["epsilon_cells"]: u["fraction"] for u in expected["uncertain_fractions"]}
+    assert run.wada == {w["label"]: w["share"] for w in expected["wada"]}
+    assert run.not_started == expected["not_started"]
     assert run.decided_by == expected["decided_by"] and run.steps == expected["steps"]
     # Cells that cannot be on H = 0.25 are undecided and say why, at their place on the grid.
     assert [(u.cell, u.reason) for u in run.undecided] == [(u["cell"], u["reason"]) for u in expected["undecided"]]

@@ -112,8 +112,11 @@ class BasinRun:
     ``boundary_basin_entropy`` S_bb over ``boxes`` boxes of 5 × 5 cells, ``boundary_boxes`` of
     them on a boundary (S_bb > ln 2 shows a fractal boundary; ``None`` without such boxes), the
     ``uncertainty_exponent`` α fitted to ``uncertain_fractions`` (f(ε) by ε in cells; ``None``
-    with fewer than three ε), and ``largest_energy_margin``, the widest margin the energy
-    argument used (``None`` where it decided nothing)."""
+    with fewer than three ε), ``wada``, W_k of the Wada test by merging by label (the share of
+    the boundary within a cell of label k's boundary against the rest merged; 1 for every k is
+    a Wada boundary; empty with fewer than three labels), and ``largest_energy_margin``, the
+    widest margin the energy argument used (``None`` where it decided nothing). Cells that
+    start no orbit (``not_started`` of them) are left out of the shares and the metrics."""
 
     method: str
     chart: str
@@ -130,6 +133,8 @@ class BasinRun:
     boxes: int
     uncertainty_exponent: Optional[float]
     uncertain_fractions: Mapping[int, float]
+    wada: Mapping[int, float]
+    not_started: int
     largest_energy_margin: Optional[float]
     steps: int
     axes: Tuple[Axis, ...] = field(default=(), repr=False)
@@ -158,6 +163,8 @@ class BasinRun:
             boxes=doc["boxes"],
             uncertainty_exponent=doc.get("uncertainty_exponent"),
             uncertain_fractions={u["epsilon_cells"]: u["fraction"] for u in doc["uncertain_fractions"]},
+            wada={w["label"]: w["share"] for w in doc["wada"]},
+            not_started=doc["not_started"],
             largest_energy_margin=doc.get("largest_energy_margin"),
             steps=doc["steps"],
             axes=axes,

@@ -452,3 +452,26 @@ fn the_study_trait_counts_the_map_cells() {
     let job = spec.prepare(&Limits::default()).unwrap();
     assert_eq!(job.cells(), 16);
 }
+
+#[test]
+fn the_wada_test_tells_three_stripes_from_hénon_heiles() {
+    use geomint_core::studies::basins::metrics::basin_metrics;
+    // Three vertical stripes 0 | 1 | 2: basin 1 touches both boundaries, 0 and 2 one each.
+    let (nx, ny) = (30, 10);
+    let labels: Vec<i64> = (0..nx * ny).map(|c| ((c % nx) / 10) as i64).collect();
+    let started = vec![true; nx * ny];
+    let metrics = basin_metrics(&labels, &started, &[nx, ny]);
+    let shares: Vec<(i64, f64)> = metrics.wada.iter().map(|w| (w.label, w.share)).collect();
+    assert_eq!(shares, [(0, 0.5), (1, 1.0), (2, 0.5)]);
+    // Two basins: no Wada test.
+    let two: Vec<i64> = labels.iter().map(|&l| l.min(1)).collect();
+    assert!(basin_metrics(&two, &started, &[nx, ny]).wada.is_empty());
+    // Hénon–Heiles's escape basins, which are Wada (Aguirre, Vallejo & Sanjuán 2001): every
+    // exit's boundary against the rest comes within a cell of nearly all of the boundary.
+    let spec = henon_heiles_escapes(40, &[Method::new(MethodId::VelocityVerlet)], 0.01);
+    let doc = run(&spec.prepare(&Limits::default()).unwrap());
+    let wada = &doc.runs[0].metrics.wada;
+    println!("Hénon–Heiles E = 0.25, 40 × 40: Wada shares {wada:?}");
+    assert_eq!(wada.len(), 3);
+    assert!(wada.iter().all(|w| w.share >= 0.95), "{wada:?}");
+}

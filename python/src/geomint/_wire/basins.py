@@ -113,6 +113,13 @@ class UncertainFraction(TypedDict):
     fraction: float
 
 
+class WadaShare(TypedDict):
+    """W_k of the Wada test by merging for label k (the schema ``WadaShare``)."""
+
+    label: int
+    share: float
+
+
 class _BasinRunColumnsRequired(TypedDict):
     label: RunLabel
     labels: List[int]
@@ -126,6 +133,8 @@ class _BasinRunColumnsRequired(TypedDict):
     boundary_boxes: int
     boxes: int
     uncertain_fractions: List[UncertainFraction]
+    wada: List[WadaShare]
+    not_started: int
 
 
 class BasinRunColumns(_BasinRunColumnsRequired, total=False):

@@ -14,7 +14,15 @@
 //!   dimension is D − α for a map of D axes). α near 1 is a smooth boundary, near 0 a riddled
 //!   one.
 //!
-//! An undecided cell (label −1) counts as one more outcome in both. A cell that starts no orbit
+//! - The Wada test by merging (after Daza, Wagemakers & Sanjuán, Sci. Rep. 8 (2018) 9954): a
+//!   boundary is Wada when every point on it is on the boundary of every basin. For each label
+//!   k the other basins are merged into one, and W_k is the share of the map's boundary cells (a
+//!   cell with a differently labelled neighbour along an axis) that lie within one cell of the
+//!   boundary of k against the merged rest. W_k = 1 for every k is a Wada boundary at the map's
+//!   resolution; a basin that touches only some of the others has W_k well below 1. Given for
+//!   maps with three or more labels.
+//!
+//! An undecided cell (label −1) counts as one more outcome in all of these. A cell that starts no orbit
 //! (off the energy surface, outside the chart) is left out: so is every box holding one, and
 //! every pair of cells ε apart that holds one.
 
@@ -51,6 +59,18 @@ pub struct BasinMetrics {
     pub uncertainty_exponent: Option<f64>,
     /// f(ε) at each ε the fit used.
     pub uncertain_fractions: Vec<Uncertain>,
+    /// W_k of the Wada test by merging, per label (maps with three labels or more).
+    pub wada: Vec<WadaShare>,
+}
+
+/// One label's share in the Wada test.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+pub struct WadaShare {
+    /// The label k.
+    pub label: i64,
+    /// W_k: the share of the boundary cells within one cell of k's boundary against the rest.
+    pub share: f64,
 }
 
 /// The metrics of `labels` on a grid of `shape` cells per axis (the first axis fastest), the
@@ -143,5 +163,58 @@ pub fn basin_metrics(labels: &[i64], started: &[bool], shape: &[usize]) -> Basin
         boxes: entropies.len(),
         uncertainty_exponent,
         uncertain_fractions,
+        wada: wada(labels, started, nx, ny),
     }
+}
+
+/// W_k for every label k ≥ 0, when the started cells carry three labels or more.
+fn wada(labels: &[i64], started: &[bool], nx: usize, ny: usize) -> Vec<WadaShare> {
+    let mut kinds: Vec<i64> = labels
+        .iter()
+        .zip(started)
+        .filter(|(_, &s)| s)
+        .map(|(&l, _)| l)
+        .collect();
+    kinds.sort_unstable();
+    kinds.dedup();
+    if kinds.len() < 3 {
+        return Vec::new();
+    }
+    // The cells with a started neighbour along an axis of which `differ` says they differ.
+    let boundary = |differ: &dyn Fn(i64, i64) -> bool| -> Vec<bool> {
+        (0..nx * ny)
+            .map(|c| {
+                let (x, y) = (c % nx, c / nx);
+                started[c]
+                    && [(1, 0), (-1, 0), (0, 1), (0, -1)].iter().any(|&(dx, dy)| {
+                        let (u, v) = (x as i64 + dx, y as i64 + dy);
+                        (0..nx as i64).contains(&u)
+                            && (0..ny as i64).contains(&v)
+                            && started[u as usize + nx * v as usize]
+                            && differ(labels[c], labels[u as usize + nx * v as usize])
+                    })
+            })
+            .collect()
+    };
+    let whole = boundary(&|a, b| a != b);
+    let on_whole = whole.iter().filter(|&&b| b).count().max(1);
+    kinds
+        .into_iter()
+        .filter(|&k| k >= 0)
+        .map(|k| {
+            let merged = boundary(&|a, b| (a == k) != (b == k));
+            let near = (0..nx * ny)
+                .filter(|&c| whole[c])
+                .filter(|&c| {
+                    let (x, y) = (c % nx, c / nx);
+                    (y.saturating_sub(1)..(y + 2).min(ny))
+                        .any(|v| (x.saturating_sub(1)..(x + 2).min(nx)).any(|u| merged[u + nx * v]))
+                })
+                .count();
+            WadaShare {
+                label: k,
+                share: near as f64 / on_whole as f64,
+            }
+        })
+        .collect()
 }
