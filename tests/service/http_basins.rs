@@ -168,6 +168,15 @@ async fn bad_basin_maps_are_422s_naming_the_field() {
             },
             "exits[1].name",
         ),
+        (
+            {
+                // A basin map takes up to 1024 points along an axis (a sweep 401).
+                let mut b = double_well(4);
+                b["axes"][0]["n"] = json!(1025);
+                b
+            },
+            "axes[0].n",
+        ),
     ];
     for (body, field) in cases {
         let (status, error) = post_json(&server, PATH, &body).await;

@@ -23,6 +23,7 @@ use crate::core::error::{ErrorDetail, Field};
 use crate::core::sections::Direction;
 use crate::core::simulation::InitialCoordinates;
 use crate::core::studies::basins::{BasinsSpec, ExitSpec, Recognition};
+use crate::core::studies::sweep::Scale;
 use crate::core::systems::{ChartId, ParamValue};
 
 /// The sweep's fields a basin map does not take: it samples no energies, tracks no indicators
@@ -125,7 +126,7 @@ pub struct BasinsRequest {
     #[schema(exclusive_minimum = 0.0)]
     pub t_end: f64,
     /// One or two axes over `q0[i]` or `p0[i]`; cells are row-major, the first axis fastest.
-    #[schema(min_items = 1, max_items = 2)]
+    #[schema(min_items = 1, max_items = 2, value_type = Vec<MapAxis>)]
     pub axes: Vec<AxisRequest>,
     /// Initial states on the energy surface H = E, one momentum solved per cell.
     pub energy_surface: Option<EnergySurfaceRequest>,
@@ -135,6 +136,28 @@ pub struct BasinsRequest {
     pub exits: Vec<ExitRequest>,
     /// How attractors are recognised.
     pub recognition: Option<RecognitionRequest>,
+}
+
+/// One axis of a basin map, as the schema shows it: a sweep's axis (read by the sweep's reader)
+/// over `q0[i]` or `p0[i]`, with up to
+/// [`MAX_MAP_POINTS`](crate::core::studies::basins::MAX_MAP_POINTS) points.
+#[derive(ToSchema)]
+#[allow(dead_code)]
+struct MapAxis {
+    /// `q0[i]` or `p0[i]`: a component of the initial state, in the coordinates
+    /// `initial_coordinates` names.
+    #[schema(example = "q0[0]")]
+    name: String,
+    /// The first value.
+    min: f64,
+    /// The last value.
+    max: f64,
+    /// Points (1 to 1024).
+    #[schema(minimum = 1, maximum = 1024)]
+    n: u64,
+    /// `linear` (default) or `log` (min > 0).
+    #[schema(required = false)]
+    scale: Scale,
 }
 
 /// The fields of a basin map: a sweep's, less [`NOT_FOR_BASINS`] and `charts`, with its own.

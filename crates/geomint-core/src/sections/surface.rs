@@ -108,6 +108,30 @@ impl Surface {
         }
     }
 
+    /// S at the (q, p, t) already in `inputs` ([`Surface::load`] put them there): several
+    /// surfaces looked at in one state load it once. The same number as [`Surface::value`].
+    #[inline]
+    pub fn value_loaded(&self, inputs: &[f64], t: f64) -> f64 {
+        match self {
+            Surface::Expression {
+                component: Some(i), ..
+            } => inputs[*i],
+            Surface::Expression { value, .. } => {
+                let mut s = [0.0];
+                value.eval(inputs, &mut s);
+                s[0]
+            }
+            Surface::Clock { .. } => t,
+        }
+    }
+
+    /// (q, p, t) of `n` degrees of freedom into the inputs of [`Surface::value_loaded`] (2n + 1
+    /// numbers).
+    #[inline]
+    pub fn load(inputs: &mut [f64], q: &[f64], p: &[f64], t: f64, n: usize) {
+        load(inputs, q, p, t, n);
+    }
+
     /// S and σ = ∇_q S·q' + ∇_p S·p' + ∂S/∂t at (q, p, t) for the velocity (q', p'); `inputs`
     /// holds 2n + 1 numbers and `outputs` 2n + 2.
     #[inline]

@@ -24,7 +24,6 @@ use crate::methods::{self};
 use crate::run::{Budget, Observer, RunStats, StopReason};
 use crate::system::lanes::{EachLane, PointForces};
 use crate::system::{MechanicalSystem, State};
-use crate::systems::AnySystem;
 use crate::tangent::Tangent;
 
 /// The lanes a simulation's runs take: with indicators, or plain.
@@ -38,17 +37,17 @@ enum Lanes<const N: usize> {
 /// else `$other`. A system joins the lanes with a variant here.
 macro_rules! with_lane_systems {
     ($sims:expr, $systems:ident => $body:expr, _ => $other:expr) => {
-        with_lane_systems!(@kinds $sims, $systems, $body, $other;
+        $crate::simulation::with_lane_systems!(@kinds $sims, $systems, $body, $other;
             HenonHeiles, PlanarCartesian, ElasticPendulum3d, HarmonicOscillator,
             Custom1, Custom2, Custom3)
     };
     (@kinds $sims:expr, $systems:ident, $body:expr, $other:expr; $($kind:ident),*) => {
         match &$sims[0].system {
-            $(AnySystem::$kind(_) => {
+            $($crate::systems::AnySystem::$kind(_) => {
                 let of_kind: Option<Vec<_>> = $sims
                     .iter()
                     .map(|sim| match &sim.system {
-                        AnySystem::$kind(sys) => Some(sys),
+                        $crate::systems::AnySystem::$kind(sys) => Some(sys),
                         _ => None,
                     })
                     .collect();
@@ -61,6 +60,7 @@ macro_rules! with_lane_systems {
         }
     };
 }
+pub(crate) use with_lane_systems;
 
 impl Simulation {
     /// Whether runs of this simulation's first method go side by side in lanes: nothing asked
@@ -76,6 +76,20 @@ impl Simulation {
             systems => self.lanes(&systems).is_some(),
             _ => false
         )
+    }
+
+    /// The plain lanes of this simulation's first method on `sys` alone, for a study that
+    /// drives them a step at a time itself (a basin map's cells, each ending when decided);
+    /// `None` where [`runs_in_lanes`](Self::runs_in_lanes) is false or indicators are asked for.
+    pub(crate) fn plain_lanes<S, const N: usize>(&self, sys: &S) -> Option<RunLanes<N>>
+    where
+        S: MechanicalSystem + LaneForces<N> + PartialEq,
+        DefaultAllocator: Allocator<S::Dim>,
+    {
+        match self.lanes(&[sys])? {
+            Lanes::Runs(lanes) => Some(lanes),
+            Lanes::Tracked(_) => None,
+        }
     }
 
     /// Whether `other` can share lanes with this simulation: the same method, schedule, kind of

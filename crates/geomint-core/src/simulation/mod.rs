@@ -30,6 +30,7 @@ pub use document::{
     ColumnSink, Columns, DivergedAt, RunDocument, RunOutcome, ScheduleSummary, SimulationDocument,
     Stop, SystemSummary,
 };
+pub(crate) use lanes::with_lane_systems;
 pub use run::{for_each_method, Outcome, Sample, SampleSink};
 pub use spec::{
     EnergyReference, InitialCoordinates, InputFields, Limits, MethodAt, Simulation, SimulationSpec,

@@ -244,13 +244,63 @@ fn a_basin_map_is_the_same_in_shards_as_in_one_piece() {
         stop: geomint_core::studies::StudyStop::Finished,
         wall_ms,
     });
-    let strip = |d: &BasinsDocument| {
-        let mut v = serde_json::to_value(d).unwrap();
-        v.as_object_mut().unwrap().remove("wall_ms");
-        v.to_string()
-    };
-    assert_eq!(strip(&whole), strip(&merged));
+    assert_eq!(without_wall_time(&whole), without_wall_time(&merged));
     assert_eq!(whole.runs[0].labels.len(), job.cells());
+}
+
+/// The document without its wall time, as text.
+fn without_wall_time(d: &BasinsDocument) -> String {
+    let mut v = serde_json::to_value(d).unwrap();
+    v.as_object_mut().unwrap().remove("wall_ms");
+    v.to_string()
+}
+
+#[test]
+fn cells_in_lanes_end_as_each_alone_bit_for_bit() {
+    // Cells of all three kinds of decision: the damped double well (typed in; the energy
+    // argument), Hénon–Heiles's escapes (built in; exits, some cells off the energy surface)
+    // and the same with an escape radius small enough that some orbits diverge first. Methods
+    // the lanes take (csv1, velocity Verlet's triple jump) beside ones they do not (rk4).
+    let well = BasinsSpec {
+        sweep: sweep(
+            double_well(0.25),
+            &[Method::new(MethodId::Csv1), Method::new(MethodId::Rk4)],
+            0.05,
+            200.0,
+            vec![
+                axis(0, Target::Q0(0), (-2.0, 2.0), 23),
+                axis(1, Target::P0(0), (-2.0, 2.0), 19),
+            ],
+        ),
+        exits: Vec::new(),
+        recognition: Recognition::default(),
+    };
+    let escapes = henon_heiles_escapes(
+        21,
+        &[Method::triple_jump(
+            geomint_core::methods::Base::VelocityVerlet,
+        )],
+        0.02,
+    );
+    let mut diverging = escapes.clone();
+    diverging.recognition.escape_radius = 1.9;
+    for spec in [well, escapes, diverging] {
+        let lanes = spec.prepare(&Limits::default()).unwrap();
+        let alone = spec
+            .prepare(&Limits::default())
+            .unwrap()
+            .one_cell_at_a_time();
+        assert!(lanes.group() > 1, "the lanes take some run");
+        assert_eq!(alone.group(), 1);
+        let (in_lanes, one_by_one) = (run(&lanes), run(&alone));
+        assert_eq!(without_wall_time(&in_lanes), without_wall_time(&one_by_one));
+        let decided_by = &in_lanes.runs[0].decided_by;
+        println!(
+            "{}: {decided_by:?}, {} steps",
+            in_lanes.system, in_lanes.runs[0].steps
+        );
+        assert!(decided_by.energy + decided_by.exit + decided_by.divergence > 300);
+    }
 }
 
 /// Hénon–Heiles at E = 0.25, above the escape energy 1/6: the section x = 0 over (y, p_y), and
@@ -416,6 +466,18 @@ fn bad_basin_maps_are_refused_naming_the_field() {
         Ok(_) => panic!("accepted"),
         Err(e) => (e.field().map(|f| f.as_str().to_string()), e.to_string()),
     };
+    // Up to 1024 points along an axis (a sweep stops at 401), not one more.
+    let mut spec = base.clone();
+    spec.sweep.axes = vec![
+        axis(0, Target::Q0(0), (-2.0, 2.0), 1000),
+        axis(1, Target::P0(0), (-2.0, 2.0), 1024),
+    ];
+    assert_eq!(spec.prepare(&Limits::default()).unwrap().cells(), 1_024_000);
+    assert!(spec.sweep.prepare(&Limits::default()).is_err());
+    spec.sweep.axes[1].n = 1025;
+    let (field, message) = refused(spec);
+    assert_eq!(field.as_deref(), Some("axes[1].n"), "{message}");
+    assert!(message.contains("1024"), "{message}");
     // An axis over a parameter.
     let mut spec = base.clone();
     spec.sweep.axes = vec![axis(0, Target::Param("delta".into()), (0.1, 0.2), 3)];

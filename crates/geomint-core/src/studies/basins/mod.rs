@@ -12,6 +12,7 @@
 
 pub mod document;
 pub mod landscape;
+mod lanes;
 pub mod metrics;
 pub mod outcome;
 
@@ -27,7 +28,7 @@ use crate::sections::names::StateNames;
 use crate::sections::{Direction, Surface};
 use crate::simulation::{Limits, Simulation};
 use crate::studies::engine::{self, CellLine, Documented, Executor, Finished, Study};
-use crate::studies::sweep::{RunLabel, SweepJob, SweepSpec, Target};
+use crate::studies::sweep::{EnergyReference, RunLabel, SweepJob, SweepSpec, Target};
 use crate::studies::StudySpec;
 use crate::system::{MechanicalSystem, State};
 use crate::{with_stepper, with_system};
@@ -38,6 +39,10 @@ use landscape::Landscape;
 use metrics::basin_metrics;
 use outcome::{CellOutcome, Criteria, Decide, Exit, Outcome, Stroboscope};
 
+/// Most points along one axis of a basin map: more than a sweep's, for maps of 10⁶ cells, as
+/// most of its cells are decided long before `t_end` (the total steps `t_end` would take stay
+/// bounded as a sweep's are).
+pub const MAX_MAP_POINTS: usize = 1024;
 /// Most exits.
 pub const MAX_EXITS: usize = 16;
 /// Most distinct outcomes one run of a map may have (labels past it would not fit a legend,
@@ -104,6 +109,8 @@ pub struct BasinsJob {
     criteria: Arc<Criteria>,
     exit_names: Vec<String>,
     spec: BasinsSpec,
+    /// Per run: whether its cells go side by side in lanes ([`lanes`]).
+    in_lanes: Vec<bool>,
 }
 
 impl BasinsSpec {
@@ -135,7 +142,12 @@ impl BasinsSpec {
                 });
             }
         }
-        let sweep = self.sweep.prepare(limits)?;
+        // A basin map compares no energies: its cells' runs need no reference run beside them.
+        let sweep = SweepSpec {
+            energy_reference: Some(EnergyReference::Initial),
+            ..self.sweep.clone()
+        }
+        .prepare_up_to(limits, MAX_MAP_POINTS)?;
         for axis in &sweep.grid.axes {
             if !matches!(axis.target, Target::Q0(_) | Target::P0(_)) {
                 return Err(CoreError::Unsupported {
@@ -227,11 +239,22 @@ impl BasinsSpec {
             escape_radius: recognition.escape_radius,
             clock,
         };
+        // Every cell of a run shares its system and method, so the cell that stood for the
+        // landscape answers for all of them.
+        let in_lanes = (0..sweep.runs.len())
+            .map(|run| {
+                let cell = sweep.grid.point(some_cell(&sweep));
+                sweep
+                    .cell_simulation(run, &cell)
+                    .is_ok_and(|sim| sim.runs_in_lanes())
+            })
+            .collect();
         Ok(BasinsJob {
             exit_names: self.exits.iter().map(|e| e.name.clone()).collect(),
             sweep,
             criteria: Arc::new(criteria),
             spec: self.clone(),
+            in_lanes,
         })
     }
 }
@@ -239,14 +262,22 @@ impl BasinsSpec {
 /// A cell's simulation, the centre's if it starts an orbit (it may lie off the energy surface),
 /// else the first cell's that does; the centre's error when none does.
 fn some_simulation(sweep: &SweepJob) -> Result<Simulation, CoreError> {
+    let centre = sweep.cell_simulation(0, &sweep.grid.point(sweep.grid.cells() / 2));
+    centre.or_else(|e| {
+        sweep
+            .cell_simulation(0, &sweep.grid.point(some_cell(sweep)))
+            .map_err(|_| e)
+    })
+}
+
+/// The centre cell if it starts an orbit, else the first cell that does (else the centre).
+fn some_cell(sweep: &SweepJob) -> usize {
     let cells = sweep.grid.cells();
-    let centre = sweep.cell_simulation(0, &sweep.grid.point(cells / 2));
-    match centre {
-        Ok(sim) => Ok(sim),
-        Err(e) => (0..cells)
-            .find_map(|cell| sweep.cell_simulation(0, &sweep.grid.point(cell)).ok())
-            .ok_or(e),
-    }
+    let starts = |cell: &usize| sweep.cell_simulation(0, &sweep.grid.point(*cell)).is_ok();
+    std::iter::once(cells / 2)
+        .chain(0..cells)
+        .find(starts)
+        .unwrap_or(cells / 2)
 }
 
 /// The box of positions the map starts from: the chart's positions at the grid's corners and
@@ -284,27 +315,23 @@ impl BasinsJob {
         self.criteria.landscape.as_ref()
     }
 
+    /// The same map with every cell run on its own, none in lanes: the reference the lanes are
+    /// checked against, bit for bit.
+    pub fn one_cell_at_a_time(mut self) -> Self {
+        self.in_lanes.fill(false);
+        self
+    }
+
     /// Run `run` of the cell at `point`, to its outcome; `None` when the budget stopped it.
     fn run_cell(&self, run: usize, point: &[f64], budget: Budget<'_>) -> Option<CellOutcome> {
-        let failed = |e: CoreError| CellOutcome {
-            outcome: Outcome::Failed {
-                error: e.to_string(),
-            },
-            decided_at: None,
-            steps: 0,
-            energy_margin: None,
-        };
         let sim = match self.sweep.cell_simulation(run, point) {
             Ok(sim) => sim,
-            Err(e) => return Some(failed(e)),
+            Err(e) => return Some(CellOutcome::failed(e)),
         };
         let result = with_system!(&sim.system, sys => {
             self.decide(sys, &sim, budget)
         });
-        match result {
-            Ok(cell) => cell,
-            Err(e) => Some(failed(e)),
-        }
+        result.unwrap_or_else(|e| Some(CellOutcome::failed(e)))
     }
 
     fn decide<S: MechanicalSystem>(
@@ -336,9 +363,21 @@ impl BasinsJob {
             steps = stats.steps;
             stop = why;
         }
-        let (outcome, decided_at, energy_margin) = match (decide.decided.take(), stop) {
+        Ok(self.conclude(decide.decided.take(), stop, steps, t_end))
+    }
+
+    /// A cell's outcome from what its observer decided (outcome, time, energy margin) and how
+    /// its run stopped after `steps`; `None` when the budget stopped it undecided.
+    fn conclude(
+        &self,
+        decided: Option<(Outcome, f64, Option<f64>)>,
+        stop: StopReason,
+        steps: u64,
+        t_end: f64,
+    ) -> Option<CellOutcome> {
+        let (outcome, decided_at, energy_margin) = match (decided, stop) {
             (Some((outcome, t, margin)), _) => (outcome, Some(t), margin),
-            (None, StopReason::Cancelled { .. } | StopReason::TimeLimit { .. }) => return Ok(None),
+            (None, StopReason::Cancelled { .. } | StopReason::TimeLimit { .. }) => return None,
             (None, StopReason::Diverged { t, .. }) => (Outcome::Diverged, Some(t), None),
             (None, _) if !self.criteria.exits.is_empty() => (Outcome::Stayed, Some(t_end), None),
             (None, _) => (
@@ -349,12 +388,12 @@ impl BasinsJob {
                 None,
             ),
         };
-        Ok(Some(CellOutcome {
+        Some(CellOutcome {
             outcome,
             decided_at,
             steps,
             energy_margin,
-        }))
+        })
     }
 
     fn undecided_reason(&self) -> &'static str {
@@ -547,16 +586,39 @@ impl Study for BasinsJob {
         self.sweep.grid.cells()
     }
 
+    fn group(&self) -> usize {
+        if self.in_lanes.contains(&true) {
+            lanes::GROUP
+        } else {
+            1
+        }
+    }
+
     fn run_cells(
         &self,
         cells: Range<usize>,
         budget: Budget<'_>,
     ) -> Result<Vec<Option<Vec<CellOutcome>>>, CoreError> {
+        // Run by run (each in lanes where it can go), then cell by cell.
+        let mut runs: Vec<std::vec::IntoIter<Option<CellOutcome>>> = (0..self.sweep.runs.len())
+            .map(|run| {
+                let in_lanes = self.in_lanes[run]
+                    .then(|| self.decide_in_lanes(run, cells.clone(), budget))
+                    .flatten();
+                in_lanes
+                    .unwrap_or_else(|| {
+                        cells
+                            .clone()
+                            .map(|cell| self.run_cell(run, &self.sweep.grid.point(cell), budget))
+                            .collect()
+                    })
+                    .into_iter()
+            })
+            .collect();
         Ok(cells
-            .map(|cell| {
-                let point = self.sweep.grid.point(cell);
-                (0..self.sweep.runs.len())
-                    .map(|run| self.run_cell(run, &point, budget))
+            .map(|_| {
+                runs.iter_mut()
+                    .map(|run| run.next().flatten())
                     .collect::<Option<Vec<_>>>()
             })
             .collect())

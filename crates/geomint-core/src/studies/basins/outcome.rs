@@ -136,6 +136,9 @@ where
     last_t: f64,
     /// Each exit's S at the last state.
     last_s: Vec<f64>,
+    /// The state and time as the exits' compiled functions take them, loaded once per step.
+    inputs: Vec<f64>,
+    dof: usize,
     point: State<S::Dim>,
     scratch: Vector<S::Dim>,
     lowest_energy: f64,
@@ -166,6 +169,8 @@ where
             last: start.clone(),
             last_t: 0.0,
             last_s,
+            inputs: Surface::buffers(dof).0,
+            dof,
             point: start.clone(),
             scratch: start.q.clone(),
             lowest_energy: f64::INFINITY,
@@ -262,9 +267,20 @@ where
     /// The earliest exit the step from the last state to `z` (time `t`) crossed, located.
     fn exit_crossed(&mut self, t: f64, z: &State<S::Dim>) -> Option<(usize, f64)> {
         let mut first: Option<(usize, f64)> = None;
+        if self.criteria.exits.is_empty() {
+            return None;
+        }
+        let n = self.dof;
+        Surface::load(
+            &mut self.inputs,
+            &z.q.as_slice()[..n],
+            &z.p.as_slice()[..n],
+            t,
+            n,
+        );
         for i in 0..self.criteria.exits.len() {
             let exit = &self.criteria.exits[i];
-            let s = self.henon.value(&exit.surface, z, t);
+            let s = exit.surface.value_loaded(&self.inputs, t);
             let before = self.last_s[i];
             self.last_s[i] = s;
             if !exit.direction.crossed(before, s) {

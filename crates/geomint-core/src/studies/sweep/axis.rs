@@ -7,7 +7,8 @@ use crate::error::{CoreError, Field, Range};
 use crate::simulation::SimulationSpec;
 use crate::systems::ParamValue;
 
-/// Most points along one axis.
+/// Most points along one axis of a sweep (a basin map's axes may have more:
+/// [`crate::studies::basins::MAX_MAP_POINTS`]).
 pub const MAX_POINTS: usize = 401;
 
 /// What an axis varies.
@@ -92,7 +93,8 @@ pub struct Axis {
     pub min: f64,
     /// The last value.
     pub max: f64,
-    /// Points (1 to [`MAX_POINTS`]); one point sits at the middle of [min, max].
+    /// Points (1 to the study's most, [`MAX_POINTS`] for a sweep); one point sits at the middle
+    /// of [min, max].
     pub n: usize,
     /// Spacing.
     pub scale: Scale,
@@ -101,14 +103,15 @@ pub struct Axis {
 }
 
 impl Axis {
-    /// Checks the range and the count; errors name `axes[k].min`, `.max` or `.n`.
-    pub fn check(&self) -> Result<(), CoreError> {
-        if self.n == 0 || self.n > MAX_POINTS {
+    /// Checks the range and the count (1 to `max_points`); errors name `axes[k].min`, `.max` or
+    /// `.n`.
+    pub fn check(&self, max_points: usize) -> Result<(), CoreError> {
+        if self.n == 0 || self.n > max_points {
             return Err(CoreError::Count {
                 field: self.field.key("n"),
                 got: self.n as u64,
                 min: 1,
-                max: MAX_POINTS as u64,
+                max: max_points as u64,
                 what: "points",
             });
         }

@@ -1,6 +1,7 @@
 //! Checking a sweep ([`SweepSpec::prepare`]): its system, axes, runs and limits, into the job
 //! whose cells the engine runs.
 
+use super::axis::MAX_POINTS;
 use super::{surface, EnergyReference, Grid, RunLabel, SweepJob, SweepSpec, Target};
 use super::{MAX_RUNS, MAX_TOTAL_STEPS};
 use crate::error::{CoreError, Field, StepScope};
@@ -12,6 +13,16 @@ impl SweepSpec {
     /// nothing). Problems that only some cells have — an initial state outside a chart — are
     /// those cells' results, not errors of the request.
     pub fn prepare(&self, limits: &Limits) -> Result<SweepJob, CoreError> {
+        self.prepare_up_to(limits, MAX_POINTS)
+    }
+
+    /// [`Self::prepare`] with up to `max_points` along each axis (a study whose cells cost less
+    /// than a sweep's may allow more).
+    pub(crate) fn prepare_up_to(
+        &self,
+        limits: &Limits,
+        max_points: usize,
+    ) -> Result<SweepJob, CoreError> {
         let info = self.system.resolve(&Field::new("system"))?;
         if self.axes.is_empty() || self.axes.len() > 2 {
             return Err(CoreError::Count {
@@ -23,7 +34,7 @@ impl SweepSpec {
             });
         }
         for (k, axis) in self.axes.iter().enumerate() {
-            axis.check()?;
+            axis.check(max_points)?;
             if let Some(earlier) = self.axes[..k].iter().find(|a| a.target == axis.target) {
                 return Err(CoreError::Duplicate {
                     field: axis.field.key("name"),
