@@ -343,6 +343,10 @@ export class BasinsPanel {
         bb > ln2 ? `> ln 2 = ${fmt(ln2, 4)}: the boundary is fractal` : `≤ ln 2 = ${fmt(ln2, 4)}: this test cannot tell whether the boundary is fractal`),
       ...row('uncertainty_exponent', 'Uncertainty exponent α', fmt(run.uncertainty_exponent, 3),
         `fitted to f(ε), the share of cells with another label ε cells away${fractions ? ` (${fractions})` : ''}; near 0: a fractal boundary, 1: a smooth one`),
+      // The Wada test needs three basins at least; the document gives no shares otherwise.
+      ...((run.wada ?? []).length ? row('wada', 'Wada test W_k',
+        run.wada.map((w) => `${run.attractors[w.label]?.name ?? `label ${w.label}`} ${fmt(w.share, 3)}`).join(', '),
+        'per basin k, the share of the boundary within a cell of k\'s boundary against the rest merged; all near 1: a Wada boundary at this resolution') : []),
       ...row('decided_by', 'Decided by', decided || '—', '(cells per criterion)'),
       // A driven system has no critical points searched (`equilibria` null): nothing to say.
       ...(doc.equilibria ? row('lowest_saddle_energy', 'Lowest saddle', doc.lowest_saddle_energy == null ? 'none found' : `E = ${fmt(doc.lowest_saddle_energy, 6)}`,

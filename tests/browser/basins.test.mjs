@@ -220,6 +220,10 @@ test('Hénon–Heiles escapes: the legend names the exits up, left and right; of
   assert.match(d.text, /^y = -0\.6, p_y = -0\.6: undecided — .*no state here has H = 0\.25/);
   assert.match(await page.textContent('#ba-reasons'), /off the energy surface/);
   assert.match(await page.getAttribute('#ba-canvas', 'aria-label'), /y \(q0\[1\]\) across, p_y \(p0\[1\]\) upwards/);
+  // Three exits: the Wada test's share per exit, named, as the document has them.
+  assert.equal(run.wada.length, 3);
+  const wada = await page.textContent('#ba-metrics [data-metric="wada"] strong');
+  assert.equal(wada, run.wada.map((w) => `${run.attractors[w.label].name} ${+w.share.toPrecision(3)}`).join(', '));
   // An exit's orbit ends at its decision time, the momentum solved from the energy.
   const k = run.labels.findIndex((label) => label >= 0);
   await page.evaluate(([c, r]) => window.geomint.basins.showOrbit({ col: c, row: r }), [k % 15, Math.floor(k / 15)]);
