@@ -11,6 +11,7 @@ from typing import Any, Dict
 import httpx
 import numpy as np
 import pytest
+from scipy.integrate import solve_ivp
 
 import geomint
 from geomint import _progress
@@ -212,3 +213,103 @@ def test_refusals_name_the_field(client: geomint.Client, presets: Dict[str, Dict
     assert caught.value.field == "recognition.max_period"
     with pytest.raises(TypeError, match="did you mean 'exits'"):
         client.basins(**request, exit=[("out", "x - 3")], progress=False)
+
+
+# The reference: scipy's DOP853 at rtol = atol = 1e-12, independent of geomint's integrators.
+REFERENCE = dict(method="DOP853", rtol=1e-12, atol=1e-12)
+
+
+def whole_neighbourhoods(labels: np.ndarray) -> list[tuple[int, int]]:
+    """The decided cells whose eight neighbours all have their label."""
+    n0, n1 = labels.shape
+    return [
+        (i, j)
+        for i in range(1, n0 - 1)
+        for j in range(1, n1 - 1)
+        if labels[i, j] >= 0 and (labels[i - 1 : i + 2, j - 1 : j + 2] == labels[i, j]).all()
+    ]
+
+
+def box_entropies(labels: np.ndarray, box: int = 5) -> tuple[float, float]:
+    """S_b and S_bb of a map whose cells all start an orbit (Daza et al., Sci. Rep. 6 (2016)
+    31416): the mean Gibbs entropy of the whole box × box boxes, and of those on a boundary."""
+    entropies = []
+    for bj in range(labels.shape[1] // box):
+        for bi in range(labels.shape[0] // box):
+            block = labels[bi * box : (bi + 1) * box, bj * box : (bj + 1) * box]
+            _, counts = np.unique(block, return_counts=True)
+            p = counts / block.size
+            entropies.append(float(-(p * np.log(p)).sum()))
+    boundary = [s for s in entropies if s > 0]
+    return sum(entropies) / len(entropies), sum(boundary) / len(boundary)
+
+
+def test_labels_agree_with_scipys_dop853_and_the_entropies_with_their_formula(
+    client: geomint.Client, presets: Dict[str, Dict[str, Any]]
+) -> None:
+    """Every cell whose whole neighbourhood shares its label gets the same outcome from scipy's
+    DOP853 at 1e-12: the well the damped double well settles in (once H < 0, below the saddle,
+    the energy cannot rise back), the exit a Hénon–Heiles orbit leaves through first."""
+    # x″ + δx′ − x + x³ = 0, δ = 0.25: H = p²/2 − x²/2 + x⁴/4.
+    request = coarse(presets["double_well"], 30)
+    delta = request["system"]["parameters"]["delta"]
+    run = client.basins(**request, progress=False)[0]
+    (x_axis, p_axis) = (a.values for a in client.basins(**request, progress=False).axes)
+    well_of = {a.label: np.sign(a.equilibrium.q[0]) for a in run.attractors if a.equilibrium is not None}
+
+    def settled(t: float, z: np.ndarray) -> float:
+        return z[1] ** 2 / 2 - z[0] ** 2 / 2 + z[0] ** 4 / 4 + 1e-3
+
+    settled.terminal = True  # type: ignore[attr-defined]
+    cells = whole_neighbourhoods(run.labels)
+    agree = 0
+    for i, j in cells:
+        start = np.array([x_axis[i], p_axis[j]])
+        if settled(0, start) < 0:
+            # Below the saddle already: in the well it starts in.
+            agree += int(np.sign(start[0]) == well_of[int(run.labels[i, j])])
+            continue
+        orbit = solve_ivp(
+            lambda t, z: [z[1], z[0] - z[0] ** 3 - delta * z[1]],
+            (0, request["t_end"]), start, events=settled, **REFERENCE,
+        )
+        assert orbit.t_events[0].size == 1, f"cell {i, j} did not settle by t_end"
+        agree += int(np.sign(orbit.y_events[0][0][0]) == well_of[int(run.labels[i, j])])
+    print(f"double well, 30 × 30: {agree} of {len(cells)} cells agree with DOP853")
+    assert len(cells) >= 100 and agree / len(cells) >= 0.999, f"{agree} of {len(cells)}"
+    # The entropies the document reports are the formula's on its labels.
+    s_b, s_bb = box_entropies(np.asarray(run.labels))
+    assert run.basin_entropy == pytest.approx(s_b, rel=1e-12)
+    assert run.boundary_basin_entropy == pytest.approx(s_bb, rel=1e-12)
+
+    # Hénon–Heiles at E = 0.25 on x = 0, p_x ≥ 0 solved from the energy: the first exit crossed
+    # upwards, each surface as the preset writes it.
+    request = coarse(presets["henon_heiles_escapes"], 24)
+    basins = client.basins(**request, progress=False)
+    run = basins[0]
+    y_axis, py_axis = (a.values for a in basins.axes)
+    exits = {a.label: a.name for a in run.attractors}
+    s3 = np.sqrt(3) / 2
+    surfaces = {
+        "up": lambda t, z: z[1] - 2,
+        "left": lambda t, z: -s3 * z[0] - z[1] / 2 - 2,
+        "right": lambda t, z: s3 * z[0] - z[1] / 2 - 2,
+    }
+    for event in surfaces.values():
+        event.terminal = True  # type: ignore[attr-defined]
+        event.direction = 1  # type: ignore[attr-defined]
+
+    def field(t: float, z: np.ndarray) -> list[float]:
+        x, y, px, py = z
+        return [px, py, -x - 2 * x * y, -y - x * x + y * y]
+
+    cells = whole_neighbourhoods(run.labels)
+    agree = 0
+    for i, j in cells:
+        y, py = y_axis[i], py_axis[j]
+        px = np.sqrt(2 * (request["energy_surface"]["energy"] - (y * y / 2 - y**3 / 3)) - py * py)
+        orbit = solve_ivp(field, (0, request["t_end"]), [0, y, px, py], events=list(surfaces.values()), **REFERENCE)
+        crossed = [name for name, at in zip(surfaces, orbit.t_events) if at.size]
+        agree += int(crossed == [exits[int(run.labels[i, j])]])
+    print(f"Hénon–Heiles, 24 × 24: {agree} of {len(cells)} cells agree with DOP853")
+    assert len(cells) >= 60 and agree / len(cells) >= 0.999, f"{agree} of {len(cells)}"
