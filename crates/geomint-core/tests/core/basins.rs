@@ -210,6 +210,71 @@ fn the_damped_double_well_is_decided_by_energy_and_agrees_with_the_reference() {
     );
 }
 
+/// A study, not a promise: how the damped double well's map (δ = 0.25, 40 × 40 over [−2, 2]²,
+/// t_end = 200) of the conformal csv2 and of rk4 changes as h is halved, against DOP853 at 1e-12:
+/// the cells whose outcome differs from the reference's, and S_b.
+#[test]
+fn halving_h_brings_the_conformal_and_the_rk4_maps_to_the_reference() {
+    let n = 40;
+    let spec = |h: f64, methods_: &[Method]| BasinsSpec {
+        sweep: sweep(
+            double_well(0.25),
+            methods_,
+            h,
+            200.0,
+            vec![
+                axis(0, Target::Q0(0), (-2.0, 2.0), n),
+                axis(1, Target::P0(0), (-2.0, 2.0), n),
+            ],
+        ),
+        exits: Vec::new(),
+        recognition: Recognition::default(),
+    };
+    let reference = spec(
+        0.1,
+        &[Method::Reference {
+            tolerance: REFERENCE,
+        }],
+    );
+    let reference = run(&reference.prepare(&Limits::default()).unwrap());
+    let reference = &reference.runs[0];
+    let name = |r: &BasinRun, i: usize| {
+        (r.labels[i] >= 0).then(|| r.attractors[r.labels[i] as usize].name.clone())
+    };
+    let steps = [0.4, 0.2, 0.1, 0.05];
+    // Per method, per h: the cells that differ from the reference.
+    let mut differ = [Vec::new(), Vec::new()];
+    for h in steps {
+        let methods_ = [Method::new(MethodId::Csv2), Method::new(MethodId::Rk4)];
+        let doc = run(&spec(h, &methods_).prepare(&Limits::default()).unwrap());
+        for (k, run) in doc.runs.iter().enumerate() {
+            let wrong = (0..n * n)
+                .filter(|&i| name(run, i) != name(reference, i))
+                .count();
+            println!(
+                "double well, {} at h = {h}: {wrong} of {} cells differ from DOP853, S_b {:.4} \
+                 (reference {:.4}), largest energy margin {:.1e}",
+                run.label.method,
+                n * n,
+                run.metrics.basin_entropy.unwrap(),
+                reference.metrics.basin_entropy.unwrap(),
+                run.largest_energy_margin.unwrap_or(0.0)
+            );
+            differ[k].push(wrong);
+        }
+    }
+    println!(
+        "cells that differ, h = {steps:?}: csv2 {:?}, rk4 {:?}",
+        differ[0], differ[1]
+    );
+    // Each halving moves no map away from the reference, and at the smallest step both are the
+    // reference's but for a few boundary cells.
+    for wrong in &differ {
+        assert!(wrong.windows(2).all(|w| w[1] <= w[0]), "{wrong:?}");
+        assert!(*wrong.last().unwrap() * 100 <= n * n, "{wrong:?}");
+    }
+}
+
 #[test]
 fn a_basin_map_is_the_same_in_shards_as_in_one_piece() {
     let spec = BasinsSpec {
