@@ -116,20 +116,13 @@ fn basin_entropy(labels: &[i64], nx: usize, ny: usize) -> f64 {
     sum / boxes as f64
 }
 
-#[test]
-fn the_damped_double_well_is_decided_by_energy_and_agrees_with_the_reference() {
-    let n = 30;
-    let spec = BasinsSpec {
+/// The damped double well (δ = 0.25) on n × n cells over (x₀, p₀) ∈ [−2, 2]², to t_end = 200.
+fn double_well_map(n: usize, h: f64, methods_: &[Method]) -> BasinsSpec {
+    BasinsSpec {
         sweep: sweep(
             double_well(0.25),
-            &[
-                Method::new(MethodId::Csv2),
-                Method::new(MethodId::Rk4),
-                Method::Reference {
-                    tolerance: REFERENCE,
-                },
-            ],
-            0.05,
+            methods_,
+            h,
             200.0,
             vec![
                 axis(0, Target::Q0(0), (-2.0, 2.0), n),
@@ -138,7 +131,23 @@ fn the_damped_double_well_is_decided_by_energy_and_agrees_with_the_reference() {
         ),
         exits: Vec::new(),
         recognition: Recognition::default(),
-    };
+    }
+}
+
+#[test]
+fn the_damped_double_well_is_decided_by_energy_and_agrees_with_the_reference() {
+    let n = 30;
+    let spec = double_well_map(
+        n,
+        0.05,
+        &[
+            Method::new(MethodId::Csv2),
+            Method::new(MethodId::Rk4),
+            Method::Reference {
+                tolerance: REFERENCE,
+            },
+        ],
+    );
     let job = spec.prepare(&Limits::default()).expect("prepares");
 
     // The landscape: minima at x = ±1 with V = −1/4, the saddle at 0 with V = 0, to round-off.
@@ -216,20 +225,7 @@ fn the_damped_double_well_is_decided_by_energy_and_agrees_with_the_reference() {
 #[test]
 fn halving_h_brings_the_conformal_and_the_rk4_maps_to_the_reference() {
     let n = 40;
-    let spec = |h: f64, methods_: &[Method]| BasinsSpec {
-        sweep: sweep(
-            double_well(0.25),
-            methods_,
-            h,
-            200.0,
-            vec![
-                axis(0, Target::Q0(0), (-2.0, 2.0), n),
-                axis(1, Target::P0(0), (-2.0, 2.0), n),
-            ],
-        ),
-        exits: Vec::new(),
-        recognition: Recognition::default(),
-    };
+    let spec = |h: f64, methods_: &[Method]| double_well_map(n, h, methods_);
     let reference = spec(
         0.1,
         &[Method::Reference {
