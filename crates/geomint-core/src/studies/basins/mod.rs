@@ -239,11 +239,11 @@ impl BasinsSpec {
             escape_radius: recognition.escape_radius,
             clock,
         };
-        // Every cell of a run shares its system and method, so the cell that stood for the
-        // landscape answers for all of them.
+        // Every cell of a run shares its system and method, so one cell that starts an orbit
+        // answers for all of them.
+        let cell = sweep.grid.point(some_cell(&sweep));
         let in_lanes = (0..sweep.runs.len())
             .map(|run| {
-                let cell = sweep.grid.point(some_cell(&sweep));
                 sweep
                     .cell_simulation(run, &cell)
                     .is_ok_and(|sim| sim.runs_in_lanes())
