@@ -133,7 +133,6 @@ where
         &mut z,
         schedule,
         Budget::default(),
-        false,
         &mut recorder,
     )
     .expect("the run");

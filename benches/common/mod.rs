@@ -106,11 +106,11 @@ where
             let budget = Budget::default();
             if step_by_step {
                 geomint::core::with_stepper!(&mut stepper, st => integrate(
-                    sys, &mut StepByStep(st), &mut z, schedule, budget, false, &mut sum
+                    sys, &mut StepByStep(st), &mut z, schedule, budget, &mut sum
                 ))
             } else {
                 geomint::core::with_stepper!(&mut stepper, st => integrate(
-                    sys, st, &mut z, schedule, budget, false, &mut sum
+                    sys, st, &mut z, schedule, budget, &mut sum
                 ))
             }
             .expect("run");

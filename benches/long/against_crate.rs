@@ -141,7 +141,6 @@ pub fn against_crate<S: MechanicalSystem, const N: usize>(
                     &mut z,
                     schedule,
                     Budget::default(),
-                    false,
                     &mut Unobserved,
                 )
                 .expect("the run");

@@ -171,7 +171,6 @@ where
         &mut z,
         schedule,
         Budget::default(),
-        false,
         &mut record,
     )
     .expect("run succeeds");

@@ -49,7 +49,6 @@ fn the_driver_reports_the_given_start_processed_samples_and_leaves_the_processed
         &mut z,
         schedule,
         Budget::default(),
-        false,
         &mut common::Discard,
     )
     .unwrap();

@@ -374,17 +374,14 @@ where
     Chaos(&'a mut Tracker<D>),
 }
 
-/// Runs `stepper` from `z` over `schedule`, reporting samples to `observer`.
-///
-/// With `track_determinant`, each step also propagates its Jacobian (slower; for diagnostics)
-/// and reports det ∂Φ/∂z to the observer. See [`integrate_tracked`].
+/// Runs `stepper` from `z` over `schedule`, reporting samples to `observer`, with no tangent
+/// dynamics. See [`integrate_tracked`].
 pub fn integrate<S, M, O>(
     sys: &S,
     stepper: &mut M,
     z: &mut State<S::Dim>,
     schedule: Schedule,
     budget: Budget<'_>,
-    track_determinant: bool,
     observer: &mut O,
 ) -> Result<(StopReason, RunStats), CoreError>
 where
@@ -393,12 +390,7 @@ where
     O: Observer<S::Dim>,
     DefaultAllocator: Allocator<S::Dim>,
 {
-    let tracking = if track_determinant {
-        Tracking::Determinant
-    } else {
-        Tracking::Off
-    };
-    integrate_tracked(sys, stepper, z, schedule, budget, tracking, observer)
+    drive(sys, stepper, z, schedule, budget, Untracked, observer)
 }
 
 /// Runs `stepper` from `z` over `schedule`, reporting samples to `observer`, with the tangent
@@ -411,13 +403,20 @@ where
 /// post-processed kernel states, and on return `z` holds the post-processed final state (the
 /// kernel state if the run diverged). Methods without processing see none of this: their loop is
 /// the same. Tangent dynamics follow the kernel.
+///
+/// Each stepper type this is called with compiles the driver twice, with and without tangents:
+/// callers that track run it with the enum of all steppers ([`AnyStepper`]), one copy per system,
+/// and keep the per-method copies for [`integrate`] (the tangent steps cost far more than the
+/// dispatch; the plain and watched stretches do not).
+///
+/// [`AnyStepper`]: crate::methods::AnyStepper
 pub fn integrate_tracked<S, M, O>(
     sys: &S,
     stepper: &mut M,
     z: &mut State<S::Dim>,
     schedule: Schedule,
     budget: Budget<'_>,
-    mut tracking: Tracking<'_, S::Dim>,
+    tracking: Tracking<'_, S::Dim>,
     observer: &mut O,
 ) -> Result<(StopReason, RunStats), CoreError>
 where
@@ -426,19 +425,176 @@ where
     O: Observer<S::Dim>,
     DefaultAllocator: Allocator<S::Dim>,
 {
+    match tracking {
+        Tracking::Off => drive(sys, stepper, z, schedule, budget, Untracked, observer),
+        tracking => {
+            let jacobian = matches!(tracking, Tracking::Determinant).then(|| Tangent::new(sys, z));
+            let tangents = Tangents { tracking, jacobian };
+            drive(sys, stepper, z, schedule, budget, tangents, observer)
+        }
+    }
+}
+
+/// How the driver takes its stretches of steps: with or without tangent dynamics. A type of its
+/// own for each, so that a run without tangents compiles none of their code.
+trait Track<S: MechanicalSystem>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    /// Steps between two looks at the budget.
+    fn check_every<M: Stepper<S> + ?Sized>(&self, stepper: &M) -> u64;
+
+    /// Reports what goes with the sample at `step` (the chaos indicators) to `observer`.
+    fn report<O: Observer<S::Dim>>(&mut self, _observer: &mut O, _step: u64) {}
+
+    /// Steps `z` from `*step` until `until`, counting in `*step`; stops early on a non-finite
+    /// state or a reason of its own, which it returns. A failed step is returned with the count
+    /// of steps before it.
+    #[allow(clippy::too_many_arguments)]
+    fn stretch<M: Stepper<S> + ?Sized, O: Observer<S::Dim>>(
+        &mut self,
+        sys: &S,
+        stepper: &mut M,
+        z: &mut State<S::Dim>,
+        h: f64,
+        step: &mut u64,
+        until: u64,
+        observer: &mut O,
+    ) -> Result<Option<StopReason>, (u64, StepError)>;
+}
+
+/// Steps alone: the stepper's own [`advance`](Stepper::advance) over each stretch.
+struct Untracked;
+
+impl<S: MechanicalSystem> Track<S> for Untracked
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    fn check_every<M: Stepper<S> + ?Sized>(&self, stepper: &M) -> u64 {
+        stepper.check_interval().max(1)
+    }
+
+    fn stretch<M: Stepper<S> + ?Sized, O: Observer<S::Dim>>(
+        &mut self,
+        sys: &S,
+        stepper: &mut M,
+        z: &mut State<S::Dim>,
+        h: f64,
+        step: &mut u64,
+        until: u64,
+        _observer: &mut O,
+    ) -> Result<Option<StopReason>, (u64, StepError)> {
+        let (done, outcome) = stepper.advance(sys, z, h, until - *step);
+        *step += done;
+        match outcome {
+            Ok(()) => Ok(None),
+            Err(StepError::DeadlinePassed) => Ok(Some(StopReason::TimeLimit { step: *step })),
+            Err(e) => Err((*step, e)),
+        }
+    }
+}
+
+/// Steps with their tangent maps: each step's Jacobian (`jacobian`, for
+/// [`Tracking::Determinant`]) or the chaos tracker's deviation vectors.
+struct Tangents<'a, D: nalgebra::Dim>
+where
+    DefaultAllocator: Allocator<D>,
+{
+    tracking: Tracking<'a, D>,
+    jacobian: Option<Tangent<D>>,
+}
+
+impl<S: MechanicalSystem> Track<S> for Tangents<'_, S::Dim>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    fn check_every<M: Stepper<S> + ?Sized>(&self, stepper: &M) -> u64 {
+        // Jacobian propagation costs O(n³) per step: look at the budget every step then.
+        match self.tracking {
+            Tracking::Determinant => 1,
+            _ => stepper.check_interval().max(1),
+        }
+    }
+
+    fn report<O: Observer<S::Dim>>(&mut self, observer: &mut O, step: u64) {
+        if let Tracking::Chaos(tracker) = &mut self.tracking {
+            observer.on_indicators(&tracker.peek(step));
+        }
+    }
+
+    fn stretch<M: Stepper<S> + ?Sized, O: Observer<S::Dim>>(
+        &mut self,
+        sys: &S,
+        stepper: &mut M,
+        z: &mut State<S::Dim>,
+        h: f64,
+        step: &mut u64,
+        until: u64,
+        observer: &mut O,
+    ) -> Result<Option<StopReason>, (u64, StepError)> {
+        match (&mut self.tracking, self.jacobian.as_mut()) {
+            (Tracking::Determinant, Some(tg)) => {
+                while *step < until {
+                    tg.reset();
+                    stepper
+                        .step_tangent(sys, z, h, tg)
+                        .map_err(|e| (*step, e))?;
+                    *step += 1;
+                    observer.on_step_determinant(*step, tg.jac.determinant());
+                    if !z.is_finite() {
+                        break;
+                    }
+                }
+                Ok(None)
+            }
+            (Tracking::Chaos(tracker), _) => {
+                while *step < until {
+                    stepper
+                        .step_tangent(sys, z, h, &mut tracker.tangent)
+                        .map_err(|e| (*step, e))?;
+                    *step += 1;
+                    if !finite(z) {
+                        break;
+                    }
+                    if let Some((indicator, value, threshold)) = tracker.after_step(*step) {
+                        return Ok(Some(StopReason::Indicator(ThresholdStop {
+                            step: *step,
+                            t: *step as f64 * h,
+                            indicator,
+                            value,
+                            threshold,
+                        })));
+                    }
+                }
+                Ok(None)
+            }
+            _ => Untracked.stretch(sys, stepper, z, h, step, until, observer),
+        }
+    }
+}
+
+/// The run loop of [`integrate_tracked`], its stretches taken by `track`.
+fn drive<S, M, O, T>(
+    sys: &S,
+    stepper: &mut M,
+    z: &mut State<S::Dim>,
+    schedule: Schedule,
+    budget: Budget<'_>,
+    mut track: T,
+    observer: &mut O,
+) -> Result<(StopReason, RunStats), CoreError>
+where
+    S: MechanicalSystem,
+    M: Stepper<S> + ?Sized,
+    O: Observer<S::Dim>,
+    T: Track<S>,
+    DefaultAllocator: Allocator<S::Dim>,
+{
     let started = Instant::now();
     let h = schedule.h;
     let every = schedule.every.max(1);
-    // Jacobian propagation costs O(n³) per step: look at the budget every step then.
-    let check_every = match tracking {
-        Tracking::Determinant => 1,
-        _ => stepper.check_interval().max(1),
-    };
+    let check_every = track.check_every(stepper);
     let watch = observer.watches_steps();
-    let mut jacobian = match tracking {
-        Tracking::Determinant => Some(Tangent::new(sys, z)),
-        _ => None,
-    };
     // A step that fails, counted from 0; a failing processor is charged to the step it is
     // applied with (the first, or the one that ends at the output).
     let fail = |step: u64, source: StepError| CoreError::Step {
@@ -448,9 +604,7 @@ where
         t: step as f64 * h,
         source,
     };
-    if let Tracking::Chaos(tracker) = &mut tracking {
-        observer.on_indicators(&tracker.peek(0));
-    }
+    track.report(observer, 0);
     observer.on_sample(0, 0.0, z);
     stepper.set_deadline(budget.deadline);
     // The post-processed state of the last sample, and that sample's step.
@@ -494,50 +648,10 @@ where
         } else {
             sample_at.min(check_at).min(schedule.steps)
         };
-        match (&mut tracking, jacobian.as_mut()) {
-            (Tracking::Determinant, Some(tg)) => {
-                while step < until {
-                    tg.reset();
-                    stepper
-                        .step_tangent(sys, z, h, tg)
-                        .map_err(|e| fail(step, e))?;
-                    step += 1;
-                    observer.on_step_determinant(step, tg.jac.determinant());
-                    if !z.is_finite() {
-                        break;
-                    }
-                }
-            }
-            (Tracking::Chaos(tracker), _) => {
-                while step < until {
-                    stepper
-                        .step_tangent(sys, z, h, &mut tracker.tangent)
-                        .map_err(|e| fail(step, e))?;
-                    step += 1;
-                    if !finite(z) {
-                        break;
-                    }
-                    if let Some((indicator, value, threshold)) = tracker.after_step(step) {
-                        stop = StopReason::Indicator(ThresholdStop {
-                            step,
-                            t: step as f64 * h,
-                            indicator,
-                            value,
-                            threshold,
-                        });
-                        break;
-                    }
-                }
-            }
-            _ => {
-                let (done, outcome) = stepper.advance(sys, z, h, until - step);
-                step += done;
-                match outcome {
-                    Ok(()) => {}
-                    Err(StepError::DeadlinePassed) => stop = StopReason::TimeLimit { step },
-                    Err(e) => return Err(fail(step, e)),
-                }
-            }
+        match track.stretch(sys, stepper, z, h, &mut step, until, observer) {
+            Ok(None) => {}
+            Ok(Some(reason)) => stop = reason,
+            Err((at, e)) => return Err(fail(at, e)),
         }
         if matches!(stop, StopReason::TimeLimit { .. }) {
             break;
@@ -581,9 +695,7 @@ where
                 }
             }
             if due || event {
-                if let Tracking::Chaos(tracker) = &mut tracking {
-                    observer.on_indicators(&tracker.peek(step));
-                }
+                track.report(observer, step);
                 if is_processed {
                     processed_at = Some(step);
                 }

@@ -14,7 +14,7 @@ use super::spec::{EnergyReference, Simulation};
 use crate::chaos::{ChaosPlan, IndicatorValues, Tracker};
 use crate::error::{CoreError, Field};
 use crate::methods::{self, Method, MethodId};
-use crate::run::{integrate_tracked, Budget, Observer, RunStats, StopReason, Tracking};
+use crate::run::{integrate, integrate_tracked, Budget, Observer, RunStats, StopReason, Tracking};
 use crate::sections::{Crossing, SectionSummary, Watch};
 use crate::system::{MechanicalSystem, State};
 use crate::systems::world::Drawing;
@@ -125,9 +125,17 @@ impl Simulation {
                 }
                 None => Tracking::Off,
             };
-            let (stop, stats) = with_stepper!(&mut stepper, st => integrate_tracked(
-                sys, st, &mut z, self.schedule, budget, tracking, &mut observer,
-            ))?;
+            // Runs with tangents take the stepper as the enum of every method (their tangent
+            // steps cost far more than its dispatch, and the core compiles one such driver per
+            // system); plain and watched runs, one copy per method, stretches inlined.
+            let (stop, stats) = match tracking {
+                Tracking::Off => with_stepper!(&mut stepper, st => integrate(
+                    sys, st, &mut z, self.schedule, budget, &mut observer,
+                )),
+                tracking => integrate_tracked(
+                    sys, &mut stepper, &mut z, self.schedule, budget, tracking, &mut observer,
+                ),
+            }?;
             if let Some(summary) = observer.watch.as_ref().and_then(Watch::summary) {
                 observer.sink.on_section_end(&summary);
             }

@@ -66,7 +66,6 @@ where
         &mut z,
         schedule,
         Budget::default(),
-        false,
         &mut Discard,
     )
     .expect("run succeeds");

@@ -421,7 +421,6 @@ fn a_processed_run_stopped_before_its_first_step_leaves_the_state_as_given() {
             &mut z,
             Schedule::new(0.1, 4.0, 10),
             budget,
-            false,
             &mut Discard,
         )
         .unwrap();

@@ -276,7 +276,6 @@ fn a_deadline_stops_the_reference_inside_a_long_step() {
             &mut z,
             schedule,
             budget,
-            false,
             &mut Discard,
         )
         .expect("the run");

@@ -31,7 +31,7 @@ use crate::studies::engine::{self, CellLine, Documented, Executor, Finished, Stu
 use crate::studies::sweep::{EnergyReference, RunLabel, SweepJob, SweepSpec, Target};
 use crate::studies::StudySpec;
 use crate::system::{MechanicalSystem, State};
-use crate::{with_stepper, with_system};
+use crate::with_system;
 pub use document::{
     Attractor, BasinRun, BasinsDocument, BasinsLine, DecidedBy, Kind, UndecidedCell,
 };
@@ -357,9 +357,10 @@ impl BasinsJob {
                 every: sim.schedule.steps.max(1),
                 ..sim.schedule
             };
-            let (why, stats) = with_stepper!(&mut stepper, st => {
-                integrate(sys, st, &mut z, schedule, budget, false, &mut decide)
-            })?;
+            // The stepper as the enum of every method: one driver per system, not one per
+            // system and method (the cell's observer looks at every step, which costs more than
+            // the dispatch; the runs that need speed go in lanes).
+            let (why, stats) = integrate(sys, &mut stepper, &mut z, schedule, budget, &mut decide)?;
             steps = stats.steps;
             stop = why;
         }
