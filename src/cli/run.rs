@@ -214,19 +214,21 @@ impl Job<'_> {
         sink: GrpcSink,
     ) -> ExitCode {
         let header = self.sim.header();
-        let name = recording::recording_name(&header.system.id, &header.methods);
+        let recording_spec = recording::Spec::of(&spec);
+        // Named as a stored recording is: a typed-in system by its definition's name.
+        let system = recording::system_label(&recording_spec, &header.system.id);
+        let name = recording::recording_name(&system, &header.methods);
         let (file, mut text) = match format {
             Format::Rrd => (Some(out), None),
             Format::Json | Format::Ndjson => (None, Some(out)),
         };
-        let live =
-            match recording::LiveRecording::start(sink, name, recording::Spec::of(&spec), file) {
-                Ok(live) => live,
-                Err(e) => {
-                    eprintln!("error: cannot stream to the Rerun viewer at {url}: {e}");
-                    return ExitCode::FAILURE;
-                }
-            };
+        let live = match recording::LiveRecording::start(sink, name, recording_spec, file) {
+            Ok(live) => live,
+            Err(e) => {
+                eprintln!("error: cannot stream to the Rerun viewer at {url}: {e}");
+                return ExitCode::FAILURE;
+            }
+        };
         let mut collector = (format == Format::Json).then(DocumentCollector::new);
         let ndjson = if format == Format::Ndjson {
             text.as_mut()

@@ -111,6 +111,15 @@ impl Decoded {
             .expect("the batch decodes")
     }
 
+    /// The recording's name, as its properties (`/__properties`) hold it.
+    pub fn recording_name(&self) -> String {
+        let names: Vec<rerun::components::Name> = self.static_batch(
+            "/__properties",
+            rerun::archetypes::RecordingInfo::descriptor_name().component,
+        );
+        names[0].as_str().to_string()
+    }
+
     /// The recording's entity paths, without Rerun's own (`/__properties`).
     pub fn entity_paths(&self) -> BTreeSet<String> {
         self.chunks

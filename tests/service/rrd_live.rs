@@ -237,6 +237,11 @@ fn run_streams_live_to_a_rerun_viewer() {
     );
     assert_eq!(d.recording_stores.len(), 1);
     assert_eq!(d.entity_paths(), decoded::simulation_entities(&methods));
+    let labels: Vec<&str> = answer.runs.iter().map(|r| r.method.as_str()).collect();
+    assert_eq!(
+        d.recording_name(),
+        format!("pendulum: {}", labels.join(", "))
+    );
 
     let steps = sample_steps(samples, schedule.every, schedule.steps);
     let mut chunk_counts = Vec::new();
