@@ -38,6 +38,8 @@ let page;
 let profile;
 let scratch;
 const consoleErrors = [];
+/** Every console message of the page, whatever its level (the viewer warns at `warning`). */
+const consoleMessages = [];
 const requests = [];
 /** Ids of the recordings this test made, by name. */
 const made = {};
@@ -95,6 +97,7 @@ before(async () => {
   // Without a GPU the viewer renders in software on the page's thread, which slows every action.
   context.setDefaultTimeout(60_000);
   page.on('request', (r) => requests.push(`${r.method()} ${new URL(r.url()).pathname}`));
+  page.on('console', (m) => consoleMessages.push(m.text()));
   await page.goto(`${base}/`);
   await openSection(page, 'recordings');
   await page.waitForSelector('#recordings[data-library-state="ready"]', { timeout: 15_000 });
@@ -155,6 +158,10 @@ test('a recording opens in the embedded viewer, from the keyboard', async () => 
     await page.waitForSelector('#rec-rerun[data-recording-open="true"]', { state: 'attached', timeout: 60_000 });
     await page.waitForFunction(() => window.geomint.library.viewer.stepRange()?.max === 200, null, { timeout: 60_000 });
     assert.deepEqual(await page.evaluate(() => window.geomint.library.viewer.stepRange()), { min: 0, max: 200 });
+    // The recording was written by the Rerun SDK of the viewer's own version: the viewer does
+    // not warn that its data is newer than itself.
+    const versions = consoleMessages.filter((t) => /newer than the local Rerun version/.test(t));
+    assert.deepEqual(versions, [], 'the viewer reads data of its own version');
     assert.equal(requests.slice(fetched).filter((r) => r === `GET /api/v1/recordings/${id}.rrd`).length, 1);
     // Esc hands the focus back from the viewer's canvas to its Close button.
     await page.focus('#rec-rerun-viewer canvas');
