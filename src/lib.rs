@@ -14,9 +14,11 @@
 //!   requests read strictly into the core's specs, the NDJSON encoding of the lines the core
 //!   streams.
 //! - [`recording`]: Rerun recordings (`.rrd`) of the core's results.
-//! - [`store`]: what the service keeps on disk: recordings and stored system definitions.
+//! - [`store`]: what the service keeps on disk: recordings, stored system definitions, jobs.
 //! - [`http`]: the axum service: routes, answer forms, limits.
 //! - [`executor`], [`nats`]: where studies run: this machine, or NATS JetStream workers.
+//! - [`jobs`]: studies submitted to run in the background, in stored parts that outlive a
+//!   restart, owners' parts taking turns.
 //! - [`cli`]: the command line.
 #![warn(missing_docs)]
 
@@ -28,6 +30,7 @@ pub mod executor;
 /// The integrator core ([`geomint_core`]), under the name the service's modules use.
 pub use geomint_core as core;
 pub mod http;
+pub mod jobs;
 pub mod nats;
 pub mod recording;
 pub mod store;

@@ -91,8 +91,11 @@ def test_every_route_the_document_has_for_the_client_is_called_through_the_table
 
 
 def test_the_client_uses_every_route_in_the_table() -> None:
-    text = (Path(geomint.__file__).parent / "client.py").read_text(encoding="utf-8")
-    used = set(re.findall(r'(?:_send|_json|_stream|_study|_rrd)\("(\w+)"', text))
+    package = Path(geomint.__file__).parent
+    text = (package / "client.py").read_text(encoding="utf-8")
+    jobs = (package / "jobs.py").read_text(encoding="utf-8")
+    used = set(re.findall(r'(?:_send|_json|_stream|_study|_rrd)\("(\w+)"', text + jobs))
+    used |= set(re.findall(r'ROUTES\["(\w+)"\]', jobs))
     used |= set(re.findall(r'"(\w+)"', text[text.index("routes = {"):text.index("}", text.index("routes = {"))]))
     assert set(ROUTES) - used == set(), f"routes declared but never called: {set(ROUTES) - used}"
 

@@ -116,6 +116,17 @@ impl Usage {
         Ok(guard)
     }
 
+    /// Counts a run of `owner` in flight without checking its quota (a job that was admitted
+    /// when it was submitted).
+    pub fn hold(self: &Arc<Self>, owner: &str) -> RunGuard {
+        let mut in_flight = self.in_flight.lock().unwrap_or_else(|p| p.into_inner());
+        *in_flight.entry(owner.to_string()).or_insert(0) += 1;
+        RunGuard {
+            usage: Arc::clone(self),
+            owner: owner.to_string(),
+        }
+    }
+
     fn enter(self: &Arc<Self>, caller: &Caller) -> Result<RunGuard, Refusal> {
         let mut in_flight = self.in_flight.lock().unwrap_or_else(|p| p.into_inner());
         let count = in_flight.entry(caller.owner.clone()).or_insert(0);

@@ -3,12 +3,13 @@
 //! viewer; [`run`](mod@run)), `geomint study KIND spec.json` (a work–precision or convergence study, or an
 //! energy-error map, as JSON or `.rrd`; [`study`]), and `geomint systems` / `geomint methods`
 //! (the catalogues), `geomint token NAME` (a bearer token's secret and its line of the tokens
-//! file; [`token`]). Every server setting can also come from a `GEOMINT_*` environment variable.
+//! file; [`token`]), `geomint job …` (a server's jobs; [`job`]). Every server setting can also come from a `GEOMINT_*` environment variable.
 //!
 //! Exit codes: 0 on success, 2 for a bad command line, an unreadable spec or an invalid one
 //! (the message names the field), 1 when output cannot be written, the Rerun viewer cannot be
 //! reached or the server cannot start.
 
+pub mod job;
 pub mod run;
 pub mod serve;
 pub mod study;
@@ -23,6 +24,7 @@ use clap::{Args, Parser, Subcommand};
 use crate::core::methods::MethodId;
 use crate::core::systems;
 use crate::store::systems::{SystemStore, DEFAULT_SYSTEMS_DIR};
+pub use job::JobArgs;
 pub use run::RunArgs;
 pub use serve::{ServeArgs, WorkerArgs};
 pub use study::{StudyArgs, StudyKind};
@@ -62,6 +64,8 @@ pub enum Command {
     /// Make a bearer token: print its secret and the line of the tokens file (`serve --tokens`)
     /// that admits it.
     Token(TokenArgs),
+    /// A server's jobs: submit a study, follow it, fetch its result, cancel it.
+    Job(JobArgs),
     /// Print the system catalogue as JSON.
     Systems,
     /// Print the method catalogue as JSON.
@@ -81,6 +85,7 @@ pub fn run(cli: Cli) -> ExitCode {
         },
         Command::Worker(args) => serve::work(&args),
         Command::Token(args) => token::make_token(&args),
+        Command::Job(args) => job::run_job(&args),
         Command::Systems => print_json(&systems::catalog()),
         Command::Methods => {
             let methods: Vec<_> = MethodId::ALL.iter().map(|m| m.info()).collect();

@@ -83,6 +83,20 @@ pub struct ServeArgs {
     /// Most stored system definitions.
     #[arg(long, env = "GEOMINT_MAX_SYSTEMS", default_value_t = crate::store::systems::DEFAULT_MAX_SYSTEMS)]
     pub max_systems: usize,
+    /// Directory of the jobs, their finished parts and results (default: `jobs` beside the data
+    /// directory, e.g. `./data/jobs`).
+    #[arg(long, env = "GEOMINT_JOBS_DIR")]
+    pub jobs_dir: Option<PathBuf>,
+    /// Most unfinished jobs per owner.
+    #[arg(long, env = "GEOMINT_MAX_JOBS_PER_OWNER", default_value_t = crate::jobs::DEFAULT_MAX_JOBS_PER_OWNER as u64, value_parser = clap::value_parser!(u64).range(1..))]
+    pub max_jobs_per_owner: u64,
+    /// About how many steps each stored part of a job takes: the work a restart can lose, and
+    /// the grain at which owners' jobs take turns (1e8 style accepted).
+    #[arg(long, env = "GEOMINT_JOB_PART_STEPS", default_value = "100000000", value_parser = parse_count)]
+    pub job_part_steps: u64,
+    /// Seconds a job may run under one server before it fails (its finished parts are kept).
+    #[arg(long, env = "GEOMINT_JOB_TIME_LIMIT_SECS", default_value_t = 86_400, value_parser = clap::value_parser!(u64).range(1..))]
+    pub job_time_limit_secs: u64,
     /// Log filter (tracing's EnvFilter syntax).
     #[arg(long, env = "GEOMINT_LOG", default_value = "info")]
     pub log: String,
@@ -215,6 +229,15 @@ impl ServeArgs {
             systems_dir: self.systems_dir.clone(),
             max_systems: self.max_systems,
             access: AccessConfig::default(),
+            jobs: Some(crate::jobs::JobsConfig {
+                dir: self.jobs_dir.clone().unwrap_or_else(|| {
+                    let parent = self.data_dir.parent().unwrap_or(std::path::Path::new(""));
+                    parent.join("jobs")
+                }),
+                max_per_owner: usize::try_from(self.max_jobs_per_owner).unwrap_or(usize::MAX),
+                part_steps: self.job_part_steps.max(1),
+                time_limit: Duration::from_secs(self.job_time_limit_secs),
+            }),
         }
     }
 

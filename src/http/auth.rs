@@ -39,6 +39,7 @@ pub fn scope_of(method: &str, tags: &[&str]) -> Option<Scope> {
         "get" | "head" => Scope::Read,
         "post" if tagged(&["simulation", "stability", "studies"]) => Scope::Run,
         "post" | "delete" if tagged(&["catalog", "recordings"]) => Scope::Store,
+        "post" | "delete" if tagged(&["jobs"]) => Scope::Run,
         _ => Scope::Admin,
     })
 }

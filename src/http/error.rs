@@ -69,7 +69,7 @@ pub fn status_for(code: ErrorCode) -> StatusCode {
         ErrorCode::RecordingTooLarge | ErrorCode::TooManySystems | ErrorCode::StorageFull => {
             StatusCode::INSUFFICIENT_STORAGE
         }
-        ErrorCode::BuiltInSystem => StatusCode::CONFLICT,
+        ErrorCode::BuiltInSystem | ErrorCode::JobNotDone => StatusCode::CONFLICT,
         ErrorCode::Unauthorized => StatusCode::UNAUTHORIZED,
         ErrorCode::Forbidden | ErrorCode::QuotaExceeded => StatusCode::FORBIDDEN,
         ErrorCode::RateLimited | ErrorCode::TooManyRuns => StatusCode::TOO_MANY_REQUESTS,
@@ -174,6 +174,18 @@ impl ApiError {
             StatusCode::NOT_FOUND,
             ErrorDetail::new(ErrorCode::NotFound, message),
         )
+    }
+
+    /// The same error for input nested under `field`: its field `f` becomes `field.f` (or
+    /// `field[i]…` for `[i]…`), none becomes `field`.
+    pub fn within(mut self, field: &str) -> Self {
+        self.detail.field = Some(match self.detail.field.take() {
+            None => field.to_string(),
+            Some(f) if f.is_empty() => field.to_string(),
+            Some(f) if f.starts_with('[') => format!("{field}{f}"),
+            Some(f) => format!("{field}.{f}"),
+        });
+        self
     }
 
     /// The HTTP status.

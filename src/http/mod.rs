@@ -15,6 +15,7 @@ pub mod auth;
 pub mod error;
 pub mod extract;
 pub mod handlers;
+pub mod jobs;
 pub mod openapi;
 pub mod recordings;
 pub mod server;
@@ -85,6 +86,14 @@ pub mod paths {
     pub const BASINS: &str = "/api/v1/studies/basins";
     /// Ready-made basin maps.
     pub const BASINS_PRESETS: &str = "/api/v1/studies/basins/presets";
+    /// Jobs: submitted, listed.
+    pub const JOBS: &str = "/api/v1/jobs";
+    /// One job: its status; cancelled or removed.
+    pub const JOB: &str = "/api/v1/jobs/{id}";
+    /// What happens to a job, as NDJSON.
+    pub const JOB_EVENTS: &str = "/api/v1/jobs/{id}/events";
+    /// A done job's document.
+    pub const JOB_RESULT: &str = "/api/v1/jobs/{id}/result";
     /// The OpenAPI document.
     pub const OPENAPI: &str = "/api/v1/openapi.json";
     /// Stored recordings.
@@ -116,6 +125,10 @@ pub fn routes(config: &Config) -> OpenApiRouter<AppState> {
         .routes(routes!(studies::sweep_presets))
         .routes(routes!(studies::basins))
         .routes(routes!(studies::basins_presets))
+        .routes(routes!(jobs::submit_job, jobs::list_jobs))
+        .routes(routes!(jobs::get_job, jobs::delete_job))
+        .routes(routes!(jobs::job_events))
+        .routes(routes!(jobs::job_result))
         .routes(routes!(handlers::openapi_json))
         .routes(routes!(recordings::list_recordings))
         .routes(routes!(

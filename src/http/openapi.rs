@@ -86,6 +86,7 @@ use crate::store::systems::{StoredSystem, SystemEntry};
         (name = "stability", description = "Linear stability analysis on the damped oscillator"),
         (name = "studies", description = "Work–precision studies (time against accuracy per method), convergence studies (error against step size, with the observed orders, per method and coordinate chart), energy-error maps across coordinate charts, and sweeps of any system over one or two axes"),
         (name = "recordings", description = "Rerun recordings (.rrd) of simulations, stored or uploaded, downloadable, and read back as samples"),
+        (name = "jobs", description = "Studies submitted to run in the background: stored in parts as they finish, so that they survive restarts; their status, events and results"),
         (name = "service", description = "Health and this document"),
     )
 )]

@@ -97,6 +97,9 @@ pub async fn serve_on(
     shutdown: impl Future<Output = ()> + Send + 'static,
 ) -> std::io::Result<()> {
     let config = state.config.clone();
+    if let Some(jobs) = &state.jobs {
+        jobs.start(state.clone());
+    }
     let router = app(state.clone());
     let connections = Arc::new(Semaphore::new(config.max_connections.max(1)));
     // Connections hold a receiver each: they start closing when `stop` goes, and the server
@@ -141,6 +144,10 @@ pub async fn serve_on(
         });
     }
     drop(listener);
+    // Jobs stop at once: each keeps its finished parts and goes on under the next server.
+    if let Some(jobs) = &state.jobs {
+        jobs.stop();
+    }
     let grace = config.shutdown_grace;
     tracing::info!(grace_secs = grace.as_secs_f64(), "shutting down");
     tokio::spawn(async move {

@@ -15,6 +15,7 @@ use super::error::ApiError;
 use crate::access::{Access, AccessConfig};
 use crate::core::simulation::Limits;
 use crate::executor::{cores, StudyExecutor};
+use crate::jobs::{Jobs, JobsConfig};
 use crate::store::recordings::RecordingStore;
 use crate::store::systems::{SystemStore, DEFAULT_MAX_SYSTEMS, DEFAULT_SYSTEMS_DIR};
 
@@ -62,6 +63,8 @@ pub struct Config {
     pub max_systems: usize,
     /// Tokens, and what clients without one may do.
     pub access: AccessConfig,
+    /// Jobs: where they are kept and how many an owner may have; none turns jobs off.
+    pub jobs: Option<JobsConfig>,
 }
 
 /// The default directory of stored recordings.
@@ -117,6 +120,7 @@ impl Default for Config {
             systems_dir: PathBuf::from(DEFAULT_SYSTEMS_DIR),
             max_systems: DEFAULT_MAX_SYSTEMS,
             access: AccessConfig::default(),
+            jobs: None,
         }
     }
 }
@@ -134,6 +138,8 @@ pub struct AppState {
     pub access: Arc<Access>,
     /// Where studies run: here, or on NATS workers.
     pub executor: StudyExecutor,
+    /// The jobs, when they are on.
+    pub jobs: Option<Arc<Jobs>>,
     permits: Arc<Semaphore>,
     short_lane: Arc<Semaphore>,
     waiting_long: Arc<Mutex<HashMap<IpAddr, usize>>>,
@@ -147,7 +153,9 @@ impl AppState {
         let config_short_lane = config.short_lane;
         let recordings = RecordingStore::open(&config.data_dir, config.recordings_max_bytes);
         let systems = SystemStore::open(&config.systems_dir, config.max_systems);
+        let jobs = config.jobs.as_ref().map(|c| Arc::new(Jobs::open(c)));
         Self {
+            jobs,
             recordings: Arc::new(recordings),
             systems: Arc::new(systems),
             access: Arc::new(Access::new(config.access.clone(), config.short_work)),
@@ -239,6 +247,11 @@ impl AppState {
             Ok(Ok(p)) => Some(p),
             _ => None,
         }
+    }
+
+    /// A shared slot if one is free now (a job's part takes one while it runs).
+    pub fn try_slot(&self) -> Option<OwnedSemaphorePermit> {
+        self.permits.clone().try_acquire_owned().ok()
     }
 
     /// Cancels every running simulation (they end with `cancelled`) and makes new ones cancel

@@ -4,6 +4,7 @@
 //! - [`recordings`]: Rerun recordings (`.rrd`) with their summaries, under a size cap;
 //! - [`systems`]: users' system definitions by id, the registry that requests, the command line
 //!   and the workers resolve stored ids through;
+//! - [`jobs`]: jobs, their finished parts, events and results (see [`crate::jobs`]);
 //! - [`entry`]: what the store says of a recording (summary, origin, owner);
 //! - [`index`]: the recordings' index in memory, and where room for a new recording comes from;
 //! - [`dates`]: recordings' dates as RFC 3339;
@@ -12,6 +13,7 @@
 pub mod dates;
 pub mod entry;
 pub mod index;
+pub mod jobs;
 pub mod recordings;
 pub mod systems;
 pub mod tempfile;

@@ -15,7 +15,17 @@ use server::{client, get_json, start, Server};
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn openapi_lists_every_route() {
-    let server = start(config()).await;
+    let jobs = geomint::jobs::JobsConfig {
+        dir: server::scratch_dir("openapi-jobs"),
+        max_per_owner: 10,
+        part_steps: 1_000_000,
+        time_limit: Duration::from_secs(600),
+    };
+    let server = start(Config {
+        jobs: Some(jobs),
+        ..config()
+    })
+    .await;
     let c = client();
     let doc = get_json(&server, "/api/v1/openapi.json").await;
     assert!(doc["openapi"].as_str().unwrap().starts_with("3."));
@@ -31,7 +41,7 @@ async fn openapi_lists_every_route() {
         .collect();
     // The router and the document come from one registration (`http::routes`); every
     // documented route must answer below.
-    assert_eq!(documented.len(), 24, "{documented:?}");
+    assert_eq!(documented.len(), 30, "{documented:?}");
     // Two stored recordings: one to download, one to delete.
     let mut ids = Vec::new();
     for _ in 0..2 {
@@ -67,16 +77,47 @@ async fn openapi_lists_every_route() {
                 .to_string(),
         );
     }
+    // Two finished jobs: one to read, one to remove.
+    let sweep = json!({"system": "pendulum", "t_end": 1, "h": 0.1,
+        "methods": ["rk4"], "axes": [{"name": "params.gamma", "min": 0, "max": 1, "n": 3}]});
+    let job = json!({"study": "sweep", "request": sweep});
+    let mut jobs = Vec::new();
+    for _ in 0..2 {
+        let submitted: Value = c
+            .post(server.url("/api/v1/jobs"))
+            .json(&job)
+            .send()
+            .await
+            .unwrap()
+            .json()
+            .await
+            .unwrap();
+        let id = submitted["id"].as_str();
+        jobs.push(id.unwrap_or_else(|| panic!("{submitted}")).to_string());
+    }
+    for id in &jobs {
+        let events = c
+            .get(server.url(&format!("/api/v1/jobs/{id}/events")))
+            .send()
+            .await
+            .unwrap()
+            .text()
+            .await
+            .unwrap();
+        let last: Value = serde_json::from_str(events.lines().last().unwrap()).unwrap();
+        assert_eq!(last["event"], "done", "{events}");
+    }
     // Every documented route answers (path parameters filled in).
     for (method, path) in &documented {
-        let (recording, system) = match method.as_str() {
-            "delete" => (ids[1].clone(), &systems[1]),
-            _ => (format!("{}.rrd", ids[0]), &systems[0]),
+        let (recording, system, job_id) = match method.as_str() {
+            "delete" => (ids[1].clone(), &systems[1], &jobs[1]),
+            _ => (format!("{}.rrd", ids[0]), &systems[0], &jobs[0]),
         };
         let url = server.url(
             &path
                 .replace("/systems/{id}", &format!("/systems/{system}"))
                 .replace("/methods/{id}", "/methods/rk4")
+                .replace("/jobs/{id}", &format!("/jobs/{job_id}"))
                 .replace(
                     "/recordings/{id}/samples",
                     &format!("/recordings/{}/samples", ids[0]),
@@ -104,6 +145,7 @@ async fn openapi_lists_every_route() {
             "/api/v1/studies/basins" => json!({"system": "pendulum", "t_end": 10, "h": 0.1,
                 "methods": ["modin_3s"], "axes": [{"name": "q0[0]", "min": -1, "max": 1, "n": 3}]}),
             "/api/v1/systems" => definition.clone(),
+            "/api/v1/jobs" => job.clone(),
             _ => pendulum_request(),
         };
         let (status, expected) = match method.as_str() {
@@ -112,10 +154,10 @@ async fn openapi_lists_every_route() {
             _ => (
                 c.post(url).json(&body).send().await.unwrap().status(),
                 // (The definition posted to /api/v1/systems is stored already: 200.)
-                if path == "/api/v1/recordings" {
-                    201
-                } else {
-                    200
+                match path.as_str() {
+                    "/api/v1/recordings" => 201,
+                    "/api/v1/jobs" => 202,
+                    _ => 200,
                 },
             ),
         };

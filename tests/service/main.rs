@@ -29,6 +29,7 @@ mod http_charts;
 mod http_cli;
 mod http_convergence;
 mod http_faults;
+mod http_jobs;
 mod http_ownership;
 mod http_ownership_restarts;
 mod http_paths;

@@ -14,6 +14,7 @@ from .catalog import Chart, Definition, Facts, Method, Parameter, System
 from ._transport import DEFAULT_URL
 from .basins import Attractor, BasinMap, BasinRun, CriticalPoint, Undecided
 from .client import Client
+from .jobs import Job
 from .errors import (
     GeomintError,
     MissingError,
@@ -59,6 +60,7 @@ from .studies import (
 
 __all__ = [
     "DEFAULT_URL",
+    "Job",
     "Attractor",
     "Axis",
     "BasinMap",

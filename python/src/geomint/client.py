@@ -47,7 +47,8 @@ from ._arguments import (
 )
 from ._keywords import checked
 from ._names import StateNames
-from ._transport import DEFAULT_URL, Transport
+from ._transport import DEFAULT_URL
+from .jobs import JobCalls
 from ._progress import Progress
 from ._wire import (
     NDJSON,
@@ -94,7 +95,7 @@ from .studies import (
 )
 
 
-class Client(Transport):
+class Client(JobCalls):
     """A geomint server's API as Python calls.
 
     >>> client = Client("http://127.0.0.1:8080")          # doctest: +SKIP

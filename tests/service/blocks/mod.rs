@@ -1,7 +1,8 @@
 //! The service's building blocks one at a time, through the library's public interfaces: access,
-//! the OpenAPI document, recordings and the store.
+//! the OpenAPI document, recordings, the store and the jobs' fair gate.
 
 mod access;
+mod jobs;
 mod openapi;
 mod recording;
 mod store;

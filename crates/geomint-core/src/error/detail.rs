@@ -83,6 +83,9 @@ pub enum ErrorCode {
     RateLimited,
     /// The caller has its quota of runs in flight; retry once one ends.
     TooManyRuns,
+    /// A job's result was asked for before the job was done (it is queued or running, or it
+    /// failed or was cancelled).
+    JobNotDone,
 }
 
 impl ErrorCode {
@@ -124,6 +127,7 @@ impl ErrorCode {
             QuotaExceeded => "quota_exceeded",
             RateLimited => "rate_limited",
             TooManyRuns => "too_many_runs",
+            JobNotDone => "job_not_done",
         }
     }
 }

@@ -163,6 +163,7 @@ from .basins import (
     UncertainFraction,
     UndecidedCell,
 )
+from .jobs import EventKind, JobEvent, JobRequest, JobState, JobStatus
 from .routes import (
     JSON,
     NDJSON,
@@ -172,6 +173,11 @@ from .routes import (
 )
 
 __all__ = [
+    "EventKind",
+    "JobEvent",
+    "JobRequest",
+    "JobState",
+    "JobStatus",
     "AnalyticVerdicts",
     "AttractorEntry",
     "AttractorKind",

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Dict, List, Literal, Optional
+from typing import Any, Dict, List, Literal, Optional
 
 from .requests import (
     ConvergenceRequest,
@@ -36,6 +36,7 @@ from .studies import (
     SweepLine,
 )
 from .basins import BasinsLine, BasinsRequest
+from .jobs import JobEvent, JobRequest, JobStatus
 
 
 JSON = "application/json"
@@ -122,5 +123,13 @@ ROUTES: Dict[str, Route] = {
         {NDJSON: StudyLine, RRD: bytes},
         WorkPrecisionRequest,
         query={"format": ["rrd"]},
+    ),
+    "submit_job": Route("POST", "/api/v1/jobs", {JSON: JobStatus}, JobRequest, status=202),
+    "list_jobs": Route("GET", "/api/v1/jobs", {JSON: List[JobStatus]}),
+    "get_job": Route("GET", "/api/v1/jobs/{id}", {JSON: JobStatus}),
+    "cancel_job": Route("DELETE", "/api/v1/jobs/{id}", {JSON: JobStatus}),
+    "job_events": Route("GET", "/api/v1/jobs/{id}/events", {NDJSON: JobEvent}),
+    "job_result": Route(
+        "GET", "/api/v1/jobs/{id}/result", {JSON: Dict[str, Any], RRD: bytes}, query={"format": ["rrd"]}
     ),
 }
