@@ -80,3 +80,7 @@ def test_a_cancelled_job_raises_on_wait(client: geomint.Client) -> None:
     with pytest.raises(geomint.RefusedError) as not_done:
         job.result()
     assert not_done.value.code == "job_not_done"
+    job.remove()
+    with pytest.raises(geomint.RefusedError) as gone:
+        job.status()
+    assert gone.value.code == "not_found"

@@ -1,4 +1,4 @@
-//! `geomint job submit|status|watch|fetch|cancel|list`: a server's jobs from the command line
+//! `geomint job submit|status|watch|fetch|cancel|remove|list`: a server's jobs from the command line
 //! (see [`crate::jobs`]). The server is `--server` (or `GEOMINT_URL`), the token `--token` (or
 //! `GEOMINT_TOKEN`).
 //!
@@ -66,8 +66,13 @@ pub enum JobAction {
         #[arg(short, long)]
         output: Option<PathBuf>,
     },
-    /// Cancel a job (or remove one that has ended).
+    /// Cancel a job (one that has ended is left as it is); prints its status.
     Cancel {
+        /// The job id.
+        id: String,
+    },
+    /// Remove a job that has ended, with its result.
+    Remove {
         /// The job id.
         id: String,
     },
@@ -254,14 +259,13 @@ async fn act(server: &Server<'_>, action: &JobAction) -> Result<ExitCode, Failur
         JobAction::Status { id } => print_json(&server.json(Method::GET, &job(id), None).await?),
         JobAction::List => print_json(&server.json(Method::GET, "/api/v1/jobs", None).await?),
         JobAction::Cancel { id } => {
-            let response = server.call(Method::DELETE, &job(id), None).await?;
-            if response.status() == reqwest::StatusCode::NO_CONTENT {
-                eprintln!("job {id} removed");
-                ExitCode::SUCCESS
-            } else {
-                let status: Value = response.json().await.unwrap_or(Value::Null);
-                print_json(&status)
-            }
+            let path = format!("{}/cancel", job(id));
+            print_json(&server.json(Method::POST, &path, None).await?)
+        }
+        JobAction::Remove { id } => {
+            server.call(Method::DELETE, &job(id), None).await?;
+            eprintln!("job {id} removed");
+            ExitCode::SUCCESS
         }
         JobAction::Watch { id } => {
             let last = server.watch(id).await?;

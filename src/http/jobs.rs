@@ -1,8 +1,8 @@
 //! The job routes: `POST /api/v1/jobs` submits any study to run in the background (answered 202
 //! at once), `GET /api/v1/jobs` lists the caller's jobs, `GET /api/v1/jobs/{id}` gives one's
 //! status, `/events` streams what happens to it (NDJSON, resumable with `?after=`), `/result`
-//! fetches its document (JSON, or its Rerun recording with `?format=rrd`), and `DELETE` cancels
-//! it, or removes it once it has ended. See [`crate::jobs`].
+//! fetches its document (JSON, or its Rerun recording with `?format=rrd`), `POST …/cancel`
+//! cancels it, and `DELETE` removes it once it has ended. See [`crate::jobs`].
 //!
 //! A job is its owner's: other callers get 404 for it, as for a job that does not exist (`admin`
 //! sees and cancels every job). A submitted request is read and prepared at once, so a wrong
@@ -232,15 +232,39 @@ pub async fn get_job(
     Ok(Json(own_job(&state, &caller, &id)?.status()))
 }
 
-/// Cancels a job that has not ended (it stops between steps and keeps its finished parts), or
-/// removes one that has, with its result.
+/// Cancels a job that has not ended: a queued one at once, a running one between steps (its
+/// finished parts are kept). A job that has ended is left as it is. Either way, its status.
+#[utoipa::path(post, path = paths::JOB_CANCEL, tag = "jobs",
+    params(("id" = String, Path, description = "The job id")),
+    responses(
+        (status = 200, description = "The job: `cancelled`, or `running` until its part stops \
+            between steps, or as it ended", body = JobStatus),
+        (status = 404, description = "No such job of the caller's", body = ErrorBody),
+    ))]
+pub async fn cancel_job(
+    State(state): State<AppState>,
+    caller: Caller,
+    Path(id): Path<String>,
+) -> Result<Json<JobStatus>, ApiError> {
+    let job = own_job(&state, &caller, &id)?;
+    let jobs = jobs_of(&state)?.clone();
+    let status = run_blocking(move || {
+        jobs.cancel(&job);
+        job.status()
+    })
+    .await?;
+    Ok(Json(status))
+}
+
+/// Removes a job that has ended, with its result and its stored parts. A job that has not ended
+/// is cancelled first (`POST …/cancel`): removing never stops a job, and cancelling never
+/// removes one.
 #[utoipa::path(delete, path = paths::JOB, tag = "jobs",
     params(("id" = String, Path, description = "The job id")),
     responses(
-        (status = 200, description = "The job, cancelled (a running one ends `cancelled` once its \
-            part stops, between steps)", body = JobStatus),
-        (status = 204, description = "The ended job was removed"),
+        (status = 204, description = "The job was removed"),
         (status = 404, description = "No such job of the caller's", body = ErrorBody),
+        (status = 409, description = "The job has not ended (code `job_not_done`)", body = ErrorBody),
     ))]
 pub async fn delete_job(
     State(state): State<AppState>,
@@ -249,18 +273,14 @@ pub async fn delete_job(
 ) -> Result<Response, ApiError> {
     let job = own_job(&state, &caller, &id)?;
     let jobs = jobs_of(&state)?.clone();
-    let status = run_blocking(move || -> Result<Option<JobStatus>, ApiError> {
-        if jobs.cancel(&job) {
-            return Ok(Some(job.status()));
-        }
-        jobs.remove(&job)?;
-        Ok(None)
-    })
-    .await??;
-    Ok(match status {
-        Some(status) => Json(status).into_response(),
-        None => StatusCode::NO_CONTENT.into_response(),
-    })
+    let removed = run_blocking(move || jobs.remove(&job)).await??;
+    if !removed {
+        return Err(ApiError::from(ErrorDetail::new(
+            ErrorCode::JobNotDone,
+            format!("job `{id}` has not ended; cancel it first (POST …/{id}/cancel)"),
+        )));
+    }
+    Ok(StatusCode::NO_CONTENT.into_response())
 }
 
 /// What happens to a job, as NDJSON lines: each with its `seq` (1, 2, …), `event` (`submitted`,

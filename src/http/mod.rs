@@ -88,8 +88,10 @@ pub mod paths {
     pub const BASINS_PRESETS: &str = "/api/v1/studies/basins/presets";
     /// Jobs: submitted, listed.
     pub const JOBS: &str = "/api/v1/jobs";
-    /// One job: its status; cancelled or removed.
+    /// One job: its status; removed once it has ended.
     pub const JOB: &str = "/api/v1/jobs/{id}";
+    /// Cancelling a job.
+    pub const JOB_CANCEL: &str = "/api/v1/jobs/{id}/cancel";
     /// What happens to a job, as NDJSON.
     pub const JOB_EVENTS: &str = "/api/v1/jobs/{id}/events";
     /// A done job's document.
@@ -127,6 +129,7 @@ pub fn routes(config: &Config) -> OpenApiRouter<AppState> {
         .routes(routes!(studies::basins_presets))
         .routes(routes!(jobs::submit_job, jobs::list_jobs))
         .routes(routes!(jobs::get_job, jobs::delete_job))
+        .routes(routes!(jobs::cancel_job))
         .routes(routes!(jobs::job_events))
         .routes(routes!(jobs::job_result))
         .routes(routes!(handlers::openapi_json))

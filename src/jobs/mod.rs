@@ -280,9 +280,21 @@ impl Job {
     /// Records an event `kind` with the job's progress (`detail` fills in what the kind adds),
     /// in memory and on disk, and wakes the streams.
     fn event(&self, kind: EventKind, detail: impl FnOnce(&mut JobEvent)) {
+        self.event_with(kind, |_| {}, detail);
+    }
+
+    /// [`Job::event`], with `change` made to the job's state first under the same lock, so
+    /// that a stream never sees a state without the event that says it.
+    fn event_with(
+        &self,
+        kind: EventKind,
+        change: impl FnOnce(&mut Live),
+        detail: impl FnOnce(&mut JobEvent),
+    ) {
         let mut events = self.events.lock().unwrap_or_else(|p| p.into_inner());
         let mut event = {
-            let live = self.live();
+            let mut live = self.live();
+            change(&mut live);
             JobEvent {
                 seq: events.len() + 1,
                 event: kind,
@@ -349,18 +361,17 @@ impl Job {
         if let Err(e) = self.dir.write_outcome(&outcome) {
             tracing::error!(job = %self.record.id, error = %e, "the outcome could not be stored");
         }
-        {
-            let mut live = self.live();
-            live.state = state;
-            live.ended_unix_ms = Some(ended);
-            live.error = error.clone();
-        }
         let kind = match state {
             JobState::Done => EventKind::Done,
             JobState::Cancelled => EventKind::Cancelled,
             _ => EventKind::Failed,
         };
-        self.event(kind, |e| e.error = error);
+        let change = |live: &mut Live| {
+            live.state = state;
+            live.ended_unix_ms = Some(ended);
+            live.error = error.clone();
+        };
+        self.event_with(kind, change, |e| e.error = error.clone());
     }
 }
 
@@ -456,20 +467,23 @@ impl Jobs {
         priority: i32,
         prepared: &Prepared,
     ) -> Result<Arc<Job>, ApiError> {
-        let mut board = self.board();
-        let unfinished = board
-            .jobs
-            .values()
-            .filter(|j| j.record.owner == owner && !j.state().ended())
-            .count();
-        if unfinished >= self.max_per_owner {
-            return Err(ApiError::from(ErrorDetail::new(
+        let unfinished = |board: &Board| {
+            board
+                .jobs
+                .values()
+                .filter(|j| j.record.owner == owner && !j.state().ended())
+                .count()
+        };
+        let over_quota = |n: usize| {
+            ApiError::from(ErrorDetail::new(
                 ErrorCode::TooManyRuns,
-                format!(
-                    "`{owner}` has {unfinished} unfinished jobs, its quota; submit more once some end"
-                ),
+                format!("`{owner}` has {n} unfinished jobs, its quota; submit more once some end"),
             ))
-            .with_retry_after(1));
+            .with_retry_after(1)
+        };
+        let n = unfinished(&self.board());
+        if n >= self.max_per_owner {
+            return Err(over_quota(n));
         }
         let cells = prepared.cells.max(1);
         let per_cell = (prepared.steps / cells as u64).max(1);
@@ -491,12 +505,20 @@ impl Jobs {
             cells: prepared.cells,
             part_cells,
         };
+        // The files are written before the board is locked: its readers are the request handlers.
         let dir = self
             .store
             .create(&record)
             .map_err(|e| ApiError::storage("job store", &e))?;
         let job = Arc::new(Job::new(record, dir));
         job.event(EventKind::Submitted, |e| e.priority = Some(priority));
+        let mut board = self.board();
+        let n = unfinished(&board);
+        if n >= self.max_per_owner {
+            drop(board);
+            let _ = job.dir.remove();
+            return Err(over_quota(n));
+        }
         board.jobs.insert(job.record.id.clone(), job.clone());
         drop(board);
         self.changed.notify_all();
@@ -504,7 +526,7 @@ impl Jobs {
     }
 
     /// Cancels `job` if it has not ended (a queued job at once, a running one once its part
-    /// stops, between steps); whether it had not ended.
+    /// stops, between steps); whether it had not ended. It never removes a job.
     pub fn cancel(&self, job: &Job) -> bool {
         let board = self.board();
         if job.state().ended() {
@@ -522,14 +544,16 @@ impl Jobs {
 
     /// Removes an ended `job` and its files; false if it has not ended.
     pub fn remove(&self, job: &Job) -> Result<bool, ApiError> {
-        let mut board = self.board();
-        if !job.state().ended() {
-            return Ok(false);
+        {
+            let mut board = self.board();
+            if !job.state().ended() {
+                return Ok(false);
+            }
+            board.jobs.remove(&job.record.id);
         }
         job.dir
             .remove()
             .map_err(|e| ApiError::storage("job store", &e))?;
-        board.jobs.remove(&job.record.id);
         Ok(true)
     }
 
@@ -594,12 +618,17 @@ impl Jobs {
                 board.running += 1;
                 *board.active.entry(job.record.owner.clone()).or_insert(0) += 1;
                 job.live().state = JobState::Running;
-                let (jobs, state) = (self.clone(), state.clone());
+                let (jobs, state, started) = (self.clone(), state.clone(), job.clone());
                 let spawned = std::thread::Builder::new()
                     .name(format!("geomint-job-{}", &job.record.id[..8]))
-                    .spawn(move || jobs.run(&job, &state));
+                    .spawn(move || jobs.run(&started, &state));
                 if let Err(error) = spawned {
                     tracing::error!(%error, "a job could not start; it stays queued");
+                    job.live().state = JobState::Queued;
+                    board.running -= 1;
+                    if let Some(n) = board.active.get_mut(&job.record.owner) {
+                        *n -= 1;
+                    }
                     break;
                 }
             }
@@ -628,11 +657,8 @@ impl Jobs {
         job.event(kind, |_| {});
         tracing::info!(job = %job.record.id, study = %job.record.study, resumed, "job started");
         let outcome = std::panic::catch_unwind(AssertUnwindSafe(|| self.compute(job, state)));
-        let mut board = self.board();
-        board.running -= 1;
-        if let Some(n) = board.active.get_mut(&job.record.owner) {
-            *n -= 1;
-        }
+        // The outcome is written before the board is locked: its readers are the request
+        // handlers. A cancellation now finds the job running and only sets its flags.
         match outcome {
             Ok(Ok(())) => job.end(JobState::Done, None),
             _ if job.cancelled.load(Ordering::Relaxed) => job.end(JobState::Cancelled, None),
@@ -653,6 +679,11 @@ impl Jobs {
             }
         }
         tracing::info!(job = %job.record.id, state = job.state().name(), "job left the runner");
+        let mut board = self.board();
+        board.running -= 1;
+        if let Some(n) = board.active.get_mut(&job.record.owner) {
+            *n -= 1;
+        }
         drop(board);
         self.changed.notify_all();
     }
@@ -661,6 +692,18 @@ impl Jobs {
     fn compute(&self, job: &Job, state: &AppState) -> Result<(), ApiError> {
         let r = &job.record;
         let prepared = study::prepare(&r.study, &r.request, state)?;
+        if prepared.cells != r.cells {
+            // A stored system changed or a new version reads the request otherwise: its parts
+            // would not be this study's.
+            return Err(ApiError::from(ErrorDetail::new(
+                ErrorCode::Internal,
+                format!(
+                    "the job's request now prepares a study of {} cells, not the {} it was \
+                     submitted with; submit it again",
+                    prepared.cells, r.cells
+                ),
+            )));
+        }
         let _in_flight = state.access.usage.hold(&r.owner);
         let sink = Sink {
             jobs: self,
@@ -676,7 +719,7 @@ impl Jobs {
         };
         let budget = Budget {
             cancel: Some(&job.stop),
-            deadline: Some(Instant::now() + self.time_limit),
+            deadline: Instant::now().checked_add(self.time_limit),
         };
         let results = prepared.run(&executor, budget)?;
         if sink.unfinished.load(Ordering::Relaxed) {

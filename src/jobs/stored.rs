@@ -88,7 +88,8 @@ impl Executor for Stored<'_> {
                 self.sink.part_done(part, true);
                 continue;
             }
-            let turn = match budget.cancelled() {
+            // Past the time limit no part takes a turn: the job ends with what it stored.
+            let turn = match budget.cancelled() || budget.expired() {
                 true => None,
                 false => self.sink.turn(per_cell.saturating_mul(part.len() as u64)),
             };

@@ -238,12 +238,27 @@ impl JobDir {
         file.write_all(&bytes)
     }
 
-    /// The events stored, in order; a line that does not read as JSON (a write torn by a crash)
-    /// is left out.
-    pub fn events(&self) -> Vec<Value> {
-        let text = fs::read_to_string(self.path.join("events.ndjson")).unwrap_or_default();
-        text.lines()
-            .filter_map(|line| serde_json::from_str(line).ok())
+    /// The events stored, in order. A last line without its newline (a write torn by a crash)
+    /// is cut off the file, so that the next event starts a line of its own and every event's
+    /// `seq` stays its place in the file.
+    pub fn events(&self) -> Vec<String> {
+        let path = self.path.join("events.ndjson");
+        let mut bytes = fs::read(&path).unwrap_or_default();
+        let whole = bytes.iter().rposition(|&b| b == b'\n').map_or(0, |i| i + 1);
+        if whole < bytes.len() {
+            bytes.truncate(whole);
+            let cut = OpenOptions::new()
+                .write(true)
+                .open(&path)
+                .and_then(|f| f.set_len(whole as u64));
+            if let Err(error) = cut {
+                tracing::warn!(file = %path.display(), %error, "a torn event could not be cut off");
+            }
+        }
+        String::from_utf8_lossy(&bytes)
+            .lines()
+            .filter(|line| serde_json::from_str::<Value>(line).is_ok())
+            .map(str::to_string)
             .collect()
     }
 

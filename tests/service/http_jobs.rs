@@ -324,8 +324,8 @@ async fn a_job_survives_sigkill_of_its_server() {
     assert_eq!(without_timings(&from_job), without_timings(&direct));
 }
 
-/// A running job is cancelled between steps and keeps its record; its result is 409; a second
-/// DELETE removes it; an ended job's id is then unknown.
+/// A running job is not removed (409) but cancelled between steps, keeping its record; its result
+/// is then 409; once ended, DELETE removes it and its files; its id is then unknown.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_job_is_cancelled_then_removed() {
     let server = server::start(jobs_config("jobs-cancel", 200_000)).await;
@@ -343,7 +343,13 @@ async fn a_job_is_cancelled_then_removed() {
         assert!(started.elapsed() < Duration::from_secs(60));
         tokio::time::sleep(Duration::from_millis(20)).await;
     }
-    let (status, job) = call_json(&base, reqwest::Method::DELETE, &path, None, None).await;
+    let (status, refused) = call_json(&base, reqwest::Method::DELETE, &path, None, None).await;
+    assert_eq!(
+        (status, &refused["error"]["code"]),
+        (409, &json!("job_not_done"))
+    );
+    let cancel = format!("{path}/cancel");
+    let (status, job) = call_json(&base, reqwest::Method::POST, &cancel, None, None).await;
     assert_eq!(status, 200, "{job}");
     let seen = events(&base, &id, 0, None).await;
     assert_eq!(seen.last().unwrap()["event"], "cancelled");
@@ -360,6 +366,9 @@ async fn a_job_is_cancelled_then_removed() {
     .await;
     assert_eq!(status, 409);
     assert_eq!(refused["error"]["code"], "job_not_done");
+    // Cancelling an ended job leaves it as it is.
+    let (status, again) = call_json(&base, reqwest::Method::POST, &cancel, None, None).await;
+    assert_eq!((status, &again["state"]), (200, &json!("cancelled")));
     let (status, _) = call(&base, reqwest::Method::DELETE, &path, None, None).await;
     assert_eq!(status, 204);
     let (status, _) = call(&base, reqwest::Method::GET, &path, None, None).await;
@@ -488,15 +497,13 @@ async fn owners_take_turns_and_see_only_their_jobs() {
         )
         .await;
         assert_eq!(status, 404);
-        let (status, _) = call_json(
-            &base,
-            reqwest::Method::DELETE,
-            &format!("{JOBS}/{other}"),
-            None,
-            token,
-        )
-        .await;
-        assert_eq!(status, 404);
+        for (method, path) in [
+            (reqwest::Method::DELETE, format!("{JOBS}/{other}")),
+            (reqwest::Method::POST, format!("{JOBS}/{other}/cancel")),
+        ] {
+            let (status, _) = call_json(&base, method, &path, None, token).await;
+            assert_eq!(status, 404);
+        }
     }
     let (_, mine) = call_json(&base, reqwest::Method::GET, JOBS, None, bob).await;
     let ids: Vec<&str> = mine
@@ -515,8 +522,8 @@ async fn owners_take_turns_and_see_only_their_jobs() {
     assert_eq!(status, 403);
     let (status, _) = call_json(
         &base,
-        reqwest::Method::DELETE,
-        &format!("{JOBS}/{large}"),
+        reqwest::Method::POST,
+        &format!("{JOBS}/{large}/cancel"),
         None,
         root,
     )
@@ -529,12 +536,13 @@ async fn owners_take_turns_and_see_only_their_jobs() {
 async fn a_job_past_its_time_limit_fails_keeping_its_parts() {
     let mut config = jobs_config("jobs-time-limit", 200_000);
     if let Some(jobs) = config.jobs.as_mut() {
-        jobs.time_limit = Duration::from_secs(1);
+        jobs.time_limit = Duration::from_secs(2);
     }
     let server = server::start(config).await;
     let base = server.base.clone();
-    // Parts of 16 cells (the sweep's lanes) of 2·10⁵ steps each: about 0.1 s a part here.
-    let long = json!({"system": "pendulum", "methods": ["rk4"], "h": 0.001, "t_end": 200, "every": 1000,
+    // Parts of one cell of 2·10⁶ steps, some tens of milliseconds each: 16 s of work in all.
+    let long = json!({"system": "pendulum", "methods": ["rk4"], "h": 0.001, "t_end": 2000, "every": 1000,
+                      "energy_reference": "initial",
                       "axes": [{"name": "q0[0]", "min": 0.1, "max": 3, "n": 400}]});
     let id = submit(&base, "sweep", &long, None).await;
     let seen = events(&base, &id, 0, None).await;
@@ -612,7 +620,13 @@ async fn the_command_line_submits_watches_and_fetches() {
     let status = geomint(vec!["status".into(), id.clone()]).await;
     let status: Value = serde_json::from_slice(&status.stdout).unwrap();
     assert_eq!(status["state"], "done");
-    let removed = geomint(vec!["cancel".into(), id.clone()]).await;
+    let cancelled = geomint(vec!["cancel".into(), id.clone()]).await;
+    let cancelled: Value = serde_json::from_slice(&cancelled.stdout).unwrap();
+    assert_eq!(
+        cancelled["state"], "done",
+        "cancelling a done job leaves it done"
+    );
+    let removed = geomint(vec!["remove".into(), id.clone()]).await;
     assert!(removed.status.success());
     let gone = geomint(vec!["status".into(), id]).await;
     assert_eq!(gone.status.code(), Some(2));

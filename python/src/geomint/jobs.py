@@ -14,6 +14,7 @@ connection drops) and returns the method's own result type, built from the job's
 from __future__ import annotations
 
 import json
+import threading
 import time
 from typing import Any, Callable, Dict, Generic, Iterator, List, Optional, TypeVar, cast
 
@@ -22,7 +23,7 @@ import httpx
 from ._progress import Progress
 from ._transport import Transport
 from ._wire import NDJSON, ROUTES, RRD, JobEvent, JobRequest, JobStatus
-from .errors import GeomintError, RefusedError, ValidationError
+from .errors import GeomintError, RefusedError, UnreachableError, ValidationError
 from .recording import Recording
 
 T = TypeVar("T")
@@ -78,24 +79,34 @@ class Job(Generic[T]):
         return self._status["state"]
 
     def cancel(self) -> JobStatus:
-        """Cancels the job (a running one stops between steps, keeping its finished parts)."""
+        """Cancels the job (a running one stops between steps, keeping its finished parts; one
+        that has ended is left as it is)."""
         self._status = cast(JobStatus, self._client._json("cancel_job", ids={"id": self.id}))
         return self._status
 
-    def events(self, after: int = 0) -> Iterator[JobEvent]:
+    def remove(self) -> None:
+        """Removes a job that has ended, with its result (else ``job_not_done``)."""
+        self._client._send("remove_job", ids={"id": self.id})
+
+    def events(self, after: int = 0, patience: float = 300.0) -> Iterator[JobEvent]:
         """The job's events after the one whose ``seq`` is ``after``, as they happen, to its
-        last; a dropped connection is resumed from the last event seen."""
+        last. A stream that drops or ends early (the server restarting) is resumed from the last
+        event seen, for up to ``patience`` seconds without an answer."""
         seen = after
+        waited = 0.0
         while True:
             try:
                 for event in self._client._job_events(self.id, seen):
                     seen = int(event["seq"])
+                    waited = 0.0
                     yield event
                     if event["event"] in ("done", "failed", "cancelled"):
                         return
-                return
-            except (httpx.RemoteProtocolError, httpx.ReadError, httpx.ReadTimeout):
-                time.sleep(0.5)
+            except (httpx.TransportError, UnreachableError):
+                if waited >= patience:
+                    raise
+            time.sleep(1.0)
+            waited += 1.0
 
     def wait(self, progress: bool = True) -> T:
         """Follows the job to its end with a progress bar over its cells and returns its result
@@ -127,11 +138,21 @@ class Job(Generic[T]):
         return Recording(response.content)
 
 
-class JobCalls(Transport):
-    """The client's job calls: submit a study method's request as a job, find jobs again."""
+class _Mode(threading.local):
+    """What this thread's study calls do instead of streaming: raise their request
+    (``capturing``, for :meth:`JobCalls.submit`) or return a job's result line (``answer``)."""
 
-    _capturing: bool = False
-    _answer: Optional[Any] = None
+    capturing: bool = False
+    answer: Optional[Any] = None
+
+
+class JobCalls(Transport):
+    """The client's job calls: submit a study method's request as a job, find jobs again.
+
+    A study method is called twice: at :meth:`submit`, to read its arguments into the request,
+    and when the job's result is read, to build its result type from the job's document. The
+    arguments should be values (lists rather than generators, which the first call would use up).
+    """
 
     def submit(self, study: Callable[..., T], *args: Any, priority: int = 0, **kwargs: Any) -> Job[T]:
         """Submits what ``study(*args, **kwargs)`` would run as a job and returns it at once.
@@ -147,22 +168,24 @@ class JobCalls(Transport):
                 f"give one of this client's study methods ({', '.join('client.' + n for n in _STUDIES)})",
             )
         kwargs.setdefault("progress", False)
-        self._capturing = True
+        mode = self._mode()
+        mode.capturing = True
         try:
             study(*args, **kwargs)
             raise ValidationError("study", "the study method sent no request")
         except _Captured as captured:
             body = cast(JobRequest, {"study": _STUDIES[captured.name], "request": captured.body, "priority": priority})
         finally:
-            self._capturing = False
+            mode.capturing = False
         status = cast(JobStatus, self._json("submit_job", body=body))
 
         def build(line: Any) -> T:
-            self._answer = line
+            mode = self._mode()
+            mode.answer = line
             try:
                 return study(*args, **kwargs)
             finally:
-                self._answer = None
+                mode.answer = None
 
         return Job(self, status, build)
 
@@ -174,17 +197,27 @@ class JobCalls(Transport):
         """The caller's jobs, oldest first."""
         return cast(List[JobStatus], self._json("list_jobs"))
 
+    def _mode(self) -> _Mode:
+        mode = self.__dict__.get("_job_mode")
+        if mode is None:
+            mode = self.__dict__.setdefault("_job_mode", _Mode())
+        return cast(_Mode, mode)
+
     def _study(self, name: str, body: Any, progress: bool, label: str) -> Any:
-        if self._capturing:
+        mode = self._mode()
+        if mode.capturing:
             raise _Captured(name, body)
-        if self._answer is not None:
-            return self._answer
+        if mode.answer is not None:
+            return mode.answer
         return super()._study(name, body, progress, label)
 
     def _job_events(self, id: str, after: int) -> Iterator[JobEvent]:
         route = ROUTES["job_events"]
         request = self._request(route, accept=NDJSON, query={"after": str(after)}, ids={"id": id})
-        response = self._http.send(request, stream=True)
+        try:
+            response = self._http.send(request, stream=True)
+        except (httpx.ConnectError, httpx.ConnectTimeout) as e:
+            raise self._unreachable(e) from e
         try:
             if response.status_code >= 400:
                 response.read()

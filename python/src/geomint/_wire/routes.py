@@ -127,7 +127,8 @@ ROUTES: Dict[str, Route] = {
     "submit_job": Route("POST", "/api/v1/jobs", {JSON: JobStatus}, JobRequest, status=202),
     "list_jobs": Route("GET", "/api/v1/jobs", {JSON: List[JobStatus]}),
     "get_job": Route("GET", "/api/v1/jobs/{id}", {JSON: JobStatus}),
-    "cancel_job": Route("DELETE", "/api/v1/jobs/{id}", {JSON: JobStatus}),
+    "cancel_job": Route("POST", "/api/v1/jobs/{id}/cancel", {JSON: JobStatus}),
+    "remove_job": Route("DELETE", "/api/v1/jobs/{id}", status=204),
     "job_events": Route("GET", "/api/v1/jobs/{id}/events", {NDJSON: JobEvent}),
     "job_result": Route(
         "GET", "/api/v1/jobs/{id}/result", {JSON: Dict[str, Any], RRD: bytes}, query={"format": ["rrd"]}
