@@ -176,18 +176,6 @@ impl ApiError {
         )
     }
 
-    /// The same error for input nested under `field`: its field `f` becomes `field.f` (or
-    /// `field[i]…` for `[i]…`), none becomes `field`.
-    pub fn within(mut self, field: &str) -> Self {
-        self.detail.field = Some(match self.detail.field.take() {
-            None => field.to_string(),
-            Some(f) if f.is_empty() => field.to_string(),
-            Some(f) if f.starts_with('[') => format!("{field}{f}"),
-            Some(f) => format!("{field}.{f}"),
-        });
-        self
-    }
-
     /// The HTTP status.
     pub fn status_code(&self) -> StatusCode {
         self.status

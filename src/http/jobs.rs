@@ -182,7 +182,8 @@ pub async fn submit_job(
     let request = JobRequest::from_value(&body)?;
     let owner = caller.owner.clone();
     let job = run_blocking(move || {
-        let prepared = study::prepare(&request.study, &request.request, &state)?;
+        let (systems, limits) = (&state.systems, &state.config.limits);
+        let prepared = study::prepare(&request.study, &request.request, systems, limits)?;
         jobs.submit(
             &owner,
             &request.study,
@@ -191,7 +192,17 @@ pub async fn submit_job(
             &prepared,
         )
     })
-    .await??;
+    .await?
+    .map_err(|detail| {
+        // A quota of unfinished jobs frees up as they end.
+        let retry = detail.code == ErrorCode::TooManyRuns;
+        let error = ApiError::from(detail);
+        if retry {
+            error.with_retry_after(1)
+        } else {
+            error
+        }
+    })?;
     tracing::info!(job = %job.record.id, study = %job.record.study, "job submitted");
     let location = format!("{}/{}", paths::JOBS, job.record.id);
     let mut response = (StatusCode::ACCEPTED, Json(job.status())).into_response();
@@ -273,7 +284,9 @@ pub async fn delete_job(
 ) -> Result<Response, ApiError> {
     let job = own_job(&state, &caller, &id)?;
     let jobs = jobs_of(&state)?.clone();
-    let removed = run_blocking(move || jobs.remove(&job)).await??;
+    let removed = run_blocking(move || jobs.remove(&job))
+        .await?
+        .map_err(ApiError::from)?;
     if !removed {
         return Err(ApiError::from(ErrorDetail::new(
             ErrorCode::JobNotDone,

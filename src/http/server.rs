@@ -98,7 +98,7 @@ pub async fn serve_on(
 ) -> std::io::Result<()> {
     let config = state.config.clone();
     if let Some(jobs) = &state.jobs {
-        jobs.start(state.clone());
+        jobs.start(state.job_context());
     }
     let router = app(state.clone());
     let connections = Arc::new(Semaphore::new(config.max_connections.max(1)));

@@ -15,7 +15,7 @@ use super::error::ApiError;
 use crate::access::{Access, AccessConfig};
 use crate::core::simulation::Limits;
 use crate::executor::{cores, StudyExecutor};
-use crate::jobs::{Jobs, JobsConfig};
+use crate::jobs::{JobContext, Jobs, JobsConfig};
 use crate::store::recordings::RecordingStore;
 use crate::store::systems::{SystemStore, DEFAULT_MAX_SYSTEMS, DEFAULT_SYSTEMS_DIR};
 
@@ -249,9 +249,16 @@ impl AppState {
         }
     }
 
-    /// A shared slot if one is free now (a job's part takes one while it runs).
-    pub fn try_slot(&self) -> Option<OwnedSemaphorePermit> {
-        self.permits.clone().try_acquire_owned().ok()
+    /// What the jobs take from the service (a job's part takes one of its shared slots while
+    /// it runs).
+    pub fn job_context(&self) -> JobContext {
+        JobContext {
+            systems: self.systems.clone(),
+            limits: self.config.limits.clone(),
+            executor: self.executor.clone(),
+            usage: self.access.usage.clone(),
+            slots: self.permits.clone(),
+        }
     }
 
     /// Cancels every running simulation (they end with `cancelled`) and makes new ones cancel

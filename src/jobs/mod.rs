@@ -32,11 +32,14 @@ use serde_json::Value;
 use tokio::sync::watch;
 use utoipa::ToSchema;
 
+use crate::access::Usage;
 use crate::core::error::{ErrorCode, ErrorDetail};
 use crate::core::run::Budget;
-use crate::http::{ApiError, AppState};
+use crate::core::simulation::Limits;
+use crate::executor::StudyExecutor;
 use crate::store::dates::rfc3339;
 use crate::store::jobs::{JobDir, JobRecord, JobStore, Outcome, JOB_FORMAT};
+use crate::store::systems::SystemStore;
 use fair::{Claim, FairGate};
 use stored::{PartSink, Stored};
 use study::Prepared;
@@ -396,6 +399,39 @@ pub struct Jobs {
     stopping: AtomicBool,
 }
 
+/// What running jobs takes from the service: the stored systems and limits their requests are
+/// prepared with, where their parts run, the runs in flight they count in, and the simulation
+/// slots their parts take one of.
+#[derive(Clone, Debug)]
+pub struct JobContext {
+    /// The stored system definitions.
+    pub systems: Arc<SystemStore>,
+    /// The service's step and sample limits.
+    pub limits: Limits,
+    /// Where parts run: here or on NATS workers.
+    pub executor: StudyExecutor,
+    /// Runs in flight per owner.
+    pub usage: Arc<Usage>,
+    /// The service's shared simulation slots.
+    pub slots: Arc<tokio::sync::Semaphore>,
+}
+
+/// The error of a write to the jobs directory that failed: `storage_full` when the disk is full,
+/// else `storage_unavailable`.
+fn storage_error(error: &std::io::Error) -> ErrorDetail {
+    tracing::error!(%error, "a write to the jobs directory failed");
+    match error.kind() {
+        std::io::ErrorKind::StorageFull | std::io::ErrorKind::QuotaExceeded => ErrorDetail::new(
+            ErrorCode::StorageFull,
+            "the jobs directory's disk is full; nothing was stored",
+        ),
+        kind => ErrorDetail::new(
+            ErrorCode::StorageUnavailable,
+            format!("the jobs directory cannot be written ({kind})"),
+        ),
+    }
+}
+
 /// Settings of the jobs.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct JobsConfig {
@@ -466,7 +502,7 @@ impl Jobs {
         request: Value,
         priority: i32,
         prepared: &Prepared,
-    ) -> Result<Arc<Job>, ApiError> {
+    ) -> Result<Arc<Job>, ErrorDetail> {
         let unfinished = |board: &Board| {
             board
                 .jobs
@@ -475,11 +511,10 @@ impl Jobs {
                 .count()
         };
         let over_quota = |n: usize| {
-            ApiError::from(ErrorDetail::new(
+            ErrorDetail::new(
                 ErrorCode::TooManyRuns,
                 format!("`{owner}` has {n} unfinished jobs, its quota; submit more once some end"),
-            ))
-            .with_retry_after(1)
+            )
         };
         let n = unfinished(&self.board());
         if n >= self.max_per_owner {
@@ -506,10 +541,7 @@ impl Jobs {
             part_cells,
         };
         // The files are written before the board is locked: its readers are the request handlers.
-        let dir = self
-            .store
-            .create(&record)
-            .map_err(|e| ApiError::storage("job store", &e))?;
+        let dir = self.store.create(&record).map_err(|e| storage_error(&e))?;
         let job = Arc::new(Job::new(record, dir));
         job.event(EventKind::Submitted, |e| e.priority = Some(priority));
         let mut board = self.board();
@@ -543,7 +575,7 @@ impl Jobs {
     }
 
     /// Removes an ended `job` and its files; false if it has not ended.
-    pub fn remove(&self, job: &Job) -> Result<bool, ApiError> {
+    pub fn remove(&self, job: &Job) -> Result<bool, ErrorDetail> {
         {
             let mut board = self.board();
             if !job.state().ended() {
@@ -551,19 +583,18 @@ impl Jobs {
             }
             board.jobs.remove(&job.record.id);
         }
-        job.dir
-            .remove()
-            .map_err(|e| ApiError::storage("job store", &e))?;
+        job.dir.remove().map_err(|e| storage_error(&e))?;
         Ok(true)
     }
 
     /// Starts the thread that starts jobs (those left unfinished by a previous server first, in
     /// the order they were submitted).
-    pub fn start(self: &Arc<Self>, state: AppState) {
+    pub fn start(self: &Arc<Self>, context: JobContext) {
         let jobs = self.clone();
+        let context = Arc::new(context);
         let spawned = std::thread::Builder::new()
             .name("geomint-jobs".into())
-            .spawn(move || jobs.dispatch(&state));
+            .spawn(move || jobs.dispatch(&context));
         if let Err(error) = spawned {
             tracing::error!(%error, "the job runner could not start; jobs stay queued");
         }
@@ -605,7 +636,7 @@ impl Jobs {
             .cloned()
     }
 
-    fn dispatch(self: &Arc<Self>, state: &AppState) {
+    fn dispatch(self: &Arc<Self>, context: &Arc<JobContext>) {
         let mut board = self.board();
         loop {
             if self.stopping.load(Ordering::Relaxed) {
@@ -618,10 +649,10 @@ impl Jobs {
                 board.running += 1;
                 *board.active.entry(job.record.owner.clone()).or_insert(0) += 1;
                 job.live().state = JobState::Running;
-                let (jobs, state, started) = (self.clone(), state.clone(), job.clone());
+                let (jobs, context, started) = (self.clone(), context.clone(), job.clone());
                 let spawned = std::thread::Builder::new()
                     .name(format!("geomint-job-{}", &job.record.id[..8]))
-                    .spawn(move || jobs.run(&started, &state));
+                    .spawn(move || jobs.run(&started, &context));
                 if let Err(error) = spawned {
                     tracing::error!(%error, "a job could not start; it stays queued");
                     job.live().state = JobState::Queued;
@@ -641,7 +672,7 @@ impl Jobs {
     }
 
     /// Runs `job` to its end, or until the server stops.
-    fn run(&self, job: &Arc<Job>, state: &AppState) {
+    fn run(&self, job: &Arc<Job>, context: &JobContext) {
         let resumed = job.dir.parts_stored() > 0;
         {
             let mut live = job.live();
@@ -656,7 +687,7 @@ impl Jobs {
         };
         job.event(kind, |_| {});
         tracing::info!(job = %job.record.id, study = %job.record.study, resumed, "job started");
-        let outcome = std::panic::catch_unwind(AssertUnwindSafe(|| self.compute(job, state)));
+        let outcome = std::panic::catch_unwind(AssertUnwindSafe(|| self.compute(job, context)));
         // The outcome is written before the board is locked: its readers are the request
         // handlers. A cancellation now finds the job running and only sets its flags.
         match outcome {
@@ -667,7 +698,7 @@ impl Jobs {
                 job.event(EventKind::Stopped, |_| {});
             }
             Ok(Err(error)) => {
-                let detail = serde_json::to_value(error.detail()).unwrap_or(Value::Null);
+                let detail = serde_json::to_value(&error).unwrap_or(Value::Null);
                 job.end(JobState::Failed, Some(detail));
             }
             Err(_) => {
@@ -689,31 +720,31 @@ impl Jobs {
     }
 
     /// Prepares and runs `job`'s study on its stored parts, and stores its result.
-    fn compute(&self, job: &Job, state: &AppState) -> Result<(), ApiError> {
+    fn compute(&self, job: &Job, context: &JobContext) -> Result<(), ErrorDetail> {
         let r = &job.record;
-        let prepared = study::prepare(&r.study, &r.request, state)?;
+        let prepared = study::prepare(&r.study, &r.request, &context.systems, &context.limits)?;
         if prepared.cells != r.cells {
             // A stored system changed or a new version reads the request otherwise: its parts
             // would not be this study's.
-            return Err(ApiError::from(ErrorDetail::new(
+            return Err(ErrorDetail::new(
                 ErrorCode::Internal,
                 format!(
                     "the job's request now prepares a study of {} cells, not the {} it was \
                      submitted with; submit it again",
                     prepared.cells, r.cells
                 ),
-            )));
+            ));
         }
-        let _in_flight = state.access.usage.hold(&r.owner);
+        let _in_flight = context.usage.hold(&r.owner);
         let sink = Sink {
             jobs: self,
             job,
-            state,
+            context,
             unfinished: AtomicBool::new(false),
         };
         let executor = Stored {
             dir: &job.dir,
-            inner: &state.executor,
+            inner: &context.executor,
             part_cells: r.part_cells,
             sink: &sink,
         };
@@ -723,19 +754,19 @@ impl Jobs {
         };
         let results = prepared.run(&executor, budget)?;
         if sink.unfinished.load(Ordering::Relaxed) {
-            return Err(ApiError::from(ErrorDetail::new(
+            return Err(ErrorDetail::new(
                 ErrorCode::Timeout,
                 format!(
                     "the job ran for its time limit of {} s without finishing; its finished parts \
                      are kept",
                     self.time_limit.as_secs()
                 ),
-            )));
+            ));
         }
         let store = |name: &str, bytes: &[u8]| {
             job.dir
                 .write_result(name, bytes)
-                .map_err(|e| ApiError::storage("job store", &e))
+                .map_err(|e| storage_error(&e))
         };
         store("result.json", &results.json)?;
         if let Some(rrd) = &results.rrd {
@@ -749,7 +780,7 @@ impl Jobs {
 struct Sink<'a> {
     jobs: &'a Jobs,
     job: &'a Job,
-    state: &'a AppState,
+    context: &'a JobContext,
     /// Whether a part stopped short (the time limit).
     unfinished: AtomicBool,
 }
@@ -770,7 +801,7 @@ impl PartSink for Sink<'_> {
             if self.job.stop.load(Ordering::Relaxed) {
                 return None;
             }
-            if let Some(slot) = self.state.try_slot() {
+            if let Ok(slot) = self.context.slots.clone().try_acquire_owned() {
                 return Some(Box::new((turn, slot)));
             }
             std::thread::sleep(Duration::from_millis(20));

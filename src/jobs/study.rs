@@ -11,11 +11,12 @@ use crate::api::studies::{ConvergenceRequest, EnergyMapRequest, WorkPrecisionReq
 use crate::api::sweep::SweepRequest;
 use crate::core::error::{CoreError, ErrorCode, ErrorDetail};
 use crate::core::run::Budget;
+use crate::core::simulation::Limits;
 use crate::core::studies::engine::{self, CellLine, Documented, Study};
 use crate::core::studies::settings::StudyJob;
 use crate::core::studies::{convergence, energy_map, stability, work_precision};
-use crate::http::{ApiError, AppState};
 use crate::recording::{self, RecordingError};
+use crate::store::systems::SystemStore;
 
 /// The kinds of study, named as their routes (`/api/v1/studies/NAME`, `/api/v1/stability`).
 pub const STUDIES: [&str; 6] = [
@@ -98,24 +99,43 @@ fn settings_size(job: &StudyJob) -> (usize, u64) {
 
 /// Reads and prepares the study `study` from `request` as its route would (errors name fields
 /// inside `request`).
-pub fn prepare(study: &str, request: &Value, state: &AppState) -> Result<Prepared, ApiError> {
+pub fn prepare(
+    study: &str,
+    request: &Value,
+    systems: &SystemStore,
+    limits: &Limits,
+) -> Result<Prepared, ErrorDetail> {
     if !STUDIES.contains(&study) {
         return Err(unknown_study(study));
     }
-    prepare_kind(study, request, state).map_err(|e| e.within("request"))
+    prepare_kind(study, request, systems, limits).map_err(|e| within("request", e))
 }
 
-fn unknown_study(study: &str) -> ApiError {
-    ApiError::from(ErrorDetail::at(
+/// `error` for input nested under `field`: its field `f` becomes `field.f` (or `field[i]…`),
+/// none becomes `field`.
+fn within(field: &str, mut error: ErrorDetail) -> ErrorDetail {
+    error.field = Some(match error.field.take() {
+        Some(f) if f.starts_with('[') => format!("{field}{f}"),
+        Some(f) if !f.is_empty() => format!("{field}.{f}"),
+        _ => field.to_string(),
+    });
+    error
+}
+
+fn unknown_study(study: &str) -> ErrorDetail {
+    ErrorDetail::at(
         ErrorCode::InvalidValue,
         "study",
         format!("unknown study `{study}`; one of {}", STUDIES.join(", ")),
-    ))
+    )
 }
 
-fn prepare_kind(study: &str, body: &Value, state: &AppState) -> Result<Prepared, ApiError> {
-    let limits = &state.config.limits;
-    let systems = &*state.systems;
+fn prepare_kind(
+    study: &str,
+    body: &Value,
+    systems: &SystemStore,
+    limits: &Limits,
+) -> Result<Prepared, ErrorDetail> {
     Ok(match study {
         "sweep" => {
             let job = SweepRequest::from_value(body)?
