@@ -38,7 +38,12 @@ def test_a_submitted_sweep_waits_to_the_same_sweep(client: geomint.Client) -> No
     assert job.id in [j["id"] for j in client.jobs()]
     again = client.job(job.id).result()
     assert again["axes"][1]["n"] == 17 and len(again["runs"]) == 2
-    assert job.recording().data.startswith(b"RRF2")
+    recording = job.recording()
+    assert recording.data.startswith(b"RRF2")
+    # The same recording in the recordings library, said to be the job's.
+    kept = [r for r in client.recordings() if r.id == status["recording"]]
+    assert len(kept) == 1 and kept[0].origin == "job" and kept[0].job == job.id
+    assert client.download(kept[0].id).data == recording.data
 
 
 def test_a_submitted_basin_map_waits_to_the_same_map(client: geomint.Client) -> None:

@@ -35,6 +35,7 @@ use crate::core::error::{ErrorCode, ErrorDetail, Field};
 use crate::core::schema;
 use crate::jobs::{study, Job, JobEvent, JobState, JobStatus, Jobs};
 use crate::store::jobs::is_valid_id;
+use crate::store::recordings::Owner;
 
 /// A job to submit: the kind of study, the request its route takes, and a priority.
 #[derive(Debug)]
@@ -180,7 +181,10 @@ pub async fn submit_job(
 ) -> Result<Response, ApiError> {
     let jobs = jobs_of(&state)?.clone();
     let request = JobRequest::from_value(&body)?;
-    let owner = caller.owner.clone();
+    let owner = Owner {
+        name: caller.owner.clone(),
+        quota: caller.quotas.recordings_bytes,
+    };
     let job = run_blocking(move || {
         let (systems, limits) = (&state.systems, &state.config.limits);
         let prepared = study::prepare(&request.study, &request.request, systems, limits)?;

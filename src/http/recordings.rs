@@ -287,6 +287,7 @@ async fn upload_recording(
             spec: inspected.simulation.as_ref().map(SpecSummary::of),
             origin: Origin::Upload,
             application_id: inspected.application_id,
+            job: None,
         };
         store
             .keep_upload(upload, contents, &owner)

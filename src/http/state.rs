@@ -258,6 +258,7 @@ impl AppState {
             executor: self.executor.clone(),
             usage: self.access.usage.clone(),
             slots: self.permits.clone(),
+            recordings: self.recordings.clone(),
         }
     }
 

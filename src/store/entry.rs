@@ -50,6 +50,18 @@ pub enum Origin {
     Simulation,
     /// Uploaded as an `.rrd` file (`POST /api/v1/recordings` with `application/octet-stream`).
     Upload,
+    /// A job's result (`job` says which).
+    Job,
+}
+
+/// The job a recording is the result of.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+pub struct JobOrigin {
+    /// The job's id.
+    pub id: String,
+    /// Its kind of study (`sweep`, `basins`, …).
+    #[schema(example = "sweep")]
+    pub study: String,
 }
 
 /// What is known of a recording before it is stored: what it holds and where it came from.
@@ -61,6 +73,8 @@ pub struct Contents {
     pub origin: Origin,
     /// The application id written in the recording.
     pub application_id: Option<String>,
+    /// The job it is the result of.
+    pub job: Option<JobOrigin>,
 }
 
 impl Contents {
@@ -70,6 +84,20 @@ impl Contents {
             spec: Some(spec),
             origin: Origin::Simulation,
             application_id: Some(crate::recording::APPLICATION_ID.to_string()),
+            job: None,
+        }
+    }
+
+    /// A recording this server made as the result of the job `id`, a `study`.
+    pub fn job(id: &str, study: &str) -> Self {
+        Contents {
+            spec: None,
+            origin: Origin::Job,
+            application_id: Some(crate::recording::APPLICATION_ID.to_string()),
+            job: Some(JobOrigin {
+                id: id.to_string(),
+                study: study.to_string(),
+            }),
         }
     }
 }
@@ -113,4 +141,7 @@ pub struct RecordingEntry {
     #[serde(default)]
     #[schema(example = "alice")]
     pub owner: Option<String>,
+    /// The job it is the result of (`origin` is `job`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub job: Option<JobOrigin>,
 }

@@ -52,6 +52,10 @@ pub struct JobRecord {
     pub cells: usize,
     /// Cells per part (the last part may hold fewer).
     pub part_cells: usize,
+    /// The bytes its owner's recordings may take in all, when it was submitted (its result's
+    /// recording is kept in the recordings library within it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub recordings_quota: Option<u64>,
 }
 
 impl JobRecord {
@@ -82,6 +86,9 @@ pub struct Outcome {
     pub error: Option<Value>,
     /// When it ended, in milliseconds since the Unix epoch.
     pub ended_unix_ms: u64,
+    /// The id of its result's recording in the recordings library, when it was kept there.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub recording: Option<String>,
 }
 
 /// Whether `id` is a job id: exactly 32 lowercase hexadecimal digits.

@@ -25,7 +25,7 @@
 //! Everything here is blocking file I/O: call it off the async runtime.
 
 use std::fs::{self, File};
-use std::io::{self, BufWriter, Read, Seek, SeekFrom};
+use std::io::{self, BufWriter, Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::time::{SystemTime, UNIX_EPOCH};
@@ -324,6 +324,19 @@ impl RecordingStore {
         }
     }
 
+    /// Keeps `bytes`, a whole recording, under a new id with its summary `contents`, checked and
+    /// capped as an upload is (a job's result: [`Contents::job`]).
+    pub fn keep_bytes(
+        &self,
+        bytes: &[u8],
+        contents: Contents,
+        owner: &Owner,
+    ) -> Result<RecordingEntry, StoreError> {
+        let upload = self.begin_upload()?;
+        upload.file()?.write_all(bytes)?;
+        self.keep_upload(upload, contents, owner)
+    }
+
     /// Writes the recording through `handle` and checks it: its size in bytes.
     fn write_checked(
         &self,
@@ -384,6 +397,7 @@ impl RecordingStore {
             application_id: contents.application_id,
             created_unix_ms,
             owner: Some(owner.name.clone()),
+            job: contents.job,
         };
         tmp.persist(&self.rrd_path(id))?;
         let sidecar = serde_json::to_vec_pretty(&Sidecar {

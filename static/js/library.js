@@ -50,6 +50,7 @@ export function linkedRecording(hash) {
  */
 export function describe(entry, name = entry.spec?.system) {
   const spec = entry.spec;
+  if (!spec && entry.job) return `the recording of a ${entry.job.study} job`;
   if (!spec) return `an uploaded recording of ${entry.application_id || 'another application'}`;
   return `${name}: ${spec.methods.join(', ')}`;
 }
@@ -291,8 +292,9 @@ export class RecordingsPanel {
     const current = this.showing?.id === entry.id;
     return el('tr', { 'data-id': entry.id, 'aria-current': current ? 'true' : null },
       el('th', { scope: 'row', 'data-label': 'System', title: spec ? spec.system : null },
-        spec ? this.systemName(spec.system) : '—',
-        entry.origin === 'upload' ? el('span', { class: 'tag', text: 'uploaded' }) : null),
+        spec ? this.systemName(spec.system) : entry.job ? `a ${entry.job.study} study` : '—',
+        entry.origin === 'upload' ? el('span', { class: 'tag', text: 'uploaded' }) : null,
+        entry.origin === 'job' ? el('span', { class: 'tag', text: 'job', title: `The result of job ${entry.job?.id}` }) : null),
       el('td', { 'data-label': 'Methods' }, spec ? spec.methods.join(', ') : entry.application_id || '—'),
       el('td', { 'data-label': 'h' }, spec ? fmt(spec.h, 6) : '—'),
       el('td', { 'data-label': 't_end' }, spec ? fmt(spec.t_end, 6) : '—'),

@@ -204,7 +204,7 @@ async fn every_study_as_a_job_gives_its_routes_document() {
             without_timings(&direct),
             "{study}: the job's document differs from the route's"
         );
-        let (status, rrd) = call(
+        let (rrd_status, rrd) = call(
             &base,
             reqwest::Method::GET,
             &format!("{path}?format=rrd"),
@@ -212,13 +212,6 @@ async fn every_study_as_a_job_gives_its_routes_document() {
             None,
         )
         .await;
-        match study {
-            "convergence" => assert_eq!(status, 422),
-            _ => {
-                assert_eq!(status, 200, "{study}");
-                assert!(rrd.starts_with(b"RRF2"), "{study}: not a recording");
-            }
-        }
         let (status, job) = call_json(
             &base,
             reqwest::Method::GET,
@@ -230,6 +223,30 @@ async fn every_study_as_a_job_gives_its_routes_document() {
         assert_eq!(status, 200);
         assert_eq!(job["state"], "done");
         assert_eq!(job["parts_done"], job["parts"]);
+        match study {
+            "convergence" => {
+                assert_eq!(rrd_status, 422);
+                assert_eq!(job["recording"], Value::Null, "{study}: {job}");
+            }
+            _ => {
+                assert_eq!(rrd_status, 200, "{study}");
+                assert!(rrd.starts_with(b"RRF2"), "{study}: not a recording");
+                // The same recording in the recordings library, said to be this job's.
+                let kept = job["recording"].as_str().expect("the library's id");
+                let entry_path = format!("/api/v1/recordings/{kept}");
+                let (status, entry) =
+                    call_json(&base, reqwest::Method::GET, &entry_path, None, None).await;
+                assert_eq!(status, 200, "{study}: {entry}");
+                assert_eq!(entry["origin"], "job", "{entry}");
+                assert_eq!(entry["job"], json!({"id": id, "study": study}), "{entry}");
+                assert_eq!(entry["bytes"], rrd.len(), "{entry}");
+                let rrd_path = format!("{entry_path}.rrd");
+                let (status, library) =
+                    call(&base, reqwest::Method::GET, &rrd_path, None, None).await;
+                assert_eq!(status, 200, "{study}");
+                assert!(library == rrd, "{study}: the library's copy differs");
+            }
+        }
     }
     let (status, listed) = call_json(&base, reqwest::Method::GET, JOBS, None, None).await;
     assert_eq!(status, 200);

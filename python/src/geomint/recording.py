@@ -75,7 +75,7 @@ class Shown:
 @dataclass(frozen=True)
 class RecordingInfo:
     """A stored recording's entry: id, size, creation time, origin and, for a simulation, what it
-    holds (system, methods, h, t_end)."""
+    holds (system, methods, h, t_end); for a job's result (origin ``job``), the job's id."""
 
     id: str
     bytes: int
@@ -86,10 +86,11 @@ class RecordingInfo:
     methods: Tuple[str, ...]
     h: Optional[float]
     t_end: Optional[float]
+    job: Optional[str] = None
 
     @classmethod
     def from_json(cls, doc: RecordingEntry) -> "RecordingInfo":
-        spec = doc.get("spec")
+        spec, job = doc.get("spec"), doc.get("job")
         return cls(
             id=doc["id"],
             bytes=doc["bytes"],
@@ -100,4 +101,5 @@ class RecordingInfo:
             methods=() if spec is None else tuple(spec["methods"]),
             h=None if spec is None else spec["h"],
             t_end=None if spec is None else spec["t_end"],
+            job=None if job is None else job["id"],
         )

@@ -28,6 +28,7 @@ fn entry(id: &str, owner: Option<&str>, bytes: u64, at: u64) -> RecordingEntry {
         application_id: None,
         created_unix_ms: at,
         owner: owner.map(String::from),
+        job: None,
     }
 }
 

@@ -489,6 +489,13 @@ class _RecordingEntryRequired(TypedDict):
     created: str
 
 
+class JobOrigin(TypedDict):
+    """The job a recording is the result of."""
+
+    id: str
+    study: str
+
+
 class RecordingEntry(_RecordingEntryRequired, total=False):
     """One stored recording."""
 
@@ -496,3 +503,4 @@ class RecordingEntry(_RecordingEntryRequired, total=False):
     origin: Optional[str]
     application_id: Optional[str]
     spec: Optional[SpecSummary]
+    job: Optional[JobOrigin]

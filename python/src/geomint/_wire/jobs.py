@@ -74,6 +74,7 @@ class JobStatus(_JobStatusRequired, total=False):
     started: Optional[str]
     ended: Optional[str]
     error: Optional[ErrorDetail]
+    recording: Optional[str]
 
 
 EventKind = Literal["submitted", "started", "part", "stopped", "resumed", "done", "failed", "cancelled"]
