@@ -36,6 +36,9 @@ def test_a_submitted_sweep_waits_to_the_same_sweep(client: geomint.Client) -> No
     assert status["state"] == "done" and status["cells_done"] == status["cells"] == 51
     assert status["parts_done"] == status["parts"]
     assert job.id in [j["id"] for j in client.jobs()]
+    submitted = client.job(job.id).request()
+    assert submitted["study"] == "sweep" and submitted["priority"] == 0
+    assert submitted["request"]["axes"][1]["n"] == 17
     again = client.job(job.id).result()
     assert again["axes"][1]["n"] == 17 and len(again["runs"]) == 2
     recording = job.recording()

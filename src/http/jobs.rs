@@ -17,6 +17,7 @@ use axum::extract::{Path, Query, State};
 use axum::http::{header, HeaderMap, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::Json;
+use serde::Serialize;
 use serde_json::Value;
 use utoipa::openapi::schema::{AdditionalProperties, ObjectBuilder, OneOfBuilder, Schema, Type};
 use utoipa::openapi::{Ref, RefOr};
@@ -245,6 +246,41 @@ pub async fn get_job(
     Path(id): Path<String>,
 ) -> Result<Json<JobStatus>, ApiError> {
     Ok(Json(own_job(&state, &caller, &id)?.status()))
+}
+
+/// A job as it was submitted (the body `POST /api/v1/jobs` took).
+#[derive(Serialize, ToSchema)]
+pub struct JobSubmission {
+    /// The kind of study.
+    #[schema(example = "sweep")]
+    pub study: String,
+    /// The body its study's route takes, as it was sent.
+    #[schema(value_type = Object)]
+    pub request: Value,
+    /// Its priority among its owner's jobs.
+    pub priority: i32,
+}
+
+/// A job as it was submitted: the study, the request its route takes, the priority (the body of
+/// `POST /api/v1/jobs`), so that a client that did not submit it can show or submit it again.
+#[utoipa::path(get, path = paths::JOB_REQUEST, tag = "jobs",
+    params(("id" = String, Path, description = "The job id")),
+    responses(
+        (status = 200, description = "The job's submission", body = JobSubmission),
+        (status = 404, description = "No such job of the caller's", body = ErrorBody),
+    ))]
+pub async fn job_request(
+    State(state): State<AppState>,
+    caller: Caller,
+    Path(id): Path<String>,
+) -> Result<Json<JobSubmission>, ApiError> {
+    let job = own_job(&state, &caller, &id)?;
+    let r = &job.record;
+    Ok(Json(JobSubmission {
+        study: r.study.clone(),
+        request: r.request.clone(),
+        priority: r.priority,
+    }))
 }
 
 /// Cancels a job that has not ended: a queued one at once, a running one between steps (its

@@ -96,6 +96,8 @@ pub mod paths {
     pub const JOB_EVENTS: &str = "/api/v1/jobs/{id}/events";
     /// A done job's document.
     pub const JOB_RESULT: &str = "/api/v1/jobs/{id}/result";
+    /// A job as it was submitted.
+    pub const JOB_REQUEST: &str = "/api/v1/jobs/{id}/request";
     /// The OpenAPI document.
     pub const OPENAPI: &str = "/api/v1/openapi.json";
     /// Stored recordings.
@@ -132,6 +134,7 @@ pub fn routes(config: &Config) -> OpenApiRouter<AppState> {
         .routes(routes!(jobs::cancel_job))
         .routes(routes!(jobs::job_events))
         .routes(routes!(jobs::job_result))
+        .routes(routes!(jobs::job_request))
         .routes(routes!(handlers::openapi_json))
         .routes(routes!(recordings::list_recordings))
         .routes(routes!(

@@ -117,16 +117,21 @@ async function ndjsonStream(path, body, onLine, signal) {
     signal,
   });
   if (!response.ok) throw await errorFrom(response);
+  let ended = false;
+  await readNdjson(response, (line) => {
+    if (line.type === 'end') ended = true;
+    onLine(line);
+  });
+  if (!ended) throw new Error('the stream ended before its last line: the server stopped early');
+}
 
+/** Calls `onLine` with each line of an NDJSON `response`, parsed, as it arrives. */
+async function readNdjson(response, onLine) {
   const reader = response.body.getReader();
   const decoder = new TextDecoder();
   let pending = '';
-  let ended = false;
   const handle = (text) => {
-    if (!text.trim()) return;
-    const line = JSON.parse(text);
-    if (line.type === 'end') ended = true;
-    onLine(line);
+    if (text.trim()) onLine(JSON.parse(text));
   };
   for (;;) {
     const { value, done } = await reader.read();
@@ -143,7 +148,6 @@ async function ndjsonStream(path, body, onLine, signal) {
   }
   pending += decoder.decode();
   handle(pending);
-  if (!ended) throw new Error('the stream ended before its last line: the server stopped early');
 }
 
 /**
@@ -307,4 +311,70 @@ export async function uploadRecording(file, signal) {
   });
   if (!response.ok) throw await errorFrom(response);
   return response.json();
+}
+
+/**
+ * Submits a study as a job (POST /api/v1/jobs): `study` is its route's name (`sweep`, `basins`,
+ * `energy-map`, `work-precision`, `convergence`, `stability`), `request` the body that route
+ * takes. Resolves to the job's status; an error names the request's field as the route would
+ * (the API's `request.` prefix taken off).
+ */
+export async function submitJob(study, request, signal) {
+  try {
+    return await (await post('api/v1/jobs', { study, request }, { signal })).json();
+  } catch (error) {
+    if (error instanceof ApiError && error.field?.startsWith('request')) {
+      error.field = error.field.replace(/^request\.?/, '') || null;
+    }
+    throw error;
+  }
+}
+
+/** The caller's jobs (GET /api/v1/jobs), oldest first. */
+export async function listJobs() {
+  return getJson('api/v1/jobs');
+}
+
+/**
+ * Follows a job's events (GET /api/v1/jobs/{id}/events, NDJSON) after the `after`-th, calling
+ * `onEvent` with each; resolves after the job's last event.
+ */
+export async function followJob(id, after, onEvent, signal) {
+  const response = await fetch(`api/v1/jobs/${encodeURIComponent(id)}/events?after=${after}`, {
+    headers: withToken({ accept: 'application/x-ndjson' }), signal,
+  });
+  if (!response.ok) throw await errorFrom(response);
+  await readNdjson(response, onEvent);
+}
+
+/** A job as it was submitted (GET /api/v1/jobs/{id}/request): `{study, request, priority}`. */
+export async function jobRequest(id) {
+  return getJson(`api/v1/jobs/${encodeURIComponent(id)}/request`);
+}
+
+/** A done job's document (GET /api/v1/jobs/{id}/result): the document its study's route answers. */
+export async function jobResult(id) {
+  return getJson(`api/v1/jobs/${encodeURIComponent(id)}/result`);
+}
+
+/** A done job's Rerun recording (.rrd bytes). */
+export async function jobRecording(id, signal) {
+  const response = await fetch(`api/v1/jobs/${encodeURIComponent(id)}/result?format=rrd`, {
+    headers: withToken({ accept: 'application/octet-stream' }), signal,
+  });
+  if (!response.ok) throw await errorFrom(response);
+  return response.blob();
+}
+
+/** Cancels a job that has not ended (POST /api/v1/jobs/{id}/cancel); resolves to its status. */
+export async function cancelJob(id) {
+  return (await post(`api/v1/jobs/${encodeURIComponent(id)}/cancel`, null)).json();
+}
+
+/** Removes an ended job and its files (DELETE /api/v1/jobs/{id}). */
+export async function removeJob(id) {
+  const response = await fetch(`api/v1/jobs/${encodeURIComponent(id)}`, {
+    method: 'DELETE', headers: withToken({}),
+  });
+  if (!response.ok) throw await errorFrom(response);
 }

@@ -12,7 +12,8 @@
 // `data-orbit-state` on #ba-orbit (idle, running, done, error), for tests.
 
 import { ApiError, basinsPresets, basinsStream, simulateJson } from './api.js';
-import { StudyStream, OUTCOME } from './study-stream.js';
+import { StudyStream, OUTCOME, showRequest } from './study-stream.js';
+import { jobStream } from './jobs.js';
 import { el, fmt, plural } from './common.js';
 import { GridMap, bindCursor } from './heatmap.js';
 import { stateNames } from './phasespace.js';
@@ -152,6 +153,8 @@ export class BasinsPanel {
       event.preventDefault();
       this.run();
     });
+    this.jobButton = $('run-job');
+    this.jobButton.addEventListener('click', () => this.run({ asJob: true }));
     this.presetSelect.addEventListener('change', () => this.loadPreset(this.presetSelect.value));
     this.runSelect.addEventListener('change', () => {
       this.clearOrbit();
@@ -166,6 +169,7 @@ export class BasinsPanel {
     this.presetSelect.replaceChildren(...this.presets.map((p) => el('option', { value: p.id, text: p.title })));
     this.loadPreset(this.presets[0]?.id);
     this.runButton.disabled = false;
+    this.jobButton.disabled = false;
   }
 
   loadPreset(id) {
@@ -183,8 +187,11 @@ export class BasinsPanel {
     return this.last?.doc.runs[Number(this.runSelect.value) || 0];
   }
 
-  /** Runs the request in the text box (a new run supersedes a running one). */
-  async run() {
+  /**
+   * Runs the request in the text box (a new run supersedes a running one); `asJob` submits it as
+   * a job and draws the job's document when it is done.
+   */
+  async run({ asJob = false } = {}) {
     this.error.textContent = '';
     this.spec.removeAttribute('aria-invalid');
     let body;
@@ -197,7 +204,8 @@ export class BasinsPanel {
       this.runner.setState('error');
       return;
     }
-    const { outcome, result: doc, error } = await this.runner.stream(basinsStream, body);
+    const stream = asJob ? jobStream('basins') : basinsStream;
+    const { outcome, result: doc, error } = await this.runner.stream(stream, body);
     if (outcome === OUTCOME.superseded) return;
     if (outcome === OUTCOME.cancelled) {
       this.status.textContent = 'Cancelled.';
@@ -211,6 +219,17 @@ export class BasinsPanel {
       this.spec.focus();
       return;
     }
+    this.finish(body, doc);
+  }
+
+  /** Shows a done job's basin map: its request in the text box and its document drawn. */
+  show(body, doc) {
+    showRequest(this, body);
+    this.finish(body, doc);
+  }
+
+  /** Draws the basin map `doc` of the request `body`. */
+  finish(body, doc) {
     this.last = { body, doc };
     this.runner.showProgress(doc.cells, doc.cells);
     this.runSelect.replaceChildren(...doc.runs.map((r, i) => el('option', { value: String(i), text: `${r.label.method} (${r.label.chart})` })));

@@ -65,7 +65,7 @@ function seriesLabel(point, body) {
 export class ConvergencePanel extends StudyPanel {
   /** @param {HTMLElement} root the section */
   constructor(root) {
-    super(root, 'cv', 'cvState', root.querySelector('#cv-download-json'));
+    super(root, 'cv', 'cvState', root.querySelector('#cv-download-json'), 'convergence');
     this.errorChoice = root.querySelector('#cv-error');
     this.note = root.querySelector('#cv-note');
     this.chart = new LogLogPlot(root.querySelector('#cv-plot'), 'step size h', ERRORS.state_error.label,

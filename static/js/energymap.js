@@ -10,6 +10,7 @@
 
 import { energyMapStream, energyMapRrd, ApiError } from './api.js';
 import { StudyStream, OUTCOME } from './study-stream.js';
+import { jobStream } from './jobs.js';
 import { downloadRecording, el, fmt, parseCount, parseNumber, saveBlob } from './common.js';
 import { GridMap, RATIO_SHARE, bindCursor, dataRatioRange, drawScaleBar, ratioColour, ratioTicks } from './heatmap.js';
 
@@ -173,12 +174,28 @@ export class EnergyMapPanel {
       event.preventDefault();
       this.run();
     });
+    this.jobButton = root.querySelector('#em-run-job');
+    this.jobButton.addEventListener('click', () => this.run({ asJob: true }));
     this.jsonButton.addEventListener('click', () => this.downloadJson());
     this.rrdButton.addEventListener('click', () => this.downloadRrd());
     this.pending = false;
     this.resize = new ResizeObserver(() => this.layout());
     this.resize.observe(this.root.querySelector('#em-results'));
     this.runButton.disabled = false;
+    this.jobButton.disabled = false;
+  }
+
+  /** Fills the form with the request `body` (as `read` reads it). */
+  fill(body) {
+    const set = (id, value) => {
+      if (value !== undefined && value !== null) this.root.querySelector(`#em-${id}`).value = String(value);
+    };
+    set('method', body.method);
+    set('g', body.params?.g);
+    set('h', body.h);
+    set('t-max', body.t_max);
+    set('nx', body.nx);
+    set('ny', body.ny);
   }
 
   /** The request body the form describes (bad numbers as null: the API names them). */
@@ -208,11 +225,15 @@ export class EnergyMapPanel {
     return target?.input || null;
   }
 
-  /** Computes the map of the form (a new run supersedes a running one). */
-  async run() {
+  /**
+   * Computes the map of the form (a new run supersedes a running one); `asJob` submits it as a
+   * job and draws the job's document when it is done.
+   */
+  async run({ asJob = false } = {}) {
     this.clearErrors();
     const body = this.read();
-    const { outcome, result: doc, error } = await this.runner.stream(energyMapStream, body);
+    const stream = asJob ? jobStream('energy-map') : energyMapStream;
+    const { outcome, result: doc, error } = await this.runner.stream(stream, body);
     if (outcome === OUTCOME.superseded) return;
     if (outcome === OUTCOME.cancelled) {
       this.status.textContent = 'Cancelled; the map shown (if any) is the last one.';
@@ -226,6 +247,19 @@ export class EnergyMapPanel {
       focus?.focus();
       return;
     }
+    this.finish(body, doc);
+  }
+
+  /** Shows a done job's map: its request in the form and its document drawn. */
+  show(body, doc) {
+    this.runner.abort();
+    this.clearErrors();
+    this.fill(body);
+    this.finish(body, doc);
+  }
+
+  /** Draws the map `doc` of the request `body`. */
+  finish(body, doc) {
     this.last = { body, doc };
     this.runner.showProgress(doc.summary.cells, doc.summary.cells);
     this.render(doc);
@@ -238,7 +272,7 @@ export class EnergyMapPanel {
   }
 
   cancel() {
-    this.runner.abort();
+    this.runner.cancelPressed();
   }
 
   /** The last progress line of the last run (for tests). */

@@ -5,8 +5,8 @@
 // recording); sets up the Your-system section (system.js), the stability section (stability.js),
 // the work–precision section (workprecision.js), the convergence section (convergence.js), the
 // energy-error map section (energymap.js), the sweeps (sweep.js), the basin maps (basins.js), the
-// Poincaré sections (phasespace.js) and the recordings library (library.js), which plots
-// recordings with the same charts. For tests it exposes `window.geomint` (the uPlot instances and
+// Poincaré sections (phasespace.js), the recordings library (library.js), which plots
+// recordings with the same charts, and the jobs (jobs.js), whose results the study sections show. For tests it exposes `window.geomint` (the uPlot instances and
 // their point counts, and the sections) and the run's state as `data-run-state` on <body>
 // (loading, idle, running, done, cancelled, error).
 
@@ -27,6 +27,7 @@ import { SweepPanel } from './sweep.js';
 import { BasinsPanel } from './basins.js';
 import { RecordingsPanel } from './library.js';
 import { PhaseSpacePanel } from './phasespace.js';
+import { JobsPanel } from './jobs.js';
 
 const $ = (selector) => document.querySelector(selector);
 
@@ -116,6 +117,15 @@ async function init() {
   const basins = new BasinsPanel($('#basins'), cats.systems);
   library = new RecordingsPanel($('#recordings'), cats.systems);
   const phaseSpace = new PhaseSpacePanel($('#phase-space'), cats.systems);
+  // The sections a done job's document is shown in, by study.
+  const shownIn = (section, panel) => ({ section, show: (body, doc) => panel.show(body, doc) });
+  const jobs = new JobsPanel($('#jobs'), {
+    sweep: shownIn('sweep', sweep),
+    basins: shownIn('basins', basins),
+    'energy-map': shownIn('energy-map', energyMap),
+    'work-precision': shownIn('work-precision', workPrecision),
+    convergence: shownIn('convergence', convergence),
+  });
   // The chaos map of a section's plane runs in Sweeps; a click on one of its cells launches that
   // orbit on the section.
   phaseSpace.onChaosMap = (body) => {
@@ -154,9 +164,10 @@ async function init() {
     basins,
     library,
     phaseSpace,
+    jobs,
   };
   setState('idle');
-  await Promise.all([system.followLink(), phaseSpace.followLink(), sweep.init(), basins.init(), workPrecision.init(), (async () => {
+  await Promise.all([system.followLink(), phaseSpace.followLink(), sweep.init(), basins.init(), workPrecision.init(), jobs.refresh(), (async () => {
     await library.refresh();
     await library.followLink();
   })()]);

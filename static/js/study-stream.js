@@ -7,6 +7,13 @@
 
 import { ApiError } from './api.js';
 
+/**
+ * The reason a computation's signal is aborted with when its section's Cancel is pressed (a newer
+ * computation aborts it without one): a study run as a job is then cancelled on the server, where
+ * a superseded one only stops being followed.
+ */
+export const CANCEL_PRESSED = 'cancel pressed';
+
 /** What one call of `StudyStream.stream` came to. */
 export const OUTCOME = { done: 'done', cancelled: 'cancelled', error: 'error', superseded: 'superseded' };
 
@@ -25,7 +32,7 @@ export class StudyStream {
     this.controller = null;
     /** The last `progress` (or `point`) line of the current study (for tests). */
     this.lastProgress = null;
-    cancel?.addEventListener('click', () => this.abort());
+    cancel?.addEventListener('click', () => this.cancelPressed());
   }
 
   setState(state) {
@@ -41,12 +48,17 @@ export class StudyStream {
     this.controller?.abort();
   }
 
+  /** Aborts the running computation as its Cancel does (a job is cancelled too). */
+  cancelPressed() {
+    this.controller?.abort(CANCEL_PRESSED);
+  }
+
   /**
    * Starts a computation, aborting the one before: returns its abort signal and `current()`,
    * false once a newer one has started. The section is `running`.
    */
   begin() {
-    this.controller?.abort();
+    this.abort();
     const controller = new AbortController();
     this.controller = controller;
     this.lastProgress = null;
@@ -86,7 +98,7 @@ export class StudyStream {
           this.lastProgress = line;
           this.showProgress(line.done, line.total);
           if (line.type === 'progress') {
-            this.say(`Running: ${line.done} of ${line.total} ${this.unit} ` +
+            this.say(`${line.label ?? 'Running'}: ${line.done} of ${line.total} ${this.unit} ` +
               `(${Math.floor((100 * line.done) / Math.max(1, line.total))} %).`);
           }
         }
@@ -104,7 +116,7 @@ export class StudyStream {
       this.finish();
       // A bar that never saw a progress line stays empty rather than indeterminate.
       if (this.progress && !this.lastProgress) this.progress.value = 0;
-      if (error?.name === 'AbortError') {
+      if (error?.name === 'AbortError' || run.signal.aborted) {
         this.setState('cancelled');
         return { outcome: OUTCOME.cancelled };
       }
@@ -120,4 +132,15 @@ export class StudyStream {
   finish() {
     if (this.cancel) this.cancel.disabled = true;
   }
+}
+
+/**
+ * Puts the request `body` of a study that ran elsewhere (a job) in a section's JSON text box
+ * `spec`, stopping the section's own computation and clearing its error.
+ */
+export function showRequest({ runner, spec, error }, body) {
+  runner.abort();
+  error.textContent = '';
+  spec.removeAttribute('aria-invalid');
+  spec.value = JSON.stringify(body, null, 2);
 }

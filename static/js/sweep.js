@@ -14,7 +14,8 @@
 // The section's state is `data-sweep-state` (idle, running, done, cancelled, error), for tests.
 
 import { ApiError, sweepPresets, sweepRrd, sweepStream } from './api.js';
-import { StudyStream, OUTCOME } from './study-stream.js';
+import { StudyStream, OUTCOME, showRequest } from './study-stream.js';
+import { jobStream } from './jobs.js';
 import { downloadRecording, el, fmt, plural, saveBlob } from './common.js';
 import { GridMap, RATIO_RANGE, bindCursor, drawScaleBar, ratioColour } from './heatmap.js';
 import { chaosMeaning, chaosMetrics, chaosScale } from './chaos.js';
@@ -159,6 +160,11 @@ export class SweepPanel {
       this.planeLaunch = null;
       this.run();
     });
+    this.jobButton = $('run-job');
+    this.jobButton.addEventListener('click', () => {
+      this.planeLaunch = null;
+      this.run({ asJob: true });
+    });
     /** With a chaos map of a Phase-space plane: launches the orbit of a clicked cell there. */
     this.planeLaunch = null;
     this.presetSelect.addEventListener('change', () => this.loadPreset(this.presetSelect.value));
@@ -187,6 +193,7 @@ export class SweepPanel {
     this.presetSelect.replaceChildren(...this.presets.map((p) => el('option', { value: p.id, text: p.title })));
     this.loadPreset(this.presets[0]?.id);
     this.runButton.disabled = false;
+    this.jobButton.disabled = false;
   }
 
   loadPreset(id) {
@@ -194,8 +201,11 @@ export class SweepPanel {
     if (preset) this.spec.value = JSON.stringify(preset.request, null, 2);
   }
 
-  /** Runs the request in the text box (a new run supersedes a running one). */
-  async run() {
+  /**
+   * Runs the request in the text box (a new run supersedes a running one); `asJob` submits it as
+   * a job and draws the job's document when it is done.
+   */
+  async run({ asJob = false } = {}) {
     this.error.textContent = '';
     this.spec.removeAttribute('aria-invalid');
     let body;
@@ -208,7 +218,8 @@ export class SweepPanel {
       this.runner.setState('error');
       return;
     }
-    const { outcome, result: doc, error } = await this.runner.stream(sweepStream, body);
+    const stream = asJob ? jobStream('sweep') : sweepStream;
+    const { outcome, result: doc, error } = await this.runner.stream(stream, body);
     if (outcome === OUTCOME.superseded) return;
     if (outcome === OUTCOME.cancelled) {
       this.status.textContent = 'Cancelled.';
@@ -222,6 +233,18 @@ export class SweepPanel {
       this.spec.focus();
       return;
     }
+    this.finish(body, doc);
+  }
+
+  /** Shows a done job's sweep: its request in the text box and its document drawn. */
+  show(body, doc) {
+    showRequest(this, body);
+    this.planeLaunch = null;
+    this.finish(body, doc);
+  }
+
+  /** Draws the sweep `doc` of the request `body`. */
+  finish(body, doc) {
     this.last = { body, doc };
     this.runner.showProgress(doc.cells, doc.cells);
     this.showViews(doc);

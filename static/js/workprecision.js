@@ -53,7 +53,7 @@ function timeText(p) {
 export class WorkPrecisionPanel extends StudyPanel {
   /** @param {HTMLElement} root the section */
   constructor(root) {
-    super(root, 'wp', 'wpState', root.querySelector('#wp-download-rrd'));
+    super(root, 'wp', 'wpState', root.querySelector('#wp-download-rrd'), 'work-precision');
     this.spec.value = JSON.stringify(PRESET_STUDY, null, 2);
     this.timingNote = root.querySelector('#wp-timing');
     this.chart = new LogLogPlot(root.querySelector('#wp-plot'), 'max |energy error| over the samples',

@@ -12,7 +12,7 @@ import { join } from 'node:path';
 import { artifacts, base, launch, openSection, waitForServer } from './harness.mjs';
 
 /** The page's sections, in the order of the header's links. */
-const SECTIONS = ['simulation', 'your-system', 'recordings', 'stability', 'work-precision', 'convergence', 'energy-map', 'sweep',
+const SECTIONS = ['simulation', 'your-system', 'recordings', 'jobs', 'stability', 'work-precision', 'convergence', 'energy-map', 'sweep',
   'basins', 'phase-space'];
 
 let context;
@@ -49,11 +49,11 @@ test('a fresh page’s own Run runs, a few Tab presses from the top, with no pre
     await page.keyboard.press('Tab');
   }
   const presets = await page.$$eval('#preset-list button', (bs) => bs.length);
-  // Besides the presets: the header's links (ten sections, three API links) and API token field,
-  // and the form's own fields (system, parameters, state, step, chaos indicators) — about 30,
-  // against 83 when Run came after every method card.
+  // Besides the presets: the header's links (eleven sections, three API links) and API token
+  // field, and the form's own fields (system, parameters, state, step, chaos indicators) — about
+  // 30, against 83 when Run came after every method card.
   const formStops = tabs - presets;
-  assert.ok(formStops <= 33, `Run is ${tabs} Tab presses from the top (${formStops} past the ${presets} preset buttons)`);
+  assert.ok(formStops <= 34, `Run is ${tabs} Tab presses from the top (${formStops} past the ${presets} preset buttons)`);
   // Run is on the screen when it has the focus, without scrolling the form's panel to its end.
   const box = await page.locator('#run').boundingBox();
   assert.ok(box.y >= 0 && box.y + box.height <= 880, `Run at y = ${box.y}`);

@@ -196,6 +196,12 @@ async fn every_study_as_a_job_gives_its_routes_document() {
             "{err}"
         );
 
+        let path = format!("{JOBS}/{id}/request");
+        let (status, submitted) = call_json(&base, reqwest::Method::GET, &path, None, None).await;
+        assert_eq!(status, 200, "{study}: {submitted}");
+        let expected = json!({"study": study, "request": request, "priority": 0});
+        assert_eq!(submitted, expected, "{study}: the submission read back");
+
         let path = format!("{JOBS}/{id}/result");
         let (status, from_job) = call_json(&base, reqwest::Method::GET, &path, None, None).await;
         assert_eq!(status, 200, "{study}: {from_job}");

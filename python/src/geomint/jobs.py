@@ -22,7 +22,7 @@ import httpx
 
 from ._progress import Progress
 from ._transport import Transport
-from ._wire import NDJSON, ROUTES, RRD, JobEvent, JobRequest, JobStatus
+from ._wire import NDJSON, ROUTES, RRD, JobEvent, JobRequest, JobStatus, JobSubmission
 from .errors import GeomintError, RefusedError, UnreachableError, ValidationError
 from .recording import Recording
 
@@ -131,6 +131,12 @@ class Job(Generic[T]):
         if self._build is None:
             return cast(T, document)
         return self._build({"type": "result", **document})
+
+    def request(self) -> JobSubmission:
+        """The job as it was submitted: ``{"study", "request", "priority"}``, the request being
+        the body its study's route takes, as it was sent."""
+        submitted: JobSubmission = self._client._json("job_request", ids={"id": self.id})
+        return submitted
 
     def recording(self) -> Recording:
         """The Rerun recording of a done job's study (every study but a convergence study)."""

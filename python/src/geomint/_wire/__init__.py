@@ -163,7 +163,7 @@ from .basins import (
     UncertainFraction,
     UndecidedCell,
 )
-from .jobs import EventKind, JobEvent, JobRequest, JobState, JobStatus
+from .jobs import EventKind, JobEvent, JobRequest, JobState, JobStatus, JobSubmission
 from .routes import (
     JSON,
     NDJSON,
@@ -178,6 +178,7 @@ __all__ = [
     "JobRequest",
     "JobState",
     "JobStatus",
+    "JobSubmission",
     "AnalyticVerdicts",
     "AttractorEntry",
     "AttractorKind",

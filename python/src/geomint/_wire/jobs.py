@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Literal, Optional, TypedDict, Union
+from typing import Any, Dict, Literal, Optional, TypedDict, Union
 
 from .answers import ErrorDetail
 from .basins import BasinsRequest
@@ -95,3 +95,11 @@ class JobEvent(_JobEventRequired, total=False):
     """A line of a job's event stream."""
 
     error: Optional[ErrorDetail]
+
+
+class JobSubmission(TypedDict):
+    """A job as it was submitted: its study, the request its route takes, its priority."""
+
+    study: str
+    request: Dict[str, Any]
+    priority: int

@@ -36,7 +36,7 @@ from .studies import (
     SweepLine,
 )
 from .basins import BasinsLine, BasinsRequest
-from .jobs import JobEvent, JobRequest, JobStatus
+from .jobs import JobEvent, JobRequest, JobStatus, JobSubmission
 
 
 JSON = "application/json"
@@ -130,6 +130,7 @@ ROUTES: Dict[str, Route] = {
     "cancel_job": Route("POST", "/api/v1/jobs/{id}/cancel", {JSON: JobStatus}),
     "remove_job": Route("DELETE", "/api/v1/jobs/{id}", status=204),
     "job_events": Route("GET", "/api/v1/jobs/{id}/events", {NDJSON: JobEvent}),
+    "job_request": Route("GET", "/api/v1/jobs/{id}/request", {JSON: JobSubmission}),
     "job_result": Route(
         "GET", "/api/v1/jobs/{id}/result", {JSON: Dict[str, Any], RRD: bytes}, query={"format": ["rrd"]}
     ),
