@@ -4,7 +4,8 @@
 // done; after a reload (a closed tab) the list still has it and Show draws it again; a long job is
 // cancelled by the section's Cancel on the server, then removed from the list; a refused job names
 // its field as the section's own run does; every other study section has the button; the list
-// fits a phone screen. Screenshots go to artifacts/.
+// fits a phone screen; an energy map submitted by another client is shown in its section with its
+// request in the form. Screenshots go to artifacts/.
 
 import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
@@ -157,4 +158,28 @@ test('a refused job names its field as the section’s own run does; every study
   assert.ok(overflow <= 0, `the page is ${overflow}px wider than the screen`);
   await page.locator('#jobs').screenshot({ path: join(artifacts, 'page-jobs-phone.png') });
   assert.deepEqual(consoleErrors.filter((e) => !LOGGED_422.test(e)), []);
+});
+
+test('a job submitted elsewhere is shown in its section with its request in the form', async () => {
+  await page.setViewportSize({ width: 1280, height: 900 });
+  await openSection(page, 'energy-map');
+  await page.fill('#em-nx', '7');
+  await page.fill('#em-ny', '6');
+  await page.fill('#em-t-max', '50');
+  const request = await page.evaluate(() => window.geomint.energyMap.read());
+  // Submitted by another client, with the form then changed.
+  const { status, body: submitted } = await postJson('/api/v1/jobs', { study: 'energy-map', request });
+  assert.equal(status, 202, JSON.stringify(submitted));
+  await page.fill('#em-nx', '11');
+  await openSection(page, 'jobs');
+  await page.click('#jobs-refresh');
+  const row = page.locator(`#jobs-list tr[data-id="${submitted.id}"][data-state="done"]`);
+  await row.waitFor({ timeout: 60_000 });
+  await row.locator('button:text("Show")').click();
+  await page.waitForSelector('#energy-map[data-view]:not([hidden])', { timeout: 5_000 });
+  await page.waitForSelector('#energy-map[data-map-state="done"]', { timeout: 10_000 });
+  const { body: doc } = await getJson(`/api/v1/jobs/${submitted.id}/result`);
+  assert.deepEqual(await page.evaluate(() => window.geomint.energyMap.last.doc), doc);
+  assert.equal(await page.inputValue('#em-nx'), '7');
+  assert.deepEqual(await page.evaluate(() => window.geomint.energyMap.read()), request);
 });
