@@ -40,6 +40,8 @@ impl Jobs {
             .cloned()
     }
 
+    /// The job starter's loop: starts queued jobs, each on a thread of its own, while fewer than
+    /// [`ACTIVE_JOBS`] run, and waits for a change; returns once the server stops.
     pub(super) fn dispatch(self: &Arc<Self>, context: &Arc<JobContext>) {
         let mut board = self.board();
         loop {
