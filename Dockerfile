@@ -28,17 +28,19 @@ RUN --mount=type=cache,target=/usr/local/cargo/registry \
 
 FROM debian:bookworm-slim
 RUN useradd --system --uid 10001 --no-create-home --home-dir /nonexistent --shell /usr/sbin/nologin geomint \
-    && mkdir -p /data/recordings /data/systems && chown geomint /data/recordings /data/systems
+    && mkdir -p /data/recordings /data/systems /data/jobs \
+    && chown geomint /data/recordings /data/systems /data/jobs
 COPY --from=builder /out/geomint /usr/local/bin/geomint
 COPY --from=page /src/static /app/static
 WORKDIR /app
 ENV GEOMINT_ADDR=0.0.0.0:8080 \
     GEOMINT_STATIC_DIR=/app/static \
     GEOMINT_DATA_DIR=/data/recordings \
-    GEOMINT_SYSTEMS_DIR=/data/systems
-# Stored Rerun recordings and system definitions; mount volumes here to keep them across
-# containers.
-VOLUME /data/recordings /data/systems
+    GEOMINT_SYSTEMS_DIR=/data/systems \
+    GEOMINT_JOBS_DIR=/data/jobs
+# Stored Rerun recordings, system definitions and jobs (their parts and results); mount volumes
+# here to keep them across containers.
+VOLUME /data/recordings /data/systems /data/jobs
 USER geomint
 EXPOSE 8080
 STOPSIGNAL SIGTERM
