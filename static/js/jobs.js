@@ -102,7 +102,9 @@ export class JobsPanel {
     this.render();
     const running = this.jobs.some((j) => !ENDED.has(j.state));
     this.setState(running ? 'running' : 'idle');
-    if (running && !document.hidden) this.timer = setTimeout(() => this.refresh(), POLL_MS);
+    // Two reads in flight at once (a poll and a submission) leave one timer between them.
+    clearTimeout(this.timer);
+    this.timer = running && !document.hidden ? setTimeout(() => this.refresh(), POLL_MS) : null;
   }
 
   render() {
