@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import os
-from pathlib import Path
 from typing import (
     Any,
     Callable,
@@ -49,6 +47,7 @@ from ._keywords import checked
 from ._names import StateNames
 from ._transport import DEFAULT_URL
 from .jobs import JobCalls
+from .library import RecordingCalls
 from ._progress import Progress
 from ._wire import (
     NDJSON,
@@ -66,7 +65,6 @@ from ._wire import (
     PointRequest,
     Preset,
     RecognitionRequest,
-    RecordingCreated,
     ReferenceRun,
     RunSpec,
     StabilityRequest,
@@ -80,7 +78,7 @@ from ._wire import (
 )
 from .catalog import Definition, Method, System
 from .errors import GeomintError, RefusedError, ValidationError
-from .recording import RRD_MAGIC, Recording, RecordingInfo
+from .recording import Recording
 from .simulation import Simulation, StreamAssembler
 from .maps import (
     EnergyMap,
@@ -95,7 +93,7 @@ from .studies import (
 )
 
 
-class Client(JobCalls):
+class Client(JobCalls, RecordingCalls):
     """A geomint server's API as Python calls.
 
     >>> client = Client("http://127.0.0.1:8080")          # doctest: +SKIP
@@ -391,47 +389,6 @@ class Client(JobCalls):
         routes = {Simulation: "simulate", Sweep: "sweep", StabilityMaps: "stability_map",
                   EnergyMap: "energy_map", WorkPrecision: "work_precision"}
         return self._rrd(routes[type(of)], of.request)
-
-    def store(self, of: Simulation) -> Recording:
-        """Runs a simulation's request again as a stored recording on the server; returns the
-        recording with its id (listed by :meth:`recordings`, read back by :meth:`samples`)."""
-        if of.request is None:
-            raise ValueError("this simulation carries no request (it was read back from a recording)")
-        created: RecordingCreated = self._json("create_recording", body=of.request)
-        return self.download(created["id"])
-
-    def upload(self, recording: Union[Recording, bytes, str, "os.PathLike[str]"]) -> Recording:
-        """Stores a .rrd file (a :class:`Recording`, bytes, or a path) on the server, which checks
-        it first; returns it with its id."""
-        if isinstance(recording, Recording):
-            data = recording.data
-        elif isinstance(recording, bytes):
-            data = recording
-        else:
-            data = Path(recording).read_bytes()
-        if not data.startswith(RRD_MAGIC):
-            raise ValidationError("body", f"not a Rerun recording (.rrd): it starts with {data[:8]!r}",
-                                  code="invalid_recording")
-        created: RecordingCreated = self._json("upload_recording", content=data)
-        return Recording(data, created["id"])
-
-    def recordings(self) -> List[RecordingInfo]:
-        """The stored recordings, newest first."""
-        return [RecordingInfo.from_json(e) for e in self._json("list_recordings")]
-
-    def download(self, id: str) -> Recording:
-        """A stored recording's file."""
-        response = self._send("get_recording", accept=RRD, ids={"id": f"{id}.rrd"})
-        return Recording(response.content, id)
-
-    def samples(self, id: str) -> Simulation:
-        """A stored simulation recording's runs, read back from the file by the server: energies
-        and invariants exact, ``q`` and ``p`` in single precision, no stop reasons or wall times."""
-        return Simulation.from_recorded(self._json("recording_samples", ids={"id": id}))
-
-    def delete_recording(self, id: str) -> None:
-        """Deletes a stored recording."""
-        self._send("delete_recording", ids={"id": id})
 
     # ----------------------------------------------------------------------------------------
     # Studies
