@@ -32,7 +32,8 @@ def coarse(request: Dict[str, Any], n: int) -> Dict[str, Any]:
 def test_the_double_well_has_two_equal_basins_swapped_by_the_reflection(
     client: geomint.Client, presets: Dict[str, Dict[str, Any]]
 ) -> None:
-    assert set(presets) == {"double_well", "forced_duffing", "henon_heiles_escapes", "henon_heiles_escapes_damped"}
+    assert set(presets) == {"double_well", "forced_duffing", "forced_pendulum", "henon_heiles_escapes",
+                            "henon_heiles_escapes_damped"}
     # 10 × 10 over [−2, 2]²: no cell starts on the saddle at the origin.
     basins = client.basins(**coarse(presets["double_well"], 10), progress=False)
     assert basins.shape == (10, 10) and basins.exits == () and basins.stop == "finished"
@@ -49,7 +50,7 @@ def test_the_double_well_has_two_equal_basins_swapped_by_the_reflection(
     assert [a.cells for a in run.attractors] == [50, 50]
     assert run.fractions.tolist() == [0.5, 0.5] and [a.fraction for a in run.attractors] == [0.5, 0.5]
     assert run.undecided_fraction == 0 and run.undecided == ()
-    assert run.decided_by == {"energy": 100, "exit": 0, "recurrence": 0, "divergence": 0, "t_end": 0, "undecided": 0}
+    assert run.decided_by == {"energy": 100, "exit": 0, "recurrence": 0, "proximity": 0, "divergence": 0, "t_end": 0, "undecided": 0}
     assert np.isin(run.labels, [a.label for a in run.attractors]).all()
     assert np.isfinite(run.decided_at).all() and 0 < run.decided_at.max() < basins.request["t_end"]
     # The equation is odd in (x, x′): the reflection of a cell is in the other basin, decided
@@ -158,6 +159,53 @@ def test_the_forced_duffing_oscillator_locks_onto_a_periodic_orbit_in_each_well(
     assert sorted(np.sign(p[0, 0]) for p in points if p is not None) == [-1, 1]
     assert run.decided_by["recurrence"] == 81 and run.undecided_fraction == 0
     assert sum(a.cells for a in run.attractors) == 81
+
+
+def test_the_forced_pendulum_turns_once_a_period_each_way_as_scipy_confirms(
+    client: geomint.Client, presets: Dict[str, Dict[str, Any]]
+) -> None:
+    request = coarse(presets["forced_pendulum"], 12)
+    assert request["recognition"]["angles"] == ["theta"]
+    run = client.basins(**request, progress=False)[0]
+    assert [(a.kind, a.period) for a in run.attractors] == [("periodic", 1), ("periodic", 1)]
+    assert run.decided_by["recurrence"] == 144 and run.undecided_fraction == 0
+    # Each orbit's stroboscopic point, integrated over one period by DOP853 at 1e-12, comes back
+    # to itself on the circle (to csv1's first-order error at T/64) having turned once: the two
+    # orbits turn opposite ways.
+    params = request["system"]["parameters"]
+    nu, force, period = params["nu"], params["F"], request["recognition"]["period"]
+
+    def pendulum(t: float, y: np.ndarray) -> list:
+        return [y[1], -nu * y[1] - np.sin(y[0]) + force * np.cos(t)]
+
+    turns = []
+    for attractor in run.attractors:
+        assert attractor.points is not None and -np.pi < attractor.points[0, 0] <= np.pi
+        start = attractor.points[0]
+        end = solve_ivp(pendulum, (0, period), start, method="DOP853", rtol=1e-12, atol=1e-12).y[:, -1]
+        turned = (end[0] - start[0]) / (2 * np.pi)
+        turns.append(round(turned))
+        assert abs(turned - round(turned)) < 2e-3 and abs(end[1] - start[1]) < 1e-2
+    assert sorted(turns) == [-1, 1]
+
+
+def test_given_attractors_name_the_labels_and_decide_by_proximity(
+    client: geomint.Client, presets: Dict[str, Dict[str, Any]]
+) -> None:
+    request = coarse(presets["forced_pendulum"], 8)
+    found = client.basins(**request, progress=False)[0]
+    given = [(f"turn {a.label}", a.points, 0.05) for a in found.attractors]
+    run = client.basins(**request, attractors=given, progress=False)[0]
+    assert [(a.kind, a.name, a.radius) for a in run.attractors] == [("given", "turn 0", 0.05), ("given", "turn 1", 0.05)]
+    assert np.array_equal(run.labels, found.labels)
+    assert run.decided_by["proximity"] + run.decided_by["recurrence"] == 64 and run.decided_by["proximity"] > 32
+    assert np.nanmean(run.decided_at) < np.nanmean(found.decided_at)
+    with pytest.raises(geomint.ValidationError) as radius:
+        client.basins(**request, attractors=[("turn", [[0, 0]], 0)], progress=False)
+    assert radius.value.field == "attractors[0].radius"
+    with pytest.raises(geomint.RefusedError) as momentum:
+        client.basins(**{**request, "recognition": {**request["recognition"], "angles": ["p_theta"]}}, progress=False)
+    assert momentum.value.field == "recognition.angles[0]"
 
 
 def test_two_methods_share_the_labels(client: geomint.Client, presets: Dict[str, Dict[str, Any]]) -> None:

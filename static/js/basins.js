@@ -52,6 +52,7 @@ function kindText(a) {
     case 'exit': return 'exit: the orbits leave through it';
     case 'diverged': return 'diverged to infinity';
     case 'stayed': return 'stayed inside until t_end';
+    case 'given': return `the request's attractor: orbits that come within ${fmt(a.radius, 3)} of it end there`;
     default: return a.kind;
   }
 }
@@ -312,7 +313,8 @@ export class BasinsPanel {
     const q = coordinates.length === 1 ? coordinates[0] : coordinates.length ? `(${coordinates.join(', ')})` : 'q';
     const where = (a) => {
       if (a.equilibrium) return `at ${q} = ${tuple(a.equilibrium.q)}, V = ${tuple([a.equilibrium.energy])}`;
-      if (a.points?.length) return `stroboscopic point${a.points.length > 1 ? 's' : ''} ${a.points.map(tuple).join(', ')}`;
+      const point = a.kind === 'given' ? 'point' : 'stroboscopic point';
+      if (a.points?.length) return `${point}${a.points.length > 1 ? 's' : ''} ${a.points.map(tuple).join(', ')}`;
       return '';
     };
     const items = run.attractors.map((a) => el('li', { 'data-label': String(a.label), 'data-kind': a.kind },

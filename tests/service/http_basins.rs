@@ -170,6 +170,38 @@ async fn bad_basin_maps_are_422s_naming_the_field() {
         ),
         (
             {
+                let mut b = double_well(4);
+                b["recognition"] = json!({"angles": ["p_x"]});
+                b
+            },
+            "recognition.angles[0]",
+        ),
+        (
+            {
+                let mut b = double_well(4);
+                b["attractors"] = json!([{"name": "left", "points": [[-1, 0, 0]], "radius": 0.1}]);
+                b
+            },
+            "attractors[0].points[0]",
+        ),
+        (
+            {
+                let mut b = double_well(4);
+                b["attractors"] = json!([{"name": "left", "points": [[-1, 0]], "radius": 0}]);
+                b
+            },
+            "attractors[0].radius",
+        ),
+        (
+            {
+                let mut b = double_well(4);
+                b["attractors"] = json!([{"name": "left", "points": [[-1, 0]]}]);
+                b
+            },
+            "attractors[0].radius",
+        ),
+        (
+            {
                 // A basin map takes up to 1024 points along an axis (a sweep 401).
                 let mut b = double_well(4);
                 b["axes"][0]["n"] = json!(1025);
@@ -192,7 +224,7 @@ async fn every_preset_runs_and_finds_its_attractors() {
     let server = start(config()).await;
     let presets = server::get_json(&server, "/api/v1/studies/basins/presets").await;
     let presets = presets.as_array().unwrap();
-    assert_eq!(presets.len(), 4);
+    assert_eq!(presets.len(), 5);
     for preset in presets {
         let id = preset["id"].as_str().unwrap();
         let mut body = preset["request"].clone();
@@ -216,6 +248,11 @@ async fn every_preset_runs_and_finds_its_attractors() {
                 assert_eq!(run["undecided_fraction"], 0.0);
             }
             "forced_duffing" => assert_eq!(count("periodic"), 2, "{id}: {kinds:?}"),
+            // Round one way and round the other: period-1 orbits once θ is taken modulo 2π.
+            "forced_pendulum" => {
+                assert_eq!(count("periodic"), 2, "{id}: {kinds:?}");
+                assert_eq!(run["undecided_fraction"], 0.0);
+            }
             "henon_heiles_escapes" => assert_eq!(count("exit"), 3, "{id}: {kinds:?}"),
             "henon_heiles_escapes_damped" => {
                 assert!(

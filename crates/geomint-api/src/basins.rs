@@ -22,7 +22,7 @@ use super::system::{StoredSystems, SystemRequest};
 use crate::core::error::{ErrorDetail, Field};
 use crate::core::sections::Direction;
 use crate::core::simulation::InitialCoordinates;
-use crate::core::studies::basins::{BasinsSpec, ExitSpec, Recognition};
+use crate::core::studies::basins::{BasinsSpec, ExitSpec, GivenAttractor, Recognition};
 use crate::core::studies::sweep::Scale;
 use crate::core::systems::{ChartId, ParamValue};
 
@@ -38,7 +38,14 @@ const NOT_FOR_BASINS: &[&str] = &[
     "section",
 ];
 const EXIT_FIELDS: &[&str] = &["name", "where", "direction"];
-const RECOGNITION_FIELDS: &[&str] = &["period", "max_period", "tolerance", "escape_radius"];
+const RECOGNITION_FIELDS: &[&str] = &[
+    "period",
+    "max_period",
+    "tolerance",
+    "escape_radius",
+    "angles",
+];
+const ATTRACTOR_FIELDS: &[&str] = &["name", "points", "radius"];
 
 /// An exit of an open system: a surface S(q, p, t) = 0 in the section language, crossed in
 /// `direction`.
@@ -78,6 +85,27 @@ pub struct RecognitionRequest {
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(exclusive_minimum = 0.0)]
     pub escape_radius: Option<f64>,
+    /// The coordinates that are angles, by name (a pendulum's `theta`): compared modulo 2π on
+    /// the stroboscopic map and against given attractors, reported in (−π, π], and never taken
+    /// to have escaped — so a rotating orbit, whose angle gains 2π a period, is a periodic one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub angles: Option<Vec<String>>,
+}
+
+/// An attractor the request names: an orbit (a driven system's stroboscopic point) that comes
+/// within `radius` of one of its points, in every component, ends up there; an equilibrium or
+/// periodic orbit found on the fly within `radius` of its points takes its label too.
+#[derive(Clone, Debug, PartialEq, Serialize, ToSchema)]
+#[schema(example = json!({"name": "left well", "points": [[-1, 0]], "radius": 0.05}))]
+pub struct AttractorRequest {
+    /// Its name (unique), which the map's legend shows.
+    pub name: String,
+    /// Its points (1 to 256), each q then p (without a driven system's clock).
+    #[schema(min_items = 1, max_items = 256)]
+    pub points: Vec<Vec<f64>>,
+    /// How close counts, in every component (angles modulo 2π).
+    #[schema(exclusive_minimum = 0.0)]
+    pub radius: f64,
 }
 
 /// A basin map: which attractor or exit each initial state of a grid ends up at.
@@ -136,6 +164,10 @@ pub struct BasinsRequest {
     pub exits: Vec<ExitRequest>,
     /// How attractors are recognised.
     pub recognition: Option<RecognitionRequest>,
+    /// Attractors known in advance (up to 64): they take the first labels, in this order.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    #[schema(max_items = 64)]
+    pub attractors: Vec<AttractorRequest>,
 }
 
 /// One axis of a basin map, as the schema shows it: a sweep's axis (read by the sweep's reader)
@@ -166,7 +198,7 @@ fn basins_fields() -> Vec<&'static str> {
         .iter()
         .copied()
         .filter(|f| !NOT_FOR_BASINS.contains(f) && *f != "charts")
-        .chain(["exits", "recognition"])
+        .chain(["exits", "recognition", "attractors"])
         .collect()
 }
 
@@ -181,6 +213,18 @@ fn exit(v: &Value, at: &Field) -> Result<ExitRequest, ErrorDetail> {
     })
 }
 
+fn attractor(v: &Value, at: &Field) -> Result<AttractorRequest, ErrorDetail> {
+    let o = Obj::new(v, at.clone(), ATTRACTOR_FIELDS)?;
+    let point = |v: &Value, at: &Field| list(v, at, "a point: q then p", json::number);
+    Ok(AttractorRequest {
+        name: o.required("name", "the attractor's name, e.g. \"left well\"", string)?,
+        points: o.required("points", "its points, e.g. [[-1, 0]]", |v, at| {
+            list(v, at, "a list of points, each q then p", point)
+        })?,
+        radius: o.required("radius", "how close counts, e.g. 0.05", json::number)?,
+    })
+}
+
 fn recognition(v: &Value, at: &Field) -> Result<RecognitionRequest, ErrorDetail> {
     let o = Obj::new(v, at.clone(), RECOGNITION_FIELDS)?;
     Ok(RecognitionRequest {
@@ -190,6 +234,9 @@ fn recognition(v: &Value, at: &Field) -> Result<RecognitionRequest, ErrorDetail>
         })?,
         tolerance: o.optional("tolerance", json::number)?,
         escape_radius: o.optional("escape_radius", json::number)?,
+        angles: o.optional("angles", |v, at| {
+            list(v, at, "a list of coordinate names", string)
+        })?,
     })
 }
 
@@ -201,11 +248,17 @@ impl BasinsRequest {
             .optional("exits", |v, at| list(v, at, "a list of exits", exit))?
             .unwrap_or_default();
         let recognition = obj.optional("recognition", recognition)?;
+        let attractors = obj
+            .optional("attractors", |v, at| {
+                list(v, at, "a list of attractors", attractor)
+            })?
+            .unwrap_or_default();
         // The rest is a sweep's body, read by the sweep's reader.
         let mut rest = value.clone();
         if let Some(map) = rest.as_object_mut() {
             map.remove("exits");
             map.remove("recognition");
+            map.remove("attractors");
         }
         let sweep = SweepRequest::from_value(&rest)?;
         let h = obj.required("h", "the step size", json::number)?;
@@ -223,6 +276,7 @@ impl BasinsRequest {
             energy_surface: sweep.energy_surface.clone(),
             exits,
             recognition,
+            attractors,
         };
         Ok((request, sweep))
     }
@@ -239,6 +293,11 @@ impl BasinsRequest {
         let mut hasher = Sha256::new();
         hasher.update(spec.digest.as_bytes());
         hasher.update(&own);
+        // Given attractors join the identity only when there are some, so that a map without
+        // them keeps the identity it had before they could be given.
+        if !self.attractors.is_empty() {
+            hasher.update(serde_json::to_vec(&self.attractors).unwrap_or_default());
+        }
         let mut hex = String::with_capacity(64);
         for byte in hasher.finalize() {
             let _ = write!(hex, "{byte:02x}");
@@ -267,8 +326,20 @@ impl BasinsRequest {
                 }),
                 tolerance: given.tolerance.unwrap_or(defaults.tolerance),
                 escape_radius: given.escape_radius.unwrap_or(defaults.escape_radius),
+                angles: given.angles.unwrap_or_default(),
                 field: defaults.field,
             },
+            attractors: self
+                .attractors
+                .iter()
+                .enumerate()
+                .map(|(i, a)| GivenAttractor {
+                    name: a.name.clone(),
+                    points: a.points.clone(),
+                    radius: a.radius,
+                    field: Field::new("attractors").index(i),
+                })
+                .collect(),
         })
     }
 }
@@ -325,6 +396,25 @@ pub fn presets() -> Vec<Preset> {
                 "recognition": {"period": std::f64::consts::TAU},
                 "axes": [{"name": "q0[0]", "min": -1.8, "max": 1.8, "n": 61},
                          {"name": "p0[0]", "min": -1.0, "max": 1.0, "n": 61}]
+            }),
+        },
+        Preset {
+            id: "forced_pendulum",
+            title: "The forced damped pendulum θ″ + 0.1θ′ + sin θ = 2 cos t: two rotating \
+                    orbits, one each way round, with interleaved basins and a fractal boundary \
+                    (the system of Grebogi, Ott & Yorke's fractal basin boundaries, Science 238 \
+                    (1987) 632); θ is an angle, so a turn a period is a period-1 orbit",
+            request: json!({
+                "system": {"name": "forced damped pendulum", "coordinates": ["theta"],
+                           "mass": 1, "potential": "-cos(theta) - F*theta*cos(omega*t)",
+                           "damping": {"gamma": "nu/2"},
+                           "parameters": {"nu": 0.1, "F": 2, "omega": 1}},
+                "methods": ["csv1"], "h": std::f64::consts::TAU / 64.0,
+                "t_end": 200.0 * std::f64::consts::TAU,
+                "recognition": {"period": std::f64::consts::TAU, "angles": ["theta"]},
+                "axes": [{"name": "q0[0]", "min": -std::f64::consts::PI,
+                          "max": std::f64::consts::PI, "n": 101},
+                         {"name": "p0[0]", "min": -4.0, "max": 4.0, "n": 101}]
             }),
         },
         Preset {

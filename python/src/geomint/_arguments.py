@@ -22,6 +22,7 @@ import numpy as np
 
 from ._wire import (
     JSON,
+    AttractorRequest,
     AxisRequest,
     BasinsLine,
     BasinsRequest,
@@ -102,6 +103,7 @@ AnyStudyLine = Union[SweepLine, MapLine, ConvergenceLine, StudyLine, BasinsLine]
 StudyResult = Union[SweepResultLine, MapResultLine, ConvergenceResultLine, WorkPrecisionResultLine,
                     BasinsResultLine]
 ExitLike = Union[ExitRequest, Tuple[str, str], Tuple[str, str, str]]
+AttractorLike = Union[AttractorRequest, Tuple[str, Any, float]]
 """An exit of a basin map: ``{"name", "where", "direction"}``, or ``(name, where)`` with an
 optional direction (``up``, ``down``, ``both``)."""
 
@@ -264,17 +266,59 @@ def _exits(exits: Union[ExitLike, Sequence[ExitLike]]) -> List[ExitRequest]:
 
 
 def _recognition(recognition: RecognitionRequest) -> RecognitionRequest:
-    """A basin map's ``recognition``: ``period``, ``max_period``, ``tolerance``, ``escape_radius``."""
+    """A basin map's ``recognition``: ``period``, ``max_period``, ``tolerance``, ``escape_radius``,
+    ``angles``."""
     if not isinstance(recognition, Mapping):
-        raise ValidationError("recognition", "give {'period', 'max_period', 'tolerance', 'escape_radius'}",
-                              code="invalid_type")
-    members = cast(Mapping[str, Any], recognition)
+        raise ValidationError("recognition", "give {'period', 'max_period', 'tolerance', 'escape_radius', "
+                              "'angles'}", code="invalid_type")
+    members = dict(cast(Mapping[str, Any], recognition))
     for key in ("period", "tolerance", "escape_radius"):
         if key in members:
             _positive(members[key], f"recognition.{key}")
     if "max_period" in members:
         _count(members["max_period"], "recognition.max_period")
+    if "angles" in members:
+        angles = members["angles"]
+        if isinstance(angles, str):
+            angles = [angles]
+        if not isinstance(angles, (list, tuple)) or not all(isinstance(a, str) for a in angles):
+            raise ValidationError("recognition.angles", f"is a list of coordinate names such as ['theta'], "
+                                  f"not {angles!r}", code="invalid_type")
+        members["angles"] = list(angles)
     return cast(RecognitionRequest, _plain(members, "recognition"))
+
+
+def _attractors(attractors: Union[AttractorLike, Sequence[AttractorLike]]) -> List[AttractorRequest]:
+    """A basin map's attractors known in advance: each a name, its points (rows of q then p) and a
+    radius."""
+    if isinstance(attractors, Mapping) or (isinstance(attractors, tuple) and attractors
+                                           and isinstance(attractors[0], str)):
+        attractors = [cast(AttractorLike, attractors)]
+    out: List[AttractorRequest] = []
+    for i, attractor in enumerate(cast(Sequence[AttractorLike], attractors)):
+        where = f"attractors[{i}]"
+        if isinstance(attractor, tuple) and len(attractor) == 3:
+            members: Dict[str, Any] = dict(zip(("name", "points", "radius"), attractor))
+        elif isinstance(attractor, Mapping):
+            members = dict(attractor)
+        else:
+            raise ValidationError(where, "an attractor is {'name', 'points', 'radius'} or (name, points, radius)",
+                                  code="invalid_type")
+        for key in ("name", "points", "radius"):
+            if key not in members:
+                raise ValidationError(f"{where}.{key}", "is missing", code="missing_field")
+        if not isinstance(members["name"], str):
+            raise ValidationError(f"{where}.name", f"must be a string, not {members['name']!r}", code="invalid_type")
+        points = np.asarray(members["points"], dtype=float)
+        if points.ndim == 1:
+            points = points[None, :]
+        if points.ndim != 2 or points.shape[0] == 0:
+            raise ValidationError(f"{where}.points", "is a list of points, each q then p, such as [[-1, 0]]",
+                                  code="invalid_type")
+        members["points"] = points.tolist()
+        _positive(members["radius"], f"{where}.radius")
+        out.append(cast(AttractorRequest, _plain(members, where)))
+    return out
 
 
 def _stop_when(stop_when: StopWhenLike) -> StopWhenRequest:
@@ -462,6 +506,7 @@ def basins_request(
     names: Optional[StateNames] = None,
     exits: Optional[Union[ExitLike, Sequence[ExitLike]]] = None,
     recognition: Optional[RecognitionRequest] = None,
+    attractors: Optional[Union[AttractorLike, Sequence[AttractorLike]]] = None,
     params: Optional[Mapping[str, ParamValue]] = None,
     q0: Optional[Vector] = None,
     p0: Optional[Vector] = None,
@@ -495,4 +540,6 @@ def basins_request(
         body["exits"] = _exits(exits)
     if recognition is not None:
         body["recognition"] = _recognition(recognition)
+    if attractors is not None:
+        body["attractors"] = _attractors(attractors)
     return body

@@ -62,7 +62,7 @@ class Attractor:
     cells that start an orbit.
     ``equilibrium`` is the critical point of an equilibrium or a well; ``period`` (in driving
     periods) and ``points`` (one row of q then p per stroboscopic point) those of a periodic
-    orbit."""
+    orbit; ``points`` and ``radius`` those of an attractor the request gave (kind ``given``)."""
 
     label: int
     kind: AttractorKind
@@ -72,6 +72,7 @@ class Attractor:
     equilibrium: Optional[CriticalPoint] = None
     period: Optional[int] = None
     points: Optional[FloatArray] = None
+    radius: Optional[float] = None
 
     @classmethod
     def from_json(cls, doc: AttractorEntry, fraction: float) -> "Attractor":
@@ -85,6 +86,7 @@ class Attractor:
             equilibrium=None if equilibrium is None else CriticalPoint.from_json(equilibrium),
             period=doc.get("period"),
             points=None if points is None else _arrays.rows(points, len(points[0]) if points else 0),
+            radius=doc.get("radius"),
         )
 
 
@@ -106,7 +108,8 @@ class BasinRun:
     outcome was decided (NaN: undecided). ``attractors`` is the table of labels in label order
     (labels mean the same outcome in every run of a map), ``fractions`` each label's share;
     ``decided_by`` counts the cells each criterion decided (``energy``, ``exit``,
-    ``recurrence``, ``divergence``, ``t_end``, ``undecided``).
+    ``recurrence``, ``proximity`` to a given attractor, ``divergence``, ``t_end``,
+    ``undecided``).
 
     The metrics, over the undecided cells as one more outcome: ``basin_entropy`` S_b and
     ``boundary_basin_entropy`` S_bb over ``boxes`` boxes of 5 × 5 cells, ``boundary_boxes`` of
@@ -155,7 +158,8 @@ class BasinRun:
             undecided=tuple(Undecided(u["cell"], _grid_index(u["cell"], shape), u["reason"])
                             for u in doc["undecided"]),
             decided_by={"energy": decided_by["energy"], "exit": decided_by["exit"],
-                        "recurrence": decided_by["recurrence"], "divergence": decided_by["divergence"],
+                        "recurrence": decided_by["recurrence"], "proximity": decided_by["proximity"],
+                        "divergence": decided_by["divergence"],
                         "t_end": decided_by["t_end"], "undecided": decided_by["undecided"]},
             basin_entropy=doc.get("basin_entropy"),
             boundary_basin_entropy=doc.get("boundary_basin_entropy"),

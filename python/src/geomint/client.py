@@ -16,6 +16,7 @@ from typing import (
 )
 
 from ._arguments import (
+    AttractorLike,
     AxisLike,
     EnergyLike,
     EnergySurfaceLike,
@@ -498,6 +499,7 @@ class Client(JobCalls, RecordingCalls):
         h: float,
         exits: Optional[Union[ExitLike, Sequence[ExitLike]]] = None,
         recognition: Optional[RecognitionRequest] = None,
+        attractors: Optional[Union[AttractorLike, Sequence[AttractorLike]]] = None,
         params: Optional[Mapping[str, ParamValue]] = None,
         q0: Optional[Vector] = None,
         p0: Optional[Vector] = None,
@@ -517,11 +519,14 @@ class Client(JobCalls, RecordingCalls):
         or as ``q0[i]``/``p0[i]``; ``energy``/``energy_surface`` are :meth:`sweep`'s. ``exits``:
         ``{"name": "up", "where": "y - 2", "direction": "up"}`` or ``("up", "y - 2", "up")``;
         ``recognition``: ``period`` (a driven system's, a whole number of steps),
-        ``max_period``, ``tolerance``, ``escape_radius``. The rest are :meth:`simulate`'s (one
-        ``chart``). A progress bar counts the cells; interrupting it stops the server's map."""
+        ``max_period``, ``tolerance``, ``escape_radius``, ``angles`` (coordinates compared modulo
+        2π, ``["theta"]``); ``attractors``: ones known in advance, ``{"name": "left", "points":
+        [[-1, 0]], "radius": 0.05}`` or ``("left", [[-1, 0]], 0.05)``, which take the first
+        labels. The rest are :meth:`simulate`'s (one ``chart``). A progress bar counts the cells; interrupting it stops the server's map."""
         names = self._state_names(system, chart=chart, initial_coordinates=initial_coordinates)
         body = basins_request(
-            system, methods, axes, t_end, h=h, names=names, exits=exits, recognition=recognition, params=params,
+            system, methods, axes, t_end, h=h, names=names, exits=exits, recognition=recognition,
+            attractors=attractors, params=params,
             q0=q0, p0=p0, chart=chart, initial_coordinates=initial_coordinates, energy=energy,
             energy_surface=energy_surface,
         )

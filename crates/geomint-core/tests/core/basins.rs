@@ -1,6 +1,7 @@
 //! Basin maps: the damped double well, decided by the energy argument and checked cell by cell
 //! against the adaptive reference; Hénon–Heiles above its escape energy with three exits; the
-//! forced damped Duffing oscillator's periodic attractors on its stroboscopic map. Each map is
+//! forced damped Duffing oscillator's periodic attractors on its stroboscopic map; the forced
+//! damped pendulum's rotating orbits, its angle taken modulo 2π; attractors the request gives. Each map is
 //! run with a fixed-step method and with the adaptive DOP853 reference at 1e-12 as a second
 //! run of the same map, and the labels compared.
 
@@ -11,7 +12,8 @@ use geomint_core::sections::Direction;
 use geomint_core::simulation::{EnergySurface, Limits};
 use geomint_core::studies::basins::metrics::BOX;
 use geomint_core::studies::basins::{
-    self, BasinRun, BasinsDocument, BasinsJob, BasinsLine, BasinsSpec, ExitSpec, Kind, Recognition,
+    self, BasinRun, BasinsDocument, BasinsJob, BasinsLine, BasinsSpec, ExitSpec, GivenAttractor,
+    Kind, Recognition,
 };
 use geomint_core::studies::engine::{Local, Study};
 use geomint_core::studies::parts::{self, Shard};
@@ -131,6 +133,7 @@ fn double_well_map(n: usize, h: f64, methods_: &[Method]) -> BasinsSpec {
         ),
         exits: Vec::new(),
         recognition: Recognition::default(),
+        attractors: Vec::new(),
     }
 }
 
@@ -283,6 +286,7 @@ fn a_basin_map_is_the_same_in_shards_as_in_one_piece() {
         ),
         exits: Vec::new(),
         recognition: Recognition::default(),
+        attractors: Vec::new(),
     };
     let job = spec.prepare(&Limits::default()).unwrap();
     let whole = run(&job);
@@ -335,6 +339,7 @@ fn cells_in_lanes_end_as_each_alone_bit_for_bit() {
         ),
         exits: Vec::new(),
         recognition: Recognition::default(),
+        attractors: Vec::new(),
     };
     let escapes = henon_heiles_escapes(
         21,
@@ -399,6 +404,7 @@ fn henon_heiles_escapes(n: usize, methods_: &[Method], h: f64) -> BasinsSpec {
             exit(2, "right", "sqrt(3)/2*x - y/2 - 2"),
         ],
         recognition: Recognition::default(),
+        attractors: Vec::new(),
     }
 }
 
@@ -482,6 +488,7 @@ fn the_forced_damped_duffing_oscillator_locks_onto_a_period_one_orbit_in_each_we
             period: Some(period),
             ..Recognition::default()
         },
+        attractors: Vec::new(),
     };
     let job = spec.prepare(&Limits::default()).expect("prepares");
     assert!(job.landscape().is_none());
@@ -522,6 +529,7 @@ fn bad_basin_maps_are_refused_naming_the_field() {
         ),
         exits: Vec::new(),
         recognition: Recognition::default(),
+        attractors: Vec::new(),
     };
     let refused = |spec: BasinsSpec| match spec.prepare(&Limits::default()) {
         Ok(_) => panic!("accepted"),
@@ -597,4 +605,251 @@ fn the_wada_test_tells_three_stripes_from_hénon_heiles() {
     println!("Hénon–Heiles E = 0.25, 40 × 40: Wada shares {wada:?}");
     assert_eq!(wada.len(), 3);
     assert!(wada.iter().all(|w| w.share >= 0.95), "{wada:?}");
+}
+
+/// θ″ + νθ′ + sin θ = F cos t: H = p²/2 − cos θ − Fθ cos t with conformal damping γ = ν/2.
+fn forced_pendulum() -> SystemRef {
+    SystemRef::Defined(separable(
+        &["theta"],
+        "-cos(theta) - F*theta*cos(t)",
+        Some(Damping::Conformal {
+            gamma: expr("damping.gamma", "nu/2"),
+        }),
+        &[("nu", 0.1), ("F", 2.0)],
+    ))
+}
+
+/// The forced damped pendulum (ν = 0.1, F = 2) on n × n cells over θ₀ ∈ [−π, π],
+/// p₀ ∈ [−4, 4], with csv1 at T/64 and the adaptive reference, to 200 T.
+fn forced_pendulum_map(n: usize, angles: &[&str]) -> BasinsSpec {
+    let period = std::f64::consts::TAU;
+    let pi = std::f64::consts::PI;
+    BasinsSpec {
+        sweep: sweep(
+            forced_pendulum(),
+            &[
+                Method::new(MethodId::Csv1),
+                Method::Reference {
+                    tolerance: REFERENCE,
+                },
+            ],
+            period / 64.0,
+            200.0 * period,
+            vec![
+                axis(0, Target::Q0(0), (-pi, pi), n),
+                axis(1, Target::P0(0), (-4.0, 4.0), n),
+            ],
+        ),
+        exits: Vec::new(),
+        recognition: Recognition {
+            period: Some(period),
+            angles: angles.iter().map(|a| a.to_string()).collect(),
+            ..Recognition::default()
+        },
+        attractors: Vec::new(),
+    }
+}
+
+#[test]
+fn the_forced_damped_pendulum_turns_once_a_period_one_way_or_the_other() {
+    let n = 16;
+    // Taken as a number, θ gains ±2π a period on the rotating orbits: nothing recurs.
+    let job = forced_pendulum_map(n, &[])
+        .prepare(&Limits::default())
+        .unwrap();
+    let doc = run(&job.one_cell_at_a_time());
+    let map = &doc.runs[0];
+    assert_eq!(map.undecided.len(), n * n, "{:?}", map.attractors);
+    assert!(
+        map.undecided[0].reason.contains("periodic"),
+        "{:?}",
+        map.undecided[0]
+    );
+    // As an angle, every cell locks onto one of two period-1 orbits — not onto an orbit of
+    // period 2 whose points coincide, which is how one approached with a multiplier near −1
+    // first looks.
+    let job = forced_pendulum_map(n, &["theta"])
+        .prepare(&Limits::default())
+        .unwrap();
+    let doc = run(&job);
+    for run in &doc.runs {
+        assert_eq!(run.undecided_fraction, 0.0, "{:?}", run.undecided.first());
+        assert_eq!(run.decided_by.recurrence, n * n);
+        assert_eq!(
+            run.attractors.len(),
+            2,
+            "{}: {:?}",
+            run.label.method,
+            run.attractors
+        );
+        assert!(run.attractors.iter().all(|a| a.period == Some(1)));
+        // Reported on the circle.
+        for a in &run.attractors {
+            assert!(
+                a.points[0][0].abs() <= std::f64::consts::PI,
+                "{:?}",
+                a.points
+            );
+        }
+    }
+    // csv1's stroboscopic points lie within its first-order error of the reference's, and the
+    // two orbits turn opposite ways: one with p > 0 where θ ≈ −0.82, one with p < 0.
+    let (csv1, reference) = (&doc.runs[0], &doc.runs[1]);
+    let mut momenta = Vec::new();
+    for (a, b) in csv1.attractors.iter().zip(&reference.attractors) {
+        assert_eq!(a.name, b.name);
+        let gap = a.points[0]
+            .iter()
+            .zip(&b.points[0])
+            .map(|(x, y)| (x - y).abs())
+            .fold(0.0, f64::max);
+        assert!(gap < 1e-2, "{:?} against {:?}", a.points, b.points);
+        momenta.push(b.points[0][1]);
+    }
+    momenta.sort_by(f64::total_cmp);
+    assert!(momenta[0] < -0.5 && momenta[1] > 0.5, "{momenta:?}");
+    // Cell by cell the two maps differ where the boundary is: it is fractal (Grebogi, Ott &
+    // Yorke), and on the 101 × 101 preset its uncertainty exponent is about 0.03, so an error
+    // of any size moves labels near it. What both maps share is the pair of attractors above
+    // and basins interleaved at the grid's scale: every box of the basin entropy straddles the
+    // boundary, and most cells have a neighbour of the other label.
+    for run in &doc.runs {
+        let m = &run.metrics;
+        println!("{}: fractions {:?}, {m:?}", run.label.method, run.fractions);
+        assert_eq!(m.boundary_boxes, m.boxes, "{m:?}");
+        assert!(m.uncertain_fractions[0].fraction > 0.5, "{m:?}");
+    }
+}
+
+#[test]
+fn given_attractors_take_the_first_labels_and_decide_cells_by_proximity() {
+    let n = 16;
+    // The pendulum's two rotating orbits as the reference finds them.
+    let found = forced_pendulum_map(n, &["theta"]);
+    let doc = run(&found.prepare(&Limits::default()).unwrap());
+    let reference = &doc.runs[1];
+    let mut given = found.clone();
+    given.attractors = reference
+        .attractors
+        .iter()
+        .enumerate()
+        .map(|(i, a)| GivenAttractor {
+            name: format!("turn {}", i + 1),
+            // One point given 2π further on: angles are compared modulo 2π.
+            points: vec![vec![a.points[0][0] + std::f64::consts::TAU, a.points[0][1]]],
+            radius: 0.05,
+            field: Field::new("attractors").index(i),
+        })
+        .collect();
+    let doc_given = run(&given.prepare(&Limits::default()).unwrap());
+    for (with, without) in doc_given.runs.iter().zip(&doc.runs) {
+        // The same partition, named by the request, decided earlier.
+        assert_eq!(with.attractors.len(), 2, "{:?}", with.attractors);
+        assert!(with.attractors.iter().all(|a| a.kind == Kind::Given));
+        assert_eq!(with.attractors[0].name, "turn 1");
+        assert_eq!(with.labels, without.labels);
+        assert!(
+            with.decided_by.proximity > n * n / 2,
+            "{:?}",
+            with.decided_by
+        );
+        assert_eq!(
+            with.decided_by.proximity + with.decided_by.recurrence,
+            n * n
+        );
+        let mean = |r: &BasinRun| r.decided_at.iter().flatten().sum::<f64>() / (n * n) as f64;
+        assert!(
+            mean(with) < mean(without),
+            "{} against {}",
+            mean(with),
+            mean(without)
+        );
+    }
+    // A system nothing drives: the double well's minima given by name take the cells the
+    // energy argument decides, and a given attractor no cell reaches keeps its label.
+    let mut spec = double_well_map(12, 0.05, &[Method::new(MethodId::Csv2)]);
+    let plain = run(&spec.prepare(&Limits::default()).unwrap());
+    spec.attractors = [("left", -1.0), ("right", 1.0), ("nowhere", 5.0)]
+        .iter()
+        .enumerate()
+        .map(|(i, &(name, x))| GivenAttractor {
+            name: name.into(),
+            points: vec![vec![x, 0.0]],
+            radius: 0.05,
+            field: Field::new("attractors").index(i),
+        })
+        .collect();
+    let named = run(&spec.prepare(&Limits::default()).unwrap());
+    let (named, plain) = (&named.runs[0], &plain.runs[0]);
+    let cells =
+        |r: &BasinRun, name: &str| r.attractors.iter().find(|a| a.name == name).unwrap().cells;
+    let minimum_at = |r: &BasinRun, sign: f64| {
+        r.attractors
+            .iter()
+            .find(|a| a.equilibrium.as_ref().is_some_and(|e| e.q[0] * sign > 0.5))
+            .unwrap()
+            .cells
+    };
+    assert_eq!(cells(named, "left"), minimum_at(plain, -1.0));
+    assert_eq!(cells(named, "right"), minimum_at(plain, 1.0));
+    assert_eq!(cells(named, "nowhere"), 0);
+    assert_eq!(named.attractors[2].label, 2);
+    assert_eq!(named.undecided_fraction, plain.undecided_fraction);
+}
+
+#[test]
+fn bad_angles_and_given_attractors_are_refused_naming_the_field() {
+    let base = double_well_map(4, 0.1, &[Method::new(MethodId::Csv2)]);
+    let refused = |spec: BasinsSpec| match spec.prepare(&Limits::default()) {
+        Ok(_) => panic!("accepted"),
+        Err(e) => (e.field().map(|f| f.as_str().to_string()), e.to_string()),
+    };
+    let given = |name: &str, points: Vec<Vec<f64>>, radius: f64, i: usize| GivenAttractor {
+        name: name.into(),
+        points,
+        radius,
+        field: Field::new("attractors").index(i),
+    };
+    let mut spec = base.clone();
+    spec.recognition.angles = vec!["p_x".into()];
+    let (field, message) = refused(spec);
+    assert_eq!(field.as_deref(), Some("recognition.angles[0]"), "{message}");
+    assert!(message.contains("momentum"), "{message}");
+    let mut spec = base.clone();
+    spec.recognition.angles = vec!["x".into(), "theta".into()];
+    let (field, message) = refused(spec);
+    assert_eq!(field.as_deref(), Some("recognition.angles[1]"), "{message}");
+    assert!(
+        message.contains("`x`") || message.contains("x"),
+        "{message}"
+    );
+    let mut spec = base.clone();
+    spec.attractors = vec![given("a", vec![vec![1.0, 0.0, 0.0]], 0.1, 0)];
+    assert_eq!(refused(spec).0.as_deref(), Some("attractors[0].points[0]"));
+    let mut spec = base.clone();
+    spec.attractors = vec![given("a", vec![vec![1.0, f64::NAN]], 0.1, 0)];
+    assert_eq!(
+        refused(spec).0.as_deref(),
+        Some("attractors[0].points[0][1]")
+    );
+    let mut spec = base.clone();
+    spec.attractors = vec![given("a", Vec::new(), 0.1, 0)];
+    assert_eq!(refused(spec).0.as_deref(), Some("attractors[0].points"));
+    let mut spec = base.clone();
+    spec.attractors = vec![given("a", vec![vec![1.0, 0.0]], -0.1, 0)];
+    assert_eq!(refused(spec).0.as_deref(), Some("attractors[0].radius"));
+    let mut spec = base.clone();
+    spec.attractors = vec![
+        given("a", vec![vec![1.0, 0.0]], 0.1, 0),
+        given("a", vec![vec![-1.0, 0.0]], 0.1, 1),
+    ];
+    assert_eq!(refused(spec).0.as_deref(), Some("attractors[1].name"));
+    // More than the document can hold.
+    let mut spec = base;
+    spec.attractors = (0..=basins::MAX_ATTRACTORS)
+        .map(|i| given(&format!("a{i}"), vec![vec![i as f64, 0.0]], 0.1, i))
+        .collect();
+    let (field, message) = refused(spec);
+    assert_eq!(field.as_deref(), Some("attractors"), "{message}");
+    assert!(message.contains("64"), "{message}");
 }

@@ -151,6 +151,7 @@ from .studies import (
 from .basins import (
     AttractorEntry,
     AttractorKind,
+    AttractorRequest,
     BasinRunColumns,
     BasinsDocument,
     BasinsLine,
@@ -182,6 +183,7 @@ __all__ = [
     "AnalyticVerdicts",
     "AttractorEntry",
     "AttractorKind",
+    "AttractorRequest",
     "AxisDocument",
     "AxisRequest",
     "AxisSpec",

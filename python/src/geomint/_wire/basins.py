@@ -31,12 +31,23 @@ class ExitRequest(_ExitRequestRequired, total=False):
 class RecognitionRequest(TypedDict, total=False):
     """How a basin map recognises attractors: a driven system's driving ``period`` (its
     stroboscopic map), the longest period looked for (``max_period``, in driving periods), the
-    ``tolerance`` of a recurrence and the ``escape_radius`` beyond which an orbit diverged."""
+    ``tolerance`` of a recurrence, the ``escape_radius`` beyond which an orbit diverged and the
+    coordinates that are ``angles`` (compared modulo 2π)."""
 
     period: float
     max_period: int
     tolerance: float
     escape_radius: float
+    angles: List[str]
+
+
+class AttractorRequest(TypedDict):
+    """An attractor known in advance: an orbit (a driven system's stroboscopic point) within
+    ``radius`` of one of its ``points`` (each q then p) in every component ends up there."""
+
+    name: str
+    points: List[List[float]]
+    radius: float
 
 
 class _BasinsRequestRequired(TypedDict):
@@ -58,6 +69,7 @@ class BasinsRequest(_BasinsRequestRequired, total=False):
     energy_surface: EnergySurfaceRequest
     exits: List[ExitRequest]
     recognition: RecognitionRequest
+    attractors: List[AttractorRequest]
 
 
 class RunLabel(TypedDict):
@@ -67,7 +79,7 @@ class RunLabel(TypedDict):
     chart: str
 
 
-AttractorKind = Literal["equilibrium", "well", "periodic", "exit", "diverged", "stayed"]
+AttractorKind = Literal["equilibrium", "well", "periodic", "exit", "diverged", "stayed", "given"]
 
 
 class _AttractorEntryRequired(TypedDict):
@@ -81,11 +93,13 @@ class AttractorEntry(_AttractorEntryRequired, total=False):
     """One label's entry (the schema ``Attractor``). ``equilibrium`` is the critical point of an
     equilibrium or a well (``q``, ``energy``, ``hessian_eigenvalues``; the schema declares only
     an object, so the client reads its members by hand); ``period`` and ``points`` (each
-    stroboscopic point's q and p) those of a periodic orbit."""
+    stroboscopic point's q and p) those of a periodic orbit; ``points`` and ``radius`` those of
+    an attractor the request gave."""
 
     equilibrium: Optional[Dict[str, object]]
     period: Optional[int]
     points: Optional[List[List[float]]]
+    radius: Optional[float]
 
 
 class DecidedBy(TypedDict):
@@ -94,6 +108,7 @@ class DecidedBy(TypedDict):
     energy: int
     exit: int
     recurrence: int
+    proximity: int
     divergence: int
     t_end: int
     undecided: int

@@ -28,6 +28,8 @@ pub enum Kind {
     Diverged,
     /// The orbit was still inside at t_end (a map with exits).
     Stayed,
+    /// An attractor the request named, recognised by proximity.
+    Given,
 }
 
 /// One label's entry.
@@ -47,9 +49,13 @@ pub struct Attractor {
     /// well.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub equilibrium: Option<CriticalPoint>,
-    /// The stroboscopic points of a periodic orbit, each (q, p) without the clock.
+    /// The stroboscopic points of a periodic orbit, or a given attractor's points, each (q, p)
+    /// without the clock.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub points: Vec<Vec<f64>>,
+    /// A given attractor's radius.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub radius: Option<f64>,
     /// Cells with this label.
     pub cells: usize,
     #[serde(skip)]
@@ -97,6 +103,8 @@ pub struct DecidedBy {
     pub exit: usize,
     /// Recurrence on the stroboscopic map.
     pub recurrence: usize,
+    /// Proximity to a given attractor.
+    pub proximity: usize,
     /// Divergence.
     pub divergence: usize,
     /// Reaching t_end inside (a map with exits).

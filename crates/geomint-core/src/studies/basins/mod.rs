@@ -37,7 +37,7 @@ pub use document::{
 };
 use landscape::Landscape;
 use metrics::basin_metrics;
-use outcome::{CellOutcome, Criteria, Decide, Exit, Outcome, Stroboscope};
+use outcome::{CellOutcome, Criteria, Decide, Exit, Given, Outcome, Stroboscope};
 
 /// Most points along one axis of a basin map: more than a sweep's, for maps of 10⁶ cells, as
 /// most of its cells are decided long before `t_end` (the total steps `t_end` would take stay
@@ -50,6 +50,8 @@ pub const MAX_EXITS: usize = 16;
 pub const MAX_ATTRACTORS: usize = 64;
 /// The longest period looked for on a stroboscopic map, at most.
 pub const MAX_PERIOD: usize = 64;
+/// Most points of one given attractor (each cell compares its state with every one).
+pub const MAX_GIVEN_POINTS: usize = 256;
 
 /// An exit surface as asked for.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -76,6 +78,10 @@ pub struct Recognition {
     pub tolerance: f64,
     /// A component beyond this has escaped to infinity (default 1e6).
     pub escape_radius: f64,
+    /// The coordinates that are angles, by name: compared modulo 2π on the stroboscopic map and
+    /// against given attractors, stored in (−π, π], never taken to have escaped.
+    #[serde(default)]
+    pub angles: Vec<String>,
     /// Where the request gave it (`recognition`).
     pub field: Field,
 }
@@ -87,9 +93,26 @@ impl Default for Recognition {
             max_period: 8,
             tolerance: 1e-6,
             escape_radius: 1e6,
+            angles: Vec::new(),
             field: Field::new("recognition"),
         }
     }
+}
+
+/// An attractor the request names, recognised by proximity: an orbit (a driven system's
+/// stroboscopic point) that comes within `radius` of one of its points has ended up there; an
+/// equilibrium or periodic orbit found on the fly that lies within `radius` of its points takes
+/// its label too.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct GivenAttractor {
+    /// Its name (unique), which the legend shows.
+    pub name: String,
+    /// Its points, each (q, p) without a driven system's clock.
+    pub points: Vec<Vec<f64>>,
+    /// How close counts, in every component (angles modulo 2π).
+    pub radius: f64,
+    /// Where the request gave it (`attractors[i]`).
+    pub field: Field,
 }
 
 /// A basin map as asked for.
@@ -101,6 +124,9 @@ pub struct BasinsSpec {
     pub exits: Vec<ExitSpec>,
     /// How attractors are recognised.
     pub recognition: Recognition,
+    /// The attractors the request names, if any: they take the first labels, in their order.
+    #[serde(default)]
+    pub attractors: Vec<GivenAttractor>,
 }
 
 /// A validated basin map.
@@ -178,6 +204,9 @@ impl BasinsSpec {
                 })
             })
             .collect::<Result<Vec<_>, CoreError>>()?;
+        let dof = sim.q0.len();
+        let angles = angle_components(&recognition.angles, &names, &r.key("angles"))?;
+        let given = given_attractors(&self.attractors, dof)?;
         let (clock, damped) = with_system!(&sim.system, s => (s.clock(), s.damping_rate() != 0.0));
         let stroboscope = match (clock, recognition.period) {
             (Some(_), None) => {
@@ -238,6 +267,8 @@ impl BasinsSpec {
             stroboscope,
             escape_radius: recognition.escape_radius,
             clock,
+            angles,
+            given,
         };
         // Every cell of a run shares its system and method, so one cell that starts an orbit
         // answers for all of them.
@@ -257,6 +288,99 @@ impl BasinsSpec {
             in_lanes,
         })
     }
+}
+
+/// Per component of a state (q then p, `names`' order), whether it is one of the `angles`
+/// named at `field`: coordinates only.
+fn angle_components(
+    angles: &[String],
+    names: &StateNames,
+    field: &Field,
+) -> Result<Vec<bool>, CoreError> {
+    let dof = names.coordinates.len();
+    let mut mask = vec![false; 2 * dof];
+    for (k, name) in angles.iter().enumerate() {
+        let at = field.index(k);
+        match names.find(name) {
+            Some((false, i)) if mask[i] => {
+                return Err(CoreError::Duplicate {
+                    field: at,
+                    value: name.clone(),
+                })
+            }
+            Some((false, i)) => mask[i] = true,
+            Some((true, _)) => {
+                return Err(CoreError::Unsupported {
+                    field: at,
+                    reason: "a momentum is not an angle: name coordinates whose values are taken \
+                             modulo 2π",
+                })
+            }
+            None => {
+                return Err(CoreError::UnknownName {
+                    field: at,
+                    what: "coordinate".into(),
+                    value: name.clone(),
+                    known: names.coordinates.clone(),
+                })
+            }
+        }
+    }
+    Ok(mask)
+}
+
+/// The given attractors checked (count, names, points of 2·`dof` finite components, radius) and
+/// compiled.
+fn given_attractors(given: &[GivenAttractor], dof: usize) -> Result<Vec<Given>, CoreError> {
+    if given.len() > MAX_ATTRACTORS {
+        return Err(CoreError::Count {
+            field: Field::new("attractors"),
+            got: given.len() as u64,
+            min: 0,
+            max: MAX_ATTRACTORS as u64,
+            what: "attractors (the labels a map can hold)",
+        });
+    }
+    given
+        .iter()
+        .enumerate()
+        .map(|(k, a)| {
+            if given[..k].iter().any(|b| b.name == a.name) {
+                return Err(CoreError::Duplicate {
+                    field: a.field.key("name"),
+                    value: a.name.clone(),
+                });
+            }
+            let at = a.field.key("points");
+            if a.points.is_empty() || a.points.len() > MAX_GIVEN_POINTS {
+                return Err(CoreError::Count {
+                    field: at,
+                    got: a.points.len() as u64,
+                    min: 1,
+                    max: MAX_GIVEN_POINTS as u64,
+                    what: "points",
+                });
+            }
+            for (j, point) in a.points.iter().enumerate() {
+                let at = at.index(j);
+                if point.len() != 2 * dof {
+                    return Err(CoreError::WrongLength {
+                        field: at,
+                        expected: 2 * dof,
+                        got: point.len(),
+                    });
+                }
+                if let Some(i) = point.iter().position(|x| !x.is_finite()) {
+                    return Err(CoreError::NotFinite { field: at.index(i) });
+                }
+            }
+            crate::error::Range::POSITIVE.check(a.radius, &a.field.key("radius"))?;
+            Ok(Given {
+                points: a.points.clone(),
+                radius: a.radius,
+            })
+        })
+        .collect()
 }
 
 /// A cell's simulation, the centre's if it starts an orbit (it may lie off the energy surface),
@@ -449,7 +573,24 @@ impl BasinsJob {
 
     /// One run's labels, attractors and metrics.
     fn run_document(&self, run: usize, cells: &[&CellOutcome]) -> BasinRun {
-        let mut attractors: Vec<Attractor> = Vec::new();
+        // The given attractors take the first labels, whether or not a cell reaches them.
+        let mut attractors: Vec<Attractor> = self
+            .spec
+            .attractors
+            .iter()
+            .enumerate()
+            .map(|(k, given)| Attractor {
+                label: k as i64,
+                kind: Kind::Given,
+                name: given.name.clone(),
+                period: None,
+                equilibrium: None,
+                points: given.points.clone(),
+                radius: Some(given.radius),
+                cells: 0,
+                outcome: Outcome::Given { attractor: k },
+            })
+            .collect();
         let mut labels = Vec::with_capacity(cells.len());
         let mut undecided = Vec::new();
         let mut decided_by = DecidedBy::default();
@@ -459,6 +600,7 @@ impl BasinsJob {
                 Outcome::Equilibrium { .. } | Outcome::Well { .. } => decided_by.energy += 1,
                 Outcome::Exit { .. } => decided_by.exit += 1,
                 Outcome::Cycle { .. } => decided_by.recurrence += 1,
+                Outcome::Given { .. } => decided_by.proximity += 1,
                 Outcome::Diverged => decided_by.divergence += 1,
                 Outcome::Stayed => decided_by.t_end += 1,
                 Outcome::Undecided { .. } | Outcome::Failed { .. } => decided_by.undecided += 1,
@@ -481,7 +623,10 @@ impl BasinsJob {
                     });
                     -1
                 }
-                outcome => match attractors.iter().position(|a| a.matches(outcome)) {
+                outcome => match {
+                    let outcome = self.as_given(outcome);
+                    attractors.iter().position(|a| a.matches(&outcome))
+                } {
                     Some(k) => k as i64,
                     None if attractors.len() < MAX_ATTRACTORS => {
                         attractors.push(self.attractor(&attractors, outcome));
@@ -528,6 +673,37 @@ impl BasinsJob {
         }
     }
 
+    /// A found equilibrium or periodic orbit that lies within a given attractor's reach (every
+    /// point of it), as that attractor's outcome; any other outcome as it is.
+    fn as_given<'o>(&self, outcome: &'o Outcome) -> std::borrow::Cow<'o, Outcome> {
+        use std::borrow::Cow;
+        let criteria = &self.criteria;
+        let within = |points: &[Vec<f64>]| {
+            criteria.given.iter().position(|g| {
+                points.iter().all(|x| {
+                    g.points
+                        .iter()
+                        .any(|y| x.len() == y.len() && criteria.near(x, y, g.radius))
+                })
+            })
+        };
+        let found = match outcome {
+            Outcome::Cycle { points } if !criteria.given.is_empty() => within(points),
+            Outcome::Equilibrium { point } if !criteria.given.is_empty() => {
+                criteria.landscape.as_ref().and_then(|l| {
+                    let q = &l.points[*point].q;
+                    let state: Vec<f64> = q.iter().copied().chain(q.iter().map(|_| 0.0)).collect();
+                    within(&[state])
+                })
+            }
+            _ => None,
+        };
+        match found {
+            Some(attractor) => Cow::Owned(Outcome::Given { attractor }),
+            None => Cow::Borrowed(outcome),
+        }
+    }
+
     /// The table entry of a new outcome, after the `known` ones.
     fn attractor(&self, known: &[Attractor], outcome: &Outcome) -> Attractor {
         let label = known.len();
@@ -570,6 +746,7 @@ impl BasinsJob {
             period: (kind == Kind::Periodic).then_some(points.len()),
             equilibrium,
             points,
+            radius: None,
             cells: 0,
             outcome: outcome.clone(),
         }

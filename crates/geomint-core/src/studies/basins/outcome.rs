@@ -10,8 +10,14 @@
 //!    minimum stays below that level. The margin is twice the largest rise of the energy above its
 //!    lowest value so far: the exact flow's energy never rises, so every rise is the method's
 //!    own energy error, measured on this orbit as it goes.
-//! 4. **Recurrence on the stroboscopic map** (driven systems): the points at t = kT repeat with
-//!    some period m ≤ `max_period` within `tolerance`, over two whole periods.
+//! 4. **Proximity to a given attractor**: the state (a driven system's stroboscopic point) lies
+//!    within the attractor's radius of one of its points, in every component.
+//! 5. **Recurrence on the stroboscopic map** (driven systems): the points at t = kT repeat with
+//!    some period m ≤ `max_period` within `tolerance`, over two whole periods, and the m points
+//!    stand apart (else the orbit has a shorter period and is still settling onto it).
+//!
+//! Coordinates named as angles are compared modulo 2π (a forced pendulum's rotating orbit comes
+//! back to itself on the cylinder, its angle 2π further on) and stored in (−π, π].
 //!
 //! A start at rest on a critical point of V (a saddle's included) is that equilibrium at once.
 //! A run that reaches `t_end` undecided stayed (when the map has exits) or is undecided.
@@ -28,6 +34,10 @@ use crate::run::Observer;
 use crate::sections::henon::{copy, Henon};
 use crate::sections::{Direction, Surface};
 use crate::system::{MechanicalSystem, State, Vector};
+use crate::systems::wrap_angle;
+
+/// How many tolerances apart the points of a periodic orbit must stand to be distinct points.
+const SETTLED: f64 = 10.0;
 
 /// An exit of the map, compiled.
 #[derive(Debug)]
@@ -66,6 +76,45 @@ pub struct Criteria {
     pub escape_radius: f64,
     /// The driven system's clock coordinate, left out of distances.
     pub clock: Option<usize>,
+    /// Per component (q then p, without the clock), whether it is an angle.
+    pub angles: Vec<bool>,
+    /// The attractors the request named.
+    pub given: Vec<Given>,
+}
+
+/// An attractor the request named, as every cell looks for it.
+#[derive(Debug)]
+pub struct Given {
+    /// Its points, each (q, p) without the clock.
+    pub points: Vec<Vec<f64>>,
+    /// How close counts, in every component.
+    pub radius: f64,
+}
+
+impl Criteria {
+    /// How far apart `a` and `b` are in component `i`: an angle's difference modulo 2π.
+    fn gap(&self, i: usize, a: f64, b: f64) -> f64 {
+        if self.angles.get(i).copied().unwrap_or(false) {
+            wrap_angle(a - b).abs()
+        } else {
+            (a - b).abs()
+        }
+    }
+
+    /// Whether `x` lies within `r` of `y` in every component.
+    pub(super) fn near(&self, x: &[f64], y: &[f64], r: f64) -> bool {
+        x.iter()
+            .zip(y)
+            .enumerate()
+            .all(|(i, (&a, &b))| self.gap(i, a, b) <= r)
+    }
+
+    /// The first given attractor one of whose points `x` lies within reach of.
+    pub(super) fn given_near(&self, x: &[f64]) -> Option<usize> {
+        self.given
+            .iter()
+            .position(|g| g.points.iter().any(|y| self.near(x, y, g.radius)))
+    }
 }
 
 /// Where an orbit ended up.
@@ -93,6 +142,11 @@ pub enum Outcome {
         /// The orbit's points, (q, p) without the clock, starting from the least (in
         /// lexicographic order).
         points: Vec<Vec<f64>>,
+    },
+    /// Came within reach of a given attractor.
+    Given {
+        /// The attractor's index among the given ones.
+        attractor: usize,
     },
     /// Escaped to infinity (or left the finite numbers) without an exit.
     Diverged,
@@ -146,6 +200,8 @@ where
     /// Steps to wait before the segment test again, after one failed.
     segment_wait: u64,
     strobe: VecDeque<Vec<f64>>,
+    /// The state's components, for the proximity test of a system nothing drives.
+    here: Vec<f64>,
     /// What was decided, when, and the energy margin of an energy decision.
     pub decided: Option<(Outcome, f64, Option<f64>)>,
 }
@@ -177,6 +233,7 @@ where
             largest_rise: 0.0,
             segment_wait: 0,
             strobe: VecDeque::new(),
+            here: Vec::new(),
             decided: None,
         };
         // A start at rest on a critical point (a saddle's included) stays there.
@@ -188,8 +245,13 @@ where
         if let ControlFlow::Break(_) = decide.look(0, 0.0, start, false) {
             return decide;
         }
+        let here = decide.components(start);
+        if let Some(attractor) = decide.criteria.given_near(&here) {
+            decide.decided = Some((Outcome::Given { attractor }, 0.0, None));
+            return decide;
+        }
         if decide.criteria.stroboscope.is_some() {
-            decide.strobe.push_back(decide.components(start));
+            decide.strobe.push_back(here);
         }
         decide
     }
@@ -208,15 +270,31 @@ where
         })
     }
 
-    /// The state's components without the clock's.
+    /// The state's components without the clock's, angles in (−π, π].
     fn components(&self, z: &State<S::Dim>) -> Vec<f64> {
+        let mut out = Vec::new();
+        self.load_components(z, &mut out);
+        out
+    }
+
+    fn load_components(&self, z: &State<S::Dim>, out: &mut Vec<f64>) {
         let skip = self.criteria.clock;
-        z.q.iter()
-            .enumerate()
-            .chain(z.p.iter().enumerate())
-            .filter(|(i, _)| Some(*i) != skip)
-            .map(|(_, &x)| x)
-            .collect()
+        let angles = &self.criteria.angles;
+        out.clear();
+        out.extend(
+            z.q.iter()
+                .enumerate()
+                .chain(z.p.iter().enumerate())
+                .filter(|(i, _)| Some(*i) != skip)
+                .enumerate()
+                .map(|(k, (_, &x))| {
+                    if angles.get(k).copied().unwrap_or(false) {
+                        wrap_angle(x)
+                    } else {
+                        x
+                    }
+                }),
+        );
     }
 
     fn decide(&mut self, outcome: Outcome, t: f64, margin: Option<f64>) -> ControlFlow<f64> {
@@ -228,12 +306,15 @@ where
     fn look(&mut self, step: u64, t: f64, z: &State<S::Dim>, stepped: bool) -> ControlFlow<f64> {
         let skip = self.criteria.clock;
         let radius = self.criteria.escape_radius;
-        let beyond = |v: &Vector<S::Dim>| {
+        // An angle cannot escape, only leave the finite numbers.
+        let angles = &self.criteria.angles;
+        let beyond = |v: &Vector<S::Dim>, angle: &dyn Fn(usize) -> bool| {
             v.iter()
                 .enumerate()
-                .any(|(i, x)| Some(i) != skip && !(x.abs() <= radius))
+                .any(|(i, x)| Some(i) != skip && !(x.abs() <= radius || angle(i) && x.is_finite()))
         };
-        if beyond(&z.q) || beyond(&z.p) {
+        let q_angle = |i: usize| angles.get(i).copied().unwrap_or(false);
+        if beyond(&z.q, &q_angle) || beyond(&z.p, &|_| false) {
             return self.decide(Outcome::Diverged, t, None);
         }
         let Some(landscape) = &self.criteria.landscape else {
@@ -314,9 +395,23 @@ where
     /// repeat.
     fn cycle(&self, tolerance: f64, max_period: usize) -> Option<Vec<Vec<f64>>> {
         let n = self.strobe.len();
-        let close = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| (x - y).abs() <= tolerance);
+        let close = |a: &[f64], b: &[f64]| self.criteria.near(a, b, tolerance);
+        // Points m apart that agree could still be an orbit of a period d dividing m that has not
+        // settled yet: one approached with a multiplier near −1 comes back within the tolerance
+        // every second period before it does every period. A cycle counts only if its points
+        // stand apart, by more than ten tolerances, at every shift d; otherwise the run goes on
+        // until the shorter period is found.
+        let distinct = |m: usize| {
+            (1..m).filter(|d| m % d == 0).all(|d| {
+                (0..m).any(|j| {
+                    let (a, b) = (&self.strobe[n - 1 - j], &self.strobe[n - 1 - (j + d) % m]);
+                    !self.criteria.near(a, b, SETTLED * tolerance)
+                })
+            })
+        };
         let period = (1..=max_period).take_while(|m| 2 * m < n + 1).find(|&m| {
             (0..m).all(|j| close(&self.strobe[n - 1 - j], &self.strobe[n - 1 - j - m]))
+                && distinct(m)
         })?;
         let mut points: Vec<Vec<f64>> = self.strobe.range(n - period..).cloned().collect();
         let least = (0..period)
@@ -351,12 +446,26 @@ where
         if let ControlFlow::Break(at) = self.look(step, t, z, true) {
             return ControlFlow::Break(at);
         }
+        let given = !self.criteria.given.is_empty();
+        if given && self.criteria.stroboscope.is_none() {
+            let mut here = std::mem::take(&mut self.here);
+            self.load_components(z, &mut here);
+            let near = self.criteria.given_near(&here);
+            self.here = here;
+            if let Some(attractor) = near {
+                return self.decide(Outcome::Given { attractor }, t, None);
+            }
+        }
         if let Some(strobe) = self.criteria.stroboscope {
             if step % strobe.steps == 0 {
                 if self.strobe.len() == 2 * strobe.max_period + 1 {
                     self.strobe.pop_front();
                 }
-                self.strobe.push_back(self.components(z));
+                let point = self.components(z);
+                if let Some(attractor) = self.criteria.given_near(&point) {
+                    return self.decide(Outcome::Given { attractor }, t, None);
+                }
+                self.strobe.push_back(point);
                 if let Some(points) = self.cycle(strobe.tolerance, strobe.max_period) {
                     return self.decide(Outcome::Cycle { points }, t, None);
                 }
