@@ -111,9 +111,12 @@ impl Simulation {
     {
         let sys = *systems.first()?;
         let plain = self.crossings.is_none() && !self.compare_to_reference && !self.jacobian_defect;
+        // A driven system's clock is one more coordinate to the plain lanes (velocity 1, a
+        // momentum the damping leaves alone: the system's own velocity and damping flow say
+        // so); the tangent lanes' constant M⁻¹ has no place for it.
         let simple = |sys: &S| {
             sys.in_lanes()
-                && sys.clock().is_none()
+                && (sys.clock().is_none() || self.chaos.is_none())
                 && sys.structure().separable_constant_mass
                 && sys.dim().value() == N
         };

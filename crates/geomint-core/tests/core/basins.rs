@@ -322,9 +322,10 @@ fn without_wall_time(d: &BasinsDocument) -> String {
 
 #[test]
 fn cells_in_lanes_end_as_each_alone_bit_for_bit() {
-    // Cells of all three kinds of decision: the damped double well (typed in; the energy
-    // argument), Hénon–Heiles's escapes (built in; exits, some cells off the energy surface)
-    // and the same with an escape radius small enough that some orbits diverge first. Methods
+    // Cells of every kind of decision: the damped double well (typed in; the energy
+    // argument), Hénon–Heiles's escapes (built in; exits, some cells off the energy surface),
+    // the same with an escape radius small enough that some orbits diverge first, and two driven
+    // systems (recurrence, angles, a given attractor). Methods
     // the lanes take (csv1, velocity Verlet's triple jump) beside ones they do not (rk4).
     let well = BasinsSpec {
         sweep: sweep(
@@ -350,7 +351,24 @@ fn cells_in_lanes_end_as_each_alone_bit_for_bit() {
     );
     let mut diverging = escapes.clone();
     diverging.recognition.escape_radius = 1.9;
-    for spec in [well, escapes, diverging] {
+    // Driven systems (typed in, a clock among the coordinates): recurrence on the stroboscopic
+    // map, the forced pendulum's angle modulo 2π, and proximity to a given attractor.
+    let mut duffing = forced_pendulum_map(14, &[]);
+    duffing.sweep.system = SystemRef::Defined(crate::sections::duffing(0.5, 0.1, 1.0));
+    duffing.sweep.methods = methods(&[Method::new(MethodId::Csv1), Method::new(MethodId::Rk4)]);
+    duffing.sweep.axes = vec![
+        axis(0, Target::Q0(0), (-1.8, 1.8), 17),
+        axis(1, Target::P0(0), (-1.0, 1.0), 15),
+    ];
+    let mut pendulum = forced_pendulum_map(16, &["theta"]);
+    pendulum.sweep.methods = methods(&[Method::new(MethodId::Csv1)]);
+    pendulum.attractors = vec![GivenAttractor {
+        name: "forwards".into(),
+        points: vec![vec![-0.8162, 1.7592]],
+        radius: 0.05,
+        field: Field::new("attractors").index(0),
+    }];
+    for spec in [well, escapes, diverging, duffing, pendulum] {
         let lanes = spec.prepare(&Limits::default()).unwrap();
         let alone = spec
             .prepare(&Limits::default())
@@ -365,7 +383,12 @@ fn cells_in_lanes_end_as_each_alone_bit_for_bit() {
             "{}: {decided_by:?}, {} steps",
             in_lanes.system, in_lanes.runs[0].steps
         );
-        assert!(decided_by.energy + decided_by.exit + decided_by.divergence > 300);
+        let decided = decided_by.energy
+            + decided_by.exit
+            + decided_by.divergence
+            + decided_by.recurrence
+            + decided_by.proximity;
+        assert!(decided > 200, "{decided_by:?}");
     }
 }
 

@@ -1,7 +1,7 @@
 //! Plain sweeps (no indicators) over initial states in SIMD lanes: every number of the document
 //! is the one-cell path's, bit for bit, with the one-run stepper's fused stretches between
-//! samples, runs that blow up inside a stretch (taken again step by step), and runs the lanes
-//! give back to the one-cell path.
+//! samples, runs that blow up inside a stretch (taken again step by step), runs the lanes
+//! give back to the one-cell path, and a driven system's runs (its clock one more coordinate).
 
 use std::sync::Arc;
 
@@ -91,6 +91,36 @@ fn plain_sweeps_in_lanes_give_the_one_cell_paths_numbers_bit_for_bit() {
             ..plain(0.4, 5, 200.0)
         },
         huge_oscillator(),
+        // Driven and damped, a clock among the coordinates: the forced Duffing oscillator, typed
+        // in, over (x₀, p₀), with csv1 and modin_3s.
+        SweepSpec {
+            system: SystemRef::Defined(crate::sections::duffing(0.5, 0.3, 1.2)),
+            q0: None,
+            p0: None,
+            energy_surface: None,
+            energy_reference: Some(EnergyReference::Initial),
+            axes: vec![
+                Axis {
+                    target: Target::Q0(0),
+                    min: -1.5,
+                    max: 1.5,
+                    n: 5,
+                    scale: Scale::Linear,
+                    field: Field::new("axes").index(0),
+                },
+                Axis {
+                    target: Target::P0(0),
+                    min: -1.0,
+                    max: 1.0,
+                    n: 4,
+                    scale: Scale::Linear,
+                    field: Field::new("axes").index(1),
+                },
+            ],
+            methods: methods(&[Method::new(MethodId::Csv1), Method::new(MethodId::Modin3s)]),
+            every: Some(50),
+            ..plain(0.125, 4, 60.0)
+        },
     ];
     // (failed, diverged, finished)
     let mut outcomes = [0usize; 3];

@@ -2,7 +2,8 @@
 //! compiled ∇V and ∇²V and its M⁻¹, the functions its one-run path calls, so every lane's
 //! numbers are that path's by construction; what the lanes vectorise is the rest of the step
 //! (the drifts, the kicks and the deviation vectors' tangent maps). One, two and three degrees
-//! of freedom, the dimensions a typed-in system runs on the stack with.
+//! of freedom, the dimensions a typed-in system runs on the stack with, the clock of a driven
+//! system counted among them (its velocity is 1, its momentum undamped, as on the one-run path).
 
 // Lanes and components are indexed side by side.
 #![allow(clippy::needless_range_loop)]
@@ -26,6 +27,16 @@ macro_rules! lane_forces {
                 let EnergyModel::Separable { inverse_mass, .. } = &self.model().energy else {
                     return;
                 };
+                let n = self.dof($n);
+                if n < $n {
+                    // A driven system, as its one-run path: M⁻¹ on the degrees of freedom and
+                    // the clock's velocity ∂H̃/∂p_t = 1.
+                    each_lane(p, v, |x, out| {
+                        inverse_mass.apply(&x[..n], &mut out[..n]);
+                        out[n] = 1.0;
+                    });
+                    return;
+                }
                 // `InverseMass::apply`'s arithmetic, vectorised where it is one division.
                 match inverse_mass {
                     InverseMass::Unit => *v = *p,
@@ -91,7 +102,12 @@ macro_rules! lane_forces {
             fn velocity_at(&self, p: [f64; $n]) -> [f64; $n] {
                 let mut v = [0.0; $n];
                 if let EnergyModel::Separable { inverse_mass, .. } = &self.model().energy {
-                    inverse_mass.apply(&p, &mut v);
+                    // A driven system's clock moves at velocity 1, as on its one-run path.
+                    let n = self.dof($n);
+                    inverse_mass.apply(&p[..n], &mut v[..n]);
+                    if n < $n {
+                        v[n] = 1.0;
+                    }
                 }
                 v
             }

@@ -183,7 +183,7 @@ impl<D: Dim> CustomSystem<D> {
 
     /// The degrees of freedom: the state's dimension without a driven system's clock.
     #[inline]
-    fn dof(&self, len: usize) -> usize {
+    pub(super) fn dof(&self, len: usize) -> usize {
         self.model.clock.unwrap_or(len)
     }
 
