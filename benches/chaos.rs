@@ -26,17 +26,8 @@ use geomint::core::studies::engine::Local;
 use geomint::core::studies::sweep::{self, SweepDocument, SweepJob, SweepLine};
 use serde_json::{json, Value};
 
-/// CPU time of the process so far, user and system, in seconds.
-fn cpu_seconds() -> f64 {
-    // SAFETY: getrusage writes into the zeroed struct it is given and reads nothing else.
-    let usage = unsafe {
-        let mut usage: libc::rusage = std::mem::zeroed();
-        libc::getrusage(libc::RUSAGE_SELF, &mut usage);
-        usage
-    };
-    let seconds = |t: libc::timeval| t.tv_sec as f64 + t.tv_usec as f64 * 1e-6;
-    seconds(usage.ru_utime) + seconds(usage.ru_stime)
-}
+mod cpu_time;
+use cpu_time::cpu_seconds;
 
 fn main() {
     let grid = |name: &str, default: usize| -> usize {

@@ -12,6 +12,9 @@ use geomint::core::run::Budget;
 use geomint::core::studies::energy_map::{EnergyMap, EnergyMapJob, Engine};
 use serde_json::json;
 
+mod cpu_time;
+use cpu_time::cpu_seconds;
+
 /// The map `geomint study energy-map` runs for `{"nx": 101, "ny": 101, "t_max": …}`: Fig. 6's
 /// pendulum, symplectic Euler, h = 0.2.
 fn fig6(t_max: f64) -> EnergyMapJob {
@@ -19,18 +22,6 @@ fn fig6(t_max: f64) -> EnergyMapJob {
     EnergyMapRequest::from_value(&request)
         .and_then(|r| Ok(r.to_spec()?.prepare()?))
         .expect("a valid map")
-}
-
-/// CPU time of the process so far, user and system, in seconds.
-fn cpu_seconds() -> f64 {
-    // SAFETY: getrusage writes into the zeroed struct it is given and reads nothing else.
-    let usage = unsafe {
-        let mut usage: libc::rusage = std::mem::zeroed();
-        libc::getrusage(libc::RUSAGE_SELF, &mut usage);
-        usage
-    };
-    let seconds = |t: libc::timeval| t.tv_sec as f64 + t.tv_usec as f64 * 1e-6;
-    seconds(usage.ru_utime) + seconds(usage.ru_stime)
 }
 
 /// One map on `engine`: the map, wall seconds, CPU seconds.

@@ -6,7 +6,8 @@
 // under the pointer and by keyboard, and draws a clicked cell's orbit, which ends in the well its
 // label names; cut short, the map's undecided cells are grey and say why; the Hénon–Heiles escape
 // map names its exits up, left and right, and its cells off the energy surface say so; the forced
-// Duffing oscillator's two period-1 orbits get names of their own; a full-size map shows its
+// Duffing oscillator's two period-1 orbits get names of their own; the forced pendulum's rotating
+// orbits, one given by name in the request, are listed with what each is; a full-size map shows its
 // progress and Cancel stops it. Screenshots at desktop and phone widths go to artifacts/.
 
 import { test, before, after } from 'node:test';
@@ -255,6 +256,26 @@ test('the forced Duffing oscillator: two period-1 orbits, each named and placed 
   assert.notEqual(entries[0].name, entries[1].name);
   assert.equal(await page.$('#ba-metrics [data-metric="lowest_saddle_energy"]'), null);
   assert.match(await page.textContent('#ba-metrics [data-metric="decided_by"] strong'), new RegExp(`recurrence ${run.decided_by.recurrence}`));
+});
+
+test('the forced pendulum: two rotating orbits, one of them given by name, in the legend', async () => {
+  await page.selectOption('#ba-preset', 'forced_pendulum');
+  const request = smallPreset('forced_pendulum', 7);
+  assert.deepEqual(request.recognition.angles, ['theta']);
+  request.attractors = [{ name: 'forwards', points: [[-0.8162, 1.7592]], radius: 0.05 }];
+  const doc = await runRequest(request);
+  const run = doc.runs[0];
+  assert.equal(run.undecided_fraction, 0);
+  const entries = await legend();
+  assert.deepEqual(entries.map((e) => e.kind), ['given', 'periodic'], JSON.stringify(entries));
+  // The given attractor keeps its name and says what it is; the other is found on the fly.
+  assert.equal(entries[0].name, 'forwards');
+  assert.match(entries[0].text, /the request's attractor: orbits that come within 0\.05 of it end there/);
+  assert.match(entries[0].text, /point \(-0\.8162, 1\.759/);
+  assert.equal(entries[1].name, run.attractors[1].name);
+  for (const e of entries) assert.ok(Math.abs(e.share - 100 * run.fractions[e.label]) < 0.05);
+  assert.match(await page.textContent('#ba-metrics [data-metric="decided_by"] strong'),
+    new RegExp(`proximity ${run.decided_by.proximity}`));
 });
 
 test('a running map shows its progress and Cancel stops it', async () => {
