@@ -307,14 +307,17 @@ where
         let skip = self.criteria.clock;
         let radius = self.criteria.escape_radius;
         // An angle cannot escape, only leave the finite numbers.
-        let angles = &self.criteria.angles;
-        let beyond = |v: &Vector<S::Dim>, angle: &dyn Fn(usize) -> bool| {
-            v.iter()
+        let angle = |i: usize| self.criteria.angles.get(i).copied().unwrap_or(false);
+        let q_beyond =
+            z.q.iter()
                 .enumerate()
-                .any(|(i, x)| Some(i) != skip && !(x.abs() <= radius || angle(i) && x.is_finite()))
+                .any(|(i, x)| Some(i) != skip && !(x.abs() <= radius || angle(i) && x.is_finite()));
+        let p_beyond = || {
+            z.p.iter()
+                .enumerate()
+                .any(|(i, x)| Some(i) != skip && !(x.abs() <= radius))
         };
-        let q_angle = |i: usize| angles.get(i).copied().unwrap_or(false);
-        if beyond(&z.q, &q_angle) || beyond(&z.p, &|_| false) {
+        if q_beyond || p_beyond() {
             return self.decide(Outcome::Diverged, t, None);
         }
         let Some(landscape) = &self.criteria.landscape else {
@@ -471,8 +474,11 @@ where
                 }
             }
         }
-        copy(&mut self.last, z);
-        self.last_t = t;
+        // The state before the step is only for locating an exit's crossing.
+        if !self.criteria.exits.is_empty() {
+            copy(&mut self.last, z);
+            self.last_t = t;
+        }
         ControlFlow::Continue(())
     }
 }

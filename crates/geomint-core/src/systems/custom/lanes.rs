@@ -10,7 +10,7 @@
 
 use nalgebra::{U1, U2, U3};
 
-use super::system::{CustomSystem, EnergyModel, InverseMass};
+use super::system::{CustomSystem, DampingModel, EnergyModel, InverseMass};
 use crate::flows::compiled::{SharedStretch, StretchPlan};
 use crate::system::lanes::{damp_each_lane, damp_point, PointForces};
 use crate::system::{Lane, LaneForces, LANES};
@@ -89,7 +89,21 @@ macro_rules! lane_forces {
 
             #[inline(always)]
             fn damp_lanes(&self, q: &[Lane; $n], p: &mut [Lane; $n], tau: f64, c: &Lane) {
-                damp_each_lane(|_| self, q, p, tau, c);
+                if !matches!(self.model().damping, DampingModel::Conformal { .. }) {
+                    damp_each_lane(|_| self, q, p, tau, c);
+                    return;
+                }
+                // Conformal damping projects onto every momentum (P = I): the one-run path's
+                // p ← −c·P p + p, operation for operation, in every lane its c leaves moving.
+                for l in 0..LANES {
+                    if c[l] == 0.0 {
+                        continue;
+                    }
+                    let minus_c = -c[l];
+                    for i in 0..$n {
+                        p[i][l] = minus_c * p[i][l] + p[i][l];
+                    }
+                }
             }
 
             fn compile_lanes(&self, plan: &StretchPlan, steps: u64) -> Option<SharedStretch> {
