@@ -1,6 +1,6 @@
 //! Basin maps at the size, 1000 × 1000 cells by default (`GEOMINT_BASINS_GRID`): the
-//! `forced_duffing` preset (periodic attractors on the stroboscopic map, one cell at a time per
-//! core) and the `henon_heiles_escapes` preset (three exits, sixteen cells side by side in SIMD
+//! `forced_duffing` preset (periodic attractors on the stroboscopic map; a driven system, its
+//! clock one more coordinate to the lanes) and the `henon_heiles_escapes` preset (three exits, sixteen cells side by side in SIMD
 //! lanes), each cell stopped as soon as its outcome is decided. Reports the wall and CPU time,
 //! ns per cell-step and what the map found, and writes each map (x, y, label name, decision
 //! time per line) to `target/basins-<preset>-<n>.tsv`; with `GEOMINT_PEERS_PYTHON` set

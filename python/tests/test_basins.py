@@ -203,6 +203,10 @@ def test_given_attractors_name_the_labels_and_decide_by_proximity(
     with pytest.raises(geomint.ValidationError) as radius:
         client.basins(**request, attractors=[("turn", [[0, 0]], 0)], progress=False)
     assert radius.value.field == "attractors[0].radius"
+    for points in ([[0, 0], [1]], [[0, float("nan")]]):
+        with pytest.raises(geomint.ValidationError) as ragged:
+            client.basins(**request, attractors=[("turn", points, 0.1)], progress=False)
+        assert ragged.value.field == "attractors[0].points"
     with pytest.raises(geomint.RefusedError) as momentum:
         client.basins(**{**request, "recognition": {**request["recognition"], "angles": ["p_theta"]}}, progress=False)
     assert momentum.value.field == "recognition.angles[0]"

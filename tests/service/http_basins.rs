@@ -64,6 +64,16 @@ async fn the_double_well_splits_into_two_basins_by_the_energy_argument() {
     let (_, again) = post_json(&server, PATH, &double_well(20)).await;
     assert_eq!(doc["runs"], again["runs"]);
     assert_eq!(doc["digest"], again["digest"]);
+    // No angles and no given attractors are the same map, with the same identity.
+    let mut settings = double_well(20);
+    settings["recognition"] = json!({});
+    let mut empty = settings.clone();
+    empty["recognition"] = json!({"angles": []});
+    empty["attractors"] = json!([]);
+    let (_, with_settings) = post_json(&server, PATH, &settings).await;
+    let (_, same) = post_json(&server, PATH, &empty).await;
+    assert_eq!(with_settings["digest"], same["digest"]);
+    assert_eq!(doc["runs"], same["runs"]);
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -234,9 +234,12 @@ fn recognition(v: &Value, at: &Field) -> Result<RecognitionRequest, ErrorDetail>
         })?,
         tolerance: o.optional("tolerance", json::number)?,
         escape_radius: o.optional("escape_radius", json::number)?,
-        angles: o.optional("angles", |v, at| {
-            list(v, at, "a list of coordinate names", string)
-        })?,
+        // No angles is no `angles`: the same map, the same identity.
+        angles: o
+            .optional("angles", |v, at| {
+                list(v, at, "a list of coordinate names", string)
+            })?
+            .filter(|angles| !angles.is_empty()),
     })
 }
 

@@ -103,9 +103,11 @@ AnyStudyLine = Union[SweepLine, MapLine, ConvergenceLine, StudyLine, BasinsLine]
 StudyResult = Union[SweepResultLine, MapResultLine, ConvergenceResultLine, WorkPrecisionResultLine,
                     BasinsResultLine]
 ExitLike = Union[ExitRequest, Tuple[str, str], Tuple[str, str, str]]
-AttractorLike = Union[AttractorRequest, Tuple[str, Any, float]]
 """An exit of a basin map: ``{"name", "where", "direction"}``, or ``(name, where)`` with an
 optional direction (``up``, ``down``, ``both``)."""
+AttractorLike = Union[AttractorRequest, Tuple[str, Any, float]]
+"""An attractor known in advance: ``{"name", "points", "radius"}`` or ``(name, points, radius)``,
+``points`` rows of q then p."""
 
 
 def _plain(value: Any, where: str) -> Any:
@@ -309,12 +311,17 @@ def _attractors(attractors: Union[AttractorLike, Sequence[AttractorLike]]) -> Li
                 raise ValidationError(f"{where}.{key}", "is missing", code="missing_field")
         if not isinstance(members["name"], str):
             raise ValidationError(f"{where}.name", f"must be a string, not {members['name']!r}", code="invalid_type")
-        points = np.asarray(members["points"], dtype=float)
+        try:
+            points = np.asarray(members["points"], dtype=float)
+        except (TypeError, ValueError):
+            points = np.empty((0, 0))
         if points.ndim == 1:
             points = points[None, :]
         if points.ndim != 2 or points.shape[0] == 0:
-            raise ValidationError(f"{where}.points", "is a list of points, each q then p, such as [[-1, 0]]",
-                                  code="invalid_type")
+            raise ValidationError(f"{where}.points", "is a list of points of equal length, each q then p, such as "
+                                  "[[-1, 0]]", code="invalid_type")
+        if not np.isfinite(points).all():
+            raise ValidationError(f"{where}.points", "holds a number that is not finite")
         members["points"] = points.tolist()
         _positive(members["radius"], f"{where}.radius")
         out.append(cast(AttractorRequest, _plain(members, where)))

@@ -158,7 +158,7 @@ class BasinRun:
             undecided=tuple(Undecided(u["cell"], _grid_index(u["cell"], shape), u["reason"])
                             for u in doc["undecided"]),
             decided_by={"energy": decided_by["energy"], "exit": decided_by["exit"],
-                        "recurrence": decided_by["recurrence"], "proximity": decided_by["proximity"],
+                        "recurrence": decided_by["recurrence"], "proximity": decided_by.get("proximity", 0),
                         "divergence": decided_by["divergence"],
                         "t_end": decided_by["t_end"], "undecided": decided_by["undecided"]},
             basin_entropy=doc.get("basin_entropy"),

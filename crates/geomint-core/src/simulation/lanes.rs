@@ -111,9 +111,9 @@ impl Simulation {
     {
         let sys = *systems.first()?;
         let plain = self.crossings.is_none() && !self.compare_to_reference && !self.jacobian_defect;
-        // A driven system's clock is one more coordinate to the plain lanes (velocity 1, a
-        // momentum the damping leaves alone: the system's own velocity and damping flow say
-        // so); the tangent lanes' constant M⁻¹ has no place for it.
+        // A driven system's clock is one more coordinate to the plain lanes (velocity 1, its
+        // momentum damped or not as the system's own damping flow does it); the tangent lanes'
+        // constant M⁻¹ has no place for it.
         let simple = |sys: &S| {
             sys.in_lanes()
                 && (sys.clock().is_none() || self.chaos.is_none())

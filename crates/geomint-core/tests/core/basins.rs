@@ -876,3 +876,52 @@ fn bad_angles_and_given_attractors_are_refused_naming_the_field() {
     assert_eq!(field.as_deref(), Some("attractors"), "{message}");
     assert!(message.contains("64"), "{message}");
 }
+
+#[test]
+fn the_kapitza_pendulum_stands_upright_as_one_attractor_on_either_side_of_pi() {
+    // θ″ + νθ′ + (1 + A cos ωt) sin θ = 0, the pivot shaken fast enough ((Aω⁻¹)² = 4 > 2) that
+    // θ = π is stable (Kapitza). Cells around π settle onto the upright orbit, whose stroboscopic
+    // point is stored at +π on one side and just above −π on the other: as angles, one orbit
+    // (compared as plain numbers they were two, 41 and 40 cells).
+    let omega: f64 = 20.0;
+    let period = std::f64::consts::TAU / omega;
+    let pi = std::f64::consts::PI;
+    let system = SystemRef::Defined(separable(
+        &["theta"],
+        "-(1 + A*cos(omega*t))*cos(theta)",
+        Some(Damping::Conformal {
+            gamma: expr("damping.gamma", "nu/2"),
+        }),
+        &[("nu", 0.5), ("A", 40.0), ("omega", omega)],
+    ));
+    let spec = BasinsSpec {
+        sweep: sweep(
+            system,
+            &[Method::new(MethodId::Csv1)],
+            period / 64.0,
+            200.0 * period,
+            vec![
+                axis(0, Target::Q0(0), (pi - 0.3, pi + 0.3), 9),
+                axis(1, Target::P0(0), (-0.5, 0.5), 9),
+            ],
+        ),
+        exits: Vec::new(),
+        recognition: Recognition {
+            period: Some(period),
+            angles: vec!["theta".into()],
+            ..Recognition::default()
+        },
+        attractors: Vec::new(),
+    };
+    let doc = run(&spec.prepare(&Limits::default()).unwrap());
+    let map = &doc.runs[0];
+    assert_eq!(map.attractors.len(), 1, "{:?}", map.attractors);
+    let upright = &map.attractors[0];
+    assert_eq!((upright.period, upright.cells), (Some(1), 81));
+    assert!(
+        (upright.points[0][0].abs() - pi).abs() < 1e-4,
+        "{:?}",
+        upright.points
+    );
+    assert!(upright.points[0][1].abs() < 1e-4, "{:?}", upright.points);
+}

@@ -121,6 +121,35 @@ fn plain_sweeps_in_lanes_give_the_one_cell_paths_numbers_bit_for_bit() {
             every: Some(50),
             ..plain(0.125, 4, 60.0)
         },
+        // The same over its forcing and damping: one system per lane.
+        SweepSpec {
+            system: SystemRef::Defined(crate::sections::duffing(0.5, 0.3, 1.2)),
+            q0: Some(vec![0.5]),
+            p0: Some(vec![0.0]),
+            energy_surface: None,
+            energy_reference: Some(EnergyReference::Initial),
+            axes: vec![
+                Axis {
+                    target: Target::Param("A".into()),
+                    min: 0.0,
+                    max: 0.4,
+                    n: 5,
+                    scale: Scale::Linear,
+                    field: Field::new("axes").index(0),
+                },
+                Axis {
+                    target: Target::Param("delta".into()),
+                    min: 0.1,
+                    max: 0.5,
+                    n: 4,
+                    scale: Scale::Linear,
+                    field: Field::new("axes").index(1),
+                },
+            ],
+            methods: methods(&[Method::new(MethodId::Csv1)]),
+            every: Some(50),
+            ..plain(0.125, 4, 60.0)
+        },
     ];
     // (failed, diverged, finished)
     let mut outcomes = [0usize; 3];

@@ -9,6 +9,7 @@ use super::outcome::Outcome;
 use crate::error::ErrorDetail;
 use crate::studies::sweep::{AxisDocument, RunLabel};
 use crate::studies::StudyStop;
+use crate::systems::wrap_angle;
 
 /// What kind of outcome a label stands for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -64,8 +65,17 @@ pub struct Attractor {
 
 impl Attractor {
     /// Whether `outcome` is this attractor: the same well, exit or kind, or a periodic orbit of
-    /// the same period whose points lie within 10⁻³ (relative) of these.
-    pub(super) fn matches(&self, outcome: &Outcome) -> bool {
+    /// the same period whose points lie within 10⁻³ (relative) of these, the components that are
+    /// `angles` compared modulo 2π (an orbit through θ = π may be stored at +π in one cell and
+    /// just above −π in another).
+    pub(super) fn matches(&self, outcome: &Outcome, angles: &[bool]) -> bool {
+        let gap = |k: usize, u: f64, v: f64| {
+            if angles.get(k).copied().unwrap_or(false) {
+                wrap_angle(u - v).abs()
+            } else {
+                (u - v).abs()
+            }
+        };
         match (&self.outcome, outcome) {
             (Outcome::Cycle { points: a }, Outcome::Cycle { points: b }) => {
                 a.len() == b.len()
@@ -74,7 +84,8 @@ impl Attractor {
                             let y = &b[(j + shift) % b.len()];
                             x.iter()
                                 .zip(y)
-                                .all(|(u, v)| (u - v).abs() <= 1e-3 * (1.0 + u.abs()))
+                                .enumerate()
+                                .all(|(k, (&u, &v))| gap(k, u, v) <= 1e-3 * (1.0 + u.abs()))
                         })
                     })
             }

@@ -625,7 +625,8 @@ impl BasinsJob {
                 }
                 outcome => match {
                     let outcome = self.as_given(outcome);
-                    attractors.iter().position(|a| a.matches(&outcome))
+                    let angles = &self.criteria.angles;
+                    attractors.iter().position(|a| a.matches(&outcome, angles))
                 } {
                     Some(k) => k as i64,
                     None if attractors.len() < MAX_ATTRACTORS => {
@@ -636,8 +637,9 @@ impl BasinsJob {
                         undecided.push(UndecidedCell {
                             cell: i,
                             reason: format!(
-                                "more than {MAX_ATTRACTORS} distinct outcomes: this one has no \
-                                 label (loosen recognition.tolerance)"
+                                "more than {MAX_ATTRACTORS} distinct outcomes, given attractors \
+                                 included: this one has no label (give fewer attractors, or \
+                                 loosen recognition.tolerance)"
                             ),
                         });
                         -1

@@ -3,7 +3,8 @@
 //! numbers are that path's by construction; what the lanes vectorise is the rest of the step
 //! (the drifts, the kicks and the deviation vectors' tangent maps). One, two and three degrees
 //! of freedom, the dimensions a typed-in system runs on the stack with, the clock of a driven
-//! system counted among them (its velocity is 1, its momentum undamped, as on the one-run path).
+//! system counted among them (its velocity is 1 and its momentum damped or not as on the one-run
+//! path).
 
 // Lanes and components are indexed side by side.
 #![allow(clippy::needless_range_loop)]
