@@ -7,7 +7,7 @@
 //! observer sees the same states at the same times as on the one-cell path, after the same
 //! test for a state that is no longer finite. So a cell's outcome, decision time and step count
 //! are the one-cell path's to the bit, whatever lane it ran in and whichever cells ran beside it
-//! (`tests/core/basins.rs` compares the two paths cell by cell).
+//! (`tests/core/basins/` compares the two paths cell by cell).
 
 use std::ops::{ControlFlow, Range};
 
