@@ -11,23 +11,37 @@
 //! convergence studies run here; work–precision studies, whose timings compare only on one
 //! machine, run on the server.
 //!
+//! - A job's part ([`crate::jobs`]) goes out the same way, cut into shards of its own cells
+//!   ([`Task::cells`]), so that a job's parts run on the workers, not on the server.
 //! - A worker that dies mid-shard never acknowledges it: JetStream hands the shard out again
 //!   once the consumer's ack wait passes. While a shard runs, its worker reports progress every
-//!   third of the ack wait, so a long shard is not handed out twice.
+//!   third of the ack wait, to JetStream (so a long shard is not handed out twice) and to the
+//!   study's server ([`Reply::Progress`]).
 //! - A shard that arrives twice (redelivered after a slow worker finished it after all) counts
 //!   once.
 //! - A study that its client cancels, or that passes its time limit, has the shards it still
 //!   waits for taken out of the stream ([`withdraw`]): no worker starts them.
+//! - A JetStream cluster: `--nats` may list several of its servers, and `--nats-replicas 3`
+//!   keeps three copies of the stream, so that the queue outlives one server. Shards are queued
+//!   under message ids that JetStream deduplicates, and tried again while the cluster elects a
+//!   new leader ([`ENQUEUE_PATIENCE`]).
+//! - A part is a plain NATS message, which a move to another server of the cluster can lose: a
+//!   shard acknowledged by its worker (gone from the stream) whose part has not come after an
+//!   ack wait of silence, twice in a row, is queued again.
 //! - A lost NATS server fails the study after [`DISCONNECTED_GRACE`] with a clear error rather
 //!   than waiting for the time limit.
 //! - A poison shard (one that panics or kills its worker) is delivered at most `max_deliver`
-//!   times, then fails its study ([`poison`]).
+//!   times, then fails its study ([`poison`]). A shard whose deliveries were spent by workers
+//!   that were stopped or starved of CPU, not dead, is waited for as long as one of them still
+//!   reports progress on it ([`Queue::exhausted_grace`]).
 //! - Connections take NATS credentials and TLS ([`options`]).
 
 pub mod options;
 pub mod poison;
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
+use std::ops::Range;
+use std::sync::atomic::{AtomicUsize, Ordering as AtomicOrdering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -75,6 +89,9 @@ pub struct Task {
     pub shard: usize,
     /// Of how many.
     pub shards: usize,
+    /// The cells the shards cut (a job's part), when not the whole study.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cells: Option<Range<usize>>,
 }
 
 /// What a worker publishes for a task; `P` is the part (read as the kind of study the server
@@ -91,6 +108,14 @@ pub enum Reply<P> {
         /// Why.
         message: String,
     },
+    /// A worker is running the shard and has finished `cells` of its cells: sent every third
+    /// of the ack wait, so that the server can tell a slow shard from a lost one.
+    Progress {
+        /// Which shard.
+        shard: usize,
+        /// Its cells finished so far.
+        cells: usize,
+    },
 }
 
 /// A connection to the NATS server with the stream and consumer in place.
@@ -100,6 +125,13 @@ pub struct Queue {
     jetstream: jetstream::Context,
     stream: stream::Stream,
     url: String,
+    /// The runtime the connection lives on: studies block on it from threads of their own (a
+    /// request's blocking thread, a job's thread).
+    runtime: tokio::runtime::Handle,
+    /// The workers' consumer's ack wait, as the NATS server has it.
+    ack_wait: Duration,
+    /// The workers' consumer's deliveries of a shard before it is given up.
+    max_deliver: i64,
     /// Steps per shard the server aims at.
     pub steps_per_shard: u64,
 }
@@ -110,17 +142,27 @@ fn failed(what: &str, url: &str, e: impl std::fmt::Display) -> String {
 
 impl Queue {
     /// Connects (failing at once, not retrying, when no server answers) and creates the stream
-    /// and the workers' consumer if they do not exist. `ack_wait` applies when this call creates
-    /// the consumer.
+    /// and the workers' consumer if they do not exist. `url` may list several servers of a
+    /// cluster, separated by commas (the client also learns the others from the one it reaches,
+    /// and moves to another when that one goes). `ack_wait` applies when this call creates the
+    /// consumer.
     pub async fn connect(
         url: &str,
         ack_wait: Duration,
         options: &options::NatsOptions,
     ) -> Result<Queue, String> {
+        let servers = url
+            .split(',')
+            .map(|one| {
+                one.trim()
+                    .parse::<async_nats::ServerAddr>()
+                    .map_err(|e| format!("`{one}` is not a NATS server's URL: {e}"))
+            })
+            .collect::<Result<Vec<_>, _>>()?;
         let client = options
             .connect_options()
             .await?
-            .connect(url)
+            .connect(servers)
             .await
             .map_err(|e| failed("cannot connect", url, e))?;
         let jetstream = jetstream::new(client.clone());
@@ -133,6 +175,7 @@ impl Queue {
                 subjects: vec![format!("{TASKS}.>")],
                 retention: stream::RetentionPolicy::WorkQueue,
                 storage: stream::StorageType::File,
+                num_replicas: options.replicas,
                 ..Default::default()
             })
             .await
@@ -170,6 +213,7 @@ impl Queue {
                 Ok(()) => failed("cannot find the workers' consumer", url, e),
             })?;
         let config = consumer.cached_info().config.clone();
+        let (ack_wait, mut max_deliver) = (config.ack_wait, config.max_deliver);
         if config.max_deliver <= 0 {
             let bounded = jetstream::consumer::Config {
                 max_deliver: options.max_deliver,
@@ -184,12 +228,16 @@ impl Queue {
                 max_deliver = options.max_deliver,
                 "bounded the deliveries of the workers' consumer"
             );
+            max_deliver = options.max_deliver;
         }
         Ok(Queue {
             client,
             jetstream,
             stream,
             url: url.to_string(),
+            runtime: tokio::runtime::Handle::current(),
+            ack_wait,
+            max_deliver,
             steps_per_shard: DEFAULT_STEPS_PER_SHARD,
         })
     }
@@ -198,49 +246,70 @@ impl Queue {
     pub fn url(&self) -> &str {
         &self.url
     }
+
+    /// How long a shard whose deliveries are all spent is waited for after the last word of a
+    /// worker running it: as long as JetStream gave its deliveries (`max_deliver` ack waits), so
+    /// that a worker stopped or starved of CPU about as long as a delivery lasts, and then
+    /// continued, still finishes it; a worker that died says nothing more.
+    pub fn exhausted_grace(&self) -> Duration {
+        self.ack_wait * self.max_deliver.clamp(1, 100) as u32
+    }
 }
 
-/// How many shards the server splits `study` into: about `steps_per_shard` of work each, parts
-/// under [`PART_BYTES`] (`cell_bytes`: about the size of one cell's result), no more shards than
-/// cells.
-pub fn shard_count<S: Study>(study: &S, steps_per_shard: u64, cell_bytes: usize) -> usize {
-    let cells = study.cells().max(1);
-    let steps_per_cell = (study.steps() / cells as u64).max(1);
+/// How many shards the server splits `cells` of `study` into: about `steps_per_shard` of work
+/// each, parts under [`PART_BYTES`] (`cell_bytes`: about the size of one cell's result), no more
+/// shards than cells.
+pub fn shard_count<S: Study>(
+    study: &S,
+    cells: usize,
+    steps_per_shard: u64,
+    cell_bytes: usize,
+) -> usize {
+    let cells = cells.max(1);
+    let steps_per_cell = (study.steps() / study.cells().max(1) as u64).max(1);
     let by_work = (steps_per_shard / steps_per_cell).max(1) as usize;
     let by_size = (PART_BYTES / cell_bytes.max(1)).max(1);
     cells.div_ceil(by_work.min(by_size).min(cells))
 }
 
 impl Executor for Queue {
-    /// Hands the cells to the workers when the study may run elsewhere (a spec, cells in any
-    /// order); a timed study runs here. Called on a blocking thread of the server's runtime.
+    /// Hands the cells (the whole study, or a job's part of it) to the workers when the study
+    /// may run elsewhere (a spec, cells in any order); a timed study runs here. Called on a
+    /// thread outside the runtime's workers (a blocking thread, a job's thread).
     fn run<S: Study>(
         &self,
         study: &S,
-        cells: std::ops::Range<usize>,
+        cells: Range<usize>,
         budget: Budget<'_>,
         done: &(dyn Fn(usize, Option<&S::Cell>) + Sync),
     ) -> Result<Vec<Option<S::Cell>>, CoreError> {
         match study.spec() {
-            Some(spec) if study.order() == Order::Parallel && cells == (0..study.cells()) => {
-                let runtime = tokio::runtime::Handle::current();
-                runtime.block_on(run(self, spec, study, budget, done))
+            Some(spec)
+                if study.order() == Order::Parallel
+                    && !cells.is_empty()
+                    && cells.end <= study.cells() =>
+            {
+                self.runtime
+                    .block_on(run(self, spec, study, cells, budget, done))
             }
             _ => Local.run(study, cells, budget, done),
         }
     }
 }
 
-/// Runs `study` (whose spec is `spec`) on the workers: publishes its shards, collects the
-/// parts, calls `done` for each cell of a part as it arrives, and returns every cell's result in
-/// order. Stops (taking what no worker has answered out of the queue) when the budget says so:
-/// at the deadline with the cells of the parts received so far (`None` for the others), on
-/// cancellation with an error. Fails when the NATS server is gone for [`DISCONNECTED_GRACE`], and when a shard was
-/// delivered `max_deliver` times without a part ([`poison`]).
+/// Runs the cells `within` of `study` (whose spec is `spec`) on the workers: publishes their
+/// shards, collects the parts, calls `done` for each cell of a part as it arrives, and returns
+/// the cells' results in order. Stops (taking what no worker has answered out of the queue) when
+/// the budget says so: at the deadline with the cells of the parts received so far (`None` for
+/// the others), on cancellation with an error. Fails when the NATS server is gone for
+/// [`DISCONNECTED_GRACE`], when a part does not fit its shard, and when a shard was delivered
+/// `max_deliver` times and no worker has said a word about it for [`Queue::exhausted_grace`]
+/// ([`poison`]).
 async fn run<S: Study>(
     queue: &Queue,
     spec: StudySpec,
     study: &S,
+    within: Range<usize>,
     budget: Budget<'_>,
     done: &(dyn Fn(usize, Option<&S::Cell>) + Sync),
 ) -> Result<Vec<Option<S::Cell>>, CoreError> {
@@ -267,58 +336,67 @@ async fn run<S: Study>(
     // carry their final states).
     let spec_bytes = serde_json::to_vec(&spec).map_or(0, |b| b.len());
     let cell_bytes = spec_bytes / study.cells().max(1) + 400;
-    let count = shard_count(study, queue.steps_per_shard, cell_bytes);
-    tracing::info!(study = %id, kind = name, shards = count, cells = study.cells(), "study sent to the workers");
-    for index in 0..count {
+    let count = shard_count(study, within.len(), queue.steps_per_shard, cell_bytes);
+    let whole = within == (0..study.cells());
+    tracing::info!(study = %id, kind = name, shards = count, cells = within.len(), first_cell = within.start, "study sent to the workers");
+    let task = |shard: usize| {
         let task = Task {
             study: id.clone(),
             spec: spec.clone(),
-            shard: index,
+            shard,
             shards: count,
+            cells: (!whole).then(|| within.clone()),
         };
-        let payload = serde_json::to_vec(&task).map_err(|e| lost("cannot encode a task", &e))?;
-        let stored = queue
-            .jetstream
-            .publish(tasks.clone(), payload.into())
-            .await
-            .map_err(|e| lost("cannot queue a shard", &e))?
+        serde_json::to_vec(&task).map_err(|e| lost("cannot encode a task", &e))
+    };
+    for index in 0..count {
+        let sequence = enqueue(queue, &tasks, task(index)?, &format!("{id}.{index}"))
             .await
             .map_err(|e| lost("the stream did not take a shard", &e))?;
-        sequences.insert(stored.sequence, index);
+        sequences.insert(sequence, index);
     }
 
-    let mut parts: Vec<Option<Part<S::Cell>>> = (0..count).map(|_| None).collect();
+    let mut results: Vec<Option<S::Cell>> = within.clone().map(|_| None).collect();
+    let mut answered = vec![false; count];
     // The shards no part has answered yet leave the queue.
-    let withdraw_unanswered = |parts: &[Option<Part<S::Cell>>]| {
+    let withdraw_unanswered = |sequences: &HashMap<u64, usize>, answered: &[bool]| {
         let unanswered: Vec<u64> = sequences
             .iter()
-            .filter(|&(_, &shard)| parts.get(shard).is_some_and(Option::is_none))
+            .filter(|&(_, &shard)| !answered[shard])
             .map(|(&sequence, _)| sequence)
             .collect();
         withdraw(queue, &id, unanswered)
     };
+    // When the study last heard of its workers, when it last looked for lost parts, and the
+    // shards it found gone from the stream with no part.
+    let mut heard = Instant::now();
+    let mut looked = Instant::now();
+    let mut gone: HashSet<usize> = HashSet::new();
+    let mut attempts = vec![0u32; count];
+    // Shards whose deliveries are spent: the study's error if they stay silent, and when a
+    // worker last spoke of them.
+    let mut exhausted: HashMap<usize, (CoreError, Instant)> = HashMap::new();
     let mut missing = count;
     let mut disconnected_since: Option<Instant> = None;
     while missing > 0 {
         if budget.cancelled() {
-            withdraw_unanswered(&parts).await;
+            withdraw_unanswered(&sequences, &answered).await;
             return Err(CoreError::Cancelled {
                 what: name,
                 shutdown: true,
             });
         }
         if budget.expired() {
-            withdraw_unanswered(&parts).await;
-            let mut cells: Vec<Option<S::Cell>> = (0..study.cells()).map(|_| None).collect();
-            for part in parts.into_iter().flatten() {
-                let end = part.first_cell.saturating_add(part.cells.len());
-                if let Some(slots) = cells.get_mut(part.first_cell..end) {
-                    for (slot, cell) in slots.iter_mut().zip(part.cells) {
-                        *slot = Some(cell);
-                    }
-                }
-            }
-            return Ok(cells);
+            withdraw_unanswered(&sequences, &answered).await;
+            return Ok(results);
+        }
+        let silent = exhausted
+            .iter()
+            .find(|(_, (_, heard))| heard.elapsed() >= queue.exhausted_grace())
+            .map(|(&shard, _)| shard);
+        if let Some(shard) = silent {
+            withdraw_unanswered(&sequences, &answered).await;
+            return Err(exhausted.remove(&shard).expect("found above").0);
         }
         match queue.client.connection_state() {
             async_nats::connection::State::Connected => disconnected_since = None,
@@ -336,6 +414,30 @@ async fn run<S: Study>(
                 }
             }
         }
+        // Silence for an ack wait: a shard that a worker acknowledged (it is gone from the
+        // stream) while its part never came (a part is a plain NATS message: one sent while the
+        // server moved to another NATS server of a cluster is lost) is queued again, once it is
+        // found gone twice in a row.
+        // Only while connected, and for at most an ack wait, so that a lost connection is still
+        // noticed in time.
+        let connected = disconnected_since.is_none();
+        if connected && heard.elapsed() >= queue.ack_wait && looked.elapsed() >= queue.ack_wait {
+            looked = Instant::now();
+            let look = lost_parts(queue, &sequences, &answered, &mut gone);
+            let lost_now = tokio::time::timeout(queue.ack_wait, look)
+                .await
+                .unwrap_or_default();
+            for (shard, sequence) in lost_now {
+                sequences.remove(&sequence);
+                attempts[shard] += 1;
+                let message_id = format!("{id}.{shard}.{}", attempts[shard]);
+                let sequence = enqueue(queue, &tasks, task(shard)?, &message_id)
+                    .await
+                    .map_err(|e| lost("the stream did not take a shard again", &e))?;
+                tracing::warn!(study = %id, shard, sequence, "a shard's part was lost; queued again");
+                sequences.insert(sequence, shard);
+            }
+        }
         let message = match tokio::time::timeout(Duration::from_millis(100), parts_in.next()).await
         {
             Err(_) => continue,
@@ -344,33 +446,62 @@ async fn run<S: Study>(
         };
         // A shard whose part came after all (from a slow worker) is done, whatever its copies did.
         if let Some((shard, error)) = poison::exhausted(name, &message, &sequences) {
-            if parts.get(shard).is_some_and(Option::is_none) {
-                withdraw_unanswered(&parts).await;
-                return Err(error);
+            if !answered[shard] {
+                tracing::warn!(study = %id, shard, "a shard's deliveries are spent; waiting for a word from a worker still running it");
+                exhausted.entry(shard).or_insert((error, Instant::now()));
             }
         }
         if message.subject.starts_with(poison::ADVISORY) {
             continue;
         }
+        heard = Instant::now();
         match serde_json::from_slice::<Reply<Part<S::Cell>>>(&message.payload) {
             Ok(Reply::Part(part)) if part.shard < count && part.shards == count => {
                 // A redelivered shard may arrive twice: the first copy counts.
-                if parts[part.shard].is_none() {
-                    for (k, cell) in part.cells.iter().enumerate() {
-                        done(part.first_cell + k, Some(cell));
-                    }
-                    let index = part.shard;
-                    parts[index] = Some(*part);
-                    missing -= 1;
+                if answered[part.shard] {
+                    continue;
                 }
+                let slots = Shard {
+                    index: part.shard,
+                    count,
+                }
+                .cells_within(&within)
+                .map_err(|e| e.to_string())
+                .and_then(|range| fitting(study, &spec, &part, range));
+                let range = match slots {
+                    Ok(range) => range,
+                    Err(reason) => {
+                        withdraw_unanswered(&sequences, &answered).await;
+                        return Err(CoreError::Executor {
+                            message: format!(
+                                "the {name}'s parts do not fit together: shard {}: {reason}",
+                                part.shard
+                            ),
+                        });
+                    }
+                };
+                let offset = range.start - within.start;
+                for (k, cell) in part.cells.into_iter().enumerate() {
+                    done(range.start + k, Some(&cell));
+                    results[offset + k] = Some(cell);
+                }
+                answered[part.shard] = true;
+                exhausted.remove(&part.shard);
+                missing -= 1;
             }
             Ok(Reply::Part(part)) => tracing::warn!(
                 shard = part.shard,
                 shards = part.shards,
                 "a part that is not a shard of this study"
             ),
+            Ok(Reply::Progress { shard, cells }) => {
+                tracing::debug!(study = %id, shard, cells, "a shard in progress");
+                if let Some((_, heard)) = exhausted.get_mut(&shard) {
+                    *heard = Instant::now();
+                }
+            }
             Ok(Reply::Failed { shard, message }) => {
-                withdraw_unanswered(&parts).await;
+                withdraw_unanswered(&sequences, &answered).await;
                 return Err(CoreError::Executor {
                     message: format!(
                         "the {name} failed: a worker cannot run shard {shard}: {message}"
@@ -380,16 +511,102 @@ async fn run<S: Study>(
             Err(e) => tracing::warn!(error = %e, "an unreadable reply"),
         }
     }
-    let named = parts
-        .into_iter()
-        .flatten()
-        .map(|p| (format!("shard {}", p.shard), p))
-        .collect();
-    parts::merge(study, &spec, named)
-        .map(|(cells, _)| cells.into_iter().map(Some).collect())
-        .map_err(|e| CoreError::Executor {
-            message: format!("the {name}'s parts do not fit together: {e}"),
-        })
+    Ok(results)
+}
+
+/// The cells `part` should hold (`range`, of the study's cells) if it is a part of this study:
+/// of its format and spec, holding exactly those cells, each one the study can take.
+fn fitting<S: Study>(
+    study: &S,
+    spec: &StudySpec,
+    part: &Part<S::Cell>,
+    range: Range<usize>,
+) -> Result<Range<usize>, String> {
+    if part.format != parts::PART_FORMAT || &part.spec != spec {
+        return Err("it belongs to another study".into());
+    }
+    if part.first_cell != range.start || part.cells.len() != range.len() {
+        return Err(format!(
+            "it holds cells {}..{}, the shard is cells {}..{}",
+            part.first_cell,
+            part.first_cell + part.cells.len(),
+            range.start,
+            range.end
+        ));
+    }
+    if !part.cells.iter().all(|cell| study.fits(cell)) {
+        return Err("its cells are not the study's (other runs or settings)".into());
+    }
+    Ok(range)
+}
+
+/// How long the server tries to queue a shard before failing its study: about as long as a
+/// JetStream cluster takes to elect a stream's new leader once a server is gone.
+const ENQUEUE_PATIENCE: Duration = Duration::from_secs(15);
+
+/// Puts a task on the stream under `message_id` and returns its stream sequence. A publish that
+/// fails or is not acknowledged (a cluster electing a new leader) is tried again for up to
+/// [`ENQUEUE_PATIENCE`]; JetStream keeps one copy of a message id, so a task whose first
+/// acknowledgement was lost is still queued once.
+async fn enqueue(
+    queue: &Queue,
+    subject: &str,
+    payload: Vec<u8>,
+    message_id: &str,
+) -> Result<u64, String> {
+    let payload = bytes::Bytes::from(payload);
+    let until = Instant::now() + ENQUEUE_PATIENCE;
+    loop {
+        let publish = jetstream::message::PublishMessage::build()
+            .payload(payload.clone())
+            .message_id(message_id);
+        let stored = match queue
+            .jetstream
+            .send_publish(subject.to_string(), publish)
+            .await
+        {
+            Ok(acknowledged) => acknowledged.await.map_err(|e| e.to_string()),
+            Err(e) => Err(e.to_string()),
+        };
+        match stored {
+            Ok(ack) => return Ok(ack.sequence),
+            Err(e) if Instant::now() < until => {
+                tracing::debug!(error = %e, message_id, "queueing a shard again");
+                tokio::time::sleep(Duration::from_millis(250)).await;
+            }
+            Err(e) => return Err(e),
+        }
+    }
+}
+
+/// The unanswered shards (shard, stream sequence) whose task is gone from the stream, a worker
+/// having acknowledged it, and was gone at the last look too (`gone`: shards found gone once).
+async fn lost_parts(
+    queue: &Queue,
+    sequences: &HashMap<u64, usize>,
+    answered: &[bool],
+    gone: &mut HashSet<usize>,
+) -> Vec<(usize, u64)> {
+    let mut lost = Vec::new();
+    let mut still_gone = HashSet::new();
+    for (&sequence, &shard) in sequences {
+        if answered[shard] {
+            continue;
+        }
+        match queue.stream.get_raw_message(sequence).await {
+            Err(e) if e.kind() == stream::LastRawMessageErrorKind::NoMessageFound => {
+                if gone.contains(&shard) {
+                    lost.push((shard, sequence));
+                } else {
+                    still_gone.insert(shard);
+                }
+            }
+            // Still queued or running; or the stream cannot say now: look again later.
+            _ => {}
+        }
+    }
+    *gone = still_gone;
+    lost
 }
 
 /// Takes a study's shards out of the queue by their stream sequences (`id`: the study, for the
@@ -451,21 +668,48 @@ async fn run_one(
         return Ok(());
     };
     let message = Arc::new(message.map_err(|e| failed("cannot fetch a shard", &queue.url, e))?);
-    // Tell JetStream the shard is being worked on, so it is not handed out again.
+    // The study and shard, for the progress reports (a task that cannot be read is answered
+    // below).
+    let about: Option<(String, usize)> = serde_json::from_slice::<TaskAddress>(&message.payload)
+        .ok()
+        .map(|t| (t.study, t.shard));
+    let cells_done = Arc::new(AtomicUsize::new(0));
+    // Tell JetStream the shard is being worked on, so it is not handed out again, and tell the
+    // study's server how far it got, so that a shard whose deliveries a stopped or starved
+    // worker spent is waited for while a worker still runs it.
     let keepalive = {
         let message = Arc::clone(&message);
+        let client = queue.client.clone();
+        let cells_done = Arc::clone(&cells_done);
         tokio::spawn(async move {
             let mut tick = tokio::time::interval((ack_wait / 3).max(Duration::from_millis(100)));
             tick.tick().await;
             loop {
                 tick.tick().await;
                 let _ = message.ack_with(AckKind::Progress).await;
+                if let Some((study, shard)) = &about {
+                    let report: Reply<AnyPart> = Reply::Progress {
+                        shard: *shard,
+                        cells: cells_done.load(AtomicOrdering::Relaxed),
+                    };
+                    if let Ok(bytes) = serde_json::to_vec(&report) {
+                        let _ = client
+                            .publish(format!("{PARTS}.{study}"), bytes.into())
+                            .await;
+                    }
+                }
             }
         })
     };
     let payload = message.payload.clone();
     let max_payload = queue.client.server_info().max_payload;
-    let reply = tokio::task::spawn_blocking(move || run_task(&payload, &limits, max_payload)).await;
+    let reply = tokio::task::spawn_blocking(move || {
+        let tick = || {
+            cells_done.fetch_add(1, AtomicOrdering::Relaxed);
+        };
+        run_task(&payload, &limits, max_payload, &tick)
+    })
+    .await;
     keepalive.abort();
     let (study, reply) = match reply {
         Ok(done) => done,
@@ -473,6 +717,7 @@ async fn run_one(
             return poisoned(queue, &message, consumer, poison::panic_message(panic)).await
         }
     };
+    let study = study.filter(|_| !poison::loses_part(&message.payload));
     if let Some(study) = study {
         let bytes = serde_json::to_vec(&reply).map_err(|e| e.to_string())?;
         queue
@@ -531,11 +776,19 @@ async fn poisoned(
         .map_err(|e| failed("cannot terminate a shard", &queue.url, e))
 }
 
-/// Runs one task: its study (if the task could be read) and the reply.
+/// The fields of a task that say where its reports go, read without its spec.
+#[derive(Deserialize)]
+struct TaskAddress {
+    study: String,
+    shard: usize,
+}
+
+/// Runs one task (`tick` after each cell): its study (if the task could be read) and the reply.
 fn run_task(
     payload: &[u8],
     limits: &Limits,
     max_payload: usize,
+    tick: &(dyn Fn() + Sync),
 ) -> (Option<String>, Reply<AnyPart>) {
     poison::test_fault(payload);
     let task: Task = match serde_json::from_slice(payload) {
@@ -555,12 +808,21 @@ fn run_task(
         shard: task.shard,
         message,
     };
+    if task.shard >= task.shards {
+        return (
+            Some(task.study),
+            failed(format!(
+                "shard {} of {} is no shard",
+                task.shard, task.shards
+            )),
+        );
+    }
     let shard = Shard {
         index: task.shard,
         count: task.shards,
     };
     tracing::info!(study = %task.study, shard = task.shard, shards = task.shards, "shard started");
-    let reply = match parts::run_part(&task.spec, shard, limits, &|| {}) {
+    let reply = match parts::run_part(&task.spec, shard, task.cells.clone(), limits, tick) {
         Ok(part) => Reply::Part(Box::new(part)),
         Err(e) => failed(e.to_string()),
     };

@@ -156,6 +156,10 @@ pub struct NatsArgs {
     /// no bound.
     #[arg(long, env = "GEOMINT_NATS_MAX_DELIVER", default_value_t = crate::nats::poison::DEFAULT_MAX_DELIVER, value_parser = clap::value_parser!(i64).range(1..=1000))]
     pub nats_max_deliver: i64,
+    /// Copies of the shard stream in a JetStream cluster (1, 3 or 5), so that the queue outlives
+    /// a NATS server; applies when this process creates the stream.
+    #[arg(long, env = "GEOMINT_NATS_REPLICAS", default_value_t = 1, value_parser = clap::value_parser!(u8).range(1..=5))]
+    pub nats_replicas: u8,
 }
 
 impl NatsArgs {
@@ -164,6 +168,7 @@ impl NatsArgs {
             creds: self.nats_creds.clone(),
             tls_ca: self.nats_tls_ca.clone(),
             max_deliver: self.nats_max_deliver,
+            replicas: self.nats_replicas.into(),
         }
     }
 }

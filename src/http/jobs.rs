@@ -189,6 +189,9 @@ pub async fn submit_job(
     let job = run_blocking(move || {
         let (systems, limits) = (&state.systems, &state.config.limits);
         let prepared = study::prepare(&request.study, &request.request, systems, limits)?;
+        if let Some(full) = jobs.over_quota(&owner.name, owner.quota, &state.recordings) {
+            return Err(full);
+        }
         jobs.submit(
             &owner,
             &request.study,

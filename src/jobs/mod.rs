@@ -97,18 +97,18 @@ pub struct JobContext {
     pub recordings: Arc<RecordingStore>,
 }
 
-/// The error of a write to the jobs directory that failed: `storage_full` when the disk is full,
-/// else `storage_unavailable`.
-fn storage_error(error: &std::io::Error) -> ErrorDetail {
-    tracing::error!(%error, "a write to the jobs directory failed");
+/// The error of a write of `what` to the jobs directory that failed: `storage_full` when the
+/// disk is full, else `storage_unavailable`.
+fn storage_error(what: &str, error: &std::io::Error) -> ErrorDetail {
+    tracing::error!(%error, what, "a write to the jobs directory failed");
     match error.kind() {
         std::io::ErrorKind::StorageFull | std::io::ErrorKind::QuotaExceeded => ErrorDetail::new(
             ErrorCode::StorageFull,
-            "the jobs directory's disk is full; nothing was stored",
+            format!("the jobs directory's disk is full: {what} was not stored"),
         ),
         kind => ErrorDetail::new(
             ErrorCode::StorageUnavailable,
-            format!("the jobs directory cannot be written ({kind})"),
+            format!("the jobs directory cannot be written ({kind}): {what} was not stored"),
         ),
     }
 }
@@ -174,6 +174,35 @@ impl Jobs {
         jobs
     }
 
+    /// Why `owner`, with its `quota` of stored bytes, may store nothing more: its recordings in
+    /// the library and its jobs' files (parts, results, records) together hold the quota or more.
+    /// A job's recording kept in the library is there and in the job's own files: both copies
+    /// count, as both take the disk.
+    pub fn over_quota(
+        &self,
+        owner: &str,
+        quota: Option<u64>,
+        recordings: &RecordingStore,
+    ) -> Option<ErrorDetail> {
+        let quota = quota?;
+        let owned: Vec<Arc<Job>> = (self.board().jobs.values())
+            .filter(|j| j.record.owner == owner)
+            .cloned()
+            .collect();
+        let jobs: u64 = owned.iter().map(|j| j.dir.bytes()).sum();
+        let recordings = recordings.owned_bytes(owner);
+        (jobs + recordings >= quota).then(|| {
+            ErrorDetail::new(
+                ErrorCode::QuotaExceeded,
+                format!(
+                    "`{owner}` keeps {jobs} bytes of jobs and {recordings} bytes of recordings, \
+                     its quota of {quota} bytes or more: remove finished jobs (DELETE \
+                     /api/v1/jobs/ID) or recordings to make room"
+                ),
+            )
+        })
+    }
+
     /// Submits `study` (`request`, read and prepared as `prepared`) for `owner` (with its quota
     /// of recording bytes): 429 when the owner has its quota of unfinished jobs; 507 or 500 when
     /// the job cannot be stored.
@@ -225,7 +254,10 @@ impl Jobs {
             recordings_quota: quota,
         };
         // The files are written before the board is locked: its readers are the request handlers.
-        let dir = self.store.create(&record).map_err(|e| storage_error(&e))?;
+        let dir = self
+            .store
+            .create(&record)
+            .map_err(|e| storage_error("the job", &e))?;
         let job = Arc::new(Job::new(record, dir));
         job.event(EventKind::Submitted, |e| e.priority = Some(priority));
         let mut board = self.board();
@@ -267,7 +299,9 @@ impl Jobs {
             }
             board.jobs.remove(&job.record.id);
         }
-        job.dir.remove().map_err(|e| storage_error(&e))?;
+        job.dir
+            .remove()
+            .map_err(|e| storage_error("the removal", &e))?;
         Ok(true)
     }
 

@@ -4,7 +4,7 @@
 use std::ops::Range;
 use std::panic::AssertUnwindSafe;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use serde_json::Value;
@@ -151,6 +151,7 @@ impl Jobs {
             job,
             context,
             unfinished: AtomicBool::new(false),
+            failure: Mutex::new(None),
         };
         let executor = Stored {
             dir: &job.dir,
@@ -162,7 +163,21 @@ impl Jobs {
             cancel: Some(&job.stop),
             deadline: Instant::now().checked_add(self.time_limit),
         };
-        let results = prepared.run(&executor, budget)?;
+        // A part the disk could not take fails the job as `storage_full` (or
+        // `storage_unavailable`), not as its executor's failure; an owner out of room as
+        // `quota_exceeded`. The parts stored before stay.
+        let failure = || {
+            sink.failure
+                .lock()
+                .unwrap_or_else(|p| p.into_inner())
+                .take()
+        };
+        let results = prepared
+            .run(&executor, budget)
+            .map_err(|e| failure().unwrap_or_else(|| e.into()))?;
+        if let Some(failure) = failure() {
+            return Err(failure);
+        }
         if sink.unfinished.load(Ordering::Relaxed) {
             return Err(ErrorDetail::new(
                 ErrorCode::Timeout,
@@ -173,10 +188,13 @@ impl Jobs {
                 ),
             ));
         }
+        if let Some(full) = self.over_quota(&r.owner, r.recordings_quota, &context.recordings) {
+            return Err(full);
+        }
         let store = |name: &str, bytes: &[u8]| {
             job.dir
                 .write_result(name, bytes)
-                .map_err(|e| storage_error(&e))
+                .map_err(|e| storage_error(&format!("the result ({name})"), &e))
         };
         store("result.json", &results.json)?;
         let Some(rrd) = &results.rrd else {
@@ -206,11 +224,32 @@ struct Sink<'a> {
     context: &'a JobContext,
     /// Whether a part stopped short (the time limit).
     unfinished: AtomicBool,
+    /// Why the job cannot go on: a finished part the disk could not take, or an owner out of
+    /// room.
+    failure: Mutex<Option<ErrorDetail>>,
+}
+
+impl Sink<'_> {
+    /// Ends the job with `error` once its parts stop (the first reason given stays).
+    fn fail(&self, error: ErrorDetail) {
+        let mut failure = self.failure.lock().unwrap_or_else(|p| p.into_inner());
+        failure.get_or_insert(error);
+    }
 }
 
 impl PartSink for Sink<'_> {
     fn turn(&self, steps: u64) -> Option<Box<dyn Send + '_>> {
         let r = &self.job.record;
+        // A job's parts count against its owner's quota of stored bytes: none starts once the
+        // owner has no room left.
+        let recordings = &self.context.recordings;
+        if let Some(full) = self
+            .jobs
+            .over_quota(&r.owner, r.recordings_quota, recordings)
+        {
+            self.fail(full);
+            return None;
+        }
         let claim = Claim {
             owner: r.owner.clone(),
             priority: r.priority,
@@ -237,6 +276,11 @@ impl PartSink for Sink<'_> {
 
     fn part_unfinished(&self) {
         self.unfinished.store(true, Ordering::Relaxed);
+    }
+
+    fn not_stored(&self, cells: Range<usize>, error: &std::io::Error) {
+        let what = format!("the part of cells {}..{}", cells.start, cells.end);
+        self.fail(storage_error(&what, error));
     }
 
     fn part_done(&self, cells: Range<usize>, stored: bool) {

@@ -22,6 +22,8 @@ pub trait PartSink: Sync {
     fn part_done(&self, cells: Range<usize>, stored: bool);
     /// A part stopped before its end (the budget ran out) and was not stored.
     fn part_unfinished(&self);
+    /// A finished part (`cells`) could not be stored: the job fails with this reason.
+    fn not_stored(&self, cells: Range<usize>, error: &std::io::Error);
 }
 
 /// A job's study executor.
@@ -48,12 +50,6 @@ pub fn parts(cells: Range<usize>, size: usize) -> Vec<Range<usize>> {
         start = end;
     }
     out
-}
-
-fn storage_error(e: std::io::Error) -> CoreError {
-    CoreError::Executor {
-        message: format!("a finished part could not be stored: {e}"),
-    }
 }
 
 impl Executor for Stored<'_> {
@@ -104,9 +100,12 @@ impl Executor for Stored<'_> {
                 .map(Option::as_ref)
                 .collect::<Option<Vec<_>>>()
             {
-                self.dir
-                    .write_part(part.start, &whole)
-                    .map_err(storage_error)?;
+                if let Err(error) = self.dir.write_part(part.start, &whole) {
+                    self.sink.not_stored(part.clone(), &error);
+                    return Err(CoreError::Executor {
+                        message: format!("a finished part could not be stored: {error}"),
+                    });
+                }
                 self.sink.part_done(part, false);
             } else {
                 self.sink.part_unfinished();

@@ -15,6 +15,9 @@ pub struct NatsOptions {
     pub tls_ca: Option<PathBuf>,
     /// Deliveries of a shard before its study fails (see [`super::poison`]).
     pub max_deliver: i64,
+    /// Copies of the shard stream, when this process creates it (a JetStream cluster's servers
+    /// keep one each).
+    pub replicas: usize,
 }
 
 impl Default for NatsOptions {
@@ -23,6 +26,7 @@ impl Default for NatsOptions {
             creds: None,
             tls_ca: None,
             max_deliver: super::poison::DEFAULT_MAX_DELIVER,
+            replicas: 1,
         }
     }
 }

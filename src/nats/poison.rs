@@ -9,12 +9,18 @@
 //! - A worker that dies never answers: the shard goes out again after each ack wait, and once
 //!   JetStream has delivered it `max_deliver` times it publishes the consumer's max-deliveries
 //!   advisory ([`ADVISORY`]), which the server that queued the shard watches for its sequence
-//!   numbers: the study fails within `max_deliver` ack waits.
+//!   numbers. The study fails once no worker has reported progress on the shard for a further
+//!   `max_deliver` ack waits ([`Queue::exhausted_grace`](super::Queue::exhausted_grace)): a
+//!   worker that was only stopped or starved of CPU, and continues, reports again within a third
+//!   of an ack wait, and its part still counts.
 //!
 //! Tests make a shard panic, or kill its worker, through [`test_fault`]: in builds with debug
 //! assertions only, a worker whose environment sets `GEOMINT_WORKER_PANIC_ON` panics on a task
-//! whose bytes contain that text, and one that sets `GEOMINT_WORKER_ABORT_ON` aborts. Release
-//! builds have no such hook, and no request reaches it without the worker's own environment.
+//! whose bytes contain that text, and one that sets `GEOMINT_WORKER_ABORT_ON` aborts. One that
+//! sets `GEOMINT_WORKER_LOSE_PART_ON` loses the first such part it computes ([`loses_part`]):
+//! it acknowledges the task without sending the part, as a part lost in transit would look to
+//! the server. Release builds have no such hook, and no request reaches it without the worker's
+//! own environment.
 
 use std::collections::HashMap;
 
@@ -80,6 +86,37 @@ pub fn panic_message(error: tokio::task::JoinError) -> String {
         .unwrap_or_else(|| "a panic without a message".to_string())
 }
 
+/// Whether `payload` holds the text a test's environment names.
+#[cfg(debug_assertions)]
+fn holds(payload: &[u8], marker: &Option<String>) -> bool {
+    marker
+        .as_deref()
+        .is_some_and(|m| payload.windows(m.len()).any(|w| w == m.as_bytes()))
+}
+
+/// Whether this worker is to lose the part of the task with these bytes: the first one holding
+/// `GEOMINT_WORKER_LOSE_PART_ON`, in builds with debug assertions only.
+pub fn loses_part(payload: &[u8]) -> bool {
+    #[cfg(debug_assertions)]
+    {
+        use std::sync::atomic::{AtomicBool, Ordering};
+        static MARKER: std::sync::OnceLock<Option<String>> = std::sync::OnceLock::new();
+        static LOST: AtomicBool = AtomicBool::new(false);
+        let marker = MARKER.get_or_init(|| {
+            std::env::var("GEOMINT_WORKER_LOSE_PART_ON")
+                .ok()
+                .filter(|m| !m.is_empty())
+        });
+        if holds(payload, marker) && !LOST.swap(true, Ordering::Relaxed) {
+            eprintln!("GEOMINT_WORKER_LOSE_PART_ON: a test's part is lost");
+            return true;
+        }
+    }
+    #[cfg(not(debug_assertions))]
+    let _ = payload;
+    false
+}
+
 /// Panics, or aborts the worker, when its environment asks it to for a task with these bytes
 /// (builds with debug assertions only; see the module's documentation).
 pub fn test_fault(payload: &[u8]) {
@@ -90,16 +127,11 @@ pub fn test_fault(payload: &[u8]) {
             ["GEOMINT_WORKER_PANIC_ON", "GEOMINT_WORKER_ABORT_ON"]
                 .map(|name| std::env::var(name).ok().filter(|m| !m.is_empty()))
         });
-        let holds = |marker: &Option<String>| {
-            marker
-                .as_deref()
-                .is_some_and(|m| payload.windows(m.len()).any(|w| w == m.as_bytes()))
-        };
-        if holds(abort_on) {
+        if holds(payload, abort_on) {
             eprintln!("GEOMINT_WORKER_ABORT_ON: a test's poison shard kills its worker");
             std::process::abort();
         }
-        if holds(panic_on) {
+        if holds(payload, panic_on) {
             panic!("GEOMINT_WORKER_PANIC_ON: a test's poison shard");
         }
     }

@@ -17,7 +17,10 @@ use geomint::recording::read::inspect;
 use serde_json::{json, Value};
 
 use crate::server;
-use server::{client, spawn_listening, temporary_files, Process, SERVE_LISTENING, SERVE_LOG};
+use server::{
+    client, get_json_at as get_json, spawn_listening, temporary_files, Process, SERVE_LISTENING,
+    SERVE_LOG,
+};
 
 fn scratch(name: &str) -> PathBuf {
     let dir = server::scratch_dir(&format!("faults-{name}"));
@@ -61,17 +64,6 @@ async fn post(url: String, body: &Value) -> Result<(u16, Value), reqwest::Error>
     let response = client().post(url).json(body).send().await?;
     let status = response.status().as_u16();
     Ok((status, response.json().await.unwrap_or(Value::Null)))
-}
-
-async fn get_json(url: String) -> Value {
-    client()
-        .get(url)
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap()
 }
 
 /// Downloads every listed recording and decodes it with Rerun's decoder; returns their ids.
@@ -418,5 +410,108 @@ async fn sigterm_ends_runs_and_streams_with_their_stop_reason_and_exits_0() {
         std::thread::sleep(Duration::from_millis(20));
     };
     assert!(exit.success(), "{exit}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A job whose jobs directory fills while it runs: it fails with `storage_full` naming the part
+/// that was not stored; the parts stored before read back whole and no temporary file stays; the
+/// server goes on serving; and once space is freed the same study as a new job ends with the
+/// synchronous route's document.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_job_on_a_full_disk_fails_with_storage_full_and_keeps_its_stored_parts() {
+    let dir = scratch("jobs-full");
+    let disk = Tmpfs::mount(&dir.join("disk"), "1m");
+    let jobs = dir.join("disk/jobs");
+    let (_process, base) = serve(
+        &dir.join("recordings"),
+        &dir.join("systems"),
+        &[
+            "--jobs-dir",
+            jobs.to_str().unwrap(),
+            "--job-part-steps",
+            "4000000",
+        ],
+    );
+    // 8 parts of about 10 kB: room for the job's record and two or three of them.
+    let filler = dir.join("disk/filler");
+    {
+        use std::io::Write;
+        let mut file = std::fs::File::create(&filler).unwrap();
+        while file.write_all(&[0u8; 4096]).is_ok() {}
+    }
+    std::fs::write(
+        &filler,
+        vec![0u8; std::fs::metadata(&filler).unwrap().len() as usize - 40960],
+    )
+    .unwrap();
+    let sweep = json!({
+        "system": "henon_heiles", "methods": ["velocity_verlet", "rk4"], "h": 0.01, "t_end": 2000,
+        "every": 1000, "q0": [0, 0.1], "p0": [0.35, 0],
+        "axes": [{"name": "q0[1]", "min": -0.2, "max": 0.2, "n": 12},
+                 {"name": "p0[1]", "min": -0.1, "max": 0.1, "n": 10}]});
+    let submit = json!({"study": "sweep", "request": sweep});
+    let run_job = |base: String, submit: Value| async move {
+        let (status, job) = post(format!("{base}/api/v1/jobs"), &submit).await.unwrap();
+        assert_eq!(status, 202, "{job}");
+        let url = format!("{base}/api/v1/jobs/{}", job["id"].as_str().unwrap());
+        let until = Instant::now() + Duration::from_secs(120);
+        loop {
+            let job = get_json(url.clone()).await;
+            if job["state"] != "queued" && job["state"] != "running" {
+                return (url, job);
+            }
+            assert!(Instant::now() < until, "the job did not end: {job}");
+            tokio::time::sleep(Duration::from_millis(50)).await;
+        }
+    };
+    let (_, failed) = run_job(base.clone(), submit.clone()).await;
+    assert_eq!(failed["state"], "failed", "{failed}");
+    assert_eq!(failed["error"]["code"], "storage_full", "{failed}");
+    let message = failed["error"]["message"].as_str().unwrap();
+    assert!(
+        message.contains("disk is full: the part of cells"),
+        "{message}"
+    );
+    let stored = failed["parts_done"].as_u64().unwrap();
+    assert!(stored < failed["parts"].as_u64().unwrap(), "{failed}");
+    // What was stored reads back whole, and nothing half-written stays.
+    let id = failed["id"].as_str().unwrap();
+    let parts: Vec<PathBuf> = std::fs::read_dir(jobs.join(id).join("parts"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    assert_eq!(parts.len() as u64, stored, "{parts:?}");
+    for part in &parts {
+        let value: Value = serde_json::from_slice(&std::fs::read(part).unwrap()).unwrap();
+        assert!(
+            value["cells"].as_array().is_some_and(|c| !c.is_empty()),
+            "{part:?}"
+        );
+    }
+    assert!(
+        temporary_files(&jobs).is_empty(),
+        "{:?}",
+        temporary_files(&jobs)
+    );
+    let (status, _) = post(format!("{base}/api/v1/simulate"), &recording_request(100))
+        .await
+        .unwrap();
+    assert_eq!(status, 200);
+    // Space freed: the study as a new job gives the synchronous document.
+    std::fs::remove_file(&filler).unwrap();
+    let (url, done) = run_job(base.clone(), submit).await;
+    assert_eq!(done["state"], "done", "{done}");
+    let from_job = get_json(format!("{url}/result")).await;
+    let (status, direct) = post(format!("{base}/api/v1/studies/sweep"), &sweep)
+        .await
+        .unwrap();
+    assert_eq!(status, 200, "{direct}");
+    let numbers = |mut doc: Value| {
+        doc.as_object_mut().unwrap().remove("wall_ms");
+        doc
+    };
+    assert_eq!(numbers(from_job), numbers(direct));
+    drop(_process);
+    drop(disk);
     let _ = std::fs::remove_dir_all(&dir);
 }

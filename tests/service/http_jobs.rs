@@ -95,7 +95,7 @@ async fn events(base: &str, id: &str, after: usize, token: Option<&str>) -> Vec<
 
 /// A document without its timings (wall times differ from run to run; every number else is
 /// compared bit for bit).
-fn without_timings(value: &Value) -> Value {
+pub(crate) fn without_timings(value: &Value) -> Value {
     match value {
         Value::Object(map) => Value::Object(
             map.iter()
@@ -662,4 +662,76 @@ async fn the_command_line_submits_watches_and_fetches() {
     assert_eq!(refused.status.code(), Some(2));
     let message = String::from_utf8_lossy(&refused.stderr);
     assert!(message.contains("(request.t_end)"), "{message}");
+}
+
+/// A job's files count against its owner's quota of stored bytes (`recordings_bytes`), with its
+/// recordings: a 30 kB quota holds the job's record and a few of its 8 parts of about 10 kB, and
+/// the job then fails with `quota_exceeded`, keeping the parts it stored; a new job is refused
+/// at once (403) while the owner has no room; another owner is not touched; once the failed job
+/// is removed, the owner submits again.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_jobs_files_count_against_its_owners_quota() {
+    let small = Quotas {
+        recordings_bytes: Some(30_000),
+        ..Quotas::default()
+    };
+    let (server, secrets) = crate::http_access::start(
+        "jobs-quota",
+        &[
+            ("carol", "read,run", small),
+            ("dave", "read,run", Quotas::default()),
+        ],
+        Anonymous::None,
+        |config| {
+            let jobs = jobs_config("jobs-quota-dir", 4_000_000);
+            config.jobs = jobs.jobs;
+        },
+    )
+    .await;
+    let base = server.base.clone();
+    let (carol, dave) = (
+        Some(secrets["carol"].as_str()),
+        Some(secrets["dave"].as_str()),
+    );
+    let sweep = json!({
+        "system": "henon_heiles", "methods": ["velocity_verlet", "rk4"], "h": 0.01, "t_end": 2000,
+        "every": 1000, "q0": [0, 0.1], "p0": [0.35, 0],
+        "axes": [{"name": "q0[1]", "min": -0.2, "max": 0.2, "n": 12},
+                 {"name": "p0[1]", "min": -0.1, "max": 0.1, "n": 10}]});
+    let id = submit(&base, "sweep", &sweep, carol).await;
+    let seen = events(&base, &id, 0, carol).await;
+    let last = seen.last().unwrap();
+    assert_eq!(last["event"], "failed", "{last}");
+    let path = format!("{JOBS}/{id}");
+    let (_, failed) = call_json(&base, reqwest::Method::GET, &path, None, carol).await;
+    assert_eq!(failed["error"]["code"], "quota_exceeded", "{failed}");
+    let message = failed["error"]["message"].as_str().unwrap();
+    assert!(message.contains("`carol` keeps"), "{message}");
+    assert!(message.contains("its quota of 30000 bytes"), "{message}");
+    let stored = failed["parts_done"].as_u64().unwrap();
+    assert!(
+        (1..failed["parts"].as_u64().unwrap()).contains(&stored),
+        "{failed}"
+    );
+    // No room: refused at once, naming the quota.
+    let body = json!({"study": "sweep", "request": sweep});
+    let (status, refused) = call_json(&base, reqwest::Method::POST, JOBS, Some(&body), carol).await;
+    assert_eq!(status, 403, "{refused}");
+    assert_eq!(refused["error"]["code"], "quota_exceeded", "{refused}");
+    // Another owner's job runs to its end.
+    let other = submit(&base, "sweep", &sweep, dave).await;
+    assert_eq!(
+        events(&base, &other, 0, dave).await.last().unwrap()["event"],
+        "done"
+    );
+    // The failed job removed, there is room again.
+    let (status, _) = call(&base, reqwest::Method::DELETE, &path, None, carol).await;
+    assert_eq!(status, 204);
+    let small_sweep = json!({"system": "pendulum", "methods": ["rk4"], "h": 0.01, "t_end": 10,
+                             "axes": [{"name": "q0[0]", "min": 0.1, "max": 3, "n": 4}]});
+    let again = submit(&base, "sweep", &small_sweep, carol).await;
+    assert_eq!(
+        events(&base, &again, 0, carol).await.last().unwrap()["event"],
+        "done"
+    );
 }

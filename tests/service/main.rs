@@ -47,6 +47,7 @@ mod http_systems;
 mod http_time_limit;
 mod method_inputs;
 mod nats;
+mod nats_jobs;
 mod nats_poison;
 mod pinned;
 mod rowlands;

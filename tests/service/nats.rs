@@ -22,7 +22,7 @@ use serde_json::{json, Value};
 use crate::server;
 use server::{client, spawn_listening, Process, SERVE_LISTENING, SERVE_LOG};
 
-fn nats_server_binary() -> PathBuf {
+pub(crate) fn nats_server_binary() -> PathBuf {
     [
         "/usr/sbin/nats-server",
         "/usr/bin/nats-server",

@@ -189,8 +189,14 @@ pub fn client() -> reqwest::Client {
 
 /// GETs `path` and reads its answer as JSON.
 pub async fn get_json(server: &Server, path: &str) -> serde_json::Value {
+    get_json_at(server.url(path)).await
+}
+
+/// GETs `url` (of a server this test did not start in its own runtime) and reads its answer as
+/// JSON.
+pub async fn get_json_at(url: String) -> serde_json::Value {
     client()
-        .get(server.url(path))
+        .get(url)
         .send()
         .await
         .unwrap()

@@ -136,6 +136,13 @@ impl Shard {
         let at = |i: usize| (i as u128 * cells as u128 / self.count as u128) as usize;
         Ok(at(self.index)..at(self.index + 1))
     }
+
+    /// The shard's cells when the shards cut `within` (a range of the study's cells) rather than
+    /// the whole study: the same slicing, counted from `within.start`.
+    pub fn cells_within(&self, within: &Range<usize>) -> Result<Range<usize>, ShardError> {
+        let slice = self.cells(within.len())?;
+        Ok(within.start + slice.start..within.start + slice.end)
+    }
 }
 
 /// The result of one shard: what a worker or an array task writes.
@@ -164,11 +171,31 @@ pub fn run_shard<S: Study>(
     shard: Shard,
     done: &(dyn Fn(usize, Option<&S::Cell>) + Sync),
 ) -> Result<Part<S::Cell>, CoreError> {
+    run_shard_within(study, spec, shard, 0..study.cells(), done)
+}
+
+/// Runs shard `shard` of the cells `within` of `study` (a job's part cut again into shards for
+/// workers) on this machine's cores to the end. The part's `first_cell` counts from the study's
+/// first cell.
+pub fn run_shard_within<S: Study>(
+    study: &S,
+    spec: StudySpec,
+    shard: Shard,
+    within: Range<usize>,
+    done: &(dyn Fn(usize, Option<&S::Cell>) + Sync),
+) -> Result<Part<S::Cell>, CoreError> {
+    let executor = |message: String| CoreError::Executor { message };
+    if within.is_empty() || within.end > study.cells() {
+        return Err(executor(format!(
+            "cells {}..{} are not a range of the study's {} cells",
+            within.start,
+            within.end,
+            study.cells()
+        )));
+    }
     let cells = shard
-        .cells(study.cells())
-        .map_err(|e| CoreError::Executor {
-            message: e.to_string(),
-        })?;
+        .cells_within(&within)
+        .map_err(|e| executor(e.to_string()))?;
     let started = Instant::now();
     let first_cell = cells.start;
     let results = Local.run(study, cells, Budget::default(), done)?;
@@ -225,38 +252,38 @@ impl AnyPart {
 }
 
 /// Prepares the study `spec` within `limits` and runs its shard `shard` here, to the end: what a
-/// worker or an array task does. A settings study computes its truth first (the same bits as
+/// worker or an array task does. The shards cut the cells `within` (a job's part), or the whole
+/// study when that is `None`. A settings study computes its truth first (the same bits as
 /// wherever else it is computed).
 pub fn run_part(
     spec: &StudySpec,
     shard: Shard,
+    within: Option<Range<usize>>,
     limits: &Limits,
     done: &(dyn Fn() + Sync),
 ) -> Result<AnyPart, CoreError> {
-    let tick = |_: usize| done();
+    // The shard of the cells `within` (or of all) of a prepared study, run here.
+    macro_rules! run {
+        ($study:expr) => {{
+            let study = $study;
+            let cells = within.clone().unwrap_or(0..study.cells());
+            run_shard_within(&study, spec.clone(), shard, cells, &|_, _| done())?
+        }};
+    }
     Ok(match spec {
-        StudySpec::Sweep(s) => {
-            let job = s.prepare(limits)?;
-            AnyPart::Sweep(run_shard(&job, spec.clone(), shard, &|i, _| tick(i))?)
-        }
-        StudySpec::Stability(s) => {
-            let job = s.prepare()?;
-            AnyPart::Stability(run_shard(&job, spec.clone(), shard, &|i, _| tick(i))?)
-        }
+        StudySpec::Sweep(s) => AnyPart::Sweep(run!(s.prepare(limits)?)),
+        StudySpec::Stability(s) => AnyPart::Stability(run!(s.prepare()?)),
         StudySpec::Convergence(s) => {
             let job = s.prepare(limits)?;
-            let study = convergence::study(&job, job.truth(Budget::default())?);
-            AnyPart::Convergence(run_shard(&study, spec.clone(), shard, &|i, _| tick(i))?)
+            let truth = job.truth(Budget::default())?;
+            AnyPart::Convergence(run!(convergence::study(&job, truth)))
         }
         StudySpec::WorkPrecision(s) => {
             let job = s.prepare(limits)?;
-            let study = work_precision::study(&job, job.truth(Budget::default())?);
-            AnyPart::WorkPrecision(run_shard(&study, spec.clone(), shard, &|i, _| tick(i))?)
+            let truth = job.truth(Budget::default())?;
+            AnyPart::WorkPrecision(run!(work_precision::study(&job, truth)))
         }
-        StudySpec::Basins(s) => {
-            let job = s.prepare(limits)?;
-            AnyPart::Basins(run_shard(&job, spec.clone(), shard, &|i, _| tick(i))?)
-        }
+        StudySpec::Basins(s) => AnyPart::Basins(run!(s.prepare(limits)?)),
     })
 }
 

@@ -1,0 +1,388 @@
+//! Jobs and slow workers on real NATS workers (`nats-server` with JetStream, `geomint worker`
+//! processes, `geomint serve --nats`): a job's parts run on the workers, not on the server, and
+//! end with the synchronous route's document bit for bit; a shard whose every delivery went to a
+//! worker that was then stopped (SIGSTOP) for longer than the ack wait is not taken for poison
+//! once its workers continue.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use serde_json::{json, Value};
+
+use crate::http_jobs::without_timings;
+use crate::nats::{geomint, nats_server, nats_server_binary, scratch, server_with};
+use crate::server::{free_port, get_json_at as get_json, post_json_to, spawn_listening, Process};
+
+/// A worker with an ack wait of 2 s and 3 deliveries a shard, logging at `info` (each shard it
+/// starts) to `log`.
+fn worker(url: &str, log: &Path) -> Process {
+    worker_with(url, log, &[])
+}
+
+/// The same, with more environment variables.
+fn worker_with(url: &str, log: &Path, env: &[(&str, &str)]) -> Process {
+    Process(
+        geomint()
+            .envs(env.iter().copied())
+            .env("GEOMINT_LOG", "info")
+            .args([
+                "worker",
+                "--nats",
+                url,
+                "--ack-wait-secs",
+                "2",
+                "--nats-max-deliver",
+                "3",
+            ])
+            .stdout(Stdio::null())
+            .stderr(std::fs::File::create(log).unwrap())
+            .spawn()
+            .unwrap(),
+    )
+}
+
+/// A Hénon–Heiles sweep of 120 cells of 4·10⁵ steps: job parts of about 4·10⁶ steps (8, each a
+/// whole number of SIMD groups).
+fn henon_heiles_sweep() -> Value {
+    json!({
+        "system": "henon_heiles", "methods": ["velocity_verlet", "rk4"], "h": 0.01, "t_end": 2000,
+        "every": 1000, "q0": [0, 0.1], "p0": [0.35, 0],
+        "axes": [{"name": "q0[1]", "min": -0.2, "max": 0.2, "n": 12},
+                 {"name": "p0[1]", "min": -0.1, "max": 0.1, "n": 10}]
+    })
+}
+
+/// Submits `sweep` as a job; the URL of its status.
+async fn submit_sweep(base: &str, sweep: &Value) -> String {
+    let body = json!({"study": "sweep", "request": sweep});
+    let (status, job) = post_json_to(base, "/api/v1/jobs", &body).await;
+    assert_eq!(status, 202, "{job}");
+    format!("{base}/api/v1/jobs/{}", job["id"].as_str().unwrap())
+}
+
+/// The job's status once it has ended (within 5 minutes).
+async fn until_ended(status_url: &str) -> Value {
+    let until = Instant::now() + Duration::from_secs(300);
+    loop {
+        let job = get_json(status_url.to_string()).await;
+        if job["state"] != "running" && job["state"] != "queued" {
+            return job;
+        }
+        assert!(Instant::now() < until, "the job did not end: {job}");
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+}
+
+/// The document of `sweep` on a server without NATS (its data in scratch `label`).
+async fn local_sweep(label: &str, sweep: &Value) -> Value {
+    let dir = scratch(label);
+    let local = crate::server::start(geomint::http::Config {
+        data_dir: dir.join("recordings"),
+        systems_dir: dir.join("systems"),
+        ..geomint::http::Config::default()
+    })
+    .await;
+    let (status, expected) = post_json_to(&local.base, "/api/v1/studies/sweep", sweep).await;
+    assert_eq!(status, 200, "{expected}");
+    expected
+}
+
+/// A job submitted to a server with NATS workers waits for them: with none running, no cell is
+/// done on the server; once two start, the job's parts (cut again into shards of their cells)
+/// run on them, and the job's document is the synchronous sweep's bit for bit.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_jobs_parts_run_on_the_nats_workers() {
+    let dir = scratch("jobs");
+    let (_nats, url) = nats_server(&dir);
+    let (_server, base) = server_with(
+        &url,
+        &dir,
+        600,
+        &[
+            "--jobs-dir",
+            dir.join("jobs").to_str().unwrap(),
+            "--job-part-steps",
+            "4000000",
+        ],
+    );
+    let sweep = henon_heiles_sweep();
+    let status_url = submit_sweep(&base, &sweep).await;
+    // Two seconds without a worker: the job has started, and not one cell was run here.
+    let until = Instant::now() + Duration::from_secs(20);
+    while get_json(status_url.clone()).await["state"] != "running" {
+        assert!(Instant::now() < until, "the job never started");
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    tokio::time::sleep(Duration::from_secs(2)).await;
+    let waiting = get_json(status_url.clone()).await;
+    assert_eq!(waiting["state"], "running", "{waiting}");
+    assert_eq!(waiting["cells_done"], 0, "{waiting}");
+    let parts = waiting["parts"].as_u64().unwrap();
+    assert!(parts >= 4, "{waiting}");
+
+    let logs: Vec<PathBuf> = (0..2)
+        .map(|i| dir.join(format!("worker-{i}.log")))
+        .collect();
+    let _workers: Vec<Process> = logs.iter().map(|log| worker(&url, log)).collect();
+    let done = until_ended(&status_url).await;
+    assert_eq!(done["state"], "done", "{done}");
+    assert_eq!(done["parts_done"], parts, "{done}");
+    // Every part went to the workers as shards of its own cells.
+    let started: usize = logs
+        .iter()
+        .map(|log| {
+            std::fs::read_to_string(log)
+                .unwrap()
+                .matches("shard started")
+                .count()
+        })
+        .sum();
+    assert!(
+        started as u64 >= parts,
+        "{started} shards for {parts} parts"
+    );
+    let from_job = get_json(format!("{status_url}/result")).await;
+    let (status, direct) = post_json_to(&base, "/api/v1/studies/sweep", &sweep).await;
+    assert_eq!(status, 200, "{direct}");
+    assert_eq!(direct["stop"], "finished", "{direct}");
+    assert_eq!(without_timings(&from_job), without_timings(&direct));
+}
+
+/// The Fig. 6 sweep on 2 × 2 cells: one shard of 4·10⁷ steps.
+fn one_shard_sweep() -> Value {
+    json!({
+        "system": "elastic_pendulum_2d", "params": {"g": 0.02},
+        "charts": ["cartesian", "polar"], "initial_coordinates": "cartesian", "p0": [0.0, 0.0],
+        "methods": ["symplectic_euler"], "h": 0.2, "t_end": 1000000,
+        "axes": [{"name": "q0[0]", "min": -1.5, "max": 1.5, "n": 2},
+                 {"name": "q0[1]", "min": -1.5, "max": 1.5, "n": 2}]
+    })
+}
+
+/// Waits until a worker not yet stopped logs that it started the shard; that worker's index.
+async fn next_holder(logs: &[PathBuf], stopped: &[usize]) -> usize {
+    let until = Instant::now() + Duration::from_secs(30);
+    loop {
+        for (i, log) in logs.iter().enumerate() {
+            let text = std::fs::read_to_string(log).unwrap_or_default();
+            if !stopped.contains(&i) && text.contains("shard started") {
+                return i;
+            }
+        }
+        assert!(Instant::now() < until, "no other worker took the shard");
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+}
+
+fn signal(process: &Process, name: &str) {
+    let status = std::process::Command::new("kill")
+        .args([name, &process.0.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(status.success());
+}
+
+/// A shard handed to three workers in turn, each stopped (SIGSTOP) as soon as it starts it and
+/// kept stopped past the 2 s ack wait: JetStream spends the shard's 3 deliveries and publishes its
+/// max-deliveries advisory as a fourth worker asks for work. The workers are then continued: they
+/// report progress, the server waits for them rather than failing the study as poisoned, and
+/// the sweep ends with the same document as without any stop.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_shard_whose_workers_were_stopped_past_the_ack_wait_is_not_poison() {
+    let dir = scratch("stopped");
+    let (_nats, url) = nats_server(&dir);
+    let logs: Vec<PathBuf> = (0..4)
+        .map(|i| dir.join(format!("worker-{i}.log")))
+        .collect();
+    let workers: Vec<Process> = logs.iter().map(|log| worker(&url, log)).collect();
+    let (_server, base) = server_with(&url, &dir, 600, &["--nats-max-deliver", "3"]);
+    let request = one_shard_sweep();
+    let posted = tokio::spawn({
+        let base = base.clone();
+        let request = request.clone();
+        async move { post_json_to(&base, "/api/v1/studies/sweep", &request).await }
+    });
+    let mut stopped = Vec::new();
+    for _ in 0..3 {
+        let holder = next_holder(&logs, &stopped).await;
+        signal(&workers[holder], "-STOP");
+        stopped.push(holder);
+    }
+    // Past the third delivery's ack wait: its deliveries are spent, and the fourth worker's
+    // request for work makes JetStream say so.
+    tokio::time::sleep(Duration::from_secs(3)).await;
+    assert!(
+        !posted.is_finished(),
+        "the study ended while its workers were stopped"
+    );
+    for &i in &stopped {
+        signal(&workers[i], "-CONT");
+    }
+    let (status, doc) = tokio::time::timeout(Duration::from_secs(120), posted)
+        .await
+        .expect("the study ends once its workers continue")
+        .unwrap();
+    assert_eq!(status, 200, "{doc}");
+    assert_eq!(doc["stop"], "finished", "{doc}");
+
+    // The same sweep on a server without NATS.
+    let expected = local_sweep("stopped-local", &request).await;
+    assert_eq!(without_timings(&doc), without_timings(&expected));
+}
+
+/// A JetStream cluster of three `nats-server`s on loopback (each with its own client and cluster
+/// port and store): the processes and their client URLs.
+fn nats_cluster(dir: &Path) -> Vec<(Process, String)> {
+    let ports: Vec<(u16, u16)> = (0..3).map(|_| (free_port(), free_port())).collect();
+    let routes: Vec<String> = (ports.iter())
+        .map(|(_, cluster)| format!("nats://127.0.0.1:{cluster}"))
+        .collect();
+    let routes = routes.join(",");
+    ports
+        .iter()
+        .enumerate()
+        .map(|(i, (client, cluster))| {
+            let mut command = Command::new(nats_server_binary());
+            command
+                .args(["-a", "127.0.0.1", "-p", &client.to_string(), "-js", "-sd"])
+                .arg(dir.join(format!("node-{i}")))
+                .args(["--server_name", &format!("node-{i}")])
+                .args(["--cluster_name", "geomint-test"])
+                .args(["--cluster", &format!("nats://127.0.0.1:{cluster}")])
+                .args(["--routes", &routes])
+                .stdout(Stdio::null());
+            let (process, address) = spawn_listening(
+                command,
+                "nats-server",
+                "Listening for client connections on ",
+            );
+            (process, format!("nats://{address}"))
+        })
+        .collect()
+}
+
+/// Waits until the cluster at `url` places a stream on all three servers (its JetStream meta
+/// leader elected, every server a peer).
+async fn until_the_cluster_places_three_replicas(url: &str) {
+    let client = async_nats::connect(url).await.unwrap();
+    let js = async_nats::jetstream::new(client);
+    let until = Instant::now() + Duration::from_secs(60);
+    loop {
+        let made = js
+            .create_stream(async_nats::jetstream::stream::Config {
+                name: "READY".into(),
+                subjects: vec!["ready".into()],
+                num_replicas: 3,
+                ..Default::default()
+            })
+            .await;
+        if made.is_ok() {
+            js.delete_stream("READY").await.unwrap();
+            return;
+        }
+        assert!(
+            Instant::now() < until,
+            "the cluster placed no stream in 60 s: {made:?}"
+        );
+        tokio::time::sleep(Duration::from_millis(250)).await;
+    }
+}
+
+/// A job on workers of a JetStream cluster of three servers whose shard stream has three copies
+/// (`--nats-replicas 3`): the stream's leader is killed (SIGKILL) mid-job; the cluster elects
+/// another, the service and the workers connected to the dead server move to the others, and
+/// the job ends with the document of a server without NATS.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_job_outlives_a_killed_server_of_a_three_server_jetstream_cluster() {
+    let dir = scratch("cluster");
+    let mut nodes = nats_cluster(&dir);
+    let urls: Vec<String> = nodes.iter().map(|(_, url)| url.clone()).collect();
+    until_the_cluster_places_three_replicas(&urls[0]).await;
+    let url = urls.join(",");
+    let jobs = dir.join("jobs");
+    let (_server, base) = server_with(
+        &url,
+        &dir,
+        600,
+        &[
+            "--nats-replicas",
+            "3",
+            "--jobs-dir",
+            jobs.to_str().unwrap(),
+            "--job-part-steps",
+            "4000000",
+        ],
+    );
+    let logs: Vec<PathBuf> = (0..2)
+        .map(|i| dir.join(format!("worker-{i}.log")))
+        .collect();
+    let _workers: Vec<Process> = logs.iter().map(|log| worker(&url, log)).collect();
+    let sweep = henon_heiles_sweep();
+    let status_url = submit_sweep(&base, &sweep).await;
+    let until = Instant::now() + Duration::from_secs(120);
+    loop {
+        let job = get_json(status_url.clone()).await;
+        assert_eq!(job["state"], "running", "{job}");
+        if job["parts_done"].as_u64().unwrap() >= 2 {
+            break;
+        }
+        assert!(Instant::now() < until, "no 2 parts in 2 minutes: {job}");
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    // The stream's leader goes: the cluster must elect another to go on.
+    let leader = {
+        let client = async_nats::connect(urls[0].as_str()).await.unwrap();
+        let mut stream = async_nats::jetstream::new(client)
+            .get_stream(geomint::nats::STREAM)
+            .await
+            .unwrap();
+        let info = stream.info().await.unwrap();
+        let name = info.cluster.as_ref().and_then(|c| c.leader.clone());
+        name.expect("the stream has a leader")
+    };
+    let index: usize = leader.trim_start_matches("node-").parse().unwrap();
+    let (mut killed, _) = nodes.remove(index);
+    killed.0.kill().unwrap();
+    killed.0.wait().unwrap();
+    let alive = &urls[if index == 0 { 1 } else { 0 }];
+    let done = until_ended(&status_url).await;
+    assert_eq!(done["state"], "done", "{done}");
+    let from_job = get_json(format!("{status_url}/result")).await;
+    // The stream has its three copies, two of them alive.
+    let client = async_nats::connect(alive.as_str()).await.unwrap();
+    let mut stream = async_nats::jetstream::new(client)
+        .get_stream(geomint::nats::STREAM)
+        .await
+        .unwrap();
+    assert_eq!(stream.info().await.unwrap().config.num_replicas, 3);
+
+    let expected = local_sweep("cluster-local", &sweep).await;
+    assert_eq!(without_timings(&from_job), without_timings(&expected));
+}
+
+/// A part lost on its way to the server: the worker acknowledges its task and the part never
+/// arrives (`GEOMINT_WORKER_LOSE_PART_ON`, as a part sent while the server moves to another NATS
+/// server would be lost). After an ack wait without a word from the workers the server finds the
+/// task gone from the stream, twice in a row, queues it again, and the sweep ends with the
+/// document of a server without NATS.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_part_lost_on_its_way_is_queued_again() {
+    let dir = scratch("lost-part");
+    let (_nats, url) = nats_server(&dir);
+    let log = dir.join("worker.log");
+    let lose = [("GEOMINT_WORKER_LOSE_PART_ON", "elastic_pendulum_2d")];
+    let _worker = worker_with(&url, &log, &lose);
+    // A server that never queues the shard again ends the sweep at its 60 s limit, unfinished.
+    let (_server, base) = server_with(&url, &dir, 60, &[]);
+    let request = one_shard_sweep();
+    let (status, doc) = post_json_to(&base, "/api/v1/studies/sweep", &request).await;
+    assert_eq!(status, 200, "{doc}");
+    assert_eq!(doc["stop"], "finished", "{doc}");
+    let text = std::fs::read_to_string(&log).unwrap();
+    assert_eq!(text.matches("a test's part is lost").count(), 1, "{text}");
+    assert_eq!(text.matches("shard started").count(), 2, "{text}");
+
+    let expected = local_sweep("lost-part-local", &request).await;
+    assert_eq!(without_timings(&doc), without_timings(&expected));
+}
