@@ -8,6 +8,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
+use futures_util::StreamExt;
 use serde_json::{json, Value};
 
 use crate::http_jobs::without_timings;
@@ -160,19 +161,12 @@ fn one_shard_sweep() -> Value {
     })
 }
 
-/// Waits until a worker not yet stopped logs that it started the shard; that worker's index.
-async fn next_holder(logs: &[PathBuf], stopped: &[usize]) -> usize {
-    let until = Instant::now() + Duration::from_secs(30);
-    loop {
-        for (i, log) in logs.iter().enumerate() {
-            let text = std::fs::read_to_string(log).unwrap_or_default();
-            if !stopped.contains(&i) && text.contains("shard started") {
-                return i;
-            }
-        }
-        assert!(Instant::now() < until, "no other worker took the shard");
-        tokio::time::sleep(Duration::from_millis(10)).await;
-    }
+/// A worker not yet stopped that has logged starting the shard, if there is one.
+fn started_by_another(logs: &[PathBuf], stopped: &[usize]) -> Option<usize> {
+    (0..logs.len()).find(|i| {
+        !stopped.contains(i)
+            && std::fs::read_to_string(&logs[*i]).is_ok_and(|text| text.contains("shard started"))
+    })
 }
 
 fn signal(process: &Process, name: &str) {
@@ -183,11 +177,11 @@ fn signal(process: &Process, name: &str) {
     assert!(status.success());
 }
 
-/// A shard handed to three workers in turn, each stopped (SIGSTOP) as soon as it starts it and
-/// kept stopped past the 2 s ack wait: JetStream spends the shard's 3 deliveries and publishes its
-/// max-deliveries advisory as a fourth worker asks for work. The workers are then continued: they
-/// report progress, the server waits for them rather than failing the study as poisoned, and
-/// the sweep ends with the same document as without any stop.
+/// A shard handed to workers in turn, each stopped (SIGSTOP) as soon as it starts it and kept
+/// stopped past the 2 s ack wait, until JetStream has spent the shard's 3 deliveries and published
+/// its max-deliveries advisory (watched here too). The workers are then continued: they report
+/// progress, the server waits for them rather than failing the study as poisoned, and the sweep
+/// ends with the same document as without any stop.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_shard_whose_workers_were_stopped_past_the_ack_wait_is_not_poison() {
     let dir = scratch("stopped");
@@ -197,21 +191,40 @@ async fn a_shard_whose_workers_were_stopped_past_the_ack_wait_is_not_poison() {
         .collect();
     let workers: Vec<Process> = logs.iter().map(|log| worker(&url, log)).collect();
     let (_server, base) = server_with(&url, &dir, 600, &["--nats-max-deliver", "3"]);
+    let watcher = async_nats::connect(url.as_str()).await.unwrap();
+    let mut advisories = watcher
+        .subscribe(geomint::nats::poison::advisory())
+        .await
+        .unwrap();
+    watcher.flush().await.unwrap();
     let request = one_shard_sweep();
     let posted = tokio::spawn({
         let base = base.clone();
         let request = request.clone();
         async move { post_json_to(&base, "/api/v1/studies/sweep", &request).await }
     });
+    // Each worker that starts the shard is stopped, until JetStream says the shard's deliveries
+    // are spent. That is usually after three workers; a delivery that reaches a worker's request
+    // for work just as it expires is spent too, without a worker starting it.
     let mut stopped = Vec::new();
-    for _ in 0..3 {
-        let holder = next_holder(&logs, &stopped).await;
-        signal(&workers[holder], "-STOP");
-        stopped.push(holder);
+    let until = Instant::now() + Duration::from_secs(60);
+    loop {
+        if let Some(holder) = started_by_another(&logs, &stopped) {
+            signal(&workers[holder], "-STOP");
+            stopped.push(holder);
+        }
+        let advisory = tokio::time::timeout(Duration::from_millis(10), advisories.next()).await;
+        if advisory.is_ok() {
+            break;
+        }
+        assert!(
+            Instant::now() < until,
+            "no max-deliveries advisory in 60 s; workers stopped: {stopped:?}"
+        );
     }
-    // Past the third delivery's ack wait: its deliveries are spent, and the fourth worker's
-    // request for work makes JetStream say so.
-    tokio::time::sleep(Duration::from_secs(3)).await;
+    assert!(!stopped.is_empty() && stopped.len() < 4, "{stopped:?}");
+    // The server has heard the advisory too, and waits for the stopped workers.
+    tokio::time::sleep(Duration::from_secs(1)).await;
     assert!(
         !posted.is_finished(),
         "the study ended while its workers were stopped"
