@@ -35,7 +35,10 @@
 //!   that were stopped or starved of CPU, not dead, is waited for as long as one of them still
 //!   reports progress on it ([`Queue::exhausted_grace`]).
 //! - Connections take NATS credentials and TLS ([`options`]).
+//! - The server's jobs are kept in a JetStream object store too ([`jobs_bucket`]), so that a
+//!   server that loses its disk takes them back.
 
+pub mod jobs_bucket;
 pub mod options;
 pub mod poison;
 pub mod worker;
@@ -132,6 +135,10 @@ pub struct Queue {
     max_deliver: i64,
     /// Steps per shard the server aims at.
     pub steps_per_shard: u64,
+    /// Copies of the streams this process creates.
+    replicas: usize,
+    /// Where the server keeps its jobs' files besides its disk ([`jobs_bucket`]).
+    pub jobs_bucket: Option<std::sync::Arc<jobs_bucket::JobsBucket>>,
 }
 
 fn failed(what: &str, url: &str, e: impl std::fmt::Display) -> String {
@@ -237,6 +244,8 @@ impl Queue {
             ack_wait,
             max_deliver,
             steps_per_shard: DEFAULT_STEPS_PER_SHARD,
+            replicas: options.replicas,
+            jobs_bucket: None,
         })
     }
 

@@ -94,6 +94,10 @@ pub struct ServeArgs {
     /// the grain at which owners' jobs take turns (1e8 style accepted).
     #[arg(long, env = "GEOMINT_JOB_PART_STEPS", default_value = "100000000", value_parser = parse_count)]
     pub job_part_steps: u64,
+    /// Parts of jobs in flight at once on the NATS workers (with --nats; without, a part takes
+    /// every core and parts run one at a time).
+    #[arg(long, env = "GEOMINT_JOB_PARTS_IN_FLIGHT", default_value_t = crate::jobs::DEFAULT_PARTS_IN_FLIGHT as u64, value_parser = clap::value_parser!(u64).range(1..=1024))]
+    pub job_parts_in_flight: u64,
     /// Seconds a job may run under one server before it fails (its finished parts are kept).
     #[arg(long, env = "GEOMINT_JOB_TIME_LIMIT_SECS", default_value_t = 86_400, value_parser = clap::value_parser!(u64).range(1..))]
     pub job_time_limit_secs: u64,
@@ -136,6 +140,11 @@ pub struct ServeArgs {
     /// and less lost with a worker, more messages).
     #[arg(long, env = "GEOMINT_NATS_SHARD_STEPS", default_value = "20000000", value_parser = parse_count)]
     pub nats_shard_steps: u64,
+    /// The JetStream object store that keeps the jobs' files besides the jobs directory (made if
+    /// missing), from which a server that lost its disk takes them back. Servers that share one
+    /// share their jobs: give each server its own, unless it replaces another.
+    #[arg(long, env = "GEOMINT_NATS_JOBS_BUCKET", default_value = crate::nats::jobs_bucket::DEFAULT_BUCKET)]
+    pub nats_jobs_bucket: String,
     /// NATS credentials, TLS and deliveries.
     #[command(flatten)]
     pub nats_options: NatsArgs,
@@ -242,6 +251,10 @@ impl ServeArgs {
                 max_per_owner: usize::try_from(self.max_jobs_per_owner).unwrap_or(usize::MAX),
                 part_steps: self.job_part_steps.max(1),
                 time_limit: Duration::from_secs(self.job_time_limit_secs),
+                parts_in_flight: match self.nats {
+                    Some(_) => usize::try_from(self.job_parts_in_flight).unwrap_or(1),
+                    None => 1,
+                },
             }),
         }
     }
@@ -381,6 +394,15 @@ pub(crate) fn serve(args: &ServeArgs) -> ExitCode {
         Some(url) => match connect(&runtime, url, args.nats_ack_wait_secs, &args.nats_options) {
             Ok(mut queue) => {
                 queue.steps_per_shard = args.nats_shard_steps.max(1);
+                if config.jobs.is_some() {
+                    match runtime.block_on(queue.jobs_bucket(&args.nats_jobs_bucket)) {
+                        Ok(bucket) => queue.jobs_bucket = Some(std::sync::Arc::new(bucket)),
+                        Err(e) => {
+                            eprintln!("error: {e}");
+                            return ExitCode::FAILURE;
+                        }
+                    }
+                }
                 Some(queue)
             }
             Err(code) => return code,

@@ -173,6 +173,11 @@ impl AppState {
 
     /// The same state, running studies on the workers of `queue` (here without one).
     pub fn with_queue(mut self, queue: Option<crate::nats::Queue>) -> Self {
+        // The jobs keep their files in the queue's bucket too, when it has one.
+        let bucket = queue.as_ref().and_then(|q| q.jobs_bucket.clone());
+        if let (Some(jobs), Some(bucket)) = (&self.jobs, bucket) {
+            jobs.replicate_to(bucket);
+        }
         self.executor = queue.map_or(StudyExecutor::Local, |q| StudyExecutor::Nats(Arc::new(q)));
         self
     }

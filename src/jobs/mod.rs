@@ -13,9 +13,10 @@
 //!
 //! At most [`ACTIVE_JOBS`] jobs are started at once, [`ACTIVE_PER_OWNER`] of them per owner; the
 //! others wait, queued, without a thread. A started job's parts wait their turn at the fair gate
-//! (one part at a time: a part runs on every core, or on the NATS workers) and then for one of
-//! the service's simulation slots, so that jobs yield to synchronous requests. A running job
-//! counts as one run in flight of its owner.
+//! (one part at a time, as a part here runs on every core; [`JobsConfig::parts_in_flight`] at a
+//! time on NATS workers) and then, to run here, for one of the service's simulation slots, so
+//! that jobs yield to synchronous requests. A running job counts as one run in flight of its
+//! owner.
 
 pub mod fair;
 mod job;
@@ -39,7 +40,7 @@ use crate::access::Usage;
 use crate::core::error::{ErrorCode, ErrorDetail};
 use crate::core::simulation::Limits;
 use crate::executor::StudyExecutor;
-use crate::store::jobs::{JobRecord, JobStore, JOB_FORMAT};
+use crate::store::jobs::{JobRecord, JobStore, Replica, JOB_FORMAT};
 use crate::store::recordings::{Owner, RecordingStore};
 use crate::store::systems::SystemStore;
 use fair::FairGate;
@@ -53,6 +54,9 @@ pub const ACTIVE_PER_OWNER: usize = 2;
 /// About how many steps a part takes by default (about a second of two cores on most systems):
 /// the work a restart can lose, and the grain at which owners take turns.
 pub const DEFAULT_PART_STEPS: u64 = 100_000_000;
+/// Parts on NATS workers in flight at once by default: enough to keep a few workers busy with
+/// parts of the default size, few enough that a job does not flood the queue.
+pub const DEFAULT_PARTS_IN_FLIGHT: usize = 8;
 /// Most parts of one job.
 pub const MAX_PARTS: usize = 10_000;
 /// The default number of jobs an owner may have unfinished.
@@ -71,6 +75,7 @@ pub struct Jobs {
     store: JobStore,
     max_per_owner: usize,
     part_steps: u64,
+    parts_in_flight: usize,
     time_limit: Duration,
     board: Mutex<Board>,
     changed: Condvar,
@@ -124,6 +129,9 @@ pub struct JobsConfig {
     pub part_steps: u64,
     /// How long a job may run under one server before it fails (its parts are kept).
     pub time_limit: Duration,
+    /// Parts on NATS workers in flight at once, over all jobs (a part here takes every core,
+    /// so parts here run one at a time whatever this says).
+    pub parts_in_flight: usize,
 }
 
 impl Jobs {
@@ -138,13 +146,14 @@ impl Jobs {
             store,
             max_per_owner: config.max_per_owner,
             part_steps: config.part_steps.max(1),
+            parts_in_flight: config.parts_in_flight.max(1),
             time_limit: config.time_limit,
             board: Mutex::new(Board {
                 jobs,
                 ..Board::default()
             }),
             changed: Condvar::new(),
-            gate: FairGate::new(1),
+            gate: FairGate::new(config.parts_in_flight),
             stopping: AtomicBool::new(false),
         }
     }
@@ -305,14 +314,40 @@ impl Jobs {
         Ok(true)
     }
 
+    /// Keeps every job file written from now on in `replica` too, and takes back from it, when
+    /// the jobs start, the jobs this server's directory lacks.
+    pub fn replicate_to(&self, replica: Arc<dyn Replica>) {
+        self.store.replicate_to(replica);
+    }
+
+    /// Takes back the jobs that the replica keeps and the directory lacks.
+    fn restore(&self) {
+        match self.store.restore() {
+            Ok(found) => {
+                let mut board = self.board();
+                for (record, dir) in found {
+                    let id = record.id.clone();
+                    (board.jobs.entry(id)).or_insert_with(|| Arc::new(Job::new(record, dir)));
+                }
+            }
+            Err(error) => {
+                tracing::error!(%error, "the jobs kept in the replica could not be taken back")
+            }
+        }
+    }
+
     /// Starts the thread that starts jobs (those left unfinished by a previous server first, in
-    /// the order they were submitted).
+    /// the order they were submitted; first those the replica keeps and the directory lacks are
+    /// taken back).
     pub fn start(self: &Arc<Self>, context: JobContext) {
         let jobs = self.clone();
         let context = Arc::new(context);
         let spawned = std::thread::Builder::new()
             .name("geomint-jobs".into())
-            .spawn(move || jobs.dispatch(&context));
+            .spawn(move || {
+                jobs.restore();
+                jobs.dispatch(&context)
+            });
         if let Err(error) = spawned {
             tracing::error!(%error, "the job runner could not start; jobs stay queued");
         }

@@ -157,6 +157,7 @@ impl Jobs {
             dir: &job.dir,
             inner: &context.executor,
             part_cells: r.part_cells,
+            in_flight: self.parts_in_flight,
             sink: &sink,
         };
         let budget = Budget {
@@ -238,7 +239,7 @@ impl Sink<'_> {
 }
 
 impl PartSink for Sink<'_> {
-    fn turn(&self, steps: u64) -> Option<Box<dyn Send + '_>> {
+    fn turn(&self, steps: u64, here: bool) -> Option<Box<dyn Send + '_>> {
         let r = &self.job.record;
         // A job's parts count against its owner's quota of stored bytes: none starts once the
         // owner has no room left.
@@ -257,8 +258,11 @@ impl PartSink for Sink<'_> {
             steps,
         };
         let turn = self.jobs.gate.wait(claim, &self.job.stop)?;
-        // Then one of the service's slots, so that a synchronous request finds the machine as
-        // busy as it is.
+        // Then, for a part that runs here, one of the service's slots, so that a synchronous
+        // request finds the machine as busy as it is. A part on the workers only waits here.
+        if !here {
+            return Some(Box::new(turn));
+        }
         loop {
             if self.job.stop.load(Ordering::Relaxed) {
                 return None;

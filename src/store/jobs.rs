@@ -13,12 +13,17 @@
 //! from their finished parts. A torn last event line (the server killed in the middle of a write)
 //! is skipped when read back.
 //!
-//! Everything here is blocking file I/O: call it off the async runtime.
+//! Every file but the event log can be kept in a [`Replica`] too (a server with NATS keeps them
+//! in a JetStream object store), under the name `ID/FILE`: a server whose disk was lost takes its
+//! jobs back from there ([`JobStore::restore`]), and goes on from their finished parts.
+//!
+//! Everything here is blocking I/O: call it off the async runtime.
 
 use std::fs::{self, File, OpenOptions};
 use std::io::{self, Write};
 use std::ops::Range;
 use std::path::{Path, PathBuf};
+use std::sync::{Arc, OnceLock};
 
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
@@ -96,16 +101,36 @@ pub fn is_valid_id(id: &str) -> bool {
     super::recordings::is_valid_id(id)
 }
 
+/// A second place a job's files are kept, by name (`ID/FILE`), blocking: the calls come from
+/// the jobs' own threads and the service's blocking threads.
+pub trait Replica: Send + Sync + std::fmt::Debug {
+    /// Keeps `bytes` as `name` (replacing what was kept under it).
+    fn put(&self, name: &str, bytes: &[u8]) -> io::Result<()>;
+    /// The bytes kept as `name`.
+    fn get(&self, name: &str) -> io::Result<Vec<u8>>;
+    /// The names kept.
+    fn names(&self) -> io::Result<Vec<String>>;
+    /// Forgets `name`.
+    fn delete(&self, name: &str) -> io::Result<()>;
+}
+
+/// The replica of a store and of its jobs' directories, once one is set.
+type SharedReplica = Arc<OnceLock<Arc<dyn Replica>>>;
+
 /// The jobs directory.
 #[derive(Clone, Debug)]
 pub struct JobStore {
     dir: PathBuf,
+    replica: SharedReplica,
 }
 
 /// One job's directory.
 #[derive(Clone, Debug)]
 pub struct JobDir {
     path: PathBuf,
+    /// The job's id: its files' prefix in the replica.
+    id: String,
+    replica: SharedReplica,
 }
 
 fn write_atomically(dir: &Path, name: &str, bytes: &[u8]) -> io::Result<()> {
@@ -135,22 +160,15 @@ impl JobStore {
     /// The store in `dir` (made when the first job is submitted) and the jobs it holds, oldest
     /// first; directories that are not jobs are left alone, and leftover temporary files removed.
     pub fn open(dir: impl Into<PathBuf>) -> (Self, Vec<(JobRecord, JobDir)>) {
-        let store = JobStore { dir: dir.into() };
+        let store = JobStore {
+            dir: dir.into(),
+            replica: SharedReplica::default(),
+        };
         let mut found = Vec::new();
         for entry in fs::read_dir(&store.dir).into_iter().flatten().flatten() {
             let name = entry.file_name().to_string_lossy().into_owned();
-            if !is_valid_id(&name) {
-                continue;
-            }
-            let job = JobDir { path: entry.path() };
-            for sub in [job.path.clone(), job.parts_dir()] {
-                remove_temporary_files(&sub);
-            }
-            match read_json::<JobRecord>(&job.path.join("job.json")) {
-                Some(record) if record.format == JOB_FORMAT && record.id == name => {
-                    found.push((record, job))
-                }
-                _ => tracing::warn!(dir = %job.path.display(), "not a job; left alone"),
+            if is_valid_id(&name) {
+                found.extend(store.read_job(&name));
             }
         }
         found.sort_by(|(a, _), (b, _)| {
@@ -159,16 +177,94 @@ impl JobStore {
         (store, found)
     }
 
+    fn dir_of(&self, id: &str) -> JobDir {
+        JobDir {
+            path: self.dir.join(id),
+            id: id.to_string(),
+            replica: self.replica.clone(),
+        }
+    }
+
+    /// The job `id` as its directory holds it, if that is a job.
+    fn read_job(&self, id: &str) -> Option<(JobRecord, JobDir)> {
+        let job = self.dir_of(id);
+        for sub in [job.path.clone(), job.parts_dir()] {
+            remove_temporary_files(&sub);
+        }
+        match read_json::<JobRecord>(&job.path.join("job.json")) {
+            Some(record) if record.format == JOB_FORMAT && record.id == id => Some((record, job)),
+            _ => {
+                tracing::warn!(dir = %job.path.display(), "not a job; left alone");
+                None
+            }
+        }
+    }
+
+    /// Keeps every file written from now on in `replica` too (the first replica set stays).
+    pub fn replicate_to(&self, replica: Arc<dyn Replica>) {
+        if self.replica.set(replica).is_err() {
+            tracing::warn!("the jobs already have a replica; a second one is ignored");
+        }
+    }
+
+    /// Takes back from the replica every job it keeps that this directory lacks (a server whose
+    /// disk was lost, or a new one in its place): its files are written here, its record last,
+    /// so that a restore cut short is done again from the start. The jobs taken back, oldest
+    /// first.
+    pub fn restore(&self) -> io::Result<Vec<(JobRecord, JobDir)>> {
+        let Some(replica) = self.replica.get() else {
+            return Ok(Vec::new());
+        };
+        let names = replica.names()?;
+        let mut found = Vec::new();
+        for record in names.iter().filter_map(|n| n.strip_suffix("/job.json")) {
+            if !is_valid_id(record) || self.dir.join(record).join("job.json").exists() {
+                continue;
+            }
+            let job = self.dir_of(record);
+            fs::create_dir_all(job.parts_dir())?;
+            let prefix = format!("{record}/");
+            let files = names.iter().filter_map(|n| n.strip_prefix(&prefix));
+            for file in files.filter(|&f| f != "job.json").chain(["job.json"]) {
+                // Only the names this store writes: a file of the job's or of its parts'.
+                let dir = match file.split('/').collect::<Vec<_>>()[..] {
+                    [name] if is_file_name(name) => Some((job.path.clone(), name)),
+                    ["parts", name] if is_file_name(name) => Some((job.parts_dir(), name)),
+                    _ => None,
+                };
+                let Some((dir, name)) = dir else {
+                    tracing::warn!(name = file, job = record, "not a job's file; not restored");
+                    continue;
+                };
+                let bytes = replica.get(&format!("{prefix}{file}"))?;
+                write_atomically(&dir, name, &bytes)?;
+            }
+            found.extend(self.read_job(record));
+            tracing::info!(job = record, "job taken back from the replica");
+        }
+        found.sort_by(|(a, _), (b, _)| {
+            (a.submitted_unix_ms, &a.id).cmp(&(b.submitted_unix_ms, &b.id))
+        });
+        Ok(found)
+    }
+
     /// Makes the directory of a new job and writes its record.
     pub fn create(&self, record: &JobRecord) -> io::Result<JobDir> {
-        let job = JobDir {
-            path: self.dir.join(&record.id),
-        };
+        let job = self.dir_of(&record.id);
         fs::create_dir_all(job.parts_dir())?;
         let bytes = serde_json::to_vec_pretty(record).map_err(io::Error::other)?;
-        write_atomically(&job.path, "job.json", &bytes)?;
+        job.keep("job.json", &bytes)?;
         Ok(job)
     }
+}
+
+/// Whether `name` is a plain file name (no separator, not `.` or `..`, not a temporary file's).
+fn is_file_name(name: &str) -> bool {
+    !name.is_empty()
+        && !name.contains(['/', '\\'])
+        && name != "."
+        && name != ".."
+        && !name.starts_with(TMP_PREFIX)
 }
 
 /// Removes temporary files in `dir` that no writer holds any more.
@@ -183,6 +279,20 @@ fn remove_temporary_files(dir: &Path) {
 impl JobDir {
     fn parts_dir(&self) -> PathBuf {
         self.path.join("parts")
+    }
+
+    /// Writes `file` (a name under the job's directory: `job.json`, `parts/…`) once, and keeps
+    /// it in the replica when there is one.
+    fn keep(&self, file: &str, bytes: &[u8]) -> io::Result<()> {
+        let (dir, name) = match file.rsplit_once('/') {
+            Some((sub, name)) => (self.path.join(sub), name),
+            None => (self.path.clone(), file),
+        };
+        write_atomically(&dir, name, bytes)?;
+        match self.replica.get() {
+            Some(replica) => replica.put(&format!("{}/{file}", self.id), bytes),
+            None => Ok(()),
+        }
     }
 
     fn part_name(cells: &Range<usize>) -> String {
@@ -216,7 +326,7 @@ impl JobDir {
         };
         let bytes = serde_json::to_vec(&part).map_err(io::Error::other)?;
         let range = first_cell..first_cell + cells.len();
-        write_atomically(&self.parts_dir(), &Self::part_name(&range), &bytes)
+        self.keep(&format!("parts/{}", Self::part_name(&range)), &bytes)
     }
 
     /// How many parts are stored.
@@ -277,12 +387,12 @@ impl JobDir {
     /// Records how the job ended.
     pub fn write_outcome(&self, outcome: &Outcome) -> io::Result<()> {
         let bytes = serde_json::to_vec_pretty(outcome).map_err(io::Error::other)?;
-        write_atomically(&self.path, "outcome.json", &bytes)
+        self.keep("outcome.json", &bytes)
     }
 
     /// Stores the job's result as `name` (`result.json`, `result.rrd`).
     pub fn write_result(&self, name: &str, bytes: &[u8]) -> io::Result<()> {
-        write_atomically(&self.path, name, bytes)
+        self.keep(name, bytes)
     }
 
     /// Where the result `name` is kept.
@@ -306,8 +416,20 @@ impl JobDir {
         size(&self.path)
     }
 
-    /// Removes the job and everything it keeps.
+    /// Removes the job and everything it keeps, here and in the replica.
     pub fn remove(&self) -> io::Result<()> {
+        if let Some(replica) = self.replica.get() {
+            // The record first: a removal cut short leaves files that no restore takes back.
+            let prefix = format!("{}/", self.id);
+            let record = format!("{prefix}job.json");
+            let mut names: Vec<String> = (replica.names()?.into_iter())
+                .filter(|n| n.starts_with(&prefix))
+                .collect();
+            names.sort_by_key(|n| *n != record);
+            for name in names {
+                replica.delete(&name)?;
+            }
+        }
         fs::remove_dir_all(&self.path)
     }
 }

@@ -27,6 +27,7 @@ fn jobs_config(label: &str, part_steps: u64) -> Config {
             max_per_owner: 1000,
             part_steps,
             time_limit: Duration::from_secs(600),
+            parts_in_flight: 1,
         }),
         ..Config::default()
     }
@@ -77,7 +78,7 @@ async fn submit(base: &str, study: &str, request: &Value, token: Option<&str>) -
 }
 
 /// The job's event stream from after `after` to its last event.
-async fn events(base: &str, id: &str, after: usize, token: Option<&str>) -> Vec<Value> {
+pub(crate) async fn events(base: &str, id: &str, after: usize, token: Option<&str>) -> Vec<Value> {
     let path = format!("{JOBS}/{id}/events?after={after}");
     let (status, bytes) = tokio::time::timeout(
         Duration::from_secs(300),

@@ -20,6 +20,7 @@ async fn openapi_lists_every_route() {
         max_per_owner: 10,
         part_steps: 1_000_000,
         time_limit: Duration::from_secs(600),
+        parts_in_flight: 1,
     };
     let server = start(Config {
         jobs: Some(jobs),

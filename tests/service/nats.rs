@@ -93,12 +93,12 @@ pub(crate) fn server_with(
             std::env::var("DBG_SERVE_LOG").unwrap_or(SERVE_LOG.into()),
         )
         .args(["serve", "--addr", "127.0.0.1:0", "--nats", url])
-        .args([
-            "--nats-ack-wait-secs",
-            "2",
-            "--nats-shard-steps",
-            "40000000",
-        ])
+        .args(["--nats-shard-steps", "40000000"]);
+    // An ack wait of 2 s unless the test gives its own.
+    if !extra.contains(&"--nats-ack-wait-secs") {
+        command.args(["--nats-ack-wait-secs", "2"]);
+    }
+    command
         .args(["--request-timeout-secs", &time_limit_secs.to_string()])
         .arg("--data-dir")
         .arg(dir.join("data"))

@@ -2,7 +2,8 @@
 //! processes, `geomint serve --nats`): a job's parts run on the workers, not on the server, and
 //! end with the synchronous route's document bit for bit; a shard whose every delivery went to a
 //! worker that was then stopped (SIGSTOP) for longer than the ack wait is not taken for poison
-//! once its workers continue.
+//! once its workers continue; a job's parts run several at a time, so a stopped worker holds up
+//! one part, not the job.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -23,6 +24,11 @@ fn worker(url: &str, log: &Path) -> Process {
 
 /// The same, with more environment variables.
 fn worker_with(url: &str, log: &Path, env: &[(&str, &str)]) -> Process {
+    worker_waiting(url, log, env, "2")
+}
+
+/// The same, with an ack wait of `ack_wait_secs`.
+fn worker_waiting(url: &str, log: &Path, env: &[(&str, &str)], ack_wait_secs: &str) -> Process {
     Process(
         geomint()
             .envs(env.iter().copied())
@@ -32,7 +38,7 @@ fn worker_with(url: &str, log: &Path, env: &[(&str, &str)]) -> Process {
                 "--nats",
                 url,
                 "--ack-wait-secs",
-                "2",
+                ack_wait_secs,
                 "--nats-max-deliver",
                 "3",
             ])
@@ -148,6 +154,80 @@ async fn a_jobs_parts_run_on_the_nats_workers() {
     assert_eq!(status, 200, "{direct}");
     assert_eq!(direct["stop"], "finished", "{direct}");
     assert_eq!(without_timings(&from_job), without_timings(&direct));
+}
+
+/// A job's parts on NATS workers run several at a time (`--job-parts-in-flight`, 8 by default):
+/// a worker stopped (SIGSTOP) in the middle of a part, with an ack wait of a minute, holds up
+/// that part only. The other worker finishes every other part meanwhile, where with one part in
+/// flight the job would wait the minute; once the stopped worker continues, the job ends with
+/// the synchronous sweep's document bit for bit.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_stopped_worker_holds_up_one_part_of_a_job_not_the_job() {
+    let dir = scratch("in-flight");
+    let (_nats, url) = nats_server(&dir);
+    // Parts of one shard each (4·10⁷ steps, the test server's shard), about half a second of a
+    // worker; the consumer's ack wait a minute, so that JetStream does not move the stopped
+    // worker's shard to the other within the test.
+    let (_server, base) = server_with(
+        &url,
+        &dir,
+        600,
+        &[
+            "--nats-ack-wait-secs",
+            "60",
+            "--jobs-dir",
+            dir.join("jobs").to_str().unwrap(),
+            "--job-part-steps",
+            "40000000",
+        ],
+    );
+    let logs: Vec<PathBuf> = (0..2)
+        .map(|i| dir.join(format!("worker-{i}.log")))
+        .collect();
+    let workers: Vec<Process> = (logs.iter())
+        .map(|log| worker_waiting(&url, log, &[], "60"))
+        .collect();
+    let mut sweep = henon_heiles_sweep();
+    sweep["axes"][0]["n"] = json!(40);
+    sweep["axes"][1]["n"] = json!(20);
+    let status_url = submit_sweep(&base, &sweep).await;
+
+    // The first worker to start a shard is stopped in the middle of it.
+    let until = Instant::now() + Duration::from_secs(60);
+    let holder = loop {
+        if let Some(holder) = started_by_another(&logs, &[]) {
+            signal(&workers[holder], "-STOP");
+            break holder;
+        }
+        assert!(Instant::now() < until, "no worker started a shard in 60 s");
+        tokio::time::sleep(Duration::from_millis(5)).await;
+    };
+    // The other worker finishes every other part while it is stopped.
+    let until = Instant::now() + Duration::from_secs(40);
+    let waiting = loop {
+        let job = get_json(status_url.clone()).await;
+        let parts = job["parts"].as_u64().unwrap();
+        if job["parts_done"].as_u64() == Some(parts - 1) {
+            break job;
+        }
+        assert!(
+            Instant::now() < until,
+            "the job's other parts did not end while worker {holder} was stopped: {job}"
+        );
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    };
+    assert!(waiting["parts"].as_u64().unwrap() >= 8, "{waiting}");
+    assert_eq!(waiting["state"], "running", "{waiting}");
+    assert!(
+        waiting["cells_done"].as_u64() < waiting["cells"].as_u64(),
+        "{waiting}"
+    );
+    signal(&workers[holder], "-CONT");
+    let done = until_ended(&status_url).await;
+    assert_eq!(done["state"], "done", "{done}");
+    let from_job = get_json(format!("{status_url}/result")).await;
+    let expected = local_sweep("in-flight-local", &sweep).await;
+    assert_eq!(without_timings(&from_job), without_timings(&expected));
 }
 
 /// The Fig. 6 sweep on 2 × 2 cells: one shard of 4·10⁷ steps.
@@ -362,13 +442,19 @@ async fn a_job_outlives_a_killed_server_of_a_three_server_jetstream_cluster() {
     let done = until_ended(&status_url).await;
     assert_eq!(done["state"], "done", "{done}");
     let from_job = get_json(format!("{status_url}/result")).await;
-    // The stream has its three copies, two of them alive.
+    // The stream has its three copies, two of them alive. (The job can end before the cluster
+    // has a JetStream meta leader again, which the stream's info waits for.)
     let client = async_nats::connect(alive.as_str()).await.unwrap();
-    let mut stream = async_nats::jetstream::new(client)
-        .get_stream(geomint::nats::STREAM)
-        .await
-        .unwrap();
-    assert_eq!(stream.info().await.unwrap().config.num_replicas, 3);
+    let js = async_nats::jetstream::new(client);
+    let until = Instant::now() + Duration::from_secs(60);
+    let replicas = loop {
+        match js.get_stream(geomint::nats::STREAM).await {
+            Ok(mut stream) => break stream.info().await.unwrap().config.num_replicas,
+            Err(e) => assert!(Instant::now() < until, "no stream info in 60 s: {e}"),
+        }
+        tokio::time::sleep(Duration::from_millis(250)).await;
+    };
+    assert_eq!(replicas, 3);
 
     let expected = local_sweep("cluster-local", &sweep).await;
     assert_eq!(without_timings(&from_job), without_timings(&expected));
@@ -398,4 +484,105 @@ async fn a_part_lost_on_its_way_is_queued_again() {
 
     let expected = local_sweep("lost-part-local", &request).await;
     assert_eq!(without_timings(&doc), without_timings(&expected));
+}
+
+/// The names the jobs' bucket `geomint-jobs` keeps on the NATS server at `url`.
+async fn bucket_names(url: &str) -> Vec<String> {
+    let client = async_nats::connect(url).await.unwrap();
+    let bucket = async_nats::jetstream::new(client)
+        .get_object_store("geomint-jobs")
+        .await
+        .unwrap();
+    let mut list = bucket.list().await.unwrap();
+    let mut names = Vec::new();
+    while let Some(info) = list.next().await {
+        names.push(info.unwrap().name);
+    }
+    names
+}
+
+/// A server with NATS keeps its jobs' files in a JetStream object store as well as on its disk.
+/// Killed (SIGKILL) mid-job, its jobs directory then deleted, it is replaced by a server with an
+/// empty jobs directory on the same NATS server: that one takes the job back from the bucket and
+/// ends it from the parts kept there (computing only the others), with the synchronous sweep's
+/// document bit for bit. Removing the job takes its files out of the bucket too.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_job_outlives_its_servers_disk_through_the_jetstream_bucket() {
+    let dir = scratch("bucket");
+    let (_nats, url) = nats_server(&dir);
+    let logs: Vec<PathBuf> = (0..2)
+        .map(|i| dir.join(format!("worker-{i}.log")))
+        .collect();
+    let _workers: Vec<Process> = logs.iter().map(|log| worker(&url, log)).collect();
+    let server_on = |jobs: &Path| {
+        server_with(
+            &url,
+            &dir,
+            600,
+            &[
+                "--jobs-dir",
+                jobs.to_str().unwrap(),
+                "--job-part-steps",
+                "4000000",
+                "--job-parts-in-flight",
+                "1",
+            ],
+        )
+    };
+    let first_disk = dir.join("jobs-first");
+    let (first, base) = server_on(&first_disk);
+    let sweep = henon_heiles_sweep();
+    let status_url = submit_sweep(&base, &sweep).await;
+    let id = status_url.rsplit('/').next().unwrap().to_string();
+    let until = Instant::now() + Duration::from_secs(120);
+    let parts = loop {
+        let job = get_json(status_url.clone()).await;
+        if job["parts_done"].as_u64() >= Some(3) {
+            assert_eq!(job["state"], "running", "{job}");
+            break job["parts"].as_u64().unwrap();
+        }
+        assert!(Instant::now() < until, "three parts did not end: {job}");
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    };
+    drop(first);
+    std::fs::remove_dir_all(&first_disk).unwrap();
+
+    let names = bucket_names(&url).await;
+    assert!(names.contains(&format!("{id}/job.json")), "{names:?}");
+    let kept = (names.iter())
+        .filter(|n| n.starts_with(&format!("{id}/parts/")))
+        .count() as u64;
+    assert!(
+        kept >= 3 && kept < parts,
+        "{kept} of {parts} parts: {names:?}"
+    );
+
+    let (_second, base) = server_on(&dir.join("jobs-second"));
+    let status_url = format!("{base}/api/v1/jobs/{id}");
+    let until = Instant::now() + Duration::from_secs(60);
+    while get_json(status_url.clone()).await["id"] != id.as_str() {
+        assert!(Instant::now() < until, "the job was not taken back");
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    let done = until_ended(&status_url).await;
+    assert_eq!(done["state"], "done", "{done}");
+    assert_eq!(done["parts_done"], parts, "{done}");
+    // Only the parts the bucket did not keep were computed again.
+    let computed = crate::http_jobs::events(&base, &id, 0, None).await;
+    let computed = computed.iter().filter(|e| e["event"] == "part").count() as u64;
+    assert_eq!(computed, parts - kept);
+    let from_job = get_json(format!("{status_url}/result")).await;
+    let expected = local_sweep("bucket-local", &sweep).await;
+    assert_eq!(without_timings(&from_job), without_timings(&expected));
+
+    let removed = crate::server::client()
+        .delete(&status_url)
+        .send()
+        .await
+        .unwrap();
+    assert!(removed.status().is_success(), "{:?}", removed.status());
+    let left: Vec<String> = (bucket_names(&url).await.into_iter())
+        .filter(|n| n.starts_with(&id))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
 }
