@@ -96,7 +96,7 @@ pub struct ServeArgs {
     pub job_part_steps: u64,
     /// Parts of jobs in flight at once on the NATS workers (with --nats; without, a part takes
     /// every core and parts run one at a time).
-    #[arg(long, env = "GEOMINT_JOB_PARTS_IN_FLIGHT", default_value_t = crate::jobs::DEFAULT_PARTS_IN_FLIGHT as u64, value_parser = clap::value_parser!(u64).range(1..=1024))]
+    #[arg(long, env = "GEOMINT_JOB_PARTS_IN_FLIGHT", default_value_t = crate::jobs::DEFAULT_PARTS_IN_FLIGHT as u64, value_parser = clap::value_parser!(u64).range(1..=64))]
     pub job_parts_in_flight: u64,
     /// Seconds a job may run under one server before it fails (its finished parts are kept).
     #[arg(long, env = "GEOMINT_JOB_TIME_LIMIT_SECS", default_value_t = 86_400, value_parser = clap::value_parser!(u64).range(1..))]
@@ -141,8 +141,9 @@ pub struct ServeArgs {
     #[arg(long, env = "GEOMINT_NATS_SHARD_STEPS", default_value = "20000000", value_parser = parse_count)]
     pub nats_shard_steps: u64,
     /// The JetStream object store that keeps the jobs' files besides the jobs directory (made if
-    /// missing), from which a server that lost its disk takes them back. Servers that share one
-    /// share their jobs: give each server its own, unless it replaces another.
+    /// missing), from which a server that lost its disk takes them back; `off` keeps them on
+    /// disk only. Servers that share one share their jobs: give each server its own, unless it
+    /// replaces another.
     #[arg(long, env = "GEOMINT_NATS_JOBS_BUCKET", default_value = crate::nats::jobs_bucket::DEFAULT_BUCKET)]
     pub nats_jobs_bucket: String,
     /// NATS credentials, TLS and deliveries.
@@ -394,8 +395,9 @@ pub(crate) fn serve(args: &ServeArgs) -> ExitCode {
         Some(url) => match connect(&runtime, url, args.nats_ack_wait_secs, &args.nats_options) {
             Ok(mut queue) => {
                 queue.steps_per_shard = args.nats_shard_steps.max(1);
-                if config.jobs.is_some() {
-                    match runtime.block_on(queue.jobs_bucket(&args.nats_jobs_bucket)) {
+                let bucket = args.nats_jobs_bucket.as_str();
+                if config.jobs.is_some() && bucket != crate::nats::jobs_bucket::NO_BUCKET {
+                    match runtime.block_on(queue.jobs_bucket(bucket)) {
                         Ok(bucket) => queue.jobs_bucket = Some(std::sync::Arc::new(bucket)),
                         Err(e) => {
                             eprintln!("error: {e}");

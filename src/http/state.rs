@@ -254,8 +254,8 @@ impl AppState {
         }
     }
 
-    /// What the jobs take from the service (a job's part takes one of its shared slots while
-    /// it runs).
+    /// What the jobs take from the service (a job's part that runs here takes one of its shared
+    /// slots while it runs).
     pub fn job_context(&self) -> JobContext {
         JobContext {
             systems: self.systems.clone(),

@@ -40,7 +40,7 @@ use crate::access::Usage;
 use crate::core::error::{ErrorCode, ErrorDetail};
 use crate::core::simulation::Limits;
 use crate::executor::StudyExecutor;
-use crate::store::jobs::{JobRecord, JobStore, Replica, JOB_FORMAT};
+use crate::store::jobs::{JobRecord, JobStore, NotReplicated, Replica, JOB_FORMAT};
 use crate::store::recordings::{Owner, RecordingStore};
 use crate::store::systems::SystemStore;
 use fair::FairGate;
@@ -79,13 +79,18 @@ pub struct Jobs {
     time_limit: Duration,
     board: Mutex<Board>,
     changed: Condvar,
-    gate: FairGate,
+    /// Where parts that run on this machine take turns: one at a time, as each takes every core
+    /// (and a work–precision study's timings compare only with nothing beside them).
+    gate_here: FairGate,
+    /// Where parts that run on NATS workers take turns: [`JobsConfig::parts_in_flight`] at a
+    /// time.
+    gate_workers: FairGate,
     stopping: AtomicBool,
 }
 
 /// What running jobs takes from the service: the stored systems and limits their requests are
 /// prepared with, where their parts run, the runs in flight they count in, and the simulation
-/// slots their parts take one of.
+/// slots their parts that run here take one of.
 #[derive(Clone, Debug)]
 pub struct JobContext {
     /// The stored system definitions.
@@ -103,9 +108,19 @@ pub struct JobContext {
 }
 
 /// The error of a write of `what` to the jobs directory that failed: `storage_full` when the
-/// disk is full, else `storage_unavailable`.
+/// disk is full, else `storage_unavailable` (naming the replica when the disk took the write
+/// and the replica did not).
 fn storage_error(what: &str, error: &std::io::Error) -> ErrorDetail {
     tracing::error!(%error, what, "a write to the jobs directory failed");
+    let replica = error
+        .get_ref()
+        .and_then(|e| e.downcast_ref::<NotReplicated>());
+    if let Some(replica) = replica {
+        return ErrorDetail::new(
+            ErrorCode::StorageUnavailable,
+            format!("the jobs' replica did not keep {what} ({replica})"),
+        );
+    }
     match error.kind() {
         std::io::ErrorKind::StorageFull | std::io::ErrorKind::QuotaExceeded => ErrorDetail::new(
             ErrorCode::StorageFull,
@@ -153,7 +168,8 @@ impl Jobs {
                 ..Board::default()
             }),
             changed: Condvar::new(),
-            gate: FairGate::new(config.parts_in_flight),
+            gate_here: FairGate::new(1),
+            gate_workers: FairGate::new(config.parts_in_flight),
             stopping: AtomicBool::new(false),
         }
     }
@@ -291,12 +307,29 @@ impl Jobs {
         }
         job.cancelled.store(true, Ordering::Relaxed);
         job.stop.store(true, Ordering::Relaxed);
-        if job.state() == JobState::Queued {
+        // A queued job is ended after the board's lock, as ending writes files (to the replica
+        // too); the flag set under it keeps the starter from starting it meanwhile.
+        let queued = job.state() == JobState::Queued;
+        drop(board);
+        if queued {
             job.end(JobState::Cancelled, None);
         }
-        drop(board);
-        self.gate.wake();
+        self.wake_gates();
         true
+    }
+
+    /// Wakes every part waiting for its turn (after stop flags were set).
+    fn wake_gates(&self) {
+        self.gate_here.wake();
+        self.gate_workers.wake();
+    }
+
+    /// The gate of parts that run here (`here`) or on workers.
+    pub(super) fn gate(&self, here: bool) -> &FairGate {
+        match here {
+            true => &self.gate_here,
+            false => &self.gate_workers,
+        }
     }
 
     /// Removes an ended `job` and its files; false if it has not ended.
@@ -308,9 +341,14 @@ impl Jobs {
             }
             board.jobs.remove(&job.record.id);
         }
-        job.dir
-            .remove()
-            .map_err(|e| storage_error("the removal", &e))?;
+        if let Err(error) = job.dir.remove() {
+            // Still there: it stays listed, and can be removed again.
+            let id = job.record.id.clone();
+            self.board()
+                .jobs
+                .insert(id, Arc::new(Job::new(job.record.clone(), job.dir.clone())));
+            return Err(storage_error("the removal", &error));
+        }
         Ok(true)
     }
 
@@ -320,20 +358,26 @@ impl Jobs {
         self.store.replicate_to(replica);
     }
 
-    /// Takes back the jobs that the replica keeps and the directory lacks.
+    /// Takes back the jobs that the replica keeps and the directory lacks. Their event logs
+    /// are not kept there: a job that had ended gets its last event again, so that its event
+    /// stream ends; the others get theirs as they run.
     fn restore(&self) {
-        match self.store.restore() {
-            Ok(found) => {
-                let mut board = self.board();
-                for (record, dir) in found {
-                    let id = record.id.clone();
-                    (board.jobs.entry(id)).or_insert_with(|| Arc::new(Job::new(record, dir)));
-                }
+        for (record, dir) in self.store.restore() {
+            let job = Arc::new(Job::new(record, dir));
+            let last = match job.state() {
+                JobState::Done => Some(EventKind::Done),
+                JobState::Failed => Some(EventKind::Failed),
+                JobState::Cancelled => Some(EventKind::Cancelled),
+                JobState::Queued | JobState::Running => None,
+            };
+            if let Some(kind) = last {
+                let error = job.live().error.clone();
+                job.event(kind, |e| e.error = error);
             }
-            Err(error) => {
-                tracing::error!(%error, "the jobs kept in the replica could not be taken back")
-            }
+            let id = job.record.id.clone();
+            self.board().jobs.entry(id).or_insert(job);
         }
+        self.changed.notify_all();
     }
 
     /// Starts the thread that starts jobs (those left unfinished by a previous server first, in
@@ -364,7 +408,7 @@ impl Jobs {
             }
         }
         drop(board);
-        self.gate.wake();
+        self.wake_gates();
         self.changed.notify_all();
     }
 }

@@ -27,7 +27,9 @@ impl Jobs {
             .jobs
             .values()
             .filter(|j| {
-                j.state() == JobState::Queued && started(&j.record.owner) < ACTIVE_PER_OWNER
+                j.state() == JobState::Queued
+                    && !j.cancelled.load(Ordering::Relaxed)
+                    && started(&j.record.owner) < ACTIVE_PER_OWNER
             })
             .min_by_key(|j| {
                 let r = &j.record;
@@ -257,7 +259,7 @@ impl PartSink for Sink<'_> {
             submitted: (r.submitted_unix_ms, r.id.clone()),
             steps,
         };
-        let turn = self.jobs.gate.wait(claim, &self.job.stop)?;
+        let turn = self.jobs.gate(here).wait(claim, &self.job.stop)?;
         // Then, for a part that runs here, one of the service's slots, so that a synchronous
         // request finds the machine as busy as it is. A part on the workers only waits here.
         if !here {

@@ -157,6 +157,11 @@ impl Executor for Stored<'_> {
                 Ok(cells) => *lock(&results[index]) = Some(cells),
                 Err(error) => {
                     lock(&failure).get_or_insert(error);
+                    // The job fails with this error: the parts in flight beside it stop as a
+                    // cancellation stops them (their shards taken out of the queue).
+                    if let Some(stop) = budget.cancel {
+                        stop.store(true, Ordering::Relaxed);
+                    }
                 }
             }
         };

@@ -6,8 +6,10 @@
 //! (`--nats-replicas`), so it outlives a server of a JetStream cluster too.
 //!
 //! The object store chunks what it keeps, so a part or a result may be larger than a NATS
-//! message. Each call is bounded by [`CALL_TIMEOUT`]: a NATS server that does not answer fails
-//! the write (and the job, as a part that could not be stored) rather than holding its thread.
+//! message. Every call is idempotent (a part written twice is the same bytes) and is tried again
+//! for up to [`CALL_PATIENCE`], as a JetStream cluster electing a new leader for the bucket's
+//! stream refuses calls for a few seconds; then it fails (a write fails the job, as a part that
+//! could not be stored, rather than holding its thread).
 
 use std::future::Future;
 use std::io;
@@ -22,8 +24,10 @@ use crate::store::jobs::Replica;
 
 /// The default name of the jobs' bucket (`--nats-jobs-bucket`).
 pub const DEFAULT_BUCKET: &str = "geomint-jobs";
-/// How long one call to the bucket may take.
-pub const CALL_TIMEOUT: Duration = Duration::from_secs(30);
+/// The `--nats-jobs-bucket` that keeps jobs on the server's disk only.
+pub const NO_BUCKET: &str = "off";
+/// How long a call to the bucket is tried before it fails.
+pub const CALL_PATIENCE: Duration = Duration::from_secs(30);
 
 /// The jobs' object store, with the runtime its calls block on.
 pub struct JobsBucket {
@@ -79,50 +83,63 @@ impl std::fmt::Debug for JobsBucket {
 }
 
 impl JobsBucket {
-    /// Runs `call` on the runtime, within [`CALL_TIMEOUT`]; `what` names it in errors.
-    fn block<T, E: std::fmt::Display>(
+    /// Runs the call that `call` makes on the runtime, again until it succeeds or
+    /// [`CALL_PATIENCE`] has passed; `what` names it in errors.
+    fn block<T, E: std::fmt::Display, F: Future<Output = Result<T, E>>>(
         &self,
         what: &str,
-        call: impl Future<Output = Result<T, E>>,
+        call: impl Fn() -> F,
     ) -> io::Result<T> {
         let bucket = &self.name;
-        // The timer is made inside the runtime: a job's thread is not one of its threads.
-        let bounded = async { tokio::time::timeout(CALL_TIMEOUT, call).await };
-        match self.runtime.block_on(bounded) {
-            Ok(Ok(value)) => Ok(value),
-            Ok(Err(e)) => Err(io::Error::other(format!(
-                "JetStream bucket {bucket}: {what}: {e}"
-            ))),
-            Err(_) => Err(io::Error::new(
-                io::ErrorKind::TimedOut,
-                format!(
-                    "JetStream bucket {bucket}: {what}: no answer in {} s",
-                    CALL_TIMEOUT.as_secs()
-                ),
-            )),
-        }
+        // The timers are made inside the runtime: a job's thread is not one of its threads.
+        let patient = async {
+            let until = tokio::time::Instant::now() + CALL_PATIENCE;
+            loop {
+                let last = match tokio::time::timeout_at(until, call()).await {
+                    Ok(Ok(value)) => return Ok(value),
+                    Ok(Err(e)) => e.to_string(),
+                    Err(_) => format!("no answer in {} s", CALL_PATIENCE.as_secs()),
+                };
+                if tokio::time::Instant::now() + RETRY_PAUSE >= until {
+                    return Err(last);
+                }
+                tracing::debug!(
+                    bucket,
+                    what,
+                    error = last,
+                    "a call to the jobs' bucket failed; trying again"
+                );
+                tokio::time::sleep(RETRY_PAUSE).await;
+            }
+        };
+        self.runtime
+            .block_on(patient)
+            .map_err(|e| io::Error::other(format!("JetStream bucket {bucket}: {what}: {e}")))
     }
 }
 
+/// The pause between two tries of a call.
+const RETRY_PAUSE: Duration = Duration::from_millis(250);
+
 impl Replica for JobsBucket {
     fn put(&self, name: &str, bytes: &[u8]) -> io::Result<()> {
-        let mut reader = bytes;
-        self.block(&format!("cannot keep {name}"), async {
+        self.block(&format!("cannot keep {name}"), || async {
+            let mut reader = bytes;
             self.store.put(name, &mut reader).await.map(|_| ())
         })
     }
 
     fn get(&self, name: &str) -> io::Result<Vec<u8>> {
-        self.block(&format!("cannot read {name}"), async {
+        self.block(&format!("cannot read {name}"), || async {
             let mut object = self.store.get(name).await.map_err(io::Error::other)?;
-            let mut bytes = Vec::with_capacity(object.info.size);
+            let mut bytes = Vec::new();
             object.read_to_end(&mut bytes).await?;
             Ok::<_, io::Error>(bytes)
         })
     }
 
     fn names(&self) -> io::Result<Vec<String>> {
-        self.block("cannot list its objects", async {
+        self.block("cannot list its objects", || async {
             let mut list = self.store.list().await.map_err(io::Error::other)?;
             let mut names = Vec::new();
             while let Some(info) = list.next().await {
@@ -133,8 +150,12 @@ impl Replica for JobsBucket {
     }
 
     fn delete(&self, name: &str) -> io::Result<()> {
-        self.block(&format!("cannot delete {name}"), async {
-            self.store.delete(name).await
+        // A name already gone (an earlier try that was answered too late) is deleted.
+        self.block(&format!("cannot delete {name}"), || async {
+            match self.store.delete(name).await {
+                Err(e) if e.kind() == object_store::DeleteErrorKind::NotFound => Ok(()),
+                other => other,
+            }
         })
     }
 }

@@ -19,6 +19,7 @@
 //!
 //! Everything here is blocking I/O: call it off the async runtime.
 
+use std::collections::BTreeMap;
 use std::fs::{self, File, OpenOptions};
 use std::io::{self, Write};
 use std::ops::Range;
@@ -113,6 +114,19 @@ pub trait Replica: Send + Sync + std::fmt::Debug {
     /// Forgets `name`.
     fn delete(&self, name: &str) -> io::Result<()>;
 }
+
+/// What a write of a job's file returns when the file is on disk but the replica did not take
+/// it (inside an [`io::Error`] of the replica's kind).
+#[derive(Debug)]
+pub struct NotReplicated(pub String);
+
+impl std::fmt::Display for NotReplicated {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for NotReplicated {}
 
 /// The replica of a store and of its jobs' directories, once one is set.
 type SharedReplica = Arc<OnceLock<Arc<dyn Replica>>>;
@@ -210,42 +224,50 @@ impl JobStore {
     /// Takes back from the replica every job it keeps that this directory lacks (a server whose
     /// disk was lost, or a new one in its place): its files are written here, its record last,
     /// so that a restore cut short is done again from the start. The jobs taken back, oldest
-    /// first.
-    pub fn restore(&self) -> io::Result<Vec<(JobRecord, JobDir)>> {
+    /// first; a job that cannot be (an object gone, the replica unreachable) is logged, and
+    /// taken back at a later start.
+    pub fn restore(&self) -> Vec<(JobRecord, JobDir)> {
         let Some(replica) = self.replica.get() else {
-            return Ok(Vec::new());
+            return Vec::new();
         };
-        let names = replica.names()?;
+        let names = match replica.names() {
+            Ok(names) => names,
+            Err(error) => {
+                tracing::error!(%error, "the jobs' replica cannot be listed; no job taken back");
+                return Vec::new();
+            }
+        };
+        // Each job's files by its id; only jobs with a record are taken back.
+        let mut files: BTreeMap<&str, Vec<&str>> = BTreeMap::new();
+        for name in &names {
+            if let Some((id, file)) = name.split_once('/') {
+                files.entry(id).or_default().push(file);
+            }
+        }
         let mut found = Vec::new();
-        for record in names.iter().filter_map(|n| n.strip_suffix("/job.json")) {
-            if !is_valid_id(record) || self.dir.join(record).join("job.json").exists() {
+        for (id, files) in files {
+            let wanted = is_valid_id(id)
+                && files.contains(&"job.json")
+                && !self.dir.join(id).join("job.json").exists();
+            if !wanted {
                 continue;
             }
-            let job = self.dir_of(record);
-            fs::create_dir_all(job.parts_dir())?;
-            let prefix = format!("{record}/");
-            let files = names.iter().filter_map(|n| n.strip_prefix(&prefix));
-            for file in files.filter(|&f| f != "job.json").chain(["job.json"]) {
-                // Only the names this store writes: a file of the job's or of its parts'.
-                let dir = match file.split('/').collect::<Vec<_>>()[..] {
-                    [name] if is_file_name(name) => Some((job.path.clone(), name)),
-                    ["parts", name] if is_file_name(name) => Some((job.parts_dir(), name)),
-                    _ => None,
-                };
-                let Some((dir, name)) = dir else {
-                    tracing::warn!(name = file, job = record, "not a job's file; not restored");
-                    continue;
-                };
-                let bytes = replica.get(&format!("{prefix}{file}"))?;
-                write_atomically(&dir, name, &bytes)?;
+            let job = self.dir_of(id);
+            match job.take_back(replica.as_ref(), &files) {
+                Ok(()) => {
+                    found.extend(self.read_job(id));
+                    tracing::info!(job = id, "job taken back from the replica");
+                }
+                Err(error) => {
+                    tracing::error!(job = id, %error, "a job could not be taken back; it will be at the next start");
+                    let _ = fs::remove_dir_all(&job.path);
+                }
             }
-            found.extend(self.read_job(record));
-            tracing::info!(job = record, "job taken back from the replica");
         }
         found.sort_by(|(a, _), (b, _)| {
             (a.submitted_unix_ms, &a.id).cmp(&(b.submitted_unix_ms, &b.id))
         });
-        Ok(found)
+        found
     }
 
     /// Makes the directory of a new job and writes its record.
@@ -253,7 +275,11 @@ impl JobStore {
         let job = self.dir_of(&record.id);
         fs::create_dir_all(job.parts_dir())?;
         let bytes = serde_json::to_vec_pretty(record).map_err(io::Error::other)?;
-        job.keep("job.json", &bytes)?;
+        if let Err(error) = job.keep("job.json", &bytes) {
+            // Refused, so not a job: the next server must not find it.
+            let _ = fs::remove_dir_all(&job.path);
+            return Err(error);
+        }
         Ok(job)
     }
 }
@@ -281,6 +307,28 @@ impl JobDir {
         self.path.join("parts")
     }
 
+    /// Writes the job's `files` (names under its directory) from the replica here, the record
+    /// last; names this store never writes are skipped.
+    fn take_back(&self, replica: &dyn Replica, files: &[&str]) -> io::Result<()> {
+        fs::create_dir_all(self.parts_dir())?;
+        let others = files.iter().copied().filter(|&f| f != "job.json");
+        for file in others.chain(["job.json"]) {
+            let place = match file.split('/').collect::<Vec<_>>()[..] {
+                ["parts"] => None,
+                [name] if is_file_name(name) => Some((self.path.clone(), name)),
+                ["parts", name] if is_file_name(name) => Some((self.parts_dir(), name)),
+                _ => None,
+            };
+            let Some((dir, name)) = place else {
+                tracing::warn!(name = file, job = %self.id, "not a job's file; not taken back");
+                continue;
+            };
+            let bytes = replica.get(&format!("{}/{file}", self.id))?;
+            write_atomically(&dir, name, &bytes)?;
+        }
+        Ok(())
+    }
+
     /// Writes `file` (a name under the job's directory: `job.json`, `parts/…`) once, and keeps
     /// it in the replica when there is one.
     fn keep(&self, file: &str, bytes: &[u8]) -> io::Result<()> {
@@ -290,7 +338,8 @@ impl JobDir {
         };
         write_atomically(&dir, name, bytes)?;
         match self.replica.get() {
-            Some(replica) => replica.put(&format!("{}/{file}", self.id), bytes),
+            Some(replica) => (replica.put(&format!("{}/{file}", self.id), bytes))
+                .map_err(|e| io::Error::new(e.kind(), NotReplicated(e.to_string()))),
             None => Ok(()),
         }
     }
@@ -419,15 +468,16 @@ impl JobDir {
     /// Removes the job and everything it keeps, here and in the replica.
     pub fn remove(&self) -> io::Result<()> {
         if let Some(replica) = self.replica.get() {
+            let failed = |e: io::Error| io::Error::new(e.kind(), NotReplicated(e.to_string()));
             // The record first: a removal cut short leaves files that no restore takes back.
             let prefix = format!("{}/", self.id);
             let record = format!("{prefix}job.json");
-            let mut names: Vec<String> = (replica.names()?.into_iter())
+            let mut names: Vec<String> = (replica.names().map_err(failed)?.into_iter())
                 .filter(|n| n.starts_with(&prefix))
                 .collect();
             names.sort_by_key(|n| *n != record);
             for name in names {
-                replica.delete(&name)?;
+                replica.delete(&name).map_err(failed)?;
             }
         }
         fs::remove_dir_all(&self.path)

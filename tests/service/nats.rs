@@ -92,11 +92,15 @@ pub(crate) fn server_with(
             "GEOMINT_LOG",
             std::env::var("DBG_SERVE_LOG").unwrap_or(SERVE_LOG.into()),
         )
-        .args(["serve", "--addr", "127.0.0.1:0", "--nats", url])
-        .args(["--nats-shard-steps", "40000000"]);
-    // An ack wait of 2 s unless the test gives its own.
-    if !extra.contains(&"--nats-ack-wait-secs") {
-        command.args(["--nats-ack-wait-secs", "2"]);
+        .args(["serve", "--addr", "127.0.0.1:0", "--nats", url]);
+    // An ack wait of 2 s and shards of 4·10⁷ steps unless the test gives its own.
+    for (flag, value) in [
+        ("--nats-ack-wait-secs", "2"),
+        ("--nats-shard-steps", "40000000"),
+    ] {
+        if !extra.contains(&flag) {
+            command.args([flag, value]);
+        }
     }
     command
         .args(["--request-timeout-secs", &time_limit_secs.to_string()])

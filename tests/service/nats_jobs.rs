@@ -165,9 +165,9 @@ async fn a_jobs_parts_run_on_the_nats_workers() {
 async fn a_stopped_worker_holds_up_one_part_of_a_job_not_the_job() {
     let dir = scratch("in-flight");
     let (_nats, url) = nats_server(&dir);
-    // Parts of one shard each (4·10⁷ steps, the test server's shard), about half a second of a
-    // worker; the consumer's ack wait a minute, so that JetStream does not move the stopped
-    // worker's shard to the other within the test.
+    // Parts of one shard each (112 cells of 1.2·10⁶ steps), a second or two of a worker, so
+    // that the stop lands in the middle of one; the consumer's ack wait a minute, so that
+    // JetStream does not move the stopped worker's shard to the other within the test.
     let (_server, base) = server_with(
         &url,
         &dir,
@@ -175,10 +175,12 @@ async fn a_stopped_worker_holds_up_one_part_of_a_job_not_the_job() {
         &[
             "--nats-ack-wait-secs",
             "60",
+            "--nats-shard-steps",
+            "200000000",
             "--jobs-dir",
             dir.join("jobs").to_str().unwrap(),
             "--job-part-steps",
-            "40000000",
+            "120000000",
         ],
     );
     let logs: Vec<PathBuf> = (0..2)
@@ -188,7 +190,8 @@ async fn a_stopped_worker_holds_up_one_part_of_a_job_not_the_job() {
         .map(|log| worker_waiting(&url, log, &[], "60"))
         .collect();
     let mut sweep = henon_heiles_sweep();
-    sweep["axes"][0]["n"] = json!(40);
+    sweep["t_end"] = json!(6000);
+    sweep["axes"][0]["n"] = json!(20);
     sweep["axes"][1]["n"] = json!(20);
     let status_url = submit_sweep(&base, &sweep).await;
 
@@ -210,13 +213,17 @@ async fn a_stopped_worker_holds_up_one_part_of_a_job_not_the_job() {
         if job["parts_done"].as_u64() == Some(parts - 1) {
             break job;
         }
+        assert_ne!(
+            job["state"], "done",
+            "worker {holder} was stopped after its shard, holding nothing: {job}"
+        );
         assert!(
             Instant::now() < until,
             "the job's other parts did not end while worker {holder} was stopped: {job}"
         );
         tokio::time::sleep(Duration::from_millis(50)).await;
     };
-    assert!(waiting["parts"].as_u64().unwrap() >= 8, "{waiting}");
+    assert!(waiting["parts"].as_u64().unwrap() >= 4, "{waiting}");
     assert_eq!(waiting["state"], "running", "{waiting}");
     assert!(
         waiting["cells_done"].as_u64() < waiting["cells"].as_u64(),
@@ -505,7 +512,8 @@ async fn bucket_names(url: &str) -> Vec<String> {
 /// Killed (SIGKILL) mid-job, its jobs directory then deleted, it is replaced by a server with an
 /// empty jobs directory on the same NATS server: that one takes the job back from the bucket and
 /// ends it from the parts kept there (computing only the others), with the synchronous sweep's
-/// document bit for bit. Removing the job takes its files out of the bucket too.
+/// document bit for bit; a third, on another empty disk, takes it back done, with its result
+/// and an event stream that ends. Removing the job takes its files out of the bucket too.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_job_outlives_its_servers_disk_through_the_jetstream_bucket() {
     let dir = scratch("bucket");
@@ -557,7 +565,8 @@ async fn a_job_outlives_its_servers_disk_through_the_jetstream_bucket() {
         "{kept} of {parts} parts: {names:?}"
     );
 
-    let (_second, base) = server_on(&dir.join("jobs-second"));
+    let second_disk = dir.join("jobs-second");
+    let (second, base) = server_on(&second_disk);
     let status_url = format!("{base}/api/v1/jobs/{id}");
     let until = Instant::now() + Duration::from_secs(60);
     while get_json(status_url.clone()).await["id"] != id.as_str() {
@@ -574,6 +583,21 @@ async fn a_job_outlives_its_servers_disk_through_the_jetstream_bucket() {
     let from_job = get_json(format!("{status_url}/result")).await;
     let expected = local_sweep("bucket-local", &sweep).await;
     assert_eq!(without_timings(&from_job), without_timings(&expected));
+
+    // A third server on an empty disk takes the job back done: its event stream ends with
+    // `done`, and its result is the same bytes.
+    drop(second);
+    std::fs::remove_dir_all(&second_disk).unwrap();
+    let (_third, base) = server_on(&dir.join("jobs-third"));
+    let status_url = format!("{base}/api/v1/jobs/{id}");
+    let until = Instant::now() + Duration::from_secs(60);
+    while get_json(status_url.clone()).await["state"] != "done" {
+        assert!(Instant::now() < until, "the done job was not taken back");
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    let events = crate::http_jobs::events(&base, &id, 0, None).await;
+    assert_eq!(events.last().unwrap()["event"], "done", "{events:?}");
+    assert_eq!(get_json(format!("{status_url}/result")).await, from_job);
 
     let removed = crate::server::client()
         .delete(&status_url)

@@ -7,12 +7,14 @@ use std::collections::BTreeMap;
 use std::io;
 use std::sync::{Arc, Mutex};
 
-use geomint::store::jobs::{JobRecord, JobStore, Outcome, Replica, JOB_FORMAT};
+use geomint::store::jobs::{JobRecord, JobStore, NotReplicated, Outcome, Replica, JOB_FORMAT};
 use geomint::store::recordings::new_id;
 use serde_json::json;
 
+/// Names and their bytes; `None` for a name listed that cannot be read (an object deleted
+/// between the listing and the read).
 #[derive(Debug, Default)]
-struct Memory(Mutex<BTreeMap<String, Vec<u8>>>);
+struct Memory(Mutex<BTreeMap<String, Option<Vec<u8>>>>);
 
 impl Memory {
     fn names(&self) -> Vec<String> {
@@ -20,7 +22,14 @@ impl Memory {
     }
 
     fn insert(&self, name: &str, bytes: &[u8]) {
-        self.0.lock().unwrap().insert(name.into(), bytes.into());
+        self.0
+            .lock()
+            .unwrap()
+            .insert(name.into(), Some(bytes.into()));
+    }
+
+    fn unreadable(&self, name: &str) {
+        self.0.lock().unwrap().insert(name.into(), None);
     }
 }
 
@@ -31,7 +40,7 @@ impl Replica for Memory {
     }
 
     fn get(&self, name: &str) -> io::Result<Vec<u8>> {
-        let kept = self.0.lock().unwrap().get(name).cloned();
+        let kept = self.0.lock().unwrap().get(name).cloned().flatten();
         kept.ok_or_else(|| io::Error::new(io::ErrorKind::NotFound, name.to_string()))
     }
 
@@ -105,16 +114,28 @@ fn a_store_on_an_empty_directory_takes_its_jobs_back_from_the_replica() {
     let other_record = serde_json::to_vec(&record(&other, 0)).unwrap();
     memory.insert(&format!("{other}/job.json"), &other_record);
     memory.insert(&format!("{other}/parts/0-4.json"), b"{}");
-    for hostile in ["../escape.json", "parts/x/y.json", ".tmp-1", "", "parts/.."] {
+    for hostile in [
+        "../escape.json",
+        "parts/x/y.json",
+        ".tmp-1",
+        "",
+        "parts/..",
+        "parts",
+    ] {
         memory.insert(&format!("{other}/{hostile}"), b"x");
     }
     let orphan = new_id();
     memory.insert(&format!("{orphan}/parts/0-4.json"), b"{}");
+    // A job one of whose files cannot be read: not taken back, and nothing of it left here.
+    let broken = new_id();
+    let broken_record = serde_json::to_vec(&record(&broken, 2)).unwrap();
+    memory.insert(&format!("{broken}/job.json"), &broken_record);
+    memory.unreadable(&format!("{broken}/parts/0-4.json"));
 
     let (second, found) = JobStore::open(root.join("second"));
     assert!(found.is_empty());
     second.replicate_to(memory.clone());
-    let restored = second.restore().unwrap();
+    let restored = second.restore();
     let ids: Vec<&str> = restored.iter().map(|(r, _)| r.id.as_str()).collect();
     assert_eq!(ids, [other.as_str(), id.as_str()], "oldest first");
     assert_eq!(restored[1].0, record(&id, 1));
@@ -130,19 +151,65 @@ fn a_store_on_an_empty_directory_takes_its_jobs_back_from_the_replica() {
     assert!(!second_dir.join("escape.json").exists());
     assert!(!second_dir.join(&other).join("parts/x").exists());
     assert!(!second_dir.join(&orphan).exists(), "no record, no job");
+    assert!(
+        !second_dir.join(&broken).exists(),
+        "a job taken back whole or not at all"
+    );
     let mut other_files: Vec<String> = std::fs::read_dir(second_dir.join(&other))
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
         .collect();
     other_files.sort();
     assert_eq!(other_files, ["job.json", "parts"]);
-    assert!(
-        second.restore().unwrap().is_empty(),
-        "each job taken back once"
-    );
+    assert!(second.restore().is_empty(), "each job taken back once");
 
     // A removal takes the job's names out of the replica, and only those.
     restored[1].1.remove().unwrap();
     assert!(memory.names().iter().all(|n| !n.starts_with(&id)));
     assert!(memory.names().contains(&format!("{other}/job.json")));
+}
+
+/// A replica that takes nothing (a NATS server gone for longer than the bucket's patience).
+#[derive(Debug)]
+struct Refusing;
+
+impl Replica for Refusing {
+    fn put(&self, name: &str, _: &[u8]) -> io::Result<()> {
+        Err(io::Error::other(format!("cannot keep {name}: no answer")))
+    }
+
+    fn get(&self, name: &str) -> io::Result<Vec<u8>> {
+        Err(io::Error::other(format!("cannot read {name}: no answer")))
+    }
+
+    fn names(&self) -> io::Result<Vec<String>> {
+        Err(io::Error::other("cannot list: no answer"))
+    }
+
+    fn delete(&self, name: &str) -> io::Result<()> {
+        Err(io::Error::other(format!("cannot delete {name}: no answer")))
+    }
+}
+
+#[test]
+fn a_job_the_replica_refuses_is_not_left_on_disk() {
+    let root = crate::server::scratch_dir("job-replica-refusing");
+    let (store, _) = JobStore::open(&root);
+    store.replicate_to(Arc::new(Refusing));
+    let id = new_id();
+    let error = store.create(&record(&id, 1)).unwrap_err();
+    let inner = error
+        .get_ref()
+        .and_then(|e| e.downcast_ref::<NotReplicated>());
+    assert!(
+        inner.is_some_and(|e| e.0.contains("no answer")),
+        "{error:?}"
+    );
+    assert!(!root.join(&id).exists(), "a refused job is no job");
+    let (_, found) = JobStore::open(&root);
+    assert!(found.is_empty());
+    assert!(
+        store.restore().is_empty(),
+        "an unreachable replica gives back nothing"
+    );
 }
