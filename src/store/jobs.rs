@@ -392,6 +392,26 @@ impl JobDir {
             .count()
     }
 
+    /// The files kept in the replica as they are here (`job.json` first, then the others and
+    /// `parts/…`): all but the event log and temporary files.
+    fn kept_files(&self) -> Vec<String> {
+        let names = |dir: &Path| -> Vec<String> {
+            (fs::read_dir(dir).into_iter().flatten().flatten())
+                .filter(|e| e.file_type().is_ok_and(|t| t.is_file()))
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .filter(|n| is_file_name(n) && n != "events.ndjson")
+                .collect()
+        };
+        let mut files = names(&self.path);
+        files.sort_by_key(|f| f != "job.json");
+        files.extend(
+            names(&self.parts_dir())
+                .into_iter()
+                .map(|n| format!("parts/{n}")),
+        );
+        files
+    }
+
     /// Appends an event line (without its newline).
     pub fn append_event(&self, line: &[u8]) -> io::Result<()> {
         let mut file: File = OpenOptions::new()
@@ -469,15 +489,12 @@ impl JobDir {
     pub fn remove(&self) -> io::Result<()> {
         if let Some(replica) = self.replica.get() {
             let failed = |e: io::Error| io::Error::new(e.kind(), NotReplicated(e.to_string()));
-            // The record first: a removal cut short leaves files that no restore takes back.
-            let prefix = format!("{}/", self.id);
-            let record = format!("{prefix}job.json");
-            let mut names: Vec<String> = (replica.names().map_err(failed)?.into_iter())
-                .filter(|n| n.starts_with(&prefix))
-                .collect();
-            names.sort_by_key(|n| *n != record);
-            for name in names {
-                replica.delete(&name).map_err(failed)?;
+            // The names are the files here (not a listing of the whole bucket); the record
+            // first: a removal cut short leaves files that no restore takes back.
+            for file in self.kept_files() {
+                replica
+                    .delete(&format!("{}/{file}", self.id))
+                    .map_err(failed)?;
             }
         }
         fs::remove_dir_all(&self.path)
