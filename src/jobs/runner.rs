@@ -147,6 +147,12 @@ impl Jobs {
                 ),
             ));
         }
+        // A job begun while the server had no NATS goes into its bucket now, whole.
+        let put =
+            (job.dir.replicate_missing()).map_err(|e| storage_error("the job's files", &e))?;
+        if put > 0 {
+            tracing::info!(job = %r.id, files = put, "the job's files put into the replica");
+        }
         let _in_flight = context.usage.hold(&r.owner);
         let sink = Sink {
             jobs: self,

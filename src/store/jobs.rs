@@ -392,6 +392,33 @@ impl JobDir {
             .count()
     }
 
+    /// Puts into the replica the job's files it lacks (a job begun while the server had no
+    /// replica), its record last; how many. Nothing without a replica.
+    pub fn replicate_missing(&self) -> io::Result<usize> {
+        let Some(replica) = self.replica.get() else {
+            return Ok(0);
+        };
+        let failed = |e: io::Error| io::Error::new(e.kind(), NotReplicated(e.to_string()));
+        let prefix = format!("{}/", self.id);
+        let names = replica.names().map_err(failed)?;
+        let kept: std::collections::HashSet<&str> = names
+            .iter()
+            .filter_map(|n| n.strip_prefix(&prefix))
+            .collect();
+        let files = self.kept_files();
+        let (record, others): (Vec<&String>, Vec<&String>) =
+            files.iter().partition(|f| *f == "job.json");
+        let mut put = 0;
+        for file in others.into_iter().chain(record) {
+            if !kept.contains(&file.as_str()) {
+                let bytes = fs::read(self.path.join(file))?;
+                (replica.put(&format!("{prefix}{file}"), &bytes)).map_err(failed)?;
+                put += 1;
+            }
+        }
+        Ok(put)
+    }
+
     /// The files kept in the replica as they are here (`job.json` first, then the others and
     /// `parts/…`): all but the event log and temporary files.
     fn kept_files(&self) -> Vec<String> {

@@ -169,6 +169,33 @@ fn a_store_on_an_empty_directory_takes_its_jobs_back_from_the_replica() {
     assert!(memory.names().contains(&format!("{other}/job.json")));
 }
 
+/// A job begun without a replica goes into one whole, once, when its server has one.
+#[test]
+fn a_job_begun_without_a_replica_goes_into_one_whole() {
+    let root = crate::server::scratch_dir("job-replica-late");
+    let (store, _) = JobStore::open(&root);
+    let id = new_id();
+    let job = store.create(&record(&id, 1)).unwrap();
+    job.write_part(0, &[1.0f64, 2.0, 3.0, 4.0]).unwrap();
+    assert_eq!(
+        job.replicate_missing().unwrap(),
+        0,
+        "no replica, nothing put"
+    );
+    let memory = Arc::new(Memory::default());
+    store.replicate_to(memory.clone());
+    job.write_part(4, &[5.0f64, 6.0, 7.0, 8.0]).unwrap();
+    assert_eq!(memory.names(), [format!("{id}/parts/4-8.json")]);
+    assert_eq!(
+        job.replicate_missing().unwrap(),
+        2,
+        "the record and the first part"
+    );
+    let expected = ["job.json", "parts/0-4.json", "parts/4-8.json"].map(|f| format!("{id}/{f}"));
+    assert_eq!(memory.names(), expected);
+    assert_eq!(job.replicate_missing().unwrap(), 0, "once");
+}
+
 /// A replica that takes nothing (a NATS server gone for longer than the bucket's patience).
 #[derive(Debug)]
 struct Refusing;
