@@ -128,6 +128,16 @@ impl std::fmt::Display for NotReplicated {
 
 impl std::error::Error for NotReplicated {}
 
+/// The replica's `error`, as a write of a job's file returns it.
+fn not_replicated(error: io::Error) -> io::Error {
+    io::Error::new(error.kind(), NotReplicated(error.to_string()))
+}
+
+/// Jobs in the order they were submitted (then by id).
+fn oldest_first(jobs: &mut [(JobRecord, JobDir)]) {
+    jobs.sort_by(|(a, _), (b, _)| (a.submitted_unix_ms, &a.id).cmp(&(b.submitted_unix_ms, &b.id)));
+}
+
 /// The replica of a store and of its jobs' directories, once one is set.
 type SharedReplica = Arc<OnceLock<Arc<dyn Replica>>>;
 
@@ -185,9 +195,7 @@ impl JobStore {
                 found.extend(store.read_job(&name));
             }
         }
-        found.sort_by(|(a, _), (b, _)| {
-            (a.submitted_unix_ms, &a.id).cmp(&(b.submitted_unix_ms, &b.id))
-        });
+        oldest_first(&mut found);
         (store, found)
     }
 
@@ -264,9 +272,7 @@ impl JobStore {
                 }
             }
         }
-        found.sort_by(|(a, _), (b, _)| {
-            (a.submitted_unix_ms, &a.id).cmp(&(b.submitted_unix_ms, &b.id))
-        });
+        oldest_first(&mut found);
         found
     }
 
@@ -338,8 +344,9 @@ impl JobDir {
         };
         write_atomically(&dir, name, bytes)?;
         match self.replica.get() {
-            Some(replica) => (replica.put(&format!("{}/{file}", self.id), bytes))
-                .map_err(|e| io::Error::new(e.kind(), NotReplicated(e.to_string()))),
+            Some(replica) => {
+                (replica.put(&format!("{}/{file}", self.id), bytes)).map_err(not_replicated)
+            }
             None => Ok(()),
         }
     }
@@ -398,9 +405,8 @@ impl JobDir {
         let Some(replica) = self.replica.get() else {
             return Ok(0);
         };
-        let failed = |e: io::Error| io::Error::new(e.kind(), NotReplicated(e.to_string()));
         let prefix = format!("{}/", self.id);
-        let names = replica.names().map_err(failed)?;
+        let names = replica.names().map_err(not_replicated)?;
         let kept: std::collections::HashSet<&str> = names
             .iter()
             .filter_map(|n| n.strip_prefix(&prefix))
@@ -412,7 +418,7 @@ impl JobDir {
         for file in others.into_iter().chain(record) {
             if !kept.contains(&file.as_str()) {
                 let bytes = fs::read(self.path.join(file))?;
-                (replica.put(&format!("{prefix}{file}"), &bytes)).map_err(failed)?;
+                (replica.put(&format!("{prefix}{file}"), &bytes)).map_err(not_replicated)?;
                 put += 1;
             }
         }
@@ -515,13 +521,12 @@ impl JobDir {
     /// Removes the job and everything it keeps, here and in the replica.
     pub fn remove(&self) -> io::Result<()> {
         if let Some(replica) = self.replica.get() {
-            let failed = |e: io::Error| io::Error::new(e.kind(), NotReplicated(e.to_string()));
             // The names are the files here (not a listing of the whole bucket); the record
             // first: a removal cut short leaves files that no restore takes back.
             for file in self.kept_files() {
                 replica
                     .delete(&format!("{}/{file}", self.id))
-                    .map_err(failed)?;
+                    .map_err(not_replicated)?;
             }
         }
         fs::remove_dir_all(&self.path)
