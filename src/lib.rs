@@ -16,6 +16,8 @@
 //! - [`recording`]: Rerun recordings (`.rrd`) of the core's results.
 //! - [`store`]: what the service keeps on disk: recordings, stored system definitions, jobs.
 //! - [`http`]: the axum service: routes, answer forms, limits.
+//! - [`studies`]: every kind of study, one module each: how it is read, run, streamed, recorded
+//!   and reported, for the routes, the command line and jobs alike.
 //! - [`executor`], [`nats`]: where studies run: this machine, or NATS JetStream workers.
 //! - [`jobs`]: studies submitted to run in the background, in stored parts that outlive a
 //!   restart, owners' parts taking turns.
@@ -34,3 +36,4 @@ pub mod jobs;
 pub mod nats;
 pub mod recording;
 pub mod store;
+pub mod studies;

@@ -1,7 +1,7 @@
 //! The command line: `geomint serve` (the default; [`serve`]), `geomint run spec.json` (a
 //! simulation written as JSON, NDJSON or a Rerun recording, optionally streamed live to a Rerun
-//! viewer; [`run`](mod@run)), `geomint study KIND spec.json` (a work–precision or convergence study, or an
-//! energy-error map, as JSON or `.rrd`; [`study`]), and `geomint systems` / `geomint methods`
+//! viewer; [`run`](mod@run)), `geomint study KIND spec.json` (any study, whole or a shard, and the
+//! merge of shards, as JSON or `.rrd`; [`study`]), and `geomint systems` / `geomint methods`
 //! (the catalogues), `geomint token NAME` (a bearer token's secret and its line of the tokens
 //! file; [`token`]), `geomint job …` (a server's jobs; [`job`]). Every server setting can also come from a `GEOMINT_*` environment variable.
 //!
@@ -13,7 +13,6 @@ pub mod job;
 pub mod run;
 pub mod serve;
 pub mod study;
-pub mod sweep;
 pub mod token;
 
 use std::io::{self, Read, Write};
@@ -27,7 +26,7 @@ use crate::store::systems::{SystemStore, DEFAULT_SYSTEMS_DIR};
 pub use job::JobArgs;
 pub use run::RunArgs;
 pub use serve::{ServeArgs, WorkerArgs};
-pub use study::{StudyArgs, StudyKind};
+pub use study::StudyArgs;
 pub use token::TokenArgs;
 
 /// Geometric numerical integration of damped Hamiltonian systems, as a web service.
@@ -54,9 +53,9 @@ pub enum Command {
     Serve(ServeArgs),
     /// Run a simulation spec (the body of POST /api/v1/simulate) without a server.
     Run(RunArgs),
-    /// Run a study spec without a server (`work-precision`, `convergence`, `energy-map`,
-    /// `sweep`: the body of POST /api/v1/studies/work-precision, /convergence, /energy-map or
-    /// /sweep), or merge the parts of a sharded sweep (`merge`).
+    /// Run a study spec without a server (`sweep`, `basins`, `energy-map`, `stability`,
+    /// `convergence`, `work-precision`: the body of the study's route), whole or one shard of
+    /// it, or merge the parts of a sharded study (`merge`).
     Study(StudyArgs),
     /// Run sweep shards from a NATS JetStream server for `geomint serve --nats` (any number of
     /// workers, on any machines).
@@ -77,12 +76,7 @@ pub fn run(cli: Cli) -> ExitCode {
     match cli.command.unwrap_or(Command::Serve(cli.serve)) {
         Command::Serve(args) => serve::serve(&args),
         Command::Run(args) => run::run_spec(&args),
-        Command::Study(args) => match args.kind {
-            StudyKind::Sweep => sweep::run_sweep(&args),
-            StudyKind::Basins => sweep::run_basins(&args),
-            StudyKind::Merge => sweep::run_merge(&args),
-            _ => study::run_study(&args),
-        },
+        Command::Study(args) => study::run_study(&args),
         Command::Worker(args) => serve::work(&args),
         Command::Token(args) => token::make_token(&args),
         Command::Job(args) => job::run_job(&args),

@@ -1,69 +1,72 @@
-//! `geomint study KIND spec.json`: a work–precision or convergence study or an energy-error map
-//! (sweeps, basin maps and merges: [`super::sweep`]), without a server, with progress on standard error; the
-//! document as JSON, or as a Rerun recording for an output file ending in `.rrd` (work–precision
-//! studies and maps).
+//! `geomint study KIND spec.json [--shard i/n|auto] [-o out]` and `geomint study merge
+//! part-*.json [-o out]`: any kind of study ([`crate::studies`]; the spec is the body of its
+//! route) without a server, on all cores, whole or one shard of it (an array task of Slurm or a
+//! Kubernetes Indexed Job takes its index from `SLURM_ARRAY_TASK_ID` or
+//! `JOB_COMPLETION_INDEX`), and the merge of the parts into the document the whole study gives,
+//! bit for bit apart from wall times. Progress goes to standard error; the document is JSON, or
+//! a Rerun recording for an output file ending in `.rrd` (kinds that have one).
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use clap::{Args, ValueEnum};
+use clap::builder::{PossibleValue, PossibleValuesParser};
+use clap::Args;
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
 
 use super::{parse_count, print_json, read_spec, SystemsDir, BAD_INPUT};
-use crate::core::error::{CoreError, ErrorDetail};
 use crate::core::run::Budget;
 use crate::core::simulation::Limits;
-use crate::core::studies::engine::Local;
-use crate::core::studies::settings::{ProgressLine, StudyJob};
-use crate::recording;
+use crate::core::studies::engine::{Local, Progress};
+use crate::core::studies::parts::{self, AnyPart, Shard};
+use crate::core::studies::StudySpec;
+use crate::studies::merged::{Merged, PartText};
+use crate::studies::{self, Report, StudyKind, Visit};
 
-/// The kinds of study.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum StudyKind {
-    /// Wall time against energy error per method and setting.
-    WorkPrecision,
-    /// Errors at t_end against the step size per method and chart, with the fitted orders.
-    Convergence,
-    /// Energy-error map of the planar elastic pendulum, Cartesian against polar coordinates
-    /// (paper 001 Fig. 6), on all cores.
-    EnergyMap,
-    /// Any system over one or two axes, on all cores; with `--shard` one part of it.
-    Sweep,
-    /// Where each orbit of a grid of initial states ends up (attractors, exits), on all cores;
-    /// with `--shard` one part of it.
-    Basins,
-    /// The parts of a sweep or a basin map (`--shard` outputs, every shard once) into its
-    /// document.
-    Merge,
-}
+/// The verb that merges parts rather than running a study.
+pub const MERGE: &str = "merge";
 
 /// Settings of `geomint study`.
 #[derive(Clone, Debug, Args)]
 pub struct StudyArgs {
-    /// The kind of study.
-    #[arg(value_enum)]
-    pub kind: StudyKind,
-    /// The spec file (JSON); `-` reads standard input. For `merge`, the first part.
+    /// The kind of study (its route's name), or `merge`.
+    #[arg(value_parser = kinds())]
+    pub kind: String,
+    /// The spec file (JSON, the body of the study's route); `-` reads standard input. For
+    /// `merge`, the first part.
     pub spec: PathBuf,
     /// For `merge`: the other parts.
     pub parts: Vec<PathBuf>,
-    /// For `sweep` and `basins`: run shard `i/n` only (cells in a fixed order, so parts from any machines
-    /// merge to the whole sweep bit for bit), or `auto` for the index of a Slurm array task
+    /// Run shard `i/n` only (cells in a fixed order, so parts from any machines merge to the
+    /// whole study bit for bit), or `auto` for the index of a Slurm array task
     /// (`SLURM_ARRAY_TASK_ID`) or a Kubernetes Indexed Job (`JOB_COMPLETION_INDEX`) and the
     /// count from `SLURM_ARRAY_TASK_COUNT` or `GEOMINT_SHARDS`.
     #[arg(long)]
     pub shard: Option<String>,
-    /// Output file; `.rrd` writes a Rerun recording (work-precision only), anything else JSON
-    /// (default: standard output). Progress goes to standard error.
+    /// Output file; `.rrd` writes the study's Rerun recording (kinds that have one), anything
+    /// else JSON (default: standard output). Progress goes to standard error.
     #[arg(short, long)]
     pub output: Option<PathBuf>,
-    /// Most steps per setting.
+    /// Most steps per run or setting.
     #[arg(long, env = "GEOMINT_MAX_STEPS", default_value = "10000000", value_parser = parse_count)]
     pub max_steps: u64,
     /// Stored system definitions.
     #[command(flatten)]
     pub systems: SystemsDir,
+}
+
+/// The kinds `geomint study` takes, each with its line of help, and `merge`.
+fn kinds() -> PossibleValuesParser {
+    let merge = PossibleValue::new(MERGE)
+        .help("The parts of a study (`--shard` outputs, every shard once) into its document");
+    PossibleValuesParser::new(
+        studies::about()
+            .into_iter()
+            .map(|(name, about)| PossibleValue::new(name).help(about))
+            .chain([merge]),
+    )
 }
 
 impl StudyArgs {
@@ -76,171 +79,302 @@ impl StudyArgs {
     }
 }
 
+/// `geomint study`: the kind named, or the merge of parts.
 pub(crate) fn run_study(args: &StudyArgs) -> ExitCode {
-    use crate::api::studies::{ConvergenceRequest, WorkPrecisionRequest};
-    use crate::core::studies::convergence::{self, ConvergenceLine};
-    use crate::core::studies::work_precision::{self, StudyLine};
-    let limits = args.limits();
-    let (source, text) = match read_spec(&args.spec) {
-        Ok(spec) => spec,
-        Err(code) => return code,
-    };
-    if !args.parts.is_empty() && args.kind != StudyKind::Merge {
-        eprintln!("error: one spec file only (several files are for `merge`)");
-        return ExitCode::from(BAD_INPUT);
+    if args.kind == MERGE {
+        return merge(args);
     }
-    if args.shard.is_some() && !matches!(args.kind, StudyKind::Sweep | StudyKind::Basins) {
-        eprintln!("error: --shard is for `sweep` and `basins` only");
-        return ExitCode::from(BAD_INPUT);
+    if !args.parts.is_empty() {
+        return refuse("one spec file only (several files are for `merge`)");
     }
-    let stored = args.systems.open();
-    let reference = |reference: &str, ms: f64, total: usize| {
-        eprintln!("errors against the {reference} ({ms:.0} ms); {total} settings")
-    };
-    let error = |e: Option<f64>| e.map_or("-".into(), |e| format!("{e:.2e}"));
-    match args.kind {
-        StudyKind::WorkPrecision => {
-            let parsed = WorkPrecisionRequest::from_slice(&text).and_then(|req| {
-                let job = req.to_spec(&stored)?.prepare(&limits)?;
-                Ok((req.inlined(&stored), job))
-            });
-            let progress = |line: &StudyLine| match line {
-                StudyLine::Reference {
-                    reference: r,
-                    reference_ms,
-                    total,
-                } => reference(r, *reference_ms, *total),
-                StudyLine::Point { done, total, point } => eprintln!(
-                    "[{done}/{total}] {} {}: {:.3} ms, max energy error {}",
-                    point.method,
-                    point
-                        .h
-                        .map(|h| format!("h = {h}"))
-                        .or(point.tolerance.map(|t| format!("tol = {t:e}")))
-                        .unwrap_or_default(),
-                    point.wall_ms,
-                    error(point.max_energy_error)
-                ),
-                _ => {}
-            };
-            let rrd = |f: File, spec: &WorkPrecisionRequest, doc: &_| {
-                recording::work_precision::write_rrd(
-                    BufWriter::new(f),
-                    &recording::Spec::of(spec),
-                    doc,
-                )
-                .map_err(|e| e.to_string())
-                .and_then(|mut w| w.flush().map_err(|e| e.to_string()))
-            };
-            finish_study(
-                args,
-                &source,
-                parsed,
-                work_precision::run,
-                progress,
-                Some(rrd),
-            )
-        }
-        StudyKind::Convergence => {
-            let parsed = ConvergenceRequest::from_slice(&text).and_then(|req| {
-                let job = req.to_spec(&stored)?.prepare(&limits)?;
-                Ok((req, job))
-            });
-            let progress = |line: &ConvergenceLine| match line {
-                ConvergenceLine::Reference {
-                    reference: r,
-                    reference_ms,
-                    total,
-                } => reference(r, *reference_ms, *total),
-                ConvergenceLine::Point { done, total, point } => eprintln!(
-                    "[{done}/{total}] {} ({}) h = {}: state error {}, energy error {}, max {}",
-                    point.method,
-                    point.chart,
-                    point.h,
-                    error(point.state_error),
-                    error(point.energy_error),
-                    error(point.max_energy_error)
-                ),
-                _ => {}
-            };
-            type Rrd = fn(
-                File,
-                &ConvergenceRequest,
-                &convergence::ConvergenceDocument,
-            ) -> Result<(), String>;
-            finish_study(
-                args,
-                &source,
-                parsed,
-                convergence::run,
-                progress,
-                None::<Rrd>,
-            )
-        }
-        StudyKind::EnergyMap => run_energy_map(args, &source, &text),
-        StudyKind::Sweep | StudyKind::Basins | StudyKind::Merge => {
-            unreachable!("`geomint study sweep|basins|merge` runs in cli::sweep")
-        }
+    studies::visit(&args.kind, Whole(args))
+        .unwrap_or_else(|| refuse(&studies::unknown("study", &args.kind).to_string()))
+}
+
+/// Prints `message` as the command line's error and exits for bad input.
+fn refuse(message: &str) -> ExitCode {
+    eprintln!("error: {message}");
+    ExitCode::from(BAD_INPUT)
+}
+
+/// Runs the kind of study visited, whole or a shard of it.
+struct Whole<'a>(&'a StudyArgs);
+
+impl Visit for Whole<'_> {
+    type Output = ExitCode;
+    fn kind<K: StudyKind>(self) -> ExitCode {
+        run_kind::<K>(self.0)
     }
 }
 
-/// An energy-error map (001 Fig. 6) on all cores, with progress on standard error.
-fn run_energy_map(args: &StudyArgs, source: &str, text: &[u8]) -> ExitCode {
-    use crate::api::studies::EnergyMapRequest;
-    use crate::core::studies::energy_map::{self, MapLine};
-    let parsed = crate::api::json::parse_json(text)
-        .and_then(|v| EnergyMapRequest::from_value(&v))
-        .and_then(|req| Ok(req.to_spec()?.prepare()?));
-    let spec = match parsed {
-        Ok(parsed) => parsed,
-        Err(e) => {
-            eprintln!("error: {source}: {e}");
-            return ExitCode::from(BAD_INPUT);
-        }
-    };
-    eprintln!(
-        "{} cells × 2 charts × {} steps on {} threads",
-        spec.nx * spec.ny,
-        spec.steps,
-        rayon::current_num_threads()
-    );
-    let progress = |line: MapLine| {
-        if let MapLine::Progress { done, total } = line {
+/// Reports a progress line on standard error.
+fn report(report: Report) {
+    match report {
+        Report::Cells { done, total } => {
             eprint!("\r{done}/{total} cells");
             if done == total {
                 eprintln!();
             }
         }
+        Report::Line(line) => eprintln!("{line}"),
+    }
+}
+
+/// What a part file holds: the kind of study and the request it was read from, so that
+/// `merge` prepares the study again and makes its document and recording, and the part.
+#[derive(Serialize)]
+struct PartFile<'a> {
+    study: &'static str,
+    request: &'a Value,
+    #[serde(flatten)]
+    part: &'a AnyPart,
+}
+
+/// Reads the spec file as a `K` and runs it on all cores, whole or the shard `--shard` names,
+/// with progress on standard error.
+fn run_kind<K: StudyKind>(args: &StudyArgs) -> ExitCode {
+    let limits = &args.limits();
+    let (source, text) = match read_spec(&args.spec) {
+        Ok(spec) => spec,
+        Err(code) => return code,
+    };
+    let stored = args.systems.open();
+    let parsed = crate::api::json::parse_json(&text)
+        .and_then(|request| Ok((K::prepare(&request, &stored, limits)?, request)));
+    let (study, request) = match parsed {
+        Ok(parsed) => parsed,
+        Err(e) => return refuse(&format!("{source}: {e}")),
+    };
+    let shard = match args
+        .shard
+        .as_deref()
+        .map(|s| shard_of(s, |k| std::env::var(k).ok()))
+        .transpose()
+    {
+        Ok(shard) => shard,
+        Err(e) => return refuse(&format!("--shard: {e}")),
+    };
+    let cells = match shard.map(|s| s.cells(study.cells())).transpose() {
+        Ok(cells) => cells.unwrap_or(0..study.cells()),
+        Err(e) => return refuse(&format!("--shard: {e}")),
+    };
+    let wants_rrd = wants_rrd(args) && shard.is_none();
+    if wants_rrd && K::ANSWERS.recording.is_none() {
+        return refuse("this kind of study has no recording; write JSON (e.g. -o out.json)");
+    }
+    eprintln!(
+        "{} of {} cells of the {} study (at most {} steps in all for the whole of it) on {} threads",
+        cells.len(),
+        study.cells(),
+        K::NAME,
+        study.steps(),
+        rayon::current_num_threads()
+    );
+    let failed = |e: crate::core::error::CoreError| {
+        eprintln!("error: {source}: {e}");
+        ExitCode::FAILURE
+    };
+    if let Some(shard) = shard {
+        let counted = |done, total| report(Report::Cells { done, total });
+        let progress = Progress::new(cells.len(), &counted);
+        return match parts::run_part(&study.spec(), shard, None, limits, &|| progress.add(1)) {
+            Ok(part) => {
+                eprintln!("{:.1} s", part_wall_ms(&part) / 1e3);
+                let file = PartFile {
+                    study: K::NAME,
+                    request: &request,
+                    part: &part,
+                };
+                write_json(args, &file)
+            }
+            Err(e) => failed(e),
+        };
+    }
+    let emit = |line: K::Line| {
+        if let Some(line) = K::report(&line) {
+            report(line);
+        }
         true
     };
-    let doc = match energy_map::run(&spec, &Local, Budget::default(), &progress) {
-        Ok(doc) => doc,
-        Err(e) => {
-            eprintln!("error: {source}: {e}");
-            return ExitCode::FAILURE;
+    match study.run(&Local, Budget::default(), &emit) {
+        Ok(doc) => finish(args, wants_rrd, &study, &doc),
+        Err(e) => failed(e),
+    }
+}
+
+/// The wall time of a part, in milliseconds.
+fn part_wall_ms(part: &AnyPart) -> f64 {
+    match part {
+        AnyPart::Sweep(p) => p.wall_ms,
+        AnyPart::Stability(p) => p.wall_ms,
+        AnyPart::Convergence(p) => p.wall_ms,
+        AnyPart::WorkPrecision(p) => p.wall_ms,
+        AnyPart::Basins(p) => p.wall_ms,
+    }
+}
+
+/// Says what the study came to and writes its document.
+fn finish<K: StudyKind>(
+    args: &StudyArgs,
+    wants_rrd: bool,
+    study: &K,
+    doc: &K::Document,
+) -> ExitCode {
+    if let Some(summary) = study.summary(doc) {
+        eprintln!("{summary}");
+    }
+    write_document(args, wants_rrd, study, doc)
+}
+
+/// What `merge` reads of each part before it knows the kind of its cells.
+#[derive(Deserialize)]
+struct PartHeader {
+    /// The kind of study (absent in parts of sweeps and basin maps written before parts
+    /// carried it).
+    study: Option<String>,
+    /// The request the study was read from (absent likewise).
+    request: Option<Value>,
+    spec: StudySpec,
+    shard: usize,
+    wall_ms: f64,
+}
+
+/// `geomint study merge`: the parts of a study (every shard exactly once) into its document.
+fn merge(args: &StudyArgs) -> ExitCode {
+    let mut parts = Vec::new();
+    let mut walls = Vec::new();
+    let mut first = None;
+    for path in std::iter::once(&args.spec).chain(&args.parts) {
+        let name = path.display().to_string();
+        let text = match std::fs::read(path) {
+            Ok(text) => text,
+            Err(e) => return refuse(&format!("{name}: cannot read it: {e}")),
+        };
+        let header = match serde_json::from_slice::<PartHeader>(&text) {
+            Ok(header) => header,
+            Err(e) => return refuse(&format!("{name}: not a part of a study: {e}")),
+        };
+        walls.push((header.shard, header.wall_ms));
+        parts.push(PartText {
+            name,
+            spec: header.spec.clone(),
+            text,
+        });
+        first.get_or_insert(header);
+    }
+    let Some(first) = first else {
+        return refuse("no parts to merge");
+    };
+    // The parts' wall times summed in shard order, whatever order they were given in.
+    walls.sort_by_key(|&(shard, _)| shard);
+    let wall_ms = walls.iter().map(|&(_, ms)| ms).sum();
+    let kind = match (&first.study, &first.spec) {
+        (Some(kind), _) => kind.clone(),
+        (None, StudySpec::Sweep(_)) => "sweep".into(),
+        (None, StudySpec::Basins(_)) => "basins".into(),
+        (None, _) => return refuse(&format!("{}: does not say its study", parts[0].name)),
+    };
+    let merged = Merged::new(parts, wall_ms);
+    let visit = MergeParts {
+        args,
+        first,
+        merged: &merged,
+    };
+    studies::visit(&kind, visit).unwrap_or_else(|| {
+        refuse(&format!(
+            "{}: {}",
+            args.spec.display(),
+            studies::unknown("study", &kind)
+        ))
+    })
+}
+
+/// Merges parts into the kind of study visited.
+struct MergeParts<'a> {
+    args: &'a StudyArgs,
+    first: PartHeader,
+    merged: &'a Merged,
+}
+
+impl Visit for MergeParts<'_> {
+    type Output = ExitCode;
+    fn kind<K: StudyKind>(self) -> ExitCode {
+        let MergeParts {
+            args,
+            first,
+            merged,
+        } = self;
+        let source = args.spec.display().to_string();
+        let limits = &args.limits();
+        let stored = args.systems.open();
+        let prepared = match &first.request {
+            Some(request) => K::prepare(request, &stored, limits),
+            None => match K::from_spec(&first.spec, limits) {
+                Some(prepared) => prepared.map_err(Into::into),
+                None => return refuse(&format!("{source}: carries no request to merge it by")),
+            },
+        };
+        let study = match prepared {
+            Ok(study) => study,
+            Err(e) => return refuse(&format!("{source}: its study: {e}")),
+        };
+        let wants_rrd = wants_rrd(args);
+        if wants_rrd && K::ANSWERS.recording.is_none() {
+            return refuse("this kind of study has no recording; write JSON (e.g. -o out.json)");
+        }
+        match study.run(merged, Budget::default(), &|_| true) {
+            Ok(doc) => {
+                eprintln!("merged {} cells", study.cells());
+                finish(args, wants_rrd, &study, &doc)
+            }
+            Err(e) => match merged.refused() {
+                Some(refused) => refuse(&refused.to_string()),
+                None => {
+                    eprintln!("error: {source}: {e}");
+                    ExitCode::FAILURE
+                }
+            },
+        }
+    }
+}
+
+/// The shard an array task runs: `i/n` as given, or for `auto` the index from
+/// `SLURM_ARRAY_TASK_ID` (less `SLURM_ARRAY_TASK_MIN`) or `JOB_COMPLETION_INDEX`, and the count
+/// from `SLURM_ARRAY_TASK_COUNT` or `GEOMINT_SHARDS`.
+pub fn shard_of(given: &str, env: impl Fn(&str) -> Option<String>) -> Result<Shard, String> {
+    if given != "auto" {
+        return Shard::parse(given).map_err(|e| e.to_string());
+    }
+    let number = |name: &str| -> Result<Option<usize>, String> {
+        env(name)
+            .map(|v| {
+                v.trim()
+                    .parse::<usize>()
+                    .map_err(|_| format!("{name}=`{v}` is not a whole number"))
+            })
+            .transpose()
+    };
+    let index = match (
+        number("SLURM_ARRAY_TASK_ID")?,
+        number("JOB_COMPLETION_INDEX")?,
+    ) {
+        (Some(id), _) => id
+            .checked_sub(number("SLURM_ARRAY_TASK_MIN")?.unwrap_or(0))
+            .ok_or("SLURM_ARRAY_TASK_ID is below SLURM_ARRAY_TASK_MIN")?,
+        (None, Some(index)) => index,
+        (None, None) => {
+            return Err("--shard auto needs SLURM_ARRAY_TASK_ID or JOB_COMPLETION_INDEX".into())
         }
     };
-    let s = &doc.summary;
-    eprintln!(
-        "{:.1} s for {} steps: Cartesian better in {} cells, polar in {}; polar diverged in {} ({} outside the predicted region)",
-        doc.wall_ms / 1e3,
-        doc.steps,
-        s.cartesian_better,
-        s.polar_better,
-        s.polar_diverged,
-        s.diverged_outside_prediction
-    );
-    let wants_rrd = wants_rrd(args);
-    write_document(
-        args,
-        wants_rrd,
-        &doc,
-        Some(|f: File, doc: &energy_map::EnergyMapDocument| {
-            recording::energy_map::write_rrd(BufWriter::new(f), doc)
-                .map_err(|e| e.to_string())
-                .and_then(|mut w| w.flush().map_err(|e| e.to_string()))
-        }),
-    )
+    let count =
+        match (number("SLURM_ARRAY_TASK_COUNT")?, number("GEOMINT_SHARDS")?) {
+            (Some(n), _) | (None, Some(n)) => n,
+            (None, None) => return Err(
+                "--shard auto needs the number of shards: SLURM_ARRAY_TASK_COUNT or GEOMINT_SHARDS"
+                    .into(),
+            ),
+        };
+    Shard::parse(&format!("{index}/{count}")).map_err(|e| e.to_string())
 }
 
 /// Whether the output file's name ends in `.rrd`.
@@ -251,78 +385,45 @@ pub(crate) fn wants_rrd(args: &StudyArgs) -> bool {
         .is_some_and(|e| e.eq_ignore_ascii_case("rrd"))
 }
 
-/// Runs a parsed study, reporting its progress lines with `progress` on standard error, and
-/// writes the document: as JSON, or with `rrd` for an output file ending in `.rrd` (refused for
-/// a kind without a recording).
-fn finish_study<S, L: ProgressLine>(
-    args: &StudyArgs,
-    source: &str,
-    parsed: Result<(S, StudyJob), ErrorDetail>,
-    run: fn(
-        &StudyJob,
-        &Local,
-        Budget<'_>,
-        &(dyn Fn(L) -> bool + Sync),
-    ) -> Result<L::Document, CoreError>,
-    progress: impl Fn(&L) + Sync,
-    rrd: Option<impl FnOnce(File, &S, &L::Document) -> Result<(), String>>,
-) -> ExitCode {
-    let (spec, job) = match parsed {
-        Ok(parsed) => parsed,
-        Err(e) => {
-            eprintln!("error: {source}: {e}");
-            return ExitCode::from(BAD_INPUT);
-        }
-    };
-    let wants_rrd = wants_rrd(args);
-    if wants_rrd && rrd.is_none() {
-        eprintln!("error: this kind of study has no recording; write JSON (e.g. -o out.json)");
-        return ExitCode::from(BAD_INPUT);
-    }
-    let emit = |line: L| {
-        progress(&line);
-        true
-    };
-    let doc = match run(&job, &Local, Budget::default(), &emit) {
-        Ok(doc) => doc,
-        Err(e) => {
-            eprintln!("error: {source}: {e}");
-            return ExitCode::FAILURE;
-        }
-    };
-    write_document(
-        args,
-        wants_rrd,
-        &doc,
-        rrd.map(|record| move |f: File, doc: &L::Document| record(f, &spec, doc)),
-    )
-}
-
-/// Writes a study's document to the output file — a Rerun recording through `rrd` when
-/// `wants_rrd`, pretty JSON otherwise — or prints it without one.
-pub(crate) fn write_document<D: serde::Serialize>(
+/// Writes a study's document to the output file — the study's recording when `wants_rrd`,
+/// pretty JSON otherwise — or prints it without one.
+fn write_document<K: StudyKind>(
     args: &StudyArgs,
     wants_rrd: bool,
-    doc: &D,
-    rrd: Option<impl FnOnce(File, &D) -> Result<(), String>>,
+    study: &K,
+    doc: &K::Document,
 ) -> ExitCode {
-    let written = match (&args.output, rrd) {
-        (Some(path), Some(record)) if wants_rrd => File::create(path)
-            .map_err(|e| e.to_string())
-            .and_then(|f| record(f, doc)),
-        (Some(path), _) => File::create(path).map_err(|e| e.to_string()).and_then(|f| {
-            let mut w = BufWriter::new(f);
-            serde_json::to_writer_pretty(&mut w, doc)
+    match &args.output {
+        Some(path) if wants_rrd => written(
+            study
+                .record(doc)
                 .map_err(|e| e.to_string())
-                .and_then(|()| {
-                    writeln!(w)
-                        .and_then(|()| w.flush())
-                        .map_err(|e| e.to_string())
-                })
-        }),
-        (None, _) => return print_json(doc),
+                .and_then(|bytes| std::fs::write(path, bytes).map_err(|e| e.to_string())),
+        ),
+        _ => write_json(args, doc),
+    }
+}
+
+/// Writes `doc` as pretty JSON to the output file, or prints it without one.
+fn write_json<D: Serialize>(args: &StudyArgs, doc: &D) -> ExitCode {
+    let Some(path) = &args.output else {
+        return print_json(doc);
     };
-    match written {
+    written(File::create(path).map_err(|e| e.to_string()).and_then(|f| {
+        let mut w = BufWriter::new(f);
+        serde_json::to_writer_pretty(&mut w, doc)
+            .map_err(|e| e.to_string())
+            .and_then(|()| {
+                writeln!(w)
+                    .and_then(|()| w.flush())
+                    .map_err(|e| e.to_string())
+            })
+    }))
+}
+
+/// The exit code of writing the output.
+fn written(result: Result<(), String>) -> ExitCode {
+    match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: cannot write the output: {e}");

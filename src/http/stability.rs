@@ -22,15 +22,16 @@ use axum::http::HeaderMap;
 use axum::response::Response;
 use axum::Json;
 
-use super::answer::{Client, Format, RecordFormat, Work};
+use super::answer::{Client, RecordFormat};
 use super::error::{ApiError, ErrorBody, JsonRefusals, SlotsBusy};
 use super::extract::ApiJson;
 use super::paths;
 use super::recordings::RrdFile;
-use super::state::{run_blocking, AppState, Cost};
+use super::state::{run_blocking, AppState};
+use super::studies::answer;
 use crate::api::stability::{PointRequest, StabilityRequest};
 use crate::core::studies::stability::{self, PointDocument, StabilityDocument};
-use crate::recording;
+use crate::studies::stability::Stability;
 
 /// Stability maps of the damped oscillator q'' + 2γq' + ω²q = 0 over a (γ, h) grid.
 ///
@@ -58,34 +59,12 @@ use crate::recording;
     ))]
 pub async fn stability_map(
     State(state): State<AppState>,
+    headers: HeaderMap,
     Query(query): Query<BTreeMap<String, String>>,
     client: Client,
     ApiJson(body): ApiJson,
 ) -> Result<Response, ApiError> {
-    let format = Format::requested(&query, &HeaderMap::new(), &[Format::Json, Format::Rrd])?;
-    let request = StabilityRequest::from_value(&body)?;
-    let job = request.to_spec()?.prepare()?;
-    let slots = match state.executor.distributes(&job) {
-        true => 1,
-        false => state.config.max_concurrent,
-    };
-    let work = Work::admit(&state, slots, Cost::Study, client).await?;
-    tracing::info!(
-        methods = job.methods.len(),
-        cells = job.points(),
-        slots = work.workers(),
-        "stability maps started"
-    );
-    let executor = state.executor.clone();
-    let bytes = work
-        .run(move |budget| {
-            let doc: StabilityDocument = stability::maps(&job, &executor, budget)?;
-            format.encode(&doc, |d| {
-                recording::stability::rrd_bytes(&recording::Spec::of(&request), d)
-            })
-        })
-        .await?;
-    Ok(format.respond(bytes, "geomint-stability.rrd"))
+    answer::<Stability>(state, &headers, &query, client, &body).await
 }
 
 /// The stability analysis of one method at one (ω, γ, h).

@@ -1,13 +1,14 @@
-//! The study routes: `POST /api/v1/studies/work-precision`, `/convergence`, `/energy-map` and
-//! `/sweep` and `/basins`, and `GET /api/v1/studies/sweep/presets` (see [`crate::core::studies`]).
+//! The study routes: `POST /api/v1/studies/work-precision`, `/convergence`, `/energy-map`,
+//! `/sweep` and `/basins` (and `POST /api/v1/stability`, [`super::stability`]), and `GET
+//! /api/v1/studies/sweep/presets` and `/basins/presets` (see [`crate::studies`]).
 //!
-//! A study is validated first (cheap), then takes its simulation slots — one for a
-//! work–precision study, whose settings run one after another so that their wall times compare;
-//! every free one for the others, whose cells run in parallel; one when the cells go to NATS
-//! workers and the server only waits — and runs off the async runtime on the service's executor
-//! ([`crate::executor`]). With
-//! `Accept: application/x-ndjson` (or `?format=ndjson`) it streams its progress lines and the
-//! result; `?format=rrd` answers the study's Rerun recording (work–precision studies and maps);
+//! Every study route answers through [`answer`], generic over the kind of study. A study is
+//! validated first (cheap), then takes its simulation slots — one for a work–precision study,
+//! whose settings run one after another so that their wall times compare; every free one for the
+//! others, whose cells run in parallel; one when the cells go to NATS workers and the server only
+//! waits — and runs off the async runtime on the service's executor ([`crate::executor`]). With
+//! `Accept: application/x-ndjson` (or `?format=ndjson`) a study that streams sends its progress
+//! lines and the result; `?format=rrd` answers the study's Rerun recording where it has one;
 //! otherwise the result document. The request's time limit and a client that goes away stop it
 //! between steps.
 
@@ -16,7 +17,7 @@ use std::collections::BTreeMap;
 use axum::extract::{Query, State};
 use axum::http::HeaderMap;
 use axum::response::Response;
-use serde::Serialize;
+use serde_json::Value;
 
 use super::answer::{AnyFormat, Client, Format, StreamFormat, Work};
 use super::error::{ApiError, ErrorBody, JsonRefusals, SlotsBusy};
@@ -27,132 +28,78 @@ use super::state::{AppState, Cost};
 use crate::api::basins::{self as basin_presets, BasinsRequest};
 use crate::api::studies::{ConvergenceRequest, EnergyMapRequest, WorkPrecisionRequest};
 use crate::api::sweep::{self as presets, Preset, SweepRequest};
-use crate::core::error::{CoreError, ErrorDetail};
-use crate::core::run::Budget;
 use crate::core::studies::basins::{BasinsDocument, BasinsLine};
-use crate::core::studies::convergence::{self, ConvergenceDocument, ConvergenceLine};
-use crate::core::studies::energy_map::{self, EnergyMapDocument, MapLine};
-use crate::core::studies::engine::{self, CellLine, Documented, Order, Study};
-use crate::core::studies::settings::{ProgressLine, StudyJob};
+use crate::core::studies::convergence::{ConvergenceDocument, ConvergenceLine};
+use crate::core::studies::energy_map::{EnergyMapDocument, MapLine};
+use crate::core::studies::engine::Order;
 use crate::core::studies::sweep::{SweepDocument, SweepLine};
-use crate::core::studies::work_precision::{self, StudyLine, WorkPrecisionDocument};
-use crate::executor::StudyExecutor;
-use crate::recording;
+use crate::core::studies::work_precision::{StudyLine, WorkPrecisionDocument};
+use crate::studies::basins::Basins;
+use crate::studies::convergence::Convergence;
+use crate::studies::energy_map::EnergyMap;
+use crate::studies::sweep::Sweep;
+use crate::studies::work_precision::WorkPrecision;
+use crate::studies::{Answers, StudyKind};
 
-/// Answers a study in `format` once `work` is admitted: NDJSON lines as it goes (`run` emits
-/// its progress; the result or the error follows, then the end), or its finished document
-/// encoded by `encode` (`file` names a `.rrd` attachment).
-async fn answer<D: Serialize + Send + 'static, L: Serialize + Send + 'static>(
-    work: Work,
-    format: Format,
-    run: impl FnOnce(Budget<'_>, &(dyn Fn(L) -> bool + Sync)) -> Result<D, CoreError> + Send + 'static,
-    lines: (fn(D) -> L, fn(ErrorDetail) -> L, fn() -> L),
-    encode: impl FnOnce(&D) -> Result<Vec<u8>, ApiError> + Send + 'static,
-    file: &'static str,
-) -> Result<Response, ApiError> {
-    let (result, error, end) = lines;
-    if format == Format::Ndjson {
-        return Ok(work.stream(
-            move |budget, emit| {
-                match run(budget, emit) {
-                    Ok(doc) => emit(result(doc)),
-                    Err(e) => emit(error(e.into())),
-                };
-                emit(end());
-            },
-            error,
-            end,
-        ));
-    }
-    let bytes = work
-        .run(move |budget| encode(&run(budget, &|_| true)?))
-        .await?;
-    Ok(format.respond(bytes, file))
-}
-
-/// How the service runs a settings study: the job on the executor, given a budget and where to
-/// report its lines, to its document.
-type SettingsRun<L> = fn(
-    &StudyJob,
-    &StudyExecutor,
-    Budget<'_>,
-    &(dyn Fn(L) -> bool + Sync),
-) -> Result<<L as ProgressLine>::Document, CoreError>;
-
-/// The slots a study takes: one when its cells go to workers or run one at a time, else every
-/// free one.
-fn slots<S: Study>(state: &AppState, study: &S) -> usize {
-    if state.executor.distributes(study) || study.order() == Order::Timed {
-        1
-    } else {
-        state.config.max_concurrent
+/// The formats a study's route answers in.
+fn formats(answers: Answers) -> &'static [Format] {
+    match (answers.stream, answers.recording.is_some()) {
+        (true, true) => Format::ALL,
+        (true, false) => &[Format::Json, Format::Ndjson],
+        (false, true) => &[Format::Json, Format::Rrd],
+        (false, false) => &[Format::Json],
     }
 }
 
-/// Answers a study whose document is made from its cells (a sweep, a basin map) once it is
-/// admitted: its slots taken, its cells run on the service's executor, its progress lines
-/// streamed or its document encoded by `encode` (`file` names a `.rrd` attachment).
-async fn answer_cells<S: Documented + Send + 'static>(
+/// Answers a study of kind `K` read from `body`: prepared first (cheap), then admitted with its
+/// slots — one when its cells go to NATS workers or are timed one at a time, else every free
+/// one — and run on the service's executor, its progress lines streamed, or its document or its
+/// recording answered.
+pub(super) async fn answer<K: StudyKind>(
     state: AppState,
+    headers: &HeaderMap,
+    query: &BTreeMap<String, String>,
     client: Client,
-    format: Format,
-    job: S,
-    encode: fn(Format, &<S::Line as CellLine>::Document) -> Result<Vec<u8>, ApiError>,
-    file: &'static str,
+    body: &Value,
 ) -> Result<Response, ApiError> {
-    let work = Work::admit(&state, slots(&state, &job), Cost::Study, client).await?;
-    tracing::info!(
-        study = job.name(),
-        cells = job.cells(),
-        steps = job.steps(),
-        distributed = state.executor.distributes(&job),
-        "study started"
-    );
-    let executor = state.executor.clone();
-    answer(
-        work,
-        format,
-        move |budget, emit: &(dyn Fn(S::Line) -> bool + Sync)| {
-            engine::run_documented(&job, &executor, budget, emit)
-        },
-        (S::Line::result, S::Line::error, S::Line::end),
-        move |doc| encode(format, doc),
-        file,
-    )
-    .await
-}
-
-/// Answers a settings study (`job`, run by `run` on the service's executor).
-async fn answer_settings<L: ProgressLine>(
-    state: AppState,
-    client: Client,
-    format: Format,
-    (job, order): (StudyJob, Order),
-    run: SettingsRun<L>,
-    encode: impl FnOnce(&L::Document) -> Result<Vec<u8>, ApiError> + Send + 'static,
-    file: &'static str,
-) -> Result<Response, ApiError> {
-    let slots = match order {
-        Order::Timed => 1,
-        Order::Parallel if matches!(state.executor, StudyExecutor::Nats(_)) => 1,
-        Order::Parallel => state.config.max_concurrent,
+    let format = Format::requested(query, headers, formats(K::ANSWERS))?;
+    let study = K::prepare(body, &*state.systems, &state.config.limits)?;
+    let distributed = state.executor.queue().is_some() && study.order() == Order::Parallel;
+    let slots = match distributed || study.order() == Order::Timed {
+        true => 1,
+        false => state.config.max_concurrent,
     };
     let work = Work::admit(&state, slots, Cost::Study, client).await?;
     tracing::info!(
-        settings = job.len(),
+        study = K::NAME,
+        cells = study.cells(),
+        steps = study.steps(),
+        slots = work.workers(),
+        distributed,
         format = format.name(),
         "study started"
     );
     let executor = state.executor.clone();
-    answer(
-        work,
-        format,
-        move |budget, emit: &(dyn Fn(L) -> bool + Sync)| run(&job, &executor, budget, emit),
-        (L::result, L::error, L::end),
-        encode,
-        file,
-    )
-    .await
+    if format == Format::Ndjson {
+        return Ok(work.stream(
+            move |budget, emit| {
+                match study.run(&executor, budget, emit) {
+                    Ok(doc) => emit(K::result_line(doc)),
+                    Err(e) => emit(K::error_line(e.into())),
+                };
+                emit(K::end_line());
+            },
+            K::error_line,
+            K::end_line,
+        ));
+    }
+    let bytes = work
+        .run(move |budget| {
+            let doc = study.run(&executor, budget, &|_| true)?;
+            format.encode(&doc, |doc| study.record(doc))
+        })
+        .await?;
+    Ok(format.respond(bytes, K::ANSWERS.recording.unwrap_or_default()))
 }
 
 /// Runs a work–precision study: one system, several methods at several step sizes (or
@@ -181,27 +128,7 @@ pub async fn work_precision(
     client: Client,
     ApiJson(body): ApiJson,
 ) -> Result<Response, ApiError> {
-    let format = Format::requested(&query, &headers, Format::ALL)?;
-    let request = WorkPrecisionRequest::from_value(&body)?;
-    let job = request
-        .to_spec(&*state.systems)?
-        .prepare(&state.config.limits)?;
-    let request = request.inlined(&*state.systems);
-    let encode = move |doc: &WorkPrecisionDocument| {
-        format.encode(doc, |d| {
-            recording::work_precision::rrd_bytes(&recording::Spec::of(&request), d)
-        })
-    };
-    answer_settings::<StudyLine>(
-        state,
-        client,
-        format,
-        (job, Order::Timed),
-        work_precision::run,
-        encode,
-        "geomint-work-precision.rrd",
-    )
-    .await
+    answer::<WorkPrecision>(state, &headers, &query, client, &body).await
 }
 
 /// Runs a convergence study: one system with several methods, in one or several coordinate
@@ -231,22 +158,7 @@ pub async fn convergence(
     client: Client,
     ApiJson(body): ApiJson,
 ) -> Result<Response, ApiError> {
-    let format = Format::requested(&query, &headers, &[Format::Json, Format::Ndjson])?;
-    let request = ConvergenceRequest::from_value(&body)?;
-    let job = request
-        .to_spec(&*state.systems)?
-        .prepare(&state.config.limits)?;
-    let encode = |doc: &ConvergenceDocument| serde_json::to_vec(doc).map_err(ApiError::internal);
-    answer_settings::<ConvergenceLine>(
-        state,
-        client,
-        format,
-        (job, Order::Parallel),
-        convergence::run,
-        encode,
-        "",
-    )
-    .await
+    answer::<Convergence>(state, &headers, &query, client, &body).await
 }
 
 /// An energy-error map (paper 001 Fig. 6): the planar elastic pendulum released at rest from
@@ -276,30 +188,7 @@ pub async fn energy_map(
     client: Client,
     ApiJson(body): ApiJson,
 ) -> Result<Response, ApiError> {
-    let format = Format::requested(&query, &headers, Format::ALL)?;
-    let job = EnergyMapRequest::from_value(&body)?.to_spec()?.prepare()?;
-    let work = Work::admit(&state, slots(&state, job.sweep()), Cost::Study, client).await?;
-    tracing::info!(
-        cells = job.nx * job.ny,
-        steps = job.steps,
-        "energy map started"
-    );
-    let executor = state.executor.clone();
-    answer(
-        work,
-        format,
-        move |budget, emit: &(dyn Fn(MapLine) -> bool + Sync)| {
-            energy_map::run(&job, &executor, budget, emit)
-        },
-        (
-            |doc: EnergyMapDocument| MapLine::Result(Box::new(doc)),
-            |error| MapLine::Error { error },
-            || MapLine::End,
-        ),
-        move |doc: &EnergyMapDocument| format.encode(doc, recording::energy_map::rrd_bytes),
-        "geomint-energy-map.rrd",
-    )
-    .await
+    answer::<EnergyMap>(state, &headers, &query, client, &body).await
 }
 
 /// A sweep: one system (built-in, stored or defined in the request) with one or more methods in
@@ -332,14 +221,7 @@ pub async fn sweep(
     client: Client,
     ApiJson(body): ApiJson,
 ) -> Result<Response, ApiError> {
-    let format = Format::requested(&query, &headers, Format::ALL)?;
-    let request = SweepRequest::from_value(&body)?;
-    let job = request
-        .to_spec(&*state.systems)?
-        .prepare(&state.config.limits)?;
-    let encode =
-        |format: Format, doc: &SweepDocument| format.encode(doc, recording::sweep::rrd_bytes);
-    answer_cells(state, client, format, job, encode, "geomint-sweep.rrd").await
+    answer::<Sweep>(state, &headers, &query, client, &body).await
 }
 
 /// Ready-made sweeps: paper 001 Fig. 6's energy-error map (its numbers equal the energy-map
@@ -379,14 +261,7 @@ pub async fn basins(
     client: Client,
     ApiJson(body): ApiJson,
 ) -> Result<Response, ApiError> {
-    let format = Format::requested(&query, &headers, Format::ALL)?;
-    let (request, sweep) = BasinsRequest::from_value(&body)?;
-    let job = request
-        .to_spec(&sweep, &*state.systems)?
-        .prepare(&state.config.limits)?;
-    let encode =
-        |format: Format, doc: &BasinsDocument| format.encode(doc, recording::basins::rrd_bytes);
-    answer_cells(state, client, format, job, encode, "geomint-basins.rrd").await
+    answer::<Basins>(state, &headers, &query, client, &body).await
 }
 
 /// Ready-made basin maps: the damped double well, the forced damped Duffing oscillator, and

@@ -15,6 +15,7 @@ mod server;
 
 mod blocks;
 mod chaos;
+mod cli_shards;
 mod definitions;
 mod definitions_compiled;
 mod fuzz_auth;

@@ -91,6 +91,13 @@ pub trait Executor {
         budget: Budget<'_>,
         done: &(dyn Fn(usize, Option<&S::Cell>) + Sync),
     ) -> Result<Vec<Option<S::Cell>>, CoreError>;
+
+    /// The wall time, in milliseconds, of the cells it hands back, when it knows it better than
+    /// the time [`run`] measures around it: cells computed elsewhere and merged here from their
+    /// parts took the sum of the parts' wall times.
+    fn wall_ms(&self) -> Option<f64> {
+        None
+    }
 }
 
 /// This machine: every core, through rayon's pool (a timed study's cells one after another).
@@ -172,7 +179,9 @@ pub fn run<S: Study, E: Executor + ?Sized>(
             StudyStop::TimeLimit
         },
         cells,
-        wall_ms: started.elapsed().as_secs_f64() * 1e3,
+        wall_ms: executor
+            .wall_ms()
+            .unwrap_or_else(|| started.elapsed().as_secs_f64() * 1e3),
     };
     if finished.stop == StudyStop::TimeLimit && budget.cancelled() {
         return Err(CoreError::Cancelled {
