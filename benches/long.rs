@@ -320,7 +320,7 @@ fn run_case<S: MechanicalSystem>(
 {
     let t_end = case.t_end;
     let segment = t_end / SAMPLES as f64;
-    let kl8 = Method::composition(Scheme::KahanLi8, Base::Modin3s);
+    let kl8 = Method::composition(Scheme::of(MethodId::KahanLi8).unwrap(), Base::Modin3s);
     let began = Instant::now();
     let (reference, _) = sampled_run(sys, &Setting::fixed(kl8.clone(), 0.025), start, t_end);
     let (coarser, _) = sampled_run(sys, &Setting::fixed(kl8.clone(), 0.05), start, t_end);
@@ -358,11 +358,14 @@ fn run_case<S: MechanicalSystem>(
     for base in [Base::Modin3s, Base::Modin2s] {
         for h in [0.4, 0.2, 0.1, 0.05] {
             settings.push(Setting::fixed(
-                Method::composition(Scheme::KahanLi6, base),
+                Method::composition(Scheme::of(MethodId::KahanLi6).unwrap(), base),
                 h,
             ));
         }
-        for scheme in [Scheme::KahanLi8, Scheme::BlanesCasasMurua8] {
+        for scheme in [
+            Scheme::of(MethodId::KahanLi8).unwrap(),
+            Scheme::of(MethodId::BlanesCasasMurua8).unwrap(),
+        ] {
             for h in [1.6, 0.8, 0.5, 0.4, 0.2, 0.1] {
                 settings.push(Setting::fixed(Method::composition(scheme, base), h));
             }

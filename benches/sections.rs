@@ -160,15 +160,24 @@ fn main() {
     let (method, default_h) = match std::env::var("GEOMINT_SECTION_METHOD").as_deref() {
         Ok("blanes_moan_srkn11") => (Method::new(MethodId::BlanesMoanSrkn11), H_PLAIN),
         Ok("kahan_li_6") => (
-            Method::composition(Scheme::KahanLi6, Base::VelocityVerlet),
+            Method::composition(
+                Scheme::of(MethodId::KahanLi6).unwrap(),
+                Base::VelocityVerlet,
+            ),
             H_PLAIN,
         ),
         Ok("kahan_li_8") => (
-            Method::composition(Scheme::KahanLi8, Base::VelocityVerlet),
+            Method::composition(
+                Scheme::of(MethodId::KahanLi8).unwrap(),
+                Base::VelocityVerlet,
+            ),
             H_PLAIN,
         ),
         _ => (
-            Method::composition(Scheme::BlanesCasasMurua8, Base::VelocityVerlet),
+            Method::composition(
+                Scheme::of(MethodId::BlanesCasasMurua8).unwrap(),
+                Base::VelocityVerlet,
+            ),
             H_PROCESSED,
         ),
     };

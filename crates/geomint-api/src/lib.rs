@@ -12,6 +12,7 @@
 //! - [`simulate`]: the simulation request.
 //! - [`stability`]: stability maps and single points.
 //! - [`studies`]: convergence and work–precision studies, energy-error maps.
+//! - [`sweep`]: sweeps over one or two axes, and their presets.
 //! - [`system`]: a system as an id or a user's definition.
 //!
 //! Results are the core's typed documents, serialized as they are.

@@ -158,7 +158,7 @@ impl MethodSpec {
                 rule: Base::RULE,
                 allowed: Base::ids(),
             })?;
-            let scheme = Scheme::of(id).unwrap_or(Scheme::TripleJump);
+            let scheme = Scheme::of(id).unwrap_or(Scheme::TRIPLE_JUMP);
             method = Method::Composition { scheme, base };
         }
         if let Some(name) = &o.processor {

@@ -13,38 +13,28 @@ use super::rowlands::Rowlands;
 use super::runge_kutta::{self, InnerRk, KnownTableau, MomentumRk, RungeKutta, Tableau};
 use super::splitting::{self, KnownSequence, Splitting, SubFlow};
 use super::symplectic_euler::{GeneralSymplecticEuler, Variant};
-use super::{Base, Known, Method, MethodId};
+use super::{Base, Known, Method, MethodId, Steps};
 use crate::error::{CoreError, Field, StepError};
 use crate::run::{Advanced, Stepper};
 use crate::system::{MechanicalSystem, State};
 use crate::tangent::Tangent;
 
-/// The Butcher tableau of an explicit Runge–Kutta method (`None` for the other methods).
+/// The Butcher tableau of an explicit Runge–Kutta method (`None` for the other methods), from
+/// its catalogue entry.
 pub fn tableau(id: MethodId) -> Option<&'static Tableau> {
-    match id {
-        MethodId::ExplicitEuler => Some(&runge_kutta::EXPLICIT_EULER),
-        MethodId::Heun => Some(&runge_kutta::HEUN),
-        MethodId::Rk3 => Some(&runge_kutta::RK3),
-        MethodId::Rk4 => Some(&runge_kutta::RK4),
+    match id.info().steps {
+        Steps::RungeKutta(tableau) => Some(tableau),
         _ => None,
     }
 }
 
-/// The sub-flow sequence of a splitting method (`None` for the other methods).
+/// The sub-flow sequence of a splitting method (`None` for the other methods), from its
+/// catalogue entry.
 pub fn sequence(id: MethodId) -> Option<splitting::Sequence> {
-    Some(match id {
-        MethodId::Modin3s => splitting::MODIN_3S,
-        MethodId::Modin2s => splitting::MODIN_2S,
-        MethodId::ModinRks => splitting::MODIN_RKS,
-        MethodId::Csv1 => splitting::CSV1,
-        MethodId::SymplecticEuler => splitting::SYMPLECTIC_EULER,
-        MethodId::SymplecticEulerAdjoint => splitting::SYMPLECTIC_EULER_ADJOINT,
-        MethodId::PositionVerlet => splitting::POSITION_VERLET,
-        MethodId::VelocityVerlet => splitting::VELOCITY_VERLET,
-        MethodId::BlanesMoanS6 => splitting::BLANES_MOAN_S6,
-        MethodId::BlanesMoanSrkn11 => splitting::BLANES_MOAN_SRKN11,
-        _ => return None,
-    })
+    match id.info().steps {
+        Steps::Splitting(sequence) => Some(sequence),
+        _ => None,
+    }
 }
 
 /// A stepper for a concrete system, chosen at run time.
@@ -78,6 +68,8 @@ where
     Rk3(RungeKutta<S::Dim, Known<runge_kutta::Rk3>>),
     /// rk4.
     Rk4(RungeKutta<S::Dim, Known<runge_kutta::Rk4>>),
+    /// Any other explicit Runge–Kutta method: its tableau read at run time.
+    RungeKutta(RungeKutta<S::Dim>),
     /// implicit_midpoint or cimp.
     Midpoint(ImplicitMidpoint<S>),
     /// csv2.
@@ -136,6 +128,7 @@ macro_rules! with_stepper {
             $crate::methods::AnyStepper::Heun($st) => $body,
             $crate::methods::AnyStepper::Rk3($st) => $body,
             $crate::methods::AnyStepper::Rk4($st) => $body,
+            $crate::methods::AnyStepper::RungeKutta($st) => $body,
             $crate::methods::AnyStepper::Midpoint($st) => $body,
             $crate::methods::AnyStepper::Csv2($st) => $body,
             $crate::methods::AnyStepper::ComposedMidpoint($st) => $body,
@@ -399,15 +392,18 @@ where
             MethodId::Heun => AnyStepper::Heun(explicit(sys.dim())),
             MethodId::Rk3 => AnyStepper::Rk3(explicit(sys.dim())),
             MethodId::Rk4 => AnyStepper::Rk4(explicit(sys.dim())),
-            // Any other sequence runs as built at run time; a method with options written as
-            // `Plain` takes its defaults.
-            id => match sequence(id) {
-                Some(seq) => AnyStepper::Splitting(Splitting::new(
+            // Any other sequence or tableau runs as read at run time; a method with options
+            // written as `Plain` takes its defaults.
+            id => match id.info().steps {
+                Steps::Splitting(seq) => AnyStepper::Splitting(Splitting::new(
                     sys,
                     splitting::Composition::new(seq, &[1.0]),
                     None,
                 )),
-                None => stepper(&Method::new(id), sys),
+                Steps::RungeKutta(tableau) => {
+                    AnyStepper::RungeKutta(RungeKutta::new(tableau, sys.dim()))
+                }
+                Steps::Composition(_) | Steps::Own => stepper(&Method::new(id), sys),
             },
         },
     }

@@ -5,6 +5,7 @@
 //! |---|---|---|---|
 //! | `triple_jump` | 4 | 3 | Creutz & Gocksch 1989, Yoshida 1990; Hairer–Lubich–Wanner (HLW), *Geometric Numerical Integration*, II.4 eq. (4.4) |
 //! | `suzuki_4` | 4 | 5 | Suzuki 1990 (fractal); HLW Sec. II.4 |
+//! | `suzuki_6` | 6 | 25 | Suzuki 1990 (fractal, one level up: Phys. Lett. A 146, 319–323); HLW Sec. II.4 |
 //! | `yoshida_6` | 6 | 7 | Yoshida 1990, solution A; HLW Sec. V.3.2 |
 //! | `kahan_li_6` | 6 | 9 | Kahan & Li 1997 (s9odr6a); HLW Sec. V.3.2 |
 //! | `kahan_li_8` | 8 | 17 | Kahan & Li 1997 (s17odr8a); HLW Sec. V.3.2 |
@@ -41,28 +42,39 @@ use nalgebra::allocator::Allocator;
 use nalgebra::DefaultAllocator;
 
 use super::sources::*;
-use super::{Citation, Group, Kind, MethodId, MethodInfo, MethodOption};
+use super::{Citation, Group, Kind, MethodId, MethodInfo, MethodOption, Steps};
 use crate::error::StepError;
 use crate::run::{Advanced, Stepper};
 use crate::system::{MechanicalSystem, State};
 use crate::tangent::Tangent;
 
-/// A symmetric composition scheme.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Scheme {
-    /// Order 4, 3 stages.
-    TripleJump,
-    /// Order 4, 5 stages.
-    Suzuki4,
-    /// Order 6, 7 stages.
-    Yoshida6,
-    /// Order 6, 9 stages.
-    KahanLi6,
-    /// Order 8, 17 stages.
-    KahanLi8,
-    /// Effective order 8: a 13-stage kernel with a 20-stage processor.
-    BlanesCasasMurua8,
+/// A composition's weights as its catalogue entry gives them ([`super::Steps::Composition`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Weights {
+    /// The order of the composition of a symmetric second-order method (of the processed
+    /// method, for a scheme with a processor).
+    pub order: u32,
+    /// The weights γ_1 … γ_s of the step (the kernel's, for a processed scheme), in the order
+    /// the stages act (made by a function: some are computed, e.g. with cube roots).
+    pub step: fn() -> Vec<f64>,
+    /// The processor π of a processed scheme, as the weights of its stages in the order they
+    /// act (they sum to zero); `None` for a plain composition. The output map π⁻¹ is the same
+    /// list reversed with each weight negated ([`inverse`]).
+    pub processor: Option<fn() -> Vec<f64>>,
 }
+
+impl Weights {
+    /// Whether the two give the same composition.
+    pub fn same_as(&self, other: &Weights) -> bool {
+        self.order == other.order
+            && (self.step)() == (other.step)()
+            && self.processor.map(|p| p()) == other.processor.map(|p| p())
+    }
+}
+
+/// A symmetric composition scheme: a method whose catalogue entry gives its [`Weights`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Scheme(MethodId);
 
 /// Yoshida's order-6 weights γ_1 … γ_4 (γ_4 the middle one), HLW Sec. V.3.2.
 #[allow(clippy::excessive_precision)] // as published (26 digits); the compiler rounds to f64
@@ -109,7 +121,7 @@ const BLANES_CASAS_MURUA_8: [f64; 6] = [
     0.179_664_539_695_039,
 ];
 
-/// Their processor's g₂ … g₁₀ (g₁ = −(g₂ + … + g₁₀)); see [`Scheme::processor`].
+/// Their processor's g₂ … g₁₀ (g₁ = −(g₂ + … + g₁₀)); see [`blanes_casas_murua_8_processor`].
 #[allow(clippy::excessive_precision)] // as published
 const BLANES_CASAS_MURUA_8_PROCESSOR: [f64; 9] = [
     -0.008_488_123_494_574_411,
@@ -135,85 +147,90 @@ fn palindrome(half: &[f64]) -> Vec<f64> {
 }
 
 impl Scheme {
-    /// Every scheme, in catalogue order.
-    pub const ALL: [Scheme; 6] = [
-        Scheme::TripleJump,
-        Scheme::Suzuki4,
-        Scheme::Yoshida6,
-        Scheme::KahanLi6,
-        Scheme::KahanLi8,
-        Scheme::BlanesCasasMurua8,
-    ];
-
-    /// The method id of the scheme.
-    pub fn id(self) -> MethodId {
-        match self {
-            Scheme::TripleJump => MethodId::TripleJump,
-            Scheme::Suzuki4 => MethodId::Suzuki4,
-            Scheme::Yoshida6 => MethodId::Yoshida6,
-            Scheme::KahanLi6 => MethodId::KahanLi6,
-            Scheme::KahanLi8 => MethodId::KahanLi8,
-            Scheme::BlanesCasasMurua8 => MethodId::BlanesCasasMurua8,
-        }
-    }
+    /// The triple jump: the composition a base method takes when none is named.
+    pub const TRIPLE_JUMP: Scheme = Scheme(MethodId::TripleJump);
 
     /// The scheme of a composition method, if `id` is one.
     pub fn of(id: MethodId) -> Option<Scheme> {
-        Scheme::ALL.into_iter().find(|s| s.id() == id)
+        matches!(id.info().steps, Steps::Composition(_)).then_some(Scheme(id))
+    }
+
+    /// Every scheme, in catalogue order.
+    pub fn all() -> impl Iterator<Item = Scheme> {
+        MethodId::ALL.iter().copied().filter_map(Scheme::of)
+    }
+
+    /// The method id of the scheme.
+    pub fn id(self) -> MethodId {
+        self.0
+    }
+
+    /// Its weights, from its catalogue entry.
+    fn weights_of(self) -> Weights {
+        match self.0.info().steps {
+            Steps::Composition(weights) => weights,
+            _ => unreachable!("a Scheme is made only of a composition's id"),
+        }
     }
 
     /// The order of the composition of a symmetric second-order method (of the processed method,
     /// for a scheme with a processor).
     pub fn order(self) -> u32 {
-        match self {
-            Scheme::TripleJump | Scheme::Suzuki4 => 4,
-            Scheme::Yoshida6 | Scheme::KahanLi6 => 6,
-            Scheme::KahanLi8 | Scheme::BlanesCasasMurua8 => 8,
-        }
+        self.weights_of().order
     }
 
     /// The weights γ_1 … γ_s of the step (the kernel's, for a processed scheme), in the order the
     /// stages act.
     pub fn weights(self) -> Vec<f64> {
-        match self {
-            Scheme::TripleJump => triple_jump_weights().to_vec(),
-            Scheme::Suzuki4 => {
-                // Suzuki's fractal: four equal outer steps around one negative middle step.
-                let w = 1.0 / (4.0 - 4f64.cbrt());
-                vec![w, w, 1.0 - 4.0 * w, w, w]
-            }
-            Scheme::Yoshida6 => palindrome(&YOSHIDA_6),
-            Scheme::KahanLi6 => palindrome(&KAHAN_LI_6),
-            Scheme::KahanLi8 => palindrome(&KAHAN_LI_8),
-            Scheme::BlanesCasasMurua8 => {
-                let outer: f64 = BLANES_CASAS_MURUA_8.iter().sum();
-                let mut half = BLANES_CASAS_MURUA_8.to_vec();
-                half.push(1.0 - 2.0 * outer);
-                palindrome(&half)
-            }
-        }
+        (self.weights_of().step)()
     }
 
-    /// The processor π of a processed scheme, as the weights of its stages in the order they
-    /// act (they sum to zero); `None` for a plain composition. The output map π⁻¹ is the same
-    /// list reversed with each weight negated ([`inverse`]).
-    ///
-    /// Blanes, Casas and Murua publish g₁ … g₁₀ (Σg = 0) and the processor
-    /// −(g₁, …, g₁₀, −g₁, …, −g₁₀); read first element first, that is
-    /// π = Φ_{g₁₀h} ∘ … ∘ Φ_{g₁h} ∘ Φ_{−g₁₀h} ∘ … ∘ Φ_{−g₁h}. The reading is checked by the
-    /// observed order (8.0, `tests/core/compositions.rs`); with π and π⁻¹ swapped (π⁻¹ before
-    /// the first step, π at the outputs) the method is of order 4, as the kernel alone is.
+    /// The processor π of a processed scheme ([`Weights::processor`]); `None` for a plain
+    /// composition.
     pub fn processor(self) -> Option<Vec<f64>> {
-        match self {
-            Scheme::BlanesCasasMurua8 => {
-                let rest = &BLANES_CASAS_MURUA_8_PROCESSOR;
-                let g1 = -rest.iter().sum::<f64>();
-                let g: Vec<f64> = std::iter::once(g1).chain(rest.iter().copied()).collect();
-                Some(g.iter().map(|x| -x).chain(g.iter().copied()).collect())
-            }
-            _ => None,
-        }
+        self.weights_of().processor.map(|p| p())
     }
+}
+
+/// Suzuki's fractal: four equal outer steps around one negative middle step.
+fn suzuki_4_weights() -> Vec<f64> {
+    let w = 1.0 / (4.0 - 4f64.cbrt());
+    vec![w, w, 1.0 - 4.0 * w, w, w]
+}
+
+/// Suzuki's fractal one level up (Suzuki 1990, eq. (3.9) with k = 3; HLW Sec. II.4): his
+/// fourth-order composition taken at the steps p h, p h, (1 − 4p) h, p h, p h with
+/// p = 1/(4 − 4^{1/5}), so that 4p⁵ + (1 − 4p)⁵ = 0 cancels the fifth-order term. The 25 weights
+/// are the products of the outer and the inner ones, palindromic bit for bit since both
+/// factors are.
+fn suzuki_6_weights() -> Vec<f64> {
+    let p = 1.0 / (4.0 - 4f64.powf(0.2));
+    let inner = suzuki_4_weights();
+    [p, p, 1.0 - 4.0 * p, p, p]
+        .iter()
+        .flat_map(|outer| inner.iter().map(move |w| outer * w))
+        .collect()
+}
+
+/// Blanes, Casas and Murua's kernel: the published outer weights and the middle one that makes
+/// them sum to one.
+fn blanes_casas_murua_8_weights() -> Vec<f64> {
+    let outer: f64 = BLANES_CASAS_MURUA_8.iter().sum();
+    let mut half = BLANES_CASAS_MURUA_8.to_vec();
+    half.push(1.0 - 2.0 * outer);
+    palindrome(&half)
+}
+
+/// Their processor. Blanes, Casas and Murua publish g₁ … g₁₀ (Σg = 0) and the processor
+/// −(g₁, …, g₁₀, −g₁, …, −g₁₀); read first element first, that is
+/// π = Φ_{g₁₀h} ∘ … ∘ Φ_{g₁h} ∘ Φ_{−g₁₀h} ∘ … ∘ Φ_{−g₁h}. The reading is checked by the
+/// observed order (8.0, `tests/core/compositions.rs`); with π and π⁻¹ swapped (π⁻¹ before
+/// the first step, π at the outputs) the method is of order 4, as the kernel alone is.
+fn blanes_casas_murua_8_processor() -> Vec<f64> {
+    let rest = &BLANES_CASAS_MURUA_8_PROCESSOR;
+    let g1 = -rest.iter().sum::<f64>();
+    let g: Vec<f64> = std::iter::once(g1).chain(rest.iter().copied()).collect();
+    g.iter().map(|x| -x).chain(g.iter().copied()).collect()
 }
 
 /// The weights of the inverse of a composition of a symmetric base (Φ_{−τ} = Φ_τ⁻¹): the stages
@@ -226,6 +243,19 @@ pub fn inverse(weights: &[f64]) -> Vec<f64> {
 pub fn triple_jump_weights() -> [f64; 3] {
     let w1 = 1.0 / (2.0 - 2f64.cbrt());
     [w1, 1.0 - 2.0 * w1, w1]
+}
+
+/// The palindromes of the published half tables, as weights functions.
+fn yoshida_6_weights() -> Vec<f64> {
+    palindrome(&YOSHIDA_6)
+}
+
+fn kahan_li_6_weights() -> Vec<f64> {
+    palindrome(&KAHAN_LI_6)
+}
+
+fn kahan_li_8_weights() -> Vec<f64> {
+    palindrome(&KAHAN_LI_8)
 }
 
 /// A base stepper applied with sub-steps w_k h.
@@ -398,6 +428,11 @@ pub const TRIPLE_JUMP_INFO: MethodInfo = MethodInfo {
     group: Group::Geometric,
     options: &[MethodOption::Base],
     no_step_jacobian: None,
+    steps: Steps::Composition(Weights {
+        order: 4,
+        step: || triple_jump_weights().to_vec(),
+        processor: None,
+    }),
 };
 
 /// Catalogue entry of `suzuki_4`.
@@ -417,6 +452,35 @@ pub const SUZUKI_4_INFO: MethodInfo = MethodInfo {
     group: Group::Geometric,
     options: &[MethodOption::Base],
     no_step_jacobian: None,
+    steps: Steps::Composition(Weights {
+        order: 4,
+        step: suzuki_4_weights,
+        processor: None,
+    }),
+};
+
+/// Catalogue entry of `suzuki_6`.
+pub const SUZUKI_6_INFO: MethodInfo = MethodInfo {
+    id: "suzuki_6",
+    name: "Suzuki fractal composition (order 6, 25 stages)",
+    order: 6,
+    kind: Kind::Explicit,
+    symplectic: true,
+    conformal_symplectic: true,
+    symmetric: true,
+    requirements: &[],
+    reference: Citation {
+        paper: "Suzuki, Phys. Lett. A 146 (1990) 319–323; HLW",
+        equation: "eq. (3.9), k = 3; Sec. II.4",
+    },
+    group: Group::Geometric,
+    options: &[MethodOption::Base],
+    no_step_jacobian: None,
+    steps: Steps::Composition(Weights {
+        order: 6,
+        step: suzuki_6_weights,
+        processor: None,
+    }),
 };
 
 /// Catalogue entry of `yoshida_6`.
@@ -436,6 +500,11 @@ pub const YOSHIDA_6_INFO: MethodInfo = MethodInfo {
     group: Group::Geometric,
     options: &[MethodOption::Base],
     no_step_jacobian: None,
+    steps: Steps::Composition(Weights {
+        order: 6,
+        step: yoshida_6_weights,
+        processor: None,
+    }),
 };
 
 /// Catalogue entry of `kahan_li_6`.
@@ -455,6 +524,11 @@ pub const KAHAN_LI_6_INFO: MethodInfo = MethodInfo {
     group: Group::Geometric,
     options: &[MethodOption::Base],
     no_step_jacobian: None,
+    steps: Steps::Composition(Weights {
+        order: 6,
+        step: kahan_li_6_weights,
+        processor: None,
+    }),
 };
 
 /// Catalogue entry of `kahan_li_8`.
@@ -474,6 +548,11 @@ pub const KAHAN_LI_8_INFO: MethodInfo = MethodInfo {
     group: Group::Geometric,
     options: &[MethodOption::Base],
     no_step_jacobian: None,
+    steps: Steps::Composition(Weights {
+        order: 8,
+        step: kahan_li_8_weights,
+        processor: None,
+    }),
 };
 
 /// Catalogue entry of `blanes_casas_murua_8`.
@@ -494,4 +573,9 @@ pub const BLANES_CASAS_MURUA_8_INFO: MethodInfo = MethodInfo {
     group: Group::Geometric,
     options: &[MethodOption::Base],
     no_step_jacobian: None,
+    steps: Steps::Composition(Weights {
+        order: 8,
+        step: blanes_casas_murua_8_weights,
+        processor: Some(blanes_casas_murua_8_processor),
+    }),
 };

@@ -18,7 +18,7 @@ use nalgebra::allocator::Allocator;
 use nalgebra::DefaultAllocator;
 
 use super::sources::*;
-use super::{Citation, Group, Kind, MethodInfo, Requirement};
+use super::{Citation, Group, Kind, MethodInfo, Requirement, Steps};
 use crate::error::StepError;
 use crate::run::Stepper;
 use crate::system::{MechanicalSystem, State, Vector};
@@ -127,4 +127,5 @@ pub const CSV2_INFO: MethodInfo = MethodInfo {
     group: Group::Conformal,
     options: &[],
     no_step_jacobian: None,
+    steps: Steps::Own,
 };

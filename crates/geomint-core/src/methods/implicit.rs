@@ -16,7 +16,7 @@ use nalgebra::allocator::Allocator;
 use nalgebra::{DMatrix, DVector, DefaultAllocator};
 
 use super::sources::*;
-use super::{Citation, Group, Kind, MethodInfo, Requirement};
+use super::{Citation, Group, Kind, MethodInfo, Requirement, Steps};
 use crate::error::StepError;
 use crate::run::Stepper;
 use crate::system::{MechanicalSystem, State, Vector};
@@ -318,6 +318,7 @@ pub const IMPLICIT_MIDPOINT_INFO: MethodInfo = MethodInfo {
     group: Group::Baseline,
     options: &[],
     no_step_jacobian: None,
+    steps: Steps::Own,
 };
 
 /// Catalogue entry of `cimp`.
@@ -340,4 +341,5 @@ pub const CIMP_INFO: MethodInfo = MethodInfo {
     group: Group::Conformal,
     options: &[],
     no_step_jacobian: None,
+    steps: Steps::Own,
 };

@@ -73,7 +73,7 @@ impl Method {
 
     /// The triple jump of `base`.
     pub fn triple_jump(base: Base) -> Method {
-        Method::composition(Scheme::TripleJump, base)
+        Method::composition(Scheme::TRIPLE_JUMP, base)
     }
 
     /// The method's id.

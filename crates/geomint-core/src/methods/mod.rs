@@ -188,6 +188,39 @@ pub struct MethodInfo {
     /// when not, why.
     #[serde(skip)]
     pub no_step_jacobian: Option<&'static str>,
+    /// What its step is made of: a sequence of exact flows, a tableau, a composition's weights,
+    /// or a stepper of its own. A method given as data here runs on every path that walks such
+    /// data (one run, SIMD lanes, compiled stretches, tangent maps) with nothing else written.
+    #[serde(skip)]
+    pub steps: Steps,
+}
+
+/// What a method's step is made of, as its catalogue entry gives it.
+#[derive(Clone, Copy, Debug)]
+pub enum Steps {
+    /// A splitting: its sequence of exact sub-flows.
+    Splitting(splitting::Sequence),
+    /// An explicit Runge–Kutta method: its Butcher tableau.
+    RungeKutta(&'static runge_kutta::Tableau),
+    /// A symmetric composition of a symmetric second-order base method.
+    Composition(composition::Weights),
+    /// A stepper of its own (implicit, conformal with its own factor, processed by a modified
+    /// potential, adaptive).
+    Own,
+}
+
+impl PartialEq for Steps {
+    /// Two entries' steps are equal when they are the same data; a composition's weights, made
+    /// by a function, compare by the weights it makes.
+    fn eq(&self, other: &Steps) -> bool {
+        match (self, other) {
+            (Steps::Splitting(a), Steps::Splitting(b)) => a == b,
+            (Steps::RungeKutta(a), Steps::RungeKutta(b)) => a == b,
+            (Steps::Composition(a), Steps::Composition(b)) => a.same_as(b),
+            (Steps::Own, Steps::Own) => true,
+            _ => false,
+        }
+    }
 }
 
 /// Declares [`MethodId`] from the catalogue entries, in catalogue order.
@@ -230,6 +263,8 @@ catalogue! {
     TripleJump => composition::TRIPLE_JUMP_INFO,
     /// Suzuki's fourth-order five-stage composition.
     Suzuki4 => composition::SUZUKI_4_INFO,
+    /// Suzuki's sixth-order 25-stage composition.
+    Suzuki6 => composition::SUZUKI_6_INFO,
     /// Yoshida's sixth-order seven-stage composition.
     Yoshida6 => composition::YOSHIDA_6_INFO,
     /// Kahan and Li's sixth-order nine-stage composition.

@@ -23,7 +23,7 @@ use nalgebra::{DefaultAllocator, Dim};
 
 use super::dop853::{EmbeddedTableau, DOP853};
 use super::sources::*;
-use super::{Citation, Group, Kind, MethodInfo, MethodOption};
+use super::{Citation, Group, Kind, MethodInfo, MethodOption, Steps};
 use crate::error::StepError;
 use crate::run::Stepper;
 use crate::system::{MechanicalSystem, State, Vector};
@@ -420,4 +420,5 @@ pub const REFERENCE_INFO: MethodInfo = MethodInfo {
     group: Group::Baseline,
     options: &[MethodOption::Tolerance],
     no_step_jacobian: Some("the adaptive reference has"),
+    steps: Steps::Own,
 };

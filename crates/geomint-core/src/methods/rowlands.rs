@@ -56,7 +56,7 @@ use nalgebra::{DMatrix, DefaultAllocator, U1};
 use serde::{Deserialize, Serialize};
 
 use super::sources::*;
-use super::{Citation, Group, Kind, MethodInfo, MethodOption, Requirement};
+use super::{Citation, Group, Kind, MethodInfo, MethodOption, Requirement, Steps};
 use crate::error::StepError;
 use crate::run::Stepper;
 use crate::system::{MechanicalSystem, State, Vector};
@@ -430,4 +430,5 @@ pub const ROWLANDS_INFO: MethodInfo = MethodInfo {
     group: Group::Geometric,
     options: &[MethodOption::Processor],
     no_step_jacobian: Some("rowlands (whose modified kick would need third derivatives of V) has"),
+    steps: Steps::Own,
 };

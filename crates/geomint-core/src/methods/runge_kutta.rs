@@ -6,7 +6,7 @@ use nalgebra::allocator::Allocator;
 use nalgebra::{DMatrix, DefaultAllocator, Dim};
 
 use super::sources::*;
-use super::{unroll, Citation, Group, Kind, Known, MethodInfo};
+use super::{unroll, Citation, Group, Kind, Known, MethodInfo, Steps};
 use crate::error::StepError;
 use crate::flows;
 use crate::flows::compiled::LazyCode;
@@ -377,6 +377,7 @@ pub const EXPLICIT_EULER_INFO: MethodInfo = MethodInfo {
     group: Group::Baseline,
     options: &[],
     no_step_jacobian: None,
+    steps: Steps::RungeKutta(&EXPLICIT_EULER),
 };
 
 /// Catalogue entry of `heun`.
@@ -396,6 +397,7 @@ pub const HEUN_INFO: MethodInfo = MethodInfo {
     group: Group::Baseline,
     options: &[],
     no_step_jacobian: None,
+    steps: Steps::RungeKutta(&HEUN),
 };
 
 /// Catalogue entry of `rk3`.
@@ -415,6 +417,7 @@ pub const RK3_INFO: MethodInfo = MethodInfo {
     group: Group::Baseline,
     options: &[],
     no_step_jacobian: None,
+    steps: Steps::RungeKutta(&RK3),
 };
 
 /// Catalogue entry of `rk4`.
@@ -434,4 +437,5 @@ pub const RK4_INFO: MethodInfo = MethodInfo {
     group: Group::Baseline,
     options: &[],
     no_step_jacobian: None,
+    steps: Steps::RungeKutta(&RK4),
 };

@@ -12,7 +12,7 @@
 //!   document carry them.
 //! - [`surface`]: an initial state on an energy surface, one momentum solved from H = E.
 //! - [`allowed`]: which points of a section's plane can start an orbit at an energy.
-//! - `lanes`: runs from up to four initial states side by side in SIMD lanes, with their chaos
+//! - `lanes`: runs from up to sixteen initial states ([`crate::flows::LANES`]) side by side in SIMD lanes, with their chaos
 //!   indicators ([`Simulation::run_side_by_side`]).
 
 pub mod allowed;

@@ -68,7 +68,7 @@ fn s6_is_of_order_4_on_the_damped_pendulum_and_srkn11_of_order_6_undamped() {
     let yoshida = errors(
         &Pendulum { gamma: 0.0 },
         Method::Composition {
-            scheme: Scheme::Yoshida6,
+            scheme: Scheme::of(MethodId::Yoshida6).unwrap(),
             base: geomint_core::methods::Base::VelocityVerlet,
         },
         &[t_end / 63.0],

@@ -230,7 +230,10 @@ fn conformal_symplectic_methods_pair_the_exponents_to_minus_two_gamma() {
         Method::Plain(MethodId::Modin2s),
         Method::triple_jump(Base::Csv1),
         Method::triple_jump(Base::Csv2),
-        Method::composition(methods::composition::Scheme::KahanLi8, Base::Cimp),
+        Method::composition(
+            methods::composition::Scheme::of(MethodId::KahanLi8).unwrap(),
+            Base::Cimp,
+        ),
     ];
     let mut worst = 0.0f64;
     for choice in conformal {

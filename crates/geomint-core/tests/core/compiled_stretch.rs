@@ -186,7 +186,7 @@ fn compiled_stretches_give_the_composers_bits() {
     let methods = [
         Method::new(MethodId::Modin3s),
         Method::new(MethodId::Csv1),
-        Method::composition(Scheme::KahanLi8, Base::Modin3s),
+        Method::composition(Scheme::of(MethodId::KahanLi8).unwrap(), Base::Modin3s),
         Method::triple_jump(Base::Csv1),
     ];
     // Every system the method takes, sampled every 1 to 1000 steps; last an orbit above the
@@ -216,7 +216,10 @@ fn compiled_stretches_give_the_composers_bits() {
     // symplectic Euler; compositions of velocity Verlet fuse their kicks there), left to the
     // composer on the damped ones.
     for base in [Base::VelocityVerlet, Base::PositionVerlet] {
-        on_every_system(&Method::composition(Scheme::KahanLi8, base), false);
+        on_every_system(
+            &Method::composition(Scheme::of(MethodId::KahanLi8).unwrap(), base),
+            false,
+        );
     }
     for id in [
         MethodId::VelocityVerlet,

@@ -144,8 +144,8 @@ fn fused_stretches_agree_with_single_steps_to_round_off() {
         Method::new(MethodId::ModinRks),
         Method::new(MethodId::Csv1),
         Method::new(MethodId::PositionVerlet),
-        Method::composition(Scheme::KahanLi8, Base::Modin3s),
-        Method::composition(Scheme::TripleJump, Base::Csv1),
+        Method::composition(Scheme::of(MethodId::KahanLi8).unwrap(), Base::Modin3s),
+        Method::composition(Scheme::of(MethodId::TripleJump).unwrap(), Base::Csv1),
     ];
     let steps = 20_000;
     // The largest difference of one component, required to be round-off.
@@ -298,7 +298,7 @@ fn compositions_walked_stage_by_stage_give_the_bits_of_the_flow_by_flow_walk() {
     ];
     let mut compared = 0;
     for (name, base) in bases {
-        for scheme in Scheme::ALL {
+        for scheme in Scheme::all() {
             let weights = scheme.weights();
             let composition = || Composition::new(base, &weights);
             // The stage-by-stage walk is the one taken, and the general one can be asked for.
@@ -333,7 +333,7 @@ fn compositions_walked_stage_by_stage_give_the_bits_of_the_flow_by_flow_walk() {
             }
         }
     }
-    assert_eq!(compared, 5 * Scheme::ALL.len() * 2 * 2);
+    assert_eq!(compared, 5 * Scheme::all().count() * 2 * 2);
 
     // One stage of weight 1 is the base itself, bit for bit, and no stage at all leaves the state
     // as it is.
@@ -387,7 +387,7 @@ fn compositions_of_velocity_verlet_fuse_their_kicks_on_undamped_systems_only() {
     let state = |z: &State<U1>| [z.q[0], z.p[0]];
     // A processed scheme's kernel, processor and output map are built the same way (pinned in
     // `tests/service`'s `undamped_velocity_verlet_compositions`); here the plain compositions.
-    for scheme in Scheme::ALL.into_iter().filter(|s| s.processor().is_none()) {
+    for scheme in Scheme::all().filter(|s| s.processor().is_none()) {
         let s = scheme.weights().len();
         let method = Method::Composition {
             scheme,

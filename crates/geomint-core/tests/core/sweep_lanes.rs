@@ -264,7 +264,7 @@ fn sweeps_over_parameters_and_the_step_in_lanes_give_the_one_cell_paths_numbers_
     ];
     let projector = [
         Method::new(MethodId::Modin3s),
-        Method::composition(Scheme::KahanLi8, Base::Modin3s),
+        Method::composition(Scheme::of(MethodId::KahanLi8).unwrap(), Base::Modin3s),
     ];
     let conformal = [Method::new(MethodId::Csv1), Method::triple_jump(Base::Csv1)];
     let damped = methods(&[&projector[..], &conformal, &elsewhere].concat());

@@ -1,7 +1,7 @@
 //! The catalogue entries of the built-in splittings.
 
 use crate::methods::sources::*;
-use crate::methods::{Citation, Group, Kind, MethodInfo, MethodOption, Requirement};
+use crate::methods::{Citation, Group, Kind, MethodInfo, MethodOption, Requirement, Steps};
 
 /// Catalogue entry of `modin_3s`.
 pub const MODIN_3S_INFO: MethodInfo = MethodInfo {
@@ -20,6 +20,7 @@ pub const MODIN_3S_INFO: MethodInfo = MethodInfo {
     group: Group::Geometric,
     options: &[],
     no_step_jacobian: None,
+    steps: Steps::Splitting(super::MODIN_3S),
 };
 
 /// Catalogue entry of `modin_2s`.
@@ -39,6 +40,7 @@ pub const MODIN_2S_INFO: MethodInfo = MethodInfo {
     group: Group::Geometric,
     options: &[],
     no_step_jacobian: None,
+    steps: Steps::Splitting(super::MODIN_2S),
 };
 
 /// Catalogue entry of `modin_rks`.
@@ -58,6 +60,7 @@ pub const MODIN_RKS_INFO: MethodInfo = MethodInfo {
     group: Group::Geometric,
     options: &[MethodOption::Inner],
     no_step_jacobian: None,
+    steps: Steps::Splitting(super::MODIN_RKS),
 };
 
 /// Catalogue entry of `csv1`.
@@ -80,6 +83,7 @@ pub const CSV1_INFO: MethodInfo = MethodInfo {
     group: Group::Conformal,
     options: &[],
     no_step_jacobian: None,
+    steps: Steps::Splitting(super::CSV1),
 };
 
 /// Catalogue entry of `symplectic_euler`.
@@ -99,6 +103,7 @@ pub const SYMPLECTIC_EULER_INFO: MethodInfo = MethodInfo {
     group: Group::Baseline,
     options: &[],
     no_step_jacobian: None,
+    steps: Steps::Splitting(super::SYMPLECTIC_EULER),
 };
 
 /// Catalogue entry of `symplectic_euler_adjoint`.
@@ -118,6 +123,7 @@ pub const SYMPLECTIC_EULER_ADJOINT_INFO: MethodInfo = MethodInfo {
     group: Group::Baseline,
     options: &[],
     no_step_jacobian: None,
+    steps: Steps::Splitting(super::SYMPLECTIC_EULER_ADJOINT),
 };
 
 /// Catalogue entry of `position_verlet`.
@@ -137,6 +143,7 @@ pub const POSITION_VERLET_INFO: MethodInfo = MethodInfo {
     group: Group::Baseline,
     options: &[],
     no_step_jacobian: None,
+    steps: Steps::Splitting(super::POSITION_VERLET),
 };
 
 /// Catalogue entry of `velocity_verlet`.
@@ -156,6 +163,7 @@ pub const VELOCITY_VERLET_INFO: MethodInfo = MethodInfo {
     group: Group::Baseline,
     options: &[],
     no_step_jacobian: None,
+    steps: Steps::Splitting(super::VELOCITY_VERLET),
 };
 
 /// Catalogue entry of `blanes_moan_s6`.
@@ -175,6 +183,7 @@ pub const BLANES_MOAN_S6_INFO: MethodInfo = MethodInfo {
     group: Group::Geometric,
     options: &[],
     no_step_jacobian: None,
+    steps: Steps::Splitting(super::BLANES_MOAN_S6),
 };
 
 /// Catalogue entry of `blanes_moan_srkn11`.
@@ -197,4 +206,5 @@ pub const BLANES_MOAN_SRKN11_INFO: MethodInfo = MethodInfo {
     group: Group::Geometric,
     options: &[],
     no_step_jacobian: None,
+    steps: Steps::Splitting(super::BLANES_MOAN_SRKN11),
 };

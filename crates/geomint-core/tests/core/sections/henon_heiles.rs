@@ -8,7 +8,7 @@ use geomint_core::diagnostics::log_log_slope;
 use geomint_core::error::Field;
 use geomint_core::methods::composition::Scheme;
 use geomint_core::methods::rowlands::Processor;
-use geomint_core::methods::{self, Base, Method};
+use geomint_core::methods::{self, Base, Method, MethodId};
 use geomint_core::run::{Stepper, StopReason};
 use geomint_core::sections::henon::Henon;
 use geomint_core::sections::names::StateNames;
@@ -40,7 +40,10 @@ fn watching(max_points: u64) -> Watching {
 
 /// Kahan and Li's eighth-order composition of velocity Verlet.
 fn eighth_order() -> Method {
-    Method::composition(Scheme::KahanLi8, Base::VelocityVerlet)
+    Method::composition(
+        Scheme::of(MethodId::KahanLi8).unwrap(),
+        Base::VelocityVerlet,
+    )
 }
 
 /// A start on a regular orbit of the section (an invariant circle around the fixed point
@@ -174,7 +177,10 @@ fn a_processed_method_forms_output_states_only_near_the_surface_and_finds_the_sa
     // the same points, bit for bit, from the chaotic start (whose near-tangent crossings come
     // closest to the margin): on y = 0 ended by an event on it, on a momentum both ways, and
     // on a compiled expression downwards.
-    let method = Method::composition(Scheme::BlanesCasasMurua8, Base::VelocityVerlet);
+    let method = Method::composition(
+        Scheme::of(MethodId::BlanesCasasMurua8).unwrap(),
+        Base::VelocityVerlet,
+    );
     let points = 2000;
     let surfaces = [
         ("y", Direction::Up),
@@ -228,7 +234,10 @@ fn a_crossing_hidden_from_the_margin_is_still_found() {
     // the surface then found 3 of these 4 points). The margin's floor, a quarter of the largest
     // change of S over a step, keeps such steps watched: the same points, bit for bit.
     let walls = super::separable(&["x"], "exp(3*(x - 60)) + exp(-3*(x + 60))", None, &[]);
-    let method = Method::composition(Scheme::BlanesCasasMurua8, Base::VelocityVerlet);
+    let method = Method::composition(
+        Scheme::of(MethodId::BlanesCasasMurua8).unwrap(),
+        Base::VelocityVerlet,
+    );
     let run_sampled = |every| {
         let sim = sampled_simulation(
             walls.clone(),

@@ -23,7 +23,7 @@ fn strobe(points: u64) -> Watching {
 
 /// Sixth-order composition of modin_3s: conformal damping, driven potential.
 fn sixth_order() -> Method {
-    Method::composition(Scheme::KahanLi6, Base::Modin3s)
+    Method::composition(Scheme::of(MethodId::KahanLi6).unwrap(), Base::Modin3s)
 }
 
 #[test]
@@ -117,7 +117,10 @@ fn a_processed_method_forms_output_states_only_near_the_stroboscopic_times() {
     // sampled at every step, and sparsely (output states formed only near t = kT), the same
     // points bit for bit.
     let period = 2.0 * PI / OMEGA;
-    let method = Method::composition(Scheme::BlanesCasasMurua8, Base::Modin3s);
+    let method = Method::composition(
+        Scheme::of(MethodId::BlanesCasasMurua8).unwrap(),
+        Base::Modin3s,
+    );
     let run_sampled = |every| {
         let sim = sampled_simulation(
             duffing(0.3, 0.5, OMEGA),
@@ -179,7 +182,10 @@ fn the_third_crossing_ends_the_run_at_its_exact_time() {
         assert_eq!(*out.samples.t.last().unwrap(), step as f64 * 0.05);
         t
     };
-    let ours = stop_at(Method::composition(Scheme::KahanLi8, Base::Modin3s));
+    let ours = stop_at(Method::composition(
+        Scheme::of(MethodId::KahanLi8).unwrap(),
+        Base::Modin3s,
+    ));
     let reference = stop_at(Method::new(MethodId::Reference));
     println!(
         "third crossing: exact {exact}, kahan_li_8 {:e} off, reference {:e} off",
