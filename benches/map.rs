@@ -9,7 +9,7 @@ use std::time::Instant;
 
 use geomint::api::studies::EnergyMapRequest;
 use geomint::core::run::Budget;
-use geomint::core::studies::energy_map::{EnergyMap, EnergyMapJob, Engine};
+use geomint::core::studies::energy_map::{CellPath, EnergyMap, EnergyMapJob};
 use serde_json::json;
 
 mod cpu_time;
@@ -24,11 +24,11 @@ fn fig6(t_max: f64) -> EnergyMapJob {
         .expect("a valid map")
 }
 
-/// One map on `engine`: the map, wall seconds, CPU seconds.
-fn timed(job: &EnergyMapJob, engine: Engine) -> (EnergyMap, f64, f64) {
+/// One map on `path`: the map, wall seconds, CPU seconds.
+fn timed(job: &EnergyMapJob, path: CellPath) -> (EnergyMap, f64, f64) {
     let (cpu, wall) = (cpu_seconds(), Instant::now());
     let map = job
-        .run_with(engine, Budget::default(), &|_, _| {})
+        .run_with(path, Budget::default(), &|_, _| {})
         .expect("a valid map")
         .expect("not cancelled");
     (map, wall.elapsed().as_secs_f64(), cpu_seconds() - cpu)
@@ -56,8 +56,11 @@ fn main() {
     let short = fig6(2000.0);
     let mut runs = [Vec::new(), Vec::new()];
     for _ in 0..3 {
-        for (k, engine) in [Engine::Lanes, Engine::CellByCell].into_iter().enumerate() {
-            runs[k].push(timed(&short, engine));
+        for (k, path) in [CellPath::Lanes, CellPath::CellByCell]
+            .into_iter()
+            .enumerate()
+        {
+            runs[k].push(timed(&short, path));
         }
     }
     assert_eq!(bits(&runs[0][0].0), bits(&runs[1][0].0), "the same bits");
@@ -77,10 +80,10 @@ fn main() {
     );
 
     let full = fig6(50_000.0);
-    let (map, wall, cpu) = timed(&full, Engine::Lanes);
+    let (map, wall, cpu) = timed(&full, CellPath::Lanes);
     report("Fig. 6 full size, side by side", &map, wall, cpu);
     if std::env::var_os("GEOMINT_MAP_FULL_BOTH").is_some() {
-        let (one_by_one, wall, cpu) = timed(&full, Engine::CellByCell);
+        let (one_by_one, wall, cpu) = timed(&full, CellPath::CellByCell);
         report("Fig. 6 full size, cell by cell", &one_by_one, wall, cpu);
         assert_eq!(bits(&map), bits(&one_by_one), "the same bits");
     }

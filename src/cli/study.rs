@@ -20,7 +20,7 @@ use super::{parse_count, print_json, read_spec, SystemsDir, BAD_INPUT};
 use crate::core::run::Budget;
 use crate::core::simulation::Limits;
 use crate::core::studies::engine::{Local, Progress};
-use crate::core::studies::parts::{self, AnyPart, Shard};
+use crate::core::studies::parts::{self, AnyPart, Shard, ShardError};
 use crate::core::studies::StudySpec;
 use crate::studies::merged::{Merged, PartText};
 use crate::studies::{self, Report, StudyKind, Visit};
@@ -177,12 +177,14 @@ fn run_kind<K: StudyKind>(args: &StudyArgs) -> ExitCode {
     if let Some(shard) = shard {
         let counted = |done, total| report(Report::Cells { done, total });
         let progress = Progress::new(cells.len(), &counted);
-        return match parts::run_part(&study.spec(), shard, None, limits, &|| progress.add(1)) {
+        let shard_limits = study.shard_limits(limits);
+        let done = || progress.add(1);
+        return match parts::run_part(&study.spec(), shard, None, &shard_limits, &done) {
             Ok(part) => {
                 eprintln!("{:.1} s", part_wall_ms(&part) / 1e3);
                 let file = PartFile {
                     study: K::NAME,
-                    request: &request,
+                    request: &study.portable_request(&request),
                     part: &part,
                 };
                 write_json(args, &file)
@@ -265,6 +267,16 @@ fn merge(args: &StudyArgs) -> ExitCode {
     let Some(first) = first else {
         return refuse("no parts to merge");
     };
+    // A part of another study is refused before anything is computed (a settings study's
+    // reference run, say).
+    if let Some(foreign) = parts.iter().find(|p| p.spec != first.spec) {
+        return refuse(
+            &ShardError::Foreign {
+                part: foreign.name.clone(),
+            }
+            .to_string(),
+        );
+    }
     // The parts' wall times summed in shard order, whatever order they were given in.
     walls.sort_by_key(|&(shard, _)| shard);
     let wall_ms = walls.iter().map(|&(_, ms)| ms).sum();
@@ -307,12 +319,10 @@ impl Visit for MergeParts<'_> {
         let source = args.spec.display().to_string();
         let limits = &args.limits();
         let stored = args.systems.open();
-        let prepared = match &first.request {
-            Some(request) => K::prepare(request, &stored, limits),
-            None => match K::from_spec(&first.spec, limits) {
-                Some(prepared) => prepared.map_err(Into::into),
-                None => return refuse(&format!("{source}: carries no request to merge it by")),
-            },
+        let prepared = match (K::from_spec(&first.spec, limits), &first.request) {
+            (Some(prepared), _) => prepared.map_err(Into::into),
+            (None, Some(request)) => K::prepare(request, &stored, limits),
+            (None, None) => return refuse(&format!("{source}: carries no request to merge it by")),
         };
         let study = match prepared {
             Ok(study) => study,

@@ -46,6 +46,16 @@ impl StudyKind for Convergence {
         })
     }
 
+    fn from_spec(spec: &StudySpec, limits: &Limits) -> Option<Result<Self, CoreError>> {
+        let StudySpec::Convergence(study) = spec else {
+            return None;
+        };
+        Some(study.prepare(limits).map(|job| Convergence {
+            spec: spec.clone(),
+            job,
+        }))
+    }
+
     settings_kind!(ConvergenceLine, ConvergenceDocument, convergence::run);
 
     fn record(&self, _document: &ConvergenceDocument) -> Result<Vec<u8>, RecordingError> {

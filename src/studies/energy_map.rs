@@ -50,6 +50,14 @@ impl StudyKind for EnergyMap {
         self.spec.clone()
     }
 
+    fn shard_limits(&self, _limits: &Limits) -> Limits {
+        // As the map prepares its sweep: bounded by its total steps, not per run.
+        Limits {
+            max_steps: u64::MAX,
+            max_samples: u64::MAX,
+        }
+    }
+
     fn cells(&self) -> usize {
         self.job.sweep().cells()
     }

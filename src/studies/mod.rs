@@ -176,15 +176,29 @@ pub trait StudyKind: Sized + Send + Sync + 'static {
         limits: &Limits,
     ) -> Result<Self, ErrorDetail>;
 
-    /// Prepares it from the spec a part carries, where its request is not needed to make its
-    /// document and recording (parts written before they carried their request); `None` for
-    /// a kind that needs its request.
+    /// Prepares it from the spec a part carries, where its document and recording need nothing
+    /// else: `merge` prefers it, since a spec has stored systems written out (and parts written
+    /// before they carried their request have only it); `None` for a kind that needs its
+    /// request.
     fn from_spec(_spec: &StudySpec, _limits: &Limits) -> Option<Result<Self, CoreError>> {
         None
     }
 
     /// Its spec as it travels to workers and into parts.
     fn spec(&self) -> StudySpec;
+
+    /// The request a part file carries for `merge` to prepare the study again from, read
+    /// anywhere: `request` as given, or with stored systems written out where the kind's
+    /// document or recording needs the request itself.
+    fn portable_request(&self, request: &Value) -> Value {
+        request.clone()
+    }
+
+    /// The limits its shards run under, from the command line's `limits`: those of the whole
+    /// study (an energy map's runs are bounded by its total only).
+    fn shard_limits(&self, limits: &Limits) -> Limits {
+        *limits
+    }
 
     /// Its cells: grid points, rows or settings.
     fn cells(&self) -> usize;

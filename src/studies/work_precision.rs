@@ -49,6 +49,10 @@ impl StudyKind for WorkPrecision {
         })
     }
 
+    fn portable_request(&self, request: &Value) -> Value {
+        serde_json::to_value(&self.request).unwrap_or_else(|_| request.clone())
+    }
+
     fn order(&self) -> Order {
         Order::Timed
     }

@@ -149,6 +149,17 @@ fn every_kind_of_study_merges_from_its_shards_to_its_whole_document() {
     let merged_sweep = read(&dir.join("sweep-merged.json"));
     assert_eq!(merged_sweep["wall_ms"].as_f64(), Some(summed));
 
+    // An energy map's runs are bounded by its total alone (100 steps each here), in shards as
+    // whole.
+    let map_spec = dir.join("energy-map.json");
+    let small = dir.join("energy-map-small-limit.json");
+    for args in [vec![], vec!["--shard", "0/2"]] {
+        let mut all = vec!["study", "energy-map", path(&map_spec), "--max-steps", "50"];
+        all.extend(args);
+        all.extend(["-o", path(&small)]);
+        succeeded(&geomint(&all));
+    }
+
     // Kinds with a recording write it from the merged parts as from the whole study.
     let (_, stability_parts) = &parts_of[0];
     let rrd = dir.join("stability-merged.rrd");

@@ -7,7 +7,9 @@ use geomint_core::error::Field;
 use geomint_core::methods::{Method, MethodId};
 use geomint_core::run::Budget;
 use geomint_core::simulation::MethodAt;
-use geomint_core::studies::energy_map::{ChartRun, EnergyMap, EnergyMapJob, EnergyMapSpec, Engine};
+use geomint_core::studies::energy_map::{
+    CellPath, ChartRun, EnergyMap, EnergyMapJob, EnergyMapSpec,
+};
 use geomint_core::systems::ParamValue;
 
 const N: usize = 21;
@@ -154,13 +156,13 @@ fn cells_run_side_by_side_give_the_bits_of_cells_run_one_by_one() {
     let mut steps = 0;
     for job in &jobs {
         assert!(job.runs_in_lanes(), "{:?}", job.method);
-        let run = |engine| {
-            job.run_with(engine, Budget::default(), &|_, _| {})
+        let run = |path| {
+            job.run_with(path, Budget::default(), &|_, _| {})
                 .unwrap()
                 .unwrap()
         };
-        let side_by_side = run(Engine::Lanes);
-        let one_by_one = run(Engine::CellByCell);
+        let side_by_side = run(CellPath::Lanes);
+        let one_by_one = run(CellPath::CellByCell);
         assert_eq!(
             map_bits(&side_by_side),
             map_bits(&one_by_one),
@@ -195,10 +197,10 @@ fn a_spent_budget_leaves_every_cell_unfinished_in_lanes_as_cell_by_cell() {
         cancel: None,
         deadline: Some(std::time::Instant::now()),
     };
-    for engine in [Engine::Lanes, Engine::CellByCell] {
-        let map = job.run_with(engine, past, &|_, _| {}).unwrap().unwrap();
+    for path in [CellPath::Lanes, CellPath::CellByCell] {
+        let map = job.run_with(path, past, &|_, _| {}).unwrap().unwrap();
         // Both look at the clock before the first step.
-        assert_eq!(map.unfinished.len(), N * N, "{engine:?}");
+        assert_eq!(map.unfinished.len(), N * N, "{path:?}");
         assert_eq!(map.steps, 0);
     }
     let cancel = std::sync::atomic::AtomicBool::new(true);
@@ -206,10 +208,7 @@ fn a_spent_budget_leaves_every_cell_unfinished_in_lanes_as_cell_by_cell() {
         cancel: Some(&cancel),
         deadline: None,
     };
-    for engine in [Engine::Lanes, Engine::CellByCell] {
-        assert!(job
-            .run_with(engine, cancelled, &|_, _| {})
-            .unwrap()
-            .is_none());
+    for path in [CellPath::Lanes, CellPath::CellByCell] {
+        assert!(job.run_with(path, cancelled, &|_, _| {}).unwrap().is_none());
     }
 }

@@ -78,7 +78,7 @@ pub struct EnergyMapJob {
 /// How a map's cells are run. Both give the same bits for every cell they finish; a time limit
 /// stops lanes a group of four at a time.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Engine {
+pub enum CellPath {
     /// Four cells side by side in SIMD lanes where the method is one the lanes run (symplectic
     /// Euler and its adjoint), else cell by cell.
     Lanes,
@@ -168,7 +168,7 @@ impl EnergyMapJob {
             .collect()
     }
 
-    /// Whether [`Engine::Lanes`] runs this map side by side (its method is symplectic Euler or
+    /// Whether [`CellPath::Lanes`] runs this map side by side (its method is symplectic Euler or
     /// its adjoint) rather than cell by cell.
     pub fn runs_in_lanes(&self) -> bool {
         self.sweep.runs_in_lanes()
@@ -183,19 +183,19 @@ impl EnergyMapJob {
         budget: Budget<'_>,
         progress: &(dyn Fn(usize, usize) + Sync),
     ) -> Result<Option<EnergyMap>, CoreError> {
-        self.run_with(Engine::Lanes, budget, progress)
+        self.run_with(CellPath::Lanes, budget, progress)
     }
 
-    /// [`Self::run`] on the engine `engine`.
+    /// [`Self::run`] on the path `path`.
     pub fn run_with(
         &self,
-        engine: Engine,
+        path: CellPath,
         budget: Budget<'_>,
         progress: &(dyn Fn(usize, usize) + Sync),
     ) -> Result<Option<EnergyMap>, CoreError> {
-        let sweep = match engine {
-            Engine::Lanes => self.sweep.clone(),
-            Engine::CellByCell => self.sweep.clone().cell_by_cell(),
+        let sweep = match path {
+            CellPath::Lanes => self.sweep.clone(),
+            CellPath::CellByCell => self.sweep.clone().cell_by_cell(),
         };
         let counter = Progress::new(sweep.cells(), progress);
         match engine::run(&sweep, &Local, budget, &|_, _| counter.add(1)) {

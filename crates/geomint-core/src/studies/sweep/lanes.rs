@@ -2,20 +2,20 @@
 //! bit for bit:
 //! - energy maps over the initial state ([`LaneKernel`]: symplectic Euler or its adjoint on the
 //!   planar elastic pendulum, the energy error against H₀ at every step; paper 001 Fig. 6's map
-//!   is one), whose metrics come out of the same [`Measure`] the one-cell path fills sample by
+//!   is one), whose metrics come out of the same [`MetricsTally`] the one-cell path fills sample by
 //!   sample;
 //! - chaos maps over the initial state and plain sweeps over any axes (runs, with or without
 //!   indicators, that [`Simulation::runs_in_lanes`]; cells of different parameters one system
 //!   per lane, cells of different steps in different groups), whose samples go to the same
-//!   observer and [`Measure`] as on the one-cell path.
+//!   observer and [`MetricsTally`] as on the one-cell path.
 
 use std::ops::Range as Cells;
 
-use super::metrics::{EnergyReference, Measure, RunMetrics};
+use super::metrics::{EnergyReference, MetricsTally, RunMetrics};
 use super::{SweepJob, Target};
 use crate::run::Budget;
 use crate::simulation::{SampleSink, Simulation};
-use crate::studies::energy_map::lanes::{LaneKernel, Start, Tally, PENDULUM_LANES as LANES};
+use crate::studies::energy_map::lanes::{LaneKernel, Start, Tally, PENDULUM_LANES};
 use crate::studies::engine::Study;
 use crate::system::{MechanicalSystem, State};
 use crate::systems::AnySystem;
@@ -40,7 +40,7 @@ impl LanePlan {
     /// Cells run side by side.
     pub(super) fn group(&self) -> usize {
         match self {
-            LanePlan::Energy(_) => LANES,
+            LanePlan::Energy(_) => PENDULUM_LANES,
             LanePlan::Runs { group } => *group,
         }
     }
@@ -176,8 +176,10 @@ impl SweepJob {
                     Err(e) => prepared.push(Err(RunMetrics::failed(e.to_string()))),
                 }
             }
-            let mut measures: Vec<Measure> =
-                sims.iter().map(|_| Measure::new(self.against)).collect();
+            let mut measures: Vec<MetricsTally> = sims
+                .iter()
+                .map(|_| MetricsTally::new(self.against))
+                .collect();
             let mut sinks: Vec<&mut dyn SampleSink> = measures
                 .iter_mut()
                 .map(|m| m as &mut dyn SampleSink)
@@ -191,7 +193,7 @@ impl SweepJob {
                     Ok(Some(outcome)) => measure.finish(&outcome),
                     // Given back by the lanes: on its own, from the start.
                     Ok(None) => {
-                        let mut measure = Measure::new(self.against);
+                        let mut measure = MetricsTally::new(self.against);
                         match sim.run_method(0, None, budget, &mut measure) {
                             Ok(outcome) if outcome.stop.by_budget() => {
                                 return vec![None; cells.len()]
@@ -222,19 +224,19 @@ impl SweepJob {
         budget: Budget<'_>,
     ) -> Vec<Option<Vec<RunMetrics>>> {
         let n = cells.len();
-        debug_assert!(n <= LANES);
+        debug_assert!(n <= PENDULUM_LANES);
         let mut results: Vec<Vec<Option<RunMetrics>>> =
             vec![Vec::with_capacity(plan.runs.len()); n];
         // Once the budget stopped a run, the later ones are only prepared, for their failures.
         let mut stopped = false;
         for (k, run) in plan.runs.iter().enumerate() {
             let mut start = Start {
-                q: [[0.0; LANES]; 2],
-                p: [[0.0; LANES]; 2],
-                energy: [0.0; LANES],
-                idle: [true; LANES],
+                q: [[0.0; PENDULUM_LANES]; 2],
+                p: [[0.0; PENDULUM_LANES]; 2],
+                energy: [0.0; PENDULUM_LANES],
+                idle: [true; PENDULUM_LANES],
             };
-            let mut failed: [Option<RunMetrics>; LANES] = Default::default();
+            let mut failed: [Option<RunMetrics>; PENDULUM_LANES] = Default::default();
             for (i, cell) in cells.clone().enumerate() {
                 let spec = self.cell_spec(k, &self.grid.point(cell));
                 match Simulation::prepare(&spec, &self.limits) {
@@ -277,7 +279,7 @@ impl SweepJob {
 }
 
 impl EnergyLanes {
-    /// Lane `i`'s metrics, as the one-cell path's [`Measure`] would have them: a state that
+    /// Lane `i`'s metrics, as the one-cell path's [`MetricsTally`] would have them: a state that
     /// stopped being finite at step s ends the run there (s steps, the state of step s − 1);
     /// each step costs one force evaluation, as in the composer's symplectic Euler (one kick)
     /// and the charts' closed-form stages.
@@ -306,7 +308,7 @@ impl EnergyLanes {
         } else {
             steps + 1
         };
-        Measure::of_lane(
+        MetricsTally::of_lane(
             at(tally.blown[i]),
             (tally.sum[i], samples),
             (tally.max[i], tally.last[i]),

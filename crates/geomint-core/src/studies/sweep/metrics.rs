@@ -97,7 +97,7 @@ impl RunMetrics {
 }
 
 /// Collects a run's metrics from its samples.
-pub struct Measure {
+pub struct MetricsTally {
     against: EnergyReference,
     start: Option<f64>,
     limit: f64,
@@ -114,10 +114,10 @@ pub struct Measure {
     section: Option<CellSection>,
 }
 
-impl Measure {
+impl MetricsTally {
     /// A collector measuring energy errors against `against`.
     pub fn new(against: EnergyReference) -> Self {
-        Measure {
+        MetricsTally {
             against,
             start: None,
             limit: f64::INFINITY,
@@ -144,7 +144,7 @@ impl Measure {
         (max, last): (f64, f64),
         (q, p): (Vec<f64>, Vec<f64>),
     ) -> Self {
-        Measure {
+        MetricsTally {
             blown_at,
             sum,
             count,
@@ -152,7 +152,7 @@ impl Measure {
             last: Some(last),
             q,
             p,
-            ..Measure::new(EnergyReference::Initial)
+            ..MetricsTally::new(EnergyReference::Initial)
         }
     }
 
@@ -207,7 +207,7 @@ impl Measure {
     }
 }
 
-impl SampleSink for Measure {
+impl SampleSink for MetricsTally {
     fn on_sample(&mut self, sample: &Sample<'_>) {
         let start = *self.start.get_or_insert_with(|| {
             self.limit = DIVERGENCE * (1.0 + sample.energy.abs());

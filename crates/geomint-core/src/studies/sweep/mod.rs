@@ -39,7 +39,7 @@ use crate::studies::{StudySpec, StudyStop};
 use crate::system::MechanicalSystem;
 use crate::systems::{ParamValue, SystemInfo, SystemRef};
 use crate::with_system;
-use metrics::Measure;
+use metrics::MetricsTally;
 
 /// Most runs (methods × charts) per cell.
 pub const MAX_RUNS: usize = 16;
@@ -298,7 +298,7 @@ impl SweepJob {
                     continue;
                 }
             };
-            let mut measure = Measure::new(self.against);
+            let mut measure = MetricsTally::new(self.against);
             match sim.run_method(0, reference.as_deref(), budget, &mut measure) {
                 Ok(outcome) if outcome.stop.by_budget() => return Ok(None),
                 Ok(outcome) => results.push(measure.finish(&outcome)),
