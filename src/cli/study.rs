@@ -181,7 +181,7 @@ fn run_kind<K: StudyKind>(args: &StudyArgs) -> ExitCode {
         let done = || progress.add(1);
         return match parts::run_part(&study.spec(), shard, None, &shard_limits, &done) {
             Ok(part) => {
-                eprintln!("{:.1} s", part_wall_ms(&part) / 1e3);
+                eprintln!("{:.1} s", part.wall_ms() / 1e3);
                 let file = PartFile {
                     study: K::NAME,
                     request: &study.portable_request(&request),
@@ -201,17 +201,6 @@ fn run_kind<K: StudyKind>(args: &StudyArgs) -> ExitCode {
     match study.run(&Local, Budget::default(), &emit) {
         Ok(doc) => finish(args, wants_rrd, &study, &doc),
         Err(e) => failed(e),
-    }
-}
-
-/// The wall time of a part, in milliseconds.
-fn part_wall_ms(part: &AnyPart) -> f64 {
-    match part {
-        AnyPart::Sweep(p) => p.wall_ms,
-        AnyPart::Stability(p) => p.wall_ms,
-        AnyPart::Convergence(p) => p.wall_ms,
-        AnyPart::WorkPrecision(p) => p.wall_ms,
-        AnyPart::Basins(p) => p.wall_ms,
     }
 }
 

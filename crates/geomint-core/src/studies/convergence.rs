@@ -28,6 +28,7 @@ use crate::run::{Budget, StopReason};
 use crate::simulation::{
     InitialCoordinates, InputFields, Limits, MethodAt, Simulation, SimulationSpec, SystemSummary,
 };
+use crate::studies::parts::{Part, ShardAt, Travelling};
 use crate::systems::{ParamValue, SystemRef};
 
 /// Errors at or below this are round-off, which does not shrink with h: the fits leave them out.
@@ -436,4 +437,18 @@ pub fn run<E: Executor>(
         points,
         series,
     })
+}
+
+/// A shard of it, as a worker or an array task runs it.
+impl Travelling for ConvergenceSpec {
+    type Cell = ConvergencePoint;
+
+    fn run_shard(
+        &self,
+        at: &ShardAt<'_>,
+        limits: &crate::simulation::Limits,
+    ) -> Result<Part<Self::Cell>, CoreError> {
+        let job = self.prepare(limits)?;
+        at.run(&study(&job, job.truth(Budget::default())?))
+    }
 }

@@ -21,8 +21,9 @@
 //!   [`measure`]: one setting's errors and timings.
 //!
 //! To add a study: a spec that prepares into a job implementing [`engine::Study`] (its cells and
-//! what one cell computes), a variant of [`StudySpec`] so that workers can prepare it, and a
-//! document made from the engine's [`engine::Finished`] cells.
+//! what one cell computes), [`parts::Travelling`] for the spec (how a worker runs a shard of it)
+//! and its line in `travelling_studies!` below, and a document made from the engine's
+//! [`engine::Finished`] cells.
 //!
 //! A study that reaches its time limit answers with what it finished (as a run does), marked
 //! [`StudyStop::TimeLimit`], rather than failing: the time limit depends on the machine's load,
@@ -50,11 +51,75 @@ pub enum StudyStop {
     TimeLimit,
 }
 
-/// A study's spec as it travels: to NATS workers, and inside part files, so that a worker or a
-/// merge prepares exactly the study the server or the first array task prepared.
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(tag = "kind", rename_all = "snake_case")]
-pub enum StudySpec {
+/// Every study that travels — to NATS workers, into part files — one line each: its variant of
+/// [`StudySpec`] and of [`parts::AnyPart`], from its spec's type, which says how a shard of it
+/// runs ([`parts::Travelling`], implemented beside the study).
+macro_rules! travelling_studies {
+    ($($(#[$doc:meta])* $variant:ident($spec:ty),)+) => {
+        /// A study's spec as it travels: to NATS workers, and inside part files, so that a
+        /// worker or a merge prepares exactly the study the server or the first array task
+        /// prepared.
+        #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+        #[serde(tag = "kind", rename_all = "snake_case")]
+        pub enum StudySpec {
+            $($(#[$doc])* $variant($spec),)+
+        }
+
+        /// A part of any kind of study, as a worker sends it (the receiver knows the kind it
+        /// asked for, and reads the cells as that kind's).
+        #[derive(Clone, Debug, serde::Serialize)]
+        #[serde(untagged)]
+        pub enum AnyPart {
+            $($(#[$doc])* $variant(parts::Part<<$spec as parts::Travelling>::Cell>),)+
+        }
+
+        impl AnyPart {
+            /// How many cells it holds.
+            pub fn len(&self) -> usize {
+                match self {
+                    $(AnyPart::$variant(part) => part.cells.len(),)+
+                }
+            }
+
+            /// Whether it holds no cell.
+            pub fn is_empty(&self) -> bool {
+                self.len() == 0
+            }
+
+            /// Its wall time in milliseconds.
+            pub fn wall_ms(&self) -> f64 {
+                match self {
+                    $(AnyPart::$variant(part) => part.wall_ms,)+
+                }
+            }
+        }
+
+        impl StudySpec {
+            /// Prepares the study within `limits` and runs its shard `shard` of the cells
+            /// `within` (or of all) here, to the end.
+            pub(crate) fn run_part(
+                &self,
+                shard: parts::Shard,
+                within: Option<std::ops::Range<usize>>,
+                limits: &crate::simulation::Limits,
+                done: &(dyn Fn() + Sync),
+            ) -> Result<AnyPart, crate::error::CoreError> {
+                use parts::Travelling;
+                let at = parts::ShardAt {
+                    spec: self,
+                    shard,
+                    within,
+                    done,
+                };
+                match self {
+                    $(StudySpec::$variant(spec) => spec.run_shard(&at, limits).map(AnyPart::$variant),)+
+                }
+            }
+        }
+    };
+}
+
+travelling_studies! {
     /// A sweep (energy maps run as sweeps too).
     Sweep(sweep::SweepSpec),
     /// Linear stability maps.

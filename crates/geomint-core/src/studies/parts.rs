@@ -8,11 +8,7 @@ use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 
-use super::basins::outcome::CellOutcome;
-use super::convergence::{self, ConvergencePoint};
 use super::engine::{Executor, Local, Study};
-use super::sweep::RunMetrics;
-use super::work_precision::{self, WorkPrecisionPoint};
 use super::StudySpec;
 use crate::error::CoreError;
 use crate::run::Budget;
@@ -216,45 +212,45 @@ pub fn run_shard_within<S: Study>(
     })
 }
 
-/// A part of any kind of study, as a worker sends it (the receiver knows the kind it asked
-/// for, and reads the cells as that kind's).
-#[derive(Clone, Debug, Serialize)]
-#[serde(untagged)]
-pub enum AnyPart {
-    /// A sweep's (or an energy map's).
-    Sweep(Part<Vec<RunMetrics>>),
-    /// Stability maps' rows.
-    Stability(Part<Vec<Option<f64>>>),
-    /// A convergence study's settings.
-    Convergence(Part<ConvergencePoint>),
-    /// A work–precision study's settings.
-    WorkPrecision(Part<WorkPrecisionPoint>),
-    /// A basin map's cells.
-    Basins(Part<Vec<CellOutcome>>),
+pub use super::AnyPart;
+
+/// A study's spec as it travels: how a worker or an array task prepares the study and runs a
+/// shard of it. Implemented beside each study; its line in `travelling_studies!` (in
+/// [`super`]) makes it a [`StudySpec`] and an [`AnyPart`].
+pub trait Travelling {
+    /// One cell's result.
+    type Cell: Clone + Send + Serialize + serde::de::DeserializeOwned;
+
+    /// Prepares the study within `limits` and runs the shard `at` here, to the end (a settings
+    /// study computes its truth first: the same bits as wherever else it is computed).
+    fn run_shard(&self, at: &ShardAt<'_>, limits: &Limits) -> Result<Part<Self::Cell>, CoreError>;
 }
 
-impl AnyPart {
-    /// How many cells it holds.
-    pub fn len(&self) -> usize {
-        match self {
-            AnyPart::Sweep(p) => p.cells.len(),
-            AnyPart::Stability(p) => p.cells.len(),
-            AnyPart::Convergence(p) => p.cells.len(),
-            AnyPart::WorkPrecision(p) => p.cells.len(),
-            AnyPart::Basins(p) => p.cells.len(),
-        }
-    }
+/// Which shard of a study to run, and where to report its cells.
+pub struct ShardAt<'a> {
+    /// The study's spec as it travels (the part carries it).
+    pub spec: &'a StudySpec,
+    /// Which shard.
+    pub shard: Shard,
+    /// The cells the shards cut (a job's part), or all of the study's.
+    pub within: Option<Range<usize>>,
+    /// Called as each cell is done.
+    pub done: &'a (dyn Fn() + Sync),
+}
 
-    /// Whether it holds no cell.
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
+impl ShardAt<'_> {
+    /// The shard of the prepared `study` run here: what every [`Travelling::run_shard`] ends
+    /// with.
+    pub fn run<S: Study>(&self, study: &S) -> Result<Part<S::Cell>, CoreError> {
+        let cells = self.within.clone().unwrap_or(0..study.cells());
+        let done = self.done;
+        run_shard_within(study, self.spec.clone(), self.shard, cells, &|_, _| done())
     }
 }
 
 /// Prepares the study `spec` within `limits` and runs its shard `shard` here, to the end: what a
 /// worker or an array task does. The shards cut the cells `within` (a job's part), or the whole
-/// study when that is `None`. A settings study computes its truth first (the same bits as
-/// wherever else it is computed).
+/// study when that is `None`.
 pub fn run_part(
     spec: &StudySpec,
     shard: Shard,
@@ -262,29 +258,7 @@ pub fn run_part(
     limits: &Limits,
     done: &(dyn Fn() + Sync),
 ) -> Result<AnyPart, CoreError> {
-    // The shard of the cells `within` (or of all) of a prepared study, run here.
-    macro_rules! run {
-        ($study:expr) => {{
-            let study = $study;
-            let cells = within.clone().unwrap_or(0..study.cells());
-            run_shard_within(&study, spec.clone(), shard, cells, &|_, _| done())?
-        }};
-    }
-    Ok(match spec {
-        StudySpec::Sweep(s) => AnyPart::Sweep(run!(s.prepare(limits)?)),
-        StudySpec::Stability(s) => AnyPart::Stability(run!(s.prepare()?)),
-        StudySpec::Convergence(s) => {
-            let job = s.prepare(limits)?;
-            let truth = job.truth(Budget::default())?;
-            AnyPart::Convergence(run!(convergence::study(&job, truth)))
-        }
-        StudySpec::WorkPrecision(s) => {
-            let job = s.prepare(limits)?;
-            let truth = job.truth(Budget::default())?;
-            AnyPart::WorkPrecision(run!(work_precision::study(&job, truth)))
-        }
-        StudySpec::Basins(s) => AnyPart::Basins(run!(s.prepare(limits)?)),
-    })
+    spec.run_part(shard, within, limits, done)
 }
 
 /// Puts the parts (each with a name for messages, e.g. its file) of `study`, whose spec is

@@ -17,6 +17,7 @@ use crate::stability::{
     self, Axis, Eigenvalue, PointAnalysis, Relation, Spectrum, StabilityMap, MAX_AXIS_POINTS,
 };
 use crate::studies::engine::{self, Executor, Finished, Study};
+use crate::studies::parts::{Part, ShardAt, Travelling};
 use crate::studies::{StudySpec, StudyStop};
 use crate::system::MechanicalSystem;
 use crate::systems::HarmonicOscillator;
@@ -445,4 +446,18 @@ pub fn point(spec: &PointSpec) -> Result<PointDocument, CoreError> {
         analysis: (&analysis).into(),
         analytic,
     })
+}
+
+/// A shard of it, as a worker or an array task runs it.
+impl Travelling for StabilitySpec {
+    type Cell = Vec<Option<f64>>;
+
+    // The maps are bounded by their own cell limit, not a simulation's.
+    fn run_shard(
+        &self,
+        at: &ShardAt<'_>,
+        _limits: &crate::simulation::Limits,
+    ) -> Result<Part<Self::Cell>, CoreError> {
+        at.run(&self.prepare()?)
+    }
 }

@@ -27,6 +27,7 @@ use crate::error::{CoreError, Field, Range};
 use crate::methods::Method;
 use crate::run::{Budget, StopReason};
 use crate::simulation::{Limits, Simulation, SimulationSpec, SystemSummary};
+use crate::studies::parts::{Part, ShardAt, Travelling};
 use crate::systems::{ParamValue, SystemRef};
 
 /// Default number of sample times.
@@ -330,4 +331,18 @@ pub fn run<E: Executor>(
         points,
         fits,
     })
+}
+
+/// A shard of it, as a worker or an array task runs it.
+impl Travelling for WorkPrecisionSpec {
+    type Cell = WorkPrecisionPoint;
+
+    fn run_shard(
+        &self,
+        at: &ShardAt<'_>,
+        limits: &crate::simulation::Limits,
+    ) -> Result<Part<Self::Cell>, CoreError> {
+        let job = self.prepare(limits)?;
+        at.run(&study(&job, job.truth(Budget::default())?))
+    }
 }

@@ -29,6 +29,7 @@ use crate::sections::names::StateNames;
 use crate::sections::{Direction, Surface};
 use crate::simulation::{Limits, Simulation};
 use crate::studies::engine::{self, CellLine, Documented, Executor, Finished, Study};
+use crate::studies::parts::{Part, ShardAt, Travelling};
 use crate::studies::sweep::{EnergyReference, RunLabel, SweepJob, SweepSpec, Target};
 use crate::studies::StudySpec;
 use crate::system::{MechanicalSystem, State};
@@ -633,5 +634,18 @@ impl CellLine for BasinsLine {
 
     fn end() -> Self {
         BasinsLine::End
+    }
+}
+
+/// A shard of it, as a worker or an array task runs it.
+impl Travelling for BasinsSpec {
+    type Cell = Vec<CellOutcome>;
+
+    fn run_shard(
+        &self,
+        at: &ShardAt<'_>,
+        limits: &crate::simulation::Limits,
+    ) -> Result<Part<Self::Cell>, CoreError> {
+        at.run(&self.prepare(limits)?)
     }
 }

@@ -35,6 +35,7 @@ use crate::simulation::{
     EnergySurface, InitialCoordinates, Limits, MethodAt, Simulation, SimulationSpec, Watching,
 };
 use crate::studies::engine::{self, CellLine, Documented, Executor, Finished, Study};
+use crate::studies::parts::{Part, ShardAt, Travelling};
 use crate::studies::{StudySpec, StudyStop};
 use crate::system::MechanicalSystem;
 use crate::systems::{ParamValue, SystemInfo, SystemRef};
@@ -476,5 +477,18 @@ impl CellLine for SweepLine {
 
     fn end() -> Self {
         SweepLine::End
+    }
+}
+
+/// A shard of it, as a worker or an array task runs it.
+impl Travelling for SweepSpec {
+    type Cell = Vec<RunMetrics>;
+
+    fn run_shard(
+        &self,
+        at: &ShardAt<'_>,
+        limits: &crate::simulation::Limits,
+    ) -> Result<Part<Self::Cell>, CoreError> {
+        at.run(&self.prepare(limits)?)
     }
 }
