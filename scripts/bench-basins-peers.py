@@ -16,7 +16,9 @@ pynamicalsys runs its cells in parallel itself (numba), so one process uses both
 call compiles and is timed apart; the time per cell is then extrapolated to the whole grid.
 
 Usage: bench-basins-peers.py N   (after `GEOMINT_BASINS_GRID=N cargo bench --bench basins`, which
-writes target/basins-<preset>-N.tsv); GEOMINT_PYNAMICALSYS_CELLS cells are sampled (400).
+writes target/basins-<preset>-N.tsv); GEOMINT_PYNAMICALSYS_CELLS cells are sampled (4000: with
+400, its timed part lasted half a second on the Duffing map, and its extrapolation to the grid
+varied from 1266 s to 2207 s between runs).
 """
 
 import collections
@@ -125,7 +127,7 @@ def report(preset, how, picked, live, n, compile_s, wall, cpu, theirs):
 
 def main():
     n = int(sys.argv[1]) if len(sys.argv) > 1 else 1000
-    count = int(os.environ.get("GEOMINT_PYNAMICALSYS_CELLS", "400"))
+    count = int(os.environ.get("GEOMINT_PYNAMICALSYS_CELLS", "4000"))
     duffing(ours("forced_duffing", n), n, count)
     henon_heiles(ours("henon_heiles_escapes", n), n, count)
 

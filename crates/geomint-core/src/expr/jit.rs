@@ -7,15 +7,21 @@
 //! entry points in [`ops`](crate::expr::ops), which run the same Rust code as the
 //! interpreter. An [`Emitter`] also writes programs over vectors of f64 lanes (the compiled
 //! lanes of `systems::custom::stretch`): the same arithmetic lane by lane, a call per lane for
-//! the rest. Cranelift never contracts a multiply and an add into a fused
-//! multiply-add, and its rewrites of floating-point code are exact, so the native code
-//! computes exactly what the interpreter does.
+//! the rest. Where a program takes both the sine and the cosine of one value, one call gives
+//! both ([`entry::sin_cos`], the same bits: a driven system's forcing and its clock's force are
+//! such a pair). Cranelift never contracts a multiply and an add into a fused multiply-add, and
+//! its rewrites of floating-point code are exact, so the native code computes exactly what the
+//! interpreter does.
 
+use std::collections::{HashMap, HashSet};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::Mutex;
 
 use cranelift_codegen::ir::immediates::Ieee64;
-use cranelift_codegen::ir::{types, AbiParam, InstBuilder, MemFlagsData, SigRef, Signature, Value};
+use cranelift_codegen::ir::{
+    types, AbiParam, InstBuilder, MemFlagsData, SigRef, Signature, StackSlotData, StackSlotKind,
+    Value,
+};
 use cranelift_codegen::settings::{self, Configurable};
 use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext};
 use cranelift_jit::JITBuilder;
@@ -88,6 +94,8 @@ pub(crate) struct Emitter {
     pointer: types::Type,
     unary: SigRef,
     binary: SigRef,
+    /// `(f64, *mut f64) -> f64`: [`entry::sin_cos`].
+    sin_cos: SigRef,
     /// The values' type: `F64`, or a vector of f64 lanes, each computed as the scalar code
     /// computes it (the vector arithmetic is lane by lane IEEE, the calls are made per lane).
     ty: types::Type,
@@ -114,10 +122,14 @@ impl Emitter {
             sig.returns.push(AbiParam::new(types::F64));
             sig
         };
+        let pointer = module.target_config().pointer_type();
+        let mut sin_cos = float_signature(1);
+        sin_cos.params.push(AbiParam::new(pointer));
         Emitter {
-            pointer: module.target_config().pointer_type(),
+            pointer,
             unary: b.import_signature(float_signature(1)),
             binary: b.import_signature(float_signature(2)),
+            sin_cos: b.import_signature(sin_cos),
             ty,
         }
     }
@@ -152,12 +164,52 @@ impl Emitter {
             let lane_args: Vec<Value> =
                 args.iter().map(|&a| b.ins().extractlane(a, lane)).collect();
             let value = apply(b, &lane_args);
-            result = Some(match result {
-                None => b.ins().splat(self.ty, value),
-                Some(vector) => b.ins().insertlane(vector, value, lane),
-            });
+            result = Some(self.gather(b, result, value, lane));
         }
         result.expect("a vector has lanes")
+    }
+
+    /// `vector` (none yet for lane 0) with `value` in lane `lane`.
+    fn gather(
+        &self,
+        b: &mut FunctionBuilder,
+        vector: Option<Value>,
+        value: Value,
+        lane: u8,
+    ) -> Value {
+        match vector {
+            None => b.ins().splat(self.ty, value),
+            Some(vector) => b.ins().insertlane(vector, value, lane),
+        }
+    }
+
+    /// sin x and cos x from one call of [`entry::sin_cos`] (per lane), the cosine passed back
+    /// through a stack slot.
+    fn sin_cos(&self, b: &mut FunctionBuilder, x: Value) -> (Value, Value) {
+        let slot = b.create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 8, 3));
+        let address = b
+            .ins()
+            .iconst(self.pointer, entry::sin_cos as *const () as usize as i64);
+        let apply = |b: &mut FunctionBuilder, x: Value| {
+            let cos_at = b.ins().stack_addr(self.pointer, slot, 0);
+            let call = b.ins().call_indirect(self.sin_cos, address, &[x, cos_at]);
+            let sine = b.inst_results(call)[0];
+            (sine, b.ins().stack_load(self.pointer, types::F64, slot, 0))
+        };
+        if !self.ty.is_vector() {
+            return apply(b, x);
+        }
+        let (mut sine, mut cosine) = (None, None);
+        for lane in 0..self.ty.lane_count() as u8 {
+            let x = b.ins().extractlane(x, lane);
+            let (s, c) = apply(b, x);
+            sine = Some(self.gather(b, sine, s, lane));
+            cosine = Some(self.gather(b, cosine, c, lane));
+        }
+        (
+            sine.expect("a vector has lanes"),
+            cosine.expect("a vector has lanes"),
+        )
     }
 
     /// Emits `program`: its input `i` is `load(b, i)`, and each output `o` it computes goes to
@@ -171,7 +223,10 @@ impl Emitter {
     ) -> Result<(), String> {
         let mut regs: Vec<Option<Value>> = vec![None; program.registers()];
         let get = |regs: &[Option<Value>], r: u32| regs[r as usize].ok_or("read before write");
-        for instr in program.instrs() {
+        let paired = sine_and_cosine_pairs(program);
+        // The sine and cosine of each paired value, once the first of the two is reached.
+        let mut pairs: HashMap<Value, (Value, Value)> = HashMap::new();
+        for (index, instr) in program.instrs().iter().enumerate() {
             let (dst, value) = match *instr {
                 Instr::Load { dst, input } => (dst, load(b, input)?),
                 Instr::Const { dst, value } => {
@@ -184,6 +239,15 @@ impl Emitter {
                         UnaryOp::Neg => b.ins().fneg(x),
                         UnaryOp::Abs => b.ins().fabs(x),
                         UnaryOp::Sqrt => b.ins().sqrt(x),
+                        UnaryOp::Sin | UnaryOp::Cos if paired.contains(&index) => {
+                            let (sine, cosine) =
+                                *pairs.entry(x).or_insert_with(|| self.sin_cos(b, x));
+                            if op == UnaryOp::Sin {
+                                sine
+                            } else {
+                                cosine
+                            }
+                        }
                         other => self.call(b, self.unary, entry::unary(other) as usize, &[x]),
                     };
                     (dst, value)
@@ -208,6 +272,36 @@ impl Emitter {
         }
         Ok(())
     }
+}
+
+/// The `sin` and `cos` instructions (their indices) whose argument `program` takes both the
+/// sine and the cosine of. A register holds several values in turn (a dead value's register is
+/// written again), so a value is told apart by the instruction that wrote its register.
+fn sine_and_cosine_pairs(program: &Program) -> HashSet<usize> {
+    // Per register: the index of the instruction that last wrote it, plus one (0: an input).
+    let mut written = vec![0usize; program.registers()];
+    let (mut sines, mut cosines) = (HashMap::new(), HashMap::new());
+    for (index, instr) in program.instrs().iter().enumerate() {
+        let dst = match *instr {
+            Instr::Unary { op, dst, a } => {
+                let value = (a, written[a as usize]);
+                match op {
+                    UnaryOp::Sin => sines.insert(value, index),
+                    UnaryOp::Cos => cosines.insert(value, index),
+                    _ => None,
+                };
+                dst
+            }
+            Instr::Load { dst, .. } | Instr::Const { dst, .. } | Instr::Binary { dst, .. } => dst,
+            Instr::Store { .. } => continue,
+        };
+        written[dst as usize] = index + 1;
+    }
+    sines
+        .iter()
+        .filter_map(|(value, &sine)| Some([sine, *cosines.get(value)?]))
+        .flatten()
+        .collect()
 }
 
 /// The byte offset of slot `index` of an f64 array.

@@ -297,6 +297,18 @@ pub(crate) mod entry {
         tanh => Tanh, exp => Exp, log => Log,
     }
 
+    /// sin x, with cos x written to `cos`: the JIT's one call where a program takes both. The
+    /// compiler makes the pair one call of the C library's `sincos` (it does for glibc
+    /// targets), whose results are its `sin`'s and `cos`'s to the bit: glibc computes the
+    /// three with the same code (`tests/core/expr/backends.rs` compares the JIT, which calls
+    /// this, with the interpreter, which calls `sin` and `cos`).
+    pub(crate) extern "C" fn sin_cos(x: f64, cos: *mut f64) -> f64 {
+        let (sine, cosine) = (UnaryOp::Sin.apply(x), UnaryOp::Cos.apply(x));
+        // SAFETY: the JIT passes the address of a stack slot of one f64.
+        unsafe { *cos = cosine };
+        sine
+    }
+
     binary_entries! {
         add => Add, sub => Sub, mul => Mul, div => Div, pow => Pow, atan2 => Atan2,
     }

@@ -275,6 +275,17 @@ fn state_vector(
 }
 
 impl Simulation {
+    /// The initial state (q0, p0) that [`Simulation::prepare`] would give `spec`, or its error,
+    /// where `spec` differs from the spec `self` was prepared from in its initial state only
+    /// (the cells of a basin map): only the initial state is checked and converted again, with
+    /// `self`'s system, chart and catalogue entry, which the rest of the spec fixes.
+    pub(crate) fn start_of(
+        &self,
+        spec: &SimulationSpec,
+    ) -> Result<(Vec<f64>, Vec<f64>), CoreError> {
+        initial_state(spec, &self.info, &self.chart, &self.system)
+    }
+
     /// The predicted work, for admission before it starts: steps × phase-space coordinates
     /// summed over the runs (a reference run beside each method counts as one more, and each
     /// deviation vector as one more state).

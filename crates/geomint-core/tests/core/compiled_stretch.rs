@@ -1,9 +1,9 @@
 //! A typed-in system's compiled steps give the generic steppers' bits (the splitting composer's
-//! fused stretches, Runge–Kutta steps): every sample, the
-//! force evaluations and how the run stopped, over systems with each form of mass, undamped,
-//! with conformal damping and with a projector damping, for the splittings and compositions the
-//! stretches take, with stretches of many lengths and runs that blow up inside one (their code
-//! built by an earlier run of the same system, as a sweep's cells share it).
+//! fused stretches, Runge–Kutta steps): every sample, the force evaluations and how the run
+//! stopped, over systems with each form of mass, undamped, with conformal damping and with a
+//! projector damping, driven or not, for the splittings and compositions the stretches take, with
+//! stretches of many lengths and runs that blow up inside one (their code built by an earlier run
+//! of the same system, as a sweep's cells share it).
 
 use std::sync::Arc;
 
@@ -153,6 +153,17 @@ fn both(
     a.1
 }
 
+/// Whether `method` runs the driven system `info` (some methods refuse a clock).
+fn takes_driven(info: &Arc<SystemInfo>, method: &Method) -> bool {
+    let spec = SimulationSpec::new(
+        SystemRef::Defined(info.clone()),
+        &[method.clone()],
+        0.1,
+        1.0,
+    );
+    Simulation::prepare(&spec, &Limits::default()).is_ok()
+}
+
 #[test]
 fn compiled_stretches_give_the_composers_bits() {
     let gamma = Some(0.05);
@@ -183,6 +194,9 @@ fn compiled_stretches_give_the_composers_bits() {
         None,
     );
     let spring = elastic_pendulum();
+    // A driven system (the forced damped Duffing oscillator): its clock is one more coordinate
+    // to the stretch, moving at velocity 1.
+    let duffing = crate::sections::duffing(0.5, 0.1, 1.0);
     let methods = [
         Method::new(MethodId::Modin3s),
         Method::new(MethodId::Csv1),
@@ -206,6 +220,11 @@ fn compiled_stretches_give_the_composers_bits() {
             let (q0, p0) = ([0.0, -1.0], [2.0, 2.0]);
             let stop = both(&full, method.clone(), &q0, &p0, 0.05, every);
             assert!(matches!(stop, StopReason::Diverged { .. }), "{stop:?}");
+            if takes_driven(&duffing, method) {
+                both(&duffing, method.clone(), &[0.5], &[0.1], 0.05, every);
+                let stop = both(&duffing, method.clone(), &[1e100], &[0.0], 0.05, every);
+                assert!(matches!(stop, StopReason::Diverged { .. }), "{stop:?}");
+            }
         }
     };
     for method in &methods {
@@ -302,17 +321,17 @@ fn the_stretches_are_compiled_for_what_they_take() {
     assert!(!compiles(&generic, MODIN_3S, fused));
 }
 
-/// A typed-in system of two degrees of freedom, as a run prepares it.
-fn two_degrees(info: &Arc<SystemInfo>) -> CustomSystem<nalgebra::U2> {
+/// A typed-in system of two coordinates, as a run of `method` prepares it.
+fn two_coordinates(info: &Arc<SystemInfo>, method: MethodId) -> CustomSystem<nalgebra::U2> {
     let spec = SimulationSpec::new(
         SystemRef::Defined(info.clone()),
-        &[Method::new(MethodId::Modin3s)],
+        &[Method::new(method)],
         0.1,
         1.0,
     );
     let sim = Simulation::prepare(&spec, &Limits::default()).expect("a valid run");
     let AnySystem::Custom2(sys) = sim.system else {
-        panic!("a typed-in system of two degrees of freedom");
+        panic!("a typed-in system of two coordinates");
     };
     sys
 }
@@ -355,8 +374,8 @@ fn lanes_run(
 /// bits: every stretch's states, the force count and the lanes that end (lanes above the escape
 /// energy blow up inside a stretch and are run again step by step), for fused stretches
 /// (modin_3s and csv1, undamped and with conformal damping; modin_3s with a projector damping
-/// and with a force that calls functions; position Verlet) and whole steps (velocity Verlet), in
-/// stretches of 1, 37 and 1000 steps.
+/// and with a force that calls functions; position Verlet; a driven system's csv1 and modin_3s)
+/// and whole steps (velocity Verlet), in stretches of 1, 37 and 1000 steps.
 #[test]
 fn compiled_lanes_give_the_generic_lanes_bits() {
     let henon_heiles = "(x^2 + y^2)/2 + x^2*y - y^3/3";
@@ -364,22 +383,28 @@ fn compiled_lanes_give_the_generic_lanes_bits() {
         vec![expr("mass", "1.5"), expr("mass", "0.25")],
         vec![expr("mass", "0.25"), expr("mass", "1")],
     ]);
-    let undamped = two_degrees(&system(&["x", "y"], full, henon_heiles, None));
+    let undamped = two_coordinates(
+        &system(&["x", "y"], full, henon_heiles, None),
+        MethodId::Modin3s,
+    );
     let gamma = 0.05;
-    let damped = two_degrees(&system(
+    let damped = system(
         &["x", "y"],
         Mass::Scalar(expr("mass", "1")),
         henon_heiles,
         Some(gamma),
-    ));
-    let spring = two_degrees(&elastic_pendulum());
-    // A force that calls functions (cos, sin and pow), which vector lanes call lane by lane.
-    let pendulums = two_degrees(&system(
+    );
+    let damped = two_coordinates(&damped, MethodId::Modin3s);
+    let spring = two_coordinates(&elastic_pendulum(), MethodId::Modin3s);
+    // A force that calls functions (cos, sin and pow), which vector lanes call lane by lane;
+    // the sine and cosine of x, and of y, from one call each.
+    let pendulums = system(
         &["x", "y"],
         Mass::Scalar(expr("mass", "1")),
-        "-cos(x) - cos(y) + 0.1*(1 + (x - y)^2)^1.5",
+        "-cos(x) - cos(y) + 0.1*(1 + (x - y)^2)^1.5 + 0.05*sin(x)*cos(y)",
         None,
-    ));
+    );
+    let pendulums = two_coordinates(&pendulums, MethodId::Modin3s);
     // Bound orbits near the origin, and in lanes 1, 6 and 11 one above the escape energy: with
     // two lanes to a vector, the upper and lower halves of three different vectors.
     let starts: [([f64; 2], [f64; 2]); LANES] = std::array::from_fn(|l| match l {
@@ -396,7 +421,17 @@ fn compiled_lanes_give_the_generic_lanes_bits() {
             [0.1 + 0.2 * s, 0.4 - 0.3 * s],
         )
     });
-    let cases: [(&CustomSystem<nalgebra::U2>, &[(SubFlow, f64)], f64, _); 8] = [
+    // The forced damped Duffing oscillator, (x, t) to the lanes: its clock moves at velocity 1
+    // and its momentum takes ∂V/∂t; lanes 1, 6 and 11 start far enough out to blow up.
+    let duffing = two_coordinates(&crate::sections::duffing(0.5, 0.1, 1.0), MethodId::Csv1);
+    let driven: [([f64; 2], [f64; 2]); LANES] = std::array::from_fn(|l| match l {
+        1 | 6 | 11 => ([1e100, 0.0], [0.0, 0.0]),
+        _ => {
+            let s = l as f64 / LANES as f64 - 0.5;
+            ([1.8 * s, 0.0], [0.5 - s, 0.0])
+        }
+    });
+    let cases: [(&CustomSystem<nalgebra::U2>, &[(SubFlow, f64)], f64, _); 10] = [
         (&undamped, MODIN_3S, 0.0, starts),
         (&pendulums, MODIN_3S, 0.0, starts),
         (&undamped, CSV1, 0.0, starts),
@@ -405,6 +440,8 @@ fn compiled_lanes_give_the_generic_lanes_bits() {
         (&damped, MODIN_3S, gamma, starts),
         (&damped, CSV1, gamma, starts),
         (&spring, MODIN_3S, 0.1, springs),
+        (&duffing, CSV1, 0.25, driven),
+        (&duffing, MODIN_3S, 0.25, driven),
     ];
     for (sys, flows, rate, starts) in cases {
         for every in [1, 37, 1000] {

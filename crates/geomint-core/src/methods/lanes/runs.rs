@@ -177,6 +177,20 @@ impl<const N: usize> RunLanes<N> {
         state
     }
 
+    /// Per lane: whether every |qᵢ| ≤ `q_bounds[i]` and |pᵢ| ≤ `p_bounds[i]` (not where a
+    /// component is NaN), all lanes at once.
+    pub fn within(&self, q_bounds: &[f64; N], p_bounds: &[f64; N]) -> [bool; LANES] {
+        let mut inside = [true; LANES];
+        for i in 0..N {
+            for l in 0..LANES {
+                // `&`, not `&&`: no branches in the lane loop.
+                inside[l] &= (self.phase.q[i][l].abs() <= q_bounds[i])
+                    & (self.phase.p[i][l].abs() <= p_bounds[i]);
+            }
+        }
+        inside
+    }
+
     /// Sets lane `l`'s state.
     pub fn set_state(&mut self, l: usize, q: &[f64], p: &[f64]) {
         for i in 0..N {
@@ -210,11 +224,14 @@ impl<const N: usize> RunLanes<N> {
 
     /// The stretch through the system's compiled lanes, if it has them by now: the same bits as
     /// [`Self::advance_portable`], lane by lane (every lane takes the stretch; those that left
-    /// go again step by step). `None` when the generic lanes are to take it. Single steps (a
-    /// sweep sampled every step) come here too, although this path copies the lanes in and out
-    /// where the generic lanes work in place: with the lanes in f64×2 vectors the typed-in
-    /// Hénon–Heiles sweep sampled every step took 24.6–25.3 ns per cell-step so, against
-    /// 28.3–28.4 on the generic lanes (with scalar compiled lanes it was 33.9 against 31.2).
+    /// go again step by step). `None` when the generic lanes are to take it. Where a lane is
+    /// watched, the stretch runs on a copy of the lanes, kept unless a lane left; where none is
+    /// (a basin map's lanes, whose observers look at the states themselves), nothing can go
+    /// again and it runs on the lanes in place. Single steps (a sweep sampled every step) come
+    /// here too, although the copy in and out was then a cost the generic lanes, which work in
+    /// place, did not have: with the lanes in f64×2 vectors the typed-in Hénon–Heiles sweep
+    /// sampled every step took 24.6–25.3 ns per cell-step so, against 28.3–28.4 on the generic
+    /// lanes (with scalar compiled lanes it was 33.9 against 31.2).
     fn advance_compiled<S: LaneForces<N>>(
         &mut self,
         sys: &S,
@@ -234,6 +251,19 @@ impl<const N: usize> RunLanes<N> {
         let code = self
             .compiled
             .get(n, |steps| sys.compile_lanes(&stretch, steps))?;
+        if !watched.contains(&true) {
+            // No lane goes again step by step: the stretch runs on the lanes in place.
+            let phase = &mut self.phase;
+            code.run_lanes(
+                phase.q.as_flattened_mut(),
+                phase.p.as_flattened_mut(),
+                phase.grad.as_flattened_mut(),
+                &mut phase.grad_valid,
+                &mut phase.force_evaluations,
+                n,
+            );
+            return Some([None; LANES]);
+        }
         let mut phase = self.phase;
         let not_finite = code.run_lanes(
             phase.q.as_flattened_mut(),

@@ -5,7 +5,10 @@
 //! Every lane takes the one-cell path's steps one at a time ([`RunLanes::advance`] of one step is
 //! the stepper's step, bit for bit; see [`crate::methods::lanes`]), and each cell's [`Decide`]
 //! observer sees the same states at the same times as on the one-cell path, after the same
-//! test for a state that is no longer finite. So a cell's outcome, decision time and step count
+//! test for a state that is no longer finite; on a step where the observer would change and
+//! decide nothing ([`Criteria::quiet_bounds`](super::outcome::Criteria::quiet_bounds): a
+//! driven system's cell between its stroboscope points, finite and within the escape radius)
+//! the lane does not hand it the state. So a cell's outcome, decision time and step count
 //! are the one-cell path's to the bit, whatever lane it ran in and whichever cells ran beside it
 //! (`tests/core/basins/` compares the two paths cell by cell).
 
@@ -26,7 +29,11 @@ use crate::system::{MechanicalSystem, State, LANES};
 /// groups evenly.
 pub(super) const GROUP: usize = 16 * LANES;
 
-/// A lane's cell: where its outcome goes, its observer, its steps so far and its state.
+/// A cell's initial q and p.
+type Start = (Vec<f64>, Vec<f64>);
+
+/// A lane's cell: where its outcome goes, its observer, its steps so far and its state as the
+/// observer last saw it.
 struct Lane<'a, S: MechanicalSystem>
 where
     DefaultAllocator: Allocator<S::Dim>,
@@ -48,20 +55,28 @@ impl BasinsJob {
         budget: Budget<'_>,
     ) -> Option<Vec<Option<CellOutcome>>> {
         let mut outcomes: Vec<Option<CellOutcome>> = vec![None; cells.len()];
+        // The first cell that prepares is prepared whole; the others differ from it in their
+        // initial state only (a basin map's axes), which is all that is prepared of them.
+        let mut first: Option<Simulation> = None;
         let mut queue = Vec::with_capacity(cells.len());
         for (slot, cell) in cells.enumerate() {
-            match self
-                .sweep
-                .cell_simulation(run, &self.sweep.grid.point(cell))
-            {
-                Ok(sim) => queue.push((slot, sim)),
+            let point = self.sweep.grid.point(cell);
+            let start = match &first {
+                Some(prepared) => self.sweep.cell_start(run, &point, prepared),
+                None => self.sweep.cell_simulation(run, &point).map(|sim| {
+                    let start = (sim.q0.clone(), sim.p0.clone());
+                    first = Some(sim);
+                    start
+                }),
+            };
+            match start {
+                Ok(start) => queue.push((slot, start)),
                 Err(e) => outcomes[slot] = Some(CellOutcome::failed(e)),
             }
         }
-        let Some((_, first)) = queue.first() else {
+        let Some(first) = first else {
             return Some(outcomes);
         };
-        let first = first.clone();
         with_lane_systems!(
             std::slice::from_ref(&first),
             systems => self.decide_lanes(systems[0], &first, &queue, &mut outcomes, budget),
@@ -70,13 +85,14 @@ impl BasinsJob {
         Some(outcomes)
     }
 
-    /// The cells of `queue` (slot in `outcomes`, simulation) in the lanes of `first`'s method on
-    /// `sys`, every cell's system being `sys` (a basin map's axes move only the initial state).
+    /// The cells of `queue` (slot in `outcomes`, initial q and p) in the lanes of `first`'s
+    /// method on `sys`, every cell's system being `sys` (a basin map's axes move only the
+    /// initial state).
     fn decide_lanes<S, const N: usize>(
         &self,
         sys: &S,
         first: &Simulation,
-        queue: &[(usize, Simulation)],
+        queue: &[(usize, Start)],
         outcomes: &mut [Option<CellOutcome>],
         budget: Budget<'_>,
     ) -> Option<()>
@@ -90,16 +106,17 @@ impl BasinsJob {
         let mut waiting = queue.iter();
         let mut running: Vec<Option<Lane<'_, S>>> = (0..LANES).map(|_| None).collect();
         let unwatched = [false; LANES];
+        let quiet_bounds = self.criteria.quiet_bounds::<N>();
         let mut round = 0u64;
         loop {
             // Free lanes take the next cells; a cell decided at its start takes none.
             for (l, lane) in running.iter_mut().enumerate() {
                 while lane.is_none() {
-                    let Some((slot, sim)) = waiting.next() else {
+                    let Some((slot, (q0, p0))) = waiting.next() else {
                         break;
                     };
-                    let start = State::at_time(sys, 0.0, &sim.q0, &sim.p0);
-                    let mut decide = Decide::new(sys, &self.criteria, &start, sim.q0.len());
+                    let start = State::at_time(sys, 0.0, q0, p0);
+                    let mut decide = Decide::new(sys, &self.criteria, &start, q0.len());
                     if decide.decided.is_some() {
                         outcomes[*slot] =
                             self.conclude(decide.decided.take(), StopReason::Finished, 0, t_end);
@@ -125,11 +142,15 @@ impl BasinsJob {
             round += 1;
             // Divergence is looked at below as the one-cell path does, on the components.
             lanes.advance(sys, 1, &unwatched);
+            let inside = quiet_bounds.map_or([false; LANES], |(q, p)| lanes.within(&q, &p));
             for (l, lane) in running.iter_mut().enumerate() {
                 let Some(cell) = lane else {
                     continue;
                 };
                 cell.step += 1;
+                if cell.step != steps && inside[l] && cell.decide.between_looks(cell.step) {
+                    continue;
+                }
                 let (q, p) = lanes.state(l);
                 cell.state.q.copy_from_slice(&q);
                 cell.state.p.copy_from_slice(&p);

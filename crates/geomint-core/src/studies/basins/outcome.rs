@@ -109,6 +109,35 @@ impl Criteria {
             .all(|(i, (&a, &b))| self.gap(i, a, b) <= r)
     }
 
+    /// Bounds on every |qᵢ| and |pᵢ| that a state keeps within exactly when it is finite and
+    /// has not escaped ([`Decide`]'s test): the escape radius where it applies, `f64::MAX`
+    /// (finite) on the clock's components and on angles. `None` unless only the stroboscope
+    /// and the escape radius decide a cell: no exits, no energy argument, no given attractor
+    /// looked for at every step. Then a step after which a cell keeps within the bounds, short
+    /// of its last step and before its next stroboscope point ([`Decide::between_looks`]),
+    /// changes and decides nothing in its observer, and the lanes need not hand it the state
+    /// (`lanes.rs`): a driven system's map looks at its cells once a period so.
+    pub(super) fn quiet_bounds<const N: usize>(&self) -> Option<([f64; N], [f64; N])> {
+        let quiet = self.exits.is_empty()
+            && self.landscape.is_none()
+            && (self.given.is_empty() || self.stroboscope.is_some());
+        let radius = self.escape_radius.min(f64::MAX);
+        let clock = |i: usize| Some(i) == self.clock;
+        let angle = |i: usize| self.angles.get(i).copied().unwrap_or(false);
+        quiet.then(|| {
+            (
+                std::array::from_fn(|i| {
+                    if clock(i) || angle(i) {
+                        f64::MAX
+                    } else {
+                        radius
+                    }
+                }),
+                std::array::from_fn(|i| if clock(i) { f64::MAX } else { radius }),
+            )
+        })
+    }
+
     /// The first given attractor one of whose points `x` lies within reach of.
     pub(super) fn given_near(&self, x: &[f64]) -> Option<usize> {
         self.given
@@ -197,6 +226,9 @@ where
     scratch: Vector<S::Dim>,
     lowest_energy: f64,
     largest_rise: f64,
+    /// The next stroboscope point's step (`u64::MAX` without a stroboscope):
+    /// [`Self::between_looks`] compares with it instead of dividing at every step.
+    next_strobe: u64,
     /// Steps to wait before the segment test again, after one failed.
     segment_wait: u64,
     strobe: VecDeque<Vec<f64>>,
@@ -232,6 +264,7 @@ where
             lowest_energy: f64::INFINITY,
             largest_rise: 0.0,
             segment_wait: 0,
+            next_strobe: criteria.stroboscope.map_or(u64::MAX, |strobe| strobe.steps),
             strobe: VecDeque::new(),
             here: Vec::new(),
             decided: None,
@@ -304,20 +337,7 @@ where
 
     /// Divergence and the energy argument at the state `z` after `step` (time `t`).
     fn look(&mut self, step: u64, t: f64, z: &State<S::Dim>, stepped: bool) -> ControlFlow<f64> {
-        let skip = self.criteria.clock;
-        let radius = self.criteria.escape_radius;
-        // An angle cannot escape, only leave the finite numbers.
-        let angle = |i: usize| self.criteria.angles.get(i).copied().unwrap_or(false);
-        let q_beyond =
-            z.q.iter()
-                .enumerate()
-                .any(|(i, x)| Some(i) != skip && !(x.abs() <= radius || angle(i) && x.is_finite()));
-        let p_beyond = || {
-            z.p.iter()
-                .enumerate()
-                .any(|(i, x)| Some(i) != skip && !(x.abs() <= radius))
-        };
-        if q_beyond || p_beyond() {
+        if self.escaped(z.q.as_slice(), z.p.as_slice()) {
             return self.decide(Outcome::Diverged, t, None);
         }
         let Some(landscape) = &self.criteria.landscape else {
@@ -346,6 +366,32 @@ where
                 ControlFlow::Continue(())
             }
         }
+    }
+
+    /// Whether the state (q, p) has left the escape radius (the clock aside) or, in an angle,
+    /// the finite numbers.
+    fn escaped(&self, q: &[f64], p: &[f64]) -> bool {
+        let skip = self.criteria.clock;
+        let radius = self.criteria.escape_radius;
+        // An angle cannot escape, only leave the finite numbers.
+        let angle = |i: usize| self.criteria.angles.get(i).copied().unwrap_or(false);
+        let q_beyond = q
+            .iter()
+            .enumerate()
+            .any(|(i, x)| Some(i) != skip && !(x.abs() <= radius || angle(i) && x.is_finite()));
+        let p_beyond = || {
+            p.iter()
+                .enumerate()
+                .any(|(i, x)| Some(i) != skip && !(x.abs() <= radius))
+        };
+        q_beyond || p_beyond()
+    }
+
+    /// Whether `step` falls before the next stroboscope point (any step, without a
+    /// stroboscope). See [`Criteria::quiet_bounds`].
+    #[inline]
+    pub(super) fn between_looks(&self, step: u64) -> bool {
+        step < self.next_strobe
     }
 
     /// The earliest exit the step from the last state to `z` (time `t`) crossed, located.
@@ -461,10 +507,14 @@ where
         }
         if let Some(strobe) = self.criteria.stroboscope {
             if step % strobe.steps == 0 {
-                if self.strobe.len() == 2 * strobe.max_period + 1 {
-                    self.strobe.pop_front();
-                }
-                let point = self.components(z);
+                self.next_strobe = step + strobe.steps;
+                // The oldest point's buffer takes the new one.
+                let mut point = if self.strobe.len() == 2 * strobe.max_period + 1 {
+                    self.strobe.pop_front().unwrap_or_default()
+                } else {
+                    Vec::new()
+                };
+                self.load_components(z, &mut point);
                 if let Some(attractor) = self.criteria.given_near(&point) {
                     return self.decide(Outcome::Given { attractor }, t, None);
                 }

@@ -170,6 +170,19 @@ impl SweepJob {
         Ok(sim)
     }
 
+    /// The initial state of run `run` at the grid point `point`, on the energy surface, where
+    /// the axes move only the initial state and `prepared` is the run prepared at another
+    /// point: [`Self::cell_simulation`]'s `q0` and `p0`, or its error, without preparing the
+    /// run again (see [`Simulation::start_of`]).
+    pub(crate) fn cell_start(
+        &self,
+        run: usize,
+        point: &[f64],
+        prepared: &Simulation,
+    ) -> Result<(Vec<f64>, Vec<f64>), CoreError> {
+        prepared.start_of(&self.cell_spec_on_surface(run, point)?)
+    }
+
     /// `sim` with what every run of the sweep adds: the indicators and the section.
     fn with_extras(&self, sim: Simulation) -> Result<Simulation, CoreError> {
         let sim = match &self.chaos {

@@ -28,34 +28,32 @@ macro_rules! lane_forces {
                 let EnergyModel::Separable { inverse_mass, .. } = &self.model().energy else {
                     return;
                 };
+                // `InverseMass::apply`'s arithmetic on the degrees of freedom, vectorised where
+                // it is one division; a driven system's clock moves at velocity ∂H̃/∂p_t = 1, as
+                // on its one-run path.
                 let n = self.dof($n);
-                if n < $n {
-                    // A driven system, as its one-run path: M⁻¹ on the degrees of freedom and
-                    // the clock's velocity ∂H̃/∂p_t = 1.
-                    each_lane(p, v, |x, out| {
-                        inverse_mass.apply(&x[..n], &mut out[..n]);
-                        out[n] = 1.0;
-                    });
-                    return;
-                }
-                // `InverseMass::apply`'s arithmetic, vectorised where it is one division.
                 match inverse_mass {
-                    InverseMass::Unit => *v = *p,
+                    InverseMass::Unit => v[..n].copy_from_slice(&p[..n]),
                     InverseMass::Scalar(m) => {
-                        for i in 0..$n {
+                        for i in 0..n {
                             for l in 0..LANES {
                                 v[i][l] = p[i][l] / m;
                             }
                         }
                     }
                     InverseMass::Diagonal(d) => {
-                        for i in 0..$n {
+                        for i in 0..n {
                             for l in 0..LANES {
                                 v[i][l] = p[i][l] / d[i];
                             }
                         }
                     }
-                    InverseMass::Full(_) => each_lane(p, v, |x, out| inverse_mass.apply(x, out)),
+                    InverseMass::Full(_) => each_lane(p, v, |x, out| {
+                        inverse_mass.apply(&x[..n], &mut out[..n])
+                    }),
+                }
+                if n < $n {
+                    v[n] = [1.0; LANES];
                 }
             }
 

@@ -65,8 +65,9 @@ impl Compiled {
     /// (the cells of a sweep share it). Without it, `steps` more steps were run on the generic
     /// path, and the code is built once the system's runs have taken
     /// [`COMPILE_AFTER`](crate::flows::compiled::COMPILE_AFTER) such steps. `None`
-    /// until then, and when the system is one the compiled steps do not take (a driven system,
-    /// a general H or damping) or the code cannot be built. A lookup allocates nothing.
+    /// until then, and when the system is one the compiled steps do not take (a general H or
+    /// damping, a driven system's projector damping or Runge–Kutta steps) or the code cannot be
+    /// built. A lookup allocates nothing.
     fn cached<K: Iterator<Item = u64>>(
         &self,
         slot: &Mutex<Option<(Vec<u64>, Option<SharedStretch>)>>,
@@ -104,14 +105,15 @@ impl Compiled {
         };
         let projector = match (&self.damping, &self.damping_matrix) {
             (DampingModel::None | DampingModel::Conformal { .. }, _) => None,
-            (DampingModel::Projector { .. }, Some(matrix)) => Some(matrix.program()),
+            // A driven system's projector is left to the generic path.
+            (DampingModel::Projector { .. }, Some(matrix)) if self.clock.is_none() => {
+                Some(matrix.program())
+            }
             _ => return None,
         };
-        if self.clock.is_some() {
-            return None;
-        }
         Some(stretch::Parts {
             n: self.n,
+            clock: self.clock,
             gradient: gradient.program(),
             inverse_mass,
             projector,

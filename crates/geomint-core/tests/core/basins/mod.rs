@@ -366,6 +366,11 @@ fn cells_in_lanes_end_as_each_alone_bit_for_bit() {
         axis(0, Target::Q0(0), (-1.8, 1.8), 17),
         axis(1, Target::P0(0), (-1.0, 1.0), 15),
     ];
+    // The same from starts within an escape radius that some orbits then leave between two
+    // stroboscope points, where the lanes look at a driven system's cells without its observer.
+    let mut duffing_diverging = duffing.clone();
+    duffing_diverging.recognition.escape_radius = 1.35;
+    duffing_diverging.sweep.axes[0] = axis(0, Target::Q0(0), (-1.3, 1.3), 17);
     let mut pendulum = forced_pendulum_map(16, &["theta"]);
     pendulum.sweep.methods = methods(&[Method::new(MethodId::Csv1)]);
     pendulum.attractors = vec![GivenAttractor {
@@ -374,7 +379,15 @@ fn cells_in_lanes_end_as_each_alone_bit_for_bit() {
         radius: 0.05,
         field: Field::new("attractors").index(0),
     }];
-    for spec in [well, escapes, diverging, duffing, pendulum] {
+    for spec in [
+        well,
+        escapes,
+        diverging,
+        duffing,
+        duffing_diverging,
+        pendulum,
+    ] {
+        let must_diverge = spec.recognition.escape_radius < 2.0;
         let lanes = spec.prepare(&Limits::default()).unwrap();
         let alone = spec
             .prepare(&Limits::default())
@@ -395,6 +408,10 @@ fn cells_in_lanes_end_as_each_alone_bit_for_bit() {
             + decided_by.recurrence
             + decided_by.proximity;
         assert!(decided > 200, "{decided_by:?}");
+        assert!(
+            !must_diverge || decided_by.divergence > 10,
+            "{decided_by:?}"
+        );
     }
 }
 

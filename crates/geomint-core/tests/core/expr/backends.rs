@@ -41,6 +41,13 @@ const EXTRA: &[&str] = &[
     "1/(1 + x^2) - sinh(y)*cosh(x)*tanh(x-y)",
     "asin(x) + acos(y) + atan(x/y)",
     "tan(x)^-1",
+    // The sine and cosine of one value come from one call in the JIT (`sincos`); not those of
+    // two values that held one register in turn.
+    "sin(x)*cos(x) - cos(x*y)/sin(x*y)",
+    "-0.1*x*cos(y) + 0.1*sin(y)",
+    "cos(x) + sin(y)",
+    "sin(x) + cos(x*x)",
+    "cos(y) * sin(x*y) + sin(y) - cos(y*y) + cos(x)*sin(x*x)",
     "x",
     "3",
     "-y",
@@ -295,4 +302,73 @@ fn bad_slices_and_bindings_are_errors() {
         CompiledFunction::new(&g, &[f], &twice).unwrap_err(),
         ExprError::DuplicateBinding { var: 0 }
     );
+}
+
+/// The JIT takes the sine and cosine of one value from one call (`sincos`); the interpreter
+/// calls `sin` and `cos`. Bit for bit the same over the whole range of magnitudes, the huge
+/// arguments whose reduction modulo π/2 takes the slow path included.
+#[test]
+fn sine_and_cosine_of_one_value_agree_at_every_magnitude() {
+    let scope = Scope::with_names(&["x"]).unwrap();
+    let mut g = Graph::new();
+    let parsed = parse("sin(x) - 2*cos(x)", &scope).unwrap();
+    let f = g.add_parsed(&parsed);
+    let x = scope.vars().next().unwrap();
+    let outputs = vec![f, g.gradient(f, &[x]).unwrap()[0]];
+    let jit = compile(&g, &outputs, &scope, Backend::Jit);
+    let interpreter = compile(&g, &outputs, &scope, Backend::Interpreter);
+    let mut rng = Rng(11);
+    let (mut a, mut b) = ([0.0; 2], [0.0; 2]);
+    let mut checked = 0;
+    for exponent in -320..=308 {
+        for _ in 0..20 {
+            let x = rng.uniform(-1.0, 1.0) * 10f64.powi(exponent);
+            jit.eval(&[x], &mut a);
+            interpreter.eval(&[x], &mut b);
+            for k in 0..2 {
+                assert_eq!(a[k].to_bits(), b[k].to_bits(), "output {k} at x = {x:e}");
+            }
+            checked += 1;
+        }
+    }
+    for x in [
+        0.0,
+        -0.0,
+        f64::INFINITY,
+        f64::NAN,
+        f64::MAX,
+        f64::MIN_POSITIVE,
+    ] {
+        jit.eval(&[x], &mut a);
+        interpreter.eval(&[x], &mut b);
+        assert_eq!(a.map(f64::to_bits), b.map(f64::to_bits), "at x = {x:e}");
+    }
+    assert_eq!(checked, 629 * 20);
+}
+
+/// Registers are reused once their value is dead, so one register can hold a value whose sine
+/// the program takes and later another value whose cosine it takes: the JIT must not take them
+/// for one value's pair. Only the expression is compiled here (its derivatives would keep the
+/// values alive, and their registers apart).
+#[test]
+fn a_sine_and_a_cosine_of_two_values_in_one_register_stay_apart() {
+    let scope = Scope::with_names(&["x", "y"]).unwrap();
+    let mut rng = Rng(13);
+    for text in [
+        "sin(x) + cos(x*x)",
+        "cos(x) * sin(x*y)",
+        "sin(x + y) - cos((x + y)*(x + y))",
+    ] {
+        let mut g = Graph::new();
+        let f = g.add_parsed(&parse(text, &scope).unwrap());
+        let jit = compile(&g, &[f], &scope, Backend::Jit);
+        let interpreter = compile(&g, &[f], &scope, Backend::Interpreter);
+        let (mut a, mut b) = ([0.0], [0.0]);
+        for _ in 0..200 {
+            let input = random_input(&mut rng, 2);
+            jit.eval(&input, &mut a);
+            interpreter.eval(&input, &mut b);
+            assert_eq!(a[0].to_bits(), b[0].to_bits(), "{text} at {input:?}");
+        }
+    }
 }

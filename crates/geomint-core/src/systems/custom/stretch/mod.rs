@@ -4,11 +4,13 @@
 //! potential's gradient program is written into every kick that evaluates it, where the generic
 //! path calls the compiled gradient through a pointer at each.
 //!
-//! Taken: autonomous separable systems (constant mass in any of its forms) without damping, with
-//! conformal damping or with a projector damping r D(q) p, and sequences of drifts, kicks and
-//! damping flows (modin_3s, csv1, their compositions, …); without damping also the Verlets'
-//! θ-kicks, which are then plain kicks. Each flow is the composer's arithmetic:
-//! - drift: v = M⁻¹p as `InverseMass::apply` computes it, then q ← τv + q;
+//! Taken: separable systems (constant mass in any of its forms) without damping, with conformal
+//! damping or with a projector damping r D(q) p, and sequences of drifts, kicks and damping flows
+//! (modin_3s, csv1, their compositions, …); without damping also the Verlets' θ-kicks, which are
+//! then plain kicks. A driven system's splittings are taken too (without a projector damping; its
+//! Runge–Kutta steps are left to the stepper): its clock t is the last coordinate, whose velocity
+//! is 1 and whose momentum the kick gives −τ ∂V/∂t. Each flow is the composer's arithmetic:
+//! - drift: v = M⁻¹p as `InverseMass::apply` computes it (and 1 for a clock), then q ← τv + q;
 //! - kick: ∇V(q) evaluated unless the cache holds it, then p ← (−τ)g + p;
 //! - damping: w = D(q)p (w = p when conformal), then p ← (−c)w + p with c = 1 − e^{−rτ}
 //!   (nothing when c = 0).
@@ -43,8 +45,11 @@ mod splitting;
 
 /// The parts of a system a stretch needs.
 pub(super) struct Parts<'a> {
-    /// Degrees of freedom.
+    /// Coordinates, a driven system's clock among them.
     pub n: usize,
+    /// A driven system's clock, the last coordinate: its velocity ∂H̃/∂p_t is 1, and M⁻¹ acts
+    /// on the coordinates before it (as on the one-run path and in the generic lanes).
+    pub clock: Option<usize>,
     /// ∇V as a program of q.
     pub gradient: &'a Program,
     /// M⁻¹.
@@ -160,6 +165,9 @@ pub(super) fn compile_runge_kutta(
     h: f64,
     parts: &Parts,
 ) -> Result<CompiledStretch, String> {
+    if parts.clock.is_some() {
+        return Err("a driven system's Runge–Kutta steps are the stepper's".into());
+    }
     build(parts, Layout::ONE_RUN, |s| s.runge_kutta(tableau, h))
 }
 
@@ -377,7 +385,7 @@ impl<'a, 'b> Stretch<'a, 'b> {
         rows.collect()
     }
 
-    /// M⁻¹p at the current momenta.
+    /// The velocity at the current momenta (see [`Self::velocity_of`]).
     fn velocity(&mut self) -> Vec<Value> {
         let p = self.values(&self.p.clone());
         self.velocity_of(&p)
@@ -388,11 +396,11 @@ impl<'a, 'b> Stretch<'a, 'b> {
         vars.iter().map(|&var| self.b.use_var(var)).collect()
     }
 
-    /// M⁻¹p, as `InverseMass::apply` computes it.
+    /// M⁻¹p, as `InverseMass::apply` computes it, and a driven system's clock's velocity 1.
     fn velocity_of(&mut self, p: &[Value]) -> Vec<Value> {
-        let n = self.parts.n;
-        let p = p.to_vec();
-        match self.parts.inverse_mass {
+        let n = self.parts.clock.unwrap_or(self.parts.n);
+        let p = p[..n].to_vec();
+        let mut v = match self.parts.inverse_mass {
             InverseMass::Unit => p,
             InverseMass::Scalar(m) => {
                 let m = self.constant(*m);
@@ -426,7 +434,11 @@ impl<'a, 'b> Stretch<'a, 'b> {
                     })
                     .collect()
             }
+        };
+        if self.parts.clock.is_some() {
+            v.push(self.constant(1.0));
         }
+        v
     }
 
     /// The `outputs` values of a program of q, written here with q = `q`.
