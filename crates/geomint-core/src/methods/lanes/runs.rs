@@ -251,9 +251,7 @@ impl<const N: usize> RunLanes<N> {
         let code = self
             .compiled
             .get(n, |steps| sys.compile_lanes(&stretch, steps))?;
-        if !watched.contains(&true) {
-            // No lane goes again step by step: the stretch runs on the lanes in place.
-            let phase = &mut self.phase;
+        let run = |phase: &mut Phase<N>| {
             code.run_lanes(
                 phase.q.as_flattened_mut(),
                 phase.p.as_flattened_mut(),
@@ -261,18 +259,15 @@ impl<const N: usize> RunLanes<N> {
                 &mut phase.grad_valid,
                 &mut phase.force_evaluations,
                 n,
-            );
+            )
+        };
+        if !watched.contains(&true) {
+            // No lane goes again step by step: the stretch runs on the lanes in place.
+            run(&mut self.phase);
             return Some([None; LANES]);
         }
         let mut phase = self.phase;
-        let not_finite = code.run_lanes(
-            phase.q.as_flattened_mut(),
-            phase.p.as_flattened_mut(),
-            phase.grad.as_flattened_mut(),
-            &mut phase.grad_valid,
-            &mut phase.force_evaluations,
-            n,
-        );
+        let not_finite = run(&mut phase);
         let left = std::array::from_fn(|l| watched[l] & not_finite[l]);
         Some(self.keep(sys, n, phase, &left))
     }
