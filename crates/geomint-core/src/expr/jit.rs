@@ -9,7 +9,9 @@
 //! lanes of `systems::custom::stretch`): the same arithmetic lane by lane, a call per lane for
 //! the rest. Where a program takes both the sine and the cosine of one value, one call gives
 //! both ([`entry::sin_cos`], the same bits: a driven system's forcing and its clock's force are
-//! such a pair). Cranelift never contracts a multiply and an add into a fused multiply-add, and
+//! such a pair). Where that value is a function of a driven system's clock alone, the call
+//! remembers its results per thread ([`entry::sin_cos_remembered`]): a map's cells step through
+//! the same times. Cranelift never contracts a multiply and an add into a fused multiply-add, and
 //! its rewrites of floating-point code are exact, so the native code computes exactly what the
 //! interpreter does.
 
@@ -96,6 +98,9 @@ pub(crate) struct Emitter {
     binary: SigRef,
     /// `(f64, *mut f64) -> f64`: [`entry::sin_cos`].
     sin_cos: SigRef,
+    /// The input whose values recur from cell to cell of a map (a driven system's clock):
+    /// sines and cosines of it alone are remembered ([`entry::sin_cos_remembered`]).
+    recurring: Option<u32>,
     /// The values' type: `F64`, or a vector of f64 lanes, each computed as the scalar code
     /// computes it (the vector arithmetic is lane by lane IEEE, the calls are made per lane).
     ty: types::Type,
@@ -130,7 +135,16 @@ impl Emitter {
             unary: b.import_signature(float_signature(1)),
             binary: b.import_signature(float_signature(2)),
             sin_cos: b.import_signature(sin_cos),
+            recurring: None,
             ty,
+        }
+    }
+
+    /// The same, with `input`'s values recurring from cell to cell (see [`Self::recurring`]).
+    pub(crate) fn with_recurring_input(self, input: Option<u32>) -> Self {
+        Emitter {
+            recurring: input,
+            ..self
         }
     }
 
@@ -183,13 +197,18 @@ impl Emitter {
         }
     }
 
-    /// sin x and cos x from one call of [`entry::sin_cos`] (per lane), the cosine passed back
-    /// through a stack slot.
-    fn sin_cos(&self, b: &mut FunctionBuilder, x: Value) -> (Value, Value) {
+    /// sin x and cos x from one call of [`entry::sin_cos`], or of
+    /// [`entry::sin_cos_remembered`] where x `recurs` (per lane), the cosine passed back through
+    /// a stack slot.
+    fn sin_cos(&self, b: &mut FunctionBuilder, x: Value, recurs: bool) -> (Value, Value) {
         let slot = b.create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 8, 3));
+        let function = match recurs {
+            true => entry::sin_cos_remembered,
+            false => entry::sin_cos,
+        };
         let address = b
             .ins()
-            .iconst(self.pointer, entry::sin_cos as *const () as usize as i64);
+            .iconst(self.pointer, function as *const () as usize as i64);
         let apply = |b: &mut FunctionBuilder, x: Value| {
             let cos_at = b.ins().stack_addr(self.pointer, slot, 0);
             let call = b.ins().call_indirect(self.sin_cos, address, &[x, cos_at]);
@@ -226,7 +245,10 @@ impl Emitter {
         let paired = sine_and_cosine_pairs(program);
         // The sine and cosine of each paired value, once the first of the two is reached.
         let mut pairs: HashMap<Value, (Value, Value)> = HashMap::new();
+        // Per register: whether its value is a function of the recurring input alone.
+        let mut recurs = vec![false; program.registers()];
         for (index, instr) in program.instrs().iter().enumerate() {
+            recurs_after(instr, &mut recurs, self.recurring);
             let (dst, value) = match *instr {
                 Instr::Load { dst, input } => (dst, load(b, input)?),
                 Instr::Const { dst, value } => {
@@ -240,8 +262,9 @@ impl Emitter {
                         UnaryOp::Abs => b.ins().fabs(x),
                         UnaryOp::Sqrt => b.ins().sqrt(x),
                         UnaryOp::Sin | UnaryOp::Cos if paired.contains(&index) => {
-                            let (sine, cosine) =
-                                *pairs.entry(x).or_insert_with(|| self.sin_cos(b, x));
+                            let (sine, cosine) = *pairs
+                                .entry(x)
+                                .or_insert_with(|| self.sin_cos(b, x, recurs[dst as usize]));
                             if op == UnaryOp::Sin {
                                 sine
                             } else {
@@ -302,6 +325,19 @@ fn sine_and_cosine_pairs(program: &Program) -> HashSet<usize> {
         .filter_map(|(value, &sine)| Some([sine, *cosines.get(value)?]))
         .flatten()
         .collect()
+}
+
+/// Updates `recurs` (per register: whether its value is a function of the `recurring` input and
+/// constants alone) for `instr`'s write.
+fn recurs_after(instr: &Instr, recurs: &mut [bool], recurring: Option<u32>) {
+    let (dst, value) = match *instr {
+        Instr::Load { dst, input } => (dst, Some(input) == recurring),
+        Instr::Const { dst, .. } => (dst, true),
+        Instr::Unary { dst, a, .. } => (dst, recurs[a as usize]),
+        Instr::Binary { dst, a, b, .. } => (dst, recurs[a as usize] && recurs[b as usize]),
+        Instr::Store { .. } => return,
+    };
+    recurs[dst as usize] = value;
 }
 
 /// The byte offset of slot `index` of an f64 array.

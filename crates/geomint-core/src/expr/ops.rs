@@ -309,6 +309,53 @@ pub(crate) mod entry {
         sine
     }
 
+    /// [`sin_cos`], its results remembered by the thread: where the argument is a function of
+    /// a driven system's clock alone (sin ωt, cos ωt of its forcing), every cell of a map or
+    /// sweep steps through the same times, so after the first cell a thread runs, most
+    /// arguments were seen before. A pure function's results, taken from memory, are the bits
+    /// it would compute again.
+    pub(crate) extern "C" fn sin_cos_remembered(x: f64, cos: *mut f64) -> f64 {
+        let (sine, cosine) = REMEMBERED.with_borrow_mut(|memory| memory.sin_cos(x));
+        // SAFETY: the JIT passes the address of a stack slot of one f64.
+        unsafe { *cos = cosine };
+        sine
+    }
+
+    thread_local! {
+        static REMEMBERED: std::cell::RefCell<Remembered> =
+            const { std::cell::RefCell::new(Remembered(Vec::new())) };
+    }
+
+    /// The last argument seen per slot, with its sine and cosine; an argument's slot is a hash
+    /// of its bits.
+    struct Remembered(Vec<(u64, f64, f64)>);
+
+    impl Remembered {
+        /// 2¹⁴ slots (384 KiB a thread): room for the 12 800 steps of a forced map's 200
+        /// periods of 64 steps, which a direct-mapped table holds mostly without collisions.
+        const BITS: u32 = 14;
+
+        fn sin_cos(&mut self, x: f64) -> (f64, f64) {
+            if self.0.is_empty() {
+                // Every slot starts as the argument +0 with its own results.
+                let zero = (
+                    0.0f64.to_bits(),
+                    UnaryOp::Sin.apply(0.0),
+                    UnaryOp::Cos.apply(0.0),
+                );
+                self.0 = vec![zero; 1 << Self::BITS];
+            }
+            let bits = x.to_bits();
+            // Fibonacci hashing: the top bits of the product mix all of the argument's bits.
+            let slot = (bits.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> (64 - Self::BITS)) as usize;
+            let entry = &mut self.0[slot];
+            if entry.0 != bits {
+                *entry = (bits, UnaryOp::Sin.apply(x), UnaryOp::Cos.apply(x));
+            }
+            (entry.1, entry.2)
+        }
+    }
+
     binary_entries! {
         add => Add, sub => Sub, mul => Mul, div => Div, pow => Pow, atan2 => Atan2,
     }
