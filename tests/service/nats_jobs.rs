@@ -389,6 +389,25 @@ async fn until_the_cluster_places_three_replicas(url: &str) {
     }
 }
 
+/// The shard stream's info, or the error of either call (a cluster electing a leader answers
+/// neither for a while).
+async fn stream_info(
+    js: &async_nats::jetstream::Context,
+) -> Result<async_nats::jetstream::stream::Info, String> {
+    let mut stream = (js.get_stream(geomint::nats::STREAM).await).map_err(|e| e.to_string())?;
+    stream
+        .info()
+        .await
+        .map(|info| info.clone())
+        .map_err(|e| e.to_string())
+}
+
+/// The name of the shard stream's leader, if it has one now.
+async fn stream_leader(js: &async_nats::jetstream::Context) -> Result<Option<String>, String> {
+    let info = stream_info(js).await?;
+    Ok(info.cluster.and_then(|c| c.leader))
+}
+
 /// A job on workers of a JetStream cluster of three servers whose shard stream has three copies
 /// (`--nats-replicas 3`): the stream's leader is killed (SIGKILL) mid-job; the cluster elects
 /// another, the service and the workers connected to the dead server move to the others, and
@@ -435,13 +454,16 @@ async fn a_job_outlives_a_killed_server_of_a_three_server_jetstream_cluster() {
     // The stream's leader goes: the cluster must elect another to go on.
     let leader = {
         let client = async_nats::connect(urls[0].as_str()).await.unwrap();
-        let mut stream = async_nats::jetstream::new(client)
-            .get_stream(geomint::nats::STREAM)
-            .await
-            .unwrap();
-        let info = stream.info().await.unwrap();
-        let name = info.cluster.as_ref().and_then(|c| c.leader.clone());
-        name.expect("the stream has a leader")
+        let js = async_nats::jetstream::new(client);
+        let until = Instant::now() + Duration::from_secs(60);
+        loop {
+            match stream_leader(&js).await {
+                Ok(Some(leader)) => break leader,
+                Ok(None) => assert!(Instant::now() < until, "no stream leader in 60 s"),
+                Err(e) => assert!(Instant::now() < until, "no stream info in 60 s: {e}"),
+            }
+            tokio::time::sleep(Duration::from_millis(250)).await;
+        }
     };
     let index: usize = leader.trim_start_matches("node-").parse().unwrap();
     let (mut killed, _) = nodes.remove(index);
@@ -457,8 +479,8 @@ async fn a_job_outlives_a_killed_server_of_a_three_server_jetstream_cluster() {
     let js = async_nats::jetstream::new(client);
     let until = Instant::now() + Duration::from_secs(60);
     let replicas = loop {
-        match js.get_stream(geomint::nats::STREAM).await {
-            Ok(mut stream) => break stream.info().await.unwrap().config.num_replicas,
+        match stream_info(&js).await {
+            Ok(info) => break info.config.num_replicas,
             Err(e) => assert!(Instant::now() < until, "no stream info in 60 s: {e}"),
         }
         tokio::time::sleep(Duration::from_millis(250)).await;
