@@ -187,9 +187,10 @@ fn build(
     ctx.func.signature.returns.push(AbiParam::new(types::I64));
     let mut builder_ctx = FunctionBuilderContext::new();
     let mut b = FunctionBuilder::new(&mut ctx.func, &mut builder_ctx);
-    // The clock's values recur from cell to cell: every cell starts at the same time and steps
-    // alike, so the sines and cosines of a driven system's forcing are remembered.
-    let clock = parts.clock.map(|k| k as u32);
+    // In lanes (the cells of a map or sweep) the clock's values recur from cell to cell: every
+    // cell starts at the same time and steps alike, so the sines and cosines of a driven
+    // system's forcing are remembered. A single run never sees a time twice.
+    let clock = parts.clock.filter(|_| layout.lanes > 1).map(|k| k as u32);
     let emitter =
         Emitter::of_type(&module, &mut b, layout.value_type()).with_recurring_input(clock);
     let mut s = Stretch::new(&mut b, parts, layout, emitter)?;
