@@ -25,6 +25,38 @@
 //! h-dependent coefficients, the plan of a compiled stretch ([`compiled`]) and the Butcher
 //! tableau of an explicit Runge–Kutta method ([`tableau`]).
 
+/// Runs `$body` with `$k` bound to 0, 1, …, `$n` − 1, the block written out once per index for
+/// `$n` ≤ 6 (the stages of the built-in tableaux, the flows of the built-in splittings): with the
+/// table known at compile time `$n` is a constant, each copy sees a constant index, and the
+/// coefficients and the kind of each flow fold. The compiler does not reliably unroll such loops
+/// by itself once their bodies are large, nor inline a closure that is called several times.
+macro_rules! unroll {
+    ($n:expr, $k:ident => $body:block) => {{
+        let n: usize = $n;
+        match n {
+            0 => {}
+            1 => unroll!(@at $k $body 0),
+            2 => unroll!(@at $k $body 0 1),
+            3 => unroll!(@at $k $body 0 1 2),
+            4 => unroll!(@at $k $body 0 1 2 3),
+            5 => unroll!(@at $k $body 0 1 2 3 4),
+            6 => unroll!(@at $k $body 0 1 2 3 4 5),
+            _ => {
+                for $k in 0..n {
+                    $body
+                }
+            }
+        }
+    }};
+    (@at $k:ident $body:block $($i:literal)*) => {{
+        $({
+            let $k: usize = $i;
+            $body
+        })*
+    }};
+}
+pub(crate) use unroll;
+
 pub mod compiled;
 pub(crate) mod emit;
 mod number;

@@ -2,14 +2,17 @@
 //! vector field; and the same tableaux on the momentum equation alone, as the inner method of
 //! modin_rks (paper 000 Algorithm 3.3).
 
+use std::convert::Infallible;
+
 use nalgebra::allocator::Allocator;
 use nalgebra::{DMatrix, DefaultAllocator, Dim};
 
 use super::sources::*;
-use super::{unroll, Citation, Group, Kind, Known, MethodInfo, Steps};
+use super::{Citation, Group, Kind, Known, MethodInfo, Steps};
 use crate::error::StepError;
 use crate::flows;
 use crate::flows::compiled::LazyCode;
+use crate::flows::tableau::Stages;
 pub use crate::flows::Tableau;
 use crate::run::{step_by_step, Advanced, Stepper};
 use crate::system::{MechanicalSystem, State, Vector};
@@ -158,22 +161,15 @@ where
         let stages = t.stages();
         // One bounds check here instead of one per use.
         let (kq, kp) = (&mut self.kq[..stages], &mut self.kp[..stages]);
-        let (stage, scratch) = (&mut self.stage, &mut self.scratch);
-        unroll!(stages, i => {
-            stage.q.copy_from(&z.q);
-            stage.p.copy_from(&z.p);
-            for (j, &a) in t.a[i].iter().enumerate() {
-                if a != 0.0 {
-                    stage.q.axpy(h * a, &kq[j], 1.0);
-                    stage.p.axpy(h * a, &kp[j], 1.0);
-                }
-            }
-            sys.vector_field(&stage.q, &stage.p, &mut kq[i], &mut kp[i], scratch);
-        });
-        unroll!(stages, i => {
-            z.q.axpy(h * t.b[i], &kq[i], 1.0);
-            z.p.axpy(h * t.b[i], &kp[i], 1.0);
-        });
+        let mut field = FieldStages {
+            sys,
+            z,
+            stage: &mut self.stage,
+            kq,
+            kp,
+            scratch: &mut self.scratch,
+        };
+        let Ok(()) = t.step(h, &mut field);
         self.force_evaluations += stages as u64;
         Ok(())
     }
@@ -225,53 +221,134 @@ where
         let t = self.tableau.tableau();
         let stages = t.stages();
         let (rows, k) = tangent.jac.shape();
-        let r = sys.damping_rate();
         if self.stage_tangents.len() != stages || self.tangent_arg.shape() != (rows, k) {
             self.stage_tangents = vec![DMatrix::zeros(rows, k); stages];
             self.tangent_arg = DMatrix::zeros(rows, k);
             self.field = DMatrix::zeros(rows, rows);
         }
-        for i in 0..stages {
-            self.stage.q.copy_from(&z.q);
-            self.stage.p.copy_from(&z.p);
-            self.tangent_arg.copy_from(&tangent.jac);
-            for (j, &a) in t.a[i].iter().enumerate() {
-                if a != 0.0 {
-                    self.stage.q.axpy(h * a, &self.kq[j], 1.0);
-                    self.stage.p.axpy(h * a, &self.kp[j], 1.0);
-                    let ha = h * a;
-                    for (x, &y) in self
-                        .tangent_arg
-                        .iter_mut()
-                        .zip(self.stage_tangents[j].iter())
-                    {
-                        *x += ha * y;
-                    }
-                }
-            }
-            self.force_evaluations +=
-                tangent.load_second_derivatives(sys, &self.stage.q, &self.stage.p);
-            tangent.load_damping(sys, &self.stage.q, &self.stage.p)?;
-            tangent.field_jacobian(r, &mut self.field);
-            mul_into(&self.field, &self.tangent_arg, &mut self.stage_tangents[i]);
-            sys.vector_field(
-                &self.stage.q,
-                &self.stage.p,
-                &mut self.kq[i],
-                &mut self.kp[i],
-                &mut self.scratch,
-            );
-        }
-        for (i, &b) in t.b.iter().enumerate() {
-            z.q.axpy(h * b, &self.kq[i], 1.0);
-            z.p.axpy(h * b, &self.kp[i], 1.0);
-            let hb = h * b;
-            for (x, &y) in tangent.jac.iter_mut().zip(self.stage_tangents[i].iter()) {
-                *x += hb * y;
-            }
-        }
+        let mut walk = TangentStages {
+            field: FieldStages {
+                sys,
+                z,
+                stage: &mut self.stage,
+                kq: &mut self.kq,
+                kp: &mut self.kp,
+                scratch: &mut self.scratch,
+            },
+            tangent,
+            argument: &mut self.tangent_arg,
+            slopes: &mut self.stage_tangents,
+            jacobian: &mut self.field,
+            rate: sys.damping_rate(),
+            force_evaluations: 0,
+        };
+        let stepped = t.step_rolled(h, &mut walk);
+        self.force_evaluations += walk.force_evaluations;
+        stepped?;
         self.force_evaluations += stages as u64;
         Ok(())
+    }
+}
+
+/// The stages of a step of the full vector field ż = (M⁻¹p, −∇V − r P(q)p) for
+/// [`Tableau::step`], in the system's vectors.
+struct FieldStages<'a, S: MechanicalSystem>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    sys: &'a S,
+    z: &'a mut State<S::Dim>,
+    stage: &'a mut State<S::Dim>,
+    kq: &'a mut [Vector<S::Dim>],
+    kp: &'a mut [Vector<S::Dim>],
+    scratch: &'a mut Vector<S::Dim>,
+}
+
+impl<S: MechanicalSystem> Stages for FieldStages<'_, S>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    type Error = Infallible;
+
+    #[inline(always)]
+    fn start_stage(&mut self) {
+        self.stage.q.copy_from(&self.z.q);
+        self.stage.p.copy_from(&self.z.p);
+    }
+
+    #[inline(always)]
+    fn add_slope(&mut self, c: f64, j: usize) {
+        self.stage.q.axpy(c, &self.kq[j], 1.0);
+        self.stage.p.axpy(c, &self.kp[j], 1.0);
+    }
+
+    #[inline(always)]
+    fn evaluate(&mut self, i: usize) -> Result<(), Infallible> {
+        let (q, p) = (&self.stage.q, &self.stage.p);
+        (self.sys).vector_field(q, p, &mut self.kq[i], &mut self.kp[i], self.scratch);
+        Ok(())
+    }
+
+    #[inline(always)]
+    fn advance(&mut self, c: f64, i: usize) {
+        self.z.q.axpy(c, &self.kq[i], 1.0);
+        self.z.p.axpy(c, &self.kp[i], 1.0);
+    }
+}
+
+/// The same stages with the variational equation's beside them: the tangent Y (2n × k) is
+/// advanced by the same tableau, each stage's slope Kᵢ = J(Zᵢ) (Y + Σⱼ h aᵢⱼ Kⱼ), with J the
+/// field's Jacobian at the stage's state ([`Tangent::field_jacobian`]).
+struct TangentStages<'a, S: MechanicalSystem>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    field: FieldStages<'a, S>,
+    tangent: &'a mut Tangent<S::Dim>,
+    /// The stage's argument Y + Σⱼ h aᵢⱼ Kⱼ.
+    argument: &'a mut DMatrix<f64>,
+    slopes: &'a mut [DMatrix<f64>],
+    jacobian: &'a mut DMatrix<f64>,
+    rate: f64,
+    /// The second-derivative evaluations the stages made.
+    force_evaluations: u64,
+}
+
+impl<S: MechanicalSystem> Stages for TangentStages<'_, S>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    type Error = StepError;
+
+    fn start_stage(&mut self) {
+        self.field.start_stage();
+        self.argument.copy_from(&self.tangent.jac);
+    }
+
+    fn add_slope(&mut self, c: f64, j: usize) {
+        self.field.add_slope(c, j);
+        for (x, &y) in self.argument.iter_mut().zip(self.slopes[j].iter()) {
+            *x += c * y;
+        }
+    }
+
+    fn evaluate(&mut self, i: usize) -> Result<(), StepError> {
+        let (sys, stage) = (self.field.sys, &*self.field.stage);
+        self.force_evaluations += self
+            .tangent
+            .load_second_derivatives(sys, &stage.q, &stage.p);
+        self.tangent.load_damping(sys, &stage.q, &stage.p)?;
+        self.tangent.field_jacobian(self.rate, self.jacobian);
+        mul_into(self.jacobian, self.argument, &mut self.slopes[i]);
+        let Ok(()) = self.field.evaluate(i);
+        Ok(())
+    }
+
+    fn advance(&mut self, c: f64, i: usize) {
+        self.field.advance(c, i);
+        for (x, &y) in self.tangent.jac.iter_mut().zip(self.slopes[i].iter()) {
+            *x += c * y;
+        }
     }
 }
 
@@ -326,20 +403,17 @@ where
         let r = sys.damping_rate();
         match self.method {
             InnerRk::Explicit(t) => {
-                for i in 0..t.stages() {
-                    self.stage.copy_from(&z.p);
-                    for (j, &a) in t.a[i].iter().enumerate() {
-                        self.stage.axpy(tau * a, &self.k[j], 1.0);
-                    }
-                    sys.project_damped(&z.q, &self.stage, &mut self.projected);
-                    let ki = &mut self.k[i];
-                    ki.copy_from(g);
-                    ki.axpy(r, &self.projected, 1.0);
-                    ki.neg_mut();
-                }
-                for (i, &b) in t.b.iter().enumerate() {
-                    z.p.axpy(tau * b, &self.k[i], 1.0);
-                }
+                let mut momentum = MomentumStages {
+                    sys,
+                    q: &z.q,
+                    p: &mut z.p,
+                    g,
+                    rate: r,
+                    stage: &mut self.stage,
+                    k: &mut self.k,
+                    projected: &mut self.projected,
+                };
+                let Ok(()) = t.step_rolled(tau, &mut momentum);
             }
             // On a field linear in p the implicit midpoint rule is the trapezoidal rule.
             InnerRk::ImplicitMidpoint => {
@@ -357,6 +431,54 @@ where
             }
             InnerRk::ImplicitMidpoint => flows::kick_theta_tangent(r, tau, 0.5),
         }
+    }
+}
+
+/// The stages of a step of the momentum equation p' = −g − r P(q) p, q and g = ∇V(q) frozen,
+/// for [`Tableau::step`].
+struct MomentumStages<'a, S: MechanicalSystem>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    sys: &'a S,
+    q: &'a Vector<S::Dim>,
+    p: &'a mut Vector<S::Dim>,
+    g: &'a Vector<S::Dim>,
+    rate: f64,
+    stage: &'a mut Vector<S::Dim>,
+    k: &'a mut [Vector<S::Dim>],
+    projected: &'a mut Vector<S::Dim>,
+}
+
+impl<S: MechanicalSystem> Stages for MomentumStages<'_, S>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    type Error = Infallible;
+
+    #[inline(always)]
+    fn start_stage(&mut self) {
+        self.stage.copy_from(self.p);
+    }
+
+    #[inline(always)]
+    fn add_slope(&mut self, c: f64, j: usize) {
+        self.stage.axpy(c, &self.k[j], 1.0);
+    }
+
+    #[inline(always)]
+    fn evaluate(&mut self, i: usize) -> Result<(), Infallible> {
+        self.sys.project_damped(self.q, self.stage, self.projected);
+        let k = &mut self.k[i];
+        k.copy_from(self.g);
+        k.axpy(self.rate, self.projected, 1.0);
+        k.neg_mut();
+        Ok(())
+    }
+
+    #[inline(always)]
+    fn advance(&mut self, c: f64, i: usize) {
+        self.p.axpy(c, &self.k[i], 1.0);
     }
 }
 

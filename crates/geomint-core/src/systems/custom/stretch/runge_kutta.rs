@@ -1,9 +1,11 @@
-//! An explicit Runge–Kutta method's steps as the stretch writes them: each stage's argument and
-//! field, the update, the count of force evaluations, the check of the state.
+//! An explicit Runge–Kutta method's steps as the stretch writes them: the tableau's walk
+//! ([`Tableau::step`], the stepper's own) over values of the function being built, then the
+//! count of force evaluations and the check of the state.
 
 use cranelift_codegen::ir::{InstBuilder, Value};
 
 use super::Stretch;
+use crate::flows::tableau::Stages;
 use crate::flows::Tableau;
 
 impl Stretch<'_, '_> {
@@ -13,50 +15,18 @@ impl Stretch<'_, '_> {
         let step = self.b.create_block();
         self.b.ins().jump(step, &[]);
         self.b.switch_to_block(step);
-        let (zq, zp) = (self.values(&self.q.clone()), self.values(&self.p.clone()));
-        let (mut kq, mut kp): (Vec<Vec<Value>>, Vec<Vec<Value>>) = (Vec::new(), Vec::new());
-        for i in 0..t.stages() {
-            let (mut sq, mut sp) = (zq.clone(), zp.clone());
-            for (j, &a) in t.a[i].iter().enumerate() {
-                if a != 0.0 {
-                    let ha = self.constant(h * a);
-                    for c in 0..n {
-                        sq[c] = self.axpy(ha, kq[j][c], sq[c]);
-                    }
-                    for c in 0..n {
-                        sp[c] = self.axpy(ha, kp[j][c], sp[c]);
-                    }
-                }
-            }
-            let dq = self.velocity_of(&sp);
-            let gradient = self.program_of(self.parts.gradient, &sq, n)?;
-            let w = match self.parts.projector {
-                Some(matrix) => self.projected_of(matrix, &sq, &sp)?,
-                None => sp,
-            };
-            let r = self.constant(self.parts.rate);
-            let dp = gradient
-                .into_iter()
-                .zip(w)
-                .map(|(g, w)| {
-                    let force = self.b.ins().fmul(w, r);
-                    let sum = self.b.ins().fadd(g, force);
-                    self.b.ins().fneg(sum)
-                })
-                .collect();
-            kq.push(dq);
-            kp.push(dp);
-        }
-        let (mut q, mut p) = (zq, zp);
-        for i in 0..t.stages() {
-            let hb = self.constant(h * t.b[i]);
-            for c in 0..n {
-                q[c] = self.axpy(hb, kq[i][c], q[c]);
-            }
-            for c in 0..n {
-                p[c] = self.axpy(hb, kp[i][c], p[c]);
-            }
-        }
+        let (q, p) = (self.values(&self.q.clone()), self.values(&self.p.clone()));
+        let mut stages = CompiledStages {
+            stretch: self,
+            q,
+            p,
+            stage_q: Vec::new(),
+            stage_p: Vec::new(),
+            kq: Vec::new(),
+            kp: Vec::new(),
+        };
+        t.step_rolled(h, &mut stages)?;
+        let CompiledStages { q, p, .. } = stages;
         for c in 0..n {
             self.b.def_var(self.q[c], q[c]);
             self.b.def_var(self.p[c], p[c]);
@@ -72,5 +42,71 @@ impl Stretch<'_, '_> {
     fn axpy(&mut self, a: Value, x: Value, y: Value) -> Value {
         let ax = self.b.ins().fmul(a, x);
         self.b.ins().fadd(ax, y)
+    }
+}
+
+/// A step's stages as values of the function being built: the state (q, p) at the step's start
+/// and as it is advanced, the stage's argument, and each stage's slopes.
+struct CompiledStages<'s, 'a, 'b> {
+    stretch: &'s mut Stretch<'a, 'b>,
+    q: Vec<Value>,
+    p: Vec<Value>,
+    stage_q: Vec<Value>,
+    stage_p: Vec<Value>,
+    kq: Vec<Vec<Value>>,
+    kp: Vec<Vec<Value>>,
+}
+
+impl Stages for CompiledStages<'_, '_, '_> {
+    type Error = String;
+
+    fn start_stage(&mut self) {
+        self.stage_q.clone_from(&self.q);
+        self.stage_p.clone_from(&self.p);
+    }
+
+    fn add_slope(&mut self, c: f64, j: usize) {
+        let c = self.stretch.constant(c);
+        for (x, &k) in self.stage_q.iter_mut().zip(&self.kq[j]) {
+            *x = self.stretch.axpy(c, k, *x);
+        }
+        for (x, &k) in self.stage_p.iter_mut().zip(&self.kp[j]) {
+            *x = self.stretch.axpy(c, k, *x);
+        }
+    }
+
+    /// The field (M⁻¹p, −(∇V + r P(q)p)) at the stage's argument, as the system's
+    /// `vector_field` computes it.
+    fn evaluate(&mut self, i: usize) -> Result<(), String> {
+        debug_assert_eq!(i, self.kq.len(), "stages are evaluated in order");
+        let s = &mut *self.stretch;
+        let parts = s.parts;
+        let dq = s.velocity_of(&self.stage_p);
+        let gradient = s.program_of(parts.gradient, &self.stage_q, parts.n)?;
+        let w = match parts.projector {
+            Some(matrix) => s.projected_of(matrix, &self.stage_q, &self.stage_p)?,
+            None => self.stage_p.clone(),
+        };
+        let r = s.constant(parts.rate);
+        let dp = (gradient.into_iter().zip(w))
+            .map(|(g, w)| {
+                let force = s.b.ins().fmul(w, r);
+                let sum = s.b.ins().fadd(g, force);
+                s.b.ins().fneg(sum)
+            })
+            .collect();
+        self.kq.push(dq);
+        self.kp.push(dp);
+        Ok(())
+    }
+
+    fn advance(&mut self, c: f64, i: usize) {
+        let c = self.stretch.constant(c);
+        for (x, &k) in self.q.iter_mut().zip(&self.kq[i]) {
+            *x = self.stretch.axpy(c, k, *x);
+        }
+        for (x, &k) in self.p.iter_mut().zip(&self.kp[i]) {
+            *x = self.stretch.axpy(c, k, *x);
+        }
     }
 }
