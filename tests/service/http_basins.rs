@@ -148,7 +148,7 @@ async fn bad_basin_maps_are_422s_naming_the_field() {
         (
             {
                 let mut b = double_well(4);
-                b["recognition"] = json!({"period": 6.283185307179586});
+                b["recognition"] = json!({"period": std::f64::consts::TAU});
                 b
             },
             "recognition.period",

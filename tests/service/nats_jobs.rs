@@ -395,11 +395,7 @@ async fn stream_info(
     js: &async_nats::jetstream::Context,
 ) -> Result<async_nats::jetstream::stream::Info, String> {
     let mut stream = (js.get_stream(geomint::nats::STREAM).await).map_err(|e| e.to_string())?;
-    stream
-        .info()
-        .await
-        .map(|info| info.clone())
-        .map_err(|e| e.to_string())
+    stream.info().await.cloned().map_err(|e| e.to_string())
 }
 
 /// The name of the shard stream's leader, if it has one now.
