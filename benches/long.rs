@@ -38,7 +38,7 @@ use std::time::Instant;
 
 use geomint::core::methods::composition::Scheme;
 use geomint::core::methods::{self, Base, Method, MethodId};
-use geomint::core::run::{integrate, Budget, Observer, Schedule, StopReason};
+use geomint::core::run::{integrate, Budget, Observer, RunEnd, Schedule};
 use geomint::core::system::{MechanicalSystem, State};
 use geomint::core::systems::{ElasticPendulum3d, Pendulum};
 use nalgebra::allocator::Allocator;
@@ -136,7 +136,7 @@ where
         &mut recorder,
     )
     .expect("the run");
-    assert_eq!(stop, StopReason::Finished, "{}", setting.choice.label());
+    assert_eq!(stop, RunEnd::Finished, "{}", setting.choice.label());
     (recorder.out, stats.force_evaluations)
 }
 

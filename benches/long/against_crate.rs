@@ -5,7 +5,7 @@ use std::hint::black_box;
 use std::time::Instant;
 
 use geomint::core::methods::{self, Method};
-use geomint::core::run::{integrate, Budget, Observer, Schedule, StopReason};
+use geomint::core::run::{integrate, Budget, Observer, RunEnd, Schedule};
 use geomint::core::system::{MechanicalSystem, State};
 use nalgebra::allocator::Allocator;
 use nalgebra::{DVector, DefaultAllocator, SVector};
@@ -144,7 +144,7 @@ pub fn against_crate<S: MechanicalSystem, const N: usize>(
                     &mut Unobserved,
                 )
                 .expect("the run");
-                assert_eq!(stop, StopReason::Finished);
+                assert_eq!(stop, RunEnd::Finished);
                 z.q.iter().chain(z.p.iter()).copied().collect::<Vec<f64>>()
             };
             let fixed = || {

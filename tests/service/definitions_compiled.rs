@@ -257,7 +257,7 @@ fn a_definition_that_runs_away_stops_with_the_step_it_diverged_at() {
     let spec = SimulationSpec::new(system, &[method("rk4")], 0.01, 100.0);
     let sim = Simulation::prepare(&spec, &Limits::default()).expect("prepares");
     let (columns, outcome) = run_to_columns(&sim, 0, None, Budget::default()).expect("runs");
-    let geomint::core::run::StopReason::Diverged { step, .. } = outcome.stop else {
+    let geomint::core::run::RunEnd::Diverged { step, .. } = outcome.stop else {
         panic!("finished: {:?}", outcome.stop)
     };
     // The blow-up time of x' = p, p' = 4x³ from (1, 1) with H = 1/2 − 1 = −1/2 is

@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 use crate::server;
 use geomint::api::system::NoStoredSystems;
 use geomint::core::methods::{Method, MethodId};
-use geomint::core::run::{Budget, StopReason};
+use geomint::core::run::{Budget, RunEnd};
 use geomint::core::simulation::{ColumnSink, Columns, Limits, Simulation, SimulationSpec};
 
 use geomint::http::Config;
@@ -86,7 +86,7 @@ impl Lines {
 }
 
 /// The core's runs for a core request.
-pub(crate) fn core_runs(req: &SimulationSpec) -> (Simulation, Vec<(Columns, StopReason)>) {
+pub(crate) fn core_runs(req: &SimulationSpec) -> (Simulation, Vec<(Columns, RunEnd)>) {
     let sim = Simulation::prepare(req, &Limits::default()).unwrap();
     let reference = sim.reference_energies(Budget::default()).unwrap();
     let runs = (0..sim.methods.len())
@@ -277,7 +277,7 @@ async fn simulate_equals_the_core_bit_for_bit() {
     };
     let (sim, runs) = core_runs(&req);
     for (i, (traj, stop)) in runs.iter().enumerate() {
-        assert_eq!(*stop, StopReason::Finished);
+        assert_eq!(*stop, RunEnd::Finished);
         let fragment = expected_fragment(&sim.methods[i].label(), traj);
         assert!(text.contains(&fragment), "run {i} differs from the core");
         assert_eq!(traj.t.len(), 201);
@@ -437,7 +437,7 @@ async fn divergence_keeps_the_samples_before_it() {
     let (_, runs) = core_runs(&req);
     assert_eq!(
         runs[0].1,
-        StopReason::Diverged {
+        RunEnd::Diverged {
             step,
             t: step as f64 * 3.0
         }

@@ -11,7 +11,7 @@ use geomint::core::diagnostics::log_log_slope;
 use geomint::core::error::Field;
 use geomint::core::methods::rowlands::{Processor, Rowlands};
 use geomint::core::methods::{self, AnyStepper, Method, MethodId};
-use geomint::core::run::{integrate, Budget, Observer, Schedule, Stepper, StopReason};
+use geomint::core::run::{integrate, Budget, Observer, RunEnd, Schedule, Stepper};
 use geomint::core::system::{MechanicalSystem, State};
 use geomint::core::systems::{self, Pendulum};
 use geomint_core::with_system;
@@ -174,7 +174,7 @@ where
         &mut record,
     )
     .expect("run succeeds");
-    assert_eq!(stop, StopReason::Finished);
+    assert_eq!(stop, RunEnd::Finished);
     // The driver's contract: the first sample is the caller's state, the last one the state it
     // leaves in z.
     assert_eq!(record.first.as_ref(), Some(start));

@@ -18,7 +18,7 @@ use geomint::core::studies::energy_map;
 use geomint::core::studies::engine::{Local, Study};
 use geomint::core::studies::parts::{merge, run_shard, Part, Shard, ShardError};
 use geomint::core::studies::sweep::{self, RunMetrics, SweepDocument, SweepJob};
-use geomint::core::studies::{StudySpec, StudyStop};
+use geomint::core::studies::{StudyCompletion, StudySpec};
 use serde_json::{json, Value};
 
 fn job(request: &Value) -> SweepJob {
@@ -466,7 +466,7 @@ fn a_sweep_in_lanes_stopped_by_its_budget_leaves_its_cells_unfinished_or_fails()
         deadline: Some(std::time::Instant::now()),
     };
     let doc = sweep::run(&job, &Local, past, &|_| true).unwrap();
-    assert_eq!(doc.stop, StudyStop::TimeLimit);
+    assert_eq!(doc.stop, StudyCompletion::TimeLimit);
     assert_eq!(doc.unfinished_cells, (0..job.cells()).collect::<Vec<_>>());
     let cancelled = std::sync::atomic::AtomicBool::new(true);
     let budget = Budget {

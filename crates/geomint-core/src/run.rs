@@ -7,7 +7,7 @@
 //! bit-identical output. Samples are taken at step 0, every `every`-th step and the last step.
 //!
 //! An observer that watches every step ([`Observer::watches_steps`]: Poincaré sections, events)
-//! is shown the state after each step, and may end the run there ([`StopReason::Event`]); the
+//! is shown the state after each step, and may end the run there ([`RunEnd::Event`]); the
 //! steps are then taken one at a time instead of in stretches, which changes nothing but the
 //! fusion of a splitting's last flow with the next step's first (round-off, as sampling more
 //! often does).
@@ -20,7 +20,7 @@ use nalgebra::allocator::Allocator;
 use nalgebra::DefaultAllocator;
 use serde::Serialize;
 
-use super::chaos::{IndicatorValues, ThresholdStop, Tracker};
+use super::chaos::{IndicatorValues, ThresholdCrossing, Tracker};
 use super::error::{CoreError, StepError};
 use super::system::{MechanicalSystem, State};
 use super::tangent::Tangent;
@@ -263,10 +263,11 @@ impl Budget<'_> {
     }
 }
 
-/// Why a run stopped.
+/// How a run ended: all its steps, or where and why it stopped early (the simulation
+/// document's `Stop` adds a failed run).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 #[serde(rename_all = "snake_case", tag = "reason")]
-pub enum StopReason {
+pub enum RunEnd {
     /// All steps were taken.
     Finished,
     /// The state became non-finite at this step (its samples end just before).
@@ -294,16 +295,13 @@ pub enum StopReason {
         t: f64,
     },
     /// A chaos indicator reached the threshold the request set (`stop_when`).
-    Indicator(ThresholdStop),
+    Indicator(ThresholdCrossing),
 }
 
-impl StopReason {
+impl RunEnd {
     /// Whether the budget stopped the run (cancelled, or at the time limit).
     pub fn by_budget(&self) -> bool {
-        matches!(
-            self,
-            StopReason::Cancelled { .. } | StopReason::TimeLimit { .. }
-        )
+        matches!(self, RunEnd::Cancelled { .. } | RunEnd::TimeLimit { .. })
     }
 }
 
@@ -339,7 +337,7 @@ where
 
     /// The state after `step`, at time `t` (for a processing method, its output state), when
     /// the observer [watches steps](Self::watches_steps). `Break(t_event)` ends the run after
-    /// this step with [`StopReason::Event`]; the step is then sampled.
+    /// this step with [`RunEnd::Event`]; the step is then sampled.
     fn on_step(&mut self, _step: u64, _t: f64, _z: &State<D>) -> ControlFlow<f64> {
         ControlFlow::Continue(())
     }
@@ -386,7 +384,7 @@ pub fn integrate<S, M, O>(
     schedule: Schedule,
     budget: Budget<'_>,
     observer: &mut O,
-) -> Result<(StopReason, RunStats), CoreError>
+) -> Result<(RunEnd, RunStats), CoreError>
 where
     S: MechanicalSystem,
     M: Stepper<S> + ?Sized,
@@ -421,7 +419,7 @@ pub fn integrate_tracked<S, M, O>(
     budget: Budget<'_>,
     tracking: Tracking<'_, S::Dim>,
     observer: &mut O,
-) -> Result<(StopReason, RunStats), CoreError>
+) -> Result<(RunEnd, RunStats), CoreError>
 where
     S: MechanicalSystem,
     M: Stepper<S> + ?Sized,
@@ -447,7 +445,7 @@ fn drive<S, M, O, T>(
     budget: Budget<'_>,
     mut track: T,
     observer: &mut O,
-) -> Result<(StopReason, RunStats), CoreError>
+) -> Result<(RunEnd, RunStats), CoreError>
 where
     S: MechanicalSystem,
     M: Stepper<S> + ?Sized,
@@ -481,7 +479,7 @@ where
     let lazy = watch && stepper.processes_any_state();
     let mut skipped = z.clone();
     let mut skipped_at = None;
-    let mut stop = StopReason::Finished;
+    let mut stop = RunEnd::Finished;
     let mut step = 0u64;
     // The next multiples of `check_every` and `every` at or after `step`, kept as counters: no
     // stretch ends past one (each ends at the nearer), so `step` meets each multiple, and a
@@ -494,11 +492,11 @@ where
         if step == check_at {
             check_at = check_at.saturating_add(check_every);
             if budget.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
-                stop = StopReason::Cancelled { step };
+                stop = RunEnd::Cancelled { step };
                 break;
             }
             if budget.deadline.is_some_and(|d| Instant::now() >= d) {
-                stop = StopReason::TimeLimit { step };
+                stop = RunEnd::TimeLimit { step };
                 break;
             }
         }
@@ -518,18 +516,18 @@ where
             Ok(Some(reason)) => stop = reason,
             Err((at, e)) => return Err(fail(at, e)),
         }
-        if matches!(stop, StopReason::TimeLimit { .. }) {
+        if matches!(stop, RunEnd::TimeLimit { .. }) {
             break;
         }
         if !z.is_finite() {
-            stop = StopReason::Diverged {
+            stop = RunEnd::Diverged {
                 step,
                 t: step as f64 * h,
             };
             break;
         }
         // A chaos indicator past its threshold ends the run with a last sample.
-        let indicator_stop = matches!(stop, StopReason::Indicator(_));
+        let indicator_stop = matches!(stop, RunEnd::Indicator(_));
         let sampled = step == sample_at;
         if sampled {
             sample_at = sample_at.saturating_add(every);
@@ -545,7 +543,7 @@ where
                     .post_process(sys, &skipped, h, &mut processed)
                     .map_err(|e| fail(at.saturating_sub(1), e))?;
                 if let ControlFlow::Break(t) = observer.on_clear_step(at as f64 * h, &processed) {
-                    stop = StopReason::Event { step, t };
+                    stop = RunEnd::Event { step, t };
                     event = true;
                 }
             }
@@ -555,7 +553,7 @@ where
             let output = if is_processed { &processed } else { &*z };
             if watch && !event {
                 if let ControlFlow::Break(t) = observer.on_step(step, step as f64 * h, output) {
-                    stop = StopReason::Event { step, t };
+                    stop = RunEnd::Event { step, t };
                     event = true;
                 }
             }
@@ -573,7 +571,7 @@ where
     }
     // Leave the output state, not the kernel's, to the caller.
     if step > 0
-        && !matches!(stop, StopReason::Diverged { .. })
+        && !matches!(stop, RunEnd::Diverged { .. })
         && (processed_at == Some(step)
             || stepper
                 .post_process(sys, z, h, &mut processed)

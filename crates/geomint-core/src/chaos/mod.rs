@@ -160,10 +160,12 @@ impl Statistic {
     }
 }
 
-/// Where and why a threshold stopped a run.
+/// Where an indicator crossed its threshold, which stopped the run (`ThresholdStop` in the
+/// OpenAPI document, the name it has always had there).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 #[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
-pub struct ThresholdStop {
+#[cfg_attr(feature = "openapi", schema(as = ThresholdStop))]
+pub struct ThresholdCrossing {
     /// The step at which it was seen (a step of the indicators' grid); the run's last sample.
     pub step: u64,
     /// Its time.

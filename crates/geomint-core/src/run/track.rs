@@ -5,8 +5,8 @@
 use nalgebra::allocator::Allocator;
 use nalgebra::DefaultAllocator;
 
-use super::{finite, Observer, Stepper, StopReason, Tracking};
-use crate::chaos::ThresholdStop;
+use super::{finite, Observer, RunEnd, Stepper, Tracking};
+use crate::chaos::ThresholdCrossing;
 use crate::error::StepError;
 use crate::system::{MechanicalSystem, State};
 use crate::tangent::Tangent;
@@ -36,7 +36,7 @@ where
         step: &mut u64,
         until: u64,
         observer: &mut O,
-    ) -> Result<Option<StopReason>, (u64, StepError)>;
+    ) -> Result<Option<RunEnd>, (u64, StepError)>;
 }
 
 /// Steps alone: the stepper's own [`advance`](Stepper::advance) over each stretch.
@@ -59,12 +59,12 @@ where
         step: &mut u64,
         until: u64,
         _observer: &mut O,
-    ) -> Result<Option<StopReason>, (u64, StepError)> {
+    ) -> Result<Option<RunEnd>, (u64, StepError)> {
         let (done, outcome) = stepper.advance(sys, z, h, until - *step);
         *step += done;
         match outcome {
             Ok(()) => Ok(None),
-            Err(StepError::DeadlinePassed) => Ok(Some(StopReason::TimeLimit { step: *step })),
+            Err(StepError::DeadlinePassed) => Ok(Some(RunEnd::TimeLimit { step: *step })),
             Err(e) => Err((*step, e)),
         }
     }
@@ -107,7 +107,7 @@ where
         step: &mut u64,
         until: u64,
         observer: &mut O,
-    ) -> Result<Option<StopReason>, (u64, StepError)> {
+    ) -> Result<Option<RunEnd>, (u64, StepError)> {
         match (&mut self.tracking, self.jacobian.as_mut()) {
             (Tracking::Determinant, Some(tg)) => {
                 while *step < until {
@@ -133,7 +133,7 @@ where
                         break;
                     }
                     if let Some((indicator, value, threshold)) = tracker.after_step(*step) {
-                        return Ok(Some(StopReason::Indicator(ThresholdStop {
+                        return Ok(Some(RunEnd::Indicator(ThresholdCrossing {
                             step: *step,
                             t: *step as f64 * h,
                             indicator,

@@ -12,10 +12,10 @@ use super::crossings::{CrossingColumns, SurfaceInfo};
 use super::run::{Sample, SampleSink};
 use super::spec::EnergyReference;
 use super::spec::Simulation;
-use crate::chaos::{IndicatorValues, ThresholdStop};
+use crate::chaos::{IndicatorValues, ThresholdCrossing};
 use crate::diagnostics::DriftPoint;
 use crate::error::CoreError;
-use crate::run::{RunStats, StopReason};
+use crate::run::{RunEnd, RunStats};
 use crate::sections::SectionSummary;
 #[cfg(feature = "openapi")]
 use crate::systems::SystemId;
@@ -285,7 +285,7 @@ pub enum Stop {
         t: f64,
     },
     /// A chaos indicator reached its threshold (`stop_when`); the last sample is at its step.
-    Indicator(ThresholdStop),
+    Indicator(ThresholdCrossing),
     /// A step failed (for example Newton's method did not converge); the samples end before it.
     Failed {
         /// The step that failed, counted from 1.
@@ -297,15 +297,15 @@ pub enum Stop {
     },
 }
 
-impl From<StopReason> for Stop {
-    fn from(s: StopReason) -> Self {
+impl From<RunEnd> for Stop {
+    fn from(s: RunEnd) -> Self {
         match s {
-            StopReason::Finished => Stop::Finished,
-            StopReason::Diverged { step, t } => Stop::Diverged { step, t },
-            StopReason::Cancelled { step } => Stop::Cancelled { step },
-            StopReason::TimeLimit { step } => Stop::TimeLimit { step },
-            StopReason::Event { step, t } => Stop::Event { step, t },
-            StopReason::Indicator(at) => Stop::Indicator(at),
+            RunEnd::Finished => Stop::Finished,
+            RunEnd::Diverged { step, t } => Stop::Diverged { step, t },
+            RunEnd::Cancelled { step } => Stop::Cancelled { step },
+            RunEnd::TimeLimit { step } => Stop::TimeLimit { step },
+            RunEnd::Event { step, t } => Stop::Event { step, t },
+            RunEnd::Indicator(at) => Stop::Indicator(at),
         }
     }
 }

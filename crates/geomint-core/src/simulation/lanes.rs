@@ -15,13 +15,13 @@ use nalgebra::{DefaultAllocator, Dim};
 
 use super::run::{Outcome, SampleSink};
 use super::spec::Simulation;
-use crate::chaos::{ChaosPlan, OneVectorLanes, ThresholdStop, Tracker};
+use crate::chaos::{ChaosPlan, OneVectorLanes, ThresholdCrossing, Tracker};
 use crate::error::CoreError;
 use crate::methods::lanes::runs::RunLanes;
 use crate::methods::lanes::tangent::LANES;
 use crate::methods::lanes::{LaneForces, TangentLanes, CHECK_EVERY};
 use crate::methods::{self};
-use crate::run::{Budget, Observer, RunStats, StopReason};
+use crate::run::{Budget, Observer, RunEnd, RunStats};
 use crate::system::lanes::{EachLane, PointForces};
 use crate::system::{MechanicalSystem, State};
 use crate::tangent::Tangent;
@@ -296,7 +296,7 @@ where
         observers[l].on_sample(0, 0.0, &states[l]);
     }
     // Per run: how it ended early (the stop, its steps and force evaluations), or given back.
-    let mut ended: Vec<Option<Option<(StopReason, u64, u64)>>> = vec![None; count];
+    let mut ended: Vec<Option<Option<(RunEnd, u64, u64)>>> = vec![None; count];
     let mut step = 0u64;
     while step < steps && running.contains(&true) {
         if step.is_multiple_of(CHECK_EVERY) && (budget.cancelled() || budget.expired()) {
@@ -312,7 +312,7 @@ where
             running[l] = false;
             let at = step + end.steps;
             ended[l] = Some(end.diverged.then_some((
-                StopReason::Diverged {
+                RunEnd::Diverged {
                     step: at,
                     t: at as f64 * h,
                 },
@@ -332,7 +332,7 @@ where
         }
     }
     let wall_time_ms = started.elapsed().as_secs_f64() * 1e3;
-    let finished = (StopReason::Finished, step, lanes.force_evaluations());
+    let finished = (RunEnd::Finished, step, lanes.force_evaluations());
     Some(
         ended
             .into_iter()
@@ -346,7 +346,7 @@ where
 }
 
 /// A run's outcome from how it ended: its stop, steps and force evaluations.
-fn outcome((stop, steps, force_evaluations): (StopReason, u64, u64), wall_time_ms: f64) -> Outcome {
+fn outcome((stop, steps, force_evaluations): (RunEnd, u64, u64), wall_time_ms: f64) -> Outcome {
     Outcome {
         stop,
         stats: RunStats {
@@ -404,7 +404,7 @@ where
         observers[l].on_indicators(&trackers[l].peek(0));
         observers[l].on_sample(0, 0.0, &states[l]);
     }
-    let mut ended: Vec<Option<(StopReason, u64, u64)>> = vec![None; count];
+    let mut ended: Vec<Option<(RunEnd, u64, u64)>> = vec![None; count];
     // With one vector and nothing to look at between samples, the lanes keep the sums and
     // update them together; each run's tracker takes them over at its samples.
     let mut sums = OneVectorLanes::<LANES>::new(plan, h);
@@ -432,7 +432,7 @@ where
             if advanced.not_finite[l] {
                 if !lanes.finite(l) {
                     running[l] = false;
-                    let stop = StopReason::Diverged { step, t };
+                    let stop = RunEnd::Diverged { step, t };
                     ended[l] = Some((stop, step, lanes.force_evaluations()));
                 }
                 continue;
@@ -496,7 +496,7 @@ where
             }
             if let Some((indicator, value, threshold)) = passed[l] {
                 running[l] = false;
-                let stop = StopReason::Indicator(ThresholdStop {
+                let stop = RunEnd::Indicator(ThresholdCrossing {
                     step,
                     t,
                     indicator,
@@ -508,7 +508,7 @@ where
         }
     }
     let wall_time_ms = started.elapsed().as_secs_f64() * 1e3;
-    let finished = (StopReason::Finished, step, lanes.force_evaluations());
+    let finished = (RunEnd::Finished, step, lanes.force_evaluations());
     Some(
         ended
             .into_iter()

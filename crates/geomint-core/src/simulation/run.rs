@@ -14,7 +14,7 @@ use super::spec::{EnergyReference, Simulation};
 use crate::chaos::{ChaosPlan, IndicatorValues, Tracker};
 use crate::error::{CoreError, Field};
 use crate::methods::{self, Method, MethodId};
-use crate::run::{integrate, integrate_tracked, Budget, Observer, RunStats, StopReason, Tracking};
+use crate::run::{integrate, integrate_tracked, Budget, Observer, RunEnd, RunStats, Tracking};
 use crate::sections::{Crossing, SectionSummary, Watch};
 use crate::system::{MechanicalSystem, State};
 use crate::systems::world::Drawing;
@@ -70,7 +70,7 @@ pub trait SampleSink {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Outcome {
     /// Why it stopped.
-    pub stop: StopReason,
+    pub stop: RunEnd,
     /// Statistics.
     pub stats: RunStats,
 }
@@ -211,8 +211,8 @@ impl Simulation {
                 other => other,
             })?;
         match outcome.stop {
-            StopReason::Finished => Ok(Some(log.0)),
-            StopReason::TimeLimit { .. } => Err(CoreError::TimeLimit {
+            RunEnd::Finished => Ok(Some(log.0)),
+            RunEnd::TimeLimit { .. } => Err(CoreError::TimeLimit {
                 field: Some(field),
                 message: "the reference run did not finish within the time limit; ask for fewer \
                           steps"

@@ -24,7 +24,7 @@ use super::settings::{
 use super::StudySpec;
 use crate::diagnostics::fit_log_log;
 use crate::error::{CoreError, Field, Range};
-use crate::run::{Budget, StopReason};
+use crate::run::{Budget, RunEnd};
 use crate::simulation::{
     InitialCoordinates, InputFields, Limits, MethodAt, Simulation, SimulationSpec, SystemSummary,
 };
@@ -359,7 +359,7 @@ fn point(
     budget: Budget<'_>,
 ) -> Result<ConvergencePoint, CoreError> {
     let (outcome, sink, _) = measure_once(sim, truth.energies.as_deref(), budget)?;
-    let finished = outcome.stop == StopReason::Finished;
+    let finished = outcome.stop == RunEnd::Finished;
     Ok(ConvergencePoint {
         series,
         method: sim.methods[0].label(),

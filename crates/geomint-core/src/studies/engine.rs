@@ -9,7 +9,7 @@
 //! Written once here: the walk over the cells (in groups for studies that run several cells side
 //! by side in SIMD lanes), progress, cancellation (an error), and a time limit (the cells that
 //! did not finish are `None`, and the study answers with the others, marked
-//! [`StudyStop::TimeLimit`]). A cell looks at the budget itself — a run inside it stops between
+//! [`StudyCompletion::TimeLimit`]). A cell looks at the budget itself — a run inside it stops between
 //! steps — and answers `None` when the budget stopped it.
 
 use std::ops::Range;
@@ -21,7 +21,7 @@ use rayon::prelude::*;
 use serde::de::DeserializeOwned;
 use serde::Serialize;
 
-use super::{StudySpec, StudyStop};
+use super::{StudyCompletion, StudySpec};
 use crate::error::{CoreError, ErrorDetail};
 use crate::run::Budget;
 
@@ -148,7 +148,7 @@ pub struct Finished<C> {
     /// Every cell's result in order; `None` where the time limit stopped it.
     pub cells: Vec<Option<C>>,
     /// Whether every cell finished.
-    pub stop: StudyStop,
+    pub stop: StudyCompletion,
     /// Wall time in milliseconds.
     pub wall_ms: f64,
 }
@@ -174,16 +174,16 @@ pub fn run<S: Study, E: Executor + ?Sized>(
     let cells = executor.run(study, 0..study.cells(), budget, done)?;
     let finished = Finished {
         stop: if cells.iter().all(Option::is_some) {
-            StudyStop::Finished
+            StudyCompletion::Finished
         } else {
-            StudyStop::TimeLimit
+            StudyCompletion::TimeLimit
         },
         cells,
         wall_ms: executor
             .wall_ms()
             .unwrap_or_else(|| started.elapsed().as_secs_f64() * 1e3),
     };
-    if finished.stop == StudyStop::TimeLimit && budget.cancelled() {
+    if finished.stop == StudyCompletion::TimeLimit && budget.cancelled() {
         return Err(CoreError::Cancelled {
             what: study.name(),
             shutdown: true,
@@ -260,7 +260,7 @@ pub fn document_of_parts<S: Documented>(
 ) -> <S::Line as CellLine>::Document {
     study.document_of(Finished {
         cells: cells.into_iter().map(Some).collect(),
-        stop: StudyStop::Finished,
+        stop: StudyCompletion::Finished,
         wall_ms,
     })
 }

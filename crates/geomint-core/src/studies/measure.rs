@@ -5,7 +5,7 @@
 use std::time::Instant;
 
 use crate::error::CoreError;
-use crate::run::{Budget, StopReason};
+use crate::run::{Budget, RunEnd};
 use crate::simulation::{Outcome, Sample, SampleSink, Simulation};
 
 /// Runs shorter than this many milliseconds are timed [`SHORT_RUN_REPEATS`] times.
@@ -123,7 +123,7 @@ pub fn measure_timed<'a>(
     } else {
         repeats
     };
-    while outcome.stop == StopReason::Finished && times.len() < wanted {
+    while outcome.stop == RunEnd::Finished && times.len() < wanted {
         times.push(measure_once(sim, energies, budget)?.2);
     }
     times.sort_by(f64::total_cmp);
@@ -137,13 +137,13 @@ pub fn median(sorted: &[f64]) -> f64 {
 }
 
 /// How a run stopped, as studies report it.
-pub fn stop_name(stop: &StopReason) -> &'static str {
+pub fn stop_name(stop: &RunEnd) -> &'static str {
     match stop {
-        StopReason::Finished => "finished",
-        StopReason::Diverged { .. } => "diverged",
-        StopReason::Cancelled { .. } => "cancelled",
-        StopReason::TimeLimit { .. } => "time_limit",
-        StopReason::Event { .. } => "event",
-        StopReason::Indicator(_) => "indicator",
+        RunEnd::Finished => "finished",
+        RunEnd::Diverged { .. } => "diverged",
+        RunEnd::Cancelled { .. } => "cancelled",
+        RunEnd::TimeLimit { .. } => "time_limit",
+        RunEnd::Event { .. } => "event",
+        RunEnd::Indicator(_) => "indicator",
     }
 }

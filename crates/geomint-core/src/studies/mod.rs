@@ -26,7 +26,7 @@
 //! [`engine::Finished`] cells.
 //!
 //! A study that reaches its time limit answers with what it finished (as a run does), marked
-//! [`StudyStop::TimeLimit`], rather than failing: the time limit depends on the machine's load,
+//! [`StudyCompletion::TimeLimit`], rather than failing: the time limit depends on the machine's load,
 //! and the finished part is the client's.
 
 pub mod basins;
@@ -40,11 +40,13 @@ pub mod stability;
 pub mod sweep;
 pub mod work_precision;
 
-/// Whether a study did all its work.
+/// Whether a study did all its work (its documents' `stop`; `StudyStop` in the OpenAPI
+/// document, the name it has always had there).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 #[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+#[cfg_attr(feature = "openapi", schema(as = StudyStop))]
 #[serde(rename_all = "snake_case")]
-pub enum StudyStop {
+pub enum StudyCompletion {
     /// Everything was computed.
     Finished,
     /// The time limit passed first: what was not finished is marked so in the document.

@@ -22,7 +22,7 @@ use super::engine::{self, Executor, Order, Study};
 use super::StudySpec;
 use crate::error::{CoreError, ErrorDetail, Field, Range, StepScope};
 use crate::methods::{Method, MethodId, TOLERANCE_RANGE};
-use crate::run::{Budget, StopReason};
+use crate::run::{Budget, RunEnd};
 use crate::simulation::{InputFields, Limits, MethodAt, Simulation, SimulationSpec, SystemSummary};
 
 /// Most settings (step sizes and tolerances over all runs) in one study.
@@ -281,15 +281,15 @@ impl StudyJob {
                 other => other,
             })?;
         let stopped_early = match outcome.stop {
-            StopReason::Finished => false,
-            StopReason::TimeLimit { .. } | StopReason::Event { .. } => true,
-            StopReason::Cancelled { .. } => {
+            RunEnd::Finished => false,
+            RunEnd::TimeLimit { .. } | RunEnd::Event { .. } => true,
+            RunEnd::Cancelled { .. } => {
                 return Err(CoreError::Cancelled {
                     what: "study",
                     shutdown: false,
                 })
             }
-            StopReason::Diverged { .. } | StopReason::Indicator(_) => {
+            RunEnd::Diverged { .. } | RunEnd::Indicator(_) => {
                 return Err(CoreError::ReferenceUnfinished {
                     field: Field::new("reference"),
                     stop: stop_name(&outcome.stop).into(),

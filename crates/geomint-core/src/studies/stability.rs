@@ -18,7 +18,7 @@ use crate::stability::{
 };
 use crate::studies::engine::{self, Executor, Finished, Study};
 use crate::studies::parts::{Part, ShardAt, Travelling};
-use crate::studies::{StudySpec, StudyStop};
+use crate::studies::{StudyCompletion, StudySpec};
 use crate::system::MechanicalSystem;
 use crate::systems::HarmonicOscillator;
 
@@ -180,7 +180,7 @@ pub struct StabilityDocument {
     /// limit.
     pub maps: Vec<MapDocument>,
     /// `time_limit` when the time limit passed before every method's map was made.
-    pub stop: StudyStop,
+    pub stop: StudyCompletion,
 }
 
 /// The stability map of one method: every grid is h.n rows (h values) × gamma.n columns

@@ -25,7 +25,7 @@ use super::StudySpec;
 use crate::diagnostics::fit_log_log;
 use crate::error::{CoreError, Field, Range};
 use crate::methods::Method;
-use crate::run::{Budget, StopReason};
+use crate::run::{Budget, RunEnd};
 use crate::simulation::{Limits, Simulation, SimulationSpec, SystemSummary};
 use crate::studies::parts::{Part, ShardAt, Travelling};
 use crate::systems::{ParamValue, SystemRef};
@@ -246,7 +246,7 @@ fn point(
     let repeats = usize::try_from(repeats).unwrap_or(usize::MAX);
     let (outcome, sink, timings) = measure_timed(sim, truth.energies.as_deref(), budget, repeats)?;
     let wall_ms = settings::median(&timings);
-    let finished = outcome.stop == StopReason::Finished;
+    let finished = outcome.stop == RunEnd::Finished;
     let tolerance = match method {
         Method::Reference { tolerance } => Some(*tolerance),
         _ => None,

@@ -1,7 +1,7 @@
 //! Helpers shared by the core integration tests.
 
 use geomint_core::methods::{self, Method, MethodId};
-use geomint_core::run::{integrate, Budget, Observer, Schedule, Stepper, StopReason};
+use geomint_core::run::{integrate, Budget, Observer, RunEnd, Schedule, Stepper};
 use geomint_core::simulation::{ColumnSink, Columns, Limits, Outcome, Simulation, SimulationSpec};
 use geomint_core::system::{MechanicalSystem, State};
 use geomint_core::systems::ParamValue;
@@ -29,7 +29,7 @@ where
     DefaultAllocator: Allocator<S::Dim>,
 {
     let (z, stop, _) = run_schedule(sys, choice, start, Schedule::new(h, t_end, u64::MAX));
-    assert_eq!(stop, StopReason::Finished);
+    assert_eq!(stop, RunEnd::Finished);
     z
 }
 
@@ -41,7 +41,7 @@ pub fn run_schedule<S: MechanicalSystem>(
     choice: &Method,
     start: &State<S::Dim>,
     schedule: Schedule,
-) -> (State<S::Dim>, StopReason, u64)
+) -> (State<S::Dim>, RunEnd, u64)
 where
     DefaultAllocator: Allocator<S::Dim>,
 {
@@ -55,7 +55,7 @@ pub fn run_stepper<S: MechanicalSystem, M: Stepper<S>>(
     stepper: &mut M,
     start: &State<S::Dim>,
     schedule: Schedule,
-) -> (State<S::Dim>, StopReason, u64)
+) -> (State<S::Dim>, RunEnd, u64)
 where
     DefaultAllocator: Allocator<S::Dim>,
 {

@@ -15,7 +15,7 @@ use geomint_core::methods::splitting::{
     SubFlow, CSV1, MODIN_3S, MODIN_RKS, POSITION_VERLET, VELOCITY_VERLET,
 };
 use geomint_core::methods::{Base, Method, MethodId};
-use geomint_core::run::{Budget, StopReason};
+use geomint_core::run::{Budget, RunEnd};
 use geomint_core::simulation::{Limits, Sample, SampleSink, Simulation, SimulationSpec};
 use geomint_core::system::MechanicalSystem;
 use geomint_core::systems::custom::{self, CustomDefinition, Damping, Energy, Mass};
@@ -118,7 +118,7 @@ fn both(
     p0: &[f64],
     h: f64,
     every: u64,
-) -> StopReason {
+) -> RunEnd {
     let mut spec = SimulationSpec::new(
         SystemRef::Defined(info.clone()),
         &[method.clone()],
@@ -219,11 +219,11 @@ fn compiled_stretches_give_the_composers_bits() {
             both(&full, method.clone(), &[0.0, 0.3], &[0.2, 0.1], 0.05, every);
             let (q0, p0) = ([0.0, -1.0], [2.0, 2.0]);
             let stop = both(&full, method.clone(), &q0, &p0, 0.05, every);
-            assert!(matches!(stop, StopReason::Diverged { .. }), "{stop:?}");
+            assert!(matches!(stop, RunEnd::Diverged { .. }), "{stop:?}");
             if takes_driven(&duffing, method) {
                 both(&duffing, method.clone(), &[0.5], &[0.1], 0.05, every);
                 let stop = both(&duffing, method.clone(), &[1e100], &[0.0], 0.05, every);
-                assert!(matches!(stop, StopReason::Diverged { .. }), "{stop:?}");
+                assert!(matches!(stop, RunEnd::Diverged { .. }), "{stop:?}");
             }
         }
     };

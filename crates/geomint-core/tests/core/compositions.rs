@@ -13,7 +13,7 @@ use geomint_core::error::{Field, StepError};
 use geomint_core::methods::composition::{inverse, Processed, Scheme};
 use geomint_core::methods::splitting::{self, Composition, Splitting};
 use geomint_core::methods::{self, Base, Method, MethodId};
-use geomint_core::run::{integrate, Budget, Schedule, Stepper, StopReason};
+use geomint_core::run::{integrate, Budget, RunEnd, Schedule, Stepper};
 use geomint_core::simulation::{Limits, MethodAt, Simulation, SimulationSpec};
 use geomint_core::system::{MechanicalSystem, State};
 use geomint_core::systems::{HarmonicOscillator, Pendulum};
@@ -243,7 +243,7 @@ fn oscillator_errors<M: Stepper<HarmonicOscillator>>(
                 &start,
                 Schedule::new(h, t_end, 10),
             );
-            assert_eq!(stop, StopReason::Finished);
+            assert_eq!(stop, RunEnd::Finished);
             (z.q[0] - exact.q[0]).hypot(z.p[0] - exact.p[0])
         })
         .collect()
@@ -432,7 +432,7 @@ fn a_processed_run_stopped_before_its_first_step_leaves_the_state_as_given() {
         assert!(
             matches!(
                 stop,
-                StopReason::Cancelled { step: 0 } | StopReason::TimeLimit { step: 0 }
+                RunEnd::Cancelled { step: 0 } | RunEnd::TimeLimit { step: 0 }
             ),
             "{stop:?}"
         );

@@ -91,7 +91,7 @@ fn every_method_that_takes_time_has_its_order_on_the_driven_duffing_oscillator()
 #[test]
 fn chaos_indicators_run_on_a_driven_system_in_extended_phase_space() {
     use geomint_core::chaos::{ChaosSpec, Indicator};
-    use geomint_core::run::{Budget, StopReason};
+    use geomint_core::run::{Budget, RunEnd};
     use geomint_core::simulation::{Limits, Simulation, SimulationSpec};
     // The damped driven Duffing oscillator: its state carries the clock t (a request for
     // indicators once panicked building the start state without it).
@@ -108,7 +108,7 @@ fn chaos_indicators_run_on_a_driven_system_in_extended_phase_space() {
         .expect("indicators are taken on a driven system");
     let (columns, outcome) =
         crate::common::run_to_columns(&sim, 0, None, Budget::default()).expect("the run succeeds");
-    assert_eq!(outcome.stop, StopReason::Finished);
+    assert_eq!(outcome.stop, RunEnd::Finished);
     let spectrum = columns
         .lyapunov
         .as_ref()

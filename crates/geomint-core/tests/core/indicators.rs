@@ -2,9 +2,9 @@
 //! oscillator, the pendulum and Hénon–Heiles; their independence of sampling and renormalisation;
 //! thresholds that stop a run; requests the indicators cannot serve, refused naming the field.
 
-use geomint_core::chaos::{ChaosSpec, Indicator, Statistic, ThresholdStop};
+use geomint_core::chaos::{ChaosSpec, Indicator, Statistic, ThresholdCrossing};
 use geomint_core::methods::{Base, Method, MethodId};
-use geomint_core::run::StopReason;
+use geomint_core::run::RunEnd;
 use geomint_core::simulation::{Columns, Limits, Simulation, SimulationSpec};
 
 use crate::chaos::{chaos_run, spec};
@@ -213,7 +213,7 @@ fn a_threshold_stops_the_run_with_its_indicator_and_last_sample() {
     };
     let (q0, p0) = section(1.0 / 6.0, -0.25, 0.0);
     let (c, outcome) = henon_heiles_orbit(&(q0, p0), 1e4, 1000, &chaos);
-    let StopReason::Indicator(ThresholdStop {
+    let RunEnd::Indicator(ThresholdCrossing {
         step,
         t,
         indicator,

@@ -9,7 +9,7 @@ use crate::common;
 use common::Discard;
 use geomint_core::methods::dop853::DOP853;
 use geomint_core::methods::{self, Method};
-use geomint_core::run::{integrate, Budget, Schedule, StopReason};
+use geomint_core::run::{integrate, Budget, RunEnd, Schedule};
 use geomint_core::system::{MechanicalSystem, State, Vector};
 use geomint_core::systems::{
     ElasticPendulum3d, NBody, PairPotential, Pendulum, PlanarKind, PlanarPolar, PlanarSpring,
@@ -124,7 +124,7 @@ where
         every: steps,
     };
     let (z, stop, force_evaluations) = common::run_schedule(sys, &choice, start, schedule);
-    assert_eq!(stop, StopReason::Finished);
+    assert_eq!(stop, RunEnd::Finished);
     (z, force_evaluations)
 }
 
@@ -282,7 +282,7 @@ fn a_deadline_stops_the_reference_inside_a_long_step() {
         (stop, stats, z)
     };
     let (stop, stats, z) = run(None);
-    assert_eq!(stop, StopReason::Finished);
+    assert_eq!(stop, RunEnd::Finished);
     assert!(
         stats.force_evaluations > 100_000,
         "{} evaluations",
@@ -292,7 +292,7 @@ fn a_deadline_stops_the_reference_inside_a_long_step() {
 
     // A deadline in the past: the driver's check before the first step stops it.
     let (stop, stats, z) = run(Some(std::time::Instant::now()));
-    assert_eq!(stop, StopReason::TimeLimit { step: 0 });
+    assert_eq!(stop, RunEnd::TimeLimit { step: 0 });
     assert_eq!(stats.force_evaluations, 0);
     assert_eq!((bits(&z.q), bits(&z.p)), (bits(&start.q), bits(&start.p)));
 

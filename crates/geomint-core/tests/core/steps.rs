@@ -120,7 +120,7 @@ fn final_state<S: MechanicalSystem>(
     h: f64,
     steps: u64,
     every: u64,
-) -> (State<S::Dim>, geomint_core::run::StopReason, u64)
+) -> (State<S::Dim>, geomint_core::run::RunEnd, u64)
 where
     nalgebra::DefaultAllocator: nalgebra::allocator::Allocator<S::Dim>,
 {
@@ -192,12 +192,12 @@ fn fused_stretches_agree_with_single_steps_to_round_off() {
             )]
         };
         for ((single, _, single_forces), (fused, stop, fused_forces)) in pairs {
-            assert!(matches!(stop, geomint_core::run::StopReason::Finished));
+            assert!(matches!(stop, geomint_core::run::RunEnd::Finished));
             assert_eq!(single_forces, fused_forces, "{}", method.label());
             worst = worst.max(apart(&single, &fused, "pendulum", method));
         }
         for ((single, _, single_forces), (fused, stop, fused_forces)) in elastic_pairs {
-            assert!(matches!(stop, geomint_core::run::StopReason::Finished));
+            assert!(matches!(stop, geomint_core::run::RunEnd::Finished));
             assert_eq!(single_forces, fused_forces, "{}", method.label());
             worst = worst.max(apart(&single, &fused, "elastic pendulum", method));
             // J₃ = q₁p₂ − q₂p₁ is conserved by the radial damping: to round-off in both forms.
@@ -230,7 +230,7 @@ fn fused_stretches_agree_with_single_steps_to_round_off() {
 #[test]
 fn a_fused_stretch_that_diverges_stops_where_single_steps_stop() {
     use geomint_core::methods::{Method, MethodId};
-    use geomint_core::run::StopReason;
+    use geomint_core::run::RunEnd;
     // ωh = 2.5 > 2: modin_3s is unstable on the oscillator and overflows after a few hundred
     // steps, inside the first fused stretch.
     let sys = HarmonicOscillator {
@@ -243,12 +243,12 @@ fn a_fused_stretch_that_diverges_stops_where_single_steps_stop() {
         let (single, single_stop, single_forces) = final_state(&sys, &m, &start, 0.05, 5000, 1);
         let (fused, fused_stop, fused_forces) = final_state(&sys, &m, &start, 0.05, 5000, 5000);
         let step = match single_stop {
-            StopReason::Diverged { step, .. } => step,
+            RunEnd::Diverged { step, .. } => step,
             other => panic!("{id:?}: expected divergence, got {other:?}"),
         };
         assert!(step < 1024, "{id:?}: diverged only at step {step}");
         assert!(
-            matches!(fused_stop, StopReason::Diverged { step: s, .. } if s == step),
+            matches!(fused_stop, RunEnd::Diverged { step: s, .. } if s == step),
             "{id:?}: {fused_stop:?} against step {step}"
         );
         assert_eq!(single.q.as_slice(), fused.q.as_slice(), "{id:?}");
@@ -261,7 +261,7 @@ fn a_fused_stretch_that_diverges_stops_where_single_steps_stop() {
 fn compositions_walked_stage_by_stage_give_the_bits_of_the_flow_by_flow_walk() {
     use geomint_core::methods::composition::Scheme;
     use geomint_core::methods::splitting::{self, Composition, Flows, Splitting};
-    use geomint_core::run::{Schedule, StopReason};
+    use geomint_core::run::{RunEnd, Schedule};
     use geomint_core::systems::Pendulum;
     // Runs the splitting on `schedule` (samples every step, or one sample: fused stretches).
     fn run<S: MechanicalSystem>(
@@ -275,7 +275,7 @@ fn compositions_walked_stage_by_stage_give_the_bits_of_the_flow_by_flow_walk() {
     {
         let mut stepper = Splitting::new(sys, composition, None);
         let (z, stop, forces) = common::run_stepper(sys, &mut stepper, start, schedule);
-        assert_eq!(stop, StopReason::Finished);
+        assert_eq!(stop, RunEnd::Finished);
         let bits = z.q.iter().chain(z.p.iter()).map(|x| x.to_bits()).collect();
         (bits, forces)
     }
@@ -375,7 +375,7 @@ fn compositions_of_velocity_verlet_fuse_their_kicks_on_undamped_systems_only() {
     use geomint_core::methods::composition::Scheme;
     use geomint_core::methods::splitting::{self, Composition, Flows, Splitting};
     use geomint_core::methods::{Base, Method};
-    use geomint_core::run::{Schedule, StopReason};
+    use geomint_core::run::{RunEnd, Schedule};
     use geomint_core::systems::Pendulum;
     let schedule = Schedule {
         h: 0.05,
@@ -407,7 +407,7 @@ fn compositions_of_velocity_verlet_fuse_their_kicks_on_undamped_systems_only() {
         // every seventh step and at every step (no seams).
         let (fused, stop, fused_forces) =
             common::run_schedule(&undamped, &method, &start, schedule);
-        assert_eq!(stop, StopReason::Finished);
+        assert_eq!(stop, RunEnd::Finished);
         let weights = scheme.weights();
         let run = |composition: Composition, schedule: Schedule| {
             let mut stepper = Splitting::new(&undamped, composition, None);

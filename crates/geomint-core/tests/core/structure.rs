@@ -424,7 +424,7 @@ fn a_diverging_run_reports_the_step_instead_of_panicking() {
     let sim = Simulation::prepare(&req, &Limits::default()).unwrap();
     let (traj, outcome) = common::run_to_columns(&sim, 0, None, Default::default()).unwrap();
     match outcome.stop {
-        geomint_core::run::StopReason::Diverged { step, t } => {
+        geomint_core::run::RunEnd::Diverged { step, t } => {
             assert!(step < 1000 && (t - 3.0 * step as f64).abs() < 1e-9);
             assert_eq!(traj.t.len() as u64, step, "samples up to the step before");
             assert!(traj

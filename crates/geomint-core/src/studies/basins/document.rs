@@ -8,7 +8,7 @@ use super::metrics::BasinMetrics;
 use super::outcome::Outcome;
 use crate::error::ErrorDetail;
 use crate::studies::sweep::{AxisDocument, RunLabel};
-use crate::studies::StudyStop;
+use crate::studies::StudyCompletion;
 use crate::systems::wrap_angle;
 
 /// What kind of outcome a label stands for.
@@ -181,7 +181,7 @@ pub struct BasinsDocument {
     /// Wall time in milliseconds.
     pub wall_ms: f64,
     /// Whether every cell was run.
-    pub stop: StudyStop,
+    pub stop: StudyCompletion,
     /// The cells the time limit left unrun.
     pub unfinished_cells: Vec<usize>,
 }

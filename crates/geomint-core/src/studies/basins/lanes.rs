@@ -20,7 +20,7 @@ use nalgebra::DefaultAllocator;
 use super::outcome::{CellOutcome, Decide, Outcome};
 use super::BasinsJob;
 use crate::methods::lanes::{LaneForces, CHECK_EVERY};
-use crate::run::{Budget, Observer, StopReason};
+use crate::run::{Budget, Observer, RunEnd};
 use crate::simulation::{with_lane_systems, Simulation};
 use crate::system::{MechanicalSystem, State, LANES};
 
@@ -119,7 +119,7 @@ impl BasinsJob {
                     let mut decide = Decide::new(sys, &self.criteria, &start, q0.len());
                     if decide.decided.is_some() {
                         outcomes[*slot] =
-                            self.conclude(decide.decided.take(), StopReason::Finished, 0, t_end);
+                            self.conclude(decide.decided.take(), RunEnd::Finished, 0, t_end);
                         continue;
                     }
                     lanes.set_state(l, start.q.as_slice(), start.p.as_slice());
@@ -156,11 +156,11 @@ impl BasinsJob {
                 cell.state.p.copy_from_slice(&p);
                 let (step, t) = (cell.step, cell.step as f64 * h);
                 let stop = if !cell.state.is_finite() {
-                    StopReason::Diverged { step, t }
+                    RunEnd::Diverged { step, t }
                 } else if let ControlFlow::Break(at) = cell.decide.on_step(step, t, &cell.state) {
-                    StopReason::Event { step, t: at }
+                    RunEnd::Event { step, t: at }
                 } else if step == steps {
-                    StopReason::Finished
+                    RunEnd::Finished
                 } else {
                     continue;
                 };

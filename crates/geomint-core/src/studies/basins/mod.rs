@@ -24,7 +24,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{CoreError, ErrorDetail, Field};
 use crate::methods;
-use crate::run::{integrate, Budget, Schedule, StopReason};
+use crate::run::{integrate, Budget, RunEnd, Schedule};
 use crate::sections::names::StateNames;
 use crate::sections::{Direction, Surface};
 use crate::simulation::{Limits, Simulation};
@@ -471,7 +471,7 @@ impl BasinsJob {
         let start = State::at_time(sys, 0.0, &sim.q0, &sim.p0);
         let mut decide = Decide::new(sys, &self.criteria, &start, sim.q0.len());
         let mut steps = 0;
-        let mut stop = StopReason::Finished;
+        let mut stop = RunEnd::Finished;
         let t_end = sim.schedule.steps as f64 * sim.schedule.h;
         if decide.decided.is_none() {
             let mut stepper =
@@ -497,14 +497,14 @@ impl BasinsJob {
     fn conclude(
         &self,
         decided: Option<(Outcome, f64, Option<f64>)>,
-        stop: StopReason,
+        stop: RunEnd,
         steps: u64,
         t_end: f64,
     ) -> Option<CellOutcome> {
         let (outcome, decided_at, energy_margin) = match (decided, stop) {
             (Some((outcome, t, margin)), _) => (outcome, Some(t), margin),
-            (None, StopReason::Cancelled { .. } | StopReason::TimeLimit { .. }) => return None,
-            (None, StopReason::Diverged { t, .. }) => (Outcome::Diverged, Some(t), None),
+            (None, RunEnd::Cancelled { .. } | RunEnd::TimeLimit { .. }) => return None,
+            (None, RunEnd::Diverged { t, .. }) => (Outcome::Diverged, Some(t), None),
             (None, _) if !self.criteria.exits.is_empty() => (Outcome::Stayed, Some(t_end), None),
             (None, _) => (
                 Outcome::Undecided {

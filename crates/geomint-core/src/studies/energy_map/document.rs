@@ -7,7 +7,7 @@ use super::{run_on, EnergyMap, EnergyMapJob};
 use crate::error::{CoreError, ErrorDetail};
 use crate::run::Budget;
 use crate::studies::engine::Executor;
-use crate::studies::StudyStop;
+use crate::studies::StudyCompletion;
 
 /// Points on the analytic boundary curve.
 const BOUNDARY_POINTS: usize = 360;
@@ -76,7 +76,7 @@ pub struct EnergyMapDocument {
     /// Wall time in milliseconds.
     pub wall_ms: f64,
     /// `time_limit` when the time limit stopped some cells before they finished.
-    pub stop: StudyStop,
+    pub stop: StudyCompletion,
     /// The cells the time limit stopped (their ε and divergence times are `null`), in order.
     pub unfinished_cells: Vec<usize>,
 }
@@ -177,9 +177,9 @@ fn document(spec: &EnergyMapJob, map: EnergyMap, wall_ms: f64) -> EnergyMapDocum
         steps: map.steps,
         wall_ms,
         stop: if map.unfinished.is_empty() {
-            StudyStop::Finished
+            StudyCompletion::Finished
         } else {
-            StudyStop::TimeLimit
+            StudyCompletion::TimeLimit
         },
         unfinished_cells: map.unfinished,
     }

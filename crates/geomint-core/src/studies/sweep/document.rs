@@ -8,7 +8,7 @@ use serde::Serialize;
 use super::axis::Scale;
 use super::metrics::{CellSection, ChaosMetrics, EnergyReference, RunMetrics};
 use super::RunLabel;
-use crate::studies::StudyStop;
+use crate::studies::StudyCompletion;
 
 /// One axis as the document gives it.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -179,7 +179,7 @@ pub struct SweepDocument {
     pub wall_ms: f64,
     /// `time_limit` when the time limit stopped some cells: their metrics are `null` and their
     /// `errors` say so.
-    pub stop: StudyStop,
+    pub stop: StudyCompletion,
     /// The cells the time limit stopped, in order (empty when `stop` is `finished`).
     pub unfinished_cells: Vec<usize>,
 }

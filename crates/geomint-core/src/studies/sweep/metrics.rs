@@ -7,7 +7,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::chaos::Statistic;
-use crate::run::StopReason;
+use crate::run::RunEnd;
 use crate::sections::{Crossing, CrossingKind, SectionSummary};
 use crate::simulation::{CrossingColumns, Outcome, Sample, SampleSink};
 
@@ -159,10 +159,10 @@ impl MetricsTally {
     /// The metrics of a run that ended with `outcome`.
     pub fn finish(mut self, outcome: &Outcome) -> RunMetrics {
         let stopped_at = match outcome.stop {
-            StopReason::Diverged { t, .. } => Some(t),
+            RunEnd::Diverged { t, .. } => Some(t),
             _ => None,
         };
-        if let (Some(chaos), StopReason::Indicator(at)) = (self.chaos.as_mut(), outcome.stop) {
+        if let (Some(chaos), RunEnd::Indicator(at)) = (self.chaos.as_mut(), outcome.stop) {
             chaos.stopped_at = Some(at.t);
         }
         self.finish_at(

@@ -36,7 +36,7 @@ use crate::simulation::{
 };
 use crate::studies::engine::{self, CellLine, Documented, Executor, Finished, Study};
 use crate::studies::parts::{Part, ShardAt, Travelling};
-use crate::studies::{StudySpec, StudyStop};
+use crate::studies::{StudyCompletion, StudySpec};
 use crate::system::MechanicalSystem;
 use crate::systems::{ParamValue, SystemInfo, SystemRef};
 use crate::with_system;
@@ -387,7 +387,7 @@ impl SweepJob {
             force_evaluations,
             digest: self.digest.clone(),
             wall_ms,
-            stop: StudyStop::Finished,
+            stop: StudyCompletion::Finished,
             unfinished_cells: Vec::new(),
         }
     }

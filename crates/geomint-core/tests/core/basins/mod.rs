@@ -312,7 +312,7 @@ fn a_basin_map_is_the_same_in_shards_as_in_one_piece() {
     let (cells, wall_ms) = parts::merge(&job, &study, parts).expect("merges");
     let merged = job.document_of(geomint_core::studies::engine::Finished {
         cells: cells.into_iter().map(Some).collect(),
-        stop: geomint_core::studies::StudyStop::Finished,
+        stop: geomint_core::studies::StudyCompletion::Finished,
         wall_ms,
     });
     assert_eq!(without_wall_time(&whole), without_wall_time(&merged));

@@ -9,7 +9,7 @@ use geomint_core::error::Field;
 use geomint_core::methods::composition::Scheme;
 use geomint_core::methods::rowlands::Processor;
 use geomint_core::methods::{self, Base, Method, MethodId};
-use geomint_core::run::{Stepper, StopReason};
+use geomint_core::run::{RunEnd, Stepper};
 use geomint_core::sections::henon::Henon;
 use geomint_core::sections::names::StateNames;
 use geomint_core::sections::{Direction, EnergyLevel, Surface};
@@ -69,7 +69,7 @@ fn ten_thousand_points_lie_on_the_surface_and_the_energy_level_to_round_off() {
     let (out, outcome) = run(&sim);
     let section = &out.section;
     assert!(
-        matches!(outcome.stop, StopReason::Event { .. }),
+        matches!(outcome.stop, RunEnd::Event { .. }),
         "{:?}",
         outcome.stop
     );

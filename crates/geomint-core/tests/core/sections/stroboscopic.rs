@@ -7,7 +7,7 @@ use super::henon_heiles::assert_same_points;
 use super::{duffing, event, run, sampled_simulation, simulation, stroboscopic};
 use geomint_core::methods::composition::Scheme;
 use geomint_core::methods::{Base, Method, MethodId};
-use geomint_core::run::StopReason;
+use geomint_core::run::RunEnd;
 use geomint_core::sections::Direction;
 use geomint_core::simulation::Watching;
 use std::f64::consts::PI;
@@ -172,7 +172,7 @@ fn the_third_crossing_ends_the_run_at_its_exact_time() {
             })
             .unwrap();
         let (out, outcome) = run(&sim);
-        let StopReason::Event { step, t } = outcome.stop else {
+        let RunEnd::Event { step, t } = outcome.stop else {
             panic!("stopped by {:?}", outcome.stop)
         };
         assert_eq!(out.events.len(), 3);
