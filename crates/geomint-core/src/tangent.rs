@@ -35,6 +35,7 @@ use nalgebra::allocator::Allocator;
 use nalgebra::{DMatrix, DefaultAllocator, Dim};
 
 use crate::error::StepError;
+use crate::flows;
 use crate::system::{MechanicalSystem, State, Vector};
 
 /// The propagated matrix of a step's tangent map and the work space of its sub-flows.
@@ -136,29 +137,27 @@ where
     /// δq ← δq + τ M⁻¹ δp.
     pub fn drift(&mut self, tau: f64) {
         let n = self.n();
-        for c in 0..self.columns() {
-            for i in 0..n {
-                let mut acc = (tau * self.minv[(i, 0)]) * self.jac[(n, c)];
-                for j in 1..n {
-                    acc += (tau * self.minv[(i, j)]) * self.jac[(n + j, c)];
-                }
-                self.jac[(i, c)] += acc;
-            }
+        if n == 0 {
+            return;
+        }
+        let minv = &self.minv;
+        for column in self.jac.as_mut_slice().chunks_exact_mut(2 * n) {
+            let (dq, dp) = column.split_at_mut(n);
+            flows::drift_tangent(dq, dp, |i, j| tau * minv[(i, j)]);
         }
     }
 
     /// δp ← a δp − b ∇²V δq, with ∇²V evaluated at q into `hess` beforehand.
     pub fn kick_scaled(&mut self, a: f64, b: f64) {
         let n = self.n();
+        if n == 0 {
+            return;
+        }
         let nb = -b;
-        for c in 0..self.columns() {
-            for i in 0..n {
-                let mut acc = (nb * self.hess[(i, 0)]) * self.jac[(0, c)];
-                for j in 1..n {
-                    acc += (nb * self.hess[(i, j)]) * self.jac[(j, c)];
-                }
-                self.jac[(n + i, c)] = a * self.jac[(n + i, c)] + acc;
-            }
+        let hess = &self.hess;
+        for column in self.jac.as_mut_slice().chunks_exact_mut(2 * n) {
+            let (dq, dp) = column.split_at_mut(n);
+            flows::kick_tangent(dp, dq, a, |i, j| nb * hess[(i, j)]);
         }
     }
 

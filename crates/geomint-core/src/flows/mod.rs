@@ -4,8 +4,10 @@
 //! code being compiled (`emit`) — so the one-run composer, the SIMD lanes and the compiled
 //! stretches all do the same operations in the same order and give the same bits. The
 //! system's part of a flow (its velocity M⁻¹p, its force ∇V, its damping projection P(q)p) is
-//! the caller's; a flow here is the update of the state once those are known. Their tangent
-//! maps are in [`crate::tangent`].
+//! the caller's; a flow here is the update of the state once those are known. The tangent maps
+//! of the drift and the kick on a deviation vector are here too ([`drift_tangent`],
+//! [`kick_tangent`]), for the one-run tangent ([`crate::tangent`]) and the chaos maps' lanes; the
+//! damped flows' tangent maps, which only the one-run path has, are in [`crate::tangent`].
 //!
 //! With q frozen, the momentum equation p' = −∇V(q) − r P(q) p is linear with a constant
 //! projector P, so every flow here is exact and explicit:
@@ -151,6 +153,44 @@ pub fn kick_damp<T: Real>(p: &mut [T], g: &[T], tau: T, projected_increment: &[T
     kick(p, g, tau);
     for (p, &pu) in p.iter_mut().zip(projected_increment) {
         *p = *p + pu;
+    }
+}
+
+/// A drift's tangent map on one deviation vector, δq ← δq + (τM⁻¹) δp, with `scaled(i, j)` the
+/// entry (τM⁻¹)ᵢⱼ. Each row is summed from its first term in column order, the order nalgebra's
+/// small-matrix products use and the Jacobian diagnostics were pinned with; the products by
+/// zero entries are kept, so a run and its lanes do the same operations.
+// Index loops: with the length known after inlining the compiler unrolls them whole, which it
+// did not for the iterator form (the chaos map's lanes ran 20 % slower).
+#[allow(clippy::needless_range_loop)]
+#[inline(always)]
+pub fn drift_tangent<T: Real>(dq: &mut [T], dp: &[T], scaled: impl Fn(usize, usize) -> T) {
+    let n = dq.len();
+    for i in 0..n {
+        let mut acc = scaled(i, 0) * dp[0];
+        for j in 1..n {
+            acc = acc + scaled(i, j) * dp[j];
+        }
+        dq[i] = dq[i] + acc;
+    }
+}
+
+/// A kick's tangent map on one deviation vector, δp ← a δp + (−b∇²V) δq, with
+/// `scaled(i, j)` the entry (−b∇²V)ᵢⱼ at the kick's q: a = 1 and b = τ for the plain kick, other
+/// (a, b) for the damped kicks with P = I (see [`kick_theta_tangent`]). Rows are summed as in
+/// [`drift_tangent`]; with a = 1, a δp is δp exactly.
+// Index loops: with the length known after inlining the compiler unrolls them whole, which it
+// did not for the iterator form (the chaos map's lanes ran 20 % slower).
+#[allow(clippy::needless_range_loop)]
+#[inline(always)]
+pub fn kick_tangent<T: Real>(dp: &mut [T], dq: &[T], a: T, scaled: impl Fn(usize, usize) -> T) {
+    let n = dp.len();
+    for i in 0..n {
+        let mut acc = scaled(i, 0) * dq[0];
+        for j in 1..n {
+            acc = acc + scaled(i, j) * dq[j];
+        }
+        dp[i] = a * dp[i] + acc;
     }
 }
 

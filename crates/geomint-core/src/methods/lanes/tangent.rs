@@ -3,9 +3,10 @@
 //! [`LANES`] runs side by side, each with deviation vectors advanced by the method's own tangent
 //! map: the step of a chaos map's cells.
 //!
-//! Each flow does what the composer's `step_tangent` does, in its order: a drift's tangent map
-//! δq ← δq + Σⱼ (τM⁻¹)ᵢⱼ δpⱼ and then the drift; a kick's δp ← 1·δp + Σⱼ (−τ∇²V)ᵢⱼ δqⱼ with ∇²V
-//! at q, and then the kick with the force, which is evaluated again only after a drift (the
+//! Each flow does what the composer's `step_tangent` does, in its order, with the kernel's
+//! tangent maps (`flows::drift_tangent`, `flows::kick_tangent`) on packs of lanes: a drift's
+//! tangent map δq ← δq + Σⱼ (τM⁻¹)ᵢⱼ δpⱼ and then the drift; a kick's δp ← 1·δp + Σⱼ (−τ∇²V)ᵢⱼ δqⱼ
+//! with ∇²V at q, and then the kick with the force, which is evaluated again only after a drift (the
 //! composer's force cache, so the evaluations count the same). The products by the zero
 //! entries of M⁻¹ are kept: they are what the one-run path computes. A step leaves the lanes to
 //! the caller when one of them needs a look: its state is no longer finite, or a deviation
@@ -235,20 +236,9 @@ impl<const N: usize> TangentLanes<N> {
                     }
                 }
                 for c in self.columns.iter_mut() {
-                    for i in 0..N {
-                        let mut acc = [0.0; LANES];
-                        for l in 0..LANES {
-                            acc[l] = scaled[i][0] * c.p[0][l];
-                        }
-                        for j in 1..N {
-                            for l in 0..LANES {
-                                acc[l] += scaled[i][j] * c.p[j][l];
-                            }
-                        }
-                        for l in 0..LANES {
-                            c.q[i][l] += acc[l];
-                        }
-                    }
+                    flows::drift_tangent(Pack::of_mut(&mut c.q), Pack::of(&c.p), |i, j| {
+                        Pack::splat(scaled[i][j])
+                    });
                 }
                 let mut v = [[0.0; LANES]; N];
                 sys.velocity_lanes(&self.p, &mut v);
@@ -264,23 +254,20 @@ impl<const N: usize> TangentLanes<N> {
                         sys.hessian_lanes(&self.q, &mut hessian.at_q);
                         hessian.valid = true;
                     }
-                    let hess = &hessian.at_q;
-                    let nb = -tau;
-                    for c in self.columns.iter_mut() {
-                        for i in 0..N {
-                            let mut acc = [0.0; LANES];
-                            for l in 0..LANES {
-                                acc[l] = (nb * hess[i][0][l]) * c.q[0][l];
-                            }
-                            for j in 1..N {
-                                for l in 0..LANES {
-                                    acc[l] += (nb * hess[i][j][l]) * c.q[j][l];
-                                }
-                            }
-                            for l in 0..LANES {
-                                c.p[i][l] += acc[l];
-                            }
+                    let minus_tau = Pack::splat(-tau);
+                    let mut scaled = [[Pack::splat(0.0); N]; N];
+                    for i in 0..N {
+                        for j in 0..N {
+                            scaled[i][j] = minus_tau * Pack(hessian.at_q[i][j]);
                         }
+                    }
+                    for c in self.columns.iter_mut() {
+                        flows::kick_tangent(
+                            Pack::of_mut(&mut c.p),
+                            Pack::of(&c.q),
+                            Pack::splat(1.0),
+                            |i, j| scaled[i][j],
+                        );
                     }
                 }
                 if !self.grad_valid {
