@@ -109,31 +109,44 @@ impl Criteria {
             .all(|(i, (&a, &b))| self.gap(i, a, b) <= r)
     }
 
+    /// The bound on |qᵢ| that a state keeps within until it escapes: the escape radius (finite,
+    /// as the request's check requires), or for an angle `f64::MAX`, since an angle cannot
+    /// escape, only leave the finite numbers; `None` for the clock, which never escapes. Not
+    /// within its bound (NaN never is) is escaped ([`escapes`]): the one rule of [`Decide`]'s
+    /// test and of [`Criteria::quiet_bounds`].
+    fn position_bound(&self, i: usize) -> Option<f64> {
+        if Some(i) == self.clock {
+            None
+        } else if self.angles.get(i).copied().unwrap_or(false) {
+            Some(f64::MAX)
+        } else {
+            Some(self.escape_radius)
+        }
+    }
+
+    /// The bound on |pᵢ|, as [`Criteria::position_bound`]: the escape radius, none for the
+    /// clock's momentum.
+    fn momentum_bound(&self, i: usize) -> Option<f64> {
+        (Some(i) != self.clock).then_some(self.escape_radius)
+    }
+
     /// Bounds on every |qᵢ| and |pᵢ| that a state keeps within exactly when it is finite and
-    /// has not escaped ([`Decide`]'s test): the escape radius where it applies, `f64::MAX`
-    /// (finite) on the clock's components and on angles. `None` unless only the stroboscope
-    /// and the escape radius decide a cell: no exits, no energy argument, no given attractor
-    /// looked for at every step. Then a step after which a cell keeps within the bounds, short
-    /// of its last step and before its next stroboscope point ([`Decide::between_looks`]),
-    /// changes and decides nothing in its observer, and the lanes need not hand it the state
-    /// (`lanes.rs`): a driven system's map looks at its cells once a period so.
+    /// has not escaped ([`Criteria::position_bound`], [`Criteria::momentum_bound`], with
+    /// `f64::MAX`, finite, on the clock's components). `None` unless only the stroboscope and the escape radius decide a cell: no
+    /// exits, no energy argument, no given attractor looked for at every step. Then a step after
+    /// which a cell keeps within the bounds, short of its last step and before its next
+    /// stroboscope point ([`Decide::between_looks`]), changes and decides nothing in its
+    /// observer, and the lanes need not hand it the state (`lanes.rs`): a driven system's map
+    /// looks at its cells once a period so.
     pub(super) fn quiet_bounds<const N: usize>(&self) -> Option<([f64; N], [f64; N])> {
         let quiet = self.exits.is_empty()
             && self.landscape.is_none()
             && (self.given.is_empty() || self.stroboscope.is_some());
-        let radius = self.escape_radius.min(f64::MAX);
-        let clock = |i: usize| Some(i) == self.clock;
-        let angle = |i: usize| self.angles.get(i).copied().unwrap_or(false);
+        let finite = |bound: Option<f64>| bound.map_or(f64::MAX, |bound| bound.min(f64::MAX));
         quiet.then(|| {
             (
-                std::array::from_fn(|i| {
-                    if clock(i) || angle(i) {
-                        f64::MAX
-                    } else {
-                        radius
-                    }
-                }),
-                std::array::from_fn(|i| if clock(i) { f64::MAX } else { radius }),
+                std::array::from_fn(|i| finite(self.position_bound(i))),
+                std::array::from_fn(|i| finite(self.momentum_bound(i))),
             )
         })
     }
@@ -144,6 +157,13 @@ impl Criteria {
             .iter()
             .position(|g| g.points.iter().any(|y| self.near(x, y, g.radius)))
     }
+}
+
+/// Whether `x` has escaped its bound (see [`Criteria::position_bound`]): not within it, NaN
+/// included; never without a bound.
+#[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN is not within any bound: it has escaped.
+fn escapes(bound: Option<f64>, x: f64) -> bool {
+    bound.is_some_and(|bound| !(x.abs() <= bound))
 }
 
 /// Where an orbit ended up.
@@ -369,22 +389,17 @@ where
     }
 
     /// Whether the state (q, p) has left the escape radius (the clock aside) or, in an angle,
-    /// the finite numbers.
+    /// the finite numbers ([`Criteria::position_bound`], [`Criteria::momentum_bound`]).
     fn escaped(&self, q: &[f64], p: &[f64]) -> bool {
-        let skip = self.criteria.clock;
-        let radius = self.criteria.escape_radius;
-        // An angle cannot escape, only leave the finite numbers.
-        let angle = |i: usize| self.criteria.angles.get(i).copied().unwrap_or(false);
+        let criteria = &self.criteria;
         let q_beyond = q
             .iter()
             .enumerate()
-            .any(|(i, x)| Some(i) != skip && !(x.abs() <= radius || angle(i) && x.is_finite()));
-        let p_beyond = || {
-            p.iter()
+            .any(|(i, &x)| escapes(criteria.position_bound(i), x));
+        q_beyond
+            || p.iter()
                 .enumerate()
-                .any(|(i, x)| Some(i) != skip && !(x.abs() <= radius))
-        };
-        q_beyond || p_beyond()
+                .any(|(i, &x)| escapes(criteria.momentum_bound(i), x))
     }
 
     /// Whether `step` falls before the next stroboscope point (any step, without a
