@@ -11,14 +11,15 @@
 //! functions the compiled code uses, so folding never changes a result) and apply rules
 //! that are exact in IEEE arithmetic (`x*1 = x`, `x/1 = x`, `-(-x) = x`, `x + (-y) = x - y`,
 //! `(-x)*y = -(x*y)`, `x/2 = 0.5*x` (division by a power of two), `x^1 = x`, `x^0 = 1`,
-//! operand order of `+` and `*`, …), plus three
+//! operand order of `+` and `*`, …), plus these
 //! deliberate exceptions that are what one wants for derivatives:
 //!
 //! * `0*x = x*0 = 0` and `0/x = 0`, even though `x` could be infinite or NaN at run
 //!   time (where IEEE would give NaN). Without this, derivatives fill up with terms
 //!   multiplied by zero.
-//! * `x + 0 = 0 + x = x` and `0 - x = -x`, which can differ from IEEE only in the sign
-//!   of a zero result.
+//! * `x + 0 = 0 + x = x`, `x - 0 = x`, `0 - x = -x` and `(-x) - y = -(x + y)`, which can
+//!   differ from IEEE only in the sign of a zero result (`(-0) - (-0)` is +0, `-(0 + (-0))`
+//!   is −0).
 //!
 //! No rule reassociates or distributes, because those change rounding.
 

@@ -61,7 +61,7 @@ impl JitFunction {
 pub(crate) fn compile(program: &Program) -> Result<JitFunction, String> {
     // A failure inside the code generator must not take the caller down: the
     // interpreter can always run the program instead.
-    catch_unwind(AssertUnwindSafe(|| compile_inner(program)))
+    catch_unwind(AssertUnwindSafe(|| build(program, 1, 1)))
         .unwrap_or_else(|_| Err("the code generator panicked".to_string()))
 }
 
@@ -110,11 +110,6 @@ impl Emitter {
     /// The target's pointer type.
     pub(crate) fn pointer(&self) -> types::Type {
         self.pointer
-    }
-
-    /// An emitter of scalar code for functions of `module` built by `b`.
-    pub(crate) fn new(module: &JITModule, b: &mut FunctionBuilder) -> Self {
-        Self::of_type(module, b, types::F64)
     }
 
     /// An emitter whose values are of `ty`, `F64` or a vector of f64 lanes.
@@ -392,7 +387,38 @@ impl std::fmt::Debug for OwnedModule {
     }
 }
 
-fn compile_inner(program: &Program) -> Result<JitFunction, String> {
+/// The f64s in the widest vector Cranelift lowers arithmetic on here: f64×2 on x86-64 (SSE2, or
+/// AVX's encodings) and AArch64 (Neon), whose vectors are no wider than 128 bits; elsewhere 1
+/// (scalars).
+pub(crate) const VECTOR_WIDTH: usize = if cfg!(any(target_arch = "x86_64", target_arch = "aarch64"))
+{
+    2
+} else {
+    1
+};
+
+/// Compiles `program` over `lanes` runs side by side, as one function of the same signature:
+/// input i of run l is `inputs[i·lanes + l]` and output o of run l is `outputs[o·lanes + l]` (an
+/// array `[[f64; lanes]; n]`, the SIMD lanes' layout), `width` adjacent runs to a value (a vector
+/// of `width` f64s; 1: scalars). Each run's outputs are the bits the scalar code gives it: the
+/// arithmetic is lane by lane IEEE, the calls are per lane. The program is written once per
+/// group of `width` runs, independent chains the processor overlaps.
+pub(crate) fn compile_lanes(
+    program: &Program,
+    lanes: usize,
+    width: usize,
+) -> Result<JitFunction, String> {
+    if width == 0 || !lanes.is_multiple_of(width) {
+        return Err(format!(
+            "{lanes} lanes do not split into vectors of {width}"
+        ));
+    }
+    catch_unwind(AssertUnwindSafe(|| build(program, lanes, width)))
+        .unwrap_or_else(|_| Err("the code generator panicked".to_string()))
+}
+
+/// The function of [`compile_lanes`]; one run in scalars is `lanes` = `width` = 1.
+fn build(program: &Program, lanes: usize, width: usize) -> Result<JitFunction, String> {
     let module = module(false)?;
     let pointer = module.target_config().pointer_type();
     let mut signature = module.make_signature();
@@ -408,18 +434,34 @@ fn compile_inner(program: &Program) -> Result<JitFunction, String> {
     b.switch_to_block(block);
     b.seal_block(block);
     let (inputs, outputs) = (b.block_params(block)[0], b.block_params(block)[1]);
-    // The slices are aligned and their lengths checked before the call.
-    let trusted = MemFlagsData::trusted();
-    let emitter = Emitter::new(&module, &mut b);
-    emitter.emit(
-        &mut b,
-        program,
-        &mut |b, input| Ok(b.ins().load(types::F64, trusted, inputs, offset(input)?)),
-        &mut |b, output, value| {
-            b.ins().store(trusted, value, outputs, offset(output)?);
-            Ok(())
-        },
-    )?;
+    let ty = match width {
+        1 => types::F64,
+        width => types::F64
+            .by(u32::try_from(width).map_err(|e| e.to_string())?)
+            .ok_or("no vector of that many f64s")?,
+    };
+    // The arrays are aligned for f64 and their lengths checked before the call; a vector's
+    // access is not necessarily aligned for the vector.
+    let flags = match width {
+        1 => MemFlagsData::trusted(),
+        _ => MemFlagsData::new().with_notrap(),
+    };
+    let emitter = Emitter::of_type(&module, &mut b, ty);
+    let slot = |index: u32, first: usize| -> Result<i32, String> {
+        let index = u64::from(index) * lanes as u64 + first as u64;
+        offset(u32::try_from(index).map_err(|e| e.to_string())?)
+    };
+    for first in (0..lanes).step_by(width) {
+        emitter.emit(
+            &mut b,
+            program,
+            &mut |b, input| Ok(b.ins().load(ty, flags, inputs, slot(input, first)?)),
+            &mut |b, output, value| {
+                b.ins().store(flags, value, outputs, slot(output, first)?);
+                Ok(())
+            },
+        )?;
+    }
     b.ins().return_(&[]);
     b.finalize(module.target_config());
     let (address, module) = finish(module, ctx)?;

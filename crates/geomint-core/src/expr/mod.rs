@@ -59,6 +59,7 @@ mod lex;
 pub mod ops;
 pub mod parse;
 pub mod program;
+pub mod trace;
 
 pub use compile::{Backend, CompileOptions, CompiledFunction};
 pub use error::{Expected, ExprError};

@@ -2,8 +2,9 @@
 //! composer's fused stretch between two samples (see `Splitting::advance`), or a Runge–Kutta
 //! method's steps, as one function with the system's forces written into the step rather than
 //! called through a pointer. A typed-in system compiles them (`systems::custom::stretch`), for
-//! one run and for the plain runs' lanes (`methods::lanes::runs`); built-in systems are compiled
-//! with the program.
+//! one run and for the plain runs' lanes (`methods::lanes::runs`); so does the built-in
+//! Hénon–Heiles system for one run, from its force traced into a program (`expr::trace`). The
+//! other built-in systems run the generic steps, compiled with the program.
 //!
 //! The compiled code does the stepper's arithmetic operation for operation (each `axpy` as a
 //! product and a sum, no fused multiply-add, the force cache and its count), so it gives the

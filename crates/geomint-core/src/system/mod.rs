@@ -338,7 +338,8 @@ where
 
     /// Native code for the splitting composer's fused stretches of `plan` on this system, if the
     /// system compiles them (a typed-in system, whose forces the generic path reaches through a
-    /// pointer); `None` (the default) leaves them to the composer. `steps`: the steps the
+    /// pointer, or a built-in one whose force is traced into a program); `None` (the default)
+    /// leaves them to the composer. `steps`: the steps the
     /// asking run took on the generic path since it last asked; a system may build the code only
     /// once its runs have taken enough of them to pay for it. The code must give the composer's
     /// bits.

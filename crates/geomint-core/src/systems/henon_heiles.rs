@@ -4,23 +4,52 @@
 //! bounded for H < 1/6; at H = 1/8 regular and chaotic orbits share the (y, p_y) section, at
 //! H = 1/6 most of it is chaotic. The default orbit, (x, y, p_x, p_y) = (0, −0.25, 0.42, 0) at
 //! H ≈ 1/8, is a chaotic one of the SALI literature (Skokos, J. Phys. A 34 (2001) 10029).
+//!
+//! Its force is written once, over any number type ([`HenonHeiles::force`]): the one-run path
+//! and the lanes compute it on `f64`s, and traced (`expr::trace`) it is the program that the
+//! splittings' and Runge–Kutta methods' compiled steps write into their code, as for a system
+//! typed in, with the same bits as the `f64` path.
+
+use std::borrow::Cow;
+use std::sync::{Arc, Mutex, PoisonError};
 
 use nalgebra::{DMatrix, U2};
 
-use std::borrow::Cow;
-
+use super::custom::BuiltInSteps;
 use super::{AnySystem, Builder, ChartInfo, ParamSpec, ParamValues, SystemInfo, World};
+use crate::expr::trace;
+use crate::flows::compiled::{SharedStretch, StretchPlan};
+use crate::flows::{Real, Tableau};
 use crate::system::lanes::{damp_each_lane, damp_point, PointForces};
 use crate::system::{Lane, LaneForces, LANES};
 use crate::system::{MechanicalSystem, Structure, Vector};
 
-/// The Hénon–Heiles system with unit masses and frequencies.
-#[derive(Clone, Debug, PartialEq)]
+/// The Hénon–Heiles system with unit masses and frequencies. Its parameters are fixed when it is
+/// made ([`HenonHeiles::new`]): its compiled code is built for them.
+#[derive(Clone)]
 pub struct HenonHeiles {
     /// The strength λ of the cubic coupling.
-    pub lambda: f64,
+    lambda: f64,
     /// Damping coefficient γ (p' = … − 2γp).
-    pub gamma: f64,
+    gamma: f64,
+    /// Its compiled steps, shared by its clones.
+    code: Arc<BuiltInSteps>,
+}
+
+impl std::fmt::Debug for HenonHeiles {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("HenonHeiles")
+            .field("lambda", &self.lambda)
+            .field("gamma", &self.gamma)
+            .finish_non_exhaustive()
+    }
+}
+
+/// Two systems are equal when their parameters are; the code built for them is not compared.
+impl PartialEq for HenonHeiles {
+    fn eq(&self, other: &Self) -> bool {
+        (self.lambda, self.gamma) == (other.lambda, other.gamma)
+    }
 }
 
 impl MechanicalSystem for HenonHeiles {
@@ -61,16 +90,72 @@ impl MechanicalSystem for HenonHeiles {
         out[(1, 1)] = d;
         0
     }
+    fn compile_stretch(&self, plan: &StretchPlan, steps: u64) -> Option<SharedStretch> {
+        self.code.stretch(plan, steps)
+    }
+    fn compile_steps(&self, tableau: &Tableau, h: f64, steps: u64) -> Option<SharedStretch> {
+        self.code.steps(tableau, h, steps)
+    }
 }
 
-/// The force and Hessian at one point: the one formula the one-run path and the lanes share.
+/// The force and Hessian at one point: the one formula the one-run path, the lanes and the
+/// compiled steps share.
 impl HenonHeiles {
+    /// The system of coupling `lambda` and damping `gamma`. Systems of the same parameters made
+    /// one after the other (the cells of a sweep over initial states) share their compiled code.
+    pub fn new(lambda: f64, gamma: f64) -> Self {
+        /// The code of the parameters last asked for.
+        static LAST: Mutex<Option<([u64; 2], Arc<BuiltInSteps>)>> = Mutex::new(None);
+        let key = [lambda.to_bits(), gamma.to_bits()];
+        let mut last = LAST.lock().unwrap_or_else(PoisonError::into_inner);
+        let code = match last.as_ref().filter(|(k, _)| *k == key) {
+            Some((_, code)) => Arc::clone(code),
+            None => {
+                // With λ = 0 the expression graph would drop the products by the constant 0
+                // (see `expr::trace`), which can change the sign of a zero: such a system
+                // keeps the generic steps.
+                let gradient = (lambda != 0.0)
+                    .then(|| {
+                        trace::program(|[x, y]| Self::force(lambda, x, y, |c| x.constant(c))).ok()
+                    })
+                    .flatten();
+                let code = Arc::new(BuiltInSteps::new(2, gradient, 2.0 * gamma));
+                *last = Some((key, Arc::clone(&code)));
+                code
+            }
+        };
+        HenonHeiles {
+            lambda,
+            gamma,
+            code,
+        }
+    }
+
+    /// The system without compiled steps: every step on the generic path (to compare the two).
+    pub fn without_compiled_steps(self) -> Self {
+        HenonHeiles {
+            code: Arc::new(BuiltInSteps::new(2, None, 2.0 * self.gamma)),
+            ..self
+        }
+    }
+
+    /// Whether compiled steps were built for the last plan or tableau its runs asked for.
+    pub fn has_compiled_steps(&self) -> bool {
+        self.code.built()
+    }
+
+    /// ∇V at (x, y) for coupling `lambda`, over any numbers, with `number` making constants.
+    #[inline(always)]
+    fn force<T: Real>(lambda: f64, x: T, y: T, number: impl Fn(f64) -> T) -> [T; 2] {
+        [
+            x + number(2.0 * lambda) * x * y,
+            y + number(lambda) * (x * x - y * y),
+        ]
+    }
+
     #[inline(always)]
     fn grad(&self, x: f64, y: f64) -> [f64; 2] {
-        [
-            x + 2.0 * self.lambda * x * y,
-            y + self.lambda * (x * x - y * y),
-        ]
+        Self::force(self.lambda, x, y, |c| c)
     }
 
     #[inline(always)]
@@ -161,10 +246,7 @@ pub(super) fn entry() -> SystemInfo {
         conformal_damping: true,
         world: World::Plane,
         build: Builder::Catalog(|p: &ParamValues, _: &ChartInfo, _: f64| {
-            AnySystem::HenonHeiles(HenonHeiles {
-                lambda: p.number(&LAMBDA),
-                gamma: p.number(&GAMMA),
-            })
+            AnySystem::HenonHeiles(HenonHeiles::new(p.number(&LAMBDA), p.number(&GAMMA)))
         }),
     }
 }

@@ -74,10 +74,7 @@ fn a_megno_map_of_the_henon_heiles_section_marks_the_cells_off_the_surface() {
     let document = sweep::run(&job, &Local, Budget::default(), &|_: SweepLine| true).expect("runs");
     let run = &document.runs[0];
     let chaos = run.chaos.as_ref().expect("chaos columns");
-    let sys = HenonHeiles {
-        lambda: 1.0,
-        gamma: 0.0,
-    };
+    let sys = HenonHeiles::new(1.0, 0.0);
     let (mut on, mut off, mut chaotic) = (0, 0, 0);
     for cell in 0..document.cells {
         let (y, py) = (

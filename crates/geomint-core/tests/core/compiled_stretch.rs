@@ -17,9 +17,9 @@ use geomint_core::methods::splitting::{
 use geomint_core::methods::{Base, Method, MethodId};
 use geomint_core::run::{Budget, RunEnd};
 use geomint_core::simulation::{Limits, Sample, SampleSink, Simulation, SimulationSpec};
-use geomint_core::system::MechanicalSystem;
+use geomint_core::system::{Lane, LaneForces, MechanicalSystem};
 use geomint_core::systems::custom::{self, CustomDefinition, Damping, Energy, Mass};
-use geomint_core::systems::{AnySystem, CustomSystem, SystemInfo, SystemRef};
+use geomint_core::systems::{AnySystem, CustomSystem, ParamValue, SystemInfo, SystemRef};
 
 use crate::chaos_map::expr;
 
@@ -119,22 +119,41 @@ fn both(
     h: f64,
     every: u64,
 ) -> RunEnd {
-    let mut spec = SimulationSpec::new(
-        SystemRef::Defined(info.clone()),
-        &[method.clone()],
-        h,
-        STEPS as f64 * h,
-    );
+    let system = SystemRef::Defined(info.clone());
+    both_of(system, &[], method, (q0, p0), h, every, None).0
+}
+
+/// [`both`] for any system with its parameters, or for `reuse`, a system these prepared before
+/// (its compiled code with it); also returns the system the compiled run ran.
+fn both_of(
+    system: SystemRef,
+    params: &[(&str, f64)],
+    method: Method,
+    (q0, p0): (&[f64], &[f64]),
+    h: f64,
+    every: u64,
+    reuse: Option<AnySystem>,
+) -> (RunEnd, AnySystem) {
+    let mut spec = SimulationSpec::new(system, &[method.clone()], h, STEPS as f64 * h);
+    spec.params = params
+        .iter()
+        .map(|&(name, value)| (name.to_string(), ParamValue::Number(value)))
+        .collect();
     spec.q0 = Some(q0.to_vec());
     spec.p0 = Some(p0.to_vec());
     spec.every = Some(every);
-    let compiled = Simulation::prepare(&spec, &Limits::default()).expect("a valid run");
+    let mut compiled = Simulation::prepare(&spec, &Limits::default()).expect("a valid run");
     let mut generic = Simulation::prepare(&spec, &Limits::default()).expect("a valid run");
+    if let Some(system) = reuse {
+        compiled.system = system.clone();
+        generic.system = system;
+    }
     generic.system = match generic.system {
         AnySystem::Custom1(s) => AnySystem::Custom1(s.without_compiled_stretches()),
         AnySystem::Custom2(s) => AnySystem::Custom2(s.without_compiled_stretches()),
         AnySystem::Custom3(s) => AnySystem::Custom3(s.without_compiled_stretches()),
-        other => panic!("not a typed-in system: {other:?}"),
+        AnySystem::HenonHeiles(s) => AnySystem::HenonHeiles(s.without_compiled_steps()),
+        other => panic!("not a system with compiled steps: {other:?}"),
     };
     let run = |sim: &Simulation| {
         let mut bits = Bits::default();
@@ -150,7 +169,7 @@ fn both(
     };
     let (a, b) = (run(&compiled), run(&generic));
     assert_eq!(a, b, "{method:?} every {every} from {q0:?}, {p0:?}");
-    a.1
+    (a.1, compiled.system)
 }
 
 /// Whether `method` runs the driven system `info` (some methods refuse a clock).
@@ -270,6 +289,81 @@ fn compiled_stretches_give_the_composers_bits() {
             );
         }
     }
+}
+
+/// The built-in Hénon–Heiles system compiles its steps from its force traced from the code of
+/// its `f64` force, and they give its generic steps' bits: undamped and damped, for λ = 1 and
+/// couplings whose constants the expression graph rewrites (±1/2, −1), over the splittings,
+/// compositions (the processed one of the sections bench among them) and Runge–Kutta methods,
+/// on a bounded orbit and on one that escapes and blows up inside a stretch whose code the
+/// bounded run built (systems of the same parameters share it). With λ = 0 it keeps the generic
+/// steps.
+#[test]
+fn the_built_in_henon_heiles_compiled_steps_give_its_generic_bits() {
+    let henon_heiles = || SystemRef::Id("henon_heiles".into());
+    let damped_or_not = [
+        Method::new(MethodId::Modin3s),
+        Method::new(MethodId::Csv1),
+        Method::composition(Scheme::of(MethodId::KahanLi8).unwrap(), Base::Modin3s),
+        Method::new(MethodId::Rk4),
+        Method::new(MethodId::Heun),
+    ];
+    let undamped_only = [
+        Method::new(MethodId::VelocityVerlet),
+        Method::composition(
+            Scheme::of(MethodId::BlanesCasasMurua8).unwrap(),
+            Base::VelocityVerlet,
+        ),
+    ];
+    let couplings = [
+        (1.0, 0.0),
+        (1.0, 0.05),
+        (-0.7, 0.0),
+        (0.5, 0.05),
+        (-0.5, 0.0),
+        (-1.0, 0.05),
+    ];
+    for (lambda, gamma) in couplings {
+        let undamped = undamped_only.iter().filter(|_| gamma == 0.0);
+        let params = [("lambda", lambda), ("gamma", gamma)];
+        for method in damped_or_not.iter().chain(undamped) {
+            // Runge–Kutta methods compile stretches of two steps or more.
+            let runge_kutta = matches!(method.id(), MethodId::Rk4 | MethodId::Heun);
+            for every in [1, 37, 1000] {
+                let start: (&[f64], &[f64]) = (&[0.0, -0.25], &[0.42, 0.0]);
+                let (_, system) =
+                    both_of(henon_heiles(), &params, *method, start, 0.05, every, None);
+                let AnySystem::HenonHeiles(built_in) = &system else {
+                    panic!("the built-in system");
+                };
+                assert!(
+                    built_in.has_compiled_steps() || (runge_kutta && every == 1),
+                    "λ = {lambda}, {method:?} every {every}: no compiled steps"
+                );
+                // The same system, its code built: the escape happens inside a stretch.
+                let escaping: (&[f64], &[f64]) = (&[0.0, -1.0], &[2.0, 2.0]);
+                let reuse = Some(system);
+                let (stop, _) = both_of(
+                    henon_heiles(),
+                    &params,
+                    *method,
+                    escaping,
+                    0.05,
+                    every,
+                    reuse,
+                );
+                assert!(matches!(stop, RunEnd::Diverged { .. }), "{stop:?}");
+            }
+        }
+    }
+    let uncoupled = [("lambda", 0.0), ("gamma", 0.0)];
+    let start: (&[f64], &[f64]) = (&[0.1, -0.25], &[0.42, 0.0]);
+    let modin_3s = damped_or_not[0];
+    let (_, system) = both_of(henon_heiles(), &uncoupled, modin_3s, start, 0.05, 1, None);
+    let AnySystem::HenonHeiles(system) = system else {
+        panic!("the built-in system");
+    };
+    assert!(!system.has_compiled_steps(), "λ = 0 compiled");
 }
 
 /// The stretches take drifts, kicks and damping flows, and the Verlets' θ-kicks when nothing
@@ -453,10 +547,7 @@ fn compiled_lanes_give_the_generic_lanes_bits() {
             let compiled = lanes_run(sys, flows, rate, h, &starts, (steps, every));
             // The code was built and taken, not left to the generic path.
             assert!(
-                sys.model()
-                    .lanes_stretch
-                    .lock()
-                    .is_ok_and(|s| s.as_ref().is_some_and(|(_, code)| code.is_some())),
+                sys.model().compiled_steps.lanes_built(),
                 "{flows:?}: no compiled lanes"
             );
             let generic = sys.clone().without_compiled_stretches();
@@ -465,6 +556,58 @@ fn compiled_lanes_give_the_generic_lanes_bits() {
                 compiled == generic,
                 "{flows:?} every {every}: the compiled lanes differ from the generic ones"
             );
+        }
+    }
+}
+
+/// A typed-in system's ∇V and ∇²V compiled over the SIMD lanes give every lane the bits of its
+/// one-run functions: arithmetic only (Hénon–Heiles), and with calls made lane by lane (sin,
+/// cos, sqrt) and a Hessian whose entries differ from their transposes' programs.
+#[test]
+fn the_lanes_compiled_forces_give_each_lane_its_one_run_bits() {
+    for potential in [
+        "(x^2 + y^2)/2 + x^2*y - y^3/3",
+        "1 - cos(x) + sin(x*y)^2 + sqrt(1 + y^2) + x^3*y/7",
+    ] {
+        let info = system(
+            &["x", "y"],
+            Mass::Scalar(expr("mass", "1")),
+            potential,
+            None,
+        );
+        let sys = two_coordinates(&info, MethodId::VelocityVerlet);
+        assert!(!sys.model().lane_forces.built());
+        let q: [Lane; 2] = std::array::from_fn(|i| {
+            std::array::from_fn(|l| (l as f64 - 7.5) * 0.13 + i as f64 * 0.7)
+        });
+        let mut g = [[0.0; LANES]; 2];
+        sys.grad_lanes(&q, &mut g);
+        let mut hess = [[[0.0; LANES]; 2]; 2];
+        sys.hessian_lanes(&q, &mut hess);
+        assert!(
+            sys.model().lane_forces.built(),
+            "{potential}: the lanes' code was not built"
+        );
+        for l in 0..LANES {
+            let x = nalgebra::Vector2::new(q[0][l], q[1][l]);
+            let mut one = nalgebra::Vector2::zeros();
+            sys.grad_potential(&x, &mut one);
+            let mut one_hess = nalgebra::DMatrix::zeros(2, 2);
+            sys.hess_potential(&x, &mut one_hess);
+            for i in 0..2 {
+                assert_eq!(
+                    g[i][l].to_bits(),
+                    one[i].to_bits(),
+                    "{potential}: ∇V lane {l}"
+                );
+                for j in 0..2 {
+                    assert_eq!(
+                        hess[i][j][l].to_bits(),
+                        one_hess[(i, j)].to_bits(),
+                        "{potential}: ∇²V ({i}, {j}) lane {l}"
+                    );
+                }
+            }
         }
     }
 }

@@ -1,17 +1,22 @@
-//! Typed-in separable systems in the chaos maps' SIMD lanes: each lane calls the system's own
-//! compiled ∇V and ∇²V and its M⁻¹, the functions its one-run path calls, so every lane's
-//! numbers are that path's by construction; what the lanes vectorise is the rest of the step
-//! (the drifts, the kicks and the deviation vectors' tangent maps). One, two and three degrees
-//! of freedom, the dimensions a typed-in system runs on the stack with, the clock of a driven
-//! system counted among them (its velocity is 1 and its momentum damped or not as on the one-run
-//! path).
+//! Typed-in separable systems in the chaos maps' SIMD lanes: ∇V and ∇²V are the programs of the
+//! system's one-run functions compiled over all the lanes at once ([`LaneCode`]), each lane's
+//! arithmetic the scalar code's, so every lane's numbers are that path's; where that code cannot
+//! be built, each lane calls the one-run functions. M⁻¹ is the one-run path's arithmetic. The
+//! rest of the step (the drifts, the kicks and the deviation vectors' tangent maps) is the
+//! lanes' own, vectorised. One, two and three degrees of freedom, the dimensions a typed-in
+//! system runs on the stack with, the clock of a driven system counted among them (its velocity
+//! is 1 and its momentum damped or not as on the one-run path).
 
 // Lanes and components are indexed side by side.
 #![allow(clippy::needless_range_loop)]
 
+use std::sync::OnceLock;
+
 use nalgebra::{U1, U2, U3};
 
 use super::system::{CustomSystem, DampingModel, EnergyModel, InverseMass};
+use crate::expr::jit::{self, JitFunction};
+use crate::expr::program::Program;
 use crate::flows::compiled::{SharedStretch, StretchPlan};
 use crate::system::lanes::{damp_each_lane, damp_point, PointForces};
 use crate::system::{Lane, LaneForces, LANES};
@@ -59,29 +64,58 @@ macro_rules! lane_forces {
 
             #[inline(always)]
             fn grad_lanes(&self, q: &[Lane; $n], g: &mut [Lane; $n]) {
-                if let EnergyModel::Separable { gradient, .. } = &self.model().energy {
-                    each_lane(q, g, |x, out| gradient.eval(x, out));
+                let model = self.model();
+                let EnergyModel::Separable { gradient, hessian, .. } = &model.energy else {
+                    return;
+                };
+                match model.lane_forces.functions($n, gradient.program(), hessian.program()) {
+                    // SAFETY: the function reads $n inputs and writes $n outputs of LANES lanes
+                    // each (checked when it was built), the sizes of `q` and `g`.
+                    Some(code) => unsafe {
+                        let (inputs, outputs) = (q.as_flattened(), g.as_flattened_mut());
+                        (code.gradient.code())(inputs.as_ptr(), outputs.as_mut_ptr())
+                    },
+                    None => each_lane(q, g, |x, out| gradient.eval(x, out)),
                 }
             }
 
             #[inline(always)]
             fn hessian_lanes(&self, q: &[Lane; $n], hess: &mut [[Lane; $n]; $n]) {
-                let EnergyModel::Separable { hessian, .. } = &self.model().energy else {
+                let model = self.model();
+                let EnergyModel::Separable { gradient, hessian, .. } = &model.energy else {
                     return;
                 };
-                let mut x = [0.0; $n];
-                let mut out = [[0.0; $n]; $n];
-                for l in 0..LANES {
-                    for i in 0..$n {
-                        x[i] = q[i][l];
-                    }
-                    hessian.eval(&x, out.as_flattened_mut());
-                    // The one-run path reads the n² outputs as a column-major matrix: entry
-                    // (i, j) is output j·n + i.
-                    for i in 0..$n {
-                        for j in 0..$n {
-                            hess[i][j][l] = out[j][i];
+                // The one-run path reads the n² outputs as a column-major matrix: entry (i, j)
+                // is output j·n + i, here out[j][i].
+                let mut out = [[[0.0; LANES]; $n]; $n];
+                match model.lane_forces.functions($n, gradient.program(), hessian.program()) {
+                    // SAFETY: the function reads $n inputs and writes $n² outputs of LANES
+                    // lanes each (checked when it was built), the sizes of `q` and `out`.
+                    Some(code) => unsafe {
+                        (code.hessian.code())(
+                            q.as_flattened().as_ptr(),
+                            out.as_flattened_mut().as_flattened_mut().as_mut_ptr(),
+                        )
+                    },
+                    None => {
+                        let mut x = [0.0; $n];
+                        let mut one = [[0.0; $n]; $n];
+                        for l in 0..LANES {
+                            for i in 0..$n {
+                                x[i] = q[i][l];
+                            }
+                            hessian.eval(&x, one.as_flattened_mut());
+                            for j in 0..$n {
+                                for i in 0..$n {
+                                    out[j][i][l] = one[j][i];
+                                }
+                            }
                         }
+                    }
+                }
+                for i in 0..$n {
+                    for j in 0..$n {
+                        hess[i][j] = out[j][i];
                     }
                 }
             }
@@ -160,5 +194,51 @@ fn each_lane<const N: usize>(
         for i in 0..N {
             outputs[i][l] = y[i];
         }
+    }
+}
+
+/// ∇V and ∇²V compiled over the [`LANES`] lanes ([`jit::compile_lanes`]), built at the lanes'
+/// first call on the system; `None` where they could not be, and the lanes then call the one-run
+/// functions lane by lane.
+#[derive(Debug, Default)]
+pub struct LaneCode(OnceLock<Option<LaneFunctions>>);
+
+/// The functions of [`LaneCode`].
+#[derive(Debug)]
+struct LaneFunctions {
+    gradient: JitFunction,
+    hessian: JitFunction,
+}
+
+/// Programs longer than this keep the calls lane by lane: the lanes' function writes a program
+/// once per vector of lanes, and the time to build it grows with that.
+const MOST_OPERATIONS: usize = 4_000;
+
+impl LaneCode {
+    /// Whether the lanes' functions were built (else the lanes call the one-run functions).
+    pub fn built(&self) -> bool {
+        matches!(self.0.get(), Some(Some(_)))
+    }
+
+    /// The functions for `gradient` and `hessian` of `n` coordinates, built on the first call;
+    /// later calls return them as built (a system's programs and dimension do not change).
+    fn functions(&self, n: usize, gradient: &Program, hessian: &Program) -> Option<&LaneFunctions> {
+        self.0
+            .get_or_init(|| {
+                let fits = gradient.inputs() == n
+                    && gradient.outputs() == n
+                    && hessian.inputs() == n
+                    && hessian.outputs() == n * n
+                    && gradient.operation_count() + hessian.operation_count() <= MOST_OPERATIONS;
+                let compile = |program| jit::compile_lanes(program, LANES, jit::VECTOR_WIDTH).ok();
+                fits.then(|| {
+                    Some(LaneFunctions {
+                        gradient: compile(gradient)?,
+                        hessian: compile(hessian)?,
+                    })
+                })
+                .flatten()
+            })
+            .as_ref()
     }
 }

@@ -36,6 +36,7 @@ use serde::{Deserialize, Serialize};
 use super::{Builder, ChartInfo, ParamSpec, SystemInfo};
 use crate::error::{CoreError, Field};
 pub use model::CustomModel;
+pub(in crate::systems) use steps::BuiltInSteps;
 
 /// Most coordinates of a user-defined system.
 pub const MAX_COORDINATES: usize = 32;

@@ -5,15 +5,16 @@
 //! caller's vectors, and the few intermediate buffers are on the stack (or, past 8 numbers,
 //! in a buffer kept per thread).
 
-use std::sync::atomic::AtomicU64;
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 
 use nalgebra::allocator::Allocator;
 use nalgebra::{DMatrix, DefaultAllocator, Dim};
 
 use super::buffers::{eval_on_phase, with_buffer, with_phase};
 use super::damping::{Flows, MassFactor};
+pub use super::lanes::LaneCode;
 pub use super::mass::InverseMass;
+pub use super::steps::CompiledSteps;
 use super::DampingKind;
 use crate::expr::CompiledFunction;
 use crate::flows::compiled::{SharedStretch, StretchPlan};
@@ -133,13 +134,11 @@ pub struct Compiled {
     pub damping_derivative: Option<CompiledFunction>,
     /// The invariants, functions of (q, p).
     pub invariants: Option<CompiledFunction>,
-    /// The last compiled stretch and what it was compiled for (the cells of a sweep share it).
-    pub stretch: Mutex<Option<(Vec<u64>, Option<SharedStretch>)>>,
-    /// The same for the plain runs' lanes (a sweep's full groups; its last cells may run
-    /// alone, on `stretch`).
-    pub lanes_stretch: Mutex<Option<(Vec<u64>, Option<SharedStretch>)>>,
-    /// Steps the system's runs took on the generic path while their compiled code was missing.
-    pub generic_steps: AtomicU64,
+    /// ∇V and ∇²V compiled over the SIMD lanes, once the lanes ask for them.
+    pub lane_forces: LaneCode,
+    /// The compiled steps built for it so far (a sweep's full groups run the lanes' stretch;
+    /// its last cells may run alone, on the one-run stretch).
+    pub compiled_steps: CompiledSteps,
 }
 
 /// A user-defined system of dimension `D` (`U1`–`U3` on the stack, `Dyn` beyond).

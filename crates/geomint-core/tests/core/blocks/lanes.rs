@@ -140,10 +140,7 @@ fn a_stopped_lane_ends_with_the_state_of_the_step_before() {
 /// CPU has give the same bits, escaping orbits and the range guard's flags included.
 #[test]
 fn every_build_of_the_step_agrees_bit_for_bit() {
-    let sys = HenonHeiles {
-        lambda: 1.0,
-        gamma: 0.0,
-    };
+    let sys = HenonHeiles::new(1.0, 0.0);
     let identity = [[1.0, 0.0], [0.0, 1.0]];
     let mut start =
         TangentLanes::<2>::new(VELOCITY_VERLET, 0.0, 0.05, identity, 2).expect("kicks and drifts");

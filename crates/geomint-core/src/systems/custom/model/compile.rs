@@ -139,9 +139,8 @@ impl CustomModel {
             damping_matrix,
             damping_derivative,
             invariants,
-            stretch: std::sync::Mutex::new(None),
-            lanes_stretch: std::sync::Mutex::new(None),
-            generic_steps: Default::default(),
+            lane_forces: Default::default(),
+            compiled_steps: Default::default(),
         }))
     }
 

@@ -1,4 +1,5 @@
-//! A typed-in system's stretches of a splitting, compiled with Cranelift: the composer's fused
+//! A system's stretches of a splitting, compiled with Cranelift from its programs (a typed-in
+//! system's, or a built-in one's traced from its code, see `steps.rs`): the composer's fused
 //! stretch (see `flows::compiled`), or its whole steps when the method's last and
 //! first flows do not fuse, as one loop in which the state lives in registers and the
 //! potential's gradient program is written into every kick that evaluates it, where the generic
@@ -98,19 +99,14 @@ impl Layout {
         stride: 1,
     };
 
-    /// The plain runs' lanes. Cranelift lowers f64×2 arithmetic on x86-64 (SSE2, or AVX's
-    /// encodings) and AArch64 (Neon), and vectors no wider than 128 bits; elsewhere the lanes
-    /// are scalars. All the lanes in one call, eight independent chains of vectors: in one build
+    /// The plain runs' lanes, [`jit::VECTOR_WIDTH`] to a vector (f64×2 where Cranelift lowers
+    /// it, scalars elsewhere). All the lanes in one call, eight independent chains of vectors: in one build
     /// of `cargo bench --bench chaos`, the typed-in Hénon–Heiles sweep took 7.2–7.8 ns per
     /// cell-step with them, against 7.6–8.4 with eight lanes to a call and 10.7 with four (the
     /// state spills out of the 16 registers Cranelift allocates either way).
     const LANES: Layout = Layout {
         lanes: LANES,
-        width: if cfg!(any(target_arch = "x86_64", target_arch = "aarch64")) {
-            2
-        } else {
-            1
-        },
+        width: jit::VECTOR_WIDTH,
         stride: LANES,
     };
 
