@@ -134,7 +134,7 @@ impl HenonHeiles {
     /// The system without compiled steps: every step on the generic path (to compare the two).
     pub fn without_compiled_steps(self) -> Self {
         HenonHeiles {
-            code: Arc::new(BuiltInSteps::new(2, None, 2.0 * self.gamma)),
+            code: Arc::new(BuiltInSteps::new(2, None, self.damping_rate())),
             ..self
         }
     }
