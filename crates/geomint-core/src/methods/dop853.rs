@@ -224,3 +224,59 @@ pub const DOP853: EmbeddedTableau = EmbeddedTableau {
         0.220588235294117647058823529412e-1,
     ],
 };
+
+/// A vector a step's stages are made of: the state (the adaptive reference), or the state with
+/// its time (Hénon's step in `sections`).
+pub trait StageVector {
+    /// self ← x.
+    fn assign(&mut self, x: &Self);
+    /// self ← self + x·c, component by component.
+    fn add_scaled(&mut self, x: &Self, c: f64);
+    /// self ← x·c, component by component.
+    fn assign_scaled(&mut self, x: &Self, c: f64);
+}
+
+impl EmbeddedTableau {
+    /// The stages k₂ … k₁₂ of a step of size `h` from `y`, with k₁ in `k[0]` and `field(x, out)`
+    /// writing f(x): stage s is y + Σⱼ (h aₛⱼ) kⱼ, summed left to right over every j < s, the
+    /// zero coefficients included (the adaptive reference reproduces an implementation that adds
+    /// them; a term (h·0)·kⱼ of finite kⱼ can change no more than the sign of a zero).
+    #[inline(always)]
+    pub fn stages<V: StageVector>(
+        &self,
+        y: &V,
+        h: f64,
+        k: &mut [V],
+        stage: &mut V,
+        mut field: impl FnMut(&V, &mut V),
+    ) {
+        for s in 1..self.b.len() {
+            stage.assign(y);
+            let (known, next) = k.split_at_mut(s);
+            for (kj, a) in known.iter().zip(&self.a[s]) {
+                stage.add_scaled(kj, h * a);
+            }
+            field(stage, &mut next[0]);
+        }
+    }
+
+    /// The slope Σ bᵢ kᵢ over the non-zero weights b₁, b₆ … b₁₂ (b₂ … b₅ vanish), summed left
+    /// to right.
+    #[inline(always)]
+    pub fn slope<V: StageVector>(&self, k: &[V], slope: &mut V) {
+        slope.assign_scaled(&k[0], self.b[0]);
+        for (ki, b) in k.iter().zip(&self.b).skip(5) {
+            slope.add_scaled(ki, *b);
+        }
+    }
+
+    /// The third-order error estimate err₃/h = Σ bᵢ kᵢ − bhh₁ k₁ − bhh₂ k₉ − bhh₃ k₁₂, from the
+    /// `slope` Σ bᵢ kᵢ.
+    #[inline(always)]
+    pub fn third_order_error<V: StageVector>(&self, k: &[V], slope: &V, err3: &mut V) {
+        err3.assign(slope);
+        err3.add_scaled(&k[0], -self.bhh[0]);
+        err3.add_scaled(&k[8], -self.bhh[1]);
+        err3.add_scaled(&k[11], -self.bhh[2]);
+    }
+}

@@ -21,7 +21,7 @@ use std::time::Instant;
 use nalgebra::allocator::Allocator;
 use nalgebra::{DefaultAllocator, Dim};
 
-use super::dop853::{EmbeddedTableau, DOP853};
+use super::dop853::{EmbeddedTableau, StageVector, DOP853};
 use super::sources::*;
 use super::{Citation, Group, Kind, MethodInfo, MethodOption, Steps};
 use crate::error::StepError;
@@ -308,19 +308,11 @@ where
         h: f64,
         t: &EmbeddedTableau,
     ) {
-        for s in 1..STAGES {
-            copy(&mut self.stage, y);
-            // Zero coefficients included, as before (see the module docs).
-            for j in 0..s {
-                add_scaled(&mut self.stage, &self.k[j], h * t.a[s][j]);
-            }
-            field(sys, &self.stage, &mut self.k[s], &mut self.scratch);
-        }
-        // Σ bᵢ kᵢ over the non-zero weights b₁, b₆ … b₁₂, summed left to right.
-        scaled(&mut self.slope, &self.k[0], t.b[0]);
-        for i in 5..STAGES {
-            add_scaled(&mut self.slope, &self.k[i], t.b[i]);
-        }
+        let scratch = &mut self.scratch;
+        t.stages(y, h, &mut self.k, &mut self.stage, |x, out| {
+            field(sys, x, out, scratch)
+        });
+        t.slope(&self.k, &mut self.slope);
         copy(&mut self.proposed, y);
         add_scaled(&mut self.proposed, &self.slope, h);
     }
@@ -342,11 +334,7 @@ where
         for i in 5..STAGES {
             add_scaled(&mut self.err5, &self.k[i], t.e[i]);
         }
-        // err₃ = Σ bᵢ kᵢ − bhh₁ k₁ − bhh₂ k₉ − bhh₃ k₁₂.
-        copy(&mut self.err3, &self.slope);
-        add_scaled(&mut self.err3, &self.k[0], -t.bhh[0]);
-        add_scaled(&mut self.err3, &self.k[8], -t.bhh[1]);
-        add_scaled(&mut self.err3, &self.k[11], -t.bhh[2]);
+        t.third_order_error(&self.k, &self.slope, &mut self.err3);
         let (mut e5, mut e3) = (0.0, 0.0);
         let scales = components(y)
             .zip(components(&self.proposed))
@@ -367,17 +355,29 @@ where
     }
 }
 
-/// y ← x·c, component by component.
-#[inline(always)]
-fn scaled<D: Dim>(y: &mut State<D>, x: &State<D>, c: f64)
+impl<D: Dim> StageVector for State<D>
 where
     DefaultAllocator: Allocator<D>,
 {
-    for (y, x) in y.q.iter_mut().zip(x.q.iter()) {
-        *y = *x * c;
+    #[inline(always)]
+    fn assign(&mut self, x: &Self) {
+        copy(self, x);
     }
-    for (y, x) in y.p.iter_mut().zip(x.p.iter()) {
-        *y = *x * c;
+
+    #[inline(always)]
+    fn add_scaled(&mut self, x: &Self, c: f64) {
+        add_scaled(self, x, c);
+    }
+
+    /// y ← x·c, component by component.
+    #[inline(always)]
+    fn assign_scaled(&mut self, x: &Self, c: f64) {
+        for (y, x) in self.q.iter_mut().zip(x.q.iter()) {
+            *y = *x * c;
+        }
+        for (y, x) in self.p.iter_mut().zip(x.p.iter()) {
+            *y = *x * c;
+        }
     }
 }
 

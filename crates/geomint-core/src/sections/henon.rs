@@ -12,7 +12,7 @@ use nalgebra::allocator::Allocator;
 use nalgebra::{DefaultAllocator, Dim};
 
 use super::surface::Surface;
-use crate::methods::dop853::DOP853;
+use crate::methods::dop853::{StageVector, DOP853};
 use crate::system::{MechanicalSystem, State, Vector};
 
 /// The error measure a (sub-)step must meet: relative and absolute, per component.
@@ -44,6 +44,20 @@ where
         }
     }
 
+    fn components(&self) -> impl Iterator<Item = f64> + '_ {
+        self.z
+            .q
+            .iter()
+            .chain(self.z.p.iter())
+            .copied()
+            .chain([self.t])
+    }
+}
+
+impl<D: Dim> StageVector for Point<D>
+where
+    DefaultAllocator: Allocator<D>,
+{
     fn assign(&mut self, other: &Self) {
         copy(&mut self.z, &other.z);
         self.t = other.t;
@@ -56,13 +70,12 @@ where
         self.t += c * x.t;
     }
 
-    fn components(&self) -> impl Iterator<Item = f64> + '_ {
-        self.z
-            .q
-            .iter()
-            .chain(self.z.p.iter())
-            .copied()
-            .chain([self.t])
+    /// self ← c·x.
+    fn assign_scaled(&mut self, x: &Self, c: f64) {
+        self.assign(x);
+        self.z.q *= c;
+        self.z.p *= c;
+        self.t *= c;
     }
 }
 
@@ -224,28 +237,17 @@ where
     ) -> Option<f64> {
         let t = &DOP853;
         let mut ok = self.eval.field(sys, surface, &self.y, &mut self.k[0]);
-        for s in 1..STAGES {
-            self.stage.assign(&self.y);
-            for j in 0..s {
-                if t.a[s][j] != 0.0 {
-                    self.stage.add_scaled(&self.k[j], ds * t.a[s][j]);
-                }
-            }
-            ok &= self.eval.field(sys, surface, &self.stage, &mut self.k[s]);
-        }
-        // The slope Σ bᵢ kᵢ (b₂ … b₅ vanish), and the two embedded error estimates.
-        self.slope.assign(&self.k[0]);
-        scale(&mut self.slope, t.b[0]);
-        self.err5.assign(&self.k[0]);
-        scale(&mut self.err5, t.e[0]);
+        let eval = &mut self.eval;
+        t.stages(&self.y, ds, &mut self.k, &mut self.stage, |x, out| {
+            ok &= eval.field(sys, surface, x, out);
+        });
+        // The slope and the two embedded error estimates; err₅'s weights e₂ … e₅ vanish.
+        t.slope(&self.k, &mut self.slope);
+        self.err5.assign_scaled(&self.k[0], t.e[0]);
         for i in 5..STAGES {
-            self.slope.add_scaled(&self.k[i], t.b[i]);
             self.err5.add_scaled(&self.k[i], t.e[i]);
         }
-        self.err3.assign(&self.slope);
-        self.err3.add_scaled(&self.k[0], -t.bhh[0]);
-        self.err3.add_scaled(&self.k[8], -t.bhh[1]);
-        self.err3.add_scaled(&self.k[11], -t.bhh[2]);
+        t.third_order_error(&self.k, &self.slope, &mut self.err3);
         self.step_start.assign(&self.y);
         self.y.add_scaled(&self.slope, ds);
         let (mut e5, mut e3, mut count) = (0.0, 0.0, 0.0);
@@ -343,14 +345,4 @@ where
 {
     to.q.copy_from(&from.q);
     to.p.copy_from(&from.p);
-}
-
-/// x ← c·x.
-fn scale<D: Dim>(x: &mut Point<D>, c: f64)
-where
-    DefaultAllocator: Allocator<D>,
-{
-    x.z.q *= c;
-    x.z.p *= c;
-    x.t *= c;
 }
