@@ -173,7 +173,9 @@ fn compiled_steps(sys: &AnySystem) -> usize {
         seam: Some((common::H, (1e-3, 0.0))),
     };
     geomint::core::with_system!(sys, s => {
-        usize::from(s.compile_stretch(&plan, COMPILE_AFTER).is_some())
-            + usize::from(s.compile_steps(&RK4, common::H, COMPILE_AFTER).is_some())
+        s.compiled_forces().map_or(0, |forces| {
+            usize::from(forces.stretch(&plan, COMPILE_AFTER).is_some())
+                + usize::from(forces.steps(&RK4, common::H, COMPILE_AFTER).is_some())
+        })
     })
 }

@@ -6,7 +6,7 @@
 //! Everything else (`sin`, `exp`, `pow`, `atan2`, …) is a call to the `extern "C"`
 //! entry points in [`ops`](crate::expr::ops), which run the same Rust code as the
 //! interpreter. An [`Emitter`] also writes programs over vectors of f64 lanes (the compiled
-//! lanes of `systems::custom::stretch`): the same arithmetic lane by lane, a call per lane for
+//! lanes of `flows::compiled`): the same arithmetic lane by lane, a call per lane for
 //! the rest. Where a program takes both the sine and the cosine of one value, one call gives
 //! both ([`entry::sin_cos`], the same bits: a driven system's forcing and its clock's force are
 //! such a pair). Where that value is a function of a driven system's clock alone, the call

@@ -61,9 +61,11 @@ pub(crate) use unroll;
 
 pub mod compiled;
 pub(crate) mod emit;
+mod mass;
 mod number;
 pub mod tableau;
 
+pub use mass::InverseMass;
 pub use number::{Lane, Pack, Real, LANES};
 pub use tableau::Tableau;
 

@@ -185,7 +185,7 @@ where
             }
             let code = self
                 .compiled
-                .get(n, |steps| sys.compile_steps(tableau, h, steps));
+                .get(n, |steps| sys.compiled_forces()?.steps(tableau, h, steps));
             if let Some(code) = code {
                 // The compiled steps keep no force cache: the stage buffer stands in for one.
                 let taken = code.run(

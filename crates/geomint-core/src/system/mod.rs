@@ -336,29 +336,12 @@ where
         None
     }
 
-    /// Native code for the splitting composer's fused stretches of `plan` on this system, if the
-    /// system compiles them (a typed-in system, whose forces the generic path reaches through a
-    /// pointer, or a built-in one whose force is traced into a program); `None` (the default)
-    /// leaves them to the composer. `steps`: the steps the
-    /// asking run took on the generic path since it last asked; a system may build the code only
-    /// once its runs have taken enough of them to pay for it. The code must give the composer's
-    /// bits.
-    fn compile_stretch(
-        &self,
-        _plan: &crate::flows::compiled::StretchPlan,
-        _steps: u64,
-    ) -> Option<crate::flows::compiled::SharedStretch> {
-        None
-    }
-
-    /// Native code for steps of the explicit Runge–Kutta method `tableau` at step `h` on this
-    /// system, as [`compile_stretch`](Self::compile_stretch) for the splittings.
-    fn compile_steps(
-        &self,
-        _tableau: &crate::flows::Tableau,
-        _h: f64,
-        _steps: u64,
-    ) -> Option<crate::flows::compiled::SharedStretch> {
+    /// The system's forces as programs, from which the splittings' and Runge–Kutta methods'
+    /// compiled steps are built (`flows::compiled`), and the cache the system keeps their code
+    /// in: a typed-in system's programs, or a built-in one's force traced into a program.
+    /// `None` (the default) leaves every step to the generic path. The programs must give the
+    /// bits of the system's own functions.
+    fn compiled_forces(&self) -> Option<crate::flows::compiled::CompiledForces<'_>> {
         None
     }
 

@@ -18,8 +18,8 @@ use nalgebra::{DMatrix, U2};
 use super::custom::BuiltInSteps;
 use super::{AnySystem, Builder, ChartInfo, ParamSpec, ParamValues, SystemInfo, World};
 use crate::expr::trace;
-use crate::flows::compiled::{SharedStretch, StretchPlan};
-use crate::flows::{Real, Tableau};
+use crate::flows::compiled::CompiledForces;
+use crate::flows::Real;
 use crate::system::lanes::{damp_each_lane, damp_point, PointForces};
 use crate::system::{Lane, LaneForces, LANES};
 use crate::system::{MechanicalSystem, Structure, Vector};
@@ -90,11 +90,8 @@ impl MechanicalSystem for HenonHeiles {
         out[(1, 1)] = d;
         0
     }
-    fn compile_stretch(&self, plan: &StretchPlan, steps: u64) -> Option<SharedStretch> {
-        self.code.stretch(plan, steps)
-    }
-    fn compile_steps(&self, tableau: &Tableau, h: f64, steps: u64) -> Option<SharedStretch> {
-        self.code.steps(tableau, h, steps)
+    fn compiled_forces(&self) -> Option<CompiledForces<'_>> {
+        self.code.forces()
     }
 }
 
@@ -191,6 +188,14 @@ impl LaneForces<2> for HenonHeiles {
     #[inline(always)]
     fn damp_lanes(&self, q: &[Lane; 2], p: &mut [Lane; 2], tau: f64, c: &Lane) {
         damp_each_lane(|_| self, q, p, tau, c);
+    }
+
+    fn compiled_forces_in_lanes(&self) -> Option<CompiledForces<'_>> {
+        self.compiled_forces()
+    }
+
+    fn single_steps_compiled(&self) -> bool {
+        false
     }
 }
 

@@ -1,4 +1,5 @@
-//! A typed-in system's compiled steps give the generic steppers' bits (the splitting composer's
+//! A typed-in system's compiled steps, and the built-in Hénon–Heiles system's, give the generic
+//! steppers' bits (the splitting composer's
 //! fused stretches, Runge–Kutta steps): every sample, the force evaluations and how the run
 //! stopped, over systems with each form of mass, undamped, with conformal damping and with a
 //! projector damping, driven or not, for the splittings and compositions the stretches take, with
@@ -19,7 +20,9 @@ use geomint_core::run::{Budget, RunEnd};
 use geomint_core::simulation::{Limits, Sample, SampleSink, Simulation, SimulationSpec};
 use geomint_core::system::{Lane, LaneForces, MechanicalSystem};
 use geomint_core::systems::custom::{self, CustomDefinition, Damping, Energy, Mass};
-use geomint_core::systems::{AnySystem, CustomSystem, ParamValue, SystemInfo, SystemRef};
+use geomint_core::systems::{
+    AnySystem, CustomSystem, HenonHeiles, ParamValue, SystemInfo, SystemRef,
+};
 
 use crate::chaos_map::expr;
 
@@ -395,7 +398,9 @@ fn the_stretches_are_compiled_for_what_they_take() {
             h: 0.1,
             seam,
         };
-        sys.compile_stretch(&plan, COMPILE_AFTER).is_some()
+        sys.compiled_forces()
+            .and_then(|forces| forces.stretch(&plan, COMPILE_AFTER))
+            .is_some()
     }
     let fused = Some((0.1, (0.0, 0.0)));
     let damped = pendulum(Some(0.05));
@@ -432,8 +437,8 @@ fn two_coordinates(info: &Arc<SystemInfo>, method: MethodId) -> CustomSystem<nal
 
 /// The plain runs' 16 lanes side by side, `steps` steps in stretches of `every`: after each stretch the
 /// lanes that ended, and the running lanes' states and the force count, as bits.
-fn lanes_run(
-    sys: &CustomSystem<nalgebra::U2>,
+fn lanes_run<S: LaneForces<2>>(
+    sys: &S,
     flows: &[(SubFlow, f64)],
     rate: f64,
     h: f64,
@@ -556,6 +561,54 @@ fn compiled_lanes_give_the_generic_lanes_bits() {
                 compiled == generic,
                 "{flows:?} every {every}: the compiled lanes differ from the generic ones"
             );
+        }
+    }
+}
+
+/// The built-in Hénon–Heiles system's plain runs in lanes take stretches compiled from its traced
+/// force too, with the generic lanes' bits: the cases of the typed-in test above (lanes 1, 6 and
+/// 11 escape and blow up inside a stretch) for couplings λ = 1, −0.7 and ½, undamped and damped,
+/// in stretches of 37 and 1000 steps (its single steps stay on the generic lanes, which inline
+/// its force).
+#[test]
+fn the_built_in_henon_heiles_compiled_lanes_give_the_generic_lanes_bits() {
+    let starts: [([f64; 2], [f64; 2]); LANES] = std::array::from_fn(|l| match l {
+        1 | 6 | 11 => ([0.0, -1.0], [2.0, 2.0 + l as f64 / 10.0]),
+        _ => {
+            let s = l as f64 / LANES as f64 - 0.5;
+            ([0.4 * s, -0.3 * s], [0.2 - 0.1 * s, 0.3 * s])
+        }
+    });
+    for lambda in [1.0, -0.7, 0.5] {
+        for gamma in [0.0, 0.05] {
+            let sys = HenonHeiles::new(lambda, gamma);
+            let generic = sys.clone().without_compiled_steps();
+            let rate = sys.damping_rate();
+            let mut methods = vec![MODIN_3S, CSV1];
+            if gamma == 0.0 {
+                methods.extend([VELOCITY_VERLET, POSITION_VERLET]);
+            }
+            for flows in methods {
+                for every in [37, 1000] {
+                    let steps = (COMPILE_AFTER + 10_000) / every * every;
+                    let h = 0.05;
+                    lanes_run(&sys, flows, rate, h, &starts, (steps, every));
+                    let compiled = lanes_run(&sys, flows, rate, h, &starts, (steps, every));
+                    let built = sys
+                        .compiled_forces()
+                        .is_some_and(|forces| forces.code.lanes_built());
+                    assert!(
+                        built,
+                        "λ = {lambda}, γ = {gamma}, {flows:?}: no compiled lanes"
+                    );
+                    let generic = lanes_run(&generic, flows, rate, h, &starts, (steps, every));
+                    assert!(
+                        compiled == generic,
+                        "λ = {lambda}, γ = {gamma}, {flows:?} every {every}: the compiled lanes \
+                         differ from the generic ones"
+                    );
+                }
+            }
         }
     }
 }

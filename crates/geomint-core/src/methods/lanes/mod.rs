@@ -18,7 +18,9 @@
 //!   operations (drift, force, kick) has several registers of independent work to overlap.
 //! - [`runs`]: plain runs (no deviation vectors) of compositions of kicks, drifts and exact
 //!   damping flows, sixteen side by side, as the one-run stepper takes its stretches; with one
-//!   system per lane (`system::lanes::EachLane`) for sweeps over parameters and the step.
+//!   system per lane (`system::lanes::EachLane`) for sweeps over parameters and the step. A
+//!   system with compiled steps runs its stretches through code compiled for the lanes instead
+//!   (f64×2 vectors, whatever the CPU), with the same bits.
 
 pub mod runs;
 pub mod tangent;

@@ -12,9 +12,9 @@
 //! composer's arithmetic in its order, and the force is evaluated again only after a drift (the
 //! composer's force cache), so the evaluations count the same.
 //!
-//! A system that compiles its lanes' stretches ([`LaneForces::compile_lanes`]: a typed-in
-//! system, for the plans its one-run stretches take) runs them through that code once it has
-//! it, with the same bits: the force is then written into the step instead of called lane by
+//! A system with compiled steps ([`LaneForces::compiled_forces_in_lanes`]: a typed-in system,
+//! or the built-in Hénon–Heiles system, for the plans their one-run stretches take) runs the lanes'
+//! stretches through code compiled for them once it has it, with the same bits: the force is then written into the step instead of called lane by
 //! lane through a pointer.
 
 // Lanes and components are indexed side by side: loops over lane numbers are the form the
@@ -78,8 +78,8 @@ pub struct RunLanes<const N: usize> {
     decay: Vec<Lane>,
     phase: Phase<N>,
     isa: Isa,
-    /// The one-run composer's plan of the same flows, for a system that compiles the lanes'
-    /// stretches ([`LaneForces::compile_lanes`]); `None` when the lanes' rates differ (their
+    /// The one-run composer's plan of the same flows, for a system with compiled steps
+    /// ([`LaneForces::compiled_forces_in_lanes`]); `None` when the lanes' rates differ (their
     /// systems differ then).
     plan: Option<Plan>,
     compiled: LazyCode,
@@ -231,14 +231,15 @@ impl<const N: usize> RunLanes<N> {
     /// here too, although the copy in and out was then a cost the generic lanes, which work in
     /// place, did not have: with the lanes in f64×2 vectors the typed-in Hénon–Heiles sweep
     /// sampled every step took 24.6–25.3 ns per cell-step so, against 28.3–28.4 on the generic
-    /// lanes (with scalar compiled lanes it was 33.9 against 31.2).
+    /// lanes (with scalar compiled lanes it was 33.9 against 31.2). A system whose generic lanes
+    /// inline its force keeps its single steps there ([`LaneForces::single_steps_compiled`]).
     fn advance_compiled<S: LaneForces<N>>(
         &mut self,
         sys: &S,
         n: u64,
         watched: &[bool; LANES],
     ) -> Option<Ended> {
-        if n == 0 {
+        if n == 0 || (n == 1 && !sys.single_steps_compiled()) {
             return None;
         }
         let plan = self.plan.as_ref()?;
@@ -248,9 +249,10 @@ impl<const N: usize> RunLanes<N> {
             h: plan.h,
             seam: plan.seam,
         };
-        let code = self
-            .compiled
-            .get(n, |steps| sys.compile_lanes(&stretch, steps))?;
+        let code = self.compiled.get(n, |steps| {
+            sys.compiled_forces_in_lanes()?
+                .lanes_stretch(&stretch, steps)
+        })?;
         let run = |phase: &mut Phase<N>| {
             code.run_lanes(
                 phase.q.as_flattened_mut(),

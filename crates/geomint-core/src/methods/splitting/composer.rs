@@ -131,7 +131,7 @@ where
         };
         let code = self
             .compiled
-            .get(n, |steps| sys.compile_stretch(&plan, steps))?;
+            .get(n, |steps| sys.compiled_forces()?.stretch(&plan, steps))?;
         let work = &mut self.work;
         let start = work.keep_start(z);
         let taken = code.run(

@@ -17,15 +17,19 @@ use nalgebra::{U1, U2, U3};
 use super::system::{CustomSystem, DampingModel, EnergyModel, InverseMass};
 use crate::expr::jit::{self, JitFunction};
 use crate::expr::program::Program;
-use crate::flows::compiled::{SharedStretch, StretchPlan};
+use crate::flows::compiled::CompiledForces;
 use crate::system::lanes::{damp_each_lane, damp_point, PointForces};
-use crate::system::{Lane, LaneForces, LANES};
+use crate::system::{Lane, LaneForces, MechanicalSystem, LANES};
 
 macro_rules! lane_forces {
     ($($dim:ty => $n:literal),*) => {$(
         impl LaneForces<$n> for CustomSystem<$dim> {
             fn in_lanes(&self) -> bool {
                 matches!(self.model().energy, EnergyModel::Separable { .. })
+            }
+
+            fn compiled_forces_in_lanes(&self) -> Option<CompiledForces<'_>> {
+                self.compiled_forces()
             }
 
             #[inline(always)]
@@ -137,10 +141,6 @@ macro_rules! lane_forces {
                         p[i][l] = minus_c * p[i][l] + p[i][l];
                     }
                 }
-            }
-
-            fn compile_lanes(&self, plan: &StretchPlan, steps: u64) -> Option<SharedStretch> {
-                self.compiled_lanes(plan, steps)
             }
         }
 

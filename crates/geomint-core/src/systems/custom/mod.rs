@@ -15,8 +15,8 @@
 //! positive definite, a damping matrix that is symmetric and positive semidefinite at sample
 //! points). A run then compiles the model for its parameter values ([`model::CustomModel`]'s
 //! `instantiate`), parameters folded into the machine code.
-//! Its long runs then compile whole stretches of splitting steps and Runge–Kutta steps too
-//! (`stretch/`, kept per system by `steps.rs`), with the generic steppers' bits.
+//! Its long runs then run whole stretches of splitting steps and Runge–Kutta steps compiled from
+//! its programs (`flows::compiled`, given by `steps.rs`), with the generic steppers' bits.
 
 mod buffers;
 pub mod damping;
@@ -25,7 +25,6 @@ mod mass;
 pub mod model;
 mod shapes;
 mod steps;
-mod stretch;
 pub mod system;
 
 use std::borrow::Cow;

@@ -14,11 +14,10 @@ use super::buffers::{eval_on_phase, with_buffer, with_phase};
 use super::damping::{Flows, MassFactor};
 pub use super::lanes::LaneCode;
 pub use super::mass::InverseMass;
-pub use super::steps::CompiledSteps;
 use super::DampingKind;
 use crate::expr::CompiledFunction;
-use crate::flows::compiled::{SharedStretch, StretchPlan};
-use crate::flows::Tableau;
+use crate::flows::compiled::CompiledForces;
+pub use crate::flows::compiled::CompiledSteps;
 use crate::system::{projector, MechanicalSystem, Structure, Vector};
 
 /// The energy's compiled functions.
@@ -166,13 +165,6 @@ impl<D: Dim> CustomSystem<D> {
     pub fn without_compiled_stretches(mut self) -> Self {
         self.stretches = false;
         self
-    }
-
-    /// The plain runs' compiled stretch of `plan` in lanes (see `LaneForces::compile_lanes`).
-    pub(super) fn compiled_lanes(&self, plan: &StretchPlan, steps: u64) -> Option<SharedStretch> {
-        self.stretches
-            .then(|| self.model.lanes_stretch(plan, steps))
-            .flatten()
     }
 
     /// The compiled model.
@@ -466,15 +458,9 @@ where
         self.model.clock
     }
 
-    fn compile_stretch(&self, plan: &StretchPlan, steps: u64) -> Option<SharedStretch> {
+    fn compiled_forces(&self) -> Option<CompiledForces<'_>> {
         self.stretches
-            .then(|| self.model.stretch(plan, steps))
-            .flatten()
-    }
-
-    fn compile_steps(&self, tableau: &Tableau, h: f64, steps: u64) -> Option<SharedStretch> {
-        self.stretches
-            .then(|| self.model.steps(tableau, h, steps))
+            .then(|| self.model.compiled_forces())
             .flatten()
     }
 

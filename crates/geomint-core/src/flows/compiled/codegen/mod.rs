@@ -1,9 +1,10 @@
-//! A system's stretches of a splitting, compiled with Cranelift from its programs (a typed-in
-//! system's, or a built-in one's traced from its code, see `steps.rs`): the composer's fused
-//! stretch (see `flows::compiled`), or its whole steps when the method's last and
-//! first flows do not fuse, as one loop in which the state lives in registers and the
-//! potential's gradient program is written into every kick that evaluates it, where the generic
-//! path calls the compiled gradient through a pointer at each.
+//! The compiled steps' code generator: a system's stretches of a splitting, compiled with
+//! Cranelift from its programs ([`ForcePrograms`]: a typed-in system's, or a built-in one's
+//! traced from its code): the composer's fused stretch (see `flows::compiled`), or its whole
+//! steps when the method's last and first flows do not fuse, as one loop in which the state
+//! lives in registers and the potential's gradient program is written into every kick that
+//! evaluates it (where a typed-in system's generic path calls its compiled gradient through a
+//! pointer at each).
 //!
 //! Taken: separable systems (constant mass in any of its forms) without damping, with conformal
 //! damping or with a projector damping r D(q) p, and sequences of drifts, kicks and damping flows
@@ -33,19 +34,18 @@ use cranelift_codegen::ir::{
 use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext, Variable};
 use cranelift_module::Module;
 
-use super::mass::InverseMass;
+use super::{CompiledStretch, StretchFn, StretchPlan};
 use crate::expr::jit::{self, Emitter, OwnedModule};
 use crate::expr::program::Program;
-use crate::flows::compiled::{CompiledStretch, StretchFn, StretchPlan};
-use crate::flows::SubFlow;
-use crate::flows::Tableau;
-use crate::system::LANES;
+use crate::flows::{InverseMass, SubFlow, Tableau, LANES};
 
 mod runge_kutta;
 mod splitting;
 
-/// The parts of a system a stretch needs.
-pub(super) struct Parts<'a> {
+/// What compiled steps take from a system: its forces as programs of q, its mass and its
+/// damping. A typed-in system gives its own programs, a built-in one its force traced from its
+/// code (`expr::trace`).
+pub struct ForcePrograms<'a> {
     /// Coordinates, a driven system's clock among them.
     pub n: usize,
     /// A driven system's clock, the last coordinate: its velocity ∂H̃/∂p_t is 1, and M⁻¹ acts
@@ -63,7 +63,10 @@ pub(super) struct Parts<'a> {
 }
 
 /// Compiles `plan` for the system of `parts`, or says why not (a flow it does not take).
-pub(super) fn compile(plan: &StretchPlan, parts: &Parts) -> Result<CompiledStretch, String> {
+pub(super) fn compile(
+    plan: &StretchPlan,
+    parts: &ForcePrograms,
+) -> Result<CompiledStretch, String> {
     check(plan, parts)?;
     build(parts, Layout::ONE_RUN, |s| s.splitting(plan))
 }
@@ -75,7 +78,10 @@ pub(super) fn compile(plan: &StretchPlan, parts: &Parts) -> Result<CompiledStret
 /// [`Layout::LANES`]'s lanes from the arrays' starts (all of them); every lane takes all n
 /// steps, and the code returns the mask of the lanes whose state did not sum to a finite number
 /// after some step (bit l for lane l), which the lanes' engine runs again step by step.
-pub(super) fn compile_lanes(plan: &StretchPlan, parts: &Parts) -> Result<CompiledStretch, String> {
+pub(super) fn compile_lanes(
+    plan: &StretchPlan,
+    parts: &ForcePrograms,
+) -> Result<CompiledStretch, String> {
     check(plan, parts)?;
     build(parts, Layout::LANES, |s| s.splitting(plan))
 }
@@ -129,7 +135,7 @@ impl Layout {
 }
 
 /// Whether the stretches take `plan` on the system of `parts`.
-fn check(plan: &StretchPlan, parts: &Parts) -> Result<(), String> {
+fn check(plan: &StretchPlan, parts: &ForcePrograms) -> Result<(), String> {
     let taken = plan
         .flows
         .iter()
@@ -143,7 +149,7 @@ fn check(plan: &StretchPlan, parts: &Parts) -> Result<(), String> {
 /// The flow a stretch writes for `flow`, if it takes it: a θ-kick of an undamped system is the
 /// plain kick (`flows::kick_theta` with r = 0 is `flows::kick`, operation for operation), so
 /// the Verlets, symplectic Euler and their compositions compile when nothing damps.
-fn kind(flow: SubFlow, parts: &Parts) -> Option<SubFlow> {
+fn kind(flow: SubFlow, parts: &ForcePrograms) -> Option<SubFlow> {
     match flow {
         SubFlow::Drift | SubFlow::Kick | SubFlow::Damp => Some(flow),
         SubFlow::DampedKick(_) if parts.rate == 0.0 => Some(SubFlow::Kick),
@@ -159,7 +165,7 @@ fn kind(flow: SubFlow, parts: &Parts) -> Option<SubFlow> {
 pub(super) fn compile_runge_kutta(
     tableau: &Tableau,
     h: f64,
-    parts: &Parts,
+    parts: &ForcePrograms,
 ) -> Result<CompiledStretch, String> {
     if parts.clock.is_some() {
         return Err("a driven system's Runge–Kutta steps are the stepper's".into());
@@ -169,7 +175,7 @@ pub(super) fn compile_runge_kutta(
 
 /// A function of [`StretchFn`]'s signature over the runs of `layout` whose loop `body` writes.
 fn build(
-    parts: &Parts,
+    parts: &ForcePrograms,
     layout: Layout,
     body: impl FnOnce(&mut Stretch) -> Result<(), String>,
 ) -> Result<CompiledStretch, String> {
@@ -211,7 +217,7 @@ fn build(
 /// The function being built: its arguments and the variables that hold the state.
 struct Stretch<'a, 'b> {
     b: &'a mut FunctionBuilder<'b>,
-    parts: &'a Parts<'a>,
+    parts: &'a ForcePrograms<'a>,
     emitter: Emitter,
     args: [Value; 5],
     /// The value being written (a lane, or `layout.width` of them): its positions, momenta and
@@ -244,7 +250,7 @@ impl<'a, 'b> Stretch<'a, 'b> {
     /// The entry block: the state, the force cache and the counters loaded into variables.
     fn new(
         b: &'a mut FunctionBuilder<'b>,
-        parts: &'a Parts<'a>,
+        parts: &'a ForcePrograms<'a>,
         layout: Layout,
         emitter: Emitter,
     ) -> Result<Self, String> {

@@ -1,10 +1,12 @@
-//! Stretches of steps compiled to native code by the system that runs them: the splitting
+//! Stretches of steps compiled to native code for the system that runs them: the splitting
 //! composer's fused stretch between two samples (see `Splitting::advance`), or a Runge–Kutta
 //! method's steps, as one function with the system's forces written into the step rather than
-//! called through a pointer. A typed-in system compiles them (`systems::custom::stretch`), for
-//! one run and for the plain runs' lanes (`methods::lanes::runs`); so does the built-in
-//! Hénon–Heiles system for one run, from its force traced into a program (`expr::trace`). The
-//! other built-in systems run the generic steps, compiled with the program.
+//! called through a pointer. The methods build them (`codegen`), for one run and for the plain
+//! runs' lanes (`methods::lanes::runs`), from what a system gives
+//! (`MechanicalSystem::compiled_forces`): its forces as programs ([`ForcePrograms`]) and the
+//! cache its code is kept in ([`CompiledSteps`]). A typed-in system gives the programs it was
+//! compiled from; the built-in Hénon–Heiles system its force traced into a program
+//! (`expr::trace`). The other built-in systems run the generic steps, compiled with the program.
 //!
 //! The compiled code does the stepper's arithmetic operation for operation (each `axpy` as a
 //! product and a sum, no fused multiply-add, the force cache and its count), so it gives the
@@ -17,6 +19,12 @@ use std::sync::Arc;
 use super::SubFlow;
 use super::LANES;
 use crate::expr::jit::OwnedModule;
+
+mod cache;
+mod codegen;
+
+pub use cache::{CompiledForces, CompiledSteps};
+pub use codegen::ForcePrograms;
 
 /// What a stretch does: the flows of one step with their fractions of h, the per-flow
 /// coefficients for h (the damping's c = 1 − e^{−rτ}, and d), and the seam that fuses the last
