@@ -19,13 +19,13 @@ use common::{measure, measure_step_by_step};
 /// Wall time of 400×400 stability maps (ω = 3.51, γ ∈ [0, 3.5], h ∈ [0, 1]) for every
 /// fixed-step method, computed in parallel over the cores.
 fn stability_maps() {
-    use geomint::core::stability::{check_map, map, Axis};
-    let gamma = Axis {
+    use geomint::core::stability::{check_map, map, StabilityAxis};
+    let gamma = StabilityAxis {
         min: 0.0,
         max: 3.5,
         n: 400,
     };
-    let h = Axis {
+    let h = StabilityAxis {
         min: 0.0,
         max: 1.0,
         n: 400,

@@ -8,7 +8,7 @@ use crate::decoded;
 use crate::server;
 use decoded::Decoded;
 use geomint::core::methods::{Base, Method, MethodId};
-use geomint::core::stability::{self, Axis, Relation};
+use geomint::core::stability::{self, Relation, StabilityAxis};
 use rerun::components::{ImageBuffer, TensorData};
 use rerun::external::re_sdk_types::datatypes::TensorBuffer;
 use rerun::{SegmentationImage, Tensor};
@@ -60,7 +60,7 @@ pub(crate) async fn post_error(
     (status, error)
 }
 
-pub(crate) fn axis_json(a: Axis) -> Value {
+pub(crate) fn axis_json(a: StabilityAxis) -> Value {
     json!({"min": a.min, "max": a.max, "n": a.n})
 }
 
@@ -79,12 +79,12 @@ async fn maps_are_rows_by_columns_and_equal_the_core_bit_for_bit() {
     let server = start(config()).await;
     // Not square, so that a transposition shows; csv2 is undefined at γh = 2, which this grid
     // hits at (γ, h) = (4, 0.5) and (2, 1).
-    let gamma = Axis {
+    let gamma = StabilityAxis {
         min: 0.0,
         max: 4.0,
         n: 9,
     };
-    let h = Axis {
+    let h = StabilityAxis {
         min: 0.0,
         max: 1.0,
         n: 5,

@@ -222,14 +222,14 @@ fn the_processor_option_parses_defaults_to_cheap_and_is_checked() {
 
 #[test]
 fn stability_maps_of_rowlands_need_an_undamped_axis() {
-    use geomint::core::stability::{map, Axis};
+    use geomint::core::stability::{map, StabilityAxis};
     let rowlands = Method::new(MethodId::Rowlands);
-    let h = Axis {
+    let h = StabilityAxis {
         min: 0.0,
         max: 1.0,
         n: 5,
     };
-    let damped = Axis {
+    let damped = StabilityAxis {
         min: 0.0,
         max: 1.0,
         n: 3,
@@ -238,7 +238,7 @@ fn stability_maps_of_rowlands_need_an_undamped_axis() {
         map(&rowlands, 2.0, damped, h),
         Err(CoreError::Unmet { .. })
     ));
-    let undamped = Axis {
+    let undamped = StabilityAxis {
         min: 0.0,
         max: 0.0,
         n: 2,

@@ -12,7 +12,7 @@ use super::method::{read_method, read_methods, MethodSpec};
 use crate::core::error::{CoreError, ErrorDetail, Field};
 use crate::core::methods::MethodId;
 use crate::core::simulation::MethodAt;
-use crate::core::stability::{Axis, MAX_AXIS_POINTS};
+use crate::core::stability::{StabilityAxis, MAX_AXIS_POINTS};
 use crate::core::studies::stability::{PointSpec, StabilitySpec, NO_PROPAGATION_MATRIX};
 
 /// The fields of [`StabilityRequest`], as the reader accepts them.
@@ -41,9 +41,9 @@ pub struct StabilityRequest {
     #[schema(example = 3.51, exclusive_minimum = 0.0)]
     pub omega: f64,
     /// The damping rates γ: the columns of each map.
-    pub gamma: Axis,
+    pub gamma: StabilityAxis,
     /// The step sizes h: the rows of each map.
-    pub h: Axis,
+    pub h: StabilityAxis,
 }
 
 /// A request for the stability analysis of one method at one (ω, γ, h).
@@ -82,7 +82,7 @@ fn fixed_step(spec: &MethodSpec, field: &Field) -> Result<MethodAt, ErrorDetail>
 }
 
 /// Reads the axis `field`.
-fn axis(v: &Value, field: &Field) -> Result<Axis, ErrorDetail> {
+fn axis(v: &Value, field: &Field) -> Result<StabilityAxis, ErrorDetail> {
     let o = Obj::new(v, field.clone(), AXIS_FIELDS)?;
     let min = o.required("min", "the first value", json::number)?;
     let max = o.required("max", "the last value", json::number)?;
@@ -93,7 +93,7 @@ fn axis(v: &Value, field: &Field) -> Result<Axis, ErrorDetail> {
             &format!("a whole number of points (2 to {MAX_AXIS_POINTS})"),
         )
     })?;
-    Ok(Axis {
+    Ok(StabilityAxis {
         min,
         max,
         n: usize::try_from(n).unwrap_or(usize::MAX),
@@ -101,7 +101,7 @@ fn axis(v: &Value, field: &Field) -> Result<Axis, ErrorDetail> {
 }
 
 /// Reads the axis `name` of `obj`.
-fn required_axis(obj: &Obj<'_>, name: &str) -> Result<Axis, ErrorDetail> {
+fn required_axis(obj: &Obj<'_>, name: &str) -> Result<StabilityAxis, ErrorDetail> {
     match obj.get(name) {
         Some(v) => axis(v, &obj.field(name)),
         None => Err(missing(

@@ -177,7 +177,7 @@ pub fn analyse(
 #[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 #[serde(deny_unknown_fields)]
 #[cfg_attr(feature = "openapi", schema(as = AxisSpec))]
-pub struct Axis {
+pub struct StabilityAxis {
     /// First value (≥ 0).
     #[cfg_attr(feature = "openapi", schema(example = 0.0, minimum = 0.0))]
     pub min: f64,
@@ -189,7 +189,7 @@ pub struct Axis {
     pub n: usize,
 }
 
-impl Axis {
+impl StabilityAxis {
     /// The k-th value.
     pub fn at(&self, k: usize) -> f64 {
         self.min + (self.max - self.min) * k as f64 / (self.n - 1) as f64
@@ -273,9 +273,9 @@ pub struct StabilityMap {
     /// ω.
     pub omega: f64,
     /// The γ axis (columns).
-    pub gamma: Axis,
+    pub gamma: StabilityAxis,
     /// The h axis (rows).
-    pub h: Axis,
+    pub h: StabilityAxis,
     /// Spectral radius per cell, row-major (h rows × γ columns); NaN where the step fails.
     pub spectral_radius: Vec<f64>,
     /// Numerical stability per cell.
@@ -297,7 +297,12 @@ pub struct StabilityMap {
 pub const MAX_AXIS_POINTS: usize = 1000;
 
 /// The stability map of `choice` over the grid, computed in parallel over rows.
-pub fn map(choice: &Method, omega: f64, gamma: Axis, h: Axis) -> Result<StabilityMap, CoreError> {
+pub fn map(
+    choice: &Method,
+    omega: f64,
+    gamma: StabilityAxis,
+    h: StabilityAxis,
+) -> Result<StabilityMap, CoreError> {
     check_map(choice, omega, gamma, h)?;
     let radius: Vec<f64> = (0..h.n)
         .into_par_iter()
@@ -307,7 +312,12 @@ pub fn map(choice: &Method, omega: f64, gamma: Axis, h: Axis) -> Result<Stabilit
 }
 
 /// Checks a map's axes, ω, and the method against the most damped oscillator of the map.
-pub fn check_map(choice: &Method, omega: f64, gamma: Axis, h: Axis) -> Result<(), CoreError> {
+pub fn check_map(
+    choice: &Method,
+    omega: f64,
+    gamma: StabilityAxis,
+    h: StabilityAxis,
+) -> Result<(), CoreError> {
     gamma.check(&Field::new("gamma"), MAX_AXIS_POINTS)?;
     h.check(&Field::new("h"), MAX_AXIS_POINTS)?;
     check_point(omega, 0.0, 1.0)?;
@@ -326,7 +336,7 @@ pub fn check_map(choice: &Method, omega: f64, gamma: Axis, h: Axis) -> Result<()
 
 /// One row of a map: the spectral radius at each γ of the axis for the step `hv`; NaN where the
 /// step fails. A zero step is the identity: stable, without stepping.
-pub fn map_row(choice: &Method, omega: f64, gamma: Axis, hv: f64) -> Vec<f64> {
+pub fn map_row(choice: &Method, omega: f64, gamma: StabilityAxis, hv: f64) -> Vec<f64> {
     (0..gamma.n)
         .map(|col| {
             if hv == 0.0 {
@@ -344,8 +354,8 @@ pub fn map_row(choice: &Method, omega: f64, gamma: Axis, hv: f64) -> Vec<f64> {
 pub fn map_of_rows(
     choice: &Method,
     omega: f64,
-    gamma: Axis,
-    h: Axis,
+    gamma: StabilityAxis,
+    h: StabilityAxis,
     radius: Vec<f64>,
 ) -> StabilityMap {
     let stable: Vec<bool> = radius.iter().map(|&r| r <= 1.0 + 1e-12).collect();

@@ -14,7 +14,8 @@ use crate::methods::{Method, MethodId};
 use crate::run::Budget;
 use crate::simulation::MethodAt;
 use crate::stability::{
-    self, Axis, Eigenvalue, PointAnalysis, Relation, Spectrum, StabilityMap, MAX_AXIS_POINTS,
+    self, Eigenvalue, PointAnalysis, Relation, Spectrum, StabilityAxis, StabilityMap,
+    MAX_AXIS_POINTS,
 };
 use crate::studies::engine::{self, Executor, Finished, Study};
 use crate::studies::parts::{Part, ShardAt, Travelling};
@@ -36,9 +37,9 @@ pub struct StabilitySpec {
     /// ω.
     pub omega: f64,
     /// The γ axis (columns).
-    pub gamma: Axis,
+    pub gamma: StabilityAxis,
     /// The h axis (rows).
-    pub h: Axis,
+    pub h: StabilityAxis,
 }
 
 /// The analysis at one point as asked for.
@@ -64,9 +65,9 @@ pub struct StabilityJob {
     /// ω.
     pub omega: f64,
     /// The γ axis (columns).
-    pub gamma: Axis,
+    pub gamma: StabilityAxis,
     /// The h axis (rows).
-    pub h: Axis,
+    pub h: StabilityAxis,
 }
 
 impl StabilityJob {
@@ -173,9 +174,9 @@ pub struct StabilityDocument {
     /// ω.
     pub omega: f64,
     /// The γ axis: the columns of every map.
-    pub gamma: Axis,
+    pub gamma: StabilityAxis,
     /// The h axis: the rows of every map.
-    pub h: Axis,
+    pub h: StabilityAxis,
     /// One map per method, in the order asked: all of them, or those finished before the time
     /// limit.
     pub maps: Vec<MapDocument>,

@@ -1,7 +1,7 @@
 //! Linear stability analysis on the damped oscillator (paper 003 Ch. 3) for every method.
 
 use geomint_core::methods::{Method, MethodId};
-use geomint_core::stability::{self, Axis, Relation};
+use geomint_core::stability::{self, Relation, StabilityAxis};
 
 fn conformal() -> Vec<Method> {
     [
@@ -54,12 +54,12 @@ fn runge_kutta_methods_do_not_have_the_conformal_determinant() {
         let m = stability::map(
             &choice,
             3.51,
-            Axis {
+            StabilityAxis {
                 min: 0.0,
                 max: 3.5,
                 n: 20,
             },
-            Axis {
+            StabilityAxis {
                 min: 0.0,
                 max: 1.0,
                 n: 20,
@@ -106,12 +106,12 @@ fn cimp_is_stable_wherever_omega_exceeds_gamma() {
     let m = stability::map(
         &Method::new(MethodId::Cimp),
         3.51,
-        Axis {
+        StabilityAxis {
             min: 0.0,
             max: 3.5,
             n: 100,
         },
-        Axis {
+        StabilityAxis {
             min: 0.0,
             max: 1.0,
             n: 100,
@@ -128,12 +128,12 @@ fn cimp_is_stable_wherever_omega_exceeds_gamma() {
 
 #[test]
 fn numerical_maps_agree_with_the_corrected_relations_not_the_printed_ones() {
-    let gamma = Axis {
+    let gamma = StabilityAxis {
         min: 0.0,
         max: 3.5,
         n: 100,
     };
-    let h = Axis {
+    let h = StabilityAxis {
         min: 0.0,
         max: 1.0,
         n: 100,
@@ -181,17 +181,17 @@ fn half_trace_error_orders() {
 #[test]
 fn maps_reject_bad_grids() {
     let c = Method::new(MethodId::Csv1);
-    let ok = Axis {
+    let ok = StabilityAxis {
         min: 0.0,
         max: 1.0,
         n: 10,
     };
-    assert!(stability::map(&c, 3.51, Axis { n: 1, ..ok }, ok).is_err());
+    assert!(stability::map(&c, 3.51, StabilityAxis { n: 1, ..ok }, ok).is_err());
     assert!(stability::map(
         &c,
         3.51,
         ok,
-        Axis {
+        StabilityAxis {
             min: 1.0,
             max: 0.0,
             n: 10
@@ -199,5 +199,5 @@ fn maps_reject_bad_grids() {
     )
     .is_err());
     assert!(stability::map(&c, -1.0, ok, ok).is_err());
-    assert!(stability::map(&c, 3.51, Axis { n: 100_000, ..ok }, ok).is_err());
+    assert!(stability::map(&c, 3.51, StabilityAxis { n: 100_000, ..ok }, ok).is_err());
 }

@@ -65,7 +65,7 @@ enum Flow {
 /// lanes whose state is not finite (its components do not sum to a finite number, the one-run
 /// path's test) and those with a deviation vector out of range.
 #[derive(Clone, Copy, Debug)]
-pub struct Advanced {
+pub struct TangentEnded {
     /// Steps taken.
     pub steps: u64,
     /// Per lane: the state's components do not sum to a finite number.
@@ -151,7 +151,7 @@ impl<const N: usize> TangentLanes<N> {
         sys: &S,
         steps: u64,
         watched: &[bool; LANES],
-    ) -> Advanced {
+    ) -> TangentEnded {
         match self.isa {
             // SAFETY: the CPU supports AVX-512F, detected when the lanes were made.
             #[cfg(target_arch = "x86_64")]
@@ -171,7 +171,7 @@ impl<const N: usize> TangentLanes<N> {
         sys: &S,
         steps: u64,
         watched: &[bool; LANES],
-    ) -> Advanced {
+    ) -> TangentEnded {
         self.advance_portable(sys, steps, watched)
     }
 
@@ -183,7 +183,7 @@ impl<const N: usize> TangentLanes<N> {
         sys: &S,
         steps: u64,
         watched: &[bool; LANES],
-    ) -> Advanced {
+    ) -> TangentEnded {
         self.advance_portable(sys, steps, watched)
     }
 
@@ -193,7 +193,7 @@ impl<const N: usize> TangentLanes<N> {
         sys: &S,
         steps: u64,
         watched: &[bool; LANES],
-    ) -> Advanced {
+    ) -> TangentEnded {
         let mut done = 0;
         while done < steps {
             self.step(sys);
@@ -201,14 +201,14 @@ impl<const N: usize> TangentLanes<N> {
             let (not_finite, out_of_range) = self.look();
             let flagged = (0..LANES).any(|i| watched[i] & (not_finite[i] | out_of_range[i]));
             if flagged || done == steps {
-                return Advanced {
+                return TangentEnded {
                     steps: done,
                     not_finite,
                     out_of_range,
                 };
             }
         }
-        Advanced {
+        TangentEnded {
             steps: 0,
             not_finite: [false; LANES],
             out_of_range: [false; LANES],

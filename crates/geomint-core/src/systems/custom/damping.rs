@@ -198,14 +198,14 @@ fn jacobi(s: &mut [f64], q: &mut [f64], n: usize) {
 }
 
 /// The flows of A = ε D M⁻¹ at one q.
-pub struct Flows<'a> {
+pub struct DampingFlows<'a> {
     factor: &'a MassFactor,
 }
 
-impl<'a> Flows<'a> {
+impl<'a> DampingFlows<'a> {
     /// The flows of the damping with mass factor `factor`.
     pub fn new(factor: &'a MassFactor) -> Self {
-        Flows { factor }
+        DampingFlows { factor }
     }
 
     /// Applies L Q f(Λ) Qᵀ L⁻¹ to `x`, with `weight(λ)` giving f, and adds `scale` times the same

@@ -11,7 +11,7 @@ use nalgebra::allocator::Allocator;
 use nalgebra::{DMatrix, DefaultAllocator, Dim};
 
 use super::buffers::{eval_on_phase, with_buffer, with_phase};
-use super::damping::{Flows, MassFactor};
+use super::damping::{DampingFlows, MassFactor};
 pub use super::lanes::LaneCode;
 pub use super::mass::InverseMass;
 use super::DampingKind;
@@ -237,7 +237,7 @@ impl<D: Dim> CustomSystem<D> {
     /// Applies a flow of the general damping: `f(flows, ε, D(q), n)` on the first n = degrees
     /// of freedom momenta.
     #[inline]
-    fn general_flow(&self, q: &[f64], f: impl FnOnce(&Flows, f64, &[f64], usize)) -> bool {
+    fn general_flow(&self, q: &[f64], f: impl FnOnce(&DampingFlows, f64, &[f64], usize)) -> bool {
         let (DampingModel::General { epsilon, factor }, Some(matrix)) =
             (&self.model.damping, &self.model.damping_matrix)
         else {
@@ -246,7 +246,7 @@ impl<D: Dim> CustomSystem<D> {
         let n = self.dof(q.len());
         with_buffer(n * n, |d| {
             matrix.eval(q, d);
-            f(&Flows::new(factor), *epsilon, d, n);
+            f(&DampingFlows::new(factor), *epsilon, d, n);
         });
         true
     }

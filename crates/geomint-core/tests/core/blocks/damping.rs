@@ -17,7 +17,7 @@ fn the_flows_solve_their_linear_equations() {
     let d = [1.0, 0.3, 0.3, 0.2];
     let eps = 0.7;
     let factor = MassFactor::new(&m, n).unwrap();
-    let flows = Flows::new(&factor);
+    let flows = DampingFlows::new(&factor);
     // A = ε D M⁻¹; M⁻¹ = [[1, −0.5], [−0.5, 2]] / 1.75.
     let minv = [1.0 / 1.75, -0.5 / 1.75, -0.5 / 1.75, 2.0 / 1.75];
     let a: Vec<f64> = (0..4)
