@@ -46,8 +46,8 @@ pub trait LaneForces<const N: usize> {
     /// Whether single steps (a basin map's, a sweep's sampled every step) take the compiled
     /// lanes too. They do where the generic lanes call the force through a pointer (a typed-in
     /// system); where they inline it (a built-in system), one step of compiled code, copied in
-    /// and out, is no faster: the built-in Hénon–Heiles escapes map took 4.5–5.6 s so against
-    /// 3.6–5.2 s on the generic lanes (300 × 300 cells, runs alternated).
+    /// and out, is no faster: the built-in Hénon–Heiles escapes map took 4.5–5.6 s that way
+    /// against 3.6–5.2 s on the generic lanes (300 × 300 cells, runs alternated).
     fn single_steps_compiled(&self) -> bool {
         true
     }

@@ -13,9 +13,10 @@
 //! composer's force cache), so the evaluations count the same.
 //!
 //! A system with compiled steps ([`LaneForces::compiled_forces_in_lanes`]: a typed-in system,
-//! or the built-in Hénon–Heiles system, for the plans their one-run stretches take) runs the lanes'
-//! stretches through code compiled for them once it has it, with the same bits: the force is then written into the step instead of called lane by
-//! lane through a pointer.
+//! or the built-in Hénon–Heiles system, for the plans their one-run stretches take) runs the
+//! lanes' stretches through code compiled for them once it has it, with the same bits: the force
+//! is then written into the step instead of called lane by lane (through a pointer, for a
+//! typed-in system).
 
 // Lanes and components are indexed side by side: loops over lane numbers are the form the
 // compiler vectorises.
