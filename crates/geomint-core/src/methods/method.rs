@@ -24,8 +24,8 @@ pub enum Method {
     },
     /// A symmetric composition of a base (default modin_3s).
     Composition {
-        /// The composition: a method whose catalogue entry gives its weights (triple_jump,
-        /// suzuki_4, suzuki_6, yoshida_6, kahan_li_6, kahan_li_8, blanes_casas_murua_8).
+        /// The composition: a method whose catalogue entry gives its weights
+        /// ([`Steps::Composition`](super::Steps::Composition)).
         scheme: Scheme,
         /// The base.
         base: Base,

@@ -233,6 +233,8 @@ catalogue! {
     TripleJump => composition::TRIPLE_JUMP_INFO,
     /// Suzuki's fourth-order five-stage composition.
     Suzuki4 => composition::SUZUKI_4_INFO,
+    /// McLachlan's fourth-order five-stage composition.
+    McLachlan4 => composition::MCLACHLAN_4_INFO,
     /// Suzuki's sixth-order 25-stage composition.
     Suzuki6 => composition::SUZUKI_6_INFO,
     /// Yoshida's sixth-order seven-stage composition.
