@@ -9,7 +9,7 @@ use std::time::Instant;
 
 use geomint::api::studies::EnergyMapRequest;
 use geomint::core::run::Budget;
-use geomint::core::studies::energy_map::{CellPath, EnergyMap, EnergyMapJob};
+use geomint::core::studies::energy_map::{CellPath, EnergyMapCells, EnergyMapJob};
 use serde_json::json;
 
 mod cpu_time;
@@ -25,7 +25,7 @@ fn fig6(t_max: f64) -> EnergyMapJob {
 }
 
 /// One map on `path`: the map, wall seconds, CPU seconds.
-fn timed(job: &EnergyMapJob, path: CellPath) -> (EnergyMap, f64, f64) {
+fn timed(job: &EnergyMapJob, path: CellPath) -> (EnergyMapCells, f64, f64) {
     let (cpu, wall) = (cpu_seconds(), Instant::now());
     let map = job
         .run_with(path, Budget::default(), &|_, _| {})
@@ -34,7 +34,7 @@ fn timed(job: &EnergyMapJob, path: CellPath) -> (EnergyMap, f64, f64) {
     (map, wall.elapsed().as_secs_f64(), cpu_seconds() - cpu)
 }
 
-fn report(label: &str, map: &EnergyMap, wall: f64, cpu: f64) {
+fn report(label: &str, map: &EnergyMapCells, wall: f64, cpu: f64) {
     let threads = rayon::current_num_threads();
     println!(
         "{label:<34} {wall:>8.2} s wall {cpu:>8.2} s CPU {:>6.2} ns/step  efficiency {:>4.0} % of {threads} threads  ({} steps)",
@@ -44,7 +44,7 @@ fn report(label: &str, map: &EnergyMap, wall: f64, cpu: f64) {
     );
 }
 
-fn bits(map: &EnergyMap) -> Vec<(Option<u64>, Option<u64>)> {
+fn bits(map: &EnergyMapCells) -> Vec<(Option<u64>, Option<u64>)> {
     map.cartesian
         .iter()
         .chain(&map.polar)

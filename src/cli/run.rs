@@ -23,7 +23,7 @@ use crate::recording::{self, live};
 
 /// Output formats of `geomint run`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum Format {
+pub enum OutputFormat {
     /// One JSON document.
     Json,
     /// NDJSON lines, as the API streams them.
@@ -48,7 +48,7 @@ pub struct RunArgs {
     pub rerun_addr: Option<String>,
     /// Output format, instead of the one the file extension implies.
     #[arg(long, value_enum)]
-    pub format: Option<Format>,
+    pub format: Option<OutputFormat>,
     /// Indent the JSON document.
     #[arg(long)]
     pub pretty: bool,
@@ -90,12 +90,12 @@ pub(crate) fn run_spec(args: &RunArgs) -> ExitCode {
             .and_then(|p| p.extension())
             .map(|e| e.to_string_lossy().to_ascii_lowercase());
         match ext.as_deref() {
-            Some("ndjson" | "jsonl") => Format::Ndjson,
-            Some("rrd") => Format::Rrd,
-            _ => Format::Json,
+            Some("ndjson" | "jsonl") => OutputFormat::Ndjson,
+            Some("rrd") => OutputFormat::Rrd,
+            _ => OutputFormat::Json,
         }
     });
-    if format == Format::Rrd && args.output.is_none() && io::stdout().is_terminal() {
+    if format == OutputFormat::Rrd && args.output.is_none() && io::stdout().is_terminal() {
         eprintln!("error: a recording is binary; give `-o FILE.rrd` or redirect standard output");
         return ExitCode::from(BAD_INPUT);
     }
@@ -172,14 +172,14 @@ struct StreamFailures {
 
 impl Job<'_> {
     /// Writes the simulation in `format` to `out`.
-    fn run(&self, format: Format, mut out: Output, spec: &SimulateRequest) -> ExitCode {
+    fn run(&self, format: OutputFormat, mut out: Output, spec: &SimulateRequest) -> ExitCode {
         let written = match format {
-            Format::Json | Format::Rrd => {
+            OutputFormat::Json | OutputFormat::Rrd => {
                 let doc = match self.sim.simulate(self.workers, Budget::default()) {
                     Ok(doc) => doc,
                     Err(e) => return self.bad_input(&e),
                 };
-                if format == Format::Rrd {
+                if format == OutputFormat::Rrd {
                     return match recording::write_rrd(out, &recording::Spec::of(spec), &doc) {
                         Ok(mut w) => finish_output(w.flush()),
                         Err(e) => {
@@ -190,7 +190,7 @@ impl Job<'_> {
                 }
                 self.write_document(&mut out, &doc)
             }
-            Format::Ndjson => {
+            OutputFormat::Ndjson => {
                 let failures = self.stream(None, Some(&mut out), None);
                 if let Some(e) = failures.stream {
                     let _ = out.flush();
@@ -207,7 +207,7 @@ impl Job<'_> {
     /// complete, or the same recording as the viewer gets.
     fn run_live(
         &self,
-        format: Format,
+        format: OutputFormat,
         out: Output,
         spec: SimulateRequest,
         url: &str,
@@ -219,8 +219,8 @@ impl Job<'_> {
         let system = recording::system_label(&recording_spec, &header.system.id);
         let name = recording::recording_name(&system, &header.methods);
         let (file, mut text) = match format {
-            Format::Rrd => (Some(out), None),
-            Format::Json | Format::Ndjson => (None, Some(out)),
+            OutputFormat::Rrd => (Some(out), None),
+            OutputFormat::Json | OutputFormat::Ndjson => (None, Some(out)),
         };
         let live = match recording::LiveRecording::start(sink, name, recording_spec, file) {
             Ok(live) => live,
@@ -229,8 +229,8 @@ impl Job<'_> {
                 return ExitCode::FAILURE;
             }
         };
-        let mut collector = (format == Format::Json).then(DocumentCollector::new);
-        let ndjson = if format == Format::Ndjson {
+        let mut collector = (format == OutputFormat::Json).then(DocumentCollector::new);
+        let ndjson = if format == OutputFormat::Ndjson {
             text.as_mut()
         } else {
             None

@@ -47,7 +47,7 @@ macro_rules! format_schema {
             fn schema() -> utoipa::openapi::RefOr<utoipa::openapi::schema::Schema> {
                 crate::core::schema::string_enum(
                     "The form of the answer.",
-                    [$(Format::$format.name()),+].into_iter(),
+                    [$(ResponseFormat::$format.name()),+].into_iter(),
                 )
             }
         }
@@ -71,7 +71,7 @@ format_schema! {
 
 /// How a route answers.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Format {
+pub enum ResponseFormat {
     /// One JSON document (the default).
     Json,
     /// NDJSON lines written as the computation goes.
@@ -92,16 +92,20 @@ fn wants_stream(headers: &HeaderMap) -> bool {
     })
 }
 
-impl Format {
+impl ResponseFormat {
     /// Every format: what the simulation and the work–precision routes answer in.
-    pub const ALL: &'static [Format] = &[Format::Json, Format::Ndjson, Format::Rrd];
+    pub const ALL: &'static [ResponseFormat] = &[
+        ResponseFormat::Json,
+        ResponseFormat::Ndjson,
+        ResponseFormat::Rrd,
+    ];
 
     /// The name in `?format=`.
     pub fn name(self) -> &'static str {
         match self {
-            Format::Json => "json",
-            Format::Ndjson => "ndjson",
-            Format::Rrd => "rrd",
+            ResponseFormat::Json => "json",
+            ResponseFormat::Ndjson => "ndjson",
+            ResponseFormat::Rrd => "rrd",
         }
     }
 
@@ -111,19 +115,19 @@ impl Format {
     pub fn requested(
         query: &BTreeMap<String, String>,
         headers: &HeaderMap,
-        offers: &[Format],
-    ) -> Result<Format, ApiError> {
-        let streams = offers.contains(&Format::Ndjson);
-        let offered = |f: &Format| *f == Format::Json || offers.contains(f);
+        offers: &[ResponseFormat],
+    ) -> Result<ResponseFormat, ApiError> {
+        let streams = offers.contains(&ResponseFormat::Ndjson);
+        let offered = |f: &ResponseFormat| *f == ResponseFormat::Json || offers.contains(f);
         match query.get("format").map(String::as_str) {
-            None if streams && wants_stream(headers) => Ok(Format::Ndjson),
-            None => Ok(Format::Json),
-            Some(name) => Format::ALL
+            None if streams && wants_stream(headers) => Ok(ResponseFormat::Ndjson),
+            None => Ok(ResponseFormat::Json),
+            Some(name) => ResponseFormat::ALL
                 .iter()
                 .copied()
                 .find(|f| f.name() == name && offered(f))
                 .ok_or_else(|| {
-                    let known: Vec<&str> = Format::ALL
+                    let known: Vec<&str> = ResponseFormat::ALL
                         .iter()
                         .filter(|f| offered(f))
                         .map(|f| f.name())
@@ -137,23 +141,23 @@ impl Format {
         }
     }
 
-    /// The bytes of a finished `doc`: its recording (made by `record`) for [`Format::Rrd`], its
-    /// JSON otherwise.
+    /// The bytes of a finished `doc`: its recording (made by `record`) for
+    /// [`ResponseFormat::Rrd`], its JSON otherwise.
     pub fn encode<T: Serialize>(
         self,
         doc: &T,
         record: impl FnOnce(&T) -> Result<Vec<u8>, RecordingError>,
     ) -> Result<Vec<u8>, ApiError> {
         match self {
-            Format::Rrd => record(doc).map_err(ApiError::internal),
+            ResponseFormat::Rrd => record(doc).map_err(ApiError::internal),
             _ => serde_json::to_vec(doc).map_err(ApiError::internal),
         }
     }
 
-    /// The response carrying `bytes` from [`Format::encode`]: a `.rrd` attachment named `file`,
-    /// or JSON.
+    /// The response carrying `bytes` from [`ResponseFormat::encode`]: a `.rrd` attachment named
+    /// `file`, or JSON.
     pub fn respond(self, bytes: Vec<u8>, file: &str) -> Response {
-        if self == Format::Rrd {
+        if self == ResponseFormat::Rrd {
             let length = bytes.len() as u64;
             return rrd_response(Body::from(bytes), file, Some(length));
         }

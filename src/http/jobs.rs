@@ -23,7 +23,7 @@ use utoipa::openapi::schema::{AdditionalProperties, ObjectBuilder, OneOfBuilder,
 use utoipa::openapi::{Ref, RefOr};
 use utoipa::ToSchema;
 
-use super::answer::{Format, RecordFormat};
+use super::answer::{RecordFormat, ResponseFormat};
 use super::error::{ApiError, ErrorBody, JsonRefusals};
 use super::extract::ApiJson;
 use super::paths;
@@ -36,7 +36,7 @@ use crate::core::error::{ErrorCode, ErrorDetail, Field};
 use crate::core::schema;
 use crate::jobs::{study, Job, JobEvent, JobState, JobStatus, Jobs};
 use crate::store::jobs::is_valid_id;
-use crate::store::recordings::Owner;
+use crate::store::recordings::RecordingOwner;
 
 /// A job to submit: the kind of study, the request its route takes, and a priority.
 #[derive(Debug)]
@@ -182,7 +182,7 @@ pub async fn submit_job(
 ) -> Result<Response, ApiError> {
     let jobs = jobs_of(&state)?.clone();
     let request = JobRequest::from_value(&body)?;
-    let owner = Owner {
+    let owner = RecordingOwner {
         name: caller.owner.clone(),
         quota: caller.quotas.recordings_bytes,
     };
@@ -429,7 +429,11 @@ pub async fn job_result(
     Path(id): Path<String>,
     Query(query): Query<BTreeMap<String, String>>,
 ) -> Result<Response, ApiError> {
-    let format = Format::requested(&query, &HeaderMap::new(), &[Format::Json, Format::Rrd])?;
+    let format = ResponseFormat::requested(
+        &query,
+        &HeaderMap::new(),
+        &[ResponseFormat::Json, ResponseFormat::Rrd],
+    )?;
     let job = own_job(&state, &caller, &id)?;
     let state_now = job.state();
     if state_now != JobState::Done {
@@ -442,7 +446,7 @@ pub async fn job_result(
         )));
     }
     let name = match format {
-        Format::Rrd => "result.rrd",
+        ResponseFormat::Rrd => "result.rrd",
         _ => "result.json",
     };
     let Some(path) = job.result(name) else {
@@ -456,7 +460,7 @@ pub async fn job_result(
         )));
     };
     let bytes = tokio::fs::read(&path).await.map_err(ApiError::internal)?;
-    if format == Format::Rrd {
+    if format == ResponseFormat::Rrd {
         let length = bytes.len() as u64;
         let file = format!("geomint-job-{id}.rrd");
         return Ok(rrd_response(Body::from(bytes), &file, Some(length)));

@@ -43,7 +43,9 @@ use crate::api::SimulateRequest;
 use crate::core::error::{ErrorCode, ErrorDetail};
 use crate::recording::read::{self as recorded, ReadError, RecordedDocument};
 use crate::recording::{self, RRD_MEDIA_TYPE};
-use crate::store::recordings::{Contents, Origin, Owner, RecordingEntry, SpecSummary, StoreError};
+use crate::store::recordings::{
+    Contents, Origin, RecordingEntry, RecordingOwner, SpecSummary, StoreError,
+};
 
 /// The answer to a stored recording.
 #[derive(Clone, Debug, Serialize, ToSchema)]
@@ -109,8 +111,8 @@ pub(crate) fn store_error(error: StoreError) -> ApiError {
 }
 
 /// Who a recording stored for `client` belongs to, with its quota of bytes.
-fn owner_of(client: &Client) -> Owner {
-    Owner {
+fn owner_of(client: &Client) -> RecordingOwner {
+    RecordingOwner {
         name: client.caller.owner.clone(),
         quota: client.caller.quotas.recordings_bytes,
     }
@@ -235,7 +237,7 @@ fn invalid_upload(message: impl std::fmt::Display) -> ApiError {
 /// Receives an `.rrd` upload into a locked temporary file, checks it and keeps it.
 async fn upload_recording(
     state: AppState,
-    owner: Owner,
+    owner: RecordingOwner,
     request: Request,
 ) -> Result<Response, ApiError> {
     let store = state.recordings.clone();

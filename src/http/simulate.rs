@@ -17,7 +17,7 @@ use axum::extract::{Query, State};
 use axum::http::HeaderMap;
 use axum::response::Response;
 
-use super::answer::{AnyFormat, Client, Format, Work};
+use super::answer::{AnyFormat, Client, ResponseFormat, Work};
 use super::error::{ApiError, ErrorBody, JsonRefusals, SlotsBusy};
 use super::extract::ApiJson;
 use super::paths;
@@ -59,7 +59,7 @@ pub async fn simulate(
     client: Client,
     ApiJson(body): ApiJson,
 ) -> Result<Response, ApiError> {
-    let format = Format::requested(&query, &headers, Format::ALL)?;
+    let format = ResponseFormat::requested(&query, &headers, ResponseFormat::ALL)?;
     let request = SimulateRequest::from_value(&body)?;
     let sim = request.prepare(&state.config.limits, &*state.systems)?;
     let request = request.inlined(&*state.systems);
@@ -73,7 +73,7 @@ pub async fn simulate(
         format = format.name(),
         "simulation started"
     );
-    if format == Format::Ndjson {
+    if format == ResponseFormat::Ndjson {
         return Ok(work.stream(
             move |budget, emit| sim.stream(workers, budget, emit),
             |error| {

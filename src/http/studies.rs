@@ -19,7 +19,7 @@ use axum::http::HeaderMap;
 use axum::response::Response;
 use serde_json::Value;
 
-use super::answer::{AnyFormat, Client, Format, StreamFormat, Work};
+use super::answer::{AnyFormat, Client, ResponseFormat, StreamFormat, Work};
 use super::error::{ApiError, ErrorBody, JsonRefusals, SlotsBusy};
 use super::extract::ApiJson;
 use super::paths;
@@ -42,12 +42,12 @@ use crate::studies::work_precision::WorkPrecision;
 use crate::studies::{Answers, StudyKind};
 
 /// The formats a study's route answers in.
-fn formats(answers: Answers) -> &'static [Format] {
+fn formats(answers: Answers) -> &'static [ResponseFormat] {
     match (answers.stream, answers.recording.is_some()) {
-        (true, true) => Format::ALL,
-        (true, false) => &[Format::Json, Format::Ndjson],
-        (false, true) => &[Format::Json, Format::Rrd],
-        (false, false) => &[Format::Json],
+        (true, true) => ResponseFormat::ALL,
+        (true, false) => &[ResponseFormat::Json, ResponseFormat::Ndjson],
+        (false, true) => &[ResponseFormat::Json, ResponseFormat::Rrd],
+        (false, false) => &[ResponseFormat::Json],
     }
 }
 
@@ -62,7 +62,7 @@ pub(super) async fn answer<K: StudyKind>(
     client: Client,
     body: &Value,
 ) -> Result<Response, ApiError> {
-    let format = Format::requested(query, headers, formats(K::ANSWERS))?;
+    let format = ResponseFormat::requested(query, headers, formats(K::ANSWERS))?;
     let study = K::prepare(body, &*state.systems, &state.config.limits)?;
     let distributed = state.executor.queue().is_some() && study.order() == Order::Parallel;
     let slots = match distributed || study.order() == Order::Timed {
@@ -80,7 +80,7 @@ pub(super) async fn answer<K: StudyKind>(
         "study started"
     );
     let executor = state.executor.clone();
-    if format == Format::Ndjson {
+    if format == ResponseFormat::Ndjson {
         return Ok(work.stream(
             move |budget, emit| {
                 match study.run(&executor, budget, emit) {

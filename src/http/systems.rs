@@ -22,7 +22,8 @@ use crate::api::system::SystemDefinition;
 use crate::core::error::{ErrorCode, ErrorDetail, Field};
 use crate::core::systems;
 use crate::store::systems::{
-    is_definition_id, unix_ms, Owner, Removal, StoredSystem, SystemEntry, SystemStoreError,
+    is_definition_id, unix_ms, DefinitionOwner, Removal, StoredSystem, SystemEntry,
+    SystemStoreError,
 };
 
 fn no_system(id: &str) -> ApiError {
@@ -111,7 +112,7 @@ pub async fn create_system(
 ) -> Result<Response, ApiError> {
     let definition = SystemDefinition::read(&body, &Field::default())?;
     let store = Arc::clone(&state.systems);
-    let owner = Owner {
+    let owner = DefinitionOwner {
         name: caller.owner,
         quota: caller.quotas.systems,
     };

@@ -10,7 +10,7 @@ use tokio::sync::watch;
 
 use super::status::{EventKind, JobEvent, JobState, JobStatus};
 use crate::store::dates::rfc3339;
-use crate::store::jobs::{JobDir, JobRecord, Outcome};
+use crate::store::jobs::{JobDir, JobOutcome, JobRecord};
 
 /// What changes while a job runs.
 #[derive(Debug)]
@@ -182,7 +182,7 @@ impl Job {
     /// Ends the job in `state` (with `error` for a failure): the outcome stored, then the event.
     pub(super) fn end(&self, state: JobState, error: Option<Value>) {
         let ended = now_ms();
-        let outcome = Outcome {
+        let outcome = JobOutcome {
             state: state.name().to_string(),
             error: error.clone(),
             ended_unix_ms: ended,

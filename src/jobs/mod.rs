@@ -41,7 +41,7 @@ use crate::core::error::{ErrorCode, ErrorDetail};
 use crate::core::simulation::Limits;
 use crate::executor::StudyExecutor;
 use crate::store::jobs::{JobRecord, JobStore, NotReplicated, Replica, JOB_FORMAT};
-use crate::store::recordings::{Owner, RecordingStore};
+use crate::store::recordings::{RecordingOwner, RecordingStore};
 use crate::store::systems::SystemStore;
 use fair::FairGate;
 use job::now_ms;
@@ -233,7 +233,7 @@ impl Jobs {
     /// the job cannot be stored.
     pub fn submit(
         &self,
-        owner: &Owner,
+        owner: &RecordingOwner,
         study: &str,
         request: Value,
         priority: i32,

@@ -16,7 +16,7 @@ use super::stored::{PartSink, Stored};
 use super::{storage_error, study, Board, JobContext, Jobs, ACTIVE_JOBS, ACTIVE_PER_OWNER};
 use crate::core::error::{ErrorCode, ErrorDetail};
 use crate::core::run::Budget;
-use crate::store::recordings::{Contents, Owner};
+use crate::store::recordings::{Contents, RecordingOwner};
 
 impl Jobs {
     /// The next queued job to start: of the owner with the fewest started, then of the highest
@@ -212,7 +212,7 @@ impl Jobs {
         store("result.rrd", rrd)?;
         // A copy in the recordings library, within its owner's quota there; the job's own copy
         // stays, so that deleting the library's (or its eviction) does not take the result.
-        let owner = Owner {
+        let owner = RecordingOwner {
             name: r.owner.clone(),
             quota: r.recordings_quota,
         };

@@ -5,7 +5,7 @@ use serde_json::Value;
 use utoipa::ToSchema;
 
 use crate::core::error::ErrorDetail;
-use crate::store::jobs::Outcome;
+use crate::store::jobs::JobOutcome;
 
 /// Where a job is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, ToSchema)]
@@ -43,7 +43,7 @@ impl JobState {
         }
     }
 
-    pub(super) fn of_outcome(outcome: &Outcome) -> JobState {
+    pub(super) fn of_outcome(outcome: &JobOutcome) -> JobState {
         match outcome.state.as_str() {
             "done" => JobState::Done,
             "cancelled" => JobState::Cancelled,

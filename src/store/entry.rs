@@ -104,7 +104,7 @@ impl Contents {
 
 /// Who stores a recording, and the bytes its recordings may take in all (`None`: the store's cap).
 #[derive(Clone, Debug, PartialEq)]
-pub struct Owner {
+pub struct RecordingOwner {
     /// The owner's name.
     pub name: String,
     /// Its quota of bytes.

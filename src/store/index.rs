@@ -5,7 +5,7 @@
 
 use std::collections::BTreeMap;
 
-use super::recordings::{Owner, RecordingEntry, StoreError};
+use super::recordings::{RecordingEntry, RecordingOwner, StoreError};
 
 /// The entries, with bytes in all and per owner.
 #[derive(Debug, Default)]
@@ -69,7 +69,7 @@ impl Index {
     pub fn make_room(
         &mut self,
         keep: &str,
-        owner: &Owner,
+        owner: &RecordingOwner,
         max_bytes: u64,
     ) -> Result<Vec<RecordingEntry>, StoreError> {
         let index = self;

@@ -6,7 +6,7 @@
 //! - `parts/FIRST-END.json`: the cells `FIRST..END` it has finished ([`StoredPart`]), each range
 //!   written once; a range written twice (a part computed again after a crash) is the same bytes;
 //! - `events.ndjson`: what happened to it, a JSON line per event, in order;
-//! - `outcome.json`: how it ended ([`Outcome`]), once it has;
+//! - `outcome.json`: how it ended ([`JobOutcome`]), once it has;
 //! - `result.json`, and `result.rrd` for a study that has a recording: its document.
 //!
 //! A server that starts reads every job back ([`JobStore::open`]); those without an outcome go on
@@ -84,7 +84,7 @@ pub struct StoredPart<T> {
 
 /// How a job ended.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Outcome {
+pub struct JobOutcome {
     /// `done`, `failed` or `cancelled`.
     pub state: String,
     /// Why it failed: the error as the API reports it.
@@ -482,12 +482,12 @@ impl JobDir {
     }
 
     /// How the job ended, if it has.
-    pub fn outcome(&self) -> Option<Outcome> {
+    pub fn outcome(&self) -> Option<JobOutcome> {
         read_json(&self.path.join("outcome.json"))
     }
 
     /// Records how the job ended.
-    pub fn write_outcome(&self, outcome: &Outcome) -> io::Result<()> {
+    pub fn write_outcome(&self, outcome: &JobOutcome) -> io::Result<()> {
         let bytes = serde_json::to_vec_pretty(outcome).map_err(io::Error::other)?;
         self.keep("outcome.json", &bytes)
     }

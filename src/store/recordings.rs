@@ -33,7 +33,7 @@ use std::time::{SystemTime, UNIX_EPOCH};
 use serde::{Deserialize, Serialize};
 
 use super::dates::rfc3339;
-pub use super::entry::{Contents, Origin, Owner, RecordingEntry, SpecSummary};
+pub use super::entry::{Contents, Origin, RecordingEntry, RecordingOwner, SpecSummary};
 use super::index::Index;
 pub use super::tempfile::Upload;
 use super::tempfile::{remove_if_abandoned, write_atomically, TempFile, TMP_PREFIX};
@@ -260,7 +260,7 @@ impl RecordingStore {
     pub fn save(
         &self,
         spec: SpecSummary,
-        owner: &Owner,
+        owner: &RecordingOwner,
         write: impl FnOnce(BufWriter<File>) -> Result<BufWriter<File>, RecordingError>,
     ) -> Result<RecordingEntry, StoreError> {
         fs::create_dir_all(&self.dir)?;
@@ -298,7 +298,7 @@ impl RecordingStore {
         &self,
         mut upload: Upload,
         contents: Contents,
-        owner: &Owner,
+        owner: &RecordingOwner,
     ) -> Result<RecordingEntry, StoreError> {
         let tmp = upload.tmp.take().ok_or(StoreError::UploadGone)?;
         let checked = (|| {
@@ -330,7 +330,7 @@ impl RecordingStore {
         &self,
         bytes: &[u8],
         contents: Contents,
-        owner: &Owner,
+        owner: &RecordingOwner,
     ) -> Result<RecordingEntry, StoreError> {
         let upload = self.begin_upload()?;
         upload.file()?.write_all(bytes)?;
@@ -362,7 +362,7 @@ impl RecordingStore {
     }
 
     /// `bytes`, unless they alone exceed `owner`'s quota.
-    fn within_quota(&self, owner: &Owner, bytes: u64) -> Result<u64, StoreError> {
+    fn within_quota(&self, owner: &RecordingOwner, bytes: u64) -> Result<u64, StoreError> {
         match owner.quota {
             Some(quota) if bytes > quota => Err(StoreError::OverQuota {
                 owner: owner.name.clone(),
@@ -379,7 +379,7 @@ impl RecordingStore {
         &self,
         tmp: TempFile,
         contents: Contents,
-        owner: &Owner,
+        owner: &RecordingOwner,
         bytes: u64,
     ) -> Result<RecordingEntry, StoreError> {
         let id = new_id();

@@ -117,7 +117,7 @@ pub enum Removal {
 
 /// Who stores a definition, and how many it may own (`None`: the store's cap).
 #[derive(Clone, Debug)]
-pub struct Owner {
+pub struct DefinitionOwner {
     /// The owner's name.
     pub name: String,
     /// Its quota of definitions.
@@ -282,7 +282,7 @@ impl SystemStore {
     pub fn insert(
         &self,
         stored: StoredSystem,
-        owner: &Owner,
+        owner: &DefinitionOwner,
     ) -> Result<(Arc<StoredSystem>, bool), SystemStoreError> {
         let id = stored.info.id.to_string();
         if let Some(existing) = self.get(&id) {

@@ -251,7 +251,7 @@ fn files_that_are_not_definitions_are_skipped_with_a_log_line_and_left_in_place(
         let store = SystemStore::open(&dir, 10);
         let definition = SystemDefinition::read(&elastic(), &Default::default()).unwrap();
         let stored = StoredSystem::new(definition, 0).unwrap();
-        let owner = geomint::store::systems::Owner {
+        let owner = geomint::store::systems::DefinitionOwner {
             name: "alice".into(),
             quota: None,
         };

@@ -7,7 +7,7 @@ use std::collections::BTreeMap;
 use std::io;
 use std::sync::{Arc, Mutex};
 
-use geomint::store::jobs::{JobRecord, JobStore, NotReplicated, Outcome, Replica, JOB_FORMAT};
+use geomint::store::jobs::{JobOutcome, JobRecord, JobStore, NotReplicated, Replica, JOB_FORMAT};
 use geomint::store::recordings::new_id;
 use serde_json::json;
 
@@ -82,7 +82,7 @@ fn a_store_on_an_empty_directory_takes_its_jobs_back_from_the_replica() {
     job.write_part(0, &[1.5f64, 2.5, 3.5, 4.5]).unwrap();
     job.write_part(4, &[5.0f64, 6.0, 7.0, 8.0]).unwrap();
     job.append_event(br#"{"seq":1}"#).unwrap();
-    let outcome = Outcome {
+    let outcome = JobOutcome {
         state: "done".into(),
         error: None,
         ended_unix_ms: 2,

@@ -7,7 +7,7 @@ use geomint::store::dates::rfc3339;
 use geomint::store::entry::SpecSummary;
 use geomint::store::index::Index;
 use geomint::store::recordings::{
-    is_valid_id, new_id, Owner, RecordingEntry, RecordingStore, StoreError,
+    is_valid_id, new_id, RecordingEntry, RecordingOwner, RecordingStore, StoreError,
 };
 use geomint::store::tempfile::TMP_PREFIX;
 
@@ -32,8 +32,8 @@ fn entry(id: &str, owner: Option<&str>, bytes: u64, at: u64) -> RecordingEntry {
     }
 }
 
-fn owner(name: &str, quota: Option<u64>) -> Owner {
-    Owner {
+fn owner(name: &str, quota: Option<u64>) -> RecordingOwner {
+    RecordingOwner {
         name: name.into(),
         quota,
     }
@@ -121,7 +121,7 @@ fn a_write_in_progress_survives_a_second_store() {
         t_end: 0.1,
         samples_per_method: 2,
     };
-    let owner = Owner {
+    let owner = RecordingOwner {
         name: "alice".into(),
         quota: None,
     };

@@ -14,10 +14,10 @@
 //! * [`Graph::hessian`] differentiates the gradient in forward mode (forward over
 //!   reverse), filling the lower triangle and mirroring it.
 //!
-//! Every call is bounded: if it adds more than [`Limits::max_derivative_nodes`] nodes it
+//! Every call is bounded: if it adds more than [`ExprLimits::max_derivative_nodes`] nodes it
 //! stops, removes what it added and returns [`ExprError::DerivativeTooLarge`].
 //!
-//! [`Limits::max_derivative_nodes`]: crate::expr::Limits::max_derivative_nodes
+//! [`ExprLimits::max_derivative_nodes`]: crate::expr::ExprLimits::max_derivative_nodes
 
 use crate::expr::graph::{Graph, Node, NodeId};
 use crate::expr::ops::{BinaryOp, UnaryOp};

@@ -4,7 +4,7 @@ use std::fmt;
 
 use crate::expr::graph::{Graph, Node, NodeId};
 use crate::expr::ops::{BinaryOp, UnaryOp};
-use crate::expr::parse::Scope;
+use crate::expr::parse::NameScope;
 use crate::expr::program::{Instr, Program};
 
 /// Binding strength when printing; higher binds tighter.
@@ -19,7 +19,7 @@ impl Graph {
     /// derivative of `abs`), parenthesised so that it parses back to the same tree.
     /// Returns `None` if the expression, written out as a tree, would have more than
     /// `max_nodes` nodes: a DAG with much sharing can be exponentially larger as text.
-    pub fn to_infix(&self, id: NodeId, scope: &Scope, max_nodes: usize) -> Option<String> {
+    pub fn to_infix(&self, id: NodeId, scope: &NameScope, max_nodes: usize) -> Option<String> {
         // Tree size of every node in the cone, saturating, to refuse before printing.
         let marked = self.reachable(&[id]);
         let mut size = vec![0usize; marked.len()];
@@ -49,7 +49,7 @@ impl Graph {
         }
     }
 
-    fn write_operand(&self, id: NodeId, min: u8, scope: &Scope, out: &mut String) {
+    fn write_operand(&self, id: NodeId, min: u8, scope: &NameScope, out: &mut String) {
         if self.strength(id) < min {
             out.push('(');
             self.write_infix(id, scope, out);
@@ -59,7 +59,7 @@ impl Graph {
         }
     }
 
-    fn write_infix(&self, id: NodeId, scope: &Scope, out: &mut String) {
+    fn write_infix(&self, id: NodeId, scope: &NameScope, out: &mut String) {
         match self.node(id) {
             Node::Const(c) => out.push_str(&format_number(c)),
             Node::Var(var) => match scope.name(var) {

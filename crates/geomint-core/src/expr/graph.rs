@@ -27,8 +27,8 @@ use std::collections::HashMap;
 use std::hash::{Hash, Hasher};
 
 use crate::expr::ops::{self, BinaryOp, UnaryOp};
-use crate::expr::parse::{self, AstNode, ParsedExpr, Scope};
-use crate::expr::{ExprError, Limits, Var};
+use crate::expr::parse::{self, AstNode, NameScope, ParsedExpr};
+use crate::expr::{ExprError, ExprLimits, Var};
 
 /// The id of a node in a [`Graph`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -108,19 +108,19 @@ impl Node {
 pub struct Graph {
     nodes: Vec<Node>,
     index: HashMap<Node, NodeId>,
-    pub(crate) limits: Limits,
+    pub(crate) limits: ExprLimits,
     /// Memoised forward derivatives: (node, variable) to derivative.
     pub(crate) derivatives: HashMap<(NodeId, Var), NodeId>,
 }
 
 impl Graph {
-    /// An empty graph with the default [`Limits`].
+    /// An empty graph with the default [`ExprLimits`].
     pub fn new() -> Self {
         Self::default()
     }
 
     /// An empty graph with the given limits.
-    pub fn with_limits(limits: Limits) -> Self {
+    pub fn with_limits(limits: ExprLimits) -> Self {
         Graph {
             limits,
             ..Self::default()
@@ -128,7 +128,7 @@ impl Graph {
     }
 
     /// The limits in force.
-    pub fn limits(&self) -> &Limits {
+    pub fn limits(&self) -> &ExprLimits {
         &self.limits
     }
 
@@ -381,7 +381,7 @@ impl Graph {
     }
 
     /// Parses `text` against `scope` with this graph's limits and adds it.
-    pub fn parse(&mut self, text: &str, scope: &Scope) -> Result<NodeId, ExprError> {
+    pub fn parse(&mut self, text: &str, scope: &NameScope) -> Result<NodeId, ExprError> {
         let parsed = parse::parse_with_limits(text, scope, &self.limits)?;
         Ok(self.add_parsed(&parsed))
     }

@@ -2,9 +2,9 @@
 //! exact simplified derivatives, and compile any set of them to native code.
 //!
 //! ```
-//! use geomint_core::expr::{CompileOptions, CompiledFunction, ExprError, Graph, Scope};
+//! use geomint_core::expr::{CompileOptions, CompiledFunction, ExprError, Graph, NameScope};
 //!
-//! let scope = Scope::with_names(&["x", "y", "k", "l", "m", "g"])?;
+//! let scope = NameScope::with_names(&["x", "y", "k", "l", "m", "g"])?;
 //! let [x, y] = [0, 1].map(|i| scope.vars().nth(i).unwrap());
 //! let mut graph = Graph::new();
 //! let potential = graph.parse("k/2*(sqrt(x^2 + y^2) - l)^2 - m*g*y", &scope)?;
@@ -24,7 +24,7 @@
 //! * signs `-x` and `+x`; parentheses;
 //! * the functions `sin cos tan asin acos atan sinh cosh tanh exp log sqrt abs` of one
 //!   argument and `atan2(y, x)`; `log` is the natural logarithm;
-//! * the constant `pi`, and the names declared in the [`Scope`];
+//! * the constant `pi`, and the names declared in the [`NameScope`];
 //! * whitespace anywhere between tokens. Nothing else: no implicit multiplication, no
 //!   user functions.
 //!
@@ -37,7 +37,7 @@
 //! (Unicode scalar value, not byte); the end of the input is the number of characters.
 //!
 //! # Limits
-//! Hostile input is bounded by [`Limits`] (defaults in parentheses): the length of an
+//! Hostile input is bounded by [`ExprLimits`] (defaults in parentheses): the length of an
 //! expression (4096 characters), the nesting of parentheses and calls (64), the nodes of
 //! one parsed expression (2000), the nodes one derivative, gradient or Hessian may add
 //! (20 000) and the instructions of a compiled program (20 000). Parsing is linear in the
@@ -64,9 +64,9 @@ pub mod trace;
 pub use compile::{Backend, CompileOptions, CompiledFunction};
 pub use error::{Expected, ExprError};
 pub use graph::{Graph, Node, NodeId};
-pub use parse::{parse, parse_with_limits, AstId, AstNode, ParsedExpr, Scope};
+pub use parse::{parse, parse_with_limits, AstId, AstNode, NameScope, ParsedExpr};
 
-/// A variable slot: the index of a name in its [`Scope`].
+/// A variable slot: the index of a name in its [`NameScope`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct Var(pub u32);
 
@@ -79,7 +79,7 @@ impl Var {
 
 /// Bounds that keep hostile or accidental input cheap.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Limits {
+pub struct ExprLimits {
     /// The longest expression accepted, in characters.
     pub max_chars: usize,
     /// The deepest nesting of parentheses and function calls.
@@ -93,9 +93,9 @@ pub struct Limits {
     pub max_program_len: usize,
 }
 
-impl Limits {
+impl ExprLimits {
     /// The default limits.
-    pub const DEFAULT: Limits = Limits {
+    pub const DEFAULT: ExprLimits = ExprLimits {
         max_chars: 4096,
         max_depth: 64,
         max_parse_nodes: 2000,
@@ -104,7 +104,7 @@ impl Limits {
     };
 }
 
-impl Default for Limits {
+impl Default for ExprLimits {
     fn default() -> Self {
         Self::DEFAULT
     }

@@ -1,30 +1,30 @@
-//! The parser: expression text to a small syntax tree, against a [`Scope`] of declared
+//! The parser: expression text to a small syntax tree, against a [`NameScope`] of declared
 //! names.
 //!
 //! A hand-written recursive-descent parser. Only parentheses and function calls recurse;
 //! chains of signs, of binary operators and of powers are read in loops, and the nesting
-//! of parentheses and calls is checked against [`Limits::max_depth`] *before* recursing,
+//! of parentheses and calls is checked against [`ExprLimits::max_depth`] *before* recursing,
 //! so no input can overflow the stack. Every token is read once, so parsing is linear in
-//! the length of the input, which is itself bounded by [`Limits::max_chars`].
+//! the length of the input, which is itself bounded by [`ExprLimits::max_chars`].
 
 use crate::expr::error::{Expected, ExprError};
 use crate::expr::lex::{Lexer, Token, TokenKind};
 use crate::expr::ops::{self, BinaryOp, Function, UnaryOp};
-use crate::expr::{Limits, Var};
+use crate::expr::{ExprLimits, Var};
 
 /// The names an expression may use, each bound to a variable slot.
 ///
 /// Names are declared in order and get consecutive slots `Var(0)`, `Var(1)`, …
-/// A scope can be narrowed with [`Scope::restricted_to`]: the other names stay known but
+/// A scope can be narrowed with [`NameScope::restricted_to`]: the other names stay known but
 /// are refused with [`ExprError::NameNotAllowed`], which gives a clearer message than
 /// "unknown name".
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
-pub struct Scope {
+pub struct NameScope {
     names: Vec<String>,
     allowed: Vec<bool>,
 }
 
-impl Scope {
+impl NameScope {
     /// An empty scope.
     pub fn new() -> Self {
         Self::default()
@@ -32,7 +32,7 @@ impl Scope {
 
     /// A scope declaring `names` in order.
     pub fn with_names<S: AsRef<str>>(names: &[S]) -> Result<Self, ExprError> {
-        let mut scope = Scope::new();
+        let mut scope = NameScope::new();
         for name in names {
             scope.declare(name.as_ref())?;
         }
@@ -94,7 +94,7 @@ impl Scope {
     }
 
     /// The same names, of which only those in `allowed` may be used.
-    pub fn restricted_to(&self, allowed: &[Var]) -> Scope {
+    pub fn restricted_to(&self, allowed: &[Var]) -> NameScope {
         let mut scope = self.clone();
         for (index, flag) in scope.allowed.iter_mut().enumerate() {
             *flag = allowed.contains(&Var(index as u32));
@@ -170,16 +170,16 @@ impl ParsedExpr {
     }
 }
 
-/// Parses `text` with the default [`Limits`]. See the crate docs for the language.
-pub fn parse(text: &str, scope: &Scope) -> Result<ParsedExpr, ExprError> {
-    parse_with_limits(text, scope, &Limits::default())
+/// Parses `text` with the default [`ExprLimits`]. See the crate docs for the language.
+pub fn parse(text: &str, scope: &NameScope) -> Result<ParsedExpr, ExprError> {
+    parse_with_limits(text, scope, &ExprLimits::default())
 }
 
 /// Parses `text` with the given limits on length, nesting and size.
 pub fn parse_with_limits(
     text: &str,
-    scope: &Scope,
-    limits: &Limits,
+    scope: &NameScope,
+    limits: &ExprLimits,
 ) -> Result<ParsedExpr, ExprError> {
     // Count only as far as needed, so a huge input is refused without reading it all.
     if text
@@ -214,8 +214,8 @@ pub fn parse_with_limits(
 struct Parser<'a, 's> {
     lexer: Lexer<'a>,
     peeked: Option<Token<'a>>,
-    scope: &'s Scope,
-    limits: &'s Limits,
+    scope: &'s NameScope,
+    limits: &'s ExprLimits,
     nodes: Vec<AstNode>,
     depth: usize,
 }

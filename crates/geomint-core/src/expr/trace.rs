@@ -16,7 +16,7 @@ use std::ops::{Add, Div, Mul, Neg, Sub};
 
 use crate::expr::graph::{Graph, NodeId};
 use crate::expr::program::Program;
-use crate::expr::{ExprError, Limits, Var};
+use crate::expr::{ExprError, ExprLimits, Var};
 
 /// A value of the function being traced: a node of its graph.
 #[derive(Clone, Copy)]
@@ -73,5 +73,10 @@ pub fn program<const I: usize, const O: usize>(
     });
     let outputs = f(inputs).map(|output| output.id);
     let graph = graph.borrow();
-    Program::build(&graph, &outputs, &layout, Limits::DEFAULT.max_program_len)
+    Program::build(
+        &graph,
+        &outputs,
+        &layout,
+        ExprLimits::DEFAULT.max_program_len,
+    )
 }

@@ -209,7 +209,7 @@ where
 /// Where a method and its step size come from, as errors name them, and the system as they
 /// call it.
 #[derive(Clone, Debug)]
-pub struct Origin<'a> {
+pub struct MethodOrigin<'a> {
     /// The method's field, e.g. `methods[1]`.
     pub method: &'a Field,
     /// The step size's field, e.g. `h`.
@@ -224,7 +224,7 @@ pub fn check<S: MechanicalSystem>(
     method: &Method,
     sys: &S,
     h: f64,
-    origin: &Origin<'_>,
+    origin: &MethodOrigin<'_>,
 ) -> Result<(), CoreError>
 where
     DefaultAllocator: Allocator<S::Dim>,
@@ -287,7 +287,7 @@ pub fn build<S: MechanicalSystem>(
 where
     DefaultAllocator: Allocator<S::Dim>,
 {
-    let origin = Origin {
+    let origin = MethodOrigin {
         method: &Field::new("method"),
         h: &Field::new("h"),
         system,

@@ -6,7 +6,7 @@
 use super::names::StateNames;
 use super::spec::{Direction, EventSpec, SectionSpec, SurfaceSpec};
 use crate::error::{CoreError, Field};
-use crate::expr::{CompileOptions, CompiledFunction, Graph, Scope, Var};
+use crate::expr::{CompileOptions, CompiledFunction, Graph, NameScope, Var};
 
 /// A surface, compiled.
 #[derive(Debug)]
@@ -43,7 +43,7 @@ impl Surface {
             field: field.clone(),
             error,
         };
-        let mut scope = Scope::new();
+        let mut scope = NameScope::new();
         for name in names
             .coordinates
             .iter()

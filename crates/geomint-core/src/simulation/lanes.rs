@@ -13,7 +13,7 @@ use std::time::Instant;
 use nalgebra::allocator::Allocator;
 use nalgebra::{DefaultAllocator, Dim};
 
-use super::run::{Outcome, SampleSink};
+use super::run::{RunReport, SampleSink};
 use super::spec::Simulation;
 use crate::chaos::{ChaosPlan, OneVectorLanes, ThresholdCrossing, Tracker};
 use crate::error::CoreError;
@@ -165,7 +165,7 @@ impl Simulation {
         sims: &[Simulation],
         budget: Budget<'_>,
         sinks: &mut [&mut dyn SampleSink],
-    ) -> Option<Vec<Result<Option<Outcome>, CoreError>>> {
+    ) -> Option<Vec<Result<Option<RunReport>, CoreError>>> {
         let mut groups: Vec<Vec<usize>> = Vec::new();
         for (i, sim) in sims.iter().enumerate() {
             let open = groups
@@ -177,7 +177,7 @@ impl Simulation {
             }
         }
         let mut sinks: Vec<Option<&mut &mut dyn SampleSink>> = sinks.iter_mut().map(Some).collect();
-        let mut outcomes: Vec<Option<Result<Option<Outcome>, CoreError>>> =
+        let mut outcomes: Vec<Option<Result<Option<RunReport>, CoreError>>> =
             (0..sims.len()).map(|_| None).collect();
         for group in groups {
             let members: Vec<&Simulation> = group.iter().map(|&i| &sims[i]).collect();
@@ -211,7 +211,7 @@ fn one_by_one(
     sims: &[&Simulation],
     budget: Budget<'_>,
     sinks: &mut [&mut dyn SampleSink],
-) -> Option<Vec<Result<Option<Outcome>, CoreError>>> {
+) -> Option<Vec<Result<Option<RunReport>, CoreError>>> {
     let mut outcomes = Vec::with_capacity(sims.len());
     for (sim, sink) in sims.iter().zip(sinks) {
         let outcome = sim.run_method(0, None, budget, &mut **sink);
@@ -231,7 +231,7 @@ fn side_by_side<S, const N: usize>(
     sims: &[&Simulation],
     budget: Budget<'_>,
     sinks: &mut [&mut dyn SampleSink],
-) -> Option<Vec<Result<Option<Outcome>, CoreError>>>
+) -> Option<Vec<Result<Option<RunReport>, CoreError>>>
 where
     S: MechanicalSystem + LaneForces<N> + PointForces<N> + PartialEq + Clone,
     DefaultAllocator: Allocator<S::Dim>,
@@ -266,7 +266,7 @@ fn plain<S, F, const N: usize>(
     sims: &[&Simulation],
     budget: Budget<'_>,
     sinks: &mut [&mut dyn SampleSink],
-) -> Option<Vec<Option<Outcome>>>
+) -> Option<Vec<Option<RunReport>>>
 where
     S: MechanicalSystem,
     F: LaneForces<N>,
@@ -346,8 +346,8 @@ where
 }
 
 /// A run's outcome from how it ended: its stop, steps and force evaluations.
-fn outcome((stop, steps, force_evaluations): (RunEnd, u64, u64), wall_time_ms: f64) -> Outcome {
-    Outcome {
+fn outcome((stop, steps, force_evaluations): (RunEnd, u64, u64), wall_time_ms: f64) -> RunReport {
+    RunReport {
         stop,
         stats: RunStats {
             steps,
@@ -365,7 +365,7 @@ fn tracked<S, const N: usize>(
     sims: &[&Simulation],
     budget: Budget<'_>,
     sinks: &mut [&mut dyn SampleSink],
-) -> Option<Vec<Outcome>>
+) -> Option<Vec<RunReport>>
 where
     S: MechanicalSystem + LaneForces<N>,
     DefaultAllocator: Allocator<S::Dim>,

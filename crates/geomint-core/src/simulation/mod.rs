@@ -31,7 +31,7 @@ pub use document::{
     Stop, SystemSummary,
 };
 pub(crate) use lanes::with_lane_systems;
-pub use run::{for_each_method, Outcome, Sample, SampleSink};
+pub use run::{for_each_method, RunReport, Sample, SampleSink};
 pub use spec::{
     EnergyReference, InitialCoordinates, InputFields, Limits, MethodAt, Simulation, SimulationSpec,
     MAX_METHODS,

@@ -66,9 +66,10 @@ pub trait SampleSink {
     }
 }
 
-/// How one method's run ended.
+/// How one method's run ended, as the driver reports it: why it stopped and its statistics
+/// (the document's [`RunOutcome`](super::RunOutcome) adds what its observers measured).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Outcome {
+pub struct RunReport {
     /// Why it stopped.
     pub stop: RunEnd,
     /// Statistics.
@@ -84,7 +85,7 @@ impl Simulation {
         reference: Option<&[f64]>,
         budget: Budget<'_>,
         sink: &mut dyn SampleSink,
-    ) -> Result<Outcome, CoreError> {
+    ) -> Result<RunReport, CoreError> {
         self.run(&self.methods[index], reference, budget, sink)
     }
 
@@ -96,7 +97,7 @@ impl Simulation {
         reference: Option<&[f64]>,
         budget: Budget<'_>,
         sink: &mut dyn SampleSink,
-    ) -> Result<Outcome, CoreError> {
+    ) -> Result<RunReport, CoreError> {
         self.run_with(method, reference, budget, sink, true, self.chaos.as_ref())
     }
 
@@ -111,7 +112,7 @@ impl Simulation {
         sink: &mut dyn SampleSink,
         watch: bool,
         chaos: Option<&ChaosPlan>,
-    ) -> Result<Outcome, CoreError> {
+    ) -> Result<RunReport, CoreError> {
         with_system!(&self.system, sys => {
             let mut stepper = methods::build(method, sys, &self.system_label, self.schedule.h)?;
             let start = State::at_time(sys, 0.0, &self.q0, &self.p0);
@@ -139,7 +140,7 @@ impl Simulation {
             if let Some(summary) = observer.watch.as_ref().and_then(Watch::summary) {
                 observer.sink.on_section_end(&summary);
             }
-            Ok(Outcome { stop, stats })
+            Ok(RunReport { stop, stats })
         })
     }
 

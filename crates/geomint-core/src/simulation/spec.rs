@@ -8,7 +8,7 @@ use std::sync::Arc;
 
 use crate::chaos::{self, ChaosPlan, ChaosSpec};
 use crate::error::{CoreError, Field, Range, StepError, StepScope};
-use crate::methods::build::{self, Origin};
+use crate::methods::build::{self, MethodOrigin};
 use crate::methods::{self, Method};
 use crate::run::Stepper;
 use crate::run::{step_count, Schedule};
@@ -361,7 +361,7 @@ impl Simulation {
             });
         }
         for at in &spec.methods {
-            let origin = Origin {
+            let origin = MethodOrigin {
                 method: &at.field,
                 h: &f.h,
                 system: &system_label,

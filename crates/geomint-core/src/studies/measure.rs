@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use crate::error::CoreError;
 use crate::run::{Budget, RunEnd};
-use crate::simulation::{Outcome, Sample, SampleSink, Simulation};
+use crate::simulation::{RunReport, Sample, SampleSink, Simulation};
 
 /// Runs shorter than this many milliseconds are timed [`SHORT_RUN_REPEATS`] times.
 const SHORT_RUN_MS: f64 = 20.0;
@@ -83,7 +83,7 @@ pub fn measure_once<'a>(
     sim: &Simulation,
     energies: Option<&'a [f64]>,
     budget: Budget<'_>,
-) -> Result<(Outcome, Measure<'a>, f64), CoreError> {
+) -> Result<(RunReport, Measure<'a>, f64), CoreError> {
     let mut sink = Measure::new(sim.invariant_names(), energies);
     let began = Instant::now();
     let outcome = sim
@@ -115,7 +115,7 @@ pub fn measure_timed<'a>(
     energies: Option<&'a [f64]>,
     budget: Budget<'_>,
     repeats: usize,
-) -> Result<(Outcome, Measure<'a>, Vec<f64>), CoreError> {
+) -> Result<(RunReport, Measure<'a>, Vec<f64>), CoreError> {
     let (outcome, sink, first) = measure_once(sim, energies, budget)?;
     let mut times = vec![first];
     let wanted = if first < SHORT_RUN_MS {

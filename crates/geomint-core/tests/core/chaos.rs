@@ -7,7 +7,7 @@ use geomint_core::chaos::{ChaosSpec, Indicator};
 use geomint_core::methods::Base;
 use geomint_core::methods::{self, Method, MethodId};
 use geomint_core::run::{Budget, Stepper};
-use geomint_core::simulation::{Columns, Limits, Outcome, Simulation, SimulationSpec};
+use geomint_core::simulation::{Columns, Limits, RunReport, Simulation, SimulationSpec};
 use geomint_core::stability::{propagation_matrix, Spectrum};
 use geomint_core::system::{MechanicalSystem, State};
 use geomint_core::tangent::Tangent;
@@ -16,7 +16,7 @@ use geomint_core::with_system;
 use crate::common;
 
 /// Runs `spec` (one method) with the indicators of `chaos`.
-pub fn chaos_run(spec: &SimulationSpec, chaos: &ChaosSpec) -> (Columns, Outcome) {
+pub fn chaos_run(spec: &SimulationSpec, chaos: &ChaosSpec) -> (Columns, RunReport) {
     let sim = Simulation::prepare(spec, &Limits::default())
         .and_then(|s| s.with_chaos(chaos))
         .expect("a valid request");

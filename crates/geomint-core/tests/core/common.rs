@@ -2,7 +2,9 @@
 
 use geomint_core::methods::{self, Method, MethodId};
 use geomint_core::run::{integrate, Budget, Observer, RunEnd, Schedule, Stepper};
-use geomint_core::simulation::{ColumnSink, Columns, Limits, Outcome, Simulation, SimulationSpec};
+use geomint_core::simulation::{
+    ColumnSink, Columns, Limits, RunReport, Simulation, SimulationSpec,
+};
 use geomint_core::system::{MechanicalSystem, State};
 use geomint_core::systems::ParamValue;
 use nalgebra::allocator::Allocator;
@@ -119,7 +121,7 @@ pub fn run_to_columns(
     index: usize,
     reference: Option<&[f64]>,
     budget: Budget<'_>,
-) -> Result<(Columns, Outcome), geomint_core::error::CoreError> {
+) -> Result<(Columns, RunReport), geomint_core::error::CoreError> {
     let mut sink = ColumnSink::new(sim.invariant_names());
     let outcome = sim.run_method(index, reference, budget, &mut sink)?;
     Ok((sink.take(), outcome))

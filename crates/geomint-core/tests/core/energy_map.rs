@@ -8,7 +8,7 @@ use geomint_core::methods::{Method, MethodId};
 use geomint_core::run::Budget;
 use geomint_core::simulation::MethodAt;
 use geomint_core::studies::energy_map::{
-    CellPath, ChartRun, EnergyMap, EnergyMapJob, EnergyMapSpec,
+    CellPath, ChartRun, EnergyMapCells, EnergyMapJob, EnergyMapSpec,
 };
 use geomint_core::systems::ParamValue;
 
@@ -113,7 +113,7 @@ fn the_same_map_twice_is_bit_identical() {
     let a = spec.run(Budget::default(), &|_, _| {}).unwrap().unwrap();
     let b = spec.run(Budget::default(), &|_, _| {}).unwrap().unwrap();
     for k in 0..N * N {
-        let bits = |m: &geomint_core::studies::energy_map::EnergyMap| {
+        let bits = |m: &geomint_core::studies::energy_map::EnergyMapCells| {
             (
                 m.polar[k].epsilon.map(f64::to_bits),
                 m.cartesian[k].epsilon.map(f64::to_bits),
@@ -124,7 +124,7 @@ fn the_same_map_twice_is_bit_identical() {
 }
 
 /// Every number of a map as bits (NaN included), cell by cell.
-fn map_bits(map: &EnergyMap) -> Vec<[Option<u64>; 5]> {
+fn map_bits(map: &EnergyMapCells) -> Vec<[Option<u64>; 5]> {
     let bits = |x: Option<f64>| x.map(f64::to_bits);
     (0..map.energy.len())
         .map(|k| {

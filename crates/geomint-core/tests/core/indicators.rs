@@ -22,7 +22,7 @@ fn henon_heiles_orbit(
     t_end: f64,
     every: u64,
     chaos: &ChaosSpec,
-) -> (Columns, geomint_core::simulation::Outcome) {
+) -> (Columns, geomint_core::simulation::RunReport) {
     chaos_run(
         &spec(
             "henon_heiles",

@@ -5,7 +5,7 @@ use serde::Serialize;
 
 use super::landscape::CriticalPoint;
 use super::metrics::BasinMetrics;
-use super::outcome::Outcome;
+use super::outcome::OrbitOutcome;
 use crate::error::ErrorDetail;
 use crate::studies::sweep::{AxisDocument, RunLabel};
 use crate::studies::StudyCompletion;
@@ -15,7 +15,9 @@ use crate::systems::wrap_angle;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 #[serde(rename_all = "snake_case")]
-pub enum Kind {
+// Its schema kept the name it was published under.
+#[cfg_attr(feature = "openapi", schema(as = Kind))]
+pub enum AttractorKind {
     /// A damped orbit settles at a minimum of V (the equilibrium, p = 0), or an orbit starts at
     /// rest on a critical point.
     Equilibrium,
@@ -40,7 +42,7 @@ pub struct Attractor {
     /// The label cells carry.
     pub label: i64,
     /// Its kind.
-    pub kind: Kind,
+    pub kind: AttractorKind,
     /// Its name in words (`equilibrium 2 (minimum)`, an exit's name, `period-3 orbit 1`).
     pub name: String,
     /// The period, in driving periods, of a periodic orbit.
@@ -60,7 +62,7 @@ pub struct Attractor {
     /// Cells with this label.
     pub cells: usize,
     #[serde(skip)]
-    pub(super) outcome: Outcome,
+    pub(super) outcome: OrbitOutcome,
 }
 
 impl Attractor {
@@ -68,7 +70,7 @@ impl Attractor {
     /// the same period whose points lie within 10⁻³ (relative) of these, the components that are
     /// `angles` compared modulo 2π (an orbit through θ = π may be stored at +π in one cell and
     /// just above −π in another).
-    pub(super) fn matches(&self, outcome: &Outcome, angles: &[bool]) -> bool {
+    pub(super) fn matches(&self, outcome: &OrbitOutcome, angles: &[bool]) -> bool {
         let gap = |k: usize, u: f64, v: f64| {
             if angles.get(k).copied().unwrap_or(false) {
                 wrap_angle(u - v).abs()
@@ -77,7 +79,7 @@ impl Attractor {
             }
         };
         match (&self.outcome, outcome) {
-            (Outcome::Cycle { points: a }, Outcome::Cycle { points: b }) => {
+            (OrbitOutcome::Cycle { points: a }, OrbitOutcome::Cycle { points: b }) => {
                 a.len() == b.len()
                     && (0..b.len()).any(|shift| {
                         a.iter().enumerate().all(|(j, x)| {

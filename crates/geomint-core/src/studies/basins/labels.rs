@@ -2,9 +2,11 @@
 //! first appear in cell order (the given attractors first), the attractors' table, the shares
 //! and the metrics.
 
-use super::document::{Attractor, BasinRun, BasinsDocument, DecidedBy, Kind, UndecidedCell};
+use super::document::{
+    Attractor, AttractorKind, BasinRun, BasinsDocument, DecidedBy, UndecidedCell,
+};
 use super::metrics::basin_metrics;
-use super::outcome::{CellOutcome, Outcome};
+use super::outcome::{CellOutcome, OrbitOutcome};
 use super::{BasinsJob, MAX_ATTRACTORS};
 use crate::studies::engine::{Finished, Study};
 
@@ -13,7 +15,7 @@ impl BasinsJob {
     pub fn document_of(&self, finished: Finished<Vec<CellOutcome>>) -> BasinsDocument {
         let unfinished_cells = finished.unfinished();
         let not_run = CellOutcome {
-            outcome: Outcome::Undecided {
+            outcome: OrbitOutcome::Undecided {
                 reason: "not run: the map reached its time limit".into(),
             },
             decided_at: None,
@@ -55,14 +57,14 @@ impl BasinsJob {
             .enumerate()
             .map(|(k, given)| Attractor {
                 label: k as i64,
-                kind: Kind::Given,
+                kind: AttractorKind::Given,
                 name: given.name.clone(),
                 period: None,
                 equilibrium: None,
                 points: given.points.clone(),
                 radius: Some(given.radius),
                 cells: 0,
-                outcome: Outcome::Given { attractor: k },
+                outcome: OrbitOutcome::Given { attractor: k },
             })
             .collect();
         let mut labels = Vec::with_capacity(cells.len());
@@ -71,26 +73,30 @@ impl BasinsJob {
         let mut largest_margin: Option<f64> = None;
         for (i, cell) in cells.iter().enumerate() {
             match &cell.outcome {
-                Outcome::Equilibrium { .. } | Outcome::Well { .. } => decided_by.energy += 1,
-                Outcome::Exit { .. } => decided_by.exit += 1,
-                Outcome::Cycle { .. } => decided_by.recurrence += 1,
-                Outcome::Given { .. } => decided_by.proximity += 1,
-                Outcome::Diverged => decided_by.divergence += 1,
-                Outcome::Stayed => decided_by.t_end += 1,
-                Outcome::Undecided { .. } | Outcome::Failed { .. } => decided_by.undecided += 1,
+                OrbitOutcome::Equilibrium { .. } | OrbitOutcome::Well { .. } => {
+                    decided_by.energy += 1
+                }
+                OrbitOutcome::Exit { .. } => decided_by.exit += 1,
+                OrbitOutcome::Cycle { .. } => decided_by.recurrence += 1,
+                OrbitOutcome::Given { .. } => decided_by.proximity += 1,
+                OrbitOutcome::Diverged => decided_by.divergence += 1,
+                OrbitOutcome::Stayed => decided_by.t_end += 1,
+                OrbitOutcome::Undecided { .. } | OrbitOutcome::Failed { .. } => {
+                    decided_by.undecided += 1
+                }
             }
             if let Some(m) = cell.energy_margin {
                 largest_margin = Some(largest_margin.map_or(m, |l: f64| l.max(m)));
             }
             let label = match &cell.outcome {
-                Outcome::Undecided { reason } => {
+                OrbitOutcome::Undecided { reason } => {
                     undecided.push(UndecidedCell {
                         cell: i,
                         reason: reason.clone(),
                     });
                     -1
                 }
-                Outcome::Failed { error } => {
+                OrbitOutcome::Failed { error } => {
                     undecided.push(UndecidedCell {
                         cell: i,
                         reason: error.clone(),
@@ -127,7 +133,7 @@ impl BasinsJob {
         }
         let started: Vec<bool> = cells
             .iter()
-            .map(|c| !matches!(c.outcome, Outcome::Failed { .. }))
+            .map(|c| !matches!(c.outcome, OrbitOutcome::Failed { .. }))
             .collect();
         let not_started = started.iter().filter(|&&s| !s).count();
         let total = (cells.len() - not_started).max(1) as f64;
@@ -151,7 +157,7 @@ impl BasinsJob {
 
     /// A found equilibrium or periodic orbit that lies within a given attractor's reach (every
     /// point of it), as that attractor's outcome; any other outcome as it is.
-    fn as_given<'o>(&self, outcome: &'o Outcome) -> std::borrow::Cow<'o, Outcome> {
+    fn as_given<'o>(&self, outcome: &'o OrbitOutcome) -> std::borrow::Cow<'o, OrbitOutcome> {
         use std::borrow::Cow;
         let criteria = &self.criteria;
         let within = |points: &[Vec<f64>]| {
@@ -164,8 +170,8 @@ impl BasinsJob {
             })
         };
         let found = match outcome {
-            Outcome::Cycle { points } if !criteria.given.is_empty() => within(points),
-            Outcome::Equilibrium { point } if !criteria.given.is_empty() => {
+            OrbitOutcome::Cycle { points } if !criteria.given.is_empty() => within(points),
+            OrbitOutcome::Equilibrium { point } if !criteria.given.is_empty() => {
                 criteria.landscape.as_ref().and_then(|l| {
                     let q = &l.points[*point].q;
                     let state: Vec<f64> = q.iter().copied().chain(q.iter().map(|_| 0.0)).collect();
@@ -175,13 +181,13 @@ impl BasinsJob {
             _ => None,
         };
         match found {
-            Some(attractor) => Cow::Owned(Outcome::Given { attractor }),
+            Some(attractor) => Cow::Owned(OrbitOutcome::Given { attractor }),
             None => Cow::Borrowed(outcome),
         }
     }
 
     /// The table entry of a new outcome, after the `known` ones.
-    fn attractor(&self, known: &[Attractor], outcome: &Outcome) -> Attractor {
+    fn attractor(&self, known: &[Attractor], outcome: &OrbitOutcome) -> Attractor {
         let label = known.len();
         let point = |i: usize| {
             self.criteria
@@ -190,36 +196,44 @@ impl BasinsJob {
                 .map(|l| l.points[i].clone())
         };
         let (kind, name, equilibrium, points) = match outcome {
-            Outcome::Equilibrium { point: i } => {
+            OrbitOutcome::Equilibrium { point: i } => {
                 let shape = match point(*i) {
                     Some(p) if !p.is_minimum() => "saddle",
                     _ => "minimum",
                 };
                 let name = format!("equilibrium {} ({shape})", i + 1);
-                (Kind::Equilibrium, name, point(*i), Vec::new())
+                (AttractorKind::Equilibrium, name, point(*i), Vec::new())
             }
-            Outcome::Well { point: i } => {
-                (Kind::Well, format!("well {}", i + 1), point(*i), Vec::new())
-            }
-            Outcome::Exit { exit } => {
-                (Kind::Exit, self.exit_names[*exit].clone(), None, Vec::new())
-            }
-            Outcome::Cycle { points } => {
+            OrbitOutcome::Well { point: i } => (
+                AttractorKind::Well,
+                format!("well {}", i + 1),
+                point(*i),
+                Vec::new(),
+            ),
+            OrbitOutcome::Exit { exit } => (
+                AttractorKind::Exit,
+                self.exit_names[*exit].clone(),
+                None,
+                Vec::new(),
+            ),
+            OrbitOutcome::Cycle { points } => {
                 let same_period = known
                     .iter()
                     .filter(|a| a.period == Some(points.len()))
                     .count();
                 let name = format!("period-{} orbit {}", points.len(), same_period + 1);
-                (Kind::Periodic, name, None, points.clone())
+                (AttractorKind::Periodic, name, None, points.clone())
             }
-            Outcome::Diverged => (Kind::Diverged, "diverged".into(), None, Vec::new()),
-            _ => (Kind::Stayed, "stayed".into(), None, Vec::new()),
+            OrbitOutcome::Diverged => {
+                (AttractorKind::Diverged, "diverged".into(), None, Vec::new())
+            }
+            _ => (AttractorKind::Stayed, "stayed".into(), None, Vec::new()),
         };
         Attractor {
             label: label as i64,
             kind,
             name,
-            period: (kind == Kind::Periodic).then_some(points.len()),
+            period: (kind == AttractorKind::Periodic).then_some(points.len()),
             equilibrium,
             points,
             radius: None,

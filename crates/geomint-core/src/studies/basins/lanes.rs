@@ -17,7 +17,7 @@ use std::ops::{ControlFlow, Range};
 use nalgebra::allocator::Allocator;
 use nalgebra::DefaultAllocator;
 
-use super::outcome::{CellOutcome, Decide, Outcome};
+use super::outcome::{CellOutcome, Decide, OrbitOutcome};
 use super::BasinsJob;
 use crate::methods::lanes::{LaneForces, CHECK_EVERY};
 use crate::run::{Budget, Observer, RunEnd};
@@ -177,7 +177,7 @@ impl CellOutcome {
     /// A cell whose run could not start or failed.
     pub(super) fn failed(error: impl std::fmt::Display) -> Self {
         CellOutcome {
-            outcome: Outcome::Failed {
+            outcome: OrbitOutcome::Failed {
                 error: error.to_string(),
             },
             decided_at: None,

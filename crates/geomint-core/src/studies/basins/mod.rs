@@ -35,10 +35,10 @@ use crate::studies::StudySpec;
 use crate::system::{MechanicalSystem, State};
 use crate::with_system;
 pub use document::{
-    Attractor, BasinRun, BasinsDocument, BasinsLine, DecidedBy, Kind, UndecidedCell,
+    Attractor, AttractorKind, BasinRun, BasinsDocument, BasinsLine, DecidedBy, UndecidedCell,
 };
 use landscape::Landscape;
-use outcome::{CellOutcome, Criteria, Decide, Exit, Given, Outcome, Stroboscope};
+use outcome::{CellOutcome, Criteria, Decide, Exit, Given, OrbitOutcome, Stroboscope};
 
 /// Most points along one axis of a basin map: more than a sweep's, for maps of 10⁶ cells, as
 /// most of its cells are decided long before `t_end` (the total steps `t_end` would take stay
@@ -496,7 +496,7 @@ impl BasinsJob {
     /// its run stopped after `steps`; `None` when the budget stopped it undecided.
     fn conclude(
         &self,
-        decided: Option<(Outcome, f64, Option<f64>)>,
+        decided: Option<(OrbitOutcome, f64, Option<f64>)>,
         stop: RunEnd,
         steps: u64,
         t_end: f64,
@@ -504,10 +504,12 @@ impl BasinsJob {
         let (outcome, decided_at, energy_margin) = match (decided, stop) {
             (Some((outcome, t, margin)), _) => (outcome, Some(t), margin),
             (None, RunEnd::Cancelled { .. } | RunEnd::TimeLimit { .. }) => return None,
-            (None, RunEnd::Diverged { t, .. }) => (Outcome::Diverged, Some(t), None),
-            (None, _) if !self.criteria.exits.is_empty() => (Outcome::Stayed, Some(t_end), None),
+            (None, RunEnd::Diverged { t, .. }) => (OrbitOutcome::Diverged, Some(t), None),
+            (None, _) if !self.criteria.exits.is_empty() => {
+                (OrbitOutcome::Stayed, Some(t_end), None)
+            }
             (None, _) => (
-                Outcome::Undecided {
+                OrbitOutcome::Undecided {
                     reason: self.undecided_reason().into(),
                 },
                 None,

@@ -169,7 +169,7 @@ fn escapes(bound: Option<f64>, x: f64) -> bool {
 /// Where an orbit ended up.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
-pub enum Outcome {
+pub enum OrbitOutcome {
     /// Trapped in the well of critical point `point` (an index into the landscape), where the
     /// damping settles it; or started at rest on that critical point.
     Equilibrium {
@@ -217,7 +217,7 @@ pub enum Outcome {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CellOutcome {
     /// Where it ended up.
-    pub outcome: Outcome,
+    pub outcome: OrbitOutcome,
     /// When that was decided (None for an undecided or failed cell).
     pub decided_at: Option<f64>,
     /// Steps taken.
@@ -255,7 +255,7 @@ where
     /// The state's components, for the proximity test of a system nothing drives.
     here: Vec<f64>,
     /// What was decided, when, and the energy margin of an energy decision.
-    pub decided: Option<(Outcome, f64, Option<f64>)>,
+    pub decided: Option<(OrbitOutcome, f64, Option<f64>)>,
 }
 
 impl<'a, S: MechanicalSystem> Decide<'a, S>
@@ -291,7 +291,7 @@ where
         };
         // A start at rest on a critical point (a saddle's included) stays there.
         if let Some(point) = decide.resting_on(start) {
-            decide.decided = Some((Outcome::Equilibrium { point }, 0.0, None));
+            decide.decided = Some((OrbitOutcome::Equilibrium { point }, 0.0, None));
             return decide;
         }
         // The energy argument may decide at once: the start's energy is exact.
@@ -300,7 +300,7 @@ where
         }
         let here = decide.components(start);
         if let Some(attractor) = decide.criteria.given_near(&here) {
-            decide.decided = Some((Outcome::Given { attractor }, 0.0, None));
+            decide.decided = Some((OrbitOutcome::Given { attractor }, 0.0, None));
             return decide;
         }
         if decide.criteria.stroboscope.is_some() {
@@ -350,7 +350,7 @@ where
         );
     }
 
-    fn decide(&mut self, outcome: Outcome, t: f64, margin: Option<f64>) -> ControlFlow<f64> {
+    fn decide(&mut self, outcome: OrbitOutcome, t: f64, margin: Option<f64>) -> ControlFlow<f64> {
         self.decided = Some((outcome, t, margin));
         ControlFlow::Break(t)
     }
@@ -358,7 +358,7 @@ where
     /// Divergence and the energy argument at the state `z` after `step` (time `t`).
     fn look(&mut self, step: u64, t: f64, z: &State<S::Dim>, stepped: bool) -> ControlFlow<f64> {
         if self.escaped(z.q.as_slice(), z.p.as_slice()) {
-            return self.decide(Outcome::Diverged, t, None);
+            return self.decide(OrbitOutcome::Diverged, t, None);
         }
         let Some(landscape) = &self.criteria.landscape else {
             return ControlFlow::Continue(());
@@ -374,9 +374,9 @@ where
         match landscape.well_of(self.sys, &z.q, level.min(f64::MAX), &mut self.scratch) {
             Some(point) => {
                 let outcome = if self.criteria.damped {
-                    Outcome::Equilibrium { point }
+                    OrbitOutcome::Equilibrium { point }
                 } else {
-                    Outcome::Well { point }
+                    OrbitOutcome::Well { point }
                 };
                 self.decide(outcome, t, Some(margin))
             }
@@ -505,7 +505,7 @@ where
 
     fn on_step(&mut self, step: u64, t: f64, z: &State<S::Dim>) -> ControlFlow<f64> {
         if let Some((exit, at)) = self.exit_crossed(t, z) {
-            return self.decide(Outcome::Exit { exit }, at, None);
+            return self.decide(OrbitOutcome::Exit { exit }, at, None);
         }
         if let ControlFlow::Break(at) = self.look(step, t, z, true) {
             return ControlFlow::Break(at);
@@ -517,7 +517,7 @@ where
             let near = self.criteria.given_near(&here);
             self.here = here;
             if let Some(attractor) = near {
-                return self.decide(Outcome::Given { attractor }, t, None);
+                return self.decide(OrbitOutcome::Given { attractor }, t, None);
             }
         }
         if let Some(strobe) = self.criteria.stroboscope {
@@ -531,11 +531,11 @@ where
                 };
                 self.load_components(z, &mut point);
                 if let Some(attractor) = self.criteria.given_near(&point) {
-                    return self.decide(Outcome::Given { attractor }, t, None);
+                    return self.decide(OrbitOutcome::Given { attractor }, t, None);
                 }
                 self.strobe.push_back(point);
                 if let Some(points) = self.cycle(strobe.tolerance, strobe.max_period) {
-                    return self.decide(Outcome::Cycle { points }, t, None);
+                    return self.decide(OrbitOutcome::Cycle { points }, t, None);
                 }
             }
         }

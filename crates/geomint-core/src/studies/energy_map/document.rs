@@ -3,7 +3,7 @@
 
 use serde::Serialize;
 
-use super::{run_on, EnergyMap, EnergyMapJob};
+use super::{run_on, EnergyMapCells, EnergyMapJob};
 use crate::error::{CoreError, ErrorDetail};
 use crate::run::Budget;
 use crate::studies::engine::Executor;
@@ -133,7 +133,7 @@ pub fn run<E: Executor>(
     Ok(document(job, job.map_of(&finished), finished.wall_ms))
 }
 
-fn document(spec: &EnergyMapJob, map: EnergyMap, wall_ms: f64) -> EnergyMapDocument {
+fn document(spec: &EnergyMapJob, map: EnergyMapCells, wall_ms: f64) -> EnergyMapDocument {
     let difference = map.difference();
     let polar_diverged_at: Vec<Option<f64>> = map.polar.iter().map(|r| r.diverged_at).collect();
     let cartesian_diverged_at: Vec<Option<f64>> =

@@ -29,7 +29,7 @@ use std::collections::BTreeMap;
 use serde::Serialize;
 
 use crate::error::{CoreError, Field, Range};
-use crate::methods::build::{self, Origin};
+use crate::methods::build::{self, MethodOrigin};
 use crate::methods::Method;
 use crate::run::{step_count, Budget};
 use crate::simulation::{InitialCoordinates, Limits, MethodAt};
@@ -107,7 +107,7 @@ impl ChartRun {
 
 /// The map: per-cell columns in row-major order (row j is y₀ = ys[j], column i is x₀ = xs[i]).
 #[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct EnergyMap {
+pub struct EnergyMapCells {
     /// The method's label.
     pub method: String,
     /// Grid x₀ values.
@@ -130,7 +130,7 @@ pub struct EnergyMap {
     pub unfinished: Vec<usize>,
 }
 
-impl EnergyMap {
+impl EnergyMapCells {
     /// ε(x,y) − ε(r,θ) per cell, where both exist.
     pub fn difference(&self) -> Vec<Option<f64>> {
         self.cartesian
@@ -182,7 +182,7 @@ impl EnergyMapJob {
         &self,
         budget: Budget<'_>,
         progress: &(dyn Fn(usize, usize) + Sync),
-    ) -> Result<Option<EnergyMap>, CoreError> {
+    ) -> Result<Option<EnergyMapCells>, CoreError> {
         self.run_with(CellPath::Lanes, budget, progress)
     }
 
@@ -192,7 +192,7 @@ impl EnergyMapJob {
         path: CellPath,
         budget: Budget<'_>,
         progress: &(dyn Fn(usize, usize) + Sync),
-    ) -> Result<Option<EnergyMap>, CoreError> {
+    ) -> Result<Option<EnergyMapCells>, CoreError> {
         let sweep = match path {
             CellPath::Lanes => self.sweep.clone(),
             CellPath::CellByCell => self.sweep.clone().cell_by_cell(),
@@ -206,12 +206,12 @@ impl EnergyMapJob {
     }
 
     /// The map from what the sweep's cells came to.
-    pub fn map_of(&self, finished: &Finished<Vec<RunMetrics>>) -> EnergyMap {
+    pub fn map_of(&self, finished: &Finished<Vec<RunMetrics>>) -> EnergyMapCells {
         let xs: Vec<f64> = self.sweep.grid.axes[0].values();
         let ys: Vec<f64> = self.sweep.grid.axes[1].values();
         let cartesian = self.cartesian();
         let total = self.nx * self.ny;
-        let mut map = EnergyMap {
+        let mut map = EnergyMapCells {
             method: self.method.label(),
             energy: Vec::with_capacity(total),
             cartesian: Vec::with_capacity(total),
@@ -337,7 +337,7 @@ impl EnergyMapSpec {
             });
         }
         let probe = PlanarPolar(pendulum.clone());
-        let origin = Origin {
+        let origin = MethodOrigin {
             method: &Field::new("method"),
             h: &Field::new("h"),
             system: "elastic_pendulum_2d (polar chart)",

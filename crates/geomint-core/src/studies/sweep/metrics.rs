@@ -9,7 +9,7 @@ use serde::{Deserialize, Serialize};
 use crate::chaos::Statistic;
 use crate::run::RunEnd;
 use crate::sections::{Crossing, CrossingKind, SectionSummary};
-use crate::simulation::{CrossingColumns, Outcome, Sample, SampleSink};
+use crate::simulation::{CrossingColumns, RunReport, Sample, SampleSink};
 
 pub use crate::diagnostics::DIVERGENCE;
 
@@ -157,7 +157,7 @@ impl MetricsTally {
     }
 
     /// The metrics of a run that ended with `outcome`.
-    pub fn finish(mut self, outcome: &Outcome) -> RunMetrics {
+    pub fn finish(mut self, outcome: &RunReport) -> RunMetrics {
         let stopped_at = match outcome.stop {
             RunEnd::Diverged { t, .. } => Some(t),
             _ => None,

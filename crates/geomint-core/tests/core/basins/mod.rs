@@ -12,8 +12,8 @@ use geomint_core::sections::Direction;
 use geomint_core::simulation::{EnergySurface, Limits};
 use geomint_core::studies::basins::metrics::BOX;
 use geomint_core::studies::basins::{
-    self, BasinRun, BasinsDocument, BasinsJob, BasinsLine, BasinsSpec, ExitSpec, GivenAttractor,
-    Kind, Recognition,
+    self, AttractorKind, BasinRun, BasinsDocument, BasinsJob, BasinsLine, BasinsSpec, ExitSpec,
+    GivenAttractor, Recognition,
 };
 use geomint_core::studies::engine::{Local, Study};
 use geomint_core::studies::parts::{self, Shard};
@@ -184,7 +184,10 @@ fn the_damped_double_well_is_decided_by_energy_and_agrees_with_the_reference() {
         );
         assert_eq!(run.decided_by.energy, n * n);
         assert_eq!(run.attractors.len(), 2);
-        assert!(run.attractors.iter().all(|a| a.kind == Kind::Equilibrium));
+        assert!(run
+            .attractors
+            .iter()
+            .all(|a| a.kind == AttractorKind::Equilibrium));
         let sum: f64 = run.fractions.iter().sum();
         assert!((sum - 1.0).abs() <= 1e-12);
         // The map is symmetric under (x, p) → (−x, −p): the two basins are equal in size.
@@ -486,7 +489,7 @@ fn henon_heiles_above_the_escape_energy_leaves_through_three_exits_as_the_refere
     let exits: Vec<&str> = map
         .attractors
         .iter()
-        .filter(|a| a.kind == Kind::Exit)
+        .filter(|a| a.kind == AttractorKind::Exit)
         .map(|a| a.name.as_str())
         .collect();
     assert_eq!(exits.len(), 3, "{:?}", map.attractors);
@@ -543,7 +546,7 @@ fn the_forced_damped_duffing_oscillator_locks_onto_a_period_one_orbit_in_each_we
         let periodic: Vec<_> = run
             .attractors
             .iter()
-            .filter(|a| a.kind == Kind::Periodic)
+            .filter(|a| a.kind == AttractorKind::Periodic)
             .collect();
         assert_eq!(
             periodic.len(),

@@ -7,7 +7,7 @@ use geomint_core::error::Field;
 use geomint_core::methods::{Method, MethodId};
 use geomint_core::simulation::Limits;
 use geomint_core::studies::basins::{
-    self, BasinRun, BasinsSpec, GivenAttractor, Kind, Recognition,
+    self, AttractorKind, BasinRun, BasinsSpec, GivenAttractor, Recognition,
 };
 use geomint_core::studies::sweep::Target;
 use geomint_core::systems::custom::Damping;
@@ -112,7 +112,10 @@ fn given_attractors_take_the_first_labels_and_decide_cells_by_proximity() {
     for (with, without) in doc_given.runs.iter().zip(&doc.runs) {
         // The same partition, named by the request, decided earlier.
         assert_eq!(with.attractors.len(), 2, "{:?}", with.attractors);
-        assert!(with.attractors.iter().all(|a| a.kind == Kind::Given));
+        assert!(with
+            .attractors
+            .iter()
+            .all(|a| a.kind == AttractorKind::Given));
         assert_eq!(with.attractors[0].name, "turn 1");
         assert_eq!(with.labels, without.labels);
         assert!(

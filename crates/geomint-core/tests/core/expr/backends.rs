@@ -3,8 +3,8 @@
 
 use super::common::{same_value, Rng, EXAMPLES};
 use geomint_core::expr::{
-    parse, AstId, AstNode, Backend, CompileOptions, CompiledFunction, ExprError, Graph, ParsedExpr,
-    Scope, Var,
+    parse, AstId, AstNode, Backend, CompileOptions, CompiledFunction, ExprError, Graph, NameScope,
+    ParsedExpr, Var,
 };
 
 /// The straightforward recursive evaluator: the same operations as the engine, applied
@@ -53,13 +53,16 @@ const EXTRA: &[&str] = &[
     "-y",
 ];
 
-fn expressions() -> Vec<(Scope, String)> {
-    let mut all: Vec<(Scope, String)> = EXAMPLES
+fn expressions() -> Vec<(NameScope, String)> {
+    let mut all: Vec<(NameScope, String)> = EXAMPLES
         .iter()
-        .map(|e| (Scope::with_names(e.names).unwrap(), e.text.to_string()))
+        .map(|e| (NameScope::with_names(e.names).unwrap(), e.text.to_string()))
         .collect();
     for text in EXTRA {
-        all.push((Scope::with_names(&["x", "y"]).unwrap(), text.to_string()));
+        all.push((
+            NameScope::with_names(&["x", "y"]).unwrap(),
+            text.to_string(),
+        ));
     }
     all
 }
@@ -67,7 +70,7 @@ fn expressions() -> Vec<(Scope, String)> {
 fn compile(
     g: &Graph,
     outputs: &[geomint_core::expr::NodeId],
-    scope: &Scope,
+    scope: &NameScope,
     backend: Backend,
 ) -> CompiledFunction {
     let options = CompileOptions {
@@ -138,7 +141,7 @@ fn jit_interpreter_and_tree_agree_bit_for_bit() {
 #[test]
 fn baked_parameters_fold_and_agree() {
     let example = &EXAMPLES[1]; // elastic pendulum
-    let scope = Scope::with_names(example.names).unwrap();
+    let scope = NameScope::with_names(example.names).unwrap();
     let vars: Vec<Var> = scope.vars().collect();
     let mut g = Graph::new();
     let v = g.parse(example.text, &scope).unwrap();
@@ -168,7 +171,7 @@ fn baked_parameters_fold_and_agree() {
 
 #[test]
 fn powers_use_exactly_the_documented_multiplications() {
-    let scope = Scope::with_names(&["x"]).unwrap();
+    let scope = NameScope::with_names(&["x"]).unwrap();
     let mut g = Graph::new();
     let cases = [
         (2, 1),
@@ -209,7 +212,7 @@ fn powers_use_exactly_the_documented_multiplications() {
 
 #[test]
 fn outputs_may_be_inputs_constants_or_repeated() {
-    let scope = Scope::with_names(&["x", "y"]).unwrap();
+    let scope = NameScope::with_names(&["x", "y"]).unwrap();
     let mut g = Graph::new();
     let x = g.parse("x", &scope).unwrap();
     let c = g.parse("2*3", &scope).unwrap();
@@ -252,7 +255,7 @@ fn compiled_functions_are_shared_across_threads() {
 
 #[test]
 fn many_functions_can_be_compiled_and_dropped() {
-    let scope = Scope::with_names(&["x"]).unwrap();
+    let scope = NameScope::with_names(&["x"]).unwrap();
     for i in 0..200 {
         let mut g = Graph::new();
         let f = g.parse(&format!("sin(x) * {i}"), &scope).unwrap();
@@ -265,7 +268,7 @@ fn many_functions_can_be_compiled_and_dropped() {
 
 #[test]
 fn bad_slices_and_bindings_are_errors() {
-    let scope = Scope::with_names(&["x", "y"]).unwrap();
+    let scope = NameScope::with_names(&["x", "y"]).unwrap();
     let (x, y) = (scope.lookup("x").unwrap(), scope.lookup("y").unwrap());
     let mut g = Graph::new();
     let f = g.parse("x + y", &scope).unwrap();
@@ -309,7 +312,7 @@ fn bad_slices_and_bindings_are_errors() {
 /// arguments whose reduction modulo π/2 takes the slow path included.
 #[test]
 fn sine_and_cosine_of_one_value_agree_at_every_magnitude() {
-    let scope = Scope::with_names(&["x"]).unwrap();
+    let scope = NameScope::with_names(&["x"]).unwrap();
     let mut g = Graph::new();
     let parsed = parse("sin(x) - 2*cos(x)", &scope).unwrap();
     let f = g.add_parsed(&parsed);
@@ -352,7 +355,7 @@ fn sine_and_cosine_of_one_value_agree_at_every_magnitude() {
 /// values alive, and their registers apart).
 #[test]
 fn a_sine_and_a_cosine_of_two_values_in_one_register_stay_apart() {
-    let scope = Scope::with_names(&["x", "y"]).unwrap();
+    let scope = NameScope::with_names(&["x", "y"]).unwrap();
     let mut rng = Rng(13);
     for text in [
         "sin(x) + cos(x*x)",

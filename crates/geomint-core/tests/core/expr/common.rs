@@ -1,6 +1,6 @@
 //! Shared test fixtures: a small deterministic random generator and the example systems.
 
-use geomint_core::expr::{Graph, NodeId, Scope, Var};
+use geomint_core::expr::{Graph, NameScope, NodeId, Var};
 
 /// SplitMix64: deterministic, dependency-free, good enough for sampling test points.
 pub struct Rng(pub u64);
@@ -106,14 +106,14 @@ pub const EXAMPLES: &[Example] = &[
 ];
 
 /// Parses an example into a fresh graph.
-pub fn build(example: &Example) -> (Graph, Scope, NodeId) {
-    let scope = Scope::with_names(example.names).unwrap();
+pub fn build(example: &Example) -> (Graph, NameScope, NodeId) {
+    let scope = NameScope::with_names(example.names).unwrap();
     let mut graph = Graph::new();
     let root = graph.parse(example.text, &scope).unwrap();
     (graph, scope, root)
 }
 
-pub fn vars(scope: &Scope) -> Vec<Var> {
+pub fn vars(scope: &NameScope) -> Vec<Var> {
     scope.vars().collect()
 }
 

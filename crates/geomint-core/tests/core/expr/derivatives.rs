@@ -169,7 +169,7 @@ fn derivative_of_each_function_at_a_point() {
         ("-x", |_| -1.0),
         ("x - 3*x", |_| -2.0),
     ];
-    let scope = geomint_core::expr::Scope::with_names(&["x"]).unwrap();
+    let scope = geomint_core::expr::NameScope::with_names(&["x"]).unwrap();
     let x_var = scope.lookup("x").unwrap();
     for (text, expected) in cases {
         let mut graph = geomint_core::expr::Graph::new();

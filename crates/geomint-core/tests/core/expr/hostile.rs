@@ -5,13 +5,13 @@ use std::time::{Duration, Instant};
 
 use super::common::EXAMPLES;
 use geomint_core::expr::{
-    parse, parse_with_limits, Backend, CompileOptions, CompiledFunction, ExprError, Graph, Limits,
-    Scope,
+    parse, parse_with_limits, Backend, CompileOptions, CompiledFunction, ExprError, ExprLimits,
+    Graph, NameScope,
 };
 use proptest::prelude::*;
 
-fn scope() -> Scope {
-    Scope::with_names(&[
+fn scope() -> NameScope {
+    NameScope::with_names(&[
         "x", "y", "z", "k", "l", "m", "g", "q", "t1", "t2", "p1", "p2", "a", "b",
     ])
     .unwrap()
@@ -19,8 +19,8 @@ fn scope() -> Scope {
     .clone()
 }
 
-fn full_scope() -> Scope {
-    Scope::with_names(&[
+fn full_scope() -> NameScope {
+    NameScope::with_names(&[
         "x", "y", "z", "k", "l", "m", "g", "q", "t1", "t2", "p1", "p2", "a", "b",
     ])
     .unwrap()
@@ -28,7 +28,7 @@ fn full_scope() -> Scope {
 
 /// Parses, and on success runs everything else the engine does with an expression;
 /// checks that any error points inside the input (or just past its end).
-fn exercise(text: &str, scope: &Scope) {
+fn exercise(text: &str, scope: &NameScope) {
     let length = text.chars().count();
     match parse(text, scope) {
         Err(error) => {
@@ -145,9 +145,9 @@ fn deep_parentheses_fail_cleanly() {
         }
     );
     // With the length limit lifted, the nesting limit stops it at the 65th parenthesis.
-    let limits = Limits {
+    let limits = ExprLimits {
         max_chars: usize::MAX,
-        ..Limits::default()
+        ..ExprLimits::default()
     };
     let error = quickly(Duration::from_millis(500), || {
         parse_with_limits(&deep, &full_scope(), &limits).unwrap_err()
@@ -189,9 +189,9 @@ fn huge_inputs_fail_quickly() {
         }
     );
     // Without the length limit, the node limit stops a long sum early.
-    let limits = Limits {
+    let limits = ExprLimits {
         max_chars: usize::MAX,
-        ..Limits::default()
+        ..ExprLimits::default()
     };
     let error = quickly(Duration::from_millis(500), || {
         parse_with_limits(&huge, &full_scope(), &limits).unwrap_err()
@@ -253,9 +253,9 @@ fn exploding_derivatives_are_refused() {
     );
 
     // A nested product: the Hessian of (x*y*z*...)^k with a small limit.
-    let small = Limits {
+    let small = ExprLimits {
         max_derivative_nodes: 50,
-        ..Limits::default()
+        ..ExprLimits::default()
     };
     let mut g = Graph::with_limits(small);
     let f = g
@@ -275,9 +275,9 @@ fn exploding_derivatives_are_refused() {
 #[test]
 fn oversized_programs_are_refused() {
     let scope = full_scope();
-    let limits = Limits {
+    let limits = ExprLimits {
         max_program_len: 10,
-        ..Limits::default()
+        ..ExprLimits::default()
     };
     let mut g = Graph::with_limits(limits);
     let f = g

@@ -1,10 +1,12 @@
 //! The parser: precedence, associativity, numbers, and every error with its position.
 
 use geomint_core::expr::ops::{BinaryOp, UnaryOp};
-use geomint_core::expr::{parse, parse_with_limits, AstNode, Expected, ExprError, Limits, Scope};
+use geomint_core::expr::{
+    parse, parse_with_limits, AstNode, Expected, ExprError, ExprLimits, NameScope,
+};
 
-fn scope() -> Scope {
-    Scope::with_names(&["x", "y", "k", "θ"]).unwrap()
+fn scope() -> NameScope {
+    NameScope::with_names(&["x", "y", "k", "θ"]).unwrap()
 }
 
 fn value(text: &str) -> f64 {
@@ -381,9 +383,9 @@ fn messages_are_precise() {
 
 #[test]
 fn size_limits_have_positions() {
-    let limits = Limits {
+    let limits = ExprLimits {
         max_chars: 10,
-        ..Limits::default()
+        ..ExprLimits::default()
     };
     assert_eq!(
         parse_with_limits("x + y + k + x", &scope(), &limits).unwrap_err(),
@@ -392,9 +394,9 @@ fn size_limits_have_positions() {
             limit: 10
         }
     );
-    let limits = Limits {
+    let limits = ExprLimits {
         max_depth: 3,
-        ..Limits::default()
+        ..ExprLimits::default()
     };
     assert!(parse_with_limits("((sin(x)))", &scope(), &limits).is_ok());
     assert_eq!(
@@ -404,9 +406,9 @@ fn size_limits_have_positions() {
             limit: 3
         }
     );
-    let limits = Limits {
+    let limits = ExprLimits {
         max_parse_nodes: 5,
-        ..Limits::default()
+        ..ExprLimits::default()
     };
     assert!(parse_with_limits("x + y + k", &scope(), &limits).is_ok());
     assert_eq!(
@@ -420,7 +422,7 @@ fn size_limits_have_positions() {
 
 #[test]
 fn declarations_are_checked() {
-    let mut scope = Scope::new();
+    let mut scope = NameScope::new();
     assert!(scope.declare("q_1").is_ok());
     for bad in ["", "1x", "x y", "sin", "pi", "q_1", "a-b"] {
         assert!(

@@ -2,10 +2,10 @@
 //! one, checked structurally (node identity) and by node counts.
 
 use super::common::{build, vars, EXAMPLES};
-use geomint_core::expr::{Graph, Node, Scope};
+use geomint_core::expr::{Graph, NameScope, Node};
 
-fn setup() -> (Graph, Scope) {
-    (Graph::new(), Scope::with_names(&["x", "y"]).unwrap())
+fn setup() -> (Graph, NameScope) {
+    (Graph::new(), NameScope::with_names(&["x", "y"]).unwrap())
 }
 
 #[test]

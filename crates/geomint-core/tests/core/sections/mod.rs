@@ -173,7 +173,7 @@ impl SampleSink for Collected {
 }
 
 /// Runs the simulation's only method.
-pub fn run(sim: &Simulation) -> (Collected, geomint_core::simulation::Outcome) {
+pub fn run(sim: &Simulation) -> (Collected, geomint_core::simulation::RunReport) {
     let mut collected = Collected::default();
     let outcome = sim
         .run_method(0, None, Budget::default(), &mut collected)

@@ -4,7 +4,7 @@
 
 use super::{CustomDefinition, CustomModel, Damping, Energy, Expression};
 use crate::error::CoreError;
-use crate::expr::{NodeId, Scope, Var};
+use crate::expr::{NameScope, NodeId, Var};
 use crate::systems::custom::damping::MassFactor;
 use crate::systems::custom::system::DampingModel;
 
@@ -139,7 +139,7 @@ impl CustomModel {
 /// Whether the definition's energy or damping matrix uses the variable `t` of `scope` (read
 /// before the graph is built, so that the derivatives can be taken in the right variables;
 /// expressions that do not parse are left for the parse that reports them).
-pub(super) fn uses(definition: &CustomDefinition, scope: &Scope, t: Var) -> bool {
+pub(super) fn uses(definition: &CustomDefinition, scope: &NameScope, t: Var) -> bool {
     let mut texts: Vec<&Expression> = match &definition.energy {
         Energy::Separable { potential, .. } => vec![potential],
         Energy::General { hamiltonian } => vec![hamiltonian],

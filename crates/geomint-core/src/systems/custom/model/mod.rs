@@ -14,7 +14,7 @@ use super::system::{Compiled, DampingModel};
 use super::{CustomDefinition, Damping, DampingKind, Energy, Expression};
 use super::{MAX_COORDINATES, MAX_NAMES};
 use crate::error::{CoreError, Field, Range};
-use crate::expr::{ExprError, Graph, NodeId, Scope, Var};
+use crate::expr::{ExprError, Graph, NameScope, NodeId, Var};
 use crate::system::Structure;
 use crate::systems::{ParamValues, World};
 use checks::uses;
@@ -174,7 +174,7 @@ impl CustomModel {
             }
         }
         // Every name once: coordinates, momenta, parameters, in this order of slots.
-        let mut scope = Scope::new();
+        let mut scope = NameScope::new();
         let mut declared: Vec<(String, Field)> = Vec::new();
         let names = definition
             .coordinates
@@ -240,7 +240,7 @@ impl CustomModel {
 
         let mut graph = Graph::new();
         let coordinate_nodes: Vec<NodeId> = q.iter().map(|&v| graph.var(v)).collect();
-        let parse = |e: &Expression, scope: &Scope, graph: &mut Graph| {
+        let parse = |e: &Expression, scope: &NameScope, graph: &mut Graph| {
             graph.parse(&e.text, scope).map_err(expression(&e.field))
         };
         let energy = match &definition.energy {
