@@ -97,12 +97,10 @@ impl MechanicalSystem for PlanarCartesian {
         }
     }
     fn kinetic(&self, _q: &Vector<U2>, p: &Vector<U2>) -> f64 {
-        0.5 * p.norm_squared() / self.0.m
+        self.kinetic_of([p[0], p[1]])
     }
     fn potential(&self, q: &Vector<U2>) -> f64 {
-        let s = &self.0;
-        let stretch = q.norm() - s.l;
-        0.5 * s.k * stretch * stretch - s.m * s.g * q[1]
+        self.potential_with_norm(q[1], q.norm())
     }
     #[inline]
     fn grad_potential(&self, q: &Vector<U2>, out: &mut Vector<U2>) {
@@ -141,21 +139,48 @@ impl MechanicalSystem for PlanarCartesian {
 /// lanes share.
 impl PlanarCartesian {
     #[inline(always)]
-    fn velocity_of(&self, px: f64, py: f64) -> [f64; 2] {
+    pub(crate) fn velocity_of(&self, px: f64, py: f64) -> [f64; 2] {
         let inv_m = 1.0 / self.0.m;
         [px * inv_m, py * inv_m]
     }
 
     #[inline(always)]
     fn grad(&self, q: &Vector<U2>) -> [f64; 2] {
+        self.grad_with_norm(q[0], q[1], q.norm())
+    }
+
+    /// ∇V at (x, y) whose |q| is `norm` (the energy map's lanes keep it from the energy before).
+    #[inline(always)]
+    pub(crate) fn grad_with_norm(&self, x: f64, y: f64, norm: f64) -> [f64; 2] {
         let s = &self.0;
         // k(1 − l/|q|) q: zero spring force for the free particle even at q = 0.
         let c = if s.k == 0.0 {
             0.0
         } else {
-            s.k * (1.0 - s.l / q.norm())
+            s.k * (1.0 - s.l / norm)
         };
-        [c * q[0], c * q[1] - s.m * s.g]
+        [c * x, c * y - s.m * s.g]
+    }
+
+    /// T = |p|²/2m.
+    #[inline(always)]
+    fn kinetic_of(&self, [px, py]: [f64; 2]) -> f64 {
+        0.5 * (px * px + py * py) / self.0.m
+    }
+
+    /// V at height y and |q| = `norm`.
+    #[inline(always)]
+    fn potential_with_norm(&self, y: f64, norm: f64) -> f64 {
+        let s = &self.0;
+        let stretch = norm - s.l;
+        0.5 * s.k * stretch * stretch - s.m * s.g * y
+    }
+
+    /// H = T + V at a point whose |q| is `norm`, summed as [`MechanicalSystem::energy`] sums
+    /// them.
+    #[inline(always)]
+    pub(crate) fn energy_with_norm(&self, y: f64, p: [f64; 2], norm: f64) -> f64 {
+        self.kinetic_of(p) + self.potential_with_norm(y, norm)
     }
 
     /// ∇²V = k(1 − l/r) I + k l q qᵀ / r³.
@@ -227,11 +252,84 @@ impl PointForces<2> for PlanarCartesian {
     }
 }
 
+/// The polar chart's formulas at one point, given sin θ and cos θ where they need them: the
+/// one place they are written, for the one-run path (the trait's methods below) and the energy
+/// map's lanes, which keep sin θ and cos θ from the energy of one step for the force of the next.
 impl PlanarPolar {
     /// (r, θ, p_r, p_θ) of a state.
     #[inline]
     fn unpack(q: &Vector<U2>, p: &Vector<U2>) -> (f64, f64, f64, f64) {
         (q[0], q[1], p[0], p[1])
+    }
+
+    /// ∂H/∂p = (p_r/m, p_θ/(m r²)).
+    #[inline(always)]
+    pub(crate) fn velocity_at(&self, r: f64, [pr, pt]: [f64; 2]) -> [f64; 2] {
+        [pr / self.0.m, pt / (self.0.m * r * r)]
+    }
+
+    /// ∇V = (k(r − l) − m g cos θ, m g r sin θ).
+    #[inline(always)]
+    pub(crate) fn grad_at(&self, r: f64, (sin, cos): (f64, f64)) -> [f64; 2] {
+        let s = &self.0;
+        [s.k * (r - s.l) - s.m * s.g * cos, s.m * s.g * r * sin]
+    }
+
+    /// ∂H/∂q = ∇V − (p_θ²/(m r³), 0).
+    #[inline(always)]
+    pub(crate) fn dh_dq_at(&self, r: f64, pt: f64, turn: (f64, f64)) -> [f64; 2] {
+        let [mut dr, dth] = self.grad_at(r, turn);
+        dr -= pt * pt / (self.0.m * r * r * r);
+        [dr, dth]
+    }
+
+    /// Symplectic Euler's momentum stage p₁ = p − h ∂H/∂q(q, p₁) in closed form: ∂H/∂θ =
+    /// m g r sin θ does not involve p, so p_θ first, then p_r with the new p_θ.
+    #[inline(always)]
+    pub(crate) fn momentum_stage_at(
+        &self,
+        h: f64,
+        r: f64,
+        [pr, pt]: [f64; 2],
+        (sin, cos): (f64, f64),
+    ) -> [f64; 2] {
+        let s = &self.0;
+        let pt1 = pt - h * s.m * s.g * r * sin;
+        let dh_dr = -pt1 * pt1 / (s.m * r * r * r) + s.k * (r - s.l) - s.m * s.g * cos;
+        [pr - h * dh_dr, pt1]
+    }
+
+    /// The adjoint's position stage q₁ = q + h ∂H/∂p(q₁, p) in closed form: ṙ = p_r/m does not
+    /// involve q, so r first, then θ with the new r.
+    #[inline(always)]
+    pub(crate) fn position_stage_at(
+        &self,
+        h: f64,
+        [r, th]: [f64; 2],
+        [pr, pt]: [f64; 2],
+    ) -> [f64; 2] {
+        let r1 = r + h * pr / self.0.m;
+        [r1, th + h * pt / (self.0.m * r1 * r1)]
+    }
+
+    /// T = (p_r² + p_θ²/r²)/2m.
+    #[inline(always)]
+    fn kinetic_at(&self, r: f64, [pr, pt]: [f64; 2]) -> f64 {
+        0.5 * (pr * pr + pt * pt / (r * r)) / self.0.m
+    }
+
+    /// V = ½k(r − l)² − m g r cos θ.
+    #[inline(always)]
+    fn potential_at(&self, r: f64, cos: f64) -> f64 {
+        let s = &self.0;
+        let stretch = r - s.l;
+        0.5 * s.k * stretch * stretch - s.m * s.g * r * cos
+    }
+
+    /// H = T + V, summed as [`MechanicalSystem::energy`] sums them.
+    #[inline(always)]
+    pub(crate) fn energy_at(&self, r: f64, p: [f64; 2], cos: f64) -> f64 {
+        self.kinetic_at(r, p) + self.potential_at(r, cos)
     }
 }
 
@@ -247,34 +345,24 @@ impl MechanicalSystem for PlanarPolar {
         }
     }
     fn kinetic(&self, q: &Vector<U2>, p: &Vector<U2>) -> f64 {
-        let (r, _, pr, pt) = Self::unpack(q, p);
-        0.5 * (pr * pr + pt * pt / (r * r)) / self.0.m
+        self.kinetic_at(q[0], [p[0], p[1]])
     }
     fn potential(&self, q: &Vector<U2>) -> f64 {
-        let s = &self.0;
-        let stretch = q[0] - s.l;
-        0.5 * s.k * stretch * stretch - s.m * s.g * q[0] * q[1].cos()
+        self.potential_at(q[0], q[1].cos())
     }
     fn grad_potential(&self, q: &Vector<U2>, out: &mut Vector<U2>) {
-        let s = &self.0;
-        let (sin, cos) = q[1].sin_cos();
-        out[0] = s.k * (q[0] - s.l) - s.m * s.g * cos;
-        out[1] = s.m * s.g * q[0] * sin;
+        [out[0], out[1]] = self.grad_at(q[0], q[1].sin_cos());
     }
     fn velocity(&self, q: &Vector<U2>, p: &Vector<U2>, out: &mut Vector<U2>) {
         self.dh_dp(q, p, out)
     }
     #[inline]
     fn dh_dp(&self, q: &Vector<U2>, p: &Vector<U2>, out: &mut Vector<U2>) {
-        let (r, _, pr, pt) = Self::unpack(q, p);
-        out[0] = pr / self.0.m;
-        out[1] = pt / (self.0.m * r * r);
+        [out[0], out[1]] = self.velocity_at(q[0], [p[0], p[1]]);
     }
     #[inline]
     fn dh_dq(&self, q: &Vector<U2>, p: &Vector<U2>, out: &mut Vector<U2>) {
-        let (r, _, _, pt) = Self::unpack(q, p);
-        self.grad_potential(q, out);
-        out[0] -= pt * pt / (self.0.m * r * r * r);
+        [out[0], out[1]] = self.dh_dq_at(q[0], p[1], q[1].sin_cos());
     }
     fn damping_rate(&self) -> f64 {
         0.0
@@ -310,14 +398,7 @@ impl MechanicalSystem for PlanarPolar {
         h: f64,
         p1: &mut Vector<U2>,
     ) -> bool {
-        // ∂H/∂θ = m g r sin θ does not involve p: p_θ first, then p_r with the new p_θ.
-        let s = &self.0;
-        let (r, th, pr, pt) = Self::unpack(q, p);
-        let (sin, cos) = th.sin_cos();
-        let pt1 = pt - h * s.m * s.g * r * sin;
-        let dh_dr = -pt1 * pt1 / (s.m * r * r * r) + s.k * (r - s.l) - s.m * s.g * cos;
-        p1[0] = pr - h * dh_dr;
-        p1[1] = pt1;
+        [p1[0], p1[1]] = self.momentum_stage_at(h, q[0], [p[0], p[1]], q[1].sin_cos());
         true
     }
     #[inline]
@@ -328,11 +409,7 @@ impl MechanicalSystem for PlanarPolar {
         h: f64,
         q1: &mut Vector<U2>,
     ) -> bool {
-        // ṙ = p_r/m does not involve q: r first, then θ with the new r.
-        let (_, th, pr, pt) = Self::unpack(q, p);
-        let r1 = q[0] + h * pr / self.0.m;
-        q1[0] = r1;
-        q1[1] = th + h * pt / (self.0.m * r1 * r1);
+        [q1[0], q1[1]] = self.position_stage_at(h, [q[0], q[1]], [p[0], p[1]]);
         true
     }
     fn invariant_count(&self) -> usize {

@@ -3,10 +3,12 @@
 //! runs all have a kernel runs its cells four at a time (paper 001 Fig. 6's energy map is such a
 //! sweep), measured against H₀ at every step.
 //!
-//! Every lane does exactly the arithmetic of the one-run path, operation for operation and in
-//! the same order (the composer's kick and drift, the chart's closed-form stages, its energy),
-//! and IEEE addition, multiplication, division and square root round the same in a SIMD lane as
-//! in a scalar register, so runs here are bit for bit the runs of the generic stepper
+//! The lanes write no formula of their own: each lane calls the one-run path's, the flows'
+//! kick and drift ([`flows::kick`], [`flows::drift`]), the system's force, velocity and energy,
+//! and the polar chart's closed-form stages ([`PlanarPolar::momentum_stage_at`],
+//! [`PlanarPolar::position_stage_at`]), inlined into loops over the lanes that the compiler
+//! vectorises. IEEE addition, multiplication, division and square root round the same in a SIMD
+//! lane as in a scalar register, so runs here are bit for bit the runs of the generic stepper
 //! (`tests/core/energy_map.rs` compares every cell of both).
 //!
 //! Sine and cosine stay the C library's, one call per lane. The compiler turns the sine and
@@ -25,6 +27,7 @@ use std::sync::atomic::Ordering;
 use std::time::Instant;
 
 use crate::diagnostics::DIVERGENCE;
+use crate::flows;
 use crate::methods::lanes::{Isa, CHECK_EVERY};
 use crate::methods::{Method, MethodId};
 use crate::run::Budget;
@@ -75,38 +78,6 @@ pub struct Start {
     pub energy: FourLanes,
     /// Lanes without a cell (the padding of the last group, the pivot in polar coordinates).
     pub idle: [bool; PENDULUM_LANES],
-}
-
-/// The pendulum's constants, combined as the one-cell path combines them.
-#[derive(Clone, Copy, Debug)]
-struct Constants {
-    h: f64,
-    m: f64,
-    k: f64,
-    l: f64,
-    /// 1/m (the Cartesian drift multiplies by it).
-    inv_m: f64,
-    /// m·g.
-    mg: f64,
-    /// 0.5·k.
-    half_k: f64,
-    /// (h·m)·g (the polar momentum stage's θ-kick).
-    hmg: f64,
-}
-
-impl Constants {
-    fn new(pendulum: &PlanarSpring, h: f64) -> Self {
-        Constants {
-            h,
-            m: pendulum.m,
-            k: pendulum.k,
-            l: pendulum.l,
-            inv_m: 1.0 / pendulum.m,
-            mg: pendulum.m * pendulum.g,
-            half_k: 0.5 * pendulum.k,
-            hmg: h * pendulum.m * pendulum.g,
-        }
-    }
 }
 
 /// Per lane: the sum of eq. (50) and the first steps at which the lane left the energy band or
@@ -170,15 +141,16 @@ impl LaneKernel {
     /// `None` when the budget stopped the run.
     pub fn tally(&self, start: &Start, h: f64, steps: u64, budget: Budget<'_>) -> Option<Tally> {
         let limit = start.energy.map(|e| DIVERGENCE * (1.0 + e.abs()));
-        let c = Constants::new(&self.pendulum, h);
-        let (chart, order) = (self.chart, self.order);
+        let (pendulum, chart, order) = (&self.pendulum, self.chart, self.order);
         #[cfg(target_arch = "x86_64")]
         if self.isa != Isa::Portable {
             // SAFETY: the CPU supports AVX2: `isa` is one it has (detected, or checked by
             // `with_isa`), and both wider ones imply AVX2.
-            return unsafe { integrate_avx2(&c, chart, order, start, steps, &limit, budget) };
+            return unsafe {
+                integrate_avx2(pendulum, h, chart, order, start, steps, &limit, budget)
+            };
         }
-        integrate(&c, chart, order, start, steps, &limit, budget)
+        integrate(pendulum, h, chart, order, start, steps, &limit, budget)
     }
 }
 
@@ -187,8 +159,10 @@ impl LaneKernel {
 /// (only `mul_add` does), whatever the target features.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
+#[allow(clippy::too_many_arguments)]
 fn integrate_avx2(
-    c: &Constants,
+    pendulum: &PlanarSpring,
+    h: f64,
     chart: Chart,
     order: EulerOrder,
     start: &Start,
@@ -196,13 +170,15 @@ fn integrate_avx2(
     limit: &FourLanes,
     budget: Budget<'_>,
 ) -> Option<Tally> {
-    integrate(c, chart, order, start, steps, limit, budget)
+    integrate(pendulum, h, chart, order, start, steps, limit, budget)
 }
 
 /// One kernel per (chart, order), each a loop the compiler specialises.
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 fn integrate(
-    c: &Constants,
+    pendulum: &PlanarSpring,
+    h: f64,
     chart: Chart,
     order: EulerOrder,
     start: &Start,
@@ -210,18 +186,32 @@ fn integrate(
     limit: &FourLanes,
     budget: Budget<'_>,
 ) -> Option<Tally> {
+    let (cartesian, polar) = (
+        PlanarCartesian(pendulum.clone()),
+        PlanarPolar(pendulum.clone()),
+    );
     match (chart, order) {
-        (Chart::Cartesian, EulerOrder::MomentumFirst) => {
-            lanes(c, start, steps, limit, budget, Cartesian::<true>)
-        }
-        (Chart::Cartesian, EulerOrder::PositionFirst) => {
-            lanes(c, start, steps, limit, budget, Cartesian::<false>)
-        }
+        (Chart::Cartesian, EulerOrder::MomentumFirst) => lanes(
+            h,
+            start,
+            steps,
+            limit,
+            budget,
+            Cartesian::<true>(&cartesian),
+        ),
+        (Chart::Cartesian, EulerOrder::PositionFirst) => lanes(
+            h,
+            start,
+            steps,
+            limit,
+            budget,
+            Cartesian::<false>(&cartesian),
+        ),
         (Chart::Polar, EulerOrder::MomentumFirst) => {
-            lanes(c, start, steps, limit, budget, Polar::<true>)
+            lanes(h, start, steps, limit, budget, Polar::<true>(&polar))
         }
         (Chart::Polar, EulerOrder::PositionFirst) => {
-            lanes(c, start, steps, limit, budget, Polar::<false>)
+            lanes(h, start, steps, limit, budget, Polar::<false>(&polar))
         }
     }
 }
@@ -240,8 +230,8 @@ struct Cells {
 trait Kernel {
     /// `shared` for the state as it starts.
     fn prime(&self, z: &mut Cells);
-    /// One step of every lane; H at the new states into `energy`.
-    fn step(&self, c: &Constants, z: &mut Cells, energy: &mut FourLanes);
+    /// One step of size `h` of every lane; H at the new states into `energy`.
+    fn step(&self, h: f64, z: &mut Cells, energy: &mut FourLanes);
 }
 
 /// The loop: every lane one step, its energy deviation summed, the first blow-up noted; the
@@ -249,7 +239,7 @@ trait Kernel {
 /// non-finite (where the one-cell path stops).
 #[inline(always)]
 fn lanes<K: Kernel>(
-    c: &Constants,
+    h: f64,
     start: &Start,
     steps: u64,
     limit: &FourLanes,
@@ -303,7 +293,7 @@ fn lanes<K: Kernel>(
         let (block, at_block) = (step, z);
         while step < until {
             step += 1;
-            kernel.step(c, &mut z, &mut energy);
+            kernel.step(h, &mut z, &mut energy);
             let at = step as f64;
             for i in 0..PENDULUM_LANES {
                 // `&`, not `&&`: no branches in the lane loop.
@@ -343,7 +333,7 @@ fn lanes<K: Kernel>(
                     let mut again = at_block;
                     let mut scratch = [0.0; PENDULUM_LANES];
                     for _ in block + 1..stopped as u64 {
-                        kernel.step(c, &mut again, &mut scratch);
+                        kernel.step(h, &mut again, &mut scratch);
                     }
                     for k in 0..2 {
                         tally.q[k][i] = again.q[k][i];
@@ -367,12 +357,12 @@ fn lanes<K: Kernel>(
     Some(tally)
 }
 
-/// The Cartesian chart, H = |p|²/2m + ½k(|q| − l)² − m g y, through the composer's kick
-/// (p ← p − h∇V(q)) and drift (q ← q + h·(p·(1/m))); `KICK_FIRST` is symplectic Euler,
-/// otherwise its adjoint. `shared` holds |q|.
-struct Cartesian<const KICK_FIRST: bool>;
+/// The Cartesian chart through the composer's flows, the kick (p ← p − h∇V(q)) and the drift
+/// (q ← q + h M⁻¹p) of `flows`, with the system's own ∇V, M⁻¹p and H; `KICK_FIRST` is
+/// symplectic Euler, otherwise its adjoint. `shared` holds |q|.
+struct Cartesian<'s, const KICK_FIRST: bool>(&'s PlanarCartesian);
 
-impl<const KICK_FIRST: bool> Cartesian<KICK_FIRST> {
+impl<const KICK_FIRST: bool> Cartesian<'_, KICK_FIRST> {
     #[inline(always)]
     fn norm(z: &mut Cells) {
         for i in 0..PENDULUM_LANES {
@@ -381,58 +371,55 @@ impl<const KICK_FIRST: bool> Cartesian<KICK_FIRST> {
     }
 
     #[inline(always)]
-    fn kick(c: &Constants, z: &mut Cells) {
+    fn kick(&self, h: f64, z: &mut Cells) {
         for i in 0..PENDULUM_LANES {
-            let factor = if c.k == 0.0 {
-                0.0
-            } else {
-                c.k * (1.0 - c.l / z.shared[0][i])
-            };
-            z.p[0][i] += -c.h * (factor * z.q[0][i]);
-            z.p[1][i] += -c.h * (factor * z.q[1][i] - c.mg);
+            let g = self.0.grad_with_norm(z.q[0][i], z.q[1][i], z.shared[0][i]);
+            let mut p = [z.p[0][i], z.p[1][i]];
+            flows::kick(&mut p, &g, h);
+            [z.p[0][i], z.p[1][i]] = p;
         }
     }
 
     #[inline(always)]
-    fn drift(c: &Constants, z: &mut Cells) {
+    fn drift(&self, h: f64, z: &mut Cells) {
         for i in 0..PENDULUM_LANES {
-            z.q[0][i] += c.h * (z.p[0][i] * c.inv_m);
-            z.q[1][i] += c.h * (z.p[1][i] * c.inv_m);
+            let v = self.0.velocity_of(z.p[0][i], z.p[1][i]);
+            let mut q = [z.q[0][i], z.q[1][i]];
+            flows::drift(&mut q, &v, h);
+            [z.q[0][i], z.q[1][i]] = q;
         }
         Self::norm(z);
     }
 }
 
-impl<const KICK_FIRST: bool> Kernel for Cartesian<KICK_FIRST> {
+impl<const KICK_FIRST: bool> Kernel for Cartesian<'_, KICK_FIRST> {
     #[inline(always)]
     fn prime(&self, z: &mut Cells) {
         Self::norm(z);
     }
 
     #[inline(always)]
-    fn step(&self, c: &Constants, z: &mut Cells, energy: &mut FourLanes) {
+    fn step(&self, h: f64, z: &mut Cells, energy: &mut FourLanes) {
         if KICK_FIRST {
-            Self::kick(c, z);
-            Self::drift(c, z);
+            self.kick(h, z);
+            self.drift(h, z);
         } else {
-            Self::drift(c, z);
-            Self::kick(c, z);
+            self.drift(h, z);
+            self.kick(h, z);
         }
         for i in 0..PENDULUM_LANES {
-            let (px, py) = (z.p[0][i], z.p[1][i]);
-            let kinetic = 0.5 * (px * px + py * py) / c.m;
-            let stretch = z.shared[0][i] - c.l;
-            energy[i] = kinetic + (c.half_k * stretch * stretch - c.mg * z.q[1][i]);
+            let p = [z.p[0][i], z.p[1][i]];
+            energy[i] = self.0.energy_with_norm(z.q[1][i], p, z.shared[0][i]);
         }
     }
 }
 
-/// The polar chart, H = (p_r² + p_θ²/r²)/2m + ½k(r − l)² − m g r cos θ, through its closed-form
-/// stages; `MOMENTUM_FIRST` is symplectic Euler, otherwise its adjoint. `shared` holds
-/// (sin θ, cos θ).
-struct Polar<const MOMENTUM_FIRST: bool>;
+/// The polar chart through the system's closed-form stages ([`PlanarPolar::momentum_stage_at`],
+/// [`PlanarPolar::position_stage_at`]) and the flows of `flows` for the explicit half;
+/// `MOMENTUM_FIRST` is symplectic Euler, otherwise its adjoint. `shared` holds (sin θ, cos θ).
+struct Polar<'s, const MOMENTUM_FIRST: bool>(&'s PlanarPolar);
 
-impl<const MOMENTUM_FIRST: bool> Polar<MOMENTUM_FIRST> {
+impl<const MOMENTUM_FIRST: bool> Polar<'_, MOMENTUM_FIRST> {
     /// sin θ, cos θ: the library's, lane by lane.
     #[inline(always)]
     fn turn(z: &mut Cells) {
@@ -442,52 +429,45 @@ impl<const MOMENTUM_FIRST: bool> Polar<MOMENTUM_FIRST> {
     }
 }
 
-impl<const MOMENTUM_FIRST: bool> Kernel for Polar<MOMENTUM_FIRST> {
+impl<const MOMENTUM_FIRST: bool> Kernel for Polar<'_, MOMENTUM_FIRST> {
     #[inline(always)]
     fn prime(&self, z: &mut Cells) {
         Self::turn(z);
     }
 
     #[inline(always)]
-    fn step(&self, c: &Constants, z: &mut Cells, energy: &mut FourLanes) {
+    fn step(&self, h: f64, z: &mut Cells, energy: &mut FourLanes) {
+        let sys = self.0;
         if MOMENTUM_FIRST {
-            // p_θ first (∂H/∂θ holds no p), p_r with the new p_θ, then q with the new p and the
-            // old r.
+            // p₁ from (q, p₁) in closed form, then the drift with ∂H/∂p at (q, p₁).
             for i in 0..PENDULUM_LANES {
-                let (r, pr, pt) = (z.q[0][i], z.p[0][i], z.p[1][i]);
-                let (sin, cos) = (z.shared[0][i], z.shared[1][i]);
-                let pt1 = pt - c.hmg * r * sin;
-                let dh_dr = -pt1 * pt1 / (c.m * r * r * r) + c.k * (r - c.l) - c.mg * cos;
-                let pr1 = pr - c.h * dh_dr;
-                z.p[0][i] = pr1;
-                z.p[1][i] = pt1;
-                z.q[0][i] += c.h * (pr1 / c.m);
-                z.q[1][i] += c.h * (pt1 / (c.m * r * r));
+                let (r, turn) = (z.q[0][i], (z.shared[0][i], z.shared[1][i]));
+                let p1 = sys.momentum_stage_at(h, r, [z.p[0][i], z.p[1][i]], turn);
+                let v = sys.velocity_at(r, p1);
+                let mut q = [r, z.q[1][i]];
+                flows::drift(&mut q, &v, h);
+                [z.q[0][i], z.q[1][i]] = q;
+                [z.p[0][i], z.p[1][i]] = p1;
             }
             Self::turn(z);
         } else {
-            // r first (ṙ holds no q), θ with the new r, then p from ∂H/∂q at the new q.
+            // q₁ from (q₁, p) in closed form, then the kick with ∂H/∂q at (q₁, p).
             for i in 0..PENDULUM_LANES {
-                let r1 = z.q[0][i] + c.h * z.p[0][i] / c.m;
-                z.q[0][i] = r1;
-                z.q[1][i] += c.h * z.p[1][i] / (c.m * r1 * r1);
+                let q1 = sys.position_stage_at(h, [z.q[0][i], z.q[1][i]], [z.p[0][i], z.p[1][i]]);
+                [z.q[0][i], z.q[1][i]] = q1;
             }
             Self::turn(z);
             for i in 0..PENDULUM_LANES {
-                let (r1, pt) = (z.q[0][i], z.p[1][i]);
-                let (sin, cos) = (z.shared[0][i], z.shared[1][i]);
-                let mut dh_dr = c.k * (r1 - c.l) - c.mg * cos;
-                dh_dr -= pt * pt / (c.m * r1 * r1 * r1);
-                let dh_dth = c.mg * r1 * sin;
-                z.p[0][i] += -c.h * dh_dr;
-                z.p[1][i] += -c.h * dh_dth;
+                let turn = (z.shared[0][i], z.shared[1][i]);
+                let dh_dq = sys.dh_dq_at(z.q[0][i], z.p[1][i], turn);
+                let mut p = [z.p[0][i], z.p[1][i]];
+                flows::kick(&mut p, &dh_dq, h);
+                [z.p[0][i], z.p[1][i]] = p;
             }
         }
         for i in 0..PENDULUM_LANES {
-            let (r, pr, pt, cos) = (z.q[0][i], z.p[0][i], z.p[1][i], z.shared[1][i]);
-            let kinetic = 0.5 * (pr * pr + pt * pt / (r * r)) / c.m;
-            let stretch = r - c.l;
-            energy[i] = kinetic + (c.half_k * stretch * stretch - c.mg * r * cos);
+            let p = [z.p[0][i], z.p[1][i]];
+            energy[i] = sys.energy_at(z.q[0][i], p, z.shared[1][i]);
         }
     }
 }
