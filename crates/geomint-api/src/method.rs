@@ -35,8 +35,8 @@ pub struct MethodOptions {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schema(value_type = Option<Inner>)]
     pub inner: Option<String>,
-    /// Symmetric second-order base of a composition (a method whose catalogue entry lists the
-    /// `base` option, e.g. `triple_jump`; default `modin_3s`).
+    /// Symmetric second-order base of a composition (the methods whose catalogue entry lists
+    /// the `base` option, e.g. `triple_jump`); default `modin_3s`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schema(value_type = Option<Base>)]
     pub base: Option<String>,

@@ -3,11 +3,11 @@
 //! runs all have a kernel runs its cells four at a time (paper 001 Fig. 6's energy map is such a
 //! sweep), measured against H₀ at every step.
 //!
-//! The lanes write no formula of their own: each lane calls the one-run path's, the flows'
-//! kick and drift ([`flows::kick`], [`flows::drift`]), the system's force, velocity and energy,
-//! and the polar chart's closed-form stages ([`PlanarPolar::momentum_stage_at`],
-//! [`PlanarPolar::position_stage_at`]), inlined into loops over the lanes that the compiler
-//! vectorises. IEEE addition, multiplication, division and square root round the same in a SIMD
+//! The lanes write no formula of their own: each lane calls the one-run path's formulas, the
+//! flows' kick and drift ([`flows::kick`], [`flows::drift`]), the system's force, velocity and
+//! energy, and the polar chart's closed-form stages (`PlanarPolar::momentum_stage_at` and
+//! `position_stage_at`, in `systems/planar.rs`), inlined into loops over the lanes that the
+//! compiler vectorises. IEEE addition, multiplication, division and square root round the same in a SIMD
 //! lane as in a scalar register, so runs here are bit for bit the runs of the generic stepper
 //! (`tests/core/energy_map.rs` compares every cell of both).
 //!
