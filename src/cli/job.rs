@@ -81,17 +81,17 @@ pub enum JobAction {
 }
 
 /// Why a call did not give what was asked.
-enum Failure {
+enum CallFailure {
     /// The server answered with an error (its JSON body).
     Refused(u16, Value),
     /// The server could not be reached, or its answer read.
     Unreachable(String),
 }
 
-impl Failure {
+impl CallFailure {
     fn report(self, server: &str) -> ExitCode {
         match self {
-            Failure::Refused(status, body) => {
+            CallFailure::Refused(status, body) => {
                 let error = &body["error"];
                 let field = error["field"]
                     .as_str()
@@ -104,7 +104,7 @@ impl Failure {
                 );
                 ExitCode::from(BAD_INPUT)
             }
-            Failure::Unreachable(why) => {
+            CallFailure::Unreachable(why) => {
                 eprintln!("error: the server at {server} could not be reached: {why}");
                 ExitCode::FAILURE
             }
@@ -128,7 +128,7 @@ impl Server<'_> {
         method: reqwest::Method,
         path: &str,
         body: Option<&Value>,
-    ) -> Result<reqwest::Response, Failure> {
+    ) -> Result<reqwest::Response, CallFailure> {
         let mut request = self.http.request(method, self.url(path));
         if let Some(token) = &self.args.token {
             request = request.bearer_auth(token);
@@ -139,11 +139,11 @@ impl Server<'_> {
         let response = request
             .send()
             .await
-            .map_err(|e| Failure::Unreachable(e.to_string()))?;
+            .map_err(|e| CallFailure::Unreachable(e.to_string()))?;
         let status = response.status().as_u16();
         if status >= 400 {
             let body = response.json().await.unwrap_or(Value::Null);
-            return Err(Failure::Refused(status, body));
+            return Err(CallFailure::Refused(status, body));
         }
         Ok(response)
     }
@@ -153,25 +153,25 @@ impl Server<'_> {
         method: reqwest::Method,
         path: &str,
         body: Option<&Value>,
-    ) -> Result<Value, Failure> {
+    ) -> Result<Value, CallFailure> {
         let response = self.call(method, path, body).await?;
         response
             .json()
             .await
-            .map_err(|e| Failure::Unreachable(e.to_string()))
+            .map_err(|e| CallFailure::Unreachable(e.to_string()))
     }
 
     /// Follows the job's events to its last, printing each on standard error; reconnects from
     /// the last event seen when the connection drops (a server restarting), for up to a
     /// minute. The last event.
-    async fn watch(&self, id: &str) -> Result<Value, Failure> {
+    async fn watch(&self, id: &str) -> Result<Value, CallFailure> {
         const RETRIES: u32 = 60;
         let mut seen = 0u64;
         let mut retries = 0;
         loop {
             let path = format!("/api/v1/jobs/{id}/events?after={seen}");
             let mut response = match self.call(reqwest::Method::GET, &path, None).await {
-                Err(Failure::Unreachable(_)) if retries < RETRIES => {
+                Err(CallFailure::Unreachable(_)) if retries < RETRIES => {
                     retries += 1;
                     tokio::time::sleep(Duration::from_secs(1)).await;
                     continue;
@@ -229,7 +229,7 @@ pub fn run_job(args: &JobArgs) -> ExitCode {
     result.unwrap_or_else(|failure| failure.report(&args.server))
 }
 
-async fn act(server: &Server<'_>, action: &JobAction) -> Result<ExitCode, Failure> {
+async fn act(server: &Server<'_>, action: &JobAction) -> Result<ExitCode, CallFailure> {
     use reqwest::Method;
     let job = |id: &str| format!("/api/v1/jobs/{id}");
     Ok(match action {
@@ -289,7 +289,7 @@ async fn act(server: &Server<'_>, action: &JobAction) -> Result<ExitCode, Failur
                 .await?
                 .bytes()
                 .await
-                .map_err(|e| Failure::Unreachable(e.to_string()))?;
+                .map_err(|e| CallFailure::Unreachable(e.to_string()))?;
             let written = match output {
                 Some(file) => std::fs::write(file, &bytes),
                 None => {

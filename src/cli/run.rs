@@ -135,7 +135,7 @@ pub(crate) fn run_spec(args: &RunArgs) -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
-    let job = Job {
+    let job = ValidatedRun {
         sim: &sim,
         source: &source,
         workers,
@@ -151,7 +151,7 @@ pub(crate) fn run_spec(args: &RunArgs) -> ExitCode {
 type Output = BufWriter<Box<dyn Write + Send>>;
 
 /// A validated simulation to run and write.
-struct Job<'a> {
+struct ValidatedRun<'a> {
     sim: &'a Simulation,
     /// The spec's name in messages.
     source: &'a str,
@@ -170,7 +170,7 @@ struct StreamFailures {
     recording: Option<recording::RecordingError>,
 }
 
-impl Job<'_> {
+impl ValidatedRun<'_> {
     /// Writes the simulation in `format` to `out`.
     fn run(&self, format: OutputFormat, mut out: Output, spec: &SimulateRequest) -> ExitCode {
         let written = match format {

@@ -22,7 +22,7 @@ use rerun::{
     TextDocument,
 };
 
-use super::blueprint::{self, Node};
+use super::blueprint::{self, BlueprintNode};
 use super::{encode, entity_names, method_color, RecordingError};
 use crate::core::studies::basins::{BasinRun, BasinsDocument};
 
@@ -147,13 +147,13 @@ fn run_summary(part: &str, run: &BasinRun) -> String {
 }
 
 /// The default layout: each run's label map, beside the summary.
-fn blueprint_tree(doc: &BasinsDocument) -> Node {
+fn blueprint_tree(doc: &BasinsDocument) -> BlueprintNode {
     let labels = run_labels(doc);
     let views = entity_names(&labels)
         .into_iter()
         .zip(&labels)
         .map(|(part, label)| {
-            Node::view(
+            BlueprintNode::view(
                 "2D",
                 format!("{label}: basins"),
                 vec![format!("/{part}/labels")],

@@ -36,21 +36,21 @@ pub(super) struct ViewSpec {
 /// A container of the blueprint under construction.
 pub(super) struct ContainerSpec {
     kind: ContainerKind,
-    children: Vec<Node>,
+    children: Vec<BlueprintNode>,
 }
 
-pub(super) enum Node {
+pub(super) enum BlueprintNode {
     View(ViewSpec),
     Container(ContainerSpec),
 }
 
-impl Node {
+impl BlueprintNode {
     pub(super) fn view(
         class: &'static str,
         name: impl Into<String>,
         contents: Vec<String>,
-    ) -> Node {
-        Node::View(ViewSpec {
+    ) -> BlueprintNode {
+        BlueprintNode::View(ViewSpec {
             class,
             name: name.into(),
             contents,
@@ -58,14 +58,14 @@ impl Node {
         })
     }
 
-    pub(super) fn container(kind: ContainerKind, children: Vec<Node>) -> Node {
-        Node::Container(ContainerSpec { kind, children })
+    pub(super) fn container(kind: ContainerKind, children: Vec<BlueprintNode>) -> BlueprintNode {
+        BlueprintNode::Container(ContainerSpec { kind, children })
     }
 
     /// Shows `entities` of this view over the whole timeline up to the time cursor (paths that
     /// grow), not only at the cursor.
-    pub(super) fn with_trails(mut self, entities: Vec<String>) -> Node {
-        if let Node::View(v) = &mut self {
+    pub(super) fn with_trails(mut self, entities: Vec<String>) -> BlueprintNode {
+        if let BlueprintNode::View(v) = &mut self {
             v.trails = entities;
         }
         self
@@ -74,15 +74,15 @@ impl Node {
     /// The blueprint path of this node when its id is `id`.
     fn path(&self, id: Uuid) -> String {
         match self {
-            Node::View(_) => format!("view/{id}"),
-            Node::Container(_) => format!("container/{id}"),
+            BlueprintNode::View(_) => format!("view/{id}"),
+            BlueprintNode::Container(_) => format!("container/{id}"),
         }
     }
 
     /// Logs this node, with id `id`, and its children.
     fn log(&self, bp: &RecordingStream, id: Uuid) -> Result<(), RecordingError> {
         match self {
-            Node::View(v) => {
+            BlueprintNode::View(v) => {
                 let path = self.path(id);
                 bp.log(
                     format!("{path}/ViewContents"),
@@ -115,8 +115,8 @@ impl Node {
                     bp.log(at, &ranges)?;
                 }
             }
-            Node::Container(c) => {
-                let children: Vec<(&Node, Uuid)> = c
+            BlueprintNode::Container(c) => {
+                let children: Vec<(&BlueprintNode, Uuid)> = c
                     .children
                     .iter()
                     .enumerate()
@@ -186,7 +186,7 @@ impl LogSink for Collected {
 /// Sends the blueprint with root container `root` through `rec` (as Rerun's own SDKs do: a
 /// blueprint store logged in full, then an activation command making it the active and default
 /// one).
-pub(super) fn send(rec: &RecordingStream, root: &Node) -> Result<(), RecordingError> {
+pub(super) fn send(rec: &RecordingStream, root: &BlueprintNode) -> Result<(), RecordingError> {
     let blueprint_id = StoreId::random(StoreKind::Blueprint, APPLICATION_ID);
     let bp = RecordingStreamBuilder::from_store_id(&blueprint_id)
         .enabled(true)
@@ -219,12 +219,12 @@ pub(super) fn send(rec: &RecordingStream, root: &Node) -> Result<(), RecordingEr
 }
 
 /// A map study's layout: its views in a grid, beside the summary at `/summary`.
-pub(super) fn grid_beside_summary(views: Vec<Node>) -> Node {
-    Node::container(
+pub(super) fn grid_beside_summary(views: Vec<BlueprintNode>) -> BlueprintNode {
+    BlueprintNode::container(
         ContainerKind::Horizontal,
         vec![
-            Node::container(ContainerKind::Grid, views),
-            Node::view("TextDocument", "summary", vec!["/summary".to_string()]),
+            BlueprintNode::container(ContainerKind::Grid, views),
+            BlueprintNode::view("TextDocument", "summary", vec!["/summary".to_string()]),
         ],
     )
 }

@@ -26,7 +26,7 @@ use rerun::{
     SegmentationImage, Tensor, TextDocument,
 };
 
-use super::blueprint::{self, Node};
+use super::blueprint::{self, BlueprintNode};
 use super::{encode, RecordingError};
 use crate::core::studies::energy_map::EnergyMapDocument;
 
@@ -211,34 +211,38 @@ fn summary(doc: &EnergyMapDocument) -> String {
 
 /// The default layout: the difference image and the divergence classes, each with the boundary,
 /// above the two error tensors, beside the summary.
-fn blueprint_tree() -> Node {
+fn blueprint_tree() -> BlueprintNode {
     let with_boundary = |entity: &str| vec![entity.to_string(), "/map/boundary".to_string()];
-    Node::container(
+    BlueprintNode::container(
         ContainerKind::Horizontal,
         vec![
-            Node::container(
+            BlueprintNode::container(
                 ContainerKind::Vertical,
                 vec![
-                    Node::container(
+                    BlueprintNode::container(
                         ContainerKind::Horizontal,
                         vec![
-                            Node::view(
+                            BlueprintNode::view(
                                 "2D",
                                 "ε(x,y) vs ε(r,θ): blue Cartesian better, red polar",
                                 with_boundary("/map/difference"),
                             ),
-                            Node::view("2D", "divergence", with_boundary("/map/divergence")),
+                            BlueprintNode::view(
+                                "2D",
+                                "divergence",
+                                with_boundary("/map/divergence"),
+                            ),
                         ],
                     ),
-                    Node::container(
+                    BlueprintNode::container(
                         ContainerKind::Horizontal,
                         vec![
-                            Node::view(
+                            BlueprintNode::view(
                                 "Tensor",
                                 "log10 ε, Cartesian",
                                 vec!["/epsilon/cartesian".to_string()],
                             ),
-                            Node::view(
+                            BlueprintNode::view(
                                 "Tensor",
                                 "log10 ε, polar",
                                 vec!["/epsilon/polar".to_string()],
@@ -247,7 +251,7 @@ fn blueprint_tree() -> Node {
                     ),
                 ],
             ),
-            Node::view("TextDocument", "summary", vec!["/summary".to_string()]),
+            BlueprintNode::view("TextDocument", "summary", vec!["/summary".to_string()]),
         ],
     )
 }

@@ -7,7 +7,7 @@
 use rerun::external::re_sdk_types::blueprint::components::ContainerKind;
 use rerun::RecordingStream;
 
-use super::blueprint::{self, Node};
+use super::blueprint::{self, BlueprintNode};
 use super::{entity_names, entity_part, RecordingError};
 use crate::core::chaos::Indicator;
 use crate::core::simulation::stream::StreamHeader;
@@ -230,32 +230,32 @@ pub fn path_blocks(n: usize) -> Vec<PathBlock> {
 /// The default layout: energy of all methods on top of the other plots (energy error,
 /// invariants, force evaluations as tabs), beside the 3-D world with the spec and a grid of
 /// phase portraits.
-fn blueprint_tree(layout: &Layout) -> Node {
+fn blueprint_tree(layout: &Layout) -> BlueprintNode {
     let each = |f: &dyn Fn(&str) -> String| -> Vec<String> {
         layout.methods.iter().map(|m| f(m)).collect()
     };
     let mut plots = Vec::new();
     if layout.energy_error {
-        plots.push(Node::view(
+        plots.push(BlueprintNode::view(
             "TimeSeries",
             "energy error",
             each(&|m| format!("/{m}/energy_error")),
         ));
     }
     for (name, part) in &layout.invariants {
-        plots.push(Node::view(
+        plots.push(BlueprintNode::view(
             "TimeSeries",
             name.clone(),
             each(&|m| format!("/{m}/invariants/{part}")),
         ));
     }
-    plots.push(Node::view(
+    plots.push(BlueprintNode::view(
         "TimeSeries",
         "force evaluations",
         each(&|m| format!("/{m}/force_evaluations")),
     ));
     if layout.indicators.contains(&Indicator::Lyapunov) {
-        plots.push(Node::view(
+        plots.push(BlueprintNode::view(
             "TimeSeries",
             "Lyapunov spectrum",
             each(&|m| format!("/{m}/indicators/lyapunov/**")),
@@ -263,18 +263,18 @@ fn blueprint_tree(layout: &Layout) -> Node {
     }
     for (indicator, part, title) in INDICATOR_SERIES {
         if layout.indicators.contains(&indicator) {
-            plots.push(Node::view(
+            plots.push(BlueprintNode::view(
                 "TimeSeries",
                 title,
                 each(&|m| format!("/{m}/indicators/{part}")),
             ));
         }
     }
-    let left = Node::container(
+    let left = BlueprintNode::container(
         ContainerKind::Vertical,
         vec![
-            Node::view("TimeSeries", "energy", each(&|m| format!("/{m}/energy"))),
-            Node::container(ContainerKind::Tabs, plots),
+            BlueprintNode::view("TimeSeries", "energy", each(&|m| format!("/{m}/energy"))),
+            BlueprintNode::container(ContainerKind::Tabs, plots),
         ],
     );
 
@@ -282,11 +282,12 @@ fn blueprint_tree(layout: &Layout) -> Node {
     if layout.section {
         trails.extend(each(&|m| format!("/{m}/world/section")));
     }
-    let world = Node::view("3D", "world", each(&|m| format!("/{m}/world/**"))).with_trails(trails);
-    let spec = Node::view("TextDocument", "spec", vec!["/spec".to_string()]);
-    let phases: Vec<Node> = (0..layout.phase_dofs)
+    let world =
+        BlueprintNode::view("3D", "world", each(&|m| format!("/{m}/world/**"))).with_trails(trails);
+    let spec = BlueprintNode::view("TextDocument", "spec", vec!["/spec".to_string()]);
+    let phases: Vec<BlueprintNode> = (0..layout.phase_dofs)
         .map(|dof| {
-            Node::view(
+            BlueprintNode::view(
                 "2D",
                 format!("phase (q{dof}, p{dof})"),
                 each(&|m| format!("/{m}/phase/{dof}/**")),
@@ -295,21 +296,24 @@ fn blueprint_tree(layout: &Layout) -> Node {
         })
         .collect();
     // A section's points accumulate: every point up to the time cursor is shown.
-    let sections: Vec<Node> = (0..layout.phase_dofs)
+    let sections: Vec<BlueprintNode> = (0..layout.phase_dofs)
         .filter(|_| layout.section)
         .map(|dof| {
             let points = each(&|m| format!("/{m}/section/{dof}"));
-            Node::view("2D", format!("section (q{dof}, p{dof})"), points.clone())
+            BlueprintNode::view("2D", format!("section (q{dof}, p{dof})"), points.clone())
                 .with_trails(points)
         })
         .collect();
-    let mut views = vec![Node::container(ContainerKind::Tabs, vec![world, spec])];
+    let mut views = vec![BlueprintNode::container(
+        ContainerKind::Tabs,
+        vec![world, spec],
+    )];
     if !sections.is_empty() {
-        views.push(Node::container(ContainerKind::Grid, sections));
+        views.push(BlueprintNode::container(ContainerKind::Grid, sections));
     }
-    views.push(Node::container(ContainerKind::Grid, phases));
-    let right = Node::container(ContainerKind::Vertical, views);
-    Node::container(ContainerKind::Horizontal, vec![left, right])
+    views.push(BlueprintNode::container(ContainerKind::Grid, phases));
+    let right = BlueprintNode::container(ContainerKind::Vertical, views);
+    BlueprintNode::container(ContainerKind::Horizontal, vec![left, right])
 }
 
 /// Sends the default blueprint for `layout` through `rec` (as Rerun's own SDKs do: a blueprint

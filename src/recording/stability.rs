@@ -25,7 +25,7 @@ use rerun::{
     TextDocument,
 };
 
-use super::blueprint::{self, Node};
+use super::blueprint::{self, BlueprintNode};
 use super::Spec;
 use super::{encode, entity_names, RecordingError};
 use crate::core::studies::stability::{MapDocument, StabilityDocument};
@@ -178,27 +178,27 @@ fn summary(doc: &StabilityDocument, map: &MapDocument) -> String {
 
 /// The default layout: one row per method with its spectral-radius tensor and its verdict
 /// image, beside the spec.
-fn blueprint_tree(doc: &StabilityDocument) -> Node {
+fn blueprint_tree(doc: &StabilityDocument) -> BlueprintNode {
     let labels: Vec<&str> = doc.maps.iter().map(|m| m.method.as_str()).collect();
     let rows = doc
         .maps
         .iter()
         .zip(entity_names(&labels))
         .map(|(map, m)| {
-            Node::container(
+            BlueprintNode::container(
                 ContainerKind::Horizontal,
                 vec![
-                    Node::view(
+                    BlueprintNode::view(
                         "Tensor",
                         format!("{}: spectral radius", map.method),
                         vec![format!("/{m}/spectral_radius")],
                     ),
-                    Node::view(
+                    BlueprintNode::view(
                         "2D",
                         format!("{}: verdict", map.method),
                         vec![format!("/{m}/verdict")],
                     ),
-                    Node::view(
+                    BlueprintNode::view(
                         "TextDocument",
                         format!("{}: summary", map.method),
                         vec![format!("/{m}/summary")],
@@ -207,11 +207,11 @@ fn blueprint_tree(doc: &StabilityDocument) -> Node {
             )
         })
         .collect();
-    Node::container(
+    BlueprintNode::container(
         ContainerKind::Horizontal,
         vec![
-            Node::container(ContainerKind::Vertical, rows),
-            Node::view("TextDocument", "spec", vec!["/spec".to_string()]),
+            BlueprintNode::container(ContainerKind::Vertical, rows),
+            BlueprintNode::view("TextDocument", "spec", vec!["/spec".to_string()]),
         ],
     )
 }

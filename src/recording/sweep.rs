@@ -18,7 +18,7 @@ use std::io::Write;
 use rerun::external::re_sdk_types::datatypes::{TensorBuffer, TensorData};
 use rerun::{Image, RecordingStream, Tensor, TextDocument};
 
-use super::blueprint::{self, Node};
+use super::blueprint::{self, BlueprintNode};
 use super::{encode, entity_names, RecordingError};
 use crate::core::studies::sweep::{RunColumns, SweepDocument};
 
@@ -194,7 +194,7 @@ fn summary(doc: &SweepDocument, scales: &str) -> String {
 
 /// The default layout: each run's largest energy error and divergence time as heatmaps, beside
 /// the summary.
-fn blueprint_tree(doc: &SweepDocument) -> Node {
+fn blueprint_tree(doc: &SweepDocument) -> BlueprintNode {
     let labels: Vec<String> = doc
         .runs
         .iter()
@@ -205,7 +205,7 @@ fn blueprint_tree(doc: &SweepDocument) -> Node {
         .zip(&labels)
         .flat_map(|(part, label)| {
             ["energy_error_max", "diverged_at"].map(|metric| {
-                Node::view(
+                BlueprintNode::view(
                     "2D",
                     format!("{label}: {metric}"),
                     vec![format!("/{part}/{metric}/heatmap")],

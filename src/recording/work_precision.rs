@@ -16,7 +16,7 @@ use std::io::Write;
 use rerun::external::re_sdk_types::blueprint::components::ContainerKind;
 use rerun::{LineStrips2D, Points2D, Radius, RecordingStream, TextDocument};
 
-use super::blueprint::{self, Node};
+use super::blueprint::{self, BlueprintNode};
 use super::Spec;
 use super::{color, encode, entity_names, method_color, RecordingError};
 use crate::core::studies::work_precision::WorkPrecisionDocument;
@@ -127,20 +127,20 @@ pub fn log_study(
 }
 
 /// The default layout: the diagram beside the table and the spec.
-fn blueprint_tree() -> Node {
-    Node::container(
+fn blueprint_tree() -> BlueprintNode {
+    BlueprintNode::container(
         ContainerKind::Horizontal,
         vec![
-            Node::view(
+            BlueprintNode::view(
                 "2D",
                 "work–precision: x = log10 max energy error, y = log10 ms",
                 vec!["/**".to_string()],
             ),
-            Node::container(
+            BlueprintNode::container(
                 ContainerKind::Tabs,
                 vec![
-                    Node::view("TextDocument", "table", vec!["/table".to_string()]),
-                    Node::view("TextDocument", "spec", vec!["/spec".to_string()]),
+                    BlueprintNode::view("TextDocument", "table", vec!["/table".to_string()]),
+                    BlueprintNode::view("TextDocument", "spec", vec!["/spec".to_string()]),
                 ],
             ),
         ],

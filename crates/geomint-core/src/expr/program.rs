@@ -141,13 +141,13 @@ impl Op {
 }
 
 /// Value numbering: each distinct operation gets one SSA value.
-struct Builder {
+struct ValueNumbering {
     ops: Vec<Op>,
     numbering: HashMap<Op, usize>,
     limit: usize,
 }
 
-impl Builder {
+impl ValueNumbering {
     fn value(&mut self, op: Op) -> Result<usize, ExprError> {
         let op = match op {
             Op::Binary(o, a, b) if o.is_commutative() && b < a => Op::Binary(o, b, a),
@@ -211,7 +211,7 @@ impl Program {
         let slot: HashMap<Var, u32> = (0..layout.len() as u32)
             .map(|i| (layout[i as usize], i))
             .collect();
-        let mut builder = Builder {
+        let mut builder = ValueNumbering {
             ops: Vec::new(),
             numbering: HashMap::new(),
             limit: max_len,

@@ -161,7 +161,7 @@ fn with_sign_of(a: f64, b: f64) -> f64 {
 }
 
 /// Why a segment could not be completed.
-enum Failure {
+enum SegmentFailure {
     /// More than `MAX_STEPS_PER_SEGMENT` steps.
     TooManySteps { x: f64, steps: u32 },
     /// The step size fell below round-off relative to x.
@@ -170,14 +170,14 @@ enum Failure {
     Deadline,
 }
 
-impl From<Failure> for StepError {
-    fn from(f: Failure) -> Self {
+impl From<SegmentFailure> for StepError {
+    fn from(f: SegmentFailure) -> Self {
         let message = match f {
-            Failure::TooManySteps { x, steps } => {
+            SegmentFailure::TooManySteps { x, steps } => {
                 format!("Stopped at x = {x}. Need more than {steps} steps.")
             }
-            Failure::Underflow { x } => format!("Stopped at x = {x}. Step size underflow."),
-            Failure::Deadline => return StepError::DeadlinePassed,
+            SegmentFailure::Underflow { x } => format!("Stopped at x = {x}. Step size underflow."),
+            SegmentFailure::Deadline => return StepError::DeadlinePassed,
         };
         StepError::AdaptiveFailed { message }
     }
@@ -236,7 +236,7 @@ where
         sys: &S,
         y: &mut State<D>,
         length: f64,
-    ) -> Result<u64, Failure> {
+    ) -> Result<u64, SegmentFailure> {
         let t: &EmbeddedTableau = &DOP853;
         let direction = with_sign_of(1.0, length);
         let h_max = length.abs();
@@ -250,17 +250,17 @@ where
         let mut steps = 0u32;
         loop {
             if steps >= MAX_STEPS_PER_SEGMENT {
-                return Err(Failure::TooManySteps { x, steps });
+                return Err(SegmentFailure::TooManySteps { x, steps });
             }
             if steps > 0
                 && steps.is_multiple_of(DEADLINE_CHECK_STEPS)
                 && self.deadline.is_some_and(|d| Instant::now() >= d)
             {
                 copy(y, &self.start);
-                return Err(Failure::Deadline);
+                return Err(SegmentFailure::Deadline);
             }
             if 0.1 * h.abs() <= f64::EPSILON * x.abs() {
-                return Err(Failure::Underflow { x });
+                return Err(SegmentFailure::Underflow { x });
             }
             let last = (x + 1.01 * h - length) * direction > 0.0;
             if last {

@@ -125,7 +125,7 @@ enum HessianSource {
 
 /// Work buffers and the evaluation count, shared by the main trajectory and the copies the
 /// post-processor steps.
-struct Work<S: MechanicalSystem>
+struct RowlandsScratch<S: MechanicalSystem>
 where
     DefaultAllocator: Allocator<S::Dim>,
 {
@@ -143,7 +143,7 @@ where
     force_evaluations: u64,
 }
 
-impl<S: MechanicalSystem> Work<S>
+impl<S: MechanicalSystem> RowlandsScratch<S>
 where
     DefaultAllocator: Allocator<S::Dim>,
 {
@@ -243,7 +243,7 @@ where
 {
     processor: Processor,
     coefficient: f64,
-    work: Work<S>,
+    work: RowlandsScratch<S>,
     /// ∇Û at the current kernel position, for `cached_h2`.
     grad: Vector<S::Dim>,
     cached_h2: Option<f64>,
@@ -267,7 +267,7 @@ where
         Self {
             processor,
             coefficient: ORIGINAL_COEFFICIENT,
-            work: Work::new(sys),
+            work: RowlandsScratch::new(sys),
             grad: zero.clone(),
             cached_h2: None,
             ahead: state.clone(),

@@ -109,7 +109,7 @@ fn is_zero(n: &u64) -> bool {
 }
 
 /// One surface's watch over a run.
-struct Tracker {
+struct SurfaceTracker {
     kind: CrossingKind,
     direction: Direction,
     /// Most points (section) or the crossing that ends the run (event).
@@ -137,7 +137,7 @@ where
     DefaultAllocator: Allocator<S::Dim>,
 {
     crossings: &'a Crossings,
-    trackers: Vec<Tracker>,
+    trackers: Vec<SurfaceTracker>,
     henon: Henon<S::Dim>,
     last: State<S::Dim>,
     last_t: f64,
@@ -158,7 +158,7 @@ where
     /// A watch of `crossings` over a run of `sys` from `start`.
     pub fn new(sys: &S, crossings: &'a Crossings, start: &State<S::Dim>) -> Self {
         let n = crossings.names.coordinates.len();
-        let tracker = |kind, &(_, direction, limit): &(Surface, Direction, u64)| Tracker {
+        let tracker = |kind, &(_, direction, limit): &(Surface, Direction, u64)| SurfaceTracker {
             kind,
             direction,
             limit,

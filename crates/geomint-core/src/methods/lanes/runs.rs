@@ -33,7 +33,7 @@ pub use crate::system::{Lane, LaneForces, LANES};
 
 /// A flow of the sequence with its time τ = fraction · h.
 #[derive(Clone, Copy, Debug)]
-enum Flow {
+enum RunFlow {
     Drift(f64),
     Kick(f64),
     /// The exact damping flow, with the lanes' coefficients c = 1 − e^{−rτ} at this index of
@@ -71,9 +71,9 @@ struct Phase<const N: usize> {
 /// The plain runs of [`LANES`] cells.
 #[derive(Clone, Debug)]
 pub struct RunLanes<const N: usize> {
-    flows: Vec<Flow>,
+    flows: Vec<RunFlow>,
     /// The last flow and the first of the next step applied as one over their summed time.
-    seam: Option<Flow>,
+    seam: Option<RunFlow>,
     /// Per damping flow (and fused seam of two), each lane's c = 1 − e^{−rτ}, computed as the
     /// one-run composer computes it for that lane's rate.
     decay: Vec<Lane>,
@@ -124,9 +124,9 @@ impl<const N: usize> RunLanes<N> {
         let undamped = rates.iter().all(|&r| r == 0.0);
         let mut decay = Vec::new();
         let mut lane_flow = |flow: SubFlow, tau: f64| match flow {
-            SubFlow::Drift => Some(Flow::Drift(tau)),
-            SubFlow::Kick => Some(Flow::Kick(tau)),
-            SubFlow::DampedKick(_) if undamped => Some(Flow::Kick(tau)),
+            SubFlow::Drift => Some(RunFlow::Drift(tau)),
+            SubFlow::Kick => Some(RunFlow::Kick(tau)),
+            SubFlow::DampedKick(_) if undamped => Some(RunFlow::Kick(tau)),
             SubFlow::Damp => {
                 // The composer's coefficient for each lane's rate.
                 let mut c = [0.0; LANES];
@@ -134,7 +134,7 @@ impl<const N: usize> RunLanes<N> {
                     *c = flows::damp_coefficient(rate(l), tau);
                 }
                 decay.push(c);
-                Some(Flow::Damp(tau, decay.len() - 1))
+                Some(RunFlow::Damp(tau, decay.len() - 1))
             }
             _ => None,
         };
@@ -399,15 +399,15 @@ impl<const N: usize> RunLanes<N> {
 impl<const N: usize> Phase<N> {
     /// One flow of every lane.
     #[inline(always)]
-    fn apply<S: LaneForces<N>>(&mut self, sys: &S, flow: Flow, decay: &[Lane]) {
+    fn apply<S: LaneForces<N>>(&mut self, sys: &S, flow: RunFlow, decay: &[Lane]) {
         match flow {
-            Flow::Drift(tau) => {
+            RunFlow::Drift(tau) => {
                 let mut v = [[0.0; LANES]; N];
                 sys.velocity_lanes(&self.p, &mut v);
                 flows::drift(Pack::of_mut(&mut self.q), Pack::of(&v), Pack::splat(tau));
                 self.grad_valid = false;
             }
-            Flow::Kick(tau) => {
+            RunFlow::Kick(tau) => {
                 if !self.grad_valid {
                     sys.grad_lanes(&self.q, &mut self.grad);
                     self.force_evaluations += 1;
@@ -420,7 +420,7 @@ impl<const N: usize> Phase<N> {
                 );
             }
             // q, and with it the force, stays.
-            Flow::Damp(tau, k) => sys.damp_lanes(&self.q, &mut self.p, tau, &decay[k]),
+            RunFlow::Damp(tau, k) => sys.damp_lanes(&self.q, &mut self.p, tau, &decay[k]),
         }
     }
 

@@ -56,7 +56,7 @@ impl<const N: usize> Hessian<N> {
 
 /// A flow of the sequence with its time τ = fraction · h.
 #[derive(Clone, Copy, Debug)]
-enum Flow {
+enum TangentFlow {
     Drift(f64),
     Kick(f64),
 }
@@ -77,7 +77,7 @@ pub struct TangentEnded {
 /// The runs of [`LANES`] cells and their deviation vectors.
 #[derive(Clone, Debug)]
 pub struct TangentLanes<const N: usize> {
-    flows: Vec<Flow>,
+    flows: Vec<TangentFlow>,
     minv: [[f64; N]; N],
     /// Positions.
     pub q: [Lane; N],
@@ -110,9 +110,9 @@ impl<const N: usize> TangentLanes<N> {
         let flows = flows
             .iter()
             .map(|&(flow, fraction)| match flow {
-                SubFlow::Drift => Some(Flow::Drift(fraction * h)),
-                SubFlow::Kick => Some(Flow::Kick(fraction * h)),
-                SubFlow::DampedKick(_) if r == 0.0 => Some(Flow::Kick(fraction * h)),
+                SubFlow::Drift => Some(TangentFlow::Drift(fraction * h)),
+                SubFlow::Kick => Some(TangentFlow::Kick(fraction * h)),
+                SubFlow::DampedKick(_) if r == 0.0 => Some(TangentFlow::Kick(fraction * h)),
                 _ => None,
             })
             .collect::<Option<Vec<_>>>()?;
@@ -226,9 +226,9 @@ impl<const N: usize> TangentLanes<N> {
 
     /// One flow of every lane, its deviation vectors first.
     #[inline(always)]
-    fn apply<S: LaneForces<N>>(&mut self, sys: &S, flow: Flow, hessian: &mut Hessian<N>) {
+    fn apply<S: LaneForces<N>>(&mut self, sys: &S, flow: TangentFlow, hessian: &mut Hessian<N>) {
         match flow {
-            Flow::Drift(tau) => {
+            TangentFlow::Drift(tau) => {
                 let mut scaled = [[0.0; N]; N];
                 for i in 0..N {
                     for j in 0..N {
@@ -246,7 +246,7 @@ impl<const N: usize> TangentLanes<N> {
                 self.grad_valid = false;
                 hessian.valid = false;
             }
-            Flow::Kick(tau) => {
+            TangentFlow::Kick(tau) => {
                 if !self.columns.is_empty() {
                     // ∇²V at q, kept while q is (consecutive kicks): the same bits as
                     // evaluating it again.

@@ -5,7 +5,7 @@ use nalgebra::allocator::Allocator;
 use nalgebra::DefaultAllocator;
 
 use super::compiled::{LazyCode, StretchPlan};
-use super::walk::{with_walk, Loop, Stages, Unrolled, Walk};
+use super::walk::{with_walk, KnownStages, Loop, Unrolled, Walk};
 use super::*;
 use crate::error::StepError;
 use crate::flows;
@@ -31,11 +31,11 @@ where
     coeff_h: f64,
     /// The system's compiled stretches for `coeff_h`.
     compiled: LazyCode,
-    work: Work<S>,
+    work: FlowScratch<S>,
 }
 
 /// What the sub-flows change besides the state: the force cache and the work vectors.
-struct Work<S: MechanicalSystem>
+struct FlowScratch<S: MechanicalSystem>
 where
     DefaultAllocator: Allocator<S::Dim>,
 {
@@ -65,7 +65,7 @@ where
             coeff_h: f64::NAN,
             compiled: LazyCode::default(),
             sequence,
-            work: Work {
+            work: FlowScratch {
                 inner,
                 grad: zero.clone(),
                 grad_valid: false,
@@ -214,7 +214,7 @@ where
     }
 }
 
-impl<S: MechanicalSystem> Work<S>
+impl<S: MechanicalSystem> FlowScratch<S>
 where
     DefaultAllocator: Allocator<S::Dim>,
 {
@@ -372,7 +372,7 @@ where
     }
 }
 
-impl<S: MechanicalSystem> Work<S>
+impl<S: MechanicalSystem> FlowScratch<S>
 where
     DefaultAllocator: Allocator<S::Dim>,
 {
@@ -449,7 +449,7 @@ where
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn walk<W: Walk, S: MechanicalSystem>(
-    work: &mut Work<S>,
+    work: &mut FlowScratch<S>,
     sys: &S,
     z: &mut State<S::Dim>,
     h: f64,

@@ -146,9 +146,9 @@ pub(super) struct Unrolled;
 /// kinds. [`compose`] lays the stages out as `K`'s flows, with each stage's first flow merged
 /// into the previous stage's last when the two fuse: after that shared first flow, every stage
 /// is `PERIOD` flows ([`Composition::new`] checks the layout).
-pub(super) struct Stages<K>(std::marker::PhantomData<K>);
+pub(super) struct KnownStages<K>(std::marker::PhantomData<K>);
 
-impl<K: KnownSequence> Stages<K> {
+impl<K: KnownSequence> KnownStages<K> {
     /// Whether `K`'s last flow and its first fuse, so that stages share one flow.
     const FUSED: bool = K::FLOWS[K::FLOWS.len() - 1].0.fuses_with(K::FLOWS[0].0);
     /// Flows per stage after the shared one.
@@ -182,7 +182,7 @@ impl Walk for Unrolled {
     }
 }
 
-impl<K: KnownSequence> Walk for Stages<K> {
+impl<K: KnownSequence> Walk for KnownStages<K> {
     const START: usize = Self::FUSED as usize;
     #[inline(always)]
     fn period(_: &[(SubFlow, f64)]) -> usize {
@@ -205,27 +205,27 @@ macro_rules! with_walk {
         } else {
             match $split.sequence.stages() {
                 Some(ComposedBase::Modin3s) => {
-                    type $walk = Stages<Modin3s>;
+                    type $walk = KnownStages<Modin3s>;
                     $call
                 }
                 Some(ComposedBase::Modin2s) => {
-                    type $walk = Stages<Modin2s>;
+                    type $walk = KnownStages<Modin2s>;
                     $call
                 }
                 Some(ComposedBase::Csv1) => {
-                    type $walk = Stages<Csv1>;
+                    type $walk = KnownStages<Csv1>;
                     $call
                 }
                 Some(ComposedBase::PositionVerlet) => {
-                    type $walk = Stages<PositionVerlet>;
+                    type $walk = KnownStages<PositionVerlet>;
                     $call
                 }
                 Some(ComposedBase::VelocityVerlet) => {
-                    type $walk = Stages<VelocityVerlet>;
+                    type $walk = KnownStages<VelocityVerlet>;
                     $call
                 }
                 Some(ComposedBase::UndampedVelocityVerlet) => {
-                    type $walk = Stages<UndampedVelocityVerlet>;
+                    type $walk = KnownStages<UndampedVelocityVerlet>;
                     $call
                 }
                 None => {

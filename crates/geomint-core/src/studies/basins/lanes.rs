@@ -30,11 +30,11 @@ use crate::system::{MechanicalSystem, State, LANES};
 pub(super) const GROUP: usize = 16 * LANES;
 
 /// A cell's initial q and p.
-type Start = (Vec<f64>, Vec<f64>);
+type CellStart = (Vec<f64>, Vec<f64>);
 
 /// A lane's cell: where its outcome goes, its observer, its steps so far and its state as the
 /// observer last saw it.
-struct Lane<'a, S: MechanicalSystem>
+struct LaneCell<'a, S: MechanicalSystem>
 where
     DefaultAllocator: Allocator<S::Dim>,
 {
@@ -92,7 +92,7 @@ impl BasinsJob {
         &self,
         sys: &S,
         first: &Simulation,
-        queue: &[(usize, Start)],
+        queue: &[(usize, CellStart)],
         outcomes: &mut [Option<CellOutcome>],
         budget: Budget<'_>,
     ) -> Option<()>
@@ -104,7 +104,7 @@ impl BasinsJob {
         let (h, steps) = (first.schedule.h, first.schedule.steps);
         let t_end = steps as f64 * h;
         let mut waiting = queue.iter();
-        let mut running: Vec<Option<Lane<'_, S>>> = (0..LANES).map(|_| None).collect();
+        let mut running: Vec<Option<LaneCell<'_, S>>> = (0..LANES).map(|_| None).collect();
         let unwatched = [false; LANES];
         let quiet_bounds = self.criteria.quiet_bounds::<N>();
         let mut round = 0u64;
@@ -123,7 +123,7 @@ impl BasinsJob {
                         continue;
                     }
                     lanes.set_state(l, start.q.as_slice(), start.p.as_slice());
-                    *lane = Some(Lane {
+                    *lane = Some(LaneCell {
                         slot: *slot,
                         decide,
                         step: 0,

@@ -227,7 +227,7 @@ struct Cells {
 
 /// One chart's step on all lanes, and its energy. Each operation is a loop over the lanes with
 /// nothing but arithmetic in it, which the compiler turns into SIMD instructions.
-trait Kernel {
+trait ChartKernel {
     /// `shared` for the state as it starts.
     fn prime(&self, z: &mut Cells);
     /// One step of size `h` of every lane; H at the new states into `energy`.
@@ -238,7 +238,7 @@ trait Kernel {
 /// budget looked at every [`CHECK_EVERY`] steps, and the run left early once every lane is
 /// non-finite (where the one-cell path stops).
 #[inline(always)]
-fn lanes<K: Kernel>(
+fn lanes<K: ChartKernel>(
     h: f64,
     start: &Start,
     steps: u64,
@@ -392,7 +392,7 @@ impl<const KICK_FIRST: bool> Cartesian<'_, KICK_FIRST> {
     }
 }
 
-impl<const KICK_FIRST: bool> Kernel for Cartesian<'_, KICK_FIRST> {
+impl<const KICK_FIRST: bool> ChartKernel for Cartesian<'_, KICK_FIRST> {
     #[inline(always)]
     fn prime(&self, z: &mut Cells) {
         Self::norm(z);
@@ -429,7 +429,7 @@ impl<const MOMENTUM_FIRST: bool> Polar<'_, MOMENTUM_FIRST> {
     }
 }
 
-impl<const MOMENTUM_FIRST: bool> Kernel for Polar<'_, MOMENTUM_FIRST> {
+impl<const MOMENTUM_FIRST: bool> ChartKernel for Polar<'_, MOMENTUM_FIRST> {
     #[inline(always)]
     fn prime(&self, z: &mut Cells) {
         Self::turn(z);

@@ -21,8 +21,8 @@
 //! then momenta), less its leading 0 +, which cannot change whether the sum is finite, and the
 //! stretch reports a sum that is not finite.
 //!
-//! This file holds the entry points, how the runs sit in the arrays ([`Layout`]) and the state
-//! every stretch shares; `splitting.rs` writes a splitting's flows and `runge_kutta.rs` a
+//! This file holds the entry points, how the runs sit in the arrays ([`LaneLayout`]) and the
+//! state every stretch shares; `splitting.rs` writes a splitting's flows and `runge_kutta.rs` a
 //! Runge–Kutta method's steps.
 
 use cranelift_codegen::ir::condcodes::{FloatCC, IntCC};
@@ -68,14 +68,14 @@ pub(super) fn compile(
     parts: &ForcePrograms,
 ) -> Result<CompiledStretch, String> {
     check(plan, parts)?;
-    build(parts, Layout::ONE_RUN, |s| s.splitting(plan))
+    build(parts, LaneLayout::ONE_RUN, |s| s.splitting(plan))
 }
 
 /// Compiles `plan` for [`LANES`] runs of the system of `parts` side by side (the plain runs'
 /// lanes, `methods::lanes::runs`): each lane's flows are [`compile`]'s, two lanes to a vector
-/// where the target has f64×2 vectors ([`Layout::LANES`]), independent chains that the processor
-/// overlaps. The arrays hold component i of lane l at i·LANES + l. One call runs
-/// [`Layout::LANES`]'s lanes from the arrays' starts (all of them); every lane takes all n
+/// where the target has f64×2 vectors ([`LaneLayout::LANES`]), independent chains that the
+/// processor overlaps. The arrays hold component i of lane l at i·LANES + l. One call runs
+/// [`LaneLayout::LANES`]'s lanes from the arrays' starts (all of them); every lane takes all n
 /// steps, and the code returns the mask of the lanes whose state did not sum to a finite number
 /// after some step (bit l for lane l), which the lanes' engine runs again step by step.
 pub(super) fn compile_lanes(
@@ -83,12 +83,12 @@ pub(super) fn compile_lanes(
     parts: &ForcePrograms,
 ) -> Result<CompiledStretch, String> {
     check(plan, parts)?;
-    build(parts, Layout::LANES, |s| s.splitting(plan))
+    build(parts, LaneLayout::LANES, |s| s.splitting(plan))
 }
 
 /// How a function's runs sit in its arrays and in its values.
 #[derive(Clone, Copy, Debug)]
-struct Layout {
+struct LaneLayout {
     /// Runs one call takes, from the arrays' starts.
     lanes: usize,
     /// Runs one value holds: 1 (an f64), or that many adjacent lanes in a vector.
@@ -97,9 +97,9 @@ struct Layout {
     stride: usize,
 }
 
-impl Layout {
+impl LaneLayout {
     /// One run in scalars.
-    const ONE_RUN: Layout = Layout {
+    const ONE_RUN: LaneLayout = LaneLayout {
         lanes: 1,
         width: 1,
         stride: 1,
@@ -110,7 +110,7 @@ impl Layout {
     /// of `cargo bench --bench chaos`, the typed-in Hénon–Heiles sweep took 7.2–7.8 ns per
     /// cell-step with them, against 7.6–8.4 with eight lanes to a call and 10.7 with four (the
     /// state spills out of the 16 registers Cranelift allocates either way).
-    const LANES: Layout = Layout {
+    const LANES: LaneLayout = LaneLayout {
         lanes: LANES,
         width: jit::VECTOR_WIDTH,
         stride: LANES,
@@ -170,13 +170,13 @@ pub(super) fn compile_runge_kutta(
     if parts.clock.is_some() {
         return Err("a driven system's Runge–Kutta steps are the stepper's".into());
     }
-    build(parts, Layout::ONE_RUN, |s| s.runge_kutta(tableau, h))
+    build(parts, LaneLayout::ONE_RUN, |s| s.runge_kutta(tableau, h))
 }
 
 /// A function of [`StretchFn`]'s signature over the runs of `layout` whose loop `body` writes.
 fn build(
     parts: &ForcePrograms,
-    layout: Layout,
+    layout: LaneLayout,
     body: impl FnOnce(&mut Stretch) -> Result<(), String>,
 ) -> Result<CompiledStretch, String> {
     let module = jit::module(true)?;
@@ -228,7 +228,7 @@ struct Stretch<'a, 'b> {
     /// Every value's q, p and force (one for a single run), value k holding lanes
     /// k·width to (k + 1)·width − 1.
     lanes: Vec<[Vec<Variable>; 3]>,
-    layout: Layout,
+    layout: LaneLayout,
     /// Lanes whose state was not finite after some step, as a mask (lanes only).
     left: Variable,
     /// Whether g holds ∇V(q), as 0 or 1 (the same for every lane: they take the same flows).
@@ -251,7 +251,7 @@ impl<'a, 'b> Stretch<'a, 'b> {
     fn new(
         b: &'a mut FunctionBuilder<'b>,
         parts: &'a ForcePrograms<'a>,
-        layout: Layout,
+        layout: LaneLayout,
         emitter: Emitter,
     ) -> Result<Self, String> {
         let entry = b.create_block();
