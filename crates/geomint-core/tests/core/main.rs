@@ -21,6 +21,7 @@ mod energy_map;
 mod expr;
 mod indicators;
 mod layers;
+mod names;
 mod order_conditions;
 mod orders;
 mod reference;
