@@ -6,27 +6,9 @@
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::fs;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-/// The crates of the workspace, as source directories relative to the core's manifest.
-const CRATES: &[&str] = &[
-    "src",
-    "../geomint-api/src",
-    "../geomint-py/src",
-    "../../src",
-];
-
-/// Every `.rs` file under `dir`.
-fn sources(dir: &Path, out: &mut Vec<PathBuf>) {
-    for entry in fs::read_dir(dir).expect("a source directory") {
-        let path = entry.expect("a directory entry").path();
-        if path.is_dir() {
-            sources(&path, out);
-        } else if path.extension().is_some_and(|e| e == "rs") {
-            out.push(path);
-        }
-    }
-}
+use crate::workspace::{root, sources, CRATES};
 
 /// The top-level module a file belongs to (`None` for the crate root's own file), and whether
 /// the file is that module's own (where `super::` names the crate root).
@@ -61,8 +43,7 @@ fn names_after<'a>(line: &'a str, prefix: &str) -> Vec<&'a str> {
 
 /// The graph of a crate's top-level modules: module → (module it names → a file that does).
 fn graph(root: &Path) -> BTreeMap<String, BTreeMap<String, String>> {
-    let mut files = Vec::new();
-    sources(root, &mut files);
+    let files = sources(root);
     let modules: BTreeSet<String> = files
         .iter()
         .filter_map(|f| module_of(root, f).map(|(m, _)| m))
@@ -127,12 +108,10 @@ fn cycle_through(
 
 #[test]
 fn no_module_imports_one_that_imports_it_back() {
-    let manifest = Path::new(env!("CARGO_MANIFEST_DIR"));
     let mut cycles = Vec::new();
     let mut modules_seen = 0;
     for dir in CRATES {
-        let root = manifest.join(dir);
-        let edges = graph(&root);
+        let edges = graph(&root(dir));
         modules_seen += edges.len();
         let mut reported = BTreeSet::new();
         for start in edges.keys() {

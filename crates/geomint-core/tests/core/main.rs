@@ -30,3 +30,4 @@ mod stability;
 mod steps;
 mod structure;
 mod sweep_lanes;
+mod workspace;

@@ -5,27 +5,8 @@
 
 use std::collections::BTreeMap;
 use std::fs;
-use std::path::{Path, PathBuf};
 
-/// The crates of the workspace, as source directories relative to the core's manifest.
-const CRATES: &[&str] = &[
-    "src",
-    "../geomint-api/src",
-    "../geomint-py/src",
-    "../../src",
-];
-
-/// Every `.rs` file under `dir`.
-fn sources(dir: &Path, out: &mut Vec<PathBuf>) {
-    for entry in fs::read_dir(dir).expect("a source directory") {
-        let path = entry.expect("a directory entry").path();
-        if path.is_dir() {
-            sources(&path, out);
-        } else if path.extension().is_some_and(|e| e == "rs") {
-            out.push(path);
-        }
-    }
-}
+use crate::workspace::{root, sources, CRATES};
 
 /// The name a line declares, if it starts (unindented) a `struct`, `enum`, `trait` or `type`
 /// item, with or without a visibility.
@@ -67,14 +48,10 @@ fn declared_recognises_items_and_leaves_associated_types() {
 
 #[test]
 fn every_type_of_the_workspace_has_a_name_of_its_own() {
-    let manifest = Path::new(env!("CARGO_MANIFEST_DIR"));
     let mut declarations: BTreeMap<String, Vec<String>> = BTreeMap::new();
     let mut files = 0;
     for krate in CRATES {
-        let root = manifest.join(krate);
-        let mut paths = Vec::new();
-        sources(&root, &mut paths);
-        for path in paths {
+        for path in sources(&root(krate)) {
             files += 1;
             let text = fs::read_to_string(&path).expect("a readable source");
             for (number, line) in text.lines().enumerate() {
