@@ -19,8 +19,10 @@ use nalgebra::DefaultAllocator;
 
 use super::outcome::{CellOutcome, Decide, OrbitOutcome};
 use super::BasinsJob;
-use crate::methods::lanes::{LaneForces, CHECK_EVERY};
+use crate::methods::lanes::runs::End;
+use crate::methods::lanes::LaneForces;
 use crate::run::{Budget, Observer, RunEnd};
+use crate::simulation::lanes::{drive, LaneGroup, LaneRun, LaneStretch, PlainGroup};
 use crate::simulation::{with_lane_systems, Simulation};
 use crate::system::{MechanicalSystem, State, LANES};
 
@@ -32,16 +34,96 @@ pub(super) const GROUP: usize = 16 * LANES;
 /// A cell's initial q and p.
 type CellStart = (Vec<f64>, Vec<f64>);
 
-/// A lane's cell: where its outcome goes, its observer, its steps so far and its state as the
-/// observer last saw it.
+/// A basin map's plain lanes, which leave divergence to the cells' looks, and which of them
+/// are within the quiet bounds after each step.
+struct CellLanes<'a, S, const N: usize> {
+    plain: PlainGroup<'a, S, N>,
+    quiet_bounds: Option<([f64; N], [f64; N])>,
+    inside: [bool; LANES],
+}
+
+impl<S: LaneForces<N>, const N: usize> LaneGroup for CellLanes<'_, S, N> {
+    fn advance(&mut self, n: u64, running: &[bool; LANES]) -> LaneStretch {
+        let stretch = self.plain.advance(n, running);
+        if let Some((q, p)) = &self.quiet_bounds {
+            self.inside = self.plain.lanes.within(q, p);
+        }
+        stretch
+    }
+}
+
+/// A cell in a lane: its observer, which decides it, and its state as the observer last saw
+/// it.
 struct LaneCell<'a, S: MechanicalSystem>
 where
     DefaultAllocator: Allocator<S::Dim>,
 {
-    slot: usize,
+    job: &'a BasinsJob,
     decide: Decide<'a, S>,
-    step: u64,
     state: State<S::Dim>,
+    h: f64,
+    steps: u64,
+}
+
+impl<S: MechanicalSystem + LaneForces<N>, const N: usize> LaneRun<CellLanes<'_, S, N>>
+    for LaneCell<'_, S>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    type Report = Option<CellOutcome>;
+
+    /// A cell decided at its start takes no lane.
+    fn enter(&mut self, group: &mut CellLanes<'_, S, N>, l: usize) -> ControlFlow<Self::Report> {
+        if self.decide.decided.is_some() {
+            return ControlFlow::Break(self.conclude(RunEnd::Finished, 0));
+        }
+        let (q, p) = (self.state.q.as_slice(), self.state.p.as_slice());
+        group.plain.lanes.set_state(l, q, p);
+        ControlFlow::Continue(())
+    }
+
+    /// Every step, as the one-cell path's observer watches them.
+    fn next_look(&self, step: u64) -> u64 {
+        step + 1
+    }
+
+    /// Divergence is looked at as the one-cell path does, on the components.
+    fn look(
+        &mut self,
+        group: &mut CellLanes<'_, S, N>,
+        l: usize,
+        step: u64,
+        _: Option<End>,
+    ) -> ControlFlow<Self::Report> {
+        if step != self.steps && group.inside[l] && self.decide.between_looks(step) {
+            return ControlFlow::Continue(());
+        }
+        let (q, p) = group.plain.lanes.state(l);
+        self.state.q.copy_from_slice(&q);
+        self.state.p.copy_from_slice(&p);
+        let t = step as f64 * self.h;
+        let stop = if !self.state.is_finite() {
+            RunEnd::Diverged { step, t }
+        } else if let ControlFlow::Break(at) = self.decide.on_step(step, t, &self.state) {
+            RunEnd::Event { step, t: at }
+        } else if step == self.steps {
+            RunEnd::Finished
+        } else {
+            return ControlFlow::Continue(());
+        };
+        ControlFlow::Break(self.conclude(stop, step))
+    }
+}
+
+impl<S: MechanicalSystem> LaneCell<'_, S>
+where
+    DefaultAllocator: Allocator<S::Dim>,
+{
+    fn conclude(&mut self, stop: RunEnd, step: u64) -> Option<CellOutcome> {
+        let t_end = self.steps as f64 * self.h;
+        self.job
+            .conclude(self.decide.decided.take(), stop, step, t_end)
+    }
 }
 
 impl BasinsJob {
@@ -100,76 +182,29 @@ impl BasinsJob {
         S: MechanicalSystem + LaneForces<N> + PartialEq,
         DefaultAllocator: Allocator<S::Dim>,
     {
-        let mut lanes = first.plain_lanes::<S, N>(sys)?;
+        let lanes = first.plain_lanes::<S, N>(sys)?;
+        let mut group = CellLanes {
+            plain: PlainGroup::new(lanes, sys, false),
+            quiet_bounds: self.criteria.quiet_bounds::<N>(),
+            inside: [false; LANES],
+        };
         let (h, steps) = (first.schedule.h, first.schedule.steps);
-        let t_end = steps as f64 * h;
-        let mut waiting = queue.iter();
-        let mut running: Vec<Option<LaneCell<'_, S>>> = (0..LANES).map(|_| None).collect();
-        let unwatched = [false; LANES];
-        let quiet_bounds = self.criteria.quiet_bounds::<N>();
-        let mut round = 0u64;
-        loop {
-            // Free lanes take the next cells; a cell decided at its start takes none.
-            for (l, lane) in running.iter_mut().enumerate() {
-                while lane.is_none() {
-                    let Some((slot, (q0, p0))) = waiting.next() else {
-                        break;
-                    };
-                    let start = State::at_time(sys, 0.0, q0, p0);
-                    let mut decide = Decide::new(sys, &self.criteria, &start, q0.len());
-                    if decide.decided.is_some() {
-                        outcomes[*slot] =
-                            self.conclude(decide.decided.take(), RunEnd::Finished, 0, t_end);
-                        continue;
-                    }
-                    lanes.set_state(l, start.q.as_slice(), start.p.as_slice());
-                    *lane = Some(LaneCell {
-                        slot: *slot,
-                        decide,
-                        step: 0,
-                        state: start,
-                    });
-                }
+        let cells = queue.iter().map(|(_, (q0, p0))| {
+            let state = State::at_time(sys, 0.0, q0, p0);
+            LaneCell {
+                job: self,
+                decide: Decide::new(sys, &self.criteria, &state, q0.len()),
+                state,
+                h,
+                steps,
             }
-            if running.iter().all(Option::is_none) {
-                return Some(());
-            }
-            // The one-cell path looks at the budget every CHECK_EVERY steps of a cell; here every
-            // CHECK_EVERY steps of the lanes. The cells still running are left `None`.
-            if round.is_multiple_of(CHECK_EVERY) && (budget.cancelled() || budget.expired()) {
-                return Some(());
-            }
-            round += 1;
-            // Divergence is looked at below as the one-cell path does, on the components.
-            lanes.advance(sys, 1, &unwatched);
-            let inside = quiet_bounds.map_or([false; LANES], |(q, p)| lanes.within(&q, &p));
-            for (l, lane) in running.iter_mut().enumerate() {
-                let Some(cell) = lane else {
-                    continue;
-                };
-                cell.step += 1;
-                if cell.step != steps && inside[l] && cell.decide.between_looks(cell.step) {
-                    continue;
-                }
-                let (q, p) = lanes.state(l);
-                cell.state.q.copy_from_slice(&q);
-                cell.state.p.copy_from_slice(&p);
-                let (step, t) = (cell.step, cell.step as f64 * h);
-                let stop = if !cell.state.is_finite() {
-                    RunEnd::Diverged { step, t }
-                } else if let ControlFlow::Break(at) = cell.decide.on_step(step, t, &cell.state) {
-                    RunEnd::Event { step, t: at }
-                } else if step == steps {
-                    RunEnd::Finished
-                } else {
-                    continue;
-                };
-                let Some(mut done) = lane.take() else {
-                    continue;
-                };
-                outcomes[done.slot] = self.conclude(done.decide.decided.take(), stop, step, t_end);
-            }
-        }
+        });
+        // The one-cell path looks at the budget every CHECK_EVERY steps of a cell; here every
+        // CHECK_EVERY steps of the lanes. The cells still running are left `None`.
+        drive(&mut group, cells, budget, |i, outcome| {
+            outcomes[queue[i].0] = outcome;
+        });
+        Some(())
     }
 }
 

@@ -50,14 +50,14 @@ impl LanePlan {
 /// schedule.
 #[derive(Clone, Debug)]
 pub(super) struct EnergyLanes {
-    runs: Vec<LaneRun>,
+    runs: Vec<EnergyLaneRun>,
     h: f64,
     steps: u64,
 }
 
 /// One run's system (in its chart, as the one-cell path builds it) and its kernel.
 #[derive(Clone, Debug)]
-struct LaneRun {
+struct EnergyLaneRun {
     system: AnySystem,
     kernel: LaneKernel,
 }
@@ -135,7 +135,7 @@ impl SweepJob {
                 return None;
             }
             schedule = Some(this);
-            runs.push(LaneRun {
+            runs.push(EnergyLaneRun {
                 system: sim.system,
                 kernel,
             });
@@ -283,7 +283,7 @@ impl EnergyLanes {
     /// stopped being finite at step s ends the run there (s steps, the state of step s − 1);
     /// each step costs one force evaluation, as in the composer's symplectic Euler (one kick)
     /// and the charts' closed-form stages.
-    fn metrics(&self, run: &LaneRun, tally: &Tally, i: usize) -> RunMetrics {
+    fn metrics(&self, run: &EnergyLaneRun, tally: &Tally, i: usize) -> RunMetrics {
         let at = |step: f64| (step != f64::INFINITY).then_some(step * self.h);
         let stopped_at = at(tally.non_finite[i]);
         let steps = match stopped_at {
