@@ -25,6 +25,7 @@ use super::error::{CoreError, StepError};
 use super::system::{MechanicalSystem, State};
 use super::tangent::Tangent;
 
+pub mod driver;
 mod track;
 use track::{Tangents, Track, Untracked};
 
@@ -56,9 +57,11 @@ where
     fn force_evaluations(&self) -> u64;
 
     /// How many steps may pass between two looks at the cancellation flag and the clock: many
-    /// for cheap explicit steps, one for steps that may take long (Newton, adaptive).
+    /// for cheap explicit steps (the lanes' interval, where their stretches are cut too, so
+    /// that a run's fused seams fall where the lanes' do), one for steps that may take long
+    /// (Newton, adaptive).
     fn check_interval(&self) -> u64 {
-        1024
+        driver::CHECK_EVERY
     }
 
     /// The deadline, for a stepper whose single step can take long (the adaptive reference):

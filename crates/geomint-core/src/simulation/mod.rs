@@ -12,8 +12,9 @@
 //!   document carry them.
 //! - [`surface`]: an initial state on an energy surface, one momentum solved from H = E.
 //! - [`allowed`]: which points of a section's plane can start an orbit at an energy.
-//! - `lanes`: runs from up to sixteen initial states ([`crate::flows::LANES`]) side by side in SIMD lanes, through one driver, with their chaos
-//!   indicators ([`Simulation::run_side_by_side`]).
+//! - `lanes`: runs from up to sixteen initial states ([`crate::flows::LANES`]) side by side in
+//!   SIMD lanes, with their chaos indicators ([`Simulation::run_side_by_side`]), driven by the
+//!   lanes' run loop ([`crate::run::driver`]).
 
 pub mod allowed;
 pub mod crossings;

@@ -27,9 +27,6 @@ pub mod tangent;
 
 pub use tangent::{LaneForces, TangentLanes};
 
-/// Steps between two looks at the budget (the one-cell path's interval).
-pub const CHECK_EVERY: u64 = 1024;
-
 /// The instruction set a batched stepper's code is built for. Lanes start with the widest the
 /// CPU has ([`Isa::detect`]); another one the CPU has may be chosen (`with_isa`), e.g.
 /// `Portable` to compute what a CPU without AVX2 computes: the numbers are the same bits in

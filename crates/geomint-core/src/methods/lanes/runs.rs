@@ -26,6 +26,7 @@ use crate::flows::compiled::{LazyCode, StretchPlan};
 use crate::flows::SubFlow;
 use crate::flows::{self, Pack};
 use crate::methods::splitting;
+use crate::run::driver::{LaneEnd, LaneEnds};
 
 use super::Isa;
 
@@ -40,21 +41,6 @@ enum RunFlow {
     /// [`RunLanes::decay`].
     Damp(f64, usize),
 }
-
-/// How a lane's stretch of [`RunLanes::advance`] ended early: at the first step whose state does
-/// not sum to a finite number (the one-run path's test).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct End {
-    /// Steps taken in the stretch, that one included.
-    pub steps: u64,
-    /// Force evaluations of the lanes by then.
-    pub force_evaluations: u64,
-    /// Whether a component of the state is not finite (else only their sum overflows).
-    pub diverged: bool,
-}
-
-/// Per lane: `None` for a lane that took every step of the stretch.
-pub type Ended = [Option<End>; LANES];
 
 /// The lanes' state: q, p, the force at q and whether it is valid, and the force evaluations
 /// so far. A stretch runs on a local copy, which the compiler may keep in registers across the
@@ -208,7 +194,12 @@ impl<const N: usize> RunLanes<N> {
 
     /// Up to `n` steps of every lane, as the one-run path's `Stepper::advance` takes a stretch
     /// between samples (see the module docs). Lanes not `watched` are never looked at.
-    pub fn advance<S: LaneForces<N>>(&mut self, sys: &S, n: u64, watched: &[bool; LANES]) -> Ended {
+    pub fn advance<S: LaneForces<N>>(
+        &mut self,
+        sys: &S,
+        n: u64,
+        watched: &[bool; LANES],
+    ) -> LaneEnds {
         if let Some(ended) = self.advance_compiled(sys, n, watched) {
             return ended;
         }
@@ -239,7 +230,7 @@ impl<const N: usize> RunLanes<N> {
         sys: &S,
         n: u64,
         watched: &[bool; LANES],
-    ) -> Option<Ended> {
+    ) -> Option<LaneEnds> {
         if n == 0 || (n == 1 && !sys.single_steps_compiled()) {
             return None;
         }
@@ -283,7 +274,7 @@ impl<const N: usize> RunLanes<N> {
         sys: &S,
         n: u64,
         watched: &[bool; LANES],
-    ) -> Ended {
+    ) -> LaneEnds {
         self.advance_portable(sys, n, watched)
     }
 
@@ -295,7 +286,7 @@ impl<const N: usize> RunLanes<N> {
         sys: &S,
         n: u64,
         watched: &[bool; LANES],
-    ) -> Ended {
+    ) -> LaneEnds {
         self.advance_portable(sys, n, watched)
     }
 
@@ -305,7 +296,7 @@ impl<const N: usize> RunLanes<N> {
         sys: &S,
         n: u64,
         watched: &[bool; LANES],
-    ) -> Ended {
+    ) -> LaneEnds {
         let seam = match self.seam {
             Some(seam) if n >= 2 => seam,
             _ => return self.steps_ended(sys, n, watched, false),
@@ -337,7 +328,7 @@ impl<const N: usize> RunLanes<N> {
         n: u64,
         phase: Phase<N>,
         left: &[bool; LANES],
-    ) -> Ended {
+    ) -> LaneEnds {
         if !left.contains(&true) {
             self.phase = phase;
             return [None; LANES];
@@ -367,7 +358,7 @@ impl<const N: usize> RunLanes<N> {
         n: u64,
         watched: &[bool; LANES],
         until_all_ended: bool,
-    ) -> Ended {
+    ) -> LaneEnds {
         let mut ended = [None; LANES];
         let mut open = *watched;
         let (flows, decay) = (&self.flows[..], &self.decay[..]);
@@ -380,7 +371,7 @@ impl<const N: usize> RunLanes<N> {
             for l in 0..LANES {
                 if open[l] && not_finite[l] {
                     open[l] = false;
-                    ended[l] = Some(End {
+                    ended[l] = Some(LaneEnd {
                         steps: done + 1,
                         force_evaluations: phase.force_evaluations,
                         diverged: !(0..N)

@@ -12,10 +12,10 @@ use std::time::Instant;
 use nalgebra::allocator::Allocator;
 use nalgebra::{DefaultAllocator, Dim};
 
-use super::driver::{LaneGroup, LaneRun, LaneStretch};
 use crate::chaos::{ChaosPlan, OneVectorLanes, Statistic, ThresholdCrossing, Tracker};
-use crate::methods::lanes::runs::{End, RunLanes};
+use crate::methods::lanes::runs::RunLanes;
 use crate::methods::lanes::{LaneForces, TangentLanes};
+use crate::run::driver::{LaneEnd, LaneGroup, LaneRun, LaneStretch};
 use crate::run::{Observer, RunEnd, RunStats, Schedule};
 use crate::simulation::RunReport;
 use crate::system::{MechanicalSystem, State, LANES};
@@ -112,7 +112,7 @@ where
         for l in (0..LANES).filter(|&l| running[l]) {
             if advanced.not_finite[l] {
                 if !self.lanes.finite(l) {
-                    ended[l] = Some(End {
+                    ended[l] = Some(LaneEnd {
                         steps: advanced.steps,
                         force_evaluations: self.lanes.force_evaluations(),
                         diverged: true,
@@ -186,7 +186,7 @@ where
     DefaultAllocator: Allocator<D>,
 {
     /// Loads the start `z` into lane `l`; reports the indicators at the start to `observer`.
-    fn enter<O: Observer<D>>(&mut self, l: usize, z: &State<D>, observer: &mut O);
+    fn load<O: Observer<D>>(&mut self, l: usize, z: &State<D>, observer: &mut O);
 
     /// Lane `l`'s state into `z`; reports the indicators at `step` to `observer`.
     fn sample<O: Observer<D>>(&mut self, l: usize, step: u64, z: &mut State<D>, observer: &mut O);
@@ -208,7 +208,7 @@ impl<F: LaneForces<N>, D: Dim, const N: usize> SampledLanes<D> for PlainGroup<'_
 where
     DefaultAllocator: Allocator<D>,
 {
-    fn enter<O: Observer<D>>(&mut self, l: usize, z: &State<D>, _: &mut O) {
+    fn load<O: Observer<D>>(&mut self, l: usize, z: &State<D>, _: &mut O) {
         self.lanes.set_state(l, z.q.as_slice(), z.p.as_slice());
     }
 
@@ -233,8 +233,7 @@ where
     DefaultAllocator: Allocator<S::Dim>,
 {
     /// The run's start with a new tracker.
-    fn enter<O: Observer<S::Dim>>(&mut self, l: usize, z: &State<S::Dim>, observer: &mut O) {
-        debug_assert_eq!(self.step, 0, "a tracked group's runs enter at its start");
+    fn load<O: Observer<S::Dim>>(&mut self, l: usize, z: &State<S::Dim>, observer: &mut O) {
         for i in 0..N {
             self.lanes.q[i][l] = z.q[i];
             self.lanes.p[i][l] = z.p[i];
@@ -305,27 +304,25 @@ where
     pub update_every: u64,
 }
 
-impl<O, D: Dim> SampledRun<O, D>
+/// A run's report: how it stopped at `step`, with its force evaluations by then and the wall
+/// time since `group` started.
+fn report<D: Dim, G: SampledLanes<D>>(
+    group: &G,
+    stop: RunEnd,
+    step: u64,
+    force_evaluations: u64,
+) -> Option<RunReport>
 where
     DefaultAllocator: Allocator<D>,
 {
-    /// The run's report: how it stopped at `step`, with its force evaluations by then.
-    fn report<G: SampledLanes<D>>(
-        &self,
-        group: &G,
-        stop: RunEnd,
-        step: u64,
-        force_evaluations: u64,
-    ) -> Option<RunReport> {
-        Some(RunReport {
-            stop,
-            stats: RunStats {
-                steps: step,
-                force_evaluations,
-                wall_time_ms: group.started().elapsed().as_secs_f64() * 1e3,
-            },
-        })
-    }
+    Some(RunReport {
+        stop,
+        stats: RunStats {
+            steps: step,
+            force_evaluations,
+            wall_time_ms: group.started().elapsed().as_secs_f64() * 1e3,
+        },
+    })
 }
 
 impl<O, D, G> LaneRun<G> for SampledRun<O, D>
@@ -338,10 +335,10 @@ where
     type Report = Option<RunReport>;
 
     fn enter(&mut self, group: &mut G, l: usize) -> ControlFlow<Self::Report> {
-        group.enter(l, &self.state, &mut self.observer);
+        group.load(l, &self.state, &mut self.observer);
         self.observer.on_sample(0, 0.0, &self.state);
         if self.schedule.steps == 0 {
-            return ControlFlow::Break(self.report(group, RunEnd::Finished, 0, 0));
+            return ControlFlow::Break(report(group, RunEnd::Finished, 0, 0));
         }
         ControlFlow::Continue(())
     }
@@ -360,14 +357,14 @@ where
         group: &mut G,
         l: usize,
         step: u64,
-        end: Option<End>,
+        end: Option<LaneEnd>,
     ) -> ControlFlow<Self::Report> {
         let t = step as f64 * self.schedule.h;
         if let Some(end) = end {
             let stop = RunEnd::Diverged { step, t };
             let diverged = end.diverged.then_some(stop);
             return ControlFlow::Break(
-                diverged.and_then(|stop| self.report(group, stop, step, end.force_evaluations)),
+                diverged.and_then(|stop| report(group, stop, step, end.force_evaluations)),
             );
         }
         let passed = group.passed(l);
@@ -385,12 +382,16 @@ where
                 value,
                 threshold,
             });
-            return ControlFlow::Break(self.report(group, stop, step, group.force_evaluations()));
+            return ControlFlow::Break(report(group, stop, step, group.force_evaluations()));
         }
         if step == self.schedule.steps {
-            let finished = self.report(group, RunEnd::Finished, step, group.force_evaluations());
+            let finished = report(group, RunEnd::Finished, step, group.force_evaluations());
             return ControlFlow::Break(finished);
         }
         ControlFlow::Continue(())
+    }
+
+    fn stopped(&mut self, group: &mut G, _: usize, step: u64, stop: RunEnd) -> Self::Report {
+        report(group, stop, step, group.force_evaluations())
     }
 }

@@ -3,14 +3,13 @@
 //! which may also differ in their system's parameters (one system per lane) but share the step.
 //! Runs the lanes cannot take go one by one.
 //!
-//! - [`driver`]: the one loop for runs in lanes, with each run's observer deciding when it looks
-//!   at its lane and when it ends; a basin map's cells take it too.
-//! - `groups`: the plain and the tracked lanes, and the run that samples them. For each run it
-//!   does what [`integrate_tracked`](crate::run::integrate_tracked) does — the samples, the
-//!   indicators' updates on their grid and their thresholds, divergence, the budget, and for
-//!   plain runs the stretches between samples with their fused seams — and hands the samples to
-//!   the same observer, so each run's samples and outcome are bit for bit the one-run path's
-//!   (`tests/core/chaos_map.rs` and `tests/core/sweep_lanes.rs` compare them cell by cell).
+//! The lanes' run loop ([`crate::run::driver`]) drives them, in a plain or a tracked lane group
+//! (`groups`), each with the run that samples it: that run does what
+//! [`integrate_tracked`](crate::run::integrate_tracked) does for one run — the samples, the
+//! indicators' updates on their grid and their thresholds, divergence, the budget, and for plain
+//! runs the stretches between samples with their fused seams — and hands the samples to the same
+//! observer, so each run's samples and outcome are bit for bit the one-run path's
+//! (`tests/core/chaos_map.rs` and `tests/core/sweep_lanes.rs` compare them cell by cell).
 
 use nalgebra::allocator::Allocator;
 use nalgebra::{DefaultAllocator, Dim};
@@ -21,15 +20,14 @@ use crate::error::CoreError;
 use crate::methods::lanes::runs::RunLanes;
 use crate::methods::lanes::{LaneForces, TangentLanes};
 use crate::methods::{self};
+use crate::run::driver::drive_lanes;
 use crate::run::Budget;
 use crate::system::lanes::{EachLane, PointForces};
 use crate::system::{MechanicalSystem, State, LANES};
 use crate::tangent::Tangent;
 
-pub(crate) mod driver;
 mod groups;
 
-pub(crate) use driver::{drive, LaneGroup, LaneRun, LaneStretch};
 pub(crate) use groups::PlainGroup;
 use groups::{SampledLanes, SampledRun, TrackedGroup};
 
@@ -85,9 +83,9 @@ impl Simulation {
         )
     }
 
-    /// The plain lanes of this simulation's first method on `sys` alone, for a study that
-    /// drives them a step at a time itself (a basin map's cells, each ending when decided);
-    /// `None` where [`runs_in_lanes`](Self::runs_in_lanes) is false or indicators are asked for.
+    /// The plain lanes of this simulation's first method on `sys` alone, for a study whose runs
+    /// look at every step themselves (a basin map's cells, each ending when decided); `None`
+    /// where [`runs_in_lanes`](Self::runs_in_lanes) is false or indicators are asked for.
     pub(crate) fn plain_lanes<S, const N: usize>(&self, sys: &S) -> Option<RunLanes<N>>
     where
         S: MechanicalSystem + LaneForces<N> + PartialEq,
@@ -268,9 +266,11 @@ where
     Some(outcomes.into_iter().map(Ok).collect())
 }
 
-/// Runs `sims` (at most [`LANES`]), run `l` on `systems[l]`, in `group`, their indicators
-/// updated every `update_every` steps; their reports in their order, `None` when the budget
-/// stopped them.
+/// Runs `sims`, run `l` on `systems[l]` in lane `l` of `group`, their indicators updated every
+/// `update_every` steps; their reports in their order, `None` when the budget stopped them. At
+/// most [`LANES`] runs, so that all enter at the group's start, each in the lane of its system
+/// (a tracked group's steps are its runs' steps, and a group of one system per lane has its
+/// systems in the runs' order).
 fn sampled<S, G>(
     group: &mut G,
     systems: &[&S],
@@ -284,6 +284,7 @@ where
     G: SampledLanes<S::Dim>,
     DefaultAllocator: Allocator<S::Dim>,
 {
+    assert!(sims.len() <= LANES, "a lane group's runs enter together");
     let starts: Vec<State<S::Dim>> = sims
         .iter()
         .zip(systems)
@@ -301,5 +302,7 @@ where
             update_every,
         });
     let mut reports = vec![None; sims.len()];
-    drive(group, runs, budget, |i, report| reports[i] = report).then_some(reports)
+    drive_lanes(group, runs, budget, |i, report| reports[i] = report);
+    let by_budget = |r: &Option<RunReport>| r.as_ref().is_some_and(|r| r.stop.by_budget());
+    (!reports.iter().any(by_budget)).then_some(reports)
 }

@@ -19,10 +19,10 @@ use nalgebra::DefaultAllocator;
 
 use super::outcome::{CellOutcome, Decide, OrbitOutcome};
 use super::BasinsJob;
-use crate::methods::lanes::runs::End;
 use crate::methods::lanes::LaneForces;
+use crate::run::driver::{drive_lanes, LaneEnd, LaneGroup, LaneRun, LaneStretch};
 use crate::run::{Budget, Observer, RunEnd};
-use crate::simulation::lanes::{drive, LaneGroup, LaneRun, LaneStretch, PlainGroup};
+use crate::simulation::lanes::PlainGroup;
 use crate::simulation::{with_lane_systems, Simulation};
 use crate::system::{MechanicalSystem, State, LANES};
 
@@ -93,7 +93,7 @@ where
         group: &mut CellLanes<'_, S, N>,
         l: usize,
         step: u64,
-        _: Option<End>,
+        _: Option<LaneEnd>,
     ) -> ControlFlow<Self::Report> {
         if step != self.steps && group.inside[l] && self.decide.between_looks(step) {
             return ControlFlow::Continue(());
@@ -112,6 +112,18 @@ where
             return ControlFlow::Continue(());
         };
         ControlFlow::Break(self.conclude(stop, step))
+    }
+
+    /// The budget stopped an undecided cell (a decided one has left its lane): it has no
+    /// outcome.
+    fn stopped(
+        &mut self,
+        _: &mut CellLanes<'_, S, N>,
+        _: usize,
+        _: u64,
+        _: RunEnd,
+    ) -> Self::Report {
+        None
     }
 }
 
@@ -201,7 +213,7 @@ impl BasinsJob {
         });
         // The one-cell path looks at the budget every CHECK_EVERY steps of a cell; here every
         // CHECK_EVERY steps of the lanes. The cells still running are left `None`.
-        drive(&mut group, cells, budget, |i, outcome| {
+        drive_lanes(&mut group, cells, budget, |i, outcome| {
             outcomes[queue[i].0] = outcome;
         });
         Some(())

@@ -28,8 +28,9 @@ use std::time::Instant;
 
 use crate::diagnostics::DIVERGENCE;
 use crate::flows;
-use crate::methods::lanes::{Isa, CHECK_EVERY};
+use crate::methods::lanes::Isa;
 use crate::methods::{Method, MethodId};
+use crate::run::driver::CHECK_EVERY;
 use crate::run::Budget;
 use crate::systems::{AnySystem, PlanarCartesian, PlanarKind, PlanarPolar, PlanarSpring};
 

@@ -2,9 +2,10 @@
 //! lane stops where a run of its own would.
 
 use geomint_core::methods::lanes::tangent::LANES;
-use geomint_core::methods::lanes::{Isa, TangentLanes, CHECK_EVERY};
+use geomint_core::methods::lanes::{Isa, TangentLanes};
 use geomint_core::methods::splitting::VELOCITY_VERLET;
 use geomint_core::methods::{Method, MethodId};
+use geomint_core::run::driver::CHECK_EVERY;
 use geomint_core::run::Budget;
 use geomint_core::studies::energy_map::lanes::{
     self as pendulum, Chart, EulerOrder as Order, LaneKernel, Start, Tally,

@@ -1,0 +1,156 @@
+//! The run loop for runs side by side in SIMD lanes, whatever the lanes compute and whatever
+//! each run watches: a sweep's plain runs, a chaos map's runs with their indicators and a basin
+//! map's cells all go through [`drive_lanes`], [`LANES`] at a time.
+//!
+//! The loop knows two things: a [`LaneGroup`], which advances its lanes by a stretch of steps
+//! and says which lanes' runs ended inside it, and a [`LaneRun`] per lane, the run's observer,
+//! which loads its start into the lanes, says when it next needs to look at its lane (stretches
+//! end there, and every [`CHECK_EVERY`] steps of the group, where the budget is looked at) and,
+//! when it looks, goes on or ends. A lane whose run ended takes the next run waiting, so a run
+//! that ends early leaves its group without stopping the others.
+//!
+//! One run alone keeps its own loop ([`integrate_tracked`](super::integrate_tracked)): it has
+//! what only it needs (processing methods' output states, the watch of every step with output
+//! states formed late, failed steps), and as this loop's one-lane instance it took 6 % longer
+//! on watched steps (the code layout page, "Two run loops").
+
+use std::ops::ControlFlow;
+
+use super::{Budget, RunEnd};
+use crate::system::LANES;
+
+/// Steps of a group of lanes between two looks at the budget, and the one-run driver's for cheap
+/// steps ([`Stepper::check_interval`](super::Stepper::check_interval)): stretches are cut there
+/// on both paths, so a plain run's fused seams fall at the same steps.
+pub const CHECK_EVERY: u64 = 1024;
+
+/// How a lane's run ended inside a stretch: at the first step whose state does not sum to a
+/// finite number (the one-run path's test). Not `diverged` when every component is finite
+/// and only their sum overflowed: a plain run is then given back, to run on its own.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LaneEnd {
+    /// Steps taken in the stretch, that one included.
+    pub steps: u64,
+    /// Force evaluations of the lanes by then.
+    pub force_evaluations: u64,
+    /// Whether a component of the state is not finite (else only their sum overflows).
+    pub diverged: bool,
+}
+
+/// Lanes that advance together: what a [`LaneRun`] runs in.
+pub trait LaneGroup {
+    /// Takes up to `n` steps of the lanes `running`, stopping early where the group must look
+    /// sooner. Every running lane takes the steps returned, but a lane whose run ended inside
+    /// them, which took the steps its [`LaneEnd`] says.
+    fn advance(&mut self, n: u64, running: &[bool; LANES]) -> LaneStretch;
+}
+
+/// Per lane, whether its run ended inside a stretch.
+pub type LaneEnds = [Option<LaneEnd>; LANES];
+
+/// What a stretch of a [`LaneGroup`] did.
+pub struct LaneStretch {
+    /// Steps every running lane took.
+    pub steps: u64,
+    /// Per lane, whether its run ended inside the stretch.
+    pub ended: LaneEnds,
+}
+
+/// A run in a lane of a group `G`: its observers and what it reports when it ends.
+pub trait LaneRun<G: LaneGroup> {
+    /// What the run reports when it ends.
+    type Report;
+
+    /// Loads the run's start into lane `l`; `Break` when it ends there, before any step.
+    fn enter(&mut self, group: &mut G, l: usize) -> ControlFlow<Self::Report>;
+
+    /// The step after `step` at which the run must next look at its lane (a stretch never
+    /// passes it).
+    fn next_look(&self, step: u64) -> u64;
+
+    /// Lane `l` after a stretch that brought its run to `step`, or ended it there (`end`).
+    fn look(
+        &mut self,
+        group: &mut G,
+        l: usize,
+        step: u64,
+        end: Option<LaneEnd>,
+    ) -> ControlFlow<Self::Report>;
+
+    /// The budget stopped the run in lane `l` at `step` (`stop`: cancelled or out of time).
+    fn stopped(&mut self, group: &mut G, l: usize, step: u64, stop: RunEnd) -> Self::Report;
+}
+
+/// Runs `runs` in `group`'s lanes in the order they come, each as a lane frees, and gives each
+/// one's report, with its place in `runs`, to `finished` as it ends; when the budget stops the
+/// group, the runs in its lanes report so, and those still waiting do not run.
+pub fn drive_lanes<G, R>(
+    group: &mut G,
+    runs: impl IntoIterator<Item = R>,
+    budget: Budget<'_>,
+    mut finished: impl FnMut(usize, R::Report),
+) where
+    G: LaneGroup,
+    R: LaneRun<G>,
+{
+    let mut waiting = runs.into_iter().enumerate();
+    // Each lane's run, its place in `runs` and its steps so far.
+    let mut lanes: [Option<(usize, R, u64)>; LANES] = std::array::from_fn(|_| None);
+    // Steps of the group, and the next at which the budget is looked at (no stretch ends past
+    // it, so the group meets it).
+    let (mut taken, mut check_at) = (0u64, 0u64);
+    loop {
+        let mut running = [false; LANES];
+        for (l, lane) in lanes.iter_mut().enumerate() {
+            while lane.is_none() {
+                let Some((i, mut run)) = waiting.next() else {
+                    break;
+                };
+                match run.enter(group, l) {
+                    ControlFlow::Continue(()) => *lane = Some((i, run, 0)),
+                    ControlFlow::Break(report) => finished(i, report),
+                }
+            }
+            running[l] = lane.is_some();
+        }
+        if !running.contains(&true) {
+            return;
+        }
+        // Also before the first step: work started after the deadline stops at once.
+        if taken == check_at {
+            check_at += CHECK_EVERY;
+            let stop: Option<fn(u64) -> RunEnd> = if budget.cancelled() {
+                Some(|step| RunEnd::Cancelled { step })
+            } else if budget.expired() {
+                Some(|step| RunEnd::TimeLimit { step })
+            } else {
+                None
+            };
+            if let Some(stop) = stop {
+                for (l, lane) in lanes.iter_mut().enumerate() {
+                    if let Some((i, mut run, step)) = lane.take() {
+                        finished(i, run.stopped(group, l, step, stop(step)));
+                    }
+                }
+                return;
+            }
+        }
+        let mut n = check_at - taken;
+        for (_, run, step) in lanes.iter().flatten() {
+            n = n.min(run.next_look(*step) - step);
+        }
+        let stretch = group.advance(n, &running);
+        taken += stretch.steps;
+        for (l, lane) in lanes.iter_mut().enumerate() {
+            let Some((i, run, step)) = lane else {
+                continue;
+            };
+            let end = stretch.ended[l];
+            *step += end.map_or(stretch.steps, |end| end.steps);
+            if let ControlFlow::Break(report) = run.look(group, l, *step, end) {
+                finished(*i, report);
+                *lane = None;
+            }
+        }
+    }
+}
