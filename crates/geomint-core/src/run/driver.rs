@@ -96,25 +96,35 @@ pub fn drive_lanes<G, R>(
     let mut waiting = runs.into_iter().enumerate();
     // Each lane's run, its place in `runs` and its steps so far.
     let mut lanes: [Option<(usize, R, u64)>; LANES] = std::array::from_fn(|_| None);
+    let mut running = [false; LANES];
+    // Whether a lane was freed since the runs waiting last took the free lanes.
+    let mut free = true;
+    // Steps until the nearest look of the runs in the lanes.
+    let mut to_look = u64::MAX;
     // Steps of the group, and the next at which the budget is looked at (no stretch ends past
     // it, so the group meets it).
     let (mut taken, mut check_at) = (0u64, 0u64);
     loop {
-        let mut running = [false; LANES];
-        for (l, lane) in lanes.iter_mut().enumerate() {
-            while lane.is_none() {
-                let Some((i, mut run)) = waiting.next() else {
-                    break;
-                };
-                match run.enter(group, l) {
-                    ControlFlow::Continue(()) => *lane = Some((i, run, 0)),
-                    ControlFlow::Break(report) => finished(i, report),
+        if free {
+            for (l, lane) in lanes.iter_mut().enumerate() {
+                while lane.is_none() {
+                    let Some((i, mut run)) = waiting.next() else {
+                        break;
+                    };
+                    match run.enter(group, l) {
+                        ControlFlow::Continue(()) => {
+                            to_look = to_look.min(run.next_look(0));
+                            *lane = Some((i, run, 0));
+                        }
+                        ControlFlow::Break(report) => finished(i, report),
+                    }
                 }
+                running[l] = lane.is_some();
             }
-            running[l] = lane.is_some();
-        }
-        if !running.contains(&true) {
-            return;
+            free = false;
+            if !running.contains(&true) {
+                return;
+            }
         }
         // Also before the first step: work started after the deadline stops at once.
         if taken == check_at {
@@ -135,21 +145,23 @@ pub fn drive_lanes<G, R>(
                 return;
             }
         }
-        let mut n = check_at - taken;
-        for (_, run, step) in lanes.iter().flatten() {
-            n = n.min(run.next_look(*step) - step);
-        }
-        let stretch = group.advance(n, &running);
+        let stretch = group.advance(to_look.min(check_at - taken), &running);
         taken += stretch.steps;
+        to_look = u64::MAX;
         for (l, lane) in lanes.iter_mut().enumerate() {
             let Some((i, run, step)) = lane else {
                 continue;
             };
             let end = stretch.ended[l];
             *step += end.map_or(stretch.steps, |end| end.steps);
-            if let ControlFlow::Break(report) = run.look(group, l, *step, end) {
-                finished(*i, report);
-                *lane = None;
+            match run.look(group, l, *step, end) {
+                ControlFlow::Continue(()) => to_look = to_look.min(run.next_look(*step) - *step),
+                ControlFlow::Break(report) => {
+                    finished(*i, report);
+                    *lane = None;
+                    running[l] = false;
+                    free = true;
+                }
             }
         }
     }

@@ -43,6 +43,7 @@ impl<'a, F: LaneForces<N>, const N: usize> PlainGroup<'a, F, N> {
 }
 
 impl<F: LaneForces<N>, const N: usize> LaneGroup for PlainGroup<'_, F, N> {
+    #[inline]
     fn advance(&mut self, n: u64, running: &[bool; LANES]) -> LaneStretch {
         let watched = if self.watch { running } else { &[false; LANES] };
         LaneStretch {
@@ -100,6 +101,7 @@ where
 {
     /// The stretch, stopped early after a step that leaves a lane not finite or with a vector
     /// out of range, then the indicators' updates that fall on its end.
+    #[inline]
     fn advance(&mut self, n: u64, running: &[bool; LANES]) -> LaneStretch {
         let qr_every = self.plan.qr_every.max(1);
         let advanced = self.lanes.advance(self.sys, n, running);
@@ -344,6 +346,7 @@ where
     }
 
     /// The next sample, update of the indicators, or the end.
+    #[inline]
     fn next_look(&self, step: u64) -> u64 {
         let next = |m: u64| (step / m + 1) * m;
         let every = self.schedule.every.max(1);
@@ -352,6 +355,7 @@ where
             .min(self.schedule.steps)
     }
 
+    #[inline]
     fn look(
         &mut self,
         group: &mut G,

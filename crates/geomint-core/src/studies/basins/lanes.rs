@@ -43,6 +43,7 @@ struct CellLanes<'a, S, const N: usize> {
 }
 
 impl<S: LaneForces<N>, const N: usize> LaneGroup for CellLanes<'_, S, N> {
+    #[inline]
     fn advance(&mut self, n: u64, running: &[bool; LANES]) -> LaneStretch {
         let stretch = self.plain.advance(n, running);
         if let Some((q, p)) = &self.quiet_bounds {
@@ -83,11 +84,13 @@ where
     }
 
     /// Every step, as the one-cell path's observer watches them.
+    #[inline]
     fn next_look(&self, step: u64) -> u64 {
         step + 1
     }
 
     /// Divergence is looked at as the one-cell path does, on the components.
+    #[inline]
     fn look(
         &mut self,
         group: &mut CellLanes<'_, S, N>,
