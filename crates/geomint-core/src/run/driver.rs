@@ -1,6 +1,7 @@
 //! The run loop for runs side by side in SIMD lanes, whatever the lanes compute and whatever
 //! each run watches: a sweep's plain runs, a chaos map's runs with their indicators and a basin
-//! map's cells all go through [`drive_lanes`], [`LANES`] at a time.
+//! map's cells all go through [`drive_lanes`], [`LANES`] at a time, and an energy map's cells
+//! four at a time (its kernel's lanes fill AVX2's f64×4 registers).
 //!
 //! The loop knows two things: a [`LaneGroup`], which advances its lanes by a stretch of steps
 //! and says which lanes' runs ended inside it, and a [`LaneRun`] per lane, the run's observer,
@@ -38,26 +39,26 @@ pub struct LaneEnd {
 }
 
 /// Lanes that advance together: what a [`LaneRun`] runs in.
-pub trait LaneGroup {
+pub trait LaneGroup<const N: usize = LANES> {
     /// Takes up to `n` steps of the lanes `running`, stopping early where the group must look
     /// sooner. Every running lane takes the steps returned, but a lane whose run ended inside
     /// them, which took the steps its [`LaneEnd`] says.
-    fn advance(&mut self, n: u64, running: &[bool; LANES]) -> LaneStretch;
+    fn advance(&mut self, n: u64, running: &[bool; N]) -> LaneStretch<N>;
 }
 
 /// Per lane, whether its run ended inside a stretch.
-pub type LaneEnds = [Option<LaneEnd>; LANES];
+pub type LaneEnds<const N: usize = LANES> = [Option<LaneEnd>; N];
 
 /// What a stretch of a [`LaneGroup`] did.
-pub struct LaneStretch {
+pub struct LaneStretch<const N: usize = LANES> {
     /// Steps every running lane took.
     pub steps: u64,
     /// Per lane, whether its run ended inside the stretch.
-    pub ended: LaneEnds,
+    pub ended: LaneEnds<N>,
 }
 
 /// A run in a lane of a group `G`: its observers and what it reports when it ends.
-pub trait LaneRun<G: LaneGroup> {
+pub trait LaneRun<G: LaneGroup<N>, const N: usize = LANES> {
     /// What the run reports when it ends.
     type Report;
 
@@ -84,19 +85,19 @@ pub trait LaneRun<G: LaneGroup> {
 /// Runs `runs` in `group`'s lanes in the order they come, each as a lane frees, and gives each
 /// one's report, with its place in `runs`, to `finished` as it ends; when the budget stops the
 /// group, the runs in its lanes report so, and those still waiting do not run.
-pub fn drive_lanes<G, R>(
+pub fn drive_lanes<G, R, const N: usize>(
     group: &mut G,
     runs: impl IntoIterator<Item = R>,
     budget: Budget<'_>,
     mut finished: impl FnMut(usize, R::Report),
 ) where
-    G: LaneGroup,
-    R: LaneRun<G>,
+    G: LaneGroup<N>,
+    R: LaneRun<G, N>,
 {
     let mut waiting = runs.into_iter().enumerate();
     // Each lane's run, its place in `runs` and its steps so far.
-    let mut lanes: [Option<(usize, R, u64)>; LANES] = std::array::from_fn(|_| None);
-    let mut running = [false; LANES];
+    let mut lanes: [Option<(usize, R, u64)>; N] = std::array::from_fn(|_| None);
+    let mut running = [false; N];
     // Whether a lane was freed since the runs waiting last took the free lanes.
     let mut free = true;
     // Steps until the nearest look of the runs in the lanes.

@@ -18,20 +18,23 @@
 //! save work twice: the energy that eq. (50) asks for after every step shares |q| (Cartesian) or
 //! sin θ, cos θ (polar) with the next step's force, and the per-step calls through the generic
 //! composer and observer are gone.
+//!
+//! The runs go through the lanes' run loop ([`drive_lanes`]) as every other group of lanes
+//! does: the lanes are a [`LaneGroup`] whose stretches tally every step, each run a
+//! [`LaneRun`] that ends at its last step or where its state stops being finite.
 
 // The lanes are indexed side by side in several arrays at once: loops over lane numbers are the
 // form the compiler vectorises.
 #![allow(clippy::needless_range_loop)]
 
-use std::sync::atomic::Ordering;
-use std::time::Instant;
+use std::ops::ControlFlow;
 
 use crate::diagnostics::DIVERGENCE;
 use crate::flows;
 use crate::methods::lanes::Isa;
 use crate::methods::{Method, MethodId};
-use crate::run::driver::CHECK_EVERY;
-use crate::run::Budget;
+use crate::run::driver::{drive_lanes, LaneEnd, LaneGroup, LaneRun, LaneStretch};
+use crate::run::{Budget, RunEnd};
 use crate::systems::{AnySystem, PlanarCartesian, PlanarKind, PlanarPolar, PlanarSpring};
 
 /// Cells integrated side by side.
@@ -68,40 +71,36 @@ impl EulerOrder {
     }
 }
 
-/// The starting states of [`PENDULUM_LANES`] cells in one chart, and which lanes hold a cell.
+/// A run's start in its chart, as the one-cell path prepares it.
 #[derive(Clone, Copy, Debug)]
-pub struct Start {
-    /// q₀, component by component.
-    pub q: [FourLanes; 2],
-    /// p₀, component by component.
-    pub p: [FourLanes; 2],
+pub struct TallyStart {
+    /// q₀.
+    pub q: [f64; 2],
+    /// p₀.
+    pub p: [f64; 2],
     /// H(q₀, p₀) as the one-cell path computes it.
-    pub energy: FourLanes,
-    /// Lanes without a cell (the padding of the last group, the pivot in polar coordinates).
-    pub idle: [bool; PENDULUM_LANES],
+    pub energy: f64,
 }
 
-/// Per lane: the sum of eq. (50) and the first steps at which the lane left the energy band or
-/// the finite numbers (as f64, exact to 2⁵³, so that the lanes compare and select in SIMD
-/// registers; ∞: never), the largest and the last |H − H₀|, and the state the one-run path
-/// ends with.
+/// What a run's steps leave: the sum of eq. (50), the first steps at which the run left the
+/// energy band and the finite numbers (∞: never), the largest and the last |H − H₀|, and the
+/// state the one-run path ends with.
 #[derive(Clone, Copy, Debug)]
 pub struct Tally {
     /// Σ (H − H₀)² over the samples, the first included.
-    pub sum: FourLanes,
+    pub sum: f64,
     /// The first step whose energy left the band.
-    pub blown: FourLanes,
-    /// The first step whose state is not finite (0 for an idle lane).
-    pub non_finite: FourLanes,
+    pub blown: f64,
+    /// The first step whose state is not finite, where the run ended.
+    pub non_finite: f64,
     /// The largest |H − H₀| (sweeps only).
-    pub max: FourLanes,
+    pub max: f64,
     /// The last H − H₀ (sweeps only).
-    pub last: FourLanes,
-    /// The last finite state before the lane stopped, as the one-cell path's last sample
-    /// (sweeps only).
-    pub q: [FourLanes; 2],
+    pub last: f64,
+    /// The last finite state, as the one-cell path's last sample (sweeps only).
+    pub q: [f64; 2],
     /// Its momenta.
-    pub p: [FourLanes; 2],
+    pub p: [f64; 2],
 }
 
 /// A method on a system that the lanes run.
@@ -138,82 +137,22 @@ impl LaneKernel {
         isa.available().then_some(LaneKernel { isa, ..self })
     }
 
-    /// `steps` steps of size `h` from the [`PENDULUM_LANES`] starts, measured against H₀ at every step;
-    /// `None` when the budget stopped the run.
-    pub fn tally(&self, start: &Start, h: f64, steps: u64, budget: Budget<'_>) -> Option<Tally> {
-        let limit = start.energy.map(|e| DIVERGENCE * (1.0 + e.abs()));
-        let (pendulum, chart, order) = (&self.pendulum, self.chart, self.order);
-        #[cfg(target_arch = "x86_64")]
-        if self.isa != Isa::Portable {
-            // SAFETY: the CPU supports AVX2: `isa` is one it has (detected, or checked by
-            // `with_isa`), and both wider ones imply AVX2.
-            return unsafe {
-                integrate_avx2(pendulum, h, chart, order, start, steps, &limit, budget)
-            };
-        }
-        integrate(pendulum, h, chart, order, start, steps, &limit, budget)
-    }
-}
-
-/// [`integrate`] compiled with AVX2 (f64×4 registers). Still no fused multiply-add, which would
-/// round once where the one-cell path rounds twice: rustc never contracts a·b + c into one
-/// (only `mul_add` does), whatever the target features.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-#[allow(clippy::too_many_arguments)]
-fn integrate_avx2(
-    pendulum: &PlanarSpring,
-    h: f64,
-    chart: Chart,
-    order: EulerOrder,
-    start: &Start,
-    steps: u64,
-    limit: &FourLanes,
-    budget: Budget<'_>,
-) -> Option<Tally> {
-    integrate(pendulum, h, chart, order, start, steps, limit, budget)
-}
-
-/// One kernel per (chart, order), each a loop the compiler specialises.
-#[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn integrate(
-    pendulum: &PlanarSpring,
-    h: f64,
-    chart: Chart,
-    order: EulerOrder,
-    start: &Start,
-    steps: u64,
-    limit: &FourLanes,
-    budget: Budget<'_>,
-) -> Option<Tally> {
-    let (cartesian, polar) = (
-        PlanarCartesian(pendulum.clone()),
-        PlanarPolar(pendulum.clone()),
-    );
-    match (chart, order) {
-        (Chart::Cartesian, EulerOrder::MomentumFirst) => lanes(
-            h,
-            start,
-            steps,
-            limit,
-            budget,
-            Cartesian::<true>(&cartesian),
-        ),
-        (Chart::Cartesian, EulerOrder::PositionFirst) => lanes(
-            h,
-            start,
-            steps,
-            limit,
-            budget,
-            Cartesian::<false>(&cartesian),
-        ),
-        (Chart::Polar, EulerOrder::MomentumFirst) => {
-            lanes(h, start, steps, limit, budget, Polar::<true>(&polar))
-        }
-        (Chart::Polar, EulerOrder::PositionFirst) => {
-            lanes(h, start, steps, limit, budget, Polar::<false>(&polar))
-        }
+    /// `steps` steps of size `h` from each of `starts`, [`PENDULUM_LANES`] at a time (a lane
+    /// whose run ends takes the next), each measured against its H₀ at every step; `None` when
+    /// the budget stopped them.
+    pub fn tally(
+        &self,
+        starts: &[TallyStart],
+        h: f64,
+        steps: u64,
+        budget: Budget<'_>,
+    ) -> Option<Vec<Tally>> {
+        let mut group = TallyGroup::new(self, h);
+        let mut tallies = vec![None; starts.len()];
+        let runs = starts.iter().map(|&start| TallyRun { start, steps });
+        drive_lanes(&mut group, runs, budget, |i, tally| tallies[i] = tally);
+        // A run the budget stopped, or never started, has none.
+        tallies.into_iter().collect()
     }
 }
 
@@ -226,6 +165,296 @@ struct Cells {
     shared: [FourLanes; 2],
 }
 
+/// The lanes of a [`LaneKernel`] as a [`LaneGroup`]: the runs' states, and per lane what its
+/// run's steps have tallied.
+struct TallyGroup {
+    cartesian: PlanarCartesian,
+    polar: PlanarPolar,
+    chart: Chart,
+    order: EulerOrder,
+    isa: Isa,
+    h: f64,
+    lanes: TallyLanes,
+}
+
+/// The lanes' states and tallies. Steps are counted from the group's start, so that the lanes
+/// compare and select them in SIMD registers (as f64, exact to 2⁵³); a run's own count is
+/// that less the step at which it entered.
+struct TallyLanes {
+    z: Cells,
+    /// The group's steps so far.
+    taken: u64,
+    /// Per lane: the group's step at which its run entered, its H₀ and its energy band.
+    entered: FourLanes,
+    energy0: FourLanes,
+    limit: FourLanes,
+    sum: FourLanes,
+    blown: FourLanes,
+    /// ∞ while the lane's state is finite (an empty lane counts as stopped from the start).
+    non_finite: FourLanes,
+    max: FourLanes,
+    last: FourLanes,
+    /// Per lane whose state stopped being finite: the state of the step before.
+    before: ([FourLanes; 2], [FourLanes; 2]),
+}
+
+/// `$body` with `$kernel` bound to the group's chart and order: one kernel type per pair, each
+/// a loop the compiler specialises.
+macro_rules! with_chart_kernel {
+    ($group:expr, $kernel:ident => $body:expr) => {
+        match ($group.chart, $group.order) {
+            (Chart::Cartesian, EulerOrder::MomentumFirst) => {
+                let $kernel = Cartesian::<true>(&$group.cartesian);
+                $body
+            }
+            (Chart::Cartesian, EulerOrder::PositionFirst) => {
+                let $kernel = Cartesian::<false>(&$group.cartesian);
+                $body
+            }
+            (Chart::Polar, EulerOrder::MomentumFirst) => {
+                let $kernel = Polar::<true>(&$group.polar);
+                $body
+            }
+            (Chart::Polar, EulerOrder::PositionFirst) => {
+                let $kernel = Polar::<false>(&$group.polar);
+                $body
+            }
+        }
+    };
+}
+
+impl TallyGroup {
+    fn new(kernel: &LaneKernel, h: f64) -> Self {
+        let empty = [0.0; PENDULUM_LANES];
+        TallyGroup {
+            cartesian: PlanarCartesian(kernel.pendulum.clone()),
+            polar: PlanarPolar(kernel.pendulum.clone()),
+            chart: kernel.chart,
+            order: kernel.order,
+            isa: kernel.isa,
+            h,
+            lanes: TallyLanes {
+                z: Cells {
+                    q: [empty; 2],
+                    p: [empty; 2],
+                    shared: [empty; 2],
+                },
+                taken: 0,
+                entered: empty,
+                energy0: empty,
+                limit: empty,
+                sum: empty,
+                blown: empty,
+                non_finite: empty,
+                max: empty,
+                last: empty,
+                before: ([empty; 2], [empty; 2]),
+            },
+        }
+    }
+
+    /// Loads `start` into lane `l`, with its first sample, H₀ − H₀: zero, or NaN where H₀ is
+    /// not finite.
+    fn load(&mut self, l: usize, start: &TallyStart) {
+        let lanes = &mut self.lanes;
+        for k in 0..2 {
+            lanes.z.q[k][l] = start.q[k];
+            lanes.z.p[k][l] = start.p[k];
+        }
+        // What the chart shares between steps, for every lane: the others' is what it was,
+        // since it is a function of q alone.
+        with_chart_kernel!(self, kernel => kernel.prime(&mut lanes.z));
+        let at = lanes.taken as f64;
+        let limit = DIVERGENCE * (1.0 + start.energy.abs());
+        #[allow(clippy::eq_op)]
+        let d = start.energy - start.energy;
+        lanes.entered[l] = at;
+        lanes.energy0[l] = start.energy;
+        lanes.limit[l] = limit;
+        lanes.sum[l] = 0.0;
+        lanes.sum[l] += d * d;
+        lanes.blown[l] = if d.abs() <= limit { f64::INFINITY } else { at };
+        lanes.non_finite[l] = f64::INFINITY;
+        lanes.max[l] = 0.0;
+        lanes.last[l] = 0.0;
+    }
+
+    /// Lane `l`'s tally, its steps counted from its run's start.
+    fn report(&self, l: usize) -> Tally {
+        let lanes = &self.lanes;
+        let entered = lanes.entered[l];
+        let (q, p) = if lanes.non_finite[l] == f64::INFINITY {
+            (&lanes.z.q, &lanes.z.p)
+        } else {
+            (&lanes.before.0, &lanes.before.1)
+        };
+        Tally {
+            sum: lanes.sum[l],
+            blown: lanes.blown[l] - entered,
+            non_finite: lanes.non_finite[l] - entered,
+            max: lanes.max[l],
+            last: lanes.last[l],
+            q: [q[0][l], q[1][l]],
+            p: [p[0][l], p[1][l]],
+        }
+    }
+
+    /// `n` steps of every lane, in the build for the group's instruction set.
+    fn steps(&mut self, n: u64, running: &[bool; PENDULUM_LANES]) {
+        #[cfg(target_arch = "x86_64")]
+        if self.isa != Isa::Portable {
+            // SAFETY: the CPU supports AVX2: `isa` is one it has (detected, or checked by
+            // `LaneKernel::with_isa`), and both wider ones imply AVX2.
+            return unsafe { steps_avx2(self, n, running) };
+        }
+        steps_portable(self, n, running)
+    }
+}
+
+impl LaneGroup<PENDULUM_LANES> for TallyGroup {
+    /// The stretch; the runs whose state stopped being finite inside it end there.
+    fn advance(&mut self, n: u64, running: &[bool; PENDULUM_LANES]) -> LaneStretch<PENDULUM_LANES> {
+        let block = self.lanes.taken;
+        self.steps(n, running);
+        let stopped_in = |l: usize| {
+            let stopped = self.lanes.non_finite[l];
+            (running[l] && stopped > block as f64 && stopped != f64::INFINITY)
+                .then_some(stopped as u64)
+        };
+        LaneStretch {
+            steps: n,
+            ended: std::array::from_fn(|l| {
+                stopped_in(l).map(|stopped| LaneEnd {
+                    steps: stopped - block,
+                    // One force evaluation per step.
+                    force_evaluations: stopped,
+                    diverged: true,
+                })
+            }),
+        }
+    }
+}
+
+/// An energy map's run in a lane: it ends at its last step, or where its state stops being
+/// finite.
+struct TallyRun {
+    start: TallyStart,
+    steps: u64,
+}
+
+impl LaneRun<TallyGroup, PENDULUM_LANES> for TallyRun {
+    type Report = Option<Tally>;
+
+    fn enter(&mut self, group: &mut TallyGroup, l: usize) -> ControlFlow<Self::Report> {
+        group.load(l, &self.start);
+        if self.steps == 0 {
+            return ControlFlow::Break(Some(group.report(l)));
+        }
+        ControlFlow::Continue(())
+    }
+
+    fn next_look(&self, _step: u64) -> u64 {
+        self.steps
+    }
+
+    fn look(
+        &mut self,
+        group: &mut TallyGroup,
+        l: usize,
+        step: u64,
+        end: Option<LaneEnd>,
+    ) -> ControlFlow<Self::Report> {
+        if end.is_some() || step == self.steps {
+            return ControlFlow::Break(Some(group.report(l)));
+        }
+        ControlFlow::Continue(())
+    }
+
+    fn stopped(&mut self, _: &mut TallyGroup, _: usize, _: u64, _: RunEnd) -> Self::Report {
+        None
+    }
+}
+
+/// [`steps_portable`] compiled with AVX2 (f64×4 registers). Still no fused multiply-add, which
+/// would round once where the one-cell path rounds twice: rustc never contracts a·b + c into
+/// one (only `mul_add` does), whatever the target features.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn steps_avx2(group: &mut TallyGroup, n: u64, running: &[bool; PENDULUM_LANES]) {
+    steps_portable(group, n, running)
+}
+
+/// The steps in the group's chart and order.
+#[inline(always)]
+fn steps_portable(group: &mut TallyGroup, n: u64, running: &[bool; PENDULUM_LANES]) {
+    let lanes = &mut group.lanes;
+    with_chart_kernel!(group, kernel => tally_steps(group.h, lanes, n, running, kernel))
+}
+
+/// The loop: every lane `n` steps, its energy deviation summed and its first blow-up noted; a
+/// running lane whose state stopped being finite keeps the state of the step before, as the
+/// one-cell path ends with.
+#[inline(always)]
+fn tally_steps<K: ChartKernel>(
+    h: f64,
+    lanes: &mut TallyLanes,
+    n: u64,
+    running: &[bool; PENDULUM_LANES],
+    kernel: K,
+) {
+    let (block, at_block) = (lanes.taken, lanes.z);
+    let until = block + n;
+    let mut energy = [0.0; PENDULUM_LANES];
+    while lanes.taken < until {
+        lanes.taken += 1;
+        kernel.step(h, &mut lanes.z, &mut energy);
+        let at = lanes.taken as f64;
+        let z = &lanes.z;
+        for i in 0..PENDULUM_LANES {
+            // `&`, not `&&`: no branches in the lane loop.
+            let finite = (z.q[0][i].abs() < f64::INFINITY)
+                & (z.q[1][i].abs() < f64::INFINITY)
+                & (z.p[0][i].abs() < f64::INFINITY)
+                & (z.p[1][i].abs() < f64::INFINITY);
+            let d = energy[i] - lanes.energy0[i];
+            // NaN compares false: a non-finite energy has blown up too.
+            let within = d.abs() <= lanes.limit[i];
+            lanes.sum[i] += d * d;
+            // The step numbers grow: the minimum keeps the first.
+            let first = |seen: f64, fine: bool| if fine { seen } else { seen.min(at) };
+            lanes.non_finite[i] = first(lanes.non_finite[i], finite);
+            lanes.blown[i] = first(lanes.blown[i], within);
+            // As the sweep's measure: the largest magnitude (`f64::max`, written as the
+            // comparison it is here, where the running maximum is never NaN: one `maxpd`) and
+            // the last deviation.
+            let size = d.abs();
+            lanes.max[i] = if size > lanes.max[i] {
+                size
+            } else {
+                lanes.max[i]
+            };
+            lanes.last[i] = d;
+        }
+    }
+    // A running lane whose state stopped being finite in this stretch ends, as the one-cell
+    // path does, with the state of the step before: run again from the stretch's start up to
+    // that step (the lanes do not touch each other, so its bits are the ones it had).
+    for i in 0..PENDULUM_LANES {
+        let stopped = lanes.non_finite[i];
+        if running[i] && stopped > block as f64 && stopped <= until as f64 {
+            let mut again = at_block;
+            let mut scratch = [0.0; PENDULUM_LANES];
+            for _ in block + 1..stopped as u64 {
+                kernel.step(h, &mut again, &mut scratch);
+            }
+            for k in 0..2 {
+                lanes.before.0[k][i] = again.q[k][i];
+                lanes.before.1[k][i] = again.p[k][i];
+            }
+        }
+    }
+}
+
 /// One chart's step on all lanes, and its energy. Each operation is a loop over the lanes with
 /// nothing but arithmetic in it, which the compiler turns into SIMD instructions.
 trait ChartKernel {
@@ -233,129 +462,6 @@ trait ChartKernel {
     fn prime(&self, z: &mut Cells);
     /// One step of size `h` of every lane; H at the new states into `energy`.
     fn step(&self, h: f64, z: &mut Cells, energy: &mut FourLanes);
-}
-
-/// The loop: every lane one step, its energy deviation summed, the first blow-up noted; the
-/// budget looked at every [`CHECK_EVERY`] steps, and the run left early once every lane is
-/// non-finite (where the one-cell path stops).
-#[inline(always)]
-fn lanes<K: ChartKernel>(
-    h: f64,
-    start: &Start,
-    steps: u64,
-    limit: &FourLanes,
-    budget: Budget<'_>,
-    kernel: K,
-) -> Option<Tally> {
-    let mut z = Cells {
-        q: start.q,
-        p: start.p,
-        shared: [[0.0; PENDULUM_LANES]; 2],
-    };
-    kernel.prime(&mut z);
-    let mut tally = Tally {
-        sum: [0.0; PENDULUM_LANES],
-        blown: [f64::INFINITY; PENDULUM_LANES],
-        non_finite: [f64::INFINITY; PENDULUM_LANES],
-        max: [0.0; PENDULUM_LANES],
-        last: [0.0; PENDULUM_LANES],
-        q: start.q,
-        p: start.p,
-    };
-    for i in 0..PENDULUM_LANES {
-        // The first sample, H₀ − H₀: zero, or NaN where H₀ is not finite.
-        #[allow(clippy::eq_op)]
-        let d = start.energy[i] - start.energy[i];
-        tally.sum[i] += d * d;
-        let within = d.abs() <= limit[i];
-        if !within {
-            tally.blown[i] = 0.0;
-        }
-        // An idle lane counts as stopped from the start.
-        if start.idle[i] {
-            tally.non_finite[i] = 0.0;
-        }
-    }
-    let mut energy = [0.0; PENDULUM_LANES];
-    let mut step = 0u64;
-    while step < steps {
-        // Before the budget: lanes that are all done (diverged or idle) have their outcome.
-        if tally.non_finite.iter().all(|&s| s != f64::INFINITY) {
-            break;
-        }
-        if budget
-            .cancel
-            .is_some_and(|flag| flag.load(Ordering::Relaxed))
-            || budget.deadline.is_some_and(|d| Instant::now() >= d)
-        {
-            return None;
-        }
-        let until = (step + CHECK_EVERY).min(steps);
-        let (block, at_block) = (step, z);
-        while step < until {
-            step += 1;
-            kernel.step(h, &mut z, &mut energy);
-            let at = step as f64;
-            for i in 0..PENDULUM_LANES {
-                // `&`, not `&&`: no branches in the lane loop.
-                let finite = (z.q[0][i].abs() < f64::INFINITY)
-                    & (z.q[1][i].abs() < f64::INFINITY)
-                    & (z.p[0][i].abs() < f64::INFINITY)
-                    & (z.p[1][i].abs() < f64::INFINITY);
-                let d = energy[i] - start.energy[i];
-                // NaN compares false: a non-finite energy has blown up too.
-                let within = d.abs() <= limit[i];
-                tally.sum[i] += d * d;
-                // The step numbers grow: the minimum keeps the first.
-                let first = |seen: f64, fine: bool| if fine { seen } else { seen.min(at) };
-                tally.non_finite[i] = first(tally.non_finite[i], finite);
-                tally.blown[i] = first(tally.blown[i], within);
-                {
-                    // As the sweep's measure: the largest magnitude (`f64::max`, written as the
-                    // comparison it is here, where the running maximum is never NaN: one
-                    // `maxpd`) and the last deviation.
-                    let size = d.abs();
-                    tally.max[i] = if size > tally.max[i] {
-                        size
-                    } else {
-                        tally.max[i]
-                    };
-                    tally.last[i] = d;
-                }
-            }
-        }
-        {
-            // A lane whose state stopped being finite in this block ends, as the one-cell path
-            // does, with the state of the step before: run again from the block's start up to
-            // that step (the lanes do not touch each other, so its bits are the ones it had).
-            for i in 0..PENDULUM_LANES {
-                let stopped = tally.non_finite[i];
-                if stopped > block as f64 && stopped <= until as f64 {
-                    let mut again = at_block;
-                    let mut scratch = [0.0; PENDULUM_LANES];
-                    for _ in block + 1..stopped as u64 {
-                        kernel.step(h, &mut again, &mut scratch);
-                    }
-                    for k in 0..2 {
-                        tally.q[k][i] = again.q[k][i];
-                        tally.p[k][i] = again.p[k][i];
-                    }
-                }
-            }
-        }
-    }
-    {
-        // The others end where the run ends.
-        for i in 0..PENDULUM_LANES {
-            if tally.non_finite[i] == f64::INFINITY {
-                for k in 0..2 {
-                    tally.q[k][i] = z.q[k][i];
-                    tally.p[k][i] = z.p[k][i];
-                }
-            }
-        }
-    }
-    Some(tally)
 }
 
 /// The Cartesian chart through the composer's flows, the kick (p ← p − h∇V(q)) and the drift

@@ -15,7 +15,7 @@ use super::metrics::{EnergyReference, MetricsTally, RunMetrics};
 use super::{SweepJob, Target};
 use crate::run::Budget;
 use crate::simulation::{SampleSink, Simulation};
-use crate::studies::energy_map::lanes::{LaneKernel, Start, Tally, PENDULUM_LANES};
+use crate::studies::energy_map::lanes::{LaneKernel, Tally, TallyStart, PENDULUM_LANES};
 use crate::studies::engine::Study;
 use crate::system::{MechanicalSystem, State};
 use crate::systems::AnySystem;
@@ -224,49 +224,44 @@ impl SweepJob {
         budget: Budget<'_>,
     ) -> Vec<Option<Vec<RunMetrics>>> {
         let n = cells.len();
-        debug_assert!(n <= PENDULUM_LANES);
         let mut results: Vec<Vec<Option<RunMetrics>>> =
             vec![Vec::with_capacity(plan.runs.len()); n];
         // Once the budget stopped a run, the later ones are only prepared, for their failures.
         let mut stopped = false;
         for (k, run) in plan.runs.iter().enumerate() {
-            let mut start = Start {
-                q: [[0.0; PENDULUM_LANES]; 2],
-                p: [[0.0; PENDULUM_LANES]; 2],
-                energy: [0.0; PENDULUM_LANES],
-                idle: [true; PENDULUM_LANES],
-            };
-            let mut failed: [Option<RunMetrics>; PENDULUM_LANES] = Default::default();
-            for (i, cell) in cells.clone().enumerate() {
+            // Per cell, its start's place in `starts`, or its failure.
+            let mut starts = Vec::with_capacity(n);
+            let mut places = Vec::with_capacity(n);
+            for cell in cells.clone() {
                 let spec = self.cell_spec(k, &self.grid.point(cell));
                 match Simulation::prepare(&spec, &self.limits) {
                     Ok(sim) => {
-                        for c in 0..2 {
-                            start.q[c][i] = sim.q0[c];
-                            start.p[c][i] = sim.p0[c];
-                        }
-                        start.energy[i] = with_system!(&run.system, s => {
-                            let z = State::from_slices(s.dim(), &sim.q0, &sim.p0);
-                            s.energy(&z.q, &z.p)
+                        places.push(Ok(starts.len()));
+                        starts.push(TallyStart {
+                            q: [sim.q0[0], sim.q0[1]],
+                            p: [sim.p0[0], sim.p0[1]],
+                            energy: with_system!(&run.system, s => {
+                                let z = State::from_slices(s.dim(), &sim.q0, &sim.p0);
+                                s.energy(&z.q, &z.p)
+                            }),
                         });
-                        start.idle[i] = false;
                     }
                     // As the one-cell path: a start outside the chart is that run's result.
-                    Err(e) => failed[i] = Some(RunMetrics::failed(e.to_string())),
+                    Err(e) => places.push(Err(RunMetrics::failed(e.to_string()))),
                 }
             }
-            let tally = if stopped {
+            let tallies = if stopped {
                 None
             } else {
-                let measured = run.kernel.tally(&start, plan.h, plan.steps, budget);
+                let measured = run.kernel.tally(&starts, plan.h, plan.steps, budget);
                 stopped = measured.is_none();
                 measured
             };
-            for (i, result) in results.iter_mut().enumerate() {
-                let metrics = match (failed[i].take(), &tally) {
-                    (Some(failed), _) => Some(failed),
-                    (None, Some(tally)) => Some(plan.metrics(run, tally, i)),
-                    (None, None) => None,
+            for (result, place) in results.iter_mut().zip(places) {
+                let metrics = match (place, &tallies) {
+                    (Err(failed), _) => Some(failed),
+                    (Ok(i), Some(tallies)) => Some(plan.metrics(run, &tallies[i])),
+                    (Ok(_), None) => None,
                 };
                 result.push(metrics);
             }
@@ -279,19 +274,18 @@ impl SweepJob {
 }
 
 impl EnergyLanes {
-    /// Lane `i`'s metrics, as the one-cell path's [`MetricsTally`] would have them: a state that
+    /// A run's metrics, as the one-cell path's [`MetricsTally`] would have them: a state that
     /// stopped being finite at step s ends the run there (s steps, the state of step s − 1);
     /// each step costs one force evaluation, as in the composer's symplectic Euler (one kick)
     /// and the charts' closed-form stages.
-    fn metrics(&self, run: &EnergyLaneRun, tally: &Tally, i: usize) -> RunMetrics {
+    fn metrics(&self, run: &EnergyLaneRun, tally: &Tally) -> RunMetrics {
         let at = |step: f64| (step != f64::INFINITY).then_some(step * self.h);
-        let stopped_at = at(tally.non_finite[i]);
+        let stopped_at = at(tally.non_finite);
         let steps = match stopped_at {
-            Some(_) => tally.non_finite[i] as u64,
+            Some(_) => tally.non_finite as u64,
             None => self.steps,
         };
-        let q = [tally.q[0][i], tally.q[1][i]];
-        let p = [tally.p[0][i], tally.p[1][i]];
+        let (q, p) = (tally.q, tally.p);
         let cartesian = with_system!(&run.system, s => {
             if s.is_cartesian() {
                 (q.to_vec(), p.to_vec())
@@ -309,9 +303,9 @@ impl EnergyLanes {
             steps + 1
         };
         MetricsTally::of_lane(
-            at(tally.blown[i]),
-            (tally.sum[i], samples),
-            (tally.max[i], tally.last[i]),
+            at(tally.blown),
+            (tally.sum, samples),
+            (tally.max, tally.last),
             cartesian,
         )
         .finish_at(stopped_at, steps, steps)

@@ -8,7 +8,7 @@ use geomint_core::methods::{Method, MethodId};
 use geomint_core::run::driver::CHECK_EVERY;
 use geomint_core::run::Budget;
 use geomint_core::studies::energy_map::lanes::{
-    self as pendulum, Chart, EulerOrder as Order, LaneKernel, Start, Tally,
+    Chart, EulerOrder as Order, LaneKernel, Tally, TallyStart,
 };
 use geomint_core::systems::{
     AnySystem, HenonHeiles, PlanarCartesian, PlanarKind, PlanarPolar, PlanarSpring,
@@ -28,8 +28,8 @@ fn kernel(pendulum: &PlanarSpring, chart: Chart, order: Order) -> LaneKernel {
 }
 
 /// The portable build of the kernels (what a CPU without AVX2 runs) and the one this CPU
-/// is dispatched to give the same bits, in every chart and order, through blow-ups; a lane
-/// left idle changes nothing in the others.
+/// is dispatched to give the same bits, in every chart and order, through blow-ups; a run's
+/// bits do not depend on the runs beside it, nor on when it took its lane.
 #[test]
 fn the_portable_kernels_give_the_bits_of_the_dispatched_ones() {
     #[cfg(target_arch = "x86_64")]
@@ -45,43 +45,60 @@ fn the_portable_kernels_give_the_bits_of_the_dispatched_ones() {
     };
     // Two ordinary starts, one far outside its energy band (H₀ given as 0.3), one at the
     // origin (the pivot in either chart: 0/0 at the first step).
-    let start = Start {
-        q: [[0.3, 1.9, 2.6, 0.0], [1.2, -0.4, 0.5, 0.0]],
-        p: [[0.0, 0.1, 20.0, 0.0], [0.0, -0.2, 20.0, 0.0]],
-        energy: [0.4, 1.1, 0.3, 0.3],
-        idle: [false; pendulum::PENDULUM_LANES],
-    };
+    let start = |q: [f64; 2], p: [f64; 2], energy: f64| TallyStart { q, p, energy };
+    let starts = [
+        start([0.3, 1.2], [0.0, 0.0], 0.4),
+        start([1.9, -0.4], [0.1, -0.2], 1.1),
+        start([2.6, 0.5], [20.0, 20.0], 0.3),
+        start([0.0, 0.0], [0.0, 0.0], 0.3),
+    ];
     let bits = |t: &Tally| {
-        let [q0, q1, p0, p1] = [t.q[0], t.q[1], t.p[0], t.p[1]];
-        [t.sum, t.blown, t.non_finite, t.max, t.last, q0, q1, p0, p1]
-            .map(|lane| lane.map(f64::to_bits))
+        let [q0, q1] = t.q;
+        let [p0, p1] = t.p;
+        [t.sum, t.blown, t.non_finite, t.max, t.last, q0, q1, p0, p1].map(f64::to_bits)
     };
+    let all_bits = |tallies: &[Tally]| tallies.iter().map(bits).collect::<Vec<_>>();
     for chart in [Chart::Cartesian, Chart::Polar] {
         for order in [Order::MomentumFirst, Order::PositionFirst] {
             let kernel = kernel(&pendulum, chart, order);
             let portable = kernel.clone().with_isa(Isa::Portable).unwrap();
             let [portable, dispatched] = [&portable, &kernel]
-                .map(|k| k.tally(&start, 0.2, 20_000, Budget::default()).unwrap());
-            assert_eq!(bits(&portable), bits(&dispatched), "{chart:?} {order:?}");
-            assert!(
-                portable.sum[..2].iter().all(|s| *s > 0.0),
+                .map(|k| k.tally(&starts, 0.2, 20_000, Budget::default()).unwrap());
+            assert_eq!(
+                all_bits(&portable),
+                all_bits(&dispatched),
                 "{chart:?} {order:?}"
             );
-            assert_eq!(portable.blown[2], 1.0, "{chart:?} {order:?}");
-            assert_eq!(portable.non_finite[3], 1.0, "{chart:?} {order:?}");
-            assert_eq!(portable.non_finite[..3], [f64::INFINITY; 3]);
-            let idle = Start {
-                idle: [false, true, false, false],
-                ..start
-            };
-            let with_idle = kernel.tally(&idle, 0.2, 20_000, Budget::default()).unwrap();
-            assert_eq!(with_idle.non_finite[1], 0.0);
-            for lane in [0, 2, 3] {
-                assert_eq!(
-                    bits(&with_idle).map(|b| b[lane]),
-                    bits(&dispatched).map(|b| b[lane])
-                );
-            }
+            assert!(
+                portable[..2].iter().all(|t| t.sum > 0.0),
+                "{chart:?} {order:?}"
+            );
+            assert_eq!(portable[2].blown, 1.0, "{chart:?} {order:?}");
+            assert_eq!(portable[3].non_finite, 1.0, "{chart:?} {order:?}");
+            assert!(portable[..3].iter().all(|t| t.non_finite == f64::INFINITY));
+            // Without the second run beside them.
+            let fewer = [starts[0], starts[2], starts[3]];
+            let alone = kernel
+                .tally(&fewer, 0.2, 20_000, Budget::default())
+                .unwrap();
+            assert_eq!(
+                all_bits(&alone),
+                [0, 2, 3].map(|i| bits(&dispatched[i])),
+                "{chart:?} {order:?}"
+            );
+            // Three times as many runs as lanes: the pivot's run ends at its first step and
+            // the next one waiting takes its lane there, one step behind the others.
+            let many: Vec<TallyStart> = (0..3).flat_map(|_| starts).collect();
+            let refilled = kernel.tally(&many, 0.2, 20_000, Budget::default()).unwrap();
+            assert_eq!(
+                all_bits(&refilled),
+                [&dispatched[..]; 3]
+                    .concat()
+                    .iter()
+                    .map(bits)
+                    .collect::<Vec<_>>(),
+                "{chart:?} {order:?}"
+            );
         }
     }
 }
@@ -105,29 +122,28 @@ fn a_stopped_lane_ends_with_the_state_of_the_step_before() {
         };
         for chart in [Chart::Cartesian, Chart::Polar] {
             for order in [Order::MomentumFirst, Order::PositionFirst] {
-                let start = Start {
-                    q: [[1.5, 2.0, 1e-3, 0.4], [0.3, -1.0, 1.2, 1.1]],
-                    p: [[0.0; pendulum::PENDULUM_LANES]; 2],
-                    energy: [0.0; pendulum::PENDULUM_LANES],
-                    idle: [false; pendulum::PENDULUM_LANES],
-                };
+                let starts =
+                    [[1.5, 0.3], [2.0, -1.0], [1e-3, 1.2], [0.4, 1.1]].map(|q| TallyStart {
+                        q,
+                        p: [0.0; 2],
+                        energy: 0.0,
+                    });
                 let run = |steps| {
                     let budget = Budget::default();
                     kernel(&pendulum, chart, order)
-                        .tally(&start, 0.2, steps, budget)
+                        .tally(&starts, 0.2, steps, budget)
                         .unwrap()
                 };
                 let full = run(steps);
-                for i in 0..pendulum::PENDULUM_LANES {
-                    let stopped = full.non_finite[i];
+                for (i, ended) in full.iter().enumerate() {
+                    let stopped = ended.non_finite;
                     if stopped == f64::INFINITY {
                         continue;
                     }
                     let before = run(stopped as u64 - 1);
-                    assert_eq!(before.non_finite[i], f64::INFINITY);
-                    let bits =
-                        |t: &Tally| [t.q[0][i], t.q[1][i], t.p[0][i], t.p[1][i]].map(f64::to_bits);
-                    assert_eq!(bits(&full), bits(&before), "{chart:?} {order:?} lane {i}");
+                    assert_eq!(before[i].non_finite, f64::INFINITY);
+                    let bits = |t: &Tally| [t.q[0], t.q[1], t.p[0], t.p[1]].map(f64::to_bits);
+                    assert_eq!(bits(ended), bits(&before[i]), "{chart:?} {order:?} run {i}");
                     stops.push(stopped as u64);
                 }
             }
