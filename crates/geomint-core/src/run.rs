@@ -1,6 +1,7 @@
-//! The driver loop: advances a stepper over a run's steps, hands samples to an observer, and stops
-//! on the end, a non-finite state, cancellation or a deadline. It knows nothing of any particular
-//! method, and observers know nothing of integrators.
+//! Running: advances a stepper over a run's steps, hands samples to an observer, and stops on
+//! the end, a non-finite state, cancellation or a deadline. It knows nothing of any particular
+//! method, and observers know nothing of integrators. One run alone and runs side by side in
+//! SIMD lanes go through the one run loop of [`driver`], one run as a lane of its own.
 //!
 //! A run of step h to t_end has n = ceil(t_end/h − 1e-9) steps, all of size h; sample times are
 //! t_k = k·h computed from the step index (never accumulated), so the same inputs give
@@ -13,7 +14,7 @@
 //! often does).
 
 use std::ops::ControlFlow;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
 use nalgebra::allocator::Allocator;
@@ -25,9 +26,11 @@ use super::error::{CoreError, StepError};
 use super::system::{MechanicalSystem, State};
 use super::tangent::Tangent;
 
+mod alone;
 pub mod driver;
 mod track;
-use track::{Tangents, Track, Untracked};
+use alone::drive_alone;
+use track::{Tangents, Untracked};
 
 /// A one-step method for systems of type `S`. Explicit implementations keep their work buffers,
 /// so a step allocates nothing. A stepper may keep the last force evaluation for the next step
@@ -394,7 +397,7 @@ where
     O: Observer<S::Dim>,
     DefaultAllocator: Allocator<S::Dim>,
 {
-    drive(sys, stepper, z, schedule, budget, Untracked, observer)
+    drive_alone(sys, stepper, z, schedule, budget, Untracked, observer)
 }
 
 /// Runs `stepper` from `z` over `schedule`, reporting samples to `observer`, with the tangent
@@ -430,162 +433,11 @@ where
     DefaultAllocator: Allocator<S::Dim>,
 {
     match tracking {
-        Tracking::Off => drive(sys, stepper, z, schedule, budget, Untracked, observer),
+        Tracking::Off => drive_alone(sys, stepper, z, schedule, budget, Untracked, observer),
         tracking => {
             let jacobian = matches!(tracking, Tracking::Determinant).then(|| Tangent::new(sys, z));
             let tangents = Tangents { tracking, jacobian };
-            drive(sys, stepper, z, schedule, budget, tangents, observer)
+            drive_alone(sys, stepper, z, schedule, budget, tangents, observer)
         }
     }
-}
-
-/// The run loop of [`integrate_tracked`], its stretches taken by `track`.
-fn drive<S, M, O, T>(
-    sys: &S,
-    stepper: &mut M,
-    z: &mut State<S::Dim>,
-    schedule: Schedule,
-    budget: Budget<'_>,
-    mut track: T,
-    observer: &mut O,
-) -> Result<(RunEnd, RunStats), CoreError>
-where
-    S: MechanicalSystem,
-    M: Stepper<S> + ?Sized,
-    O: Observer<S::Dim>,
-    T: Track<S>,
-    DefaultAllocator: Allocator<S::Dim>,
-{
-    let started = Instant::now();
-    let h = schedule.h;
-    let every = schedule.every.max(1);
-    let check_every = track.check_every(stepper);
-    let watch = observer.watches_steps();
-    // A step that fails, counted from 0; a failing processor is charged to the step it is
-    // applied with (the first, or the one that ends at the output).
-    let fail = |step: u64, source: StepError| CoreError::Step {
-        field: None,
-        run: None,
-        step: step + 1,
-        t: step as f64 * h,
-        source,
-    };
-    track.report(observer, 0);
-    observer.on_sample(0, 0.0, z);
-    stepper.set_deadline(budget.deadline);
-    // The post-processed state of the last sample, and that sample's step.
-    let mut processed = z.clone();
-    let mut processed_at = None;
-    // A watched run of a method whose output map may be applied late forms output states only
-    // near a surface (an output map that would fail at a skipped step is not run there): the
-    // kernel state of the last step it skipped, and that step.
-    let lazy = watch && stepper.processes_any_state();
-    let mut skipped = z.clone();
-    let mut skipped_at = None;
-    let mut stop = RunEnd::Finished;
-    let mut step = 0u64;
-    // The next multiples of `check_every` and `every` at or after `step`, kept as counters: no
-    // stretch ends past one (each ends at the nearer), so `step` meets each multiple, and a
-    // watched run's step costs no division.
-    let mut check_at = 0u64;
-    let mut sample_at = every;
-    while step < schedule.steps {
-        // Also before the first step: work started after the deadline (a run after a reference
-        // that used up the time, a sweep's cell) stops at once.
-        if step == check_at {
-            check_at = check_at.saturating_add(check_every);
-            if budget.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
-                stop = RunEnd::Cancelled { step };
-                break;
-            }
-            if budget.deadline.is_some_and(|d| Instant::now() >= d) {
-                stop = RunEnd::TimeLimit { step };
-                break;
-            }
-        }
-        // Processing starts with the run: a run the budget stopped before its first step
-        // leaves the caller's state as it was.
-        if step == 0 {
-            stepper.pre_process(sys, z, h).map_err(|e| fail(0, e))?;
-        }
-        // Steps up to the next sample, the next budget check or the end.
-        let until = if watch {
-            step + 1
-        } else {
-            sample_at.min(check_at).min(schedule.steps)
-        };
-        match track.stretch(sys, stepper, z, h, &mut step, until, observer) {
-            Ok(None) => {}
-            Ok(Some(reason)) => stop = reason,
-            Err((at, e)) => return Err(fail(at, e)),
-        }
-        if matches!(stop, RunEnd::TimeLimit { .. }) {
-            break;
-        }
-        if !z.is_finite() {
-            stop = RunEnd::Diverged {
-                step,
-                t: step as f64 * h,
-            };
-            break;
-        }
-        // A chaos indicator past its threshold ends the run with a last sample.
-        let indicator_stop = matches!(stop, RunEnd::Indicator(_));
-        let sampled = step == sample_at;
-        if sampled {
-            sample_at = sample_at.saturating_add(every);
-        }
-        let due = sampled || step == schedule.steps || indicator_stop;
-        let mut event = false;
-        if lazy && observer.step_is_clear(step as f64 * h, z) && !due {
-            skipped.clone_from(z);
-            skipped_at = Some(step);
-        } else if watch || due {
-            if let Some(at) = skipped_at.take() {
-                stepper
-                    .post_process(sys, &skipped, h, &mut processed)
-                    .map_err(|e| fail(at.saturating_sub(1), e))?;
-                if let ControlFlow::Break(t) = observer.on_clear_step(at as f64 * h, &processed) {
-                    stop = RunEnd::Event { step, t };
-                    event = true;
-                }
-            }
-            let is_processed = stepper
-                .post_process(sys, z, h, &mut processed)
-                .map_err(|e| fail(step.saturating_sub(1), e))?;
-            let output = if is_processed { &processed } else { &*z };
-            if watch && !event {
-                if let ControlFlow::Break(t) = observer.on_step(step, step as f64 * h, output) {
-                    stop = RunEnd::Event { step, t };
-                    event = true;
-                }
-            }
-            if due || event {
-                track.report(observer, step);
-                if is_processed {
-                    processed_at = Some(step);
-                }
-                observer.on_sample(step, step as f64 * h, output);
-            }
-        }
-        if event || indicator_stop {
-            break;
-        }
-    }
-    // Leave the output state, not the kernel's, to the caller.
-    if step > 0
-        && !matches!(stop, RunEnd::Diverged { .. })
-        && (processed_at == Some(step)
-            || stepper
-                .post_process(sys, z, h, &mut processed)
-                .map_err(|e| fail(step.saturating_sub(1), e))?)
-    {
-        z.clone_from(&processed);
-    }
-    let stats = RunStats {
-        steps: step,
-        force_evaluations: stepper.force_evaluations(),
-        wall_time_ms: started.elapsed().as_secs_f64() * 1e3,
-    };
-    Ok((stop, stats))
 }

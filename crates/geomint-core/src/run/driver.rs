@@ -1,19 +1,18 @@
-//! The run loop for runs side by side in SIMD lanes, whatever the lanes compute and whatever
-//! each run watches: a sweep's plain runs, a chaos map's runs with their indicators and a basin
-//! map's cells all go through [`drive_lanes`], [`LANES`] at a time, and an energy map's cells
-//! four at a time (its kernel's lanes fill AVX2's f64×4 registers).
+//! The run loop, for one run alone and for runs side by side in SIMD lanes, whatever the lanes
+//! compute and whatever each run watches. One run
+//! ([`integrate_tracked`](super::integrate_tracked)) is a lane of its own; a sweep's plain runs,
+//! a chaos map's runs with their indicators and a basin map's cells go through [`drive_lanes`]
+//! [`LANES`] at a time, and an energy map's cells four at a time (its kernel's lanes fill AVX2's
+//! f64×4 registers).
 //!
 //! The loop knows two things: a [`LaneGroup`], which advances its lanes by a stretch of steps
 //! and says which lanes' runs ended inside it, and a [`LaneRun`] per lane, the run's observer,
 //! which loads its start into the lanes, says when it next needs to look at its lane (stretches
-//! end there, and every [`CHECK_EVERY`] steps of the group, where the budget is looked at) and,
-//! when it looks, goes on or ends. A lane whose run ended takes the next run waiting, so a run
-//! that ends early leaves its group without stopping the others.
-//!
-//! One run alone keeps its own loop ([`integrate_tracked`](super::integrate_tracked)): it has
-//! what only it needs (processing methods' output states, the watch of every step with output
-//! states formed late, failed steps), and as this loop's one-lane instance it took 6 % longer
-//! on watched steps (the code layout page, "Two run loops").
+//! end there, and every [`LaneGroup::check_every`] steps of the group, where the budget is
+//! looked at) and, when it looks, goes on or ends. A lane whose run ended takes the next run
+//! waiting, so a run that ends early leaves its group without stopping the others. What a group
+//! watches at every step (a basin cell's bounds, one run's surfaces) it watches inside its
+//! stretches, which end where a run must look.
 
 use std::ops::ControlFlow;
 
@@ -44,6 +43,11 @@ pub trait LaneGroup<const N: usize = LANES> {
     /// sooner. Every running lane takes the steps returned, but a lane whose run ended inside
     /// them, which took the steps its [`LaneEnd`] says.
     fn advance(&mut self, n: u64, running: &[bool; N]) -> LaneStretch<N>;
+
+    /// Steps of the group between two looks at the budget.
+    fn check_every(&self) -> u64 {
+        CHECK_EVERY
+    }
 }
 
 /// Per lane, whether its run ended inside a stretch.
@@ -105,6 +109,7 @@ pub fn drive_lanes<G, R, const N: usize>(
     // Steps of the group, and the next at which the budget is looked at (no stretch ends past
     // it, so the group meets it).
     let (mut taken, mut check_at) = (0u64, 0u64);
+    let check_every = group.check_every();
     loop {
         if free {
             for (l, lane) in lanes.iter_mut().enumerate() {
@@ -129,7 +134,7 @@ pub fn drive_lanes<G, R, const N: usize>(
         }
         // Also before the first step: work started after the deadline stops at once.
         if taken == check_at {
-            check_at += CHECK_EVERY;
+            check_at = check_at.saturating_add(check_every);
             let stop: Option<fn(u64) -> RunEnd> = if budget.cancelled() {
                 Some(|step| RunEnd::Cancelled { step })
             } else if budget.expired() {
