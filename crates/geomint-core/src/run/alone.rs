@@ -8,7 +8,8 @@
 //! states (formed at samples, at watched steps, and late, near a surface, for methods whose
 //! output map may be applied to any state passed through), the watch of every step, and steps
 //! that fail. The watch is the lane's, inside its stretch, so that a watched step costs the loop
-//! nothing: the loop's looks come at samples and budget checks only.
+//! nothing: the loop looks at the run at its samples, its end and the budget's checks only
+//! (every step when the budget is looked at every step, as with each step's Jacobian).
 
 use std::ops::ControlFlow;
 use std::time::Instant;
@@ -77,7 +78,7 @@ where
     report.expect("a run that enters its lane reports when it ends")
 }
 
-/// One run's lane: the stepper, the state it steps, what it tracks and its observer, with the
+/// One run's lane, the group of one it runs in: the stepper, the state it steps, what it tracks and its observer, with the
 /// output states formed so far and how the run stopped inside a stretch.
 struct RunLane<'a, S, M, O, T>
 where
@@ -99,8 +100,8 @@ where
     /// Whether a watched run's output states are formed only near a surface (see
     /// [`Observer::step_is_clear`]).
     lazy: bool,
-    /// The step at which the run next looks (a sample, the end): a watched step there is not
-    /// skipped, since it is sampled.
+    /// The run's next sample, or its end: a watched step there is not skipped, since it is
+    /// sampled.
     due_at: u64,
     /// The output state last formed.
     processed: State<S::Dim>,
@@ -125,7 +126,7 @@ where
 {
     /// The error of a step that failed, counted from 0; a failing processor is charged to the
     /// step it is applied with (the first, or the one that ends at the output).
-    fn failed(&self, step: u64, source: StepError) -> CoreError {
+    fn step_error(&self, step: u64, source: StepError) -> CoreError {
         CoreError::Step {
             field: None,
             run: None,
@@ -141,7 +142,7 @@ where
         let (sys, h, step) = (self.sys, self.h, self.step);
         self.stepper
             .post_process(sys, self.z, h, &mut self.processed)
-            .map_err(|e| self.failed(step.saturating_sub(1), e))
+            .map_err(|e| self.step_error(step.saturating_sub(1), e))
     }
 
     /// The run's report once it stopped (`stop`): the output state, not the kernel's, left to
@@ -191,7 +192,7 @@ where
                 .stepper
                 .post_process(sys, &self.skipped, h, &mut self.processed)
             {
-                return self.fail(self.failed(at.saturating_sub(1), e));
+                return self.fail(self.step_error(at.saturating_sub(1), e));
             }
             if let ControlFlow::Break(t) =
                 self.observer.on_clear_step(at as f64 * h, &self.processed)
@@ -232,14 +233,14 @@ where
         if self.step == 0 {
             let (sys, h) = (self.sys, self.h);
             if let Err(e) = self.stepper.pre_process(sys, self.z, h) {
-                return self.fail(self.failed(0, e));
+                return self.fail(self.step_error(0, e));
             }
         }
         let until = self.step + n;
         self.formed_at = None;
         while self.step < until {
             let to = if self.watch { self.step + 1 } else { until };
-            let stretch = self.track.stretch(
+            let stepped = self.track.stretch(
                 self.sys,
                 self.stepper,
                 self.z,
@@ -248,9 +249,9 @@ where
                 to,
                 self.observer,
             );
-            let stop = match stretch {
+            let stop = match stepped {
                 Ok(stop) => stop,
-                Err((at, e)) => return self.fail(self.failed(at, e)),
+                Err((at, e)) => return self.fail(self.step_error(at, e)),
             };
             if let Some(RunEnd::TimeLimit { .. }) = stop {
                 self.stop = stop;

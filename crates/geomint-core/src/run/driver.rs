@@ -24,9 +24,10 @@ use crate::system::LANES;
 /// on both paths, so a plain run's fused seams fall at the same steps.
 pub const CHECK_EVERY: u64 = 1024;
 
-/// How a lane's run ended inside a stretch: at the first step whose state does not sum to a
-/// finite number (the one-run path's test). Not `diverged` when every component is finite
-/// and only their sum overflowed: a plain run is then given back, to run on its own.
+/// How a lane's run ended inside a stretch: where its group stopped it (a plain lane at the
+/// first step whose state does not sum to a finite number, the one-run path's stepper's test;
+/// one run where it stops for any reason). Not `diverged` when every component is finite and
+/// only their sum overflowed: a plain run is then given back, to run on its own.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct LaneEnd {
     /// Steps taken in the stretch, that one included.
